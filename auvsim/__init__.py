@@ -1,0 +1,21 @@
+"""auvsim: a MuJoCo torpedo-AUV simulator that produces labelled DVL/IMU datasets.
+
+Conventions (a contract: the HDF5 files and every public function follow them):
+
+* World frame NED (x north, y east, z down); body frame FRD (x forward, y starboard,
+  z down). Inside MuJoCo the world is north-west-up and the body forward-left-up; the two
+  differ by a rotation of pi about x, so converting flips the sign of the y and z
+  components (of vectors, and of a quaternion's vector part). Only ``auvsim.vehicle``
+  touches MuJoCo coordinates.
+* Quaternions ``[w, x, y, z]`` rotate body vectors into NED. Euler angles are roll,
+  pitch, yaw (ZYX).
+* SI units: m, s, rad, m/s, m/s^2, rad/s, N, N m. Degrees only in CLI and config inputs
+  whose names end in ``_deg``. Propeller shaft speed in rpm.
+* Specific force ``f = a - g`` in body axes: at rest and level an accelerometer reads
+  ``(0, 0, -9.81)`` m/s^2.
+* Array names: ``position_ned``, ``velocity_ned``, ``velocity_body`` (at the body origin,
+  the centre of buoyancy), ``quaternion``, ``angular_rate`` (body), ``specific_force``
+  (body, at the IMU site). Time is the first axis of every array.
+"""
+
+__version__ = "0.1.0"

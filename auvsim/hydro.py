@@ -1,0 +1,314 @@
+"""Fossen-style 6-DOF hydrodynamics of a torpedo hull, in body axes (FRD) at the centre of
+buoyancy (CO, the body origin).
+
+The equation of motion, with nu = [u, v, w, p, q, r] and nu_r = nu - [R^T v_current; 0]::
+
+    (M_RB + M_A) nu_dot = tau_water + tau_weight - C_RB(nu) nu
+    tau_water = tau_propeller + tau_fins + tau_hull + tau_buoyancy
+                - C_A(nu_r) nu_r - D nu_r - M_A [omega x v_current_body; 0]
+
+MuJoCo integrates the rigid body and applies the weight itself, so it receives
+``tau_water - M_A nu_dot``: the added-mass reaction is computed from this step's own
+acceleration, solved with the full mass matrix, never lagged by a step. MuJoCo's rigid-body
+solve then reproduces ``nu_dot`` exactly (see ``water_wrench``).
+
+Every coefficient is derived here from the model file: the hull's size from geom
+``hull``, mass and inertia from the body, the rest from the ``<custom>`` numerics
+(models/README.md gives the derivation and the sources).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import mujoco
+import numba
+import numpy as np
+
+N_STRIPS = 20  # cross-flow drag strips along the hull (Fossen uses 20 as well)
+FLIP = np.array([1.0, -1.0, -1.0])  # FLU <-> FRD, NWU <-> NED
+
+
+class Hydro(NamedTuple):
+    """All coefficients of the force model, in SI units and FRD body axes at the CO.
+
+    A NamedTuple so that the compiled step functions take it as one argument.
+    """
+
+    gravity: float  # m/s^2
+    mass: float  # kg
+    weight: float  # N
+    buoyancy: float  # N (displacement plus the configured net buoyancy)
+    r_g: np.ndarray  # (3,) m, centre of gravity
+    r_b: np.ndarray  # (3,) m, centre of buoyancy
+    inertia_o: np.ndarray  # (3, 3) kg m^2, rigid-body inertia about the CO
+    added_mass: np.ndarray  # (6,) diagonal of M_A (kg, kg m^2)
+    mass_matrix_inv: np.ndarray  # (6, 6) inverse of M_RB + M_A
+    linear_damping: np.ndarray  # (6,) diagonal of D before the speed fade
+    munk_factor: float  # 1 keeps the Munk moment of C_A, 0 zeroes it as Fossen's REMUS does
+    axial_drag: float  # N s^2/m^2: X = -axial_drag |u_r| u_r
+    strip_x: np.ndarray  # (N_STRIPS,) m, strip centres along x
+    strip_drag: np.ndarray  # (N_STRIPS,) N s^2/m^2 per strip: 1/2 rho Cd d(x) dx
+    hull_lift: float  # N s^2/m^2: Y = -hull_lift u_r v_r
+    hull_lift_x: float  # m, where the hull lift acts
+    fin_x: float  # m, x of the rudder and stern-plane pairs
+    fin_lift: float  # N s^2/m^2 per rad, for a PAIR of fins: 1/2 rho (2 S) CL_alpha
+    fin_stall: float  # rad
+    fin_max: float  # rad, angle limit
+    fin_tau: float  # s, servo time constant
+    fin_rate: float  # rad/s, rate limit
+    prop_d: float  # m
+    prop_kt: np.ndarray  # (2,) KT0 and the slope (KT_max - KT0) / Ja_max
+    prop_kq: np.ndarray  # (2,) KQ0 and the slope (KQ_max - KQ0) / Ja_max
+    rho: float  # kg/m^3
+    thrust_deduction: float
+    wake_fraction: float
+    shaft_tau: float  # s
+    rpm_max: float
+
+
+def skew(a: np.ndarray) -> np.ndarray:
+    """Return S(a), the (3, 3) matrix with S(a) b = a x b."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def lamb_k_factors(a: float, b: float) -> tuple[float, float, float]:
+    """Lamb's added-mass factors of a prolate spheroid with semi-axes a > b.
+
+    Returns (k1, k2, k_prime): axial, transverse and rotational factors, so that
+    X_udot = -k1 m, Y_vdot = Z_wdot = -k2 m and M_qdot = N_rdot = -k_prime I_y for the
+    displaced mass m and its moment of inertia I_y (Lamb 1932, in Fossen 2021, sec. 8.4).
+    """
+    e = math.sqrt(1.0 - (b / a) ** 2)
+    log_term = math.log((1.0 + e) / (1.0 - e))
+    alpha0 = 2.0 * (1.0 - e**2) / e**3 * (0.5 * log_term - e)
+    beta0 = 1.0 / e**2 - (1.0 - e**2) / (2.0 * e**3) * log_term
+    k1 = alpha0 / (2.0 - alpha0)
+    k2 = beta0 / (2.0 - beta0)
+    k_prime = e**4 * (beta0 - alpha0) / ((2.0 - e**2) * (2.0 * e**2 - (2.0 - e**2) * (beta0 - alpha0)))
+    return k1, k2, k_prime
+
+
+def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray:
+    try:
+        return np.array(model.numeric(name).data, dtype=float)
+    except KeyError:
+        raise KeyError(f"model has no <numeric name={name!r}>") from None
+
+
+def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
+    """Derive the force model's coefficients from a vehicle model.
+
+    Args:
+        model: a compiled vehicle model (models/auv.xml or one of the same layout).
+        net_buoyancy: buoyancy minus weight, N (positive: the vehicle floats up).
+    """
+    num = lambda name: float(_numeric(model, name)[0])  # noqa: E731
+    rho = num("water_density")
+    g = -float(model.opt.gravity[2])
+    body = model.body("vehicle").id
+    hull = model.geom("hull")
+    a, b = float(hull.size[0]), float(hull.size[1])
+    volume = 4.0 / 3.0 * math.pi * a * b * b
+
+    m = float(model.body_mass[body])
+    r_g = np.array(model.body_ipos[body]) * FLIP
+    inertia_g = np.diag(model.body_inertia[body])
+    inertia_o = inertia_g - m * skew(r_g) @ skew(r_g)
+    m_rb = np.zeros((6, 6))
+    m_rb[:3, :3] = m * np.eye(3)
+    m_rb[:3, 3:] = -m * skew(r_g)
+    m_rb[3:, :3] = m * skew(r_g)
+    m_rb[3:, 3:] = inertia_o
+
+    # Added mass of the displaced spheroid (its own m and I_y, not the body's).
+    k1, k2, k_prime = lamb_k_factors(a, b)
+    m_disp = rho * volume
+    iy_disp = m_disp * (a * a + b * b) / 5.0
+    added = np.array(
+        [k1 * m_disp, k2 * m_disp, k2 * m_disp, num("roll_added_inertia_ratio") * inertia_g[0, 0],
+         k_prime * iy_disp, k_prime * iy_disp]
+    )
+    total = m_rb + np.diag(added)
+
+    # Linear damping from time constants and damping ratios (Fossen's REMUS 100 method).
+    weight = m * g
+    bg = r_g[2]
+    t_lin = _numeric(model, "linear_damping_time_constants")
+    damping = np.zeros(6)
+    for i in range(3):
+        damping[i] = total[i, i] / t_lin[i] if t_lin[i] > 0 else 0.0
+    if bg > 0:
+        w_roll = math.sqrt(weight * bg / total[3, 3])
+        w_pitch = math.sqrt(weight * bg / total[4, 4])
+        damping[3] = 2.0 * num("roll_damping_ratio") * w_roll * total[3, 3]
+        damping[4] = 2.0 * num("pitch_damping_ratio") * w_pitch * total[4, 4]
+    t_yaw = num("yaw_damping_time_constant")
+    damping[5] = total[5, 5] / t_yaw if t_yaw > 0 else 0.0
+
+    edges = np.linspace(-a, a, N_STRIPS + 1)
+    strip_x = 0.5 * (edges[1:] + edges[:-1])
+    strip_d = 2.0 * b * np.sqrt(1.0 - (strip_x / a) ** 2)
+    strip_drag = 0.5 * rho * num("crossflow_drag_coefficient") * strip_d * np.diff(edges)
+
+    kt0, kq0, kt_max, kq_max, ja_max = _numeric(model, "propeller_coefficients")
+    rudder = model.actuator("rudder")
+    return Hydro(
+        gravity=g,
+        mass=m,
+        weight=weight,
+        buoyancy=rho * g * volume + net_buoyancy,
+        r_g=r_g,
+        r_b=np.zeros(3),
+        inertia_o=inertia_o,
+        added_mass=added,
+        mass_matrix_inv=np.linalg.inv(total),
+        linear_damping=damping,
+        munk_factor=num("munk_moment_factor"),
+        axial_drag=0.5 * rho * math.pi * b * b * num("axial_drag_coefficient"),
+        strip_x=strip_x,
+        strip_drag=strip_drag,
+        hull_lift=0.5 * rho * (2.0 * b) ** 2 * num("hull_lift_coefficient"),
+        hull_lift_x=num("hull_lift_center"),
+        fin_x=float(model.site("rudder").pos[0]),
+        fin_lift=0.5 * rho * 2.0 * num("fin_area") * num("fin_lift_slope"),
+        fin_stall=num("fin_stall_angle"),
+        fin_max=float(rudder.ctrlrange[1]),
+        fin_tau=num("fin_time_constant"),
+        fin_rate=num("fin_rate_limit"),
+        prop_d=num("propeller_diameter"),
+        prop_kt=np.array([kt0, (kt_max - kt0) / ja_max]),
+        prop_kq=np.array([kq0, (kq_max - kq0) / ja_max]),
+        rho=rho,
+        thrust_deduction=num("thrust_deduction"),
+        wake_fraction=num("wake_fraction"),
+        shaft_tau=num("shaft_time_constant"),
+        rpm_max=float(model.actuator("propeller").ctrlrange[1]),
+    )
+
+
+@numba.njit(cache=True)
+def cross(a, b):
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
+
+
+@numba.njit(cache=True)
+def propeller(h, rpm, u_r):
+    """Thrust (N, along +x) and shaft torque (N m) of the propeller at ``rpm`` and surge
+    speed ``u_r`` (Wageningen B-series fit, linear in the advance ratio)."""
+    n = rpm / 60.0
+    if n > 0.0:
+        va_over_d = (1.0 - h.wake_fraction) * u_r / h.prop_d
+        thrust = h.rho * h.prop_d**4 * (h.prop_kt[0] * n * n + h.prop_kt[1] * va_over_d * n)
+        torque = h.rho * h.prop_d**5 * (h.prop_kq[0] * n * n + h.prop_kq[1] * va_over_d * n)
+    else:
+        thrust = h.rho * h.prop_d**4 * h.prop_kt[0] * abs(n) * n
+        torque = h.rho * h.prop_d**5 * h.prop_kq[0] * abs(n) * n
+    return thrust, torque
+
+
+@numba.njit(cache=True)
+def water_wrench(h, nu, rot, actuators, current_ned):
+    """Body acceleration and the wrench MuJoCo must apply for it.
+
+    Args:
+        h: the coefficients (``Hydro``).
+        nu: (6,) body velocity [u, v, w, p, q, r], m/s and rad/s, FRD at the CO.
+        rot: (3, 3) rotation body -> NED.
+        actuators: (3,) propeller rpm, rudder and stern-plane angles (rad).
+        current_ned: (3,) ocean current, m/s, constant in NED.
+
+    Returns:
+        nu_dot: (6,) body acceleration, d/dt of ``nu``'s components.
+        applied: (6,) force and moment about the CO, FRD, that MuJoCo applies besides the
+            weight: everything the water does, including the added-mass reaction
+            -M_A nu_dot.
+        thrust: propeller thrust, N.
+    """
+    v = nu[:3]
+    w = nu[3:]
+    v_c = np.zeros(3)
+    for i in range(3):
+        v_c[i] = rot[0, i] * current_ned[0] + rot[1, i] * current_ned[1] + rot[2, i] * current_ned[2]
+    vr = v - v_c
+    a1 = h.added_mass[:3]
+    a2 = h.added_mass[3:]
+    tau = np.zeros(6)
+
+    # Restoring: buoyancy here, the weight only in nu_dot (MuJoCo applies it itself).
+    down = rot[2, :]  # NED z axis in body axes
+    f_b = -h.buoyancy * down
+    tau[:3] += f_b
+    tau[3:] += cross(h.r_b, f_b)
+
+    # Added-mass Coriolis and centripetal terms, C_A(nu_r) nu_r, and the current term.
+    a1v = a1 * vr
+    tau[:3] -= cross(w, a1v) + a1 * cross(w, v_c)
+    tau[3:] -= h.munk_factor * cross(vr, a1v) + cross(w, a2 * w)
+
+    # Linear damping, surge/sway/heave faded out with speed as in Fossen's REMUS model.
+    speed = math.sqrt(vr[0] ** 2 + vr[1] ** 2 + vr[2] ** 2)
+    fade = math.exp(-3.0 * speed)
+    for i in range(3):
+        tau[i] -= h.linear_damping[i] * fade * vr[i]
+    for i in range(3):
+        tau[3 + i] -= h.linear_damping[3 + i] * w[i]
+
+    # Hull: axial drag, strip-theory cross-flow drag, and viscous body lift.
+    tau[0] -= h.axial_drag * abs(vr[0]) * vr[0]
+    for k in range(h.strip_x.shape[0]):
+        x = h.strip_x[k]
+        cy = vr[1] + x * w[2]
+        cz = vr[2] - x * w[1]
+        c = math.sqrt(cy * cy + cz * cz)
+        fy = -h.strip_drag[k] * c * cy
+        fz = -h.strip_drag[k] * c * cz
+        tau[1] += fy
+        tau[2] += fz
+        tau[4] -= x * fz
+        tau[5] += x * fy
+    fy = -h.hull_lift * vr[0] * vr[1]
+    fz = -h.hull_lift * vr[0] * vr[2]
+    tau[1] += fy
+    tau[2] += fz
+    tau[4] -= h.hull_lift_x * fz
+    tau[5] += h.hull_lift_x * fy
+
+    # Fins: lift from the fin angle plus the local flow angle, induced drag, stall.
+    uf = vr[0]
+    vf = vr[1] + h.fin_x * w[2]
+    wf = vr[2] - h.fin_x * w[1]
+    for axis in range(2):  # 0: rudder pair acts in y, 1: stern-plane pair acts in z
+        cross_flow = vf if axis == 0 else wf
+        alpha = actuators[1 + axis] + math.atan2(cross_flow, abs(uf))
+        alpha = min(max(alpha, -h.fin_stall), h.fin_stall)
+        q_s = h.fin_lift * (uf * uf + cross_flow * cross_flow)
+        lift = -q_s * alpha
+        tau[0] -= q_s * alpha * alpha
+        if axis == 0:
+            tau[1] += lift
+            tau[5] += h.fin_x * lift
+        else:
+            tau[2] += lift
+            tau[4] -= h.fin_x * lift
+
+    # Propeller: thrust less the thrust deduction; the hull takes the shaft reaction.
+    thrust, torque = propeller(h, actuators[0], vr[0])
+    tau[0] += (1.0 - h.thrust_deduction) * thrust
+    tau[3] -= torque
+
+    # Rigid-body terms for the acceleration: weight and C_RB(nu) nu.
+    f_w = h.weight * down
+    rhs = tau.copy()
+    rhs[:3] += f_w - h.mass * (cross(w, v) + cross(w, cross(w, h.r_g)))
+    rhs[3:] += (
+        cross(h.r_g, f_w)
+        - h.mass * cross(h.r_g, cross(w, v))
+        - cross(w, h.inertia_o @ w)
+    )
+    nu_dot = h.mass_matrix_inv @ rhs
+    applied = tau - h.added_mass * nu_dot
+    return nu_dot, applied, thrust

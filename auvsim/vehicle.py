@@ -1,0 +1,186 @@
+"""The vehicle: a MuJoCo model plus the hydrodynamic force model, stepped in compiled code.
+
+``Vehicle.run`` advances the simulation by N physics steps. Each step (in ``_run``, compiled
+with numba) reads the state from MuJoCo, runs the autopilot and servos, computes the water
+forces (``auvsim.hydro.water_wrench``), records the true state, and calls MuJoCo's own
+``mj_step`` through its C symbol, so no Python runs inside the loop.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import llvmlite.binding as llvm
+import mujoco
+import numba
+import numpy as np
+from numba import types
+
+from .control import Gains, autopilot, feedforward_rpm, max_speed, servo
+from .errors import ConfigError
+from .hydro import FLIP, Hydro, load_hydro, water_wrench
+
+MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
+VEHICLES = ("auv", "remus100")
+
+# mj_step is linked by symbol name, which keeps the compiled kernel cacheable on disk.
+_LIB = Path(mujoco.__file__).parent / f"libmujoco.so.{mujoco.__version__}"
+llvm.load_library_permanently(str(_LIB))
+_mj_step = types.ExternalFunction("mj_step", types.void(types.voidptr, types.voidptr))
+
+
+class Trajectory(NamedTuple):
+    """True state at every physics step, NED/FRD (see the package docstring). Shapes (N, .)."""
+
+    position_ned: np.ndarray  # (N, 3) m, body origin
+    velocity_ned: np.ndarray  # (N, 3) m/s
+    velocity_body: np.ndarray  # (N, 3) m/s
+    quaternion: np.ndarray  # (N, 4) body -> NED, [w, x, y, z]
+    angular_rate: np.ndarray  # (N, 3) rad/s, body
+    specific_force: np.ndarray  # (N, 3) m/s^2, body, at the IMU site
+    actuators: np.ndarray  # (N, 3) shaft rpm, rudder and stern-plane angles (rad)
+    thrust: np.ndarray  # (N,) N, propeller thrust
+
+    @classmethod
+    def empty(cls, n: int) -> Trajectory:
+        widths = (3, 3, 3, 4, 3, 3, 3, None)
+        return cls(*(np.empty((n, w) if w else n) for w in widths))
+
+
+def model_path(vehicle: str) -> Path:
+    """Path of a vehicle model: a name from ``VEHICLES`` or a path to an MJCF file."""
+    if vehicle in VEHICLES:
+        return MODEL_DIR / f"{vehicle}.xml"
+    path = Path(vehicle)
+    if path.suffix == ".xml" and path.is_file():
+        return path
+    raise ConfigError(
+        f"unknown vehicle {vehicle!r}: expected one of {', '.join(VEHICLES)} or a path to an .xml model"
+    )
+
+
+@numba.njit(cache=True)
+def quat_to_rot(q):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+@numba.njit(cache=True)
+def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators, integrals,
+         current_ned, imu, dt, out):
+    flip = np.array([1.0, -1.0, -1.0])
+    nu = np.zeros(6)
+    quat = np.zeros(4)
+    for k in range(references.shape[0]):
+        # MuJoCo (NWU world, FLU body) -> NED / FRD.
+        quat[0] = qpos[3]
+        for i in range(3):
+            quat[1 + i] = qpos[4 + i] * flip[i]
+        rot = quat_to_rot(quat)
+        v_ned = qvel[:3] * flip
+        for i in range(3):
+            nu[i] = rot[0, i] * v_ned[0] + rot[1, i] * v_ned[1] + rot[2, i] * v_ned[2]
+            nu[3 + i] = qvel[3 + i] * flip[i]
+        w = nu[3:]
+
+        nu_dot, applied, thrust = water_wrench(h, nu, rot, actuators, current_ned)
+
+        # Record the state at the start of the step, with its acceleration.
+        alpha = nu_dot[3:]
+        a_imu = (nu_dot[:3] + np.cross(w, nu[:3]) + np.cross(alpha, imu)
+                 + np.cross(w, np.cross(w, imu)))
+        out.position_ned[k] = qpos[:3] * flip
+        out.velocity_ned[k] = v_ned
+        out.velocity_body[k] = nu[:3]
+        out.quaternion[k] = quat
+        out.angular_rate[k] = w
+        out.specific_force[k] = a_imu - h.gravity * rot[2, :]
+        out.actuators[k] = actuators
+        out.thrust[k] = thrust
+
+        # Autopilot and servos act on the next step.
+        yaw = math.atan2(rot[1, 0], rot[0, 0])
+        pitch = -math.asin(min(max(rot[2, 0], -1.0), 1.0))
+        cmd = autopilot(h, g, references[k], closed_loop, integrals, nu[0], -qpos[2], v_ned[2],
+                        pitch, yaw, w[1], w[2], dt)
+
+        # The wrench goes to MuJoCo in its own coordinates: world force, body torque.
+        f_ned = rot @ applied[:3]
+        for i in range(3):
+            qfrc[i] = f_ned[i] * flip[i]
+            qfrc[3 + i] = applied[3 + i] * flip[i]
+        _mj_step(mptr, dptr)
+        servo(h, actuators, cmd, dt)
+
+
+class Vehicle:
+    """A torpedo AUV in MuJoCo with its hydrodynamics, autopilots and servos.
+
+    Args:
+        vehicle: a name from ``VEHICLES`` or a path to an MJCF model of the same layout.
+        net_buoyancy: buoyancy minus weight, N.
+        current_ned: constant ocean current, m/s, NED.
+    """
+
+    def __init__(self, vehicle: str = "auv", *, net_buoyancy: float = 0.0,
+                 current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        self.name = vehicle
+        self.model = mujoco.MjModel.from_xml_path(str(model_path(vehicle)))
+        self.data = mujoco.MjData(self.model)
+        self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy)
+        self.length = 2.0 * float(self.model.geom("hull").size[0])
+        self.gains = Gains(length=self.length)
+        self.current_ned = np.array(current_ned, dtype=float)
+        self.imu_position = np.array(self.model.site("imu").pos) * FLIP  # FRD, m
+        self.dt = float(self.model.opt.timestep)
+        self.max_speed = max_speed(self.hydro)
+        self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)
+        self.integrals = np.zeros(3)
+        self.steps = 0
+
+    def reset(self, *, position_ned=(0.0, 0.0, 0.0), roll: float = 0.0, pitch: float = 0.0,
+              yaw: float = 0.0, velocity_body=(0.0, 0.0, 0.0)) -> None:
+        """Place the vehicle (m, rad, m/s in NED/FRD); a forward speed starts the shaft at
+        the rpm that holds it."""
+        mujoco.mj_resetData(self.model, self.data)
+        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+        cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+        quat_ned = np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+        self.data.qpos[:3] = np.asarray(position_ned, dtype=float) * FLIP
+        self.data.qpos[3] = quat_ned[0]
+        self.data.qpos[4:7] = quat_ned[1:] * FLIP
+        rot = quat_to_rot(quat_ned)
+        self.data.qvel[:3] = rot @ np.asarray(velocity_body, dtype=float) * FLIP
+        self.actuators[:] = 0.0
+        self.actuators[0] = feedforward_rpm(self.hydro, float(velocity_body[0]))
+        self.integrals[:] = 0.0
+        self.steps = 0
+
+    def run(self, references: np.ndarray, closed_loop=(True, True, True)) -> Trajectory:
+        """Advance ``len(references)`` physics steps and return the true state at each.
+
+        Args:
+            references: (N, 3) per step; for a closed-loop channel the speed (m/s), heading
+                (rad) or depth (m) to hold, for an open-loop one the shaft rpm, rudder or
+                stern-plane angle (rad) to command.
+            closed_loop: which of the three channels the autopilot drives.
+        """
+        references = np.ascontiguousarray(references, dtype=float)
+        out = Trajectory.empty(len(references))
+        d = self.data
+        d.xfrc_applied[:] = 0.0
+        _run(self.model._address, d._address, d.qpos, d.qvel, d.qfrc_applied, self.hydro,
+             self.gains, references, np.array(closed_loop, dtype=np.bool_), self.actuators,
+             self.integrals, self.current_ned, self.imu_position, self.dt, out)
+        self.steps += len(references)
+        return out
