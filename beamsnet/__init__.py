@@ -1,0 +1,1 @@
+"""beamsnet: BeamsNetV1/V2 trainers and baselines on auvsim datasets (to come)."""
