@@ -20,7 +20,7 @@ from .errors import ConfigError, DatasetError
 
 FORMAT = "auvsim-dataset"
 FORMAT_VERSION = 1
-CHUNK_ROWS = 8192  # rows per HDF5 chunk: 64 kB for a float64 column
+CHUNK_ROWS = 6000  # rows per HDF5 chunk: 60 s at 100 Hz, 48 kB for a float64 column
 
 TRUTH_FIELDS = ("time", "position_ned", "velocity_ned", "velocity_body", "quaternion",
                 "angular_rate", "specific_force", "altitude")
@@ -73,26 +73,45 @@ class DatasetWriter:
 
 
 class MissionWriter:
-    """Appends time-major arrays to ``/missions/<name>/<group>/<field>``."""
+    """Appends time-major arrays to ``/missions/<name>/<group>/<field>``.
+
+    Rows are buffered and written a whole HDF5 chunk at a time: a chunk written in two
+    parts would be compressed twice and decompressed once in between.
+    """
 
     def __init__(self, group: h5py.Group) -> None:
         self.group = group
+        self.pending: dict[str, list[np.ndarray]] = {}
 
     def append(self, fields: Mapping[str, np.ndarray]) -> None:
         """Append rows; keys are paths such as ``truth/time``."""
         for key, values in fields.items():
-            values = np.asarray(values)
-            if key not in self.group:
-                self.group.create_dataset(
-                    key, data=values, maxshape=(None, *values.shape[1:]),
-                    chunks=(CHUNK_ROWS, *values.shape[1:]), compression="gzip",
-                    compression_opts=1, shuffle=True,
-                )
-                continue
-            ds = self.group[key]
-            n = ds.shape[0]
-            ds.resize(n + len(values), axis=0)
-            ds[n:] = values
+            parts = self.pending.setdefault(key, [])
+            parts.append(np.asarray(values))
+            if sum(len(p) for p in parts) >= CHUNK_ROWS:
+                rows = np.concatenate(parts)
+                whole = len(rows) - len(rows) % CHUNK_ROWS
+                self._write(key, rows[:whole])
+                self.pending[key] = [rows[whole:]]
+
+    def flush(self) -> None:
+        """Write what is buffered (the mission's last, partial chunk)."""
+        for key, parts in self.pending.items():
+            self._write(key, np.concatenate(parts))
+        self.pending.clear()
+
+    def _write(self, key: str, rows: np.ndarray) -> None:
+        if key not in self.group:
+            self.group.create_dataset(
+                key, data=rows, maxshape=(None, *rows.shape[1:]),
+                chunks=(CHUNK_ROWS, *rows.shape[1:]), compression="gzip", compression_opts=1,
+                shuffle=True,
+            )
+            return
+        ds = self.group[key]
+        n = ds.shape[0]
+        ds.resize(n + len(rows), axis=0)
+        ds[n:] = rows
 
 
 def open_dataset(path: str | os.PathLike) -> h5py.File:

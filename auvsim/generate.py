@@ -88,5 +88,6 @@ def generate(config: Config, out: str | os.PathLike, *, progress: bool = True) -
             for arrays in simulate(config, mission):
                 sink.append(arrays)
                 bar.update(len(arrays["truth/time"]) / config.imu_rate_hz)
+            sink.flush()
     return dict(missions=len(config.missions), simulated_s=simulated,
                 wall_s=time.perf_counter() - started)

@@ -86,7 +86,8 @@ def lamb_k_factors(a: float, b: float) -> tuple[float, float, float]:
     beta0 = 1.0 / e**2 - (1.0 - e**2) / (2.0 * e**3) * log_term
     k1 = alpha0 / (2.0 - alpha0)
     k2 = beta0 / (2.0 - beta0)
-    k_prime = e**4 * (beta0 - alpha0) / ((2.0 - e**2) * (2.0 * e**2 - (2.0 - e**2) * (beta0 - alpha0)))
+    d = beta0 - alpha0
+    k_prime = e**4 * d / ((2.0 - e**2) * (2.0 * e**2 - (2.0 - e**2) * d))
     return k1, k2, k_prime
 
 
@@ -188,11 +189,58 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
     )
 
 
-@numba.njit(cache=True)
+# Small 3-vector helpers on tuples: they live on the stack, where numpy arrays would be
+# heap allocations costing more than the arithmetic in this per-step code.
+@numba.njit(cache=True, inline="always")
 def cross(a, b):
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@numba.njit(cache=True, inline="always")
+def add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@numba.njit(cache=True, inline="always")
+def sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@numba.njit(cache=True, inline="always")
+def mul(a, b):
+    """Elementwise product (a diagonal matrix times a vector)."""
+    return (a[0] * b[0], a[1] * b[1], a[2] * b[2])
+
+
+@numba.njit(cache=True, inline="always")
+def scale(k, a):
+    return (k * a[0], k * a[1], k * a[2])
+
+
+@numba.njit(cache=True, inline="always")
+def mat3_vec(m, a):
+    """m @ a for a (3, 3) array and a 3-tuple."""
+    return (m[0, 0] * a[0] + m[0, 1] * a[1] + m[0, 2] * a[2],
+            m[1, 0] * a[0] + m[1, 1] * a[1] + m[1, 2] * a[2],
+            m[2, 0] * a[0] + m[2, 1] * a[1] + m[2, 2] * a[2])
+
+
+@numba.njit(cache=True, inline="always")
+def mat3t_vec(m, a):
+    """m.T @ a for a (3, 3) array and a 3-tuple."""
+    return (m[0, 0] * a[0] + m[1, 0] * a[1] + m[2, 0] * a[2],
+            m[0, 1] * a[0] + m[1, 1] * a[1] + m[2, 1] * a[2],
+            m[0, 2] * a[0] + m[1, 2] * a[1] + m[2, 2] * a[2])
+
+
+@numba.njit(cache=True)
+def mat_vec(a, x):
+    """a @ x by loops: numba's @ calls BLAS, whose overhead dwarfs a 6x6 product."""
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[0]):
+        for j in range(x.shape[0]):
+            out[i] += a[i, j] * x[j]
+    return out
 
 
 @numba.njit(cache=True)
@@ -228,26 +276,29 @@ def water_wrench(h, nu, rot, actuators, current_ned):
             -M_A nu_dot.
         thrust: propeller thrust, N.
     """
-    v = nu[:3]
-    w = nu[3:]
-    v_c = np.zeros(3)
-    for i in range(3):
-        v_c[i] = rot[0, i] * current_ned[0] + rot[1, i] * current_ned[1] + rot[2, i] * current_ned[2]
-    vr = v - v_c
-    a1 = h.added_mass[:3]
-    a2 = h.added_mass[3:]
+    v = (nu[0], nu[1], nu[2])
+    w = (nu[3], nu[4], nu[5])
+    cur = (current_ned[0], current_ned[1], current_ned[2])
+    v_c = mat3t_vec(rot, cur)
+    vr = sub(v, v_c)
+    a1 = (h.added_mass[0], h.added_mass[1], h.added_mass[2])
+    a2 = (h.added_mass[3], h.added_mass[4], h.added_mass[5])
+    r_g = (h.r_g[0], h.r_g[1], h.r_g[2])
+    r_b = (h.r_b[0], h.r_b[1], h.r_b[2])
     tau = np.zeros(6)
 
     # Restoring: buoyancy here, the weight only in nu_dot (MuJoCo applies it itself).
-    down = rot[2, :]  # NED z axis in body axes
-    f_b = -h.buoyancy * down
-    tau[:3] += f_b
-    tau[3:] += cross(h.r_b, f_b)
+    down = (rot[2, 0], rot[2, 1], rot[2, 2])  # NED z axis in body axes
+    f_b = scale(-h.buoyancy, down)
+    m_b = cross(r_b, f_b)
 
     # Added-mass Coriolis and centripetal terms, C_A(nu_r) nu_r, and the current term.
-    a1v = a1 * vr
-    tau[:3] -= cross(w, a1v) + a1 * cross(w, v_c)
-    tau[3:] -= h.munk_factor * cross(vr, a1v) + cross(w, a2 * w)
+    a1v = mul(a1, vr)
+    f_a = add(cross(w, a1v), mul(a1, cross(w, v_c)))
+    m_a = add(scale(h.munk_factor, cross(vr, a1v)), cross(w, mul(a2, w)))
+    for i in range(3):
+        tau[i] = f_b[i] - f_a[i]
+        tau[3 + i] = m_b[i] - m_a[i]
 
     # Linear damping, surge/sway/heave faded out with speed as in Fossen's REMUS model.
     speed = math.sqrt(vr[0] ** 2 + vr[1] ** 2 + vr[2] ** 2)
@@ -301,14 +352,15 @@ def water_wrench(h, nu, rot, actuators, current_ned):
     tau[3] -= torque
 
     # Rigid-body terms for the acceleration: weight and C_RB(nu) nu.
-    f_w = h.weight * down
+    f_w = scale(h.weight, down)
+    wv = cross(w, v)
+    f_rb = sub(f_w, scale(h.mass, add(wv, cross(w, cross(w, r_g)))))
+    m_rb = sub(sub(cross(r_g, f_w), scale(h.mass, cross(r_g, wv))),
+               cross(w, mat3_vec(h.inertia_o, w)))
     rhs = tau.copy()
-    rhs[:3] += f_w - h.mass * (cross(w, v) + cross(w, cross(w, h.r_g)))
-    rhs[3:] += (
-        cross(h.r_g, f_w)
-        - h.mass * cross(h.r_g, cross(w, v))
-        - cross(w, h.inertia_o @ w)
-    )
-    nu_dot = h.mass_matrix_inv @ rhs
+    for i in range(3):
+        rhs[i] += f_rb[i]
+        rhs[3 + i] += m_rb[i]
+    nu_dot = mat_vec(h.mass_matrix_inv, rhs)
     applied = tau - h.added_mass * nu_dot
     return nu_dot, applied, thrust

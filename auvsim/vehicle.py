@@ -20,7 +20,7 @@ from numba import types
 
 from .control import Gains, autopilot, feedforward_rpm, max_speed, servo
 from .errors import ConfigError
-from .hydro import FLIP, Hydro, load_hydro, water_wrench
+from .hydro import FLIP, Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, water_wrench
 
 MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
 VEHICLES = ("auv", "remus100")
@@ -57,7 +57,8 @@ def model_path(vehicle: str) -> Path:
     if path.suffix == ".xml" and path.is_file():
         return path
     raise ConfigError(
-        f"unknown vehicle {vehicle!r}: expected one of {', '.join(VEHICLES)} or a path to an .xml model"
+        f"unknown vehicle {vehicle!r}: expected one of {', '.join(VEHICLES)} "
+        "or a path to an .xml model"
     )
 
 
@@ -75,35 +76,39 @@ def quat_to_rot(q):
 
 @numba.njit(cache=True)
 def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators, integrals,
-         current_ned, imu, dt, out):
+         current_ned, imu_position, dt, out):
     flip = np.array([1.0, -1.0, -1.0])
     nu = np.zeros(6)
     quat = np.zeros(4)
+    imu = (imu_position[0], imu_position[1], imu_position[2])
     for k in range(references.shape[0]):
         # MuJoCo (NWU world, FLU body) -> NED / FRD.
         quat[0] = qpos[3]
         for i in range(3):
             quat[1 + i] = qpos[4 + i] * flip[i]
         rot = quat_to_rot(quat)
-        v_ned = qvel[:3] * flip
+        v_ned = (qvel[0], -qvel[1], -qvel[2])
+        v_body = mat3t_vec(rot, v_ned)
         for i in range(3):
-            nu[i] = rot[0, i] * v_ned[0] + rot[1, i] * v_ned[1] + rot[2, i] * v_ned[2]
+            nu[i] = v_body[i]
             nu[3 + i] = qvel[3 + i] * flip[i]
-        w = nu[3:]
+        w = (nu[3], nu[4], nu[5])
 
         nu_dot, applied, thrust = water_wrench(h, nu, rot, actuators, current_ned)
 
         # Record the state at the start of the step, with its acceleration.
-        alpha = nu_dot[3:]
-        a_imu = (nu_dot[:3] + np.cross(w, nu[:3]) + np.cross(alpha, imu)
-                 + np.cross(w, np.cross(w, imu)))
-        out.position_ned[k] = qpos[:3] * flip
-        out.velocity_ned[k] = v_ned
-        out.velocity_body[k] = nu[:3]
-        out.quaternion[k] = quat
-        out.angular_rate[k] = w
-        out.specific_force[k] = a_imu - h.gravity * rot[2, :]
-        out.actuators[k] = actuators
+        alpha = (nu_dot[3], nu_dot[4], nu_dot[5])
+        lever = add(cross(alpha, imu), cross(w, cross(w, imu)))
+        a_imu = add(add((nu_dot[0], nu_dot[1], nu_dot[2]), cross(w, v_body)), lever)
+        for i in range(3):
+            out.position_ned[k, i] = qpos[i] * flip[i]
+            out.velocity_ned[k, i] = v_ned[i]
+            out.velocity_body[k, i] = nu[i]
+            out.angular_rate[k, i] = w[i]
+            out.specific_force[k, i] = a_imu[i] - h.gravity * rot[2, i]
+            out.actuators[k, i] = actuators[i]
+        for i in range(4):
+            out.quaternion[k, i] = quat[i]
         out.thrust[k] = thrust
 
         # Autopilot and servos act on the next step.
@@ -113,7 +118,7 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
                         pitch, yaw, w[1], w[2], dt)
 
         # The wrench goes to MuJoCo in its own coordinates: world force, body torque.
-        f_ned = rot @ applied[:3]
+        f_ned = mat3_vec(rot, (applied[0], applied[1], applied[2]))
         for i in range(3):
             qfrc[i] = f_ned[i] * flip[i]
             qfrc[3 + i] = applied[3 + i] * flip[i]
