@@ -136,6 +136,6 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
                            f"expected {FORMAT!r})")
     if version != FORMAT_VERSION:
         f.close()
-        raise DatasetError(f"{path}: auvsim dataset format_version {version!r}; this auvsim "
+        raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
                            f"reads version {FORMAT_VERSION}")
     return f

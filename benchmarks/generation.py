@@ -3,7 +3,8 @@
 Runs, side by side and alternating (these machines are noisy), for the same model and the
 same number of physics steps:
 
-* ``bare``: a plain Python loop of ``mujoco.mj_step`` with no forces, no recording;
+* ``bare``: a plain Python loop of ``mujoco.mj_step`` with no forces, no recording (and no
+  gravity, so the body does not fall for the whole mission);
 * ``simulate``: auvsim's compiled loop with hydrodynamics, autopilots and truth recording;
 * ``generate``: the whole ``auvsim generate --scenario straight`` path, HDF5 writing included.
 
@@ -44,6 +45,7 @@ def main() -> None:
         speed=2.0, heading_deg=30.0, depth=20.0, duration=args.duration)),))
     config = Config(vehicle=config.vehicle.__class__(model=args.vehicle), missions=config.missions)
     model = mujoco.MjModel.from_xml_path(str(model_path(args.vehicle)))
+    model.opt.gravity[:] = 0.0  # the bare body floats instead of falling for an hour
     data = mujoco.MjData(model)
     steps = round(args.duration / model.opt.timestep)
 

@@ -1,0 +1,236 @@
+"""`auvsim generate`, the straight scenario, the HDF5 layout and bad input."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from auvsim import dataset
+from auvsim.cli import main
+from auvsim.config import Config, MissionConfig, ScenarioConfig, VehicleConfig
+from auvsim.errors import ConfigError, DatasetError
+from auvsim.generate import generate, simulate
+
+TRUTH_SHAPES = {"time": (), "position_ned": (3,), "velocity_ned": (3,), "velocity_body": (3,),
+                "quaternion": (4,), "angular_rate": (3,), "specific_force": (3,),
+                "altitude": ()}
+
+
+def straight(speed=2.0, heading_deg=30.0, depth=20.0, duration=300.0, start_speed=None,
+             vehicle="auv", seed=0) -> Config:
+    scenario = ScenarioConfig(speed=speed, heading_deg=heading_deg, depth=depth,
+                              duration=duration, start_speed=start_speed)
+    return Config(vehicle=VehicleConfig(model=vehicle),
+                  missions=(MissionConfig(scenario=scenario, seed=seed),))
+
+
+def truth(config: Config) -> dict[str, np.ndarray]:
+    blocks = list(simulate(config, config.missions[0]))
+    return {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+
+
+def read_all(path) -> dict:
+    """Every dataset and attribute of a file, except the creation time."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        out["/"] = {k: v for k, v in f.attrs.items() if k != "created_utc"}
+        f.visititems(lambda name, obj: out.__setitem__(
+            name, obj[()] if isinstance(obj, h5py.Dataset) else dict(obj.attrs)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def demo_file(tmp_path_factory):
+    out = tmp_path_factory.mktemp("gen") / "straight.h5"
+    code = main(["generate", "--scenario", "straight", "--speed", "2", "--heading-deg", "30",
+                 "--depth", "20", "--duration", "120", "--seed", "7", "--out", str(out),
+                 "--quiet"])
+    assert code == 0
+    return out
+
+
+def test_generate_writes_schema_v1_truth(demo_file):
+    with dataset.open_dataset(demo_file) as f:
+        assert f.attrs["format"] == "auvsim-dataset"
+        assert f.attrs["format_version"] == 1
+        assert {"auvsim_version", "created_utc", "config_json"} <= set(f.attrs)
+        config = Config.from_json(f.attrs["config_json"])
+        assert config.missions[0].scenario.heading_deg == 30.0
+        mission = f["missions/mission_000"]
+        assert mission.attrs["scenario"] == "straight"
+        assert mission.attrs["seed"] == 7
+        assert mission.attrs["duration_s"] == 120.0
+        assert mission.attrs["vehicle"] == "auv"
+        assert mission.attrs["imu_rate_hz"] == 100.0
+        n = 120 * 100
+        for name, shape in TRUTH_SHAPES.items():
+            ds = mission[f"truth/{name}"]
+            assert ds.shape == (n, *shape), name
+            assert ds.dtype == np.float64
+            assert ds.compression == "gzip" and ds.chunks is not None
+        np.testing.assert_allclose(mission["truth/time"][:3], [0.0, 0.01, 0.02])
+        quat = mission["truth/quaternion"][()]
+        np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-12)
+        # Starts on the set heading: quaternion of a 30 deg yaw about NED z.
+        np.testing.assert_allclose(quat[0], [math.cos(math.radians(15)), 0, 0,
+                                             math.sin(math.radians(15))], atol=1e-12)
+        altitude = mission["truth/altitude"][()]
+        depth = mission["truth/position_ned"][:, 2]
+        np.testing.assert_allclose(altitude + depth, config.seafloor_depth)
+        for name in ("propeller_rpm", "thrust", "rudder", "stern_planes"):
+            assert mission[f"control/{name}"].shape == (n,)
+
+
+def test_config_round_trips_through_json():
+    config = Config(
+        vehicle=VehicleConfig(model="remus100", net_buoyancy=1.5, current_ned=(0.1, -0.2, 0)),
+        missions=(MissionConfig(name="a", scenario=ScenarioConfig(speed=1.2), seed=3),
+                  MissionConfig(name="b", scenario=ScenarioConfig(duration=9, start_speed=0),
+                                seed=4)),
+        imu_rate_hz=50.0,
+    )
+    assert Config.from_json(config.to_json()) == config
+
+
+@pytest.mark.parametrize("vehicle,speed", [("auv", 0.5), ("auv", 2.0), ("auv", 3.0),
+                                           ("remus100", 1.5)])
+def test_straight_from_rest_settles_and_holds(vehicle, speed):
+    """From rest the autopilots bring the vehicle to the set point and hold it: speed
+    within 1 % and depth within 0.5 m after settling (the issue's acceptance figures)."""
+    data = truth(straight(vehicle=vehicle, speed=speed, duration=400.0, start_speed=0.0,
+                          heading_deg=30.0, depth=25.0))
+    settled = data["truth/time"] >= 200.0
+    u = data["truth/velocity_body"][settled, 0]
+    depth = data["truth/position_ned"][settled, 2]
+    q = data["truth/quaternion"][settled]
+    yaw = np.arctan2(2 * (q[:, 0] * q[:, 3] + q[:, 1] * q[:, 2]),
+                     1 - 2 * (q[:, 2] ** 2 + q[:, 3] ** 2))
+    assert np.max(np.abs(u / speed - 1.0)) < 0.01
+    assert np.max(np.abs(depth - 25.0)) < 0.5
+    assert np.max(np.abs(np.degrees(yaw) - 30.0)) < 1.0
+    # Straight means straight: the track over the settled part is a line at 30 deg.
+    pos = data["truth/position_ned"][settled]
+    track = np.degrees(np.arctan2(pos[-1, 1] - pos[0, 1], pos[-1, 0] - pos[0, 0]))
+    assert abs(track - 30.0) < 0.5
+
+
+def test_depth_and_heading_changes_settle():
+    """Set points away from the start: 10 m deeper and 60 deg to starboard."""
+    config = straight(speed=2.0, heading_deg=60.0, depth=30.0, duration=300.0)
+    scenario = config.missions[0].scenario
+    from auvsim.scenarios import make_scenario
+    from auvsim.vehicle import Vehicle
+
+    vehicle = Vehicle("auv")
+    vehicle.reset(position_ned=(0, 0, 20.0), velocity_body=(2.0, 0, 0))
+    refs = make_scenario(scenario).references(np.arange(30000) * vehicle.dt)
+    traj = vehicle.run(refs)
+    late = slice(15000, None)  # after 150 s
+    q = traj.quaternion[late]
+    yaw = np.degrees(np.arctan2(2 * (q[:, 0] * q[:, 3] + q[:, 1] * q[:, 2]),
+                                1 - 2 * (q[:, 2] ** 2 + q[:, 3] ** 2)))
+    assert np.max(np.abs(traj.position_ned[late, 2] - 30.0)) < 0.5
+    assert np.max(np.abs(yaw - 60.0)) < 1.0
+    assert np.max(np.abs(traj.velocity_body[late, 0] / 2.0 - 1.0)) < 0.01
+
+
+def test_same_seed_gives_identical_files(tmp_path, demo_file):
+    again = tmp_path / "again.h5"
+    assert main(["generate", "--speed", "2", "--heading-deg", "30", "--depth", "20",
+                 "--duration", "120", "--seed", "7", "--out", str(again), "--quiet"]) == 0
+    a, b = read_all(demo_file), read_all(again)
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], np.ndarray):
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        else:
+            assert a[key] == b[key], key
+
+
+BAD_INPUTS = [
+    (["--duration", "0"], "duration"),
+    (["--duration", "-5"], "duration"),
+    (["--scenario", "zigzag-nope"], "scenario"),
+    (["--vehicle", "submarine"], "vehicle"),
+    (["--speed", "9"], "speed 9 m/s is beyond"),
+    (["--speed", "0"], "speed"),
+    (["--depth", "150"], "depth"),
+    (["--speed", "fast"], "--speed"),
+    (["--duration", "nan"], "duration"),
+]
+
+
+@pytest.mark.parametrize("args,message", BAD_INPUTS)
+def test_bad_input_gives_one_line_and_exit_2(tmp_path, capsys, args, message):
+    out = tmp_path / "bad.h5"
+    with pytest.raises(SystemExit) as stop:
+        sys.exit(main(["generate", *args, "--out", str(out)]))
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_output_is_refused(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    assert main(["generate", "--duration", "10", "--out", str(blocker / "x.h5")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+
+
+def test_console_script_error_has_no_traceback(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "auvsim", "generate", "--duration", "-1", "--out",
+         str(tmp_path / "x.h5")], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        "auvsim: error: duration: expected a positive number of seconds, got -1.0"]
+
+
+def test_failure_midway_leaves_nothing(tmp_path, monkeypatch):
+    import auvsim.generate as gen
+
+    def failing(config, mission):
+        yield from []
+        raise RuntimeError("simulated crash")
+
+    monkeypatch.setattr(gen, "simulate", failing)
+    with pytest.raises(RuntimeError):
+        generate(straight(duration=10), tmp_path / "x.h5", progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_reader_refuses_foreign_corrupt_and_other_versions(tmp_path, demo_file):
+    with pytest.raises(DatasetError, match="no such file"):
+        dataset.open_dataset(tmp_path / "missing.h5")
+    junk = tmp_path / "junk.h5"
+    junk.write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(200))
+    with pytest.raises(DatasetError, match="not an HDF5 file"):
+        dataset.open_dataset(junk)
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as f:
+        f["x"] = [1, 2, 3]
+    with pytest.raises(DatasetError, match="not an auvsim dataset"):
+        dataset.open_dataset(foreign)
+    newer = tmp_path / "newer.h5"
+    newer.write_bytes(demo_file.read_bytes())
+    with h5py.File(newer, "r+") as f:
+        f.attrs["format_version"] = 2
+    with pytest.raises(DatasetError, match="format_version 2"):
+        dataset.open_dataset(newer)
+
+
+@pytest.mark.parametrize("kwargs", [dict(speed=float("nan")), dict(duration=float("inf")),
+                                    dict(name="nope"), dict(depth=-3.0)])
+def test_scenario_validation_names_the_field(kwargs):
+    with pytest.raises(ConfigError) as err:
+        ScenarioConfig(**kwargs)
+    field = next(iter(kwargs))
+    assert ("scenario" if field == "name" else field) in str(err.value)
