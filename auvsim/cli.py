@@ -32,6 +32,8 @@ def _parser() -> argparse.ArgumentParser:
     gen.add_argument("--vehicle", default="auv",
                      help="auv (A18-D class), remus100, or a path to an MJCF model")
     gen.add_argument("--out", required=True, help="HDF5 file to write")
+    gen.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
+                     help="lzf is fast; gzip is read by every HDF5 tool without a plugin")
     gen.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -44,7 +46,8 @@ def _generate(args: argparse.Namespace) -> None:
                               duration=args.duration)
     config = Config(vehicle=VehicleConfig(model=args.vehicle),
                     missions=(MissionConfig(name="mission_000", scenario=scenario,
-                                            seed=args.seed),))
+                                            seed=args.seed),),
+                    compression=args.compression)
     summary = generate(config, args.out, progress=not args.quiet)
     print(f"wrote {args.out}: {summary['missions']} mission(s), {summary['simulated_s']:g} s "
           f"simulated in {summary['wall_s']:.1f} s "

@@ -109,12 +109,14 @@ class Config:
         imu_rate_hz: rate of the truth and IMU samples; the physics rate must be a whole
             multiple of it.
         seafloor_depth: depth of the (flat) seafloor, m.
+        compression: HDF5 compression, ``lzf`` (fast) or ``gzip`` (read by every HDF5 tool).
     """
 
     vehicle: VehicleConfig = field(default_factory=VehicleConfig)
     missions: tuple[MissionConfig, ...] = (MissionConfig(),)
     imu_rate_hz: float = 100.0
     seafloor_depth: float = 100.0
+    compression: str = "lzf"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "missions", tuple(self.missions))
@@ -124,6 +126,8 @@ class Config:
         _finite("imu_rate_hz", self.imu_rate_hz)
         _check(self.imu_rate_hz > 0, "imu_rate_hz", "a positive rate in Hz", self.imu_rate_hz)
         _finite("seafloor_depth", self.seafloor_depth)
+        _check(self.compression in ("lzf", "gzip"), "compression", "lzf or gzip",
+               self.compression)
         for m in self.missions:
             _check(m.scenario.depth < self.seafloor_depth, "depth",
                    f"a depth above the seafloor at {self.seafloor_depth:g} m", m.scenario.depth)

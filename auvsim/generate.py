@@ -77,7 +77,8 @@ def generate(config: Config, out: str | os.PathLike, *, progress: bool = True) -
     check_reachable(config)
     started = time.perf_counter()
     simulated = sum(m.scenario.duration for m in config.missions)
-    with DatasetWriter(out, config_json=config.to_json()) as writer, tqdm(
+    with DatasetWriter(out, config_json=config.to_json(),
+                       compression=config.compression) as writer, tqdm(
         total=simulated, unit="sim s", disable=None if progress else True, leave=False
     ) as bar:
         for mission in config.missions:
