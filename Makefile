@@ -19,8 +19,10 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/auvsim generate --scenario straight --speed 2 --heading-deg 30 --depth 20 \
 		--duration 600 --seed 1 --out demo/straight.h5
-	$(BIN)/python -c "import h5py; f = h5py.File('demo/straight.h5'); \
-		print('missions:', list(f['missions'])); f.close()"
+	@$(BIN)/python -c "from auvsim.dataset import open_dataset; \
+		f = open_dataset('demo/straight.h5'); m = f['missions/mission_000/truth']; \
+		print('demo/straight.h5 holds', len(m['time']), 'truth samples; last speed', \
+		m['velocity_body'][-1].round(3), 'm/s (body), depth', m['position_ned'][-1, 2].round(2), 'm')"
 
 test: $(STAMP)
 	$(BIN)/ruff check auvsim beamsnet tests benchmarks

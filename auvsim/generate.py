@@ -79,16 +79,17 @@ def generate(config: Config, out: str | os.PathLike, *, progress: bool = True) -
     simulated = sum(m.scenario.duration for m in config.missions)
     with DatasetWriter(out, config_json=config.to_json(),
                        compression=config.compression) as writer, tqdm(
-        total=simulated, unit="sim s", disable=None if progress else True, leave=False
+        total=round(simulated), unit=" sim s", disable=None if progress else True, leave=False
     ) as bar:
         for mission in config.missions:
+            bar.set_description(mission.name)
             attrs = dict(scenario=mission.scenario.name, seed=mission.seed,
                          duration_s=mission.scenario.duration, vehicle=config.vehicle.model,
                          imu_rate_hz=config.imu_rate_hz)
             sink = writer.mission(mission.name, attrs)
             for arrays in simulate(config, mission):
                 sink.append(arrays)
-                bar.update(len(arrays["truth/time"]) / config.imu_rate_hz)
+                bar.update(round(len(arrays["truth/time"]) / config.imu_rate_hz))
             sink.flush()
     return dict(missions=len(config.missions), simulated_s=simulated,
                 wall_s=time.perf_counter() - started)
