@@ -20,7 +20,7 @@ class Gains(NamedTuple):
 
     length: float = 5.5  # m, hull length that sets the time scale
     speed_p: float = 1.0  # speed correction per speed error
-    speed_i: float = 0.5  # per second and per hull length travelled
+    speed_i: float = 0.5  # speed correction per (integrated speed error x U/L)
     heading_p: float = 1.0  # rad of rudder per rad of heading error
     heading_i: float = 0.2
     heading_d: float = 1.2  # rad of rudder per (rad/s x L/U) of yaw rate

@@ -26,7 +26,8 @@ MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
 VEHICLES = ("auv", "remus100")
 
 # mj_step is linked by symbol name, which keeps the compiled kernel cacheable on disk.
-_LIB = Path(mujoco.__file__).parent / f"libmujoco.so.{mujoco.__version__}"
+_LIB = next(p for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
+            for p in Path(mujoco.__file__).parent.glob(pattern))
 llvm.load_library_permanently(str(_LIB))
 _mj_step = types.ExternalFunction("mj_step", types.void(types.voidptr, types.voidptr))
 
@@ -149,7 +150,6 @@ class Vehicle:
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)
         self.integrals = np.zeros(3)
-        self.steps = 0
 
     def reset(self, *, position_ned=(0.0, 0.0, 0.0), roll: float = 0.0, pitch: float = 0.0,
               yaw: float = 0.0, velocity_body=(0.0, 0.0, 0.0)) -> None:
@@ -167,9 +167,9 @@ class Vehicle:
         rot = quat_to_rot(quat_ned)
         self.data.qvel[:3] = rot @ np.asarray(velocity_body, dtype=float) * FLIP
         self.actuators[:] = 0.0
-        self.actuators[0] = feedforward_rpm(self.hydro, float(velocity_body[0]))
+        u = float(velocity_body[0])
+        self.actuators[0] = math.copysign(feedforward_rpm(self.hydro, abs(u)), u)
         self.integrals[:] = 0.0
-        self.steps = 0
 
     def run(self, references: np.ndarray, closed_loop=(True, True, True)) -> Trajectory:
         """Advance ``len(references)`` physics steps and return the true state at each.
@@ -187,5 +187,4 @@ class Vehicle:
         _run(self.model._address, d._address, d.qpos, d.qvel, d.qfrc_applied, self.hydro,
              self.gains, references, np.array(closed_loop, dtype=np.bool_), self.actuators,
              self.integrals, self.current_ned, self.imu_position, self.dt, out)
-        self.steps += len(references)
         return out
