@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from .errors import ConfigError
 
 SCENARIOS = ("straight",)
+SEAFLOORS = ("flat", "procedural", "heightmap")
 
 
 def _check(ok: bool, name: str, expected: str, got: object) -> None:
@@ -44,11 +45,8 @@ class VehicleConfig:
         _check(isinstance(self.model, str) and self.model != "", "vehicle.model",
                "a vehicle name or model path", self.model)
         _finite("vehicle.net_buoyancy", self.net_buoyancy)
-        object.__setattr__(self, "current_ned", tuple(float(c) for c in self.current_ned))
-        _check(len(self.current_ned) == 3, "vehicle.current_ned", "3 numbers (m/s, NED)",
-               self.current_ned)
-        for c in self.current_ned:
-            _finite("vehicle.current_ned", c)
+        object.__setattr__(self, "current_ned",
+                           _vector("vehicle.current_ned", self.current_ned, 3))
 
 
 @dataclass(frozen=True)
@@ -100,22 +98,156 @@ class MissionConfig:
 
 
 @dataclass(frozen=True)
+class SeafloorConfig:
+    """The seafloor the DVL beams hit.
+
+    Attributes:
+        kind: ``flat`` (a plane), ``procedural`` (seeded random terrain on a plane that may
+            slope) or ``heightmap`` (a user's grid of depths).
+        depth: depth of the plane at the mission start (0, 0), m.
+        roughness: standard deviation of the terrain about the plane, m (procedural).
+        correlation_length: horizontal scale of the terrain's features, m (procedural).
+        slope_deg: slope of the plane, degrees (procedural).
+        slope_heading_deg: direction in which the plane gets deeper, degrees from north.
+        heightmap: path of a ``.npy`` (rows, cols) array of depths in m, positive down; rows
+            run north, columns east, centred on the mission start (heightmap).
+        cell_size: grid spacing, m: of the heightmap, and of the terrain grid MuJoCo
+            ray-casts against (procedural).
+    """
+
+    kind: str = "flat"
+    depth: float = 100.0
+    roughness: float = 0.0
+    correlation_length: float = 30.0
+    slope_deg: float = 0.0
+    slope_heading_deg: float = 0.0
+    heightmap: str | None = None
+    cell_size: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check(self.kind in SEAFLOORS, "seafloor.kind", f"one of {', '.join(SEAFLOORS)}",
+               self.kind)
+        for name in ("depth", "roughness", "correlation_length", "slope_deg",
+                     "slope_heading_deg", "cell_size"):
+            _finite(f"seafloor.{name}", getattr(self, name))
+        _check(self.depth > 0, "seafloor.depth", "a positive depth in m", self.depth)
+        _check(self.roughness >= 0, "seafloor.roughness", "a height std >= 0 m", self.roughness)
+        _check(self.correlation_length > 0, "seafloor.correlation_length", "a length > 0 m",
+               self.correlation_length)
+        _check(0 <= self.slope_deg < 45, "seafloor.slope_deg", "a slope in [0, 45) deg",
+               self.slope_deg)
+        _check(self.cell_size > 0, "seafloor.cell_size", "a spacing > 0 m", self.cell_size)
+        _check((self.kind == "heightmap") == (self.heightmap is not None), "seafloor.heightmap",
+               "a .npy path exactly when kind is heightmap", self.heightmap)
+
+
+@dataclass(frozen=True)
+class DvlConfig:
+    """A four-beam Janus DVL and its error model (paper eq. 7, per beam k):
+    ``y_k = (1 + s_k) (b_k . v) + bias_k + n_k``, ``n_k ~ N(0, noise_std^2)``.
+
+    The realised s and bias of a mission are ``scale_factor + scale_factor_std * N(0, 1)``
+    and ``bias + bias_std * N(0, 1)`` per beam, drawn from the mission's seed and stored in
+    its attributes. A scalar means all four beams alike.
+
+    Attributes:
+        rate_hz: ping rate; the IMU rate must be a whole multiple of it.
+        beam_angle_deg: angle of each beam from the DVL's z (down) axis.
+        mounting_rpy_deg: roll, pitch, yaw of the DVL frame relative to the body (ZYX).
+        min_range, max_range: slant ranges, m, between which a beam has bottom lock.
+        scale_factor, scale_factor_std: s (dimensionless): mean, and per-mission spread.
+        bias, bias_std: m/s.
+        noise_std: m/s, white noise per beam and ping.
+    """
+
+    rate_hz: float = 1.0
+    beam_angle_deg: float = 30.0
+    mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    min_range: float = 0.7
+    max_range: float = 90.0
+    scale_factor: float | tuple[float, float, float, float] = 0.0
+    scale_factor_std: float = 0.0
+    bias: float | tuple[float, float, float, float] = 0.0
+    bias_std: float = 0.0
+    noise_std: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("rate_hz", "beam_angle_deg", "min_range", "max_range",
+                     "scale_factor_std", "bias_std", "noise_std"):
+            _finite(f"dvl.{name}", getattr(self, name))
+        _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
+        _check(0 < self.beam_angle_deg < 90, "dvl.beam_angle_deg", "an angle in (0, 90) deg",
+               self.beam_angle_deg)
+        _check(0 <= self.min_range < self.max_range, "dvl.min_range, dvl.max_range",
+               "0 <= min_range < max_range (m)", (self.min_range, self.max_range))
+        for name in ("scale_factor_std", "bias_std", "noise_std"):
+            _check(getattr(self, name) >= 0, f"dvl.{name}", "a standard deviation >= 0",
+                   getattr(self, name))
+        object.__setattr__(self, "mounting_rpy_deg", _vector("dvl.mounting_rpy_deg",
+                                                             self.mounting_rpy_deg, 3))
+        for name in ("scale_factor", "bias"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)):
+                object.__setattr__(self, name, _vector(f"dvl.{name}", value, 4))
+            else:
+                _finite(f"dvl.{name}", value)
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """IMU error model, per axis: ``measured = true + turn_on_bias + b(t) + white noise``,
+    b(t) a first-order Gauss-Markov process with steady-state std ``*_bias_instability``
+    and correlation time ``bias_correlation_time``; white noise std = density * sqrt(rate).
+
+    Attributes:
+        rate_hz: sample rate; also the rate of the truth group.
+        accel_noise_density: m/s^2/sqrt(Hz) (velocity random walk).
+        gyro_noise_density: rad/s/sqrt(Hz) (angle random walk).
+        accel_turn_on_bias, gyro_turn_on_bias: std of the constant bias drawn per mission
+            (m/s^2, rad/s).
+        accel_bias_instability, gyro_bias_instability: std of the Gauss-Markov bias
+            (m/s^2, rad/s).
+        bias_correlation_time: s.
+    """
+
+    rate_hz: float = 100.0
+    accel_noise_density: float = 0.0
+    gyro_noise_density: float = 0.0
+    accel_turn_on_bias: float = 0.0
+    gyro_turn_on_bias: float = 0.0
+    accel_bias_instability: float = 0.0
+    gyro_bias_instability: float = 0.0
+    bias_correlation_time: float = 3600.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _finite(f"imu.{f.name}", getattr(self, f.name))
+            _check(getattr(self, f.name) >= 0, f"imu.{f.name}", "a value >= 0",
+                   getattr(self, f.name))
+        _check(self.rate_hz > 0, "imu.rate_hz", "a positive rate in Hz", self.rate_hz)
+        _check(self.bias_correlation_time > 0, "imu.bias_correlation_time", "a time > 0 s",
+               self.bias_correlation_time)
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that determines a dataset.
 
     Attributes:
         vehicle: the vehicle and the water.
-        missions: the missions, each simulated independently.
-        imu_rate_hz: rate of the truth and IMU samples; the physics rate must be a whole
-            multiple of it.
-        seafloor_depth: depth of the (flat) seafloor, m.
+        missions: the missions, each simulated independently from its own seed.
+        seafloor: the terrain under every mission.
+        dvl: the DVL and its error model.
+        imu: the IMU and its error model; its rate is the rate of the truth group, and the
+            physics rate must be a whole multiple of it.
         compression: HDF5 compression, ``lzf`` (fast) or ``gzip`` (read by every HDF5 tool).
     """
 
     vehicle: VehicleConfig = field(default_factory=VehicleConfig)
     missions: tuple[MissionConfig, ...] = (MissionConfig(),)
-    imu_rate_hz: float = 100.0
-    seafloor_depth: float = 100.0
+    seafloor: SeafloorConfig = field(default_factory=SeafloorConfig)
+    dvl: DvlConfig = field(default_factory=DvlConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
     compression: str = "lzf"
 
     def __post_init__(self) -> None:
@@ -123,30 +255,66 @@ class Config:
         _check(len(self.missions) > 0, "missions", "at least one mission", self.missions)
         names = [m.name for m in self.missions]
         _check(len(set(names)) == len(names), "missions", "distinct mission names", names)
-        _finite("imu_rate_hz", self.imu_rate_hz)
-        _check(self.imu_rate_hz > 0, "imu_rate_hz", "a positive rate in Hz", self.imu_rate_hz)
-        _finite("seafloor_depth", self.seafloor_depth)
         _check(self.compression in ("lzf", "gzip"), "compression", "lzf or gzip",
                self.compression)
-        for m in self.missions:
-            _check(m.scenario.depth < self.seafloor_depth, "depth",
-                   f"a depth above the seafloor at {self.seafloor_depth:g} m", m.scenario.depth)
+        ratio = self.imu.rate_hz / self.dvl.rate_hz
+        _check(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1, "dvl.rate_hz",
+               f"a whole divisor of the {self.imu.rate_hz:g} Hz IMU rate", self.dvl.rate_hz)
+        if self.seafloor.kind != "heightmap":
+            for m in self.missions:
+                _check(m.scenario.depth < self.seafloor.depth, "depth",
+                       f"a depth above the seafloor at {self.seafloor.depth:g} m",
+                       m.scenario.depth)
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
 
     @classmethod
     def from_dict(cls, d: dict) -> Config:
-        try:
-            missions = tuple(
-                MissionConfig(**{**m, "scenario": ScenarioConfig(**m["scenario"])})
-                for m in d.get("missions", ())
-            )
-            rest = {k: v for k, v in d.items() if k not in ("vehicle", "missions")}
-            return cls(vehicle=VehicleConfig(**d.get("vehicle", {})), missions=missions, **rest)
-        except TypeError as e:  # unknown or missing keys
-            raise ConfigError(f"config: {e}") from None
+        """Build from nested dicts (parsed JSON or TOML); unknown keys are an error."""
+        return _from_dict(cls, d, "config")
 
     @classmethod
     def from_json(cls, text: str) -> Config:
         return cls.from_dict(json.loads(text))
+
+
+_NESTED = {
+    (Config, "vehicle"): VehicleConfig,
+    (Config, "seafloor"): SeafloorConfig,
+    (Config, "dvl"): DvlConfig,
+    (Config, "imu"): ImuConfig,
+    (MissionConfig, "scenario"): ScenarioConfig,
+}
+
+
+def _from_dict(cls, d, path: str):
+    if not isinstance(d, dict):
+        raise ConfigError(f"{path}: expected a table of settings, got {d!r}")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(d) - known)
+    if unknown:
+        raise ConfigError(f"{path}: unknown setting(s) {', '.join(unknown)}; expected some of "
+                          f"{', '.join(sorted(known))}")
+    kwargs = {}
+    for key, value in d.items():
+        if cls is Config and key == "missions":
+            if not isinstance(value, (list, tuple)):
+                raise ConfigError(f"{path}.missions: expected a list of missions, got {value!r}")
+            kwargs[key] = tuple(_from_dict(MissionConfig, m, f"{path}.missions[{i}]")
+                                for i, m in enumerate(value))
+        elif (cls, key) in _NESTED:
+            kwargs[key] = _from_dict(_NESTED[cls, key], value, f"{path}.{key}")
+        else:
+            kwargs[key] = tuple(value) if isinstance(value, list) else value
+    return cls(**kwargs)
+
+
+def _vector(name: str, value, n: int) -> tuple[float, ...]:
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        out = ()
+    _check(len(out) == n and all(math.isfinite(v) for v in out), name,
+           f"{n} finite numbers", value)
+    return out

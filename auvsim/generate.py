@@ -35,15 +35,15 @@ def check_reachable(config: Config) -> None:
 def simulate(config: Config, mission: MissionConfig) -> Iterator[dict[str, np.ndarray]]:
     """Yield the mission's arrays block by block, keyed by their dataset paths.
 
-    Truth is kept at ``config.imu_rate_hz``: every k-th physics step.
+    Truth is kept at ``config.imu.rate_hz``: every k-th physics step.
     """
     v = config.vehicle
     vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned)
-    decimation = round(1.0 / (config.imu_rate_hz * vehicle.dt))
-    if decimation < 1 or abs(decimation * config.imu_rate_hz * vehicle.dt - 1.0) > 1e-9:
+    decimation = round(1.0 / (config.imu.rate_hz * vehicle.dt))
+    if decimation < 1 or abs(decimation * config.imu.rate_hz * vehicle.dt - 1.0) > 1e-9:
         raise ConfigError(
             f"imu_rate_hz: expected a whole divisor of the {1 / vehicle.dt:g} Hz physics rate, "
-            f"got {config.imu_rate_hz!r}"
+            f"got {config.imu.rate_hz!r}"
         )
     scenario = make_scenario(mission.scenario)
     vehicle.reset(**scenario.initial_state())
@@ -61,7 +61,7 @@ def simulate(config: Config, mission: MissionConfig) -> Iterator[dict[str, np.nd
             "truth/quaternion": traj.quaternion[keep],
             "truth/angular_rate": traj.angular_rate[keep],
             "truth/specific_force": traj.specific_force[keep],
-            "truth/altitude": config.seafloor_depth - traj.position_ned[keep, 2],
+            "truth/altitude": config.seafloor.depth - traj.position_ned[keep, 2],
             "control/propeller_rpm": traj.actuators[keep, 0],
             "control/thrust": traj.thrust[keep],
             "control/rudder": traj.actuators[keep, 1],
@@ -85,11 +85,11 @@ def generate(config: Config, out: str | os.PathLike, *, progress: bool = True) -
             bar.set_description(mission.name)
             attrs = dict(scenario=mission.scenario.name, seed=mission.seed,
                          duration_s=mission.scenario.duration, vehicle=config.vehicle.model,
-                         imu_rate_hz=config.imu_rate_hz)
+                         imu_rate_hz=config.imu.rate_hz)
             sink = writer.mission(mission.name, attrs)
             for arrays in simulate(config, mission):
                 sink.append(arrays)
-                bar.update(round(len(arrays["truth/time"]) / config.imu_rate_hz))
+                bar.update(round(len(arrays["truth/time"]) / config.imu.rate_hz))
             sink.flush()
     return dict(missions=len(config.missions), simulated_s=simulated,
                 wall_s=time.perf_counter() - started)

@@ -12,7 +12,15 @@ import pytest
 
 from auvsim import dataset
 from auvsim.cli import main
-from auvsim.config import Config, MissionConfig, ScenarioConfig, VehicleConfig
+from auvsim.config import (
+    Config,
+    DvlConfig,
+    ImuConfig,
+    MissionConfig,
+    ScenarioConfig,
+    SeafloorConfig,
+    VehicleConfig,
+)
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.generate import generate, simulate
 
@@ -81,7 +89,7 @@ def test_generate_writes_schema_v1_truth(demo_file):
                                              math.sin(math.radians(15))], atol=1e-12)
         altitude = mission["truth/altitude"][()]
         depth = mission["truth/position_ned"][:, 2]
-        np.testing.assert_allclose(altitude + depth, config.seafloor_depth)
+        np.testing.assert_allclose(altitude + depth, config.seafloor.depth)
         for name in ("propeller_rpm", "thrust", "rudder", "stern_planes"):
             assert mission[f"control/{name}"].shape == (n,)
 
@@ -100,7 +108,9 @@ def test_config_round_trips_through_json():
         missions=(MissionConfig(name="a", scenario=ScenarioConfig(speed=1.2), seed=3),
                   MissionConfig(name="b", scenario=ScenarioConfig(duration=9, start_speed=0),
                                 seed=4)),
-        imu_rate_hz=50.0,
+        imu=ImuConfig(rate_hz=50.0, gyro_noise_density=1e-4),
+        seafloor=SeafloorConfig(kind="procedural", roughness=2.0),
+        dvl=DvlConfig(rate_hz=5.0, scale_factor=(0.1, 0.2, 0.3, 0.4), bias=0.001),
         compression="gzip",
     )
     assert Config.from_json(config.to_json()) == config
