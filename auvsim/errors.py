@@ -11,3 +11,7 @@ class ConfigError(AuvsimError, ValueError):
 
 class DatasetError(AuvsimError):
     """A file is not an auvsim dataset, is corrupt, or has another format version."""
+
+
+class SimulationError(AuvsimError):
+    """A mission cannot go on as configured (for example the vehicle reached the seafloor)."""

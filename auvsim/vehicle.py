@@ -134,18 +134,27 @@ class Vehicle:
         vehicle: a name from ``VEHICLES`` or a path to an MJCF model of the same layout.
         net_buoyancy: buoyancy minus weight, N.
         current_ned: constant ocean current, m/s, NED.
+        seafloor: terrain to add to the scene (``auvsim.seafloor.Seafloor``), for ray casts.
     """
 
     def __init__(self, vehicle: str = "auv", *, net_buoyancy: float = 0.0,
-                 current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 seafloor=None) -> None:
         self.name = vehicle
-        self.model = mujoco.MjModel.from_xml_path(str(model_path(vehicle)))
+        spec = mujoco.MjSpec.from_file(str(model_path(vehicle)))
+        if seafloor is not None:
+            seafloor.attach(spec)
+        self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
+        if seafloor is not None:
+            seafloor.bind(self.model, self.data)
+        self.body_id = self.model.body("vehicle").id
         self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy)
         self.length = 2.0 * float(self.model.geom("hull").size[0])
         self.gains = Gains(length=self.length)
         self.current_ned = np.array(current_ned, dtype=float)
         self.imu_position = np.array(self.model.site("imu").pos) * FLIP  # FRD, m
+        self.dvl_position = np.array(self.model.site("dvl").pos) * FLIP  # FRD, m
         self.dt = float(self.model.opt.timestep)
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)

@@ -1,0 +1,1 @@
+"""Sensor error models: true signals from the simulation in, measurements out."""
