@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
+from pathlib import Path
 
-from .config import SCENARIOS, Config, MissionConfig, ScenarioConfig, VehicleConfig
-from .errors import AuvsimError
+from .config import SCENARIOS, Config, ScenarioConfig
+from .errors import AuvsimError, ConfigError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -16,48 +18,111 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+_SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
+    "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
+    "speed": ("speed", "surge speed to hold, m/s"),
+    "heading_deg": ("heading_deg", "heading to hold, deg from north"),
+    "depth": ("depth", "depth to hold, m"),
+    "duration": ("duration", "mission length, s"),
+}
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="auvsim", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     gen = sub.add_parser(
-        "generate", help="simulate a mission and write an HDF5 dataset",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    gen.add_argument("--scenario", default="straight", help=f"one of: {', '.join(SCENARIOS)}")
-    gen.add_argument("--speed", type=float, default=2.0, help="surge speed to hold, m/s")
-    gen.add_argument("--heading-deg", type=float, default=0.0, help="heading, deg from north")
-    gen.add_argument("--depth", type=float, default=20.0, help="depth to hold, m")
-    gen.add_argument("--duration", type=float, default=600.0, help="mission length, s")
-    gen.add_argument("--seed", type=int, default=0, help="seed of the random streams")
-    gen.add_argument("--vehicle", default="auv",
-                     help="auv (A18-D class), remus100, or a path to an MJCF model")
+        "generate", help="simulate missions and write an HDF5 dataset",
+        description="Simulate missions and write an HDF5 dataset. Without --preset or "
+        "--config, one mission with the 'navigator' preset's sensors. Scenario options "
+        "given with a preset or config override every mission's.")
+    source = gen.add_mutually_exclusive_group()
+    source.add_argument("--preset", help="a named config (auvsim presets lists them)")
+    source.add_argument("--config", type=Path, help="a TOML file with the full config")
+    defaults = ScenarioConfig()
+    for flag, (name, text) in _SCENARIO_FLAGS.items():
+        kind = str if flag == "scenario" else float
+        gen.add_argument(f"--{flag.replace('_', '-')}", dest=flag, type=kind,
+                         help=f"{text} (default: {getattr(defaults, name)})")
+    gen.add_argument("--seed", type=int, help="seed of the first mission; the others follow "
+                     "(default: the preset's, 0 otherwise)")
+    gen.add_argument("--vehicle", help="auv (A18-D class, default), remus100, or an MJCF path")
+    gen.add_argument("--workers", type=int, help="worker processes (default: one per core)")
+    gen.add_argument("--compression", choices=("lzf", "gzip"),
+                     help="lzf (default) is fast; gzip is read by every HDF5 tool")
     gen.add_argument("--out", required=True, help="HDF5 file to write")
-    gen.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
-                     help="lzf is fast; gzip is read by every HDF5 tool without a plugin")
     gen.add_argument("--quiet", action="store_true", help="no progress bar")
+    sub.add_parser("presets", help="list the named configs")
+    inspect = sub.add_parser("inspect", help="describe a dataset file")
+    inspect.add_argument("file", type=Path)
     return parser
+
+
+def _load_toml(path: Path) -> Config:
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"--config {str(path)!r}: no such file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"--config {str(path)!r}: not valid TOML ({e})") from None
+    return Config.from_dict(data)
+
+
+def build_config(args: argparse.Namespace) -> Config:
+    """The config a ``generate`` command line asks for."""
+    from .presets import DEFAULT_PRESET, preset
+
+    if args.config is not None:
+        config = _load_toml(args.config)
+    else:
+        config = preset(args.preset or DEFAULT_PRESET)
+    overrides = {name: getattr(args, flag) for flag, (name, _) in _SCENARIO_FLAGS.items()
+                 if getattr(args, flag) is not None}
+    missions = tuple(
+        dataclasses.replace(
+            m, scenario=ScenarioConfig(**{**dataclasses.asdict(m.scenario), **overrides}),
+            seed=m.seed if args.seed is None else args.seed + i)
+        for i, m in enumerate(config.missions))
+    changes: dict = {"missions": missions}
+    if args.vehicle is not None:
+        changes["vehicle"] = dataclasses.replace(config.vehicle, model=args.vehicle)
+    if args.compression is not None:
+        changes["compression"] = args.compression
+    return dataclasses.replace(config, **changes)
 
 
 def _generate(args: argparse.Namespace) -> None:
     from .generate import generate  # numba compilation only for the commands that need it
 
-    scenario = ScenarioConfig(name=args.scenario, speed=args.speed,
-                              heading_deg=args.heading_deg, depth=args.depth,
-                              duration=args.duration)
-    config = Config(vehicle=VehicleConfig(model=args.vehicle),
-                    missions=(MissionConfig(name="mission_000", scenario=scenario,
-                                            seed=args.seed),),
-                    compression=args.compression)
-    summary = generate(config, args.out, progress=not args.quiet)
+    config = build_config(args)
+    summary = generate(config, args.out, workers=args.workers, progress=not args.quiet)
     print(f"wrote {args.out}: {summary['missions']} mission(s), {summary['simulated_s']:g} s "
           f"simulated in {summary['wall_s']:.1f} s "
           f"({summary['simulated_s'] / summary['wall_s']:.0f}x real time)")
 
 
+def _presets(args: argparse.Namespace) -> None:
+    from .presets import DEFAULT_PRESET, PRESETS
+
+    for name, (text, _) in PRESETS.items():
+        mark = " (default)" if name == DEFAULT_PRESET else ""
+        print(f"{name:16s} {text}{mark}")
+
+
+def _inspect(args: argparse.Namespace) -> None:
+    from .dataset import describe
+
+    print(describe(args.file))
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        {"generate": _generate}[args.command](args)
+        {"generate": _generate, "presets": _presets, "inspect": _inspect}[args.command](args)
     except AuvsimError as e:
         print(f"auvsim: error: {e}", file=sys.stderr)
         return 2

@@ -26,9 +26,16 @@ CHUNK_ROWS = 6000  # rows per HDF5 chunk: 60 s at 100 Hz, 48 kB for a float64 co
 COMPRESSION = {"lzf": dict(compression="lzf", shuffle=True),
                "gzip": dict(compression="gzip", compression_opts=1, shuffle=True)}
 
-TRUTH_FIELDS = ("time", "position_ned", "velocity_ned", "velocity_body", "quaternion",
-                "angular_rate", "specific_force", "altitude")
-CONTROL_FIELDS = ("propeller_rpm", "thrust", "rudder", "stern_planes")
+# What every mission of a schema-v1 file holds (extra fields are allowed).
+REQUIRED_FIELDS = (
+    "truth/time", "truth/position_ned", "truth/velocity_ned", "truth/velocity_body",
+    "truth/quaternion", "truth/angular_rate", "truth/specific_force", "truth/altitude",
+    "imu/time", "imu/specific_force", "imu/angular_rate", "imu/index_of_dvl",
+    "dvl/time", "dvl/velocity", "dvl/beam_velocity_true", "dvl/beam_velocity",
+    "dvl/beam_range", "dvl/valid", "dvl/velocity_ls",
+)
+REQUIRED_ATTRS = ("scenario", "seed", "duration_s", "vehicle", "dvl_rate_hz", "imu_rate_hz",
+                  "beam_angle_deg", "dvl_scale_factor", "dvl_bias", "dvl_noise_std")
 
 
 class DatasetWriter:
@@ -125,8 +132,8 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
     """Open an auvsim dataset for reading, after checking that it is one.
 
     Raises:
-        DatasetError: the file is missing, not HDF5, not an auvsim dataset, or of another
-            format version.
+        DatasetError: the file is missing, not HDF5, not an auvsim dataset, of another
+            format version, or a mission lacks a field of the schema.
     """
     path = Path(path)
     if not path.is_file():
@@ -145,4 +152,58 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
         f.close()
         raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
                            f"reads version {FORMAT_VERSION}")
+    try:
+        for name, mission in f["missions"].items():
+            missing = [k for k in REQUIRED_FIELDS if k not in mission]
+            missing += [f"attribute {k}" for k in REQUIRED_ATTRS if k not in mission.attrs]
+            if missing:
+                raise DatasetError(f"{path}: mission {name} lacks {', '.join(missing)} "
+                                   f"(schema v{FORMAT_VERSION})")
+    except (KeyError, OSError) as e:
+        f.close()
+        raise DatasetError(f"{path}: corrupt auvsim dataset ({e})") from None
+    except DatasetError:
+        f.close()
+        raise
     return f
+
+
+def _fields(group: h5py.Group) -> list[str]:
+    """'path (shape)' of every dataset below ``group``."""
+    found: list[str] = []
+    group.visititems(lambda k, obj: found.append(f"{k} {obj.shape}")
+                     if isinstance(obj, h5py.Dataset) else None)
+    return found
+
+
+def describe(path: str | os.PathLike) -> str:
+    """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
+    the realised error parameters and the fields."""
+    def fmt(values) -> str:
+        return np.array2string(np.asarray(values), precision=6, separator=", ")
+
+    with open_dataset(path) as f:
+        lines = [f"{path}: auvsim dataset v{f.attrs['format_version']} "
+                 f"(auvsim {f.attrs.get('auvsim_version', '?')}, created "
+                 f"{f.attrs.get('created_utc', '?')}), {len(f['missions'])} mission(s)"]
+        for name, m in f["missions"].items():
+            a = m.attrs
+            valid = m["dvl/valid"][()]
+            lines += [
+                f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, "
+                f"vehicle {a['vehicle']}",
+                f"    IMU {a['imu_rate_hz']:g} Hz ({len(m['imu/time'])} samples); DVL "
+                f"{a['dvl_rate_hz']:g} Hz ({len(valid)} pings), beams at "
+                f"{a['beam_angle_deg']:g} deg, {100 * valid.mean():.1f} % of beams valid, "
+                f"{100 * (valid.sum(axis=1) >= 3).mean():.1f} % of pings solvable",
+                f"    DVL errors: scale factor {fmt(a['dvl_scale_factor'])}, bias "
+                f"{fmt(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s",
+            ]
+            if "imu_accel_turn_on_bias" in a:
+                lines.append(
+                    f"    IMU errors: accel turn-on bias {fmt(a['imu_accel_turn_on_bias'])} "
+                    f"m/s^2, gyro {fmt(a['imu_gyro_turn_on_bias'])} rad/s; noise densities "
+                    f"{a['imu_accel_noise_density']:.3g} m/s^2/rtHz, "
+                    f"{a['imu_gyro_noise_density']:.3g} rad/s/rtHz")
+            lines.append("    fields: " + ", ".join(_fields(m)))
+        return "\n".join(lines)

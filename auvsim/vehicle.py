@@ -179,6 +179,7 @@ class Vehicle:
         u = float(velocity_body[0])
         self.actuators[0] = math.copysign(feedforward_rpm(self.hydro, abs(u)), u)
         self.integrals[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)  # positions of every geom, for ray casts
 
     def run(self, references: np.ndarray, closed_loop=(True, True, True)) -> Trajectory:
         """Advance ``len(references)`` physics steps and return the true state at each.

@@ -24,7 +24,7 @@ from pathlib import Path
 import mujoco
 
 from auvsim.config import Config, MissionConfig, ScenarioConfig
-from auvsim.generate import generate, simulate
+from auvsim.generate import MissionRun, generate
 from auvsim.vehicle import model_path
 
 
@@ -55,7 +55,7 @@ def main() -> None:
             mujoco.mj_step(model, data)
 
     def sim_only() -> None:
-        for _ in simulate(config, config.missions[0]):
+        for _ in MissionRun(config, config.missions[0]).blocks():
             pass
 
     with tempfile.TemporaryDirectory() as tmp:

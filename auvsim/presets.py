@@ -1,0 +1,70 @@
+"""Named configurations. A preset is a ``Config``, not a code path: ``auvsim generate
+--preset NAME`` simulates exactly what it returns (scenario flags may override)."""
+
+from __future__ import annotations
+
+from .config import Config, DvlConfig, MissionConfig, ScenarioConfig, SeafloorConfig
+from .errors import ConfigError
+from .sensors.imu import IMU_GRADES
+
+# The BeamsNet paper's simulation (sec. 4.1) as its published code ran it: straight lines
+# at 1, 2 and 3 m/s for 7,200 s each, DVL 1 Hz, IMU 100 Hz, one scale factor of 0.7 % and a
+# bias of 0.0001 m/s on all beams, 20 deg beams, and beam noise of 0.042**2 m/s (the text
+# says 0.042 m/s): ../shared/reference/beamsnet-reference.md.
+PAPER_NOISE_CODE = 0.042**2
+PAPER_NOISE_TEXT = 0.042
+
+
+def _paper(noise_std: float) -> Config:
+    missions = tuple(
+        MissionConfig(name=f"speed_{v}", seed=v,
+                      scenario=ScenarioConfig(speed=float(v), heading_deg=0.0, depth=20.0,
+                                              duration=7200.0))
+        for v in (1, 2, 3))
+    return Config(
+        missions=missions,
+        seafloor=SeafloorConfig(kind="flat", depth=60.0),
+        dvl=DvlConfig(rate_hz=1.0, beam_angle_deg=20.0, min_range=0.7, max_range=200.0,
+                      scale_factor=0.007, bias=0.0001, noise_std=noise_std),
+        # The paper does not state its IMU; the Snapir carries a Phins-class unit.
+        imu=IMU_GRADES["navigation"],
+    )
+
+
+def navigator() -> Config:
+    """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
+    A18-D over gently rough terrain, with a navigation-grade IMU.
+
+    Figures from ../shared/reference/sensors.md: 30 deg Janus beams; bottom track about
+    0.7 to 90 m; long-term accuracy about 0.2 % of speed +/- 1 mm/s (taken here as the
+    per-mission spread of the scale factor and bias); beam noise 0.02 m/s (what the
+    Snapir's DVL is given in the BeamsNet lab's later datasets). 1 Hz as in the paper's
+    data. The terrain (1 m roughness, 25 m features, 60 m deep) is our choice.
+    """
+    return Config(
+        missions=(MissionConfig(),),
+        seafloor=SeafloorConfig(kind="procedural", depth=60.0, roughness=1.0,
+                                correlation_length=25.0),
+        dvl=DvlConfig(rate_hz=1.0, beam_angle_deg=30.0, min_range=0.7, max_range=90.0,
+                      scale_factor_std=0.002, bias_std=0.001, noise_std=0.02),
+        imu=IMU_GRADES["navigation"],
+    )
+
+
+PRESETS = {
+    "navigator": ("physical default: Navigator-like 30 deg DVL over rough terrain, "
+                  "navigation-grade IMU, one mission", navigator),
+    "paper-sim": ("the BeamsNet paper's simulation as its code ran it: 1, 2, 3 m/s x 7200 s, "
+                  "20 deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s",
+                  lambda: _paper(PAPER_NOISE_CODE)),
+    "paper-sim-text": ("the same with sigma = 0.042 m/s, as the paper's text states",
+                       lambda: _paper(PAPER_NOISE_TEXT)),
+}
+DEFAULT_PRESET = "navigator"
+
+
+def preset(name: str) -> Config:
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r}: expected one of {', '.join(PRESETS)} "
+                          "(auvsim presets lists them)")
+    return PRESETS[name][1]()

@@ -1,0 +1,304 @@
+"""Full schema-v1 datasets: sensors in the generated files, presets, TOML configs, workers,
+`auvsim inspect`, and bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from auvsim import dataset
+from auvsim.cli import main
+from auvsim.config import (
+    Config,
+    DvlConfig,
+    ImuConfig,
+    MissionConfig,
+    ScenarioConfig,
+    SeafloorConfig,
+)
+from auvsim.generate import generate
+from auvsim.presets import PRESETS, preset
+from auvsim.sensors.dvl import beam_matrix
+
+IDEAL = Config(
+    missions=(MissionConfig(scenario=ScenarioConfig(speed=2.0, heading_deg=30.0, depth=20.0,
+                                                    duration=60.0), seed=5),),
+    seafloor=SeafloorConfig(kind="flat", depth=60.0),
+    dvl=DvlConfig(beam_angle_deg=30.0, max_range=90.0),
+    imu=ImuConfig(),
+)
+
+
+def rotation(q: np.ndarray) -> np.ndarray:
+    """(M, 3, 3) body -> NED rotations of [w, x, y, z] quaternions (written out here)."""
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
+    ], axis=1)
+
+
+def test_level_on_a_flat_floor_slant_range_is_altitude_over_cos_alpha():
+    from auvsim.seafloor import Seafloor
+    from auvsim.vehicle import Vehicle
+
+    floor = Seafloor(SeafloorConfig(kind="flat", depth=60.0))
+    vehicle = Vehicle("auv", seafloor=floor)
+    vehicle.reset(position_ned=(10.0, -4.0, 20.0))
+    dvl = np.array([10.0, -4.0, 20.0]) + vehicle.dvl_position
+    h = beam_matrix(math.radians(30))
+    ranges = floor.cast(vehicle.model, vehicle.data, dvl[None], h[None], max_range=90.0,
+                        exclude_body=vehicle.body_id)
+    altitude = 60.0 - dvl[2]
+    np.testing.assert_allclose(ranges, altitude / math.cos(math.radians(30)), rtol=1e-12)
+
+
+def read(path) -> dict:
+    out = {}
+    with h5py.File(path, "r") as f:
+        out["/"] = {k: v for k, v in f.attrs.items() if k != "created_utc"}
+        f.visititems(lambda name, obj: out.__setitem__(
+            name, obj[()] if isinstance(obj, h5py.Dataset) else dict(obj.attrs)))
+    return out
+
+
+def assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], np.ndarray):
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        elif isinstance(a[key], dict):
+            assert a[key].keys() == b[key].keys(), key
+            for k in a[key]:
+                np.testing.assert_array_equal(a[key][k], b[key][k], err_msg=f"{key}:{k}")
+        else:
+            assert a[key] == b[key], key
+
+
+@pytest.fixture(scope="module")
+def ideal_file(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ideal") / "ideal.h5"
+    generate(IDEAL, out, workers=1, progress=False)
+    return out
+
+
+def test_every_schema_field_is_written(ideal_file):
+    with dataset.open_dataset(ideal_file) as f:
+        m = f["missions/mission_000"]
+        n, pings = 6000, 60
+        for key in dataset.REQUIRED_FIELDS:
+            group, name = key.split("/")
+            rows = pings if group == "dvl" or name == "index_of_dvl" else n
+            assert m[key].shape[0] == rows, key
+        assert m["imu/index_of_dvl"].dtype == np.int64
+        assert m["dvl/valid"].dtype == bool
+        np.testing.assert_array_equal(m["imu/index_of_dvl"][()], np.arange(pings) * 100)
+        np.testing.assert_array_equal(m["dvl/time"][()],
+                                      m["truth/time"][()][m["imu/index_of_dvl"][()]])
+        for attr in dataset.REQUIRED_ATTRS:
+            assert attr in m.attrs
+        assert m.attrs["dvl_scale_factor"].shape == (4,)
+
+
+def test_ideal_sensors_read_the_truth(ideal_file):
+    """No errors configured: beams equal H v, LS equals the true DVL velocity, the IMU equals
+    the truth (bitwise), and on a flat floor with the vehicle level the slant ranges are the
+    DVL's altitude over cos(beam angle)."""
+    with dataset.open_dataset(ideal_file) as f:
+        m = f["missions/mission_000"]
+        np.testing.assert_array_equal(m["dvl/beam_velocity"][()], m["dvl/beam_velocity_true"][()])
+        np.testing.assert_allclose(m["dvl/velocity_ls"][()], m["dvl/velocity"][()], atol=1e-12)
+        np.testing.assert_array_equal(m["imu/specific_force"][()], m["truth/specific_force"][()])
+        np.testing.assert_array_equal(m["imu/angular_rate"][()], m["truth/angular_rate"][()])
+        # Flat floor: each beam's range is the DVL's height over the floor divided by the
+        # beam direction's down component (the vehicle rolls a few degrees under the
+        # propeller's torque, so the beams are not at exactly 30 deg from vertical).
+        idx = m["imu/index_of_dvl"][()]
+        rot = rotation(m["truth/quaternion"][()][idx])
+        dvl = m["truth/position_ned"][()][idx] + rot @ m.attrs["dvl_position_body"]
+        h = beam_matrix(math.radians(30))
+        down = np.einsum("mj,kj->mk", rot[:, 2, :], h)  # NED z of each beam
+        expected = (60.0 - dvl[:, 2])[:, None] / down
+        np.testing.assert_allclose(m["dvl/beam_range"][()], expected, rtol=1e-9)
+        np.testing.assert_allclose(m["truth/altitude"][()], 60.0 - m["truth/position_ned"][:, 2])
+        # Forward at 2 m/s: the DVL's velocity is 2 m/s along its x, as the truth says.
+        np.testing.assert_allclose(m["dvl/velocity"][:, 0], 2.0, rtol=1e-3)
+
+
+def test_beams_beyond_max_range_are_invalid(tmp_path):
+    deep = dataclasses.replace(IDEAL, seafloor=SeafloorConfig(kind="flat", depth=200.0))
+    out = tmp_path / "deep.h5"
+    generate(deep, out, workers=1, progress=False)
+    with dataset.open_dataset(out) as f:
+        m = f["missions/mission_000"]
+        assert not m["dvl/valid"][()].any()
+        assert np.isnan(m["dvl/beam_velocity"][()]).all()
+        assert np.isnan(m["dvl/beam_range"][()]).all()
+        assert np.isnan(m["dvl/velocity_ls"][()]).all()
+
+
+def test_same_data_for_any_number_of_workers(tmp_path):
+    two = dataclasses.replace(
+        preset("navigator"),
+        missions=tuple(MissionConfig(name=f"m{i}", seed=i, scenario=ScenarioConfig(
+            speed=1.0 + i, duration=30.0)) for i in range(3)))
+    one_worker, two_workers = tmp_path / "w1.h5", tmp_path / "w2.h5"
+    generate(two, one_worker, workers=1, progress=False)
+    generate(two, two_workers, workers=2, progress=False)
+    assert_same(read(one_worker), read(two_workers))
+    with h5py.File(one_worker) as f:
+        assert list(f["missions"]) == ["m0", "m1", "m2"]
+        # Independent missions: different seeds give different noise.
+        assert not np.array_equal(f["missions/m0/dvl/beam_velocity"][:5],
+                                  f["missions/m1/dvl/beam_velocity"][:5])
+
+
+def test_paper_sim_preset_is_the_papers_setup(tmp_path, capsys):
+    out = tmp_path / "paper.h5"
+    assert main(["generate", "--preset", "paper-sim", "--duration", "20", "--workers", "1",
+                 "--out", str(out), "--quiet"]) == 0
+    with dataset.open_dataset(out) as f:
+        assert list(f["missions"]) == ["speed_1", "speed_2", "speed_3"]
+        for speed, name in zip((1, 2, 3), ("speed_1", "speed_2", "speed_3"), strict=True):
+            a = f[f"missions/{name}"].attrs
+            assert a["beam_angle_deg"] == 20.0 and a["dvl_rate_hz"] == 1.0
+            assert a["imu_rate_hz"] == 100.0
+            np.testing.assert_array_equal(a["dvl_scale_factor"], [0.007] * 4)
+            np.testing.assert_array_equal(a["dvl_bias"], [0.0001] * 4)
+            assert a["dvl_noise_std"] == pytest.approx(0.042**2)
+            v = f[f"missions/{name}/truth/velocity_body"][:, 0]
+            assert np.abs(v / speed - 1).max() < 0.01
+        config = Config.from_json(f.attrs["config_json"])
+        assert config.missions[0].scenario.duration == 20.0
+    capsys.readouterr()
+    assert main(["presets"]) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in listed] == list(PRESETS)
+
+
+def test_paper_sim_text_differs_only_in_noise():
+    code, text = preset("paper-sim"), preset("paper-sim-text")
+    assert text.dvl.noise_std == 0.042
+    assert dataclasses.replace(text, dvl=code.dvl) == code
+
+
+def test_long_run_beam_noise_has_the_configured_std(tmp_path):
+    """Through the whole pipeline: y - H v (1 + s) - b has the configured std (3 %) and
+    zero mean, with the realised s and b read back from the file's attributes."""
+    config = dataclasses.replace(
+        preset("paper-sim-text"),
+        missions=(MissionConfig(scenario=ScenarioConfig(speed=2.0, duration=1500.0), seed=9),))
+    out = tmp_path / "noise.h5"
+    generate(config, out, workers=1, progress=False)
+    with dataset.open_dataset(out) as f:
+        m = f["missions/mission_000"]
+        s, b = m.attrs["dvl_scale_factor"], m.attrs["dvl_bias"]
+        residual = m["dvl/beam_velocity"][()] - m["dvl/beam_velocity_true"][()] * (1 + s) - b
+    assert abs(residual.std() / 0.042 - 1) < 0.03
+    assert abs(residual.mean()) < 4 * 0.042 / math.sqrt(residual.size)
+
+
+def test_toml_config_round_trips_into_the_file(tmp_path):
+    toml = tmp_path / "mission.toml"
+    toml.write_text("""
+compression = "gzip"
+
+[vehicle]
+model = "remus100"
+
+[[missions]]
+name = "survey"
+seed = 4
+[missions.scenario]
+speed = 1.5
+depth = 15.0
+duration = 30.0
+
+[seafloor]
+kind = "procedural"
+depth = 40.0
+roughness = 0.5
+
+[dvl]
+beam_angle_deg = 25.0
+noise_std = 0.01
+scale_factor = [0.001, 0.002, 0.003, 0.004]
+
+[imu]
+gyro_noise_density = 1e-5
+""")
+    out = tmp_path / "toml.h5"
+    assert main(["generate", "--config", str(toml), "--out", str(out), "--workers", "1",
+                 "--quiet"]) == 0
+    with dataset.open_dataset(out) as f:
+        config = Config.from_json(f.attrs["config_json"])
+        assert config.vehicle.model == "remus100"
+        assert config.dvl.scale_factor == (0.001, 0.002, 0.003, 0.004)
+        assert f["missions/survey"].attrs["beam_angle_deg"] == 25.0
+        assert f["missions/survey/truth/time"].compression == "gzip"
+    assert Config.from_json(config.to_json()) == config
+
+
+def test_inspect_describes_the_file(ideal_file, capsys):
+    assert main(["inspect", str(ideal_file)]) == 0
+    text = capsys.readouterr().out
+    assert "mission_000: straight, seed 5, 60 s, vehicle auv" in text
+    assert "DVL 1 Hz (60 pings)" in text and "100.0 % of beams valid" in text
+    assert "dvl/beam_velocity (60, 4)" in text
+
+
+def test_reader_refuses_a_mission_missing_a_field(tmp_path, ideal_file):
+    broken = tmp_path / "broken.h5"
+    broken.write_bytes(ideal_file.read_bytes())
+    with h5py.File(broken, "r+") as f:
+        del f["missions/mission_000/dvl/velocity"]
+    with pytest.raises(dataset.DatasetError, match="lacks dvl/velocity"):
+        dataset.open_dataset(broken)
+    assert main(["inspect", str(broken)]) == 2
+
+
+BAD = [
+    ("[dvl]\nrate_hz = 0\n", "dvl.rate_hz"),
+    ("[dvl]\nrate_hz = 3\n", "dvl.rate_hz"),  # not a divisor of 100 Hz
+    ("[imu]\nrate_hz = -100\n", "imu.rate_hz"),
+    ("[dvl]\nbeam_angle_deg = 95\n", "dvl.beam_angle_deg"),
+    ("[dvl]\nnoise_std = -0.1\n", "dvl.noise_std"),
+    ("[dvl]\nbias = nan\n", "dvl.bias"),
+    ("[imu]\ngyro_noise_density = nan\n", "imu.gyro_noise_density"),
+    ("[dvl]\nbeam_angel_deg = 30\n", "unknown setting(s) beam_angel_deg"),
+    ("[seafloor]\nkind = \"moon\"\n", "seafloor.kind"),
+    ("this is not toml", "not valid TOML"),
+]
+
+
+@pytest.mark.parametrize("text,message", BAD)
+def test_bad_config_gives_one_line_and_exit_2(tmp_path, capsys, text, message):
+    toml = tmp_path / "bad.toml"
+    toml.write_text(text)
+    out = tmp_path / "never.h5"
+    assert main(["generate", "--config", str(toml), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--preset", "paper-simulation"], "unknown preset 'paper-simulation'"),
+    (["--config", "/nonexistent/x.toml"], "no such file"),
+    (["--workers", "0"], "workers"),
+])
+def test_bad_options_give_one_line_and_exit_2(tmp_path, capsys, args, message):
+    assert main(["generate", *args, "--duration", "5", "--out", str(tmp_path / "x.h5")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_inspect_missing_file(capsys, tmp_path):
+    assert main(["inspect", str(tmp_path / "none.h5")]) == 2
+    assert "no such file" in capsys.readouterr().err
