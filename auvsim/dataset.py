@@ -60,7 +60,9 @@ class DatasetWriter:
                 f"--out {str(self.path)!r}: cannot write there ({e.strerror or e}); "
                 "expected a path in a writable directory"
             ) from None
-        self.file = h5py.File(self.tmp, "w")
+        # No chunk cache: whole chunks are written at once, so caching them would only
+        # defer their compression to the close, outside the physics/sensors overlap.
+        self.file = h5py.File(self.tmp, "w", rdcc_nbytes=0)
         self.file.attrs.update(
             format=FORMAT,
             format_version=FORMAT_VERSION,
@@ -70,10 +72,13 @@ class DatasetWriter:
         )
         self.file.create_group("missions")
 
-    def mission(self, name: str, attrs: Mapping[str, object]) -> MissionWriter:
+    def mission(self, name: str, attrs: Mapping[str, object],
+                rows: Mapping[str, int] | None = None) -> MissionWriter:
+        """Start a mission; ``rows`` gives the expected rows per group (``truth``: N) or
+        per dataset (``imu/index_of_dvl``: M)."""
         group = self.file["missions"].create_group(name)
         group.attrs.update(attrs)
-        return MissionWriter(group, self.filters)
+        return MissionWriter(group, self.filters, rows)
 
     def __enter__(self) -> DatasetWriter:
         return self
@@ -90,13 +95,19 @@ class MissionWriter:
     """Appends time-major arrays to ``/missions/<name>/<group>/<field>``.
 
     Rows are buffered and written a whole HDF5 chunk at a time: a chunk written in two
-    parts would be compressed twice and decompressed once in between.
+    parts would be compressed twice and decompressed once in between. When the final
+    number of rows of a group is known (``rows``), datasets are created at their final
+    size (HDF5 allocates chunks only as they are written), which saves a resize per write.
     """
 
-    def __init__(self, group: h5py.Group, filters: Mapping[str, object]) -> None:
+    def __init__(self, group: h5py.Group, filters: Mapping[str, object],
+                 rows: Mapping[str, int] | None = None) -> None:
         self.group = group
         self.filters = filters
+        self.rows = dict(rows or {})
         self.pending: dict[str, list[np.ndarray]] = {}
+        self.datasets: dict[str, h5py.Dataset] = {}
+        self.written: dict[str, int] = {}
 
     def append(self, fields: Mapping[str, np.ndarray]) -> None:
         """Append rows; keys are paths such as ``truth/time``."""
@@ -104,7 +115,7 @@ class MissionWriter:
             parts = self.pending.setdefault(key, [])
             parts.append(np.asarray(values))
             if sum(len(p) for p in parts) >= CHUNK_ROWS:
-                rows = np.concatenate(parts)
+                rows = np.concatenate(parts) if len(parts) > 1 else parts[0]
                 whole = len(rows) - len(rows) % CHUNK_ROWS
                 self._write(key, rows[:whole])
                 self.pending[key] = [rows[whole:]]
@@ -114,18 +125,25 @@ class MissionWriter:
         for key, parts in self.pending.items():
             self._write(key, np.concatenate(parts))
         self.pending.clear()
+        for key, ds in self.datasets.items():
+            if ds.shape[0] != self.written[key]:
+                ds.resize(self.written[key], axis=0)  # fewer rows came than announced
 
     def _write(self, key: str, rows: np.ndarray) -> None:
-        if key not in self.group:
-            self.group.create_dataset(
-                key, data=rows, maxshape=(None, *rows.shape[1:]),
-                chunks=(CHUNK_ROWS, *rows.shape[1:]), **self.filters,
-            )
-            return
-        ds = self.group[key]
-        n = ds.shape[0]
-        ds.resize(n + len(rows), axis=0)
-        ds[n:] = rows
+        ds = self.datasets.get(key)
+        if ds is None:
+            n = max(self.rows.get(key, self.rows.get(key.split("/")[0], 0)), len(rows))
+            ds = self.datasets[key] = self.group.create_dataset(
+                key, shape=(n, *rows.shape[1:]), dtype=rows.dtype,
+                maxshape=(None, *rows.shape[1:]), chunks=(CHUNK_ROWS, *rows.shape[1:]),
+                **self.filters)
+            self.written[key] = 0
+        start = self.written[key]
+        end = start + len(rows)
+        if end > ds.shape[0]:
+            ds.resize(end, axis=0)
+        ds[start:end] = rows
+        self.written[key] = end
 
 
 def open_dataset(path: str | os.PathLike) -> h5py.File:

@@ -9,6 +9,7 @@ length, and the output is the same whatever the number of workers.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import multiprocessing
 import os
 import queue
@@ -16,6 +17,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import h5py
@@ -60,6 +62,8 @@ class MissionRun:
         v = config.vehicle
         self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,
                                seafloor=self.seafloor)
+        self.ray_data = self.vehicle.ray_data()
+        self.seafloor.bind(self.vehicle.model, self.ray_data)
         dt = self.vehicle.dt
         self.decimation = round(1.0 / (config.imu.rate_hz * dt))
         if self.decimation < 1 or abs(self.decimation * config.imu.rate_hz * dt - 1.0) > 1e-9:
@@ -93,36 +97,63 @@ class MissionRun:
             imu_bias_correlation_time=c.imu.bias_correlation_time,
         )
 
+    @property
+    def rows(self) -> dict[str, int]:
+        """Rows each group of the mission will have."""
+        n = -(-round(self.mission.scenario.duration / self.vehicle.dt) // self.decimation)
+        pings = -(-n // self.dvl_every)
+        return {"truth": n, "imu": n, "control": n, "dvl": pings, "imu/index_of_dvl": pings}
+
     def blocks(self) -> Iterator[dict[str, np.ndarray]]:
-        """Yield the mission's arrays block by block, keyed by their dataset paths."""
+        """Yield the mission's arrays block by block, keyed by their dataset paths.
+
+        The physics of block k + 1 runs in a background thread (the compiled loop releases
+        the GIL) while block k's sensors are computed and written: the two stages take
+        about the same time, so a mission uses two cores. Nothing they share is written by
+        both: the physics owns ``vehicle.data``, the ray casts ``ray_data``.
+        """
         vehicle, dt = self.vehicle, self.vehicle.dt
         vehicle.reset(**self.scenario.initial_state())
         total = round(self.mission.scenario.duration / dt)
         per_block = self.decimation * self.dvl_every
         block = per_block * max(1, round(BLOCK_SECONDS / dt / per_block))
-        for start in range(0, total, block):
+        starts = range(0, total, block)
+
+        def physics(start: int):
             steps = np.arange(start, min(start + block, total))
-            traj = vehicle.run(self.scenario.references(steps * dt), self.scenario.closed_loop)
-            keep = slice(None, None, self.decimation)
-            arrays = {
-                "truth/time": steps[keep] * dt,
-                "truth/position_ned": traj.position_ned[keep],
-                "truth/velocity_ned": traj.velocity_ned[keep],
-                "truth/velocity_body": traj.velocity_body[keep],
-                "truth/quaternion": traj.quaternion[keep],
-                "truth/angular_rate": traj.angular_rate[keep],
-                "truth/specific_force": traj.specific_force[keep],
-                "control/propeller_rpm": traj.actuators[keep, 0],
-                "control/thrust": traj.thrust[keep],
-                "control/rudder": traj.actuators[keep, 1],
-                "control/stern_planes": traj.actuators[keep, 2],
-            }
-            arrays.update(self._dvl(arrays, first_imu=start // self.decimation))
-            arrays["truth/altitude"] = self._altitude(arrays)
-            arrays["imu/time"] = arrays["truth/time"]
-            arrays["imu/specific_force"], arrays["imu/angular_rate"] = self.imu.corrupt(
-                arrays["truth/specific_force"], arrays["truth/angular_rate"])
-            yield arrays
+            return steps, vehicle.run(self.scenario.references(steps * dt),
+                                      self.scenario.closed_loop)
+
+        with ThreadPoolExecutor(max_workers=1) as physics_thread:
+            ahead = physics_thread.submit(physics, starts[0])
+            for i, start in enumerate(starts):
+                steps, traj = ahead.result()
+                if i + 1 < len(starts):
+                    ahead = physics_thread.submit(physics, starts[i + 1])
+                yield self._sensors(steps, traj, first_imu=start // self.decimation)
+
+    def _sensors(self, steps: np.ndarray, traj, first_imu: int) -> dict[str, np.ndarray]:
+        """Truth at the IMU rate, IMU and DVL measurements of one block."""
+        keep = slice(None, None, self.decimation)
+        arrays = {
+            "truth/time": steps[keep] * self.vehicle.dt,
+            "truth/position_ned": traj.position_ned[keep],
+            "truth/velocity_ned": traj.velocity_ned[keep],
+            "truth/velocity_body": traj.velocity_body[keep],
+            "truth/quaternion": traj.quaternion[keep],
+            "truth/angular_rate": traj.angular_rate[keep],
+            "truth/specific_force": traj.specific_force[keep],
+            "control/propeller_rpm": traj.actuators[keep, 0],
+            "control/thrust": traj.thrust[keep],
+            "control/rudder": traj.actuators[keep, 1],
+            "control/stern_planes": traj.actuators[keep, 2],
+        }
+        arrays.update(self._dvl(arrays, first_imu))
+        arrays["truth/altitude"] = self._altitude(arrays)
+        arrays["imu/time"] = arrays["truth/time"]
+        arrays["imu/specific_force"], arrays["imu/angular_rate"] = self.imu.corrupt(
+            arrays["truth/specific_force"], arrays["truth/angular_rate"])
+        return arrays
 
     def _dvl(self, truth: dict[str, np.ndarray], first_imu: int) -> dict[str, np.ndarray]:
         """The DVL pings of a block: true velocity, beams, ray-cast ranges, measurements."""
@@ -135,7 +166,7 @@ class MissionRun:
         origins, directions = self.dvl.rays(truth["truth/position_ned"][ping], rotation)
         reach = c.max_range * np.linalg.norm(directions[..., :2], axis=-1).max()
         self.seafloor.follow(origins[:, :2], reach=reach)
-        ranges = self.seafloor.cast(self.vehicle.model, self.vehicle.data, origins, directions,
+        ranges = self.seafloor.cast(self.vehicle.model, self.ray_data, origins, directions,
                                     max_range=c.max_range, exclude_body=self.vehicle.body_id)
         valid = ranges >= c.min_range  # NaN (no hit within max_range) compares False
         beams = measure(beams_true, valid, errors=self.dvl_errors, noise_std=c.noise_std,
@@ -175,17 +206,33 @@ def _report_to_queue(progress: queue.Queue) -> None:
     _report = lambda index, seconds: progress.put((index, seconds))  # noqa: E731
 
 
-def _write_mission(config: Config, index: int, path: str) -> None:
-    """Simulate mission ``index`` into its own file (runs in a worker process)."""
+def _stream_mission(config: Config, index: int, writer: DatasetWriter) -> None:
+    """Simulate mission ``index`` and stream it into ``writer``."""
     mission = config.missions[index]
     run = MissionRun(config, mission)
+    sink = writer.mission(mission.name, run.attrs, rows=run.rows)
+    for arrays in run.blocks():
+        sink.append(arrays)
+        if _report is not None:
+            _report(index, len(arrays["truth/time"]) / config.imu.rate_hz)
+    sink.flush()
+
+
+def _write_mission(config: Config, index: int, path: str) -> None:
+    """Simulate mission ``index`` into a file of its own (in a worker process)."""
     with DatasetWriter(path, config_json="", compression=config.compression) as writer:
-        sink = writer.mission(mission.name, run.attrs)
-        for arrays in run.blocks():
-            sink.append(arrays)
-            if _report is not None:
-                _report(index, len(arrays["truth/time"]) / config.imu.rate_hz)
-        sink.flush()
+        _stream_mission(config, index, writer)
+
+
+MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
+
+
+def default_workers(missions: int) -> int:
+    """One worker process per two cores, at most one per mission group: a process keeps two
+    missions in flight, whose physics threads release the GIL, which about fills two cores
+    (measured by benchmarks/datasets.py; separate processes per mission cost more in start
+    up and in copying their files together than they gain)."""
+    return max(1, min(-(-missions // MISSIONS_IN_FLIGHT), (os.cpu_count() or 1) // 2))
 
 
 def generate(config: Config, out: str | os.PathLike, *, workers: int | None = None,
@@ -195,8 +242,8 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
     Args:
         config: what to simulate.
         out: the HDF5 file to write (replaced only once it is complete).
-        workers: worker processes (default: one per core, at most one per mission); 1 runs
-            in this process.
+        workers: worker processes (default ``default_workers``); with 1 the missions run
+            one after the other in this process and stream straight into ``out``.
         executor: a ``concurrent.futures`` executor to use instead of the default process
             pool (it must accept this module's ``_write_mission``).
         progress: show a progress bar on a terminal.
@@ -207,54 +254,71 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
     check_reachable(config)
     if workers is not None and workers < 1:
         raise ConfigError(f"workers: expected at least 1, got {workers}")
-    workers = min(workers or os.cpu_count() or 1, len(config.missions))
+    workers = min(workers or default_workers(len(config.missions)), len(config.missions))
     started = time.perf_counter()
     simulated = sum(m.scenario.duration for m in config.missions)
     out = Path(out)
-    with DatasetWriter(out, config_json=config.to_json(), compression=config.compression) as ds:
-        parts = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-        try:
-            paths = [str(parts / f"{i}.h5") for i in range(len(config.missions))]
-            _run_all(config, paths, workers, executor, progress, simulated)
-            for path, mission in zip(paths, config.missions, strict=True):
-                with h5py.File(path, "r") as part:
-                    part.copy(part[f"missions/{mission.name}"], ds.file["missions"])
-        finally:
-            shutil.rmtree(parts, ignore_errors=True)
+    with DatasetWriter(out, config_json=config.to_json(), compression=config.compression) as ds, \
+            _progress_bar(simulated, progress) as bar:
+        if workers == 1 and executor is None:
+            # Missions on threads in this process, straight into the output file: their
+            # physics runs without the GIL, their sensors and writing take turns with it
+            # (h5py serialises its calls), and each mission touches only its own datasets.
+            with ThreadPoolExecutor(max_workers=MISSIONS_IN_FLIGHT) as pool:
+                futures = [pool.submit(_stream_mission, config, i, ds)
+                           for i in range(len(config.missions))]
+                for future in futures:
+                    future.result()
+        else:
+            _in_parallel(config, ds, workers, executor, bar)
     return dict(missions=len(config.missions), simulated_s=simulated,
                 wall_s=time.perf_counter() - started)
 
 
-def _run_all(config, paths, workers, executor, progress, simulated) -> None:
+@contextlib.contextmanager
+def _progress_bar(simulated: float, progress: bool):
     global _report
-    bar = tqdm(total=round(simulated), unit=" sim s", disable=None if progress else True,
-               leave=False)
-    with bar:
-        if workers == 1 and executor is None:
-            _report = lambda index, seconds: bar.update(round(seconds))  # noqa: E731
-            try:
-                for i, path in enumerate(paths):
-                    bar.set_description(config.missions[i].name)
-                    _write_mission(config, i, path)
-            finally:
-                _report = None
-            return
-        manager = multiprocessing.Manager()
-        reports = manager.Queue()
-        own = executor is None
-        if own:
-            executor = cf.ProcessPoolExecutor(
-                max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=_report_to_queue, initargs=(reports,))
+    with tqdm(total=round(simulated), unit=" sim s", disable=None if progress else True,
+              leave=False) as bar:
+        _report = lambda index, seconds: bar.update(round(seconds))  # noqa: E731
         try:
-            pending = {executor.submit(_write_mission, config, i, p) for i, p in enumerate(paths)}
-            while pending:
-                done, pending = cf.wait(pending, timeout=0.2)
-                while not reports.empty():
-                    bar.update(round(reports.get()[1]))
-                for future in done:
-                    future.result()  # a worker's error is raised here
+            yield bar
         finally:
-            if own:
-                executor.shutdown(cancel_futures=True)
-            manager.shutdown()
+            _report = None
+
+
+def _in_parallel(config: Config, ds: DatasetWriter, workers: int,
+                 executor: cf.Executor | None, bar) -> None:
+    """Run the missions in worker processes, each into a file of its own, and copy each
+    into ``ds`` in mission order as soon as it and those before it are done."""
+    parts = Path(tempfile.mkdtemp(prefix=f".{ds.path.name}.", dir=ds.path.parent))
+    manager = multiprocessing.Manager()
+    reports = manager.Queue()
+    own = executor is None
+    if own:
+        # forkserver: workers fork from a server that has imported auvsim (numba, MuJoCo)
+        # once, so they start in milliseconds, without inheriting this process's threads.
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["auvsim.generate"])
+        executor = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                          initializer=_report_to_queue, initargs=(reports,))
+    try:
+        paths = [str(parts / f"{i}.h5") for i in range(len(config.missions))]
+        futures = [executor.submit(_write_mission, config, i, p) for i, p in enumerate(paths)]
+        copied = 0
+        while copied < len(futures):
+            cf.wait(futures[copied:], timeout=0.2, return_when=cf.FIRST_COMPLETED)
+            while not reports.empty():
+                bar.update(round(reports.get()[1]))
+            while copied < len(futures) and futures[copied].done():
+                futures[copied].result()  # a worker's error is raised here
+                with h5py.File(paths[copied], "r") as part:
+                    name = config.missions[copied].name
+                    part.copy(part[f"missions/{name}"], ds.file["missions"])
+                os.unlink(paths[copied])
+                copied += 1
+    finally:
+        if own:
+            executor.shutdown(cancel_futures=True)
+        manager.shutdown()
+        shutil.rmtree(parts, ignore_errors=True)

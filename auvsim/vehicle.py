@@ -75,7 +75,9 @@ def quat_to_rot(q):
     )
 
 
-@numba.njit(cache=True)
+# nogil: the sensors of one block are computed while the physics of the next one runs in
+# another thread (auvsim.generate.MissionRun.blocks).
+@numba.njit(cache=True, nogil=True)
 def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators, integrals,
          current_ned, imu_position, dt, out):
     flip = np.array([1.0, -1.0, -1.0])
@@ -134,7 +136,9 @@ class Vehicle:
         vehicle: a name from ``VEHICLES`` or a path to an MJCF model of the same layout.
         net_buoyancy: buoyancy minus weight, N.
         current_ned: constant ocean current, m/s, NED.
-        seafloor: terrain to add to the scene (``auvsim.seafloor.Seafloor``), for ray casts.
+        seafloor: terrain to add to the scene (``auvsim.seafloor.Seafloor``), for ray casts;
+            bind it to a ``MjData`` of its own (``ray_data``), not to ``self.data``, so that
+            casts may run while another thread steps the physics.
     """
 
     def __init__(self, vehicle: str = "auv", *, net_buoyancy: float = 0.0,
@@ -146,8 +150,6 @@ class Vehicle:
             seafloor.attach(spec)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
-        if seafloor is not None:
-            seafloor.bind(self.model, self.data)
         self.body_id = self.model.body("vehicle").id
         self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy)
         self.length = 2.0 * float(self.model.geom("hull").size[0])
@@ -159,6 +161,12 @@ class Vehicle:
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)
         self.integrals = np.zeros(3)
+
+    def ray_data(self) -> mujoco.MjData:
+        """A fresh ``MjData`` with every static geom placed, for ray casts only."""
+        data = mujoco.MjData(self.model)
+        mujoco.mj_forward(self.model, data)
+        return data
 
     def reset(self, *, position_ned=(0.0, 0.0, 0.0), roll: float = 0.0, pitch: float = 0.0,
               yaw: float = 0.0, velocity_body=(0.0, 0.0, 0.0)) -> None:

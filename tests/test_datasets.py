@@ -49,10 +49,12 @@ def test_level_on_a_flat_floor_slant_range_is_altitude_over_cos_alpha():
 
     floor = Seafloor(SeafloorConfig(kind="flat", depth=60.0))
     vehicle = Vehicle("auv", seafloor=floor)
+    rays = vehicle.ray_data()
+    floor.bind(vehicle.model, rays)
     vehicle.reset(position_ned=(10.0, -4.0, 20.0))
     dvl = np.array([10.0, -4.0, 20.0]) + vehicle.dvl_position
     h = beam_matrix(math.radians(30))
-    ranges = floor.cast(vehicle.model, vehicle.data, dvl[None], h[None], max_range=90.0,
+    ranges = floor.cast(vehicle.model, rays, dvl[None], h[None], max_range=90.0,
                         exclude_body=vehicle.body_id)
     altitude = 60.0 - dvl[2]
     np.testing.assert_allclose(ranges, altitude / math.cos(math.radians(30)), rtol=1e-12)
