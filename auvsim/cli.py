@@ -46,7 +46,9 @@ def _parser() -> argparse.ArgumentParser:
     gen.add_argument("--seed", type=int, help="seed of the first mission; the others follow "
                      "(default: the preset's, 0 otherwise)")
     gen.add_argument("--vehicle", help="auv (A18-D class, default), remus100, or an MJCF path")
-    gen.add_argument("--workers", type=int, help="worker processes (default: one per core)")
+    gen.add_argument("--workers", type=int,
+                     help="worker processes, each running two missions at a time "
+                     "(default: one per two cores)")
     gen.add_argument("--compression", choices=("lzf", "gzip"),
                      help="lzf (default) is fast; gzip is read by every HDF5 tool")
     gen.add_argument("--out", required=True, help="HDF5 file to write")
@@ -69,6 +71,10 @@ def _load_toml(path: Path) -> Config:
         raise ConfigError(f"--config {str(path)!r}: no such file") from None
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"--config {str(path)!r}: not valid TOML ({e})") from None
+    floor = data.get("seafloor")
+    if isinstance(floor, dict) and isinstance(floor.get("heightmap"), str):
+        # A heightmap named in a config file is found next to that file.
+        floor["heightmap"] = str(path.parent / Path(floor["heightmap"]).expanduser())
     return Config.from_dict(data)
 
 

@@ -186,14 +186,6 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
     return f
 
 
-def _fields(group: h5py.Group) -> list[str]:
-    """'path (shape)' of every dataset below ``group``."""
-    found: list[str] = []
-    group.visititems(lambda k, obj: found.append(f"{k} {obj.shape}")
-                     if isinstance(obj, h5py.Dataset) else None)
-    return found
-
-
 def describe(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
     the realised error parameters and the fields."""
@@ -223,5 +215,9 @@ def describe(path: str | os.PathLike) -> str:
                     f"m/s^2, gyro {fmt(a['imu_gyro_turn_on_bias'])} rad/s; noise densities "
                     f"{a['imu_accel_noise_density']:.3g} m/s^2/rtHz, "
                     f"{a['imu_gyro_noise_density']:.3g} rad/s/rtHz")
-            lines.append("    fields: " + ", ".join(_fields(m)))
+        first = next(iter(f["missions"].values()), None)
+        if first is not None:
+            lines.append("  fields of each mission:")
+            for group in sorted(first):
+                lines.append(f"    {group}: " + ", ".join(sorted(first[group])))
         return "\n".join(lines)
