@@ -108,26 +108,37 @@ class MissionWriter:
         self.pending: dict[str, list[np.ndarray]] = {}
         self.datasets: dict[str, h5py.Dataset] = {}
         self.written: dict[str, int] = {}
+        self.links: dict[str, str] = {}
+
+    def link(self, key: str, target: str) -> None:
+        """Make ``key`` an HDF5 hard link to dataset ``target`` (same data, written once):
+        readers see an ordinary dataset. Rows appended under ``key`` are ignored."""
+        self.links[key] = target
 
     def append(self, fields: Mapping[str, np.ndarray]) -> None:
         """Append rows; keys are paths such as ``truth/time``."""
         for key, values in fields.items():
+            if key in self.links:
+                continue
             parts = self.pending.setdefault(key, [])
             parts.append(np.asarray(values))
             if sum(len(p) for p in parts) >= CHUNK_ROWS:
                 rows = np.concatenate(parts) if len(parts) > 1 else parts[0]
                 whole = len(rows) - len(rows) % CHUNK_ROWS
                 self._write(key, rows[:whole])
-                self.pending[key] = [rows[whole:]]
+                self.pending[key] = [rows[whole:]] if whole < len(rows) else []
 
     def flush(self) -> None:
         """Write what is buffered (the mission's last, partial chunk)."""
         for key, parts in self.pending.items():
-            self._write(key, np.concatenate(parts))
+            if parts:
+                self._write(key, np.concatenate(parts))
         self.pending.clear()
         for key, ds in self.datasets.items():
             if ds.shape[0] != self.written[key]:
                 ds.resize(self.written[key], axis=0)  # fewer rows came than announced
+        for key, target in self.links.items():
+            self.group[key] = self.group[target]
 
     def _write(self, key: str, rows: np.ndarray) -> None:
         ds = self.datasets.get(key)

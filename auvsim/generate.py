@@ -211,6 +211,7 @@ def _stream_mission(config: Config, index: int, writer: DatasetWriter) -> None:
     mission = config.missions[index]
     run = MissionRun(config, mission)
     sink = writer.mission(mission.name, run.attrs, rows=run.rows)
+    sink.link("imu/time", "truth/time")  # the IMU samples at the truth's times
     for arrays in run.blocks():
         sink.append(arrays)
         if _report is not None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -58,6 +59,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=7200.0,
                         help="length of each paper-sim mission, s")
+    parser.add_argument("--repeats", type=int, default=3, help="alternating runs; medians")
     parser.add_argument("--skip-memory", action="store_true")
     args = parser.parse_args()
 
@@ -82,13 +84,19 @@ def main() -> None:
         out = Path(tmp) / "paper_sim.h5"
         generate(config, out, workers=1, progress=False)  # warm numba's cache
         every_cpu = os.sched_getaffinity(0)
-        os.sched_setaffinity(0, {min(every_cpu)})
-        try:
-            one_wall, one_cpu = timed(lambda: generate(config, out, workers=1, progress=False))
-        finally:
-            os.sched_setaffinity(0, every_cpu)
-        all_wall, all_cpu = timed(lambda: generate(config, out, progress=False))
-        _, bare_cpu = timed(bare)
+        runs: dict[str, list[tuple[float, float]]] = {"one": [], "all": [], "bare": []}
+        for _ in range(args.repeats):
+            os.sched_setaffinity(0, {min(every_cpu)})
+            try:
+                runs["one"].append(timed(lambda: generate(config, out, workers=1,
+                                                          progress=False)))
+            finally:
+                os.sched_setaffinity(0, every_cpu)
+            runs["all"].append(timed(lambda: generate(config, out, progress=False)))
+            runs["bare"].append(timed(bare))
+        (one_wall, one_cpu), (all_wall, all_cpu), (_, bare_cpu) = (
+            tuple(statistics.median(x) for x in zip(*runs[k], strict=True))
+            for k in ("one", "all", "bare"))
         size = out.stat().st_size / 1e6
         memory = None
         if not args.skip_memory:
@@ -97,7 +105,8 @@ def main() -> None:
 
     per_core = simulated / all_cpu
     print(f"paper-sim: 3 missions x {args.duration:g} s = {simulated:g} s simulated, "
-          f"{steps} physics steps, {size:.0f} MB written, {cores} cores")
+          f"{steps} physics steps, {size:.0f} MB written, {cores} cores, "
+          f"medians of {args.repeats} alternating runs")
     print(f"  one core:     {one_wall:6.2f} s wall, {one_cpu:6.2f} s CPU -> "
           f"{simulated / one_wall:6.0f}x real time")
     print(f"  {cores} cores:      {all_wall:6.2f} s wall, {all_cpu:6.2f} s CPU -> "
