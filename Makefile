@@ -30,6 +30,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/generation.py
+	$(BIN)/python benchmarks/datasets.py
 
 clean:
 	rm -rf $(VENV) demo .pytest_cache
