@@ -19,10 +19,7 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/auvsim generate --scenario straight --speed 2 --heading-deg 30 --depth 20 \
 		--duration 600 --seed 1 --out demo/straight.h5
-	@$(BIN)/python -c "from auvsim.dataset import open_dataset; \
-		f = open_dataset('demo/straight.h5'); m = f['missions/mission_000/truth']; \
-		print('demo/straight.h5 holds', len(m['time']), 'truth samples; last speed', \
-		m['velocity_body'][-1].round(3), 'm/s (body), depth', m['position_ned'][-1, 2].round(2), 'm')"
+	$(BIN)/auvsim inspect demo/straight.h5
 
 test: $(STAMP)
 	$(BIN)/ruff check auvsim beamsnet tests benchmarks

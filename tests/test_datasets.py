@@ -9,6 +9,7 @@ import math
 import h5py
 import numpy as np
 import pytest
+from h5compare import assert_same_contents
 
 from auvsim import dataset
 from auvsim.cli import main
@@ -58,28 +59,6 @@ def test_level_on_a_flat_floor_slant_range_is_altitude_over_cos_alpha():
                         exclude_body=vehicle.body_id)
     altitude = 60.0 - dvl[2]
     np.testing.assert_allclose(ranges, altitude / math.cos(math.radians(30)), rtol=1e-12)
-
-
-def read(path) -> dict:
-    out = {}
-    with h5py.File(path, "r") as f:
-        out["/"] = {k: v for k, v in f.attrs.items() if k != "created_utc"}
-        f.visititems(lambda name, obj: out.__setitem__(
-            name, obj[()] if isinstance(obj, h5py.Dataset) else dict(obj.attrs)))
-    return out
-
-
-def assert_same(a: dict, b: dict) -> None:
-    assert a.keys() == b.keys()
-    for key in a:
-        if isinstance(a[key], np.ndarray):
-            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-        elif isinstance(a[key], dict):
-            assert a[key].keys() == b[key].keys(), key
-            for k in a[key]:
-                np.testing.assert_array_equal(a[key][k], b[key][k], err_msg=f"{key}:{k}")
-        else:
-            assert a[key] == b[key], key
 
 
 @pytest.fixture(scope="module")
@@ -152,7 +131,7 @@ def test_same_data_for_any_number_of_workers(tmp_path):
     one_worker, two_workers = tmp_path / "w1.h5", tmp_path / "w2.h5"
     generate(two, one_worker, workers=1, progress=False)
     generate(two, two_workers, workers=2, progress=False)
-    assert_same(read(one_worker), read(two_workers))
+    assert_same_contents(one_worker, two_workers)
     with h5py.File(one_worker) as f:
         assert list(f["missions"]) == ["m0", "m1", "m2"]
         # Independent missions: different seeds give different noise.
