@@ -165,7 +165,13 @@ class MissionRun:
         beams_true = velocity @ self.dvl.h.T
         origins, directions = self.dvl.rays(truth["truth/position_ned"][ping], rotation)
         reach = c.max_range * np.linalg.norm(directions[..., :2], axis=-1).max()
-        self.seafloor.follow(origins[:, :2], reach=reach)
+        try:
+            self.seafloor.follow(origins[:, :2], reach=reach)
+        except ValueError as e:
+            raise ConfigError(
+                f"dvl.max_range: {c.max_range:g} m beams reach beyond the procedural terrain "
+                f"window ({e}); expected a shorter max_range or a larger seafloor.cell_size"
+            ) from None
         ranges = self.seafloor.cast(self.vehicle.model, self.ray_data, origins, directions,
                                     max_range=c.max_range, exclude_body=self.vehicle.body_id)
         valid = ranges >= c.min_range  # NaN (no hit within max_range) compares False

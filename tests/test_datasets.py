@@ -255,6 +255,9 @@ BAD = [
     ("[dvl]\nbeam_angel_deg = 30\n", "unknown setting(s) beam_angel_deg"),
     ("[seafloor]\nkind = \"moon\"\n", "seafloor.kind"),
     ("this is not toml", "not valid TOML"),
+    ("[seafloor]\nkind = \"procedural\"\n[dvl]\nmax_range = 2000\n", "dvl.max_range"),
+    ("[[missions]]\n[missions.scenario]\ndepth = 59.5\nduration = 5\n"
+     "[seafloor]\nkind = \"procedural\"\ndepth = 60\nroughness = 3\n", "reached the seafloor"),
 ]
 
 
