@@ -1,0 +1,235 @@
+"""Model-based velocity estimators that BeamsNet is compared with, behind one interface:
+``fit(train) -> self`` and ``predict(windows) -> (S, 3)`` DVL velocity in m/s, and a
+``name`` for the row of a results table. Every estimator works on the samples of
+``beamsnet.data`` (the same samples as V1 and V2), so every table has every row.
+
+* ``LeastSquares``: paper eq. 9 on the current beams, nothing fitted.
+* ``AffineCalibration``: ``v = A y + c`` fitted on the training split; removes the DVL's
+  scale factors and biases (paper eq. 7), the systematic part of the LS error.
+* ``KalmanFilter``: a random-walk velocity filter over each mission's pings, on the
+  calibrated (default) or the raw LS velocity: removes much of the white-noise part.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from auvsim.sensors.dvl import least_squares
+
+from .data import Windows
+
+# q grid of the Kalman filter, m/s per sqrt(s): from "velocity constant to 10 um/s over
+# an hour" to "changes by 1 m/s each second"; half-decade steps are finer than the RMSE's
+# sensitivity to q near its optimum.
+Q_GRID = np.logspace(-6.0, 0.0, 13)
+
+
+class Estimator(Protocol):
+    """What every baseline (and a trained BeamsNet wrapper) offers."""
+
+    name: str
+
+    def fit(self, train: Windows) -> Estimator: ...
+
+    def predict(self, windows: Windows) -> np.ndarray: ...
+
+
+def rmse(estimate: np.ndarray, target: np.ndarray) -> float:
+    """Root mean square of the 3-D velocity error, sqrt(mean |v_hat - v|^2), m/s."""
+    return float(np.sqrt(np.mean(np.sum((estimate - target) ** 2, axis=1))))
+
+
+class LeastSquares:
+    """Paper eq. 9 on the current beams: ``v = (H^T H)^-1 H^T y``. Nothing to fit."""
+
+    name = "LS"
+
+    def fit(self, train: Windows) -> LeastSquares:
+        return self
+
+    def predict(self, windows: Windows) -> np.ndarray:
+        return least_squares(windows.beams, windows.h)
+
+
+class AffineCalibration:
+    """``v = A y + c``, A (3, 4), c (3,), by linear least squares from the measured beams
+    to the true velocity of the training split.
+
+    With eq. 7's errors, ``y = diag(1 + s) H v + b + n``, the noise-free inverse
+    ``v = pinv(diag(1 + s) H) (y - b)`` is affine in y, so this removes the scale factors
+    and biases, exactly on noise-free data. With noise it is the best linear predictor on
+    the training distribution (regressing v on noisy y shrinks A a little towards the
+    training mean: the errors-in-variables attenuation, small while the velocity varies
+    much more than the beam noise).
+
+    Attributes (after fit):
+        a: (3, 4); c: (3,) m/s.
+    """
+
+    name = "Affine"
+    # Beam directions whose spread in the training set is below this fraction of the
+    # largest are round-off (noise-free data have no spread off H's column space): they
+    # get no weight instead of a huge one.
+    rcond = 1e-10
+
+    def __init__(self) -> None:
+        self.a: np.ndarray | None = None
+        self.c: np.ndarray | None = None
+        self.h: np.ndarray | None = None
+
+    def fit(self, train: Windows) -> AffineCalibration:
+        if len(train.target) < 5:
+            raise ValueError(f"{type(self).__name__}.fit: 15 parameters need at least 5 "
+                             f"training samples, got {len(train.target)}")
+        # Centred, so the intercept does not couple with A: better conditioned, same fit.
+        y_mean, v_mean = train.beams.mean(axis=0), train.target.mean(axis=0)
+        coef, *_ = np.linalg.lstsq(train.beams - y_mean, train.target - v_mean,
+                                   rcond=self.rcond)
+        self.a = coef.T
+        self.c = v_mean - self.a @ y_mean
+        self.h = train.h
+        return self
+
+    def predict(self, windows: Windows) -> np.ndarray:
+        _check_fitted(self, windows)
+        return windows.beams @ self.a.T + self.c
+
+
+class KalmanFilter:
+    """Random-walk velocity filter, run over each mission's samples in time order.
+
+    Model, per mission: ``v_k = v_{k-1} + w_k``, ``w_k ~ N(0, q^2 dt_k I)`` (dt_k the time
+    since the previous sample, s: with one ping per second this is q^2 per ping, and a
+    ping skipped for lost bottom lock counts as the time it took); beams
+    ``y_k = H v_k + n_k``, ``n_k ~ N(0, r^2 I)``.
+
+    The filter is run on the velocity measurement ``z_k`` that the beams give, with
+    ``H_z = I``: ``z = LS(y)``, ``R = r^2 (H^T H)^-1`` without calibration, which is the
+    same filter as on the four beams (LS is a sufficient statistic of y for v), or, with
+    ``calibrate=True``, ``z = A y + c`` of an ``AffineCalibration`` fitted on the same
+    training split and ``R = r^2 A A^T`` (the beam noise carried through the calibration).
+    Calibration is the default because the DVL's scale factor and bias are systematic: a
+    filter only averages noise, it cannot remove them, and they dominate the LS error at
+    the paper's settings.
+
+    r is the RMS residual of the four-beam least-squares fit on the training beams
+    (``|y - H v_ls|^2`` has one degree of freedom per ping: ``E = r^2``), so it needs no
+    truth. q is the value of ``Q_GRID`` with the least velocity RMSE on the training split.
+    Each mission starts from its first measurement (``x_0 = z_0``, ``P_0 = R``: the same as
+    a diffuse prior), so nothing carries over a mission boundary.
+
+    Attributes (after fit): r (m/s), q (m/s per sqrt(s)), calibration (or None),
+    train_rmse (q -> training RMSE, m/s).
+    """
+
+    def __init__(self, *, calibrate: bool = True,
+                 q_grid: np.ndarray | None = None) -> None:
+        self.calibrate = calibrate
+        self.name = "KF" if calibrate else "KF (LS input)"
+        self.q_grid = Q_GRID if q_grid is None else np.asarray(q_grid, dtype=float)
+        if self.q_grid.ndim != 1 or len(self.q_grid) == 0 or not np.all(self.q_grid > 0):
+            raise ValueError(f"q_grid: expected positive values, m/s per sqrt(s), got "
+                             f"{q_grid!r}")
+        self.calibration: AffineCalibration | None = None
+        self.h: np.ndarray | None = None
+        self.r = self.q = None
+        self.train_rmse: dict[float, float] = {}
+
+    def fit(self, train: Windows) -> KalmanFilter:
+        self.h = train.h
+        residual = train.beams - least_squares(train.beams, train.h) @ train.h.T
+        self.r = float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))  # 4 - 3 = 1 dof
+        self.calibration = AffineCalibration().fit(train) if self.calibrate else None
+        z, cov = self._measurement(train)
+        sse = _filter(z, cov, train.mission, train.time, self.q_grid, target=train.target)
+        errors = np.sqrt(sse / len(train.target))
+        self.train_rmse = dict(zip(self.q_grid.tolist(), errors.tolist(), strict=True))
+        self.q = float(self.q_grid[np.argmin(errors)])
+        return self
+
+    def predict(self, windows: Windows) -> np.ndarray:
+        _check_fitted(self, windows)
+        z, cov = self._measurement(windows)
+        return _filter(z, cov, windows.mission, windows.time, np.array([self.q]))
+
+    def _measurement(self, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
+        """z (S, 3) m/s and its noise covariance R (3, 3)."""
+        if self.calibration is not None:
+            a = self.calibration.a
+            return self.calibration.predict(windows), self.r ** 2 * a @ a.T
+        h = windows.h
+        return least_squares(windows.beams, h), self.r ** 2 * np.linalg.inv(h.T @ h)
+
+
+def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarray,
+            q_grid: np.ndarray, *, target: np.ndarray | None = None) -> np.ndarray:
+    """Kalman filter (H = I, random walk) of z over each mission, for every q at once.
+
+    The missions run side by side (padded to the longest), and every q of the grid too,
+    so the Python loop is over the samples of the longest mission only.
+
+    Args:
+        z: (S, 3) velocity measurements, m/s, in any order (sorted by mission and time
+            here, and the estimates put back in the input order).
+        cov: (3, 3) measurement noise covariance, (m/s)^2.
+        mission, time: (S,) mission index and time, s, of each sample.
+        q_grid: (G,) random-walk intensities, m/s per sqrt(s).
+        target: (S, 3) true velocities, m/s; given, return the sum of squared errors.
+
+    Returns:
+        (S, 3) estimates for q_grid[0] (for G = 1), or (G,) sums of squared errors, m^2/s^2.
+    """
+    if len(z) == 0:
+        return np.zeros(len(q_grid)) if target is not None else np.empty((0, 3))
+    order = np.lexsort((time, mission))
+    m, t = mission[order], time[order]
+    same = m[1:] == m[:-1]
+    if np.any(same & (t[1:] <= t[:-1])):
+        raise ValueError("Kalman filter: two samples of one mission at the same time; "
+                         "filter the train and test windows separately")
+    starts = np.flatnonzero(np.concatenate([[True], ~same]))
+    lengths = np.diff(np.append(starts, len(m)))
+    n_seq, n_steps = len(starts), int(lengths.max())
+    # (n_seq, n_steps) padded index into the sorted samples; padding repeats the last row.
+    step = np.minimum(np.arange(n_steps), lengths[:, None] - 1)
+    rows = order[starts[:, None] + step]
+    active = np.arange(n_steps) < lengths[:, None]
+    dt = np.diff(t[starts[:, None] + step], axis=1, prepend=0.0)
+
+    g = len(q_grid)
+    eye = np.eye(3)
+    x = np.broadcast_to(z[rows[:, 0]], (g, n_seq, 3)).copy()
+    p = np.broadcast_to(cov, (g, n_seq, 3, 3)).copy()
+    out = np.empty((n_seq, n_steps, 3)) if target is None else None
+    sse = np.zeros(g)
+    q2 = q_grid[:, None, None, None] ** 2
+    for k in range(n_steps):
+        if k > 0:
+            p_prior = p + q2 * dt[:, k, None, None] * eye
+            gain = p_prior @ np.linalg.inv(p_prior + cov)
+            x_new = x + np.einsum("gnij,gnj->gni", gain, z[rows[:, k]] - x)
+            p_new = p_prior - gain @ p_prior
+            p_new = 0.5 * (p_new + np.swapaxes(p_new, -1, -2))  # keep P symmetric
+            live = active[:, k]
+            x = np.where(live[:, None], x_new, x)
+            p = np.where(live[:, None, None], p_new, p)
+        if target is None:
+            out[:, k] = x[0]
+        else:
+            err = x - target[rows[:, k]]
+            sse += np.sum(np.where(active[:, k, None], err, 0.0) ** 2, axis=(1, 2))
+    if target is not None:
+        return sse
+    estimate = np.empty_like(z)
+    estimate[rows[active]] = out[active]
+    return estimate
+
+
+def _check_fitted(estimator, windows: Windows) -> None:
+    if estimator.h is None:
+        raise RuntimeError(f"{type(estimator).__name__}: call fit(train) before predict")
+    if not np.allclose(estimator.h, windows.h):
+        raise ValueError(f"{type(estimator).__name__}: fitted on another beam geometry than "
+                         "the windows to predict (beam angle differs)")

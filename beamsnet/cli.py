@@ -1,0 +1,89 @@
+"""``beamsnet`` command line: train, evaluate, reproduce the paper's simulation table."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from auvsim.errors import AuvsimError
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="beamsnet", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    tr = sub.add_parser("train", help="train BeamsNetV1 or V2 on a dataset",
+                        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    tr.add_argument("dataset", type=Path)
+    tr.add_argument("--model", choices=("v1", "v2"), default="v2")
+    tr.add_argument("--out", type=Path, required=True, help="run directory to write")
+    tr.add_argument("--epochs", type=int, default=30)
+    tr.add_argument("--lr", type=float, default=0.01, help="0.001 for sea data in the paper")
+    tr.add_argument("--batch-size", type=int, default=4)
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--mission", action="append", dest="missions",
+                    help="train on this mission only (repeatable; default: all)")
+    tr.add_argument("--quiet", action="store_true")
+    ev = sub.add_parser("evaluate", help="compare a trained run with the baselines")
+    ev.add_argument("run", type=Path, help="run directory written by beamsnet train")
+    ev.add_argument("datasets", type=Path, nargs="+", help="datasets (.h5) to evaluate on")
+    ev.add_argument("--also", type=Path, action="append", default=[],
+                    help="another run to put in the same tables (repeatable)")
+    ev.add_argument("--out", type=Path, default=Path("reports/evaluation"))
+    rp = sub.add_parser("reproduce", help="reproduce the paper's simulation (Table 1)")
+    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text"))
+    rp.add_argument("--data", type=Path, help="use this dataset instead of generating one")
+    rp.add_argument("--duration", type=float, default=7200.0, help="s per speed")
+    rp.add_argument("--epochs", type=int, default=30)
+    rp.add_argument("--out", type=Path, default=Path("reports"))
+    rp.add_argument("--quiet", action="store_true")
+    return parser
+
+
+def _train(args) -> None:
+    from .train import TrainConfig, train
+
+    config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
+                         batch_size=args.batch_size, seed=args.seed,
+                         missions=tuple(args.missions) if args.missions else None)
+    summary = train(args.dataset, config, args.out, progress=not args.quiet)
+    h = summary["history"]
+    print(f"trained BeamsNet{args.model.upper()}: final loss {h['train'][-1]:.3g} (training), "
+          f"{h['test'][-1]:.3g} (test split), {summary['samples_per_second']:.0f} samples/s; "
+          f"wrote {summary['checkpoint']} and {summary['plot']}")
+
+
+def _evaluate(args) -> None:
+    from .evaluate import evaluate, markdown
+
+    results = evaluate([args.run, *args.also], args.datasets, args.out)
+    for dataset, result in results.items():
+        print(markdown(result["rows"], str(dataset)))
+    print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
+
+
+def _reproduce(args) -> None:
+    from .reproduce import paper_sim
+
+    report = paper_sim(args.experiment, data=args.data, duration=args.duration,
+                       epochs=args.epochs, out=args.out, progress=not args.quiet)
+    print(f"wrote {report}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce}[args.command](args)
+    except (AuvsimError, ValueError, FileNotFoundError) as e:
+        print(f"beamsnet: error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

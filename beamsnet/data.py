@@ -1,0 +1,215 @@
+"""Samples for BeamsNet and its baselines, cut from an auvsim dataset (schema v1).
+
+One sample per DVL ping k (paper sec. 3, and the published code):
+
+* ``beams``: the measured beam velocities of ping k (BeamsNet's "current beams");
+* ``past_beams``: those of pings k - n_past .. k - 1, oldest first (BeamsNetV2's input);
+* ``accel``, ``gyro``: the IMU samples of the interval before ping k,
+  ``[index_of_dvl[k] - W, index_of_dvl[k])`` with W = IMU rate / DVL rate (BeamsNetV1's
+  input: 100 samples at 100 Hz / 1 Hz);
+* ``target``: the true DVL velocity of ping k, in the DVL frame.
+
+A ping is a sample only if it has n_past earlier pings and a full IMU interval in its own
+mission (k >= max(n_past, 1); ping 0 has no interval before it) and all the beams it uses
+(current and past) have bottom lock. So V1, V2 and every baseline see the SAME samples, and
+no sample reaches across a mission boundary. ``split`` then cuts each mission sequentially,
+as the paper does (75 % / 25 %, no shuffling).
+
+The file is read only through ``auvsim.dataset.open_dataset``, the one module that knows
+the HDF5 layout and checks it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from auvsim.dataset import open_dataset
+from auvsim.errors import DatasetError
+from auvsim.sensors.dvl import beam_matrix
+
+
+class DataError(DatasetError, ValueError):
+    """A dataset cannot give the samples asked for (also raised for a file that is not an
+    auvsim dataset, with ``open_dataset``'s message). An ``AuvsimError``, so the CLI
+    boundary catches it with the others."""
+
+
+class Windows(NamedTuple):
+    """Samples, one per usable DVL ping, missions one after the other in ``names`` order,
+    pings in time order within each mission. Arrays are float64 except ``mission``.
+
+    Attributes:
+        beams: (S, 4) measured beam velocities of the ping, m/s.
+        past_beams: (S, n_past, 4) measured beams of the n_past previous pings, oldest
+            first, m/s.
+        accel: (S, W, 3) measured specific force of the IMU interval before the ping,
+            m/s^2, body axes; None when the file has no IMU group.
+        gyro: (S, W, 3) measured angular rate of that interval, rad/s, body; or None.
+        target: (S, 3) true DVL velocity in the DVL frame, m/s: the regression target.
+        velocity_ls: (S, 3) the file's least-squares velocity of the ping (paper eq. 9), m/s.
+        mission: (S,) int64 index into ``names``.
+        time: (S,) ping time from the start of its mission, s.
+        names: the mission names.
+        h: (4, 3) beam matrix shared by every mission.
+    """
+
+    beams: np.ndarray
+    past_beams: np.ndarray
+    accel: np.ndarray | None
+    gyro: np.ndarray | None
+    target: np.ndarray
+    velocity_ls: np.ndarray
+    mission: np.ndarray
+    time: np.ndarray
+    names: tuple[str, ...]
+    h: np.ndarray
+
+
+# Fields with one row per sample: what select() indexes.
+_PER_SAMPLE = ("beams", "past_beams", "accel", "gyro", "target", "velocity_ls", "mission",
+               "time")
+
+
+def load_windows(path: str | os.PathLike, *, n_past: int = 3,
+                 missions: Sequence[str] | None = None) -> Windows:
+    """Cut the samples of every (or the named) mission of a dataset.
+
+    Args:
+        path: an auvsim dataset (HDF5 schema v1).
+        n_past: number of past pings per sample (BeamsNetV2 uses 3), >= 1.
+        missions: names of the missions to use, in this order; default all, in file order
+            (h5py lists a group's members by name).
+
+    Returns:
+        The samples (see ``Windows``).
+
+    Raises:
+        DataError: the file is not an auvsim dataset; ``n_past`` < 1; a mission name is
+            not in the file; a mission has too few pings for one sample; missions differ
+            in beam angle or in IMU samples per ping; no ping has all its beams valid.
+    """
+    if isinstance(n_past, bool) or not isinstance(n_past, (int, np.integer)) or n_past < 1:
+        raise DataError(f"n_past: expected an integer >= 1 (past pings per sample), "
+                        f"got {n_past!r}")
+    if isinstance(missions, str):
+        raise DataError(f"missions: expected a sequence of mission names, got the string "
+                        f"{missions!r} (write [{missions!r}])")
+    try:
+        f = open_dataset(path)
+    except DatasetError as e:
+        raise DataError(str(e)) from None
+    with f:
+        group = f["missions"]
+        available = list(group)
+        names = tuple(available if missions is None else missions)
+        if not names:
+            raise DataError(f"missions: expected at least one mission name; {path} has "
+                            f"{', '.join(available)}")
+        unknown = [n for n in names if n not in group]
+        if unknown:
+            raise DataError(f"missions: {', '.join(map(repr, unknown))} not in {path}; it has "
+                            f"{', '.join(available) or 'no missions'}")
+        if len(set(names)) != len(names):
+            raise DataError(f"missions: each mission at most once, got {list(names)}")
+        angles = {n: float(group[n].attrs["beam_angle_deg"]) for n in names}
+        if len(set(angles.values())) > 1:
+            raise DataError(f"{path}: missions have different beam angles "
+                            f"({', '.join(f'{n} {a:g} deg' for n, a in angles.items())}); "
+                            "one beam matrix is needed: pass missions= with one angle")
+        with_imu = all("imu" in group[n] for n in names)
+        parts = [_mission_windows(group[n], n, i, n_past, with_imu) for i, n in enumerate(names)]
+
+    widths = {p["accel"].shape[1] for p in parts if p["accel"] is not None}
+    if len(widths) > 1:
+        raise DataError(f"{path}: missions have different IMU samples per DVL ping "
+                        f"({sorted(widths)}); pass missions= with one IMU/DVL rate ratio")
+    out = {k: (None if parts[0][k] is None else np.concatenate([p[k] for p in parts]))
+           for k in _PER_SAMPLE}
+    if len(out["target"]) == 0:
+        raise DataError(f"{path}: no ping of {', '.join(names)} has all {n_past + 1} beam "
+                        "epochs valid (bottom lock); no samples")
+    return Windows(**out, names=names,
+                   h=beam_matrix(math.radians(next(iter(angles.values())))))
+
+
+def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool) -> dict:
+    """The samples of one mission (an h5py group), as a dict of Windows fields."""
+    beams = m["dvl/beam_velocity"][()]
+    n_pings = len(beams)
+    first = max(n_past, 1)  # the first ping with n_past pings and an IMU interval before it
+    if n_pings <= first:
+        raise DataError(f"mission {name}: {n_pings} DVL ping(s); a sample with n_past="
+                        f"{n_past} needs at least {first + 1}")
+    usable = m["dvl/valid"][()].all(axis=1) & np.isfinite(beams).all(axis=1)
+    # ok[k]: pings k - n_past .. k all usable (a running count of usable pings).
+    count = np.concatenate([[0], np.cumsum(usable)])
+    ks = np.arange(first, n_pings)
+    ok = count[ks + 1] - count[ks - n_past] == n_past + 1
+
+    accel = gyro = None
+    if with_imu:
+        width = m.attrs["imu_rate_hz"] / m.attrs["dvl_rate_hz"]
+        if abs(width - round(width)) > 1e-9 or round(width) < 1:
+            raise DataError(f"mission {name}: IMU rate {m.attrs['imu_rate_hz']:g} Hz is not a "
+                            f"whole multiple of the DVL rate {m.attrs['dvl_rate_hz']:g} Hz")
+        width = round(width)
+        end = m["imu/index_of_dvl"][()]
+        n_imu = m["imu/specific_force"].shape[0]
+        ok &= (end[ks] - width >= 0) & (end[ks] <= n_imu)
+        ks = ks[ok]
+        rows = end[ks][:, None] + np.arange(-width, 0)  # (S, W) IMU rows before each ping
+        accel = m["imu/specific_force"][()][rows]
+        gyro = m["imu/angular_rate"][()][rows]
+    else:
+        ks = ks[ok]
+    return dict(
+        beams=beams[ks],
+        past_beams=beams[ks[:, None] + np.arange(-n_past, 0)],
+        accel=accel, gyro=gyro,
+        target=m["dvl/velocity"][()][ks],
+        velocity_ls=m["dvl/velocity_ls"][()][ks],
+        mission=np.full(len(ks), index, dtype=np.int64),
+        time=m["dvl/time"][()][ks],
+    )
+
+
+def select(windows: Windows, which: np.ndarray | Sequence[int] | slice) -> Windows:
+    """The samples picked by a boolean mask (S,), integer indices or a slice; ``names``
+    and ``h`` are kept, so mission indices keep their meaning."""
+    if not isinstance(which, slice):
+        which = np.asarray(which)
+        n = len(windows.target)
+        if which.dtype == bool and which.shape != (n,):
+            raise ValueError(f"select: a mask must have shape ({n},), got "
+                             f"{which.shape}")
+    return windows._replace(**{k: None if getattr(windows, k) is None
+                               else getattr(windows, k)[which] for k in _PER_SAMPLE})
+
+
+def split(windows: Windows, train_fraction: float = 0.75) -> tuple[Windows, Windows]:
+    """Sequential train/test split of each mission, no shuffling (paper: 75 % / 25 %).
+
+    The first ``floor(train_fraction * n)`` samples of each mission (of n) train, the
+    rest test; both keep the order of ``windows``.
+
+    Raises:
+        ValueError: ``train_fraction`` is not in (0, 1), or either part is empty.
+    """
+    if not (isinstance(train_fraction, (int, float)) and 0 < train_fraction < 1):
+        raise ValueError(f"train_fraction: expected a fraction in (0, 1), got "
+                         f"{train_fraction!r}")
+    train = np.zeros(len(windows.target), dtype=bool)
+    for m in np.unique(windows.mission):
+        rows = np.flatnonzero(windows.mission == m)
+        rows = rows[np.argsort(windows.time[rows], kind="stable")]
+        train[rows[:int(train_fraction * len(rows))]] = True
+    if train.all() or not train.any():
+        raise ValueError(f"split: train_fraction {train_fraction:g} of {len(train)} "
+                         f"samples leaves the {'test' if train.all() else 'training'} "
+                         "part empty")
+    return select(windows, train), select(windows, ~train)

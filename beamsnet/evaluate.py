@@ -1,0 +1,118 @@
+"""Evaluating trained networks beside the baselines, on the test split of datasets.
+
+Every row of a table is computed on the same samples: the test part (the last 25 % by
+default) of each mission of a dataset. The baselines that need fitting (affine
+calibration, Kalman filter) are fitted on the training part of the same file, as the
+networks were trained on it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from . import metrics
+from .baselines import AffineCalibration, KalmanFilter, LeastSquares
+from .data import Windows, load_windows, split
+from .train import load, predict
+
+COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",
+           "rmse_z")
+
+
+def estimates(runs: list[str | Path], dataset: str | Path,
+              missions: list[str] | None = None) -> tuple[Windows, dict]:
+    """Test-split windows of ``dataset`` (its ``missions``, default all) and every
+    estimator's (S, 3) predictions on them."""
+    models = [(Path(r), *load(r)) for r in runs]
+    configs = [c["train_config"] for _, _, c in models]
+    n_past = max([c["n_past"] for c in configs], default=3)
+    fraction = configs[0]["train_fraction"] if configs else 0.75
+    train_w, test_w = split(load_windows(dataset, n_past=n_past, missions=missions), fraction)
+    out: dict[str, np.ndarray] = {}
+    for baseline in (LeastSquares(), AffineCalibration(), KalmanFilter()):
+        out[baseline.name] = baseline.fit(train_w).predict(test_w)
+    for run, model, checkpoint in models:
+        name = f"BeamsNet{checkpoint['model'].upper()} ({run.name})"
+        out[name] = predict(model, checkpoint["model"], _trim(test_w, checkpoint))
+    return test_w, out
+
+
+def _trim(windows: Windows, checkpoint: dict) -> Windows:
+    """Windows for a model trained with fewer past pings than the others use."""
+    n = checkpoint["train_config"]["n_past"]
+    return windows._replace(past_beams=windows.past_beams[:, -n:])
+
+
+def table(windows: Windows, predictions: dict[str, np.ndarray]) -> dict[str, dict]:
+    """Metrics of every estimator on ``windows``, with the improvement over LS."""
+    rows = {name: metrics.report(pred, windows.target) for name, pred in predictions.items()}
+    ls = rows[LeastSquares.name]["rmse"]
+    for row in rows.values():
+        row["improvement"] = metrics.improvement(row["rmse"], ls)
+    return rows
+
+
+def markdown(rows: dict[str, dict], title: str) -> str:
+    head = "| estimator | speed RMSE (m/s) | MAE (m/s) | R^2 | VAF (%) | vs LS (%) | " \
+           "vector RMSE (m/s) | RMSE x | RMSE y | RMSE z |"
+    lines = [f"### {title}", "", head, "|" + "---|" * (len(COLUMNS) + 1)]
+    for name, row in rows.items():
+        cells = [f"{row['rmse']:.6f}", f"{row['mae']:.6f}", f"{row['r2']:.4f}",
+                 f"{row['vaf']:.2f}", f"{row['improvement']:.2f}", f"{row['rmse_vector']:.6f}",
+                 f"{row['rmse_x']:.6f}", f"{row['rmse_y']:.6f}", f"{row['rmse_z']:.6f}"]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path) -> dict:
+    """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    results, sections = {}, []
+    for dataset in datasets:
+        windows, predictions = estimates(runs, dataset)
+        rows = table(windows, predictions)
+        per_mission = {
+            name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
+                                                  windows.target[windows.mission == m])
+                   for m in np.unique(windows.mission)}
+            for name, pred in predictions.items()}
+        stem = Path(dataset).stem
+        results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
+        sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
+        _plot(windows, predictions, per_mission, out / f"{stem}_errors.png")
+    (out / "evaluation.md").write_text("\n\n".join(sections) + "\n")
+    (out / "evaluation.json").write_text(json.dumps(results, indent=1))
+    return results
+
+
+def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(12, 4.5),
+                                     gridspec_kw=dict(width_ratios=(2, 1)))
+    speed = np.linalg.norm(windows.target, axis=1)
+    for name, pred in predictions.items():
+        ax_t.plot(windows.time, np.linalg.norm(pred, axis=1) - speed, ".", ms=2, label=name)
+    ax_t.set_xlabel("mission time, s")
+    ax_t.set_ylabel("speed error, m/s")
+    ax_t.set_title("error over the test split")
+    ax_t.legend(markerscale=5, fontsize=8)
+    names = list(per_mission)
+    missions = list(next(iter(per_mission.values())))
+    width = 0.8 / len(names)
+    for i, name in enumerate(names):
+        ax_m.bar(np.arange(len(missions)) + i * width,
+                 [per_mission[name][m] for m in missions], width, label=name)
+    ax_m.set_xticks(np.arange(len(missions)) + 0.4 - width / 2, missions)
+    ax_m.set_ylabel("speed RMSE, m/s")
+    ax_m.set_title("per mission")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,157 @@
+"""Accuracy of estimated DVL velocities: the paper's figures and the ones they hide.
+
+Every function takes ``pred`` and ``true``, (S, 3) velocities in m/s (S samples, the three
+axes of one frame, e.g. the DVL or body frame, FRD), and checks them first.
+
+The paper (sec. 4, eqs. 16-19) computes RMSE, MAE, R^2 and VAF on the SPEED, the Euclidean
+norm of each velocity, exactly as its published evaluation scripts do. A speed metric is
+blind to direction: a prediction rotated by 90 degrees with the right length scores
+perfectly. ``rmse_per_axis`` and ``rmse_vector`` compare the vectors themselves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _check(pred: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Both as float arrays of one shape (S, 3), S >= 1, without non-finite rows."""
+    pred = np.asarray(pred, dtype=float)
+    true = np.asarray(true, dtype=float)
+    if pred.ndim != 2 or pred.shape[1] != 3 or pred.shape[0] < 1:
+        raise ValueError(f"pred must have shape (S, 3) with S >= 1, got {pred.shape}")
+    if true.shape != pred.shape:
+        raise ValueError(f"true must have the shape of pred, {pred.shape}, got {true.shape}")
+    for name, x in (("pred", pred), ("true", true)):
+        bad = int(np.count_nonzero(~np.isfinite(x).all(axis=1)))
+        if bad:
+            raise ValueError(f"{name} has {bad} of {len(x)} rows with NaN or inf; "
+                             "expected finite velocities (drop invalid epochs first)")
+    return pred, true
+
+
+def _speeds(pred: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(S,) predicted and true speeds, m/s."""
+    pred, true = _check(pred, true)
+    return np.linalg.norm(pred, axis=1), np.linalg.norm(true, axis=1)
+
+
+def rmse(pred: np.ndarray, true: np.ndarray) -> float:
+    """Root mean square error of the speed, m/s (paper eq. 16): sqrt(mean (|p| - |t|)^2).
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+    """
+    sp, st = _speeds(pred, true)
+    return float(np.sqrt(np.mean((sp - st) ** 2)))
+
+
+def mae(pred: np.ndarray, true: np.ndarray) -> float:
+    """Mean absolute error of the speed, m/s (paper eq. 17): mean | |p| - |t| |.
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+    """
+    sp, st = _speeds(pred, true)
+    return float(np.mean(np.abs(sp - st)))
+
+
+def r2(pred: np.ndarray, true: np.ndarray) -> float:
+    """Coefficient of determination of the speed, unitless (paper eq. 18): 1 - SSE/SST.
+
+    SSE = sum (|p| - |t|)^2, SST = sum (|t| - mean |t|)^2. 1 is perfect; predicting the mean
+    speed scores 0; worse than that is negative. NaN when the true speed is constant
+    (SST = 0), as on a constant-speed straight line.
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+    """
+    sp, st = _speeds(pred, true)
+    sst = np.sum((st - st.mean()) ** 2)
+    return float(1.0 - np.sum((sp - st) ** 2) / sst) if sst > 0 else float("nan")
+
+
+def vaf(pred: np.ndarray, true: np.ndarray) -> float:
+    """Variance accounted for by the speed, % (paper eq. 19): (1 - var(e)/var(|t|)) x 100.
+
+    e = |p| - |t| and var is the population variance (ddof 0, as the published code). 100 is
+    perfect. Unlike R^2 it ignores a constant error: a speed bias alone still scores 100.
+    NaN when the true speed is constant.
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+    """
+    sp, st = _speeds(pred, true)
+    var_true = np.var(st)
+    return float((1.0 - np.var(sp - st) / var_true) * 100.0) if var_true > 0 else float("nan")
+
+
+def improvement(rmse_model: float, rmse_ls: float) -> float:
+    """RMSE improvement over least squares, % (paper Tables 1 and 3): 100 (1 - model/LS).
+
+    0 means no better than LS, 100 a perfect model, negative worse than LS.
+
+    Args:
+        rmse_model: the model's RMSE, m/s, >= 0.
+        rmse_ls: the least-squares RMSE on the same samples, m/s, > 0.
+    """
+    if not (np.isfinite(rmse_model) and rmse_model >= 0):
+        raise ValueError(f"rmse_model must be a finite RMSE >= 0, got {rmse_model!r}")
+    if not (np.isfinite(rmse_ls) and rmse_ls > 0):
+        raise ValueError(f"rmse_ls must be a finite RMSE > 0, got {rmse_ls!r}")
+    return float(100.0 * (1.0 - rmse_model / rmse_ls))
+
+
+def rmse_per_axis(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
+    """(3,) RMSE of each velocity component, m/s: sqrt(mean (p_i - t_i)^2), i = x, y, z.
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+    """
+    pred, true = _check(pred, true)
+    return np.sqrt(np.mean((pred - true) ** 2, axis=0))
+
+
+def rmse_vector(pred: np.ndarray, true: np.ndarray) -> float:
+    """RMSE of the velocity vector, m/s: sqrt(mean |p - t|^2), the length of the error.
+
+    Equal to the root sum of squares of ``rmse_per_axis``, and never below ``rmse`` (the
+    speed error |(|p| - |t|)| never exceeds |p - t|).
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+    """
+    pred, true = _check(pred, true)
+    return float(np.sqrt(np.mean(np.sum((pred - true) ** 2, axis=1))))
+
+
+def report(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
+    """All the figures for one set of estimates.
+
+    Args:
+        pred: (S, 3) estimated velocities, m/s.
+        true: (S, 3) true velocities, m/s.
+
+    Returns:
+        ``rmse``, ``mae`` (m/s), ``r2`` (unitless) and ``vaf`` (%) of the speed, as in the
+        paper; ``rmse_x``, ``rmse_y``, ``rmse_z`` of each component and ``rmse_vector`` of
+        the vector error (m/s), which also see errors of direction.
+    """
+    pred, true = _check(pred, true)
+    x, y, z = rmse_per_axis(pred, true)
+    return {
+        "rmse": rmse(pred, true),
+        "mae": mae(pred, true),
+        "r2": r2(pred, true),
+        "vaf": vaf(pred, true),
+        "rmse_x": float(x),
+        "rmse_y": float(y),
+        "rmse_z": float(z),
+        "rmse_vector": rmse_vector(pred, true),
+    }

@@ -1,0 +1,206 @@
+"""Training BeamsNetV1/V2 on an auvsim dataset, top to bottom.
+
+The paper's protocol (../shared/reference/beamsnet-reference.md): MSE loss, RMSprop, batch
+size 4, learning rate 0.01 (simulation) or 0.001 (sea data) divided by 10 every 15
+epochs, 30 or 50 epochs, a sequential 75 / 25 split of each mission without shuffling
+across it. Inputs and targets are not normalised, as in the paper. Mini-batches are
+drawn in a seeded random order within the training part; the run is deterministic for a
+given seed.
+
+The checkpoint (``model.pt``) carries the model's name and constructor arguments, the
+training config, and the dataset's identity (path, SHA-256, its ``config_json``), so
+evaluation rebuilds exactly what was trained and can tell which data it came from.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from .data import Windows, load_windows, split
+from .models import build
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """How to train. Defaults are the paper's simulation settings.
+
+    Attributes:
+        model: ``v1`` (beams + IMU) or ``v2`` (beams + past beams).
+        epochs, lr, lr_step, lr_gamma: RMSprop learning rate, multiplied by ``lr_gamma``
+            every ``lr_step`` epochs.
+        batch_size: samples per step.
+        n_past: past DVL pings for V2 (also sets which pings have a window, for all models).
+        train_fraction: leading fraction of each mission used for training.
+        dropout: V1's dropout probability (training only).
+        shared_imu_conv: V1 with one conv for both IMU windows, as the published code.
+        seed: seeds the weights and the batch order.
+        missions: names of the missions to use (default: all).
+    """
+
+    model: str = "v2"
+    epochs: int = 30
+    lr: float = 0.01
+    lr_step: int = 15
+    lr_gamma: float = 0.1
+    batch_size: int = 4
+    n_past: int = 3
+    train_fraction: float = 0.75
+    dropout: float = 0.2
+    shared_imu_conv: bool = False
+    seed: int = 0
+    missions: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.model not in ("v1", "v2"):
+            raise ValueError(f"model: expected v1 or v2, got {self.model!r}")
+        for name in ("epochs", "batch_size", "n_past", "lr_step"):
+            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
+                raise ValueError(f"{name}: expected a whole number >= 1, got "
+                                 f"{getattr(self, name)!r}")
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise ValueError(f"lr: expected a positive learning rate, got {self.lr!r}")
+
+
+def model_kwargs(config: TrainConfig, windows: Windows) -> dict:
+    if config.model == "v1":
+        return dict(imu_window=windows.accel.shape[1], dropout=config.dropout,
+                    shared_imu_conv=config.shared_imu_conv)
+    return dict(n_past=config.n_past)
+
+
+def model_inputs(name: str, windows: Windows) -> list[torch.Tensor]:
+    """The network's input tensors (float32) for every sample of ``windows``."""
+    beams = torch.as_tensor(windows.beams, dtype=torch.float32)
+    if name == "v1":
+        if windows.accel is None:
+            raise ValueError("the dataset has no IMU data: BeamsNetV1 needs it (use v2)")
+        # (S, W, 3) -> (S, 3, W): the axes are the conv's channels, time runs along W.
+        accel = torch.as_tensor(windows.accel, dtype=torch.float32).transpose(1, 2)
+        gyro = torch.as_tensor(windows.gyro, dtype=torch.float32).transpose(1, 2)
+        return [accel.contiguous(), gyro.contiguous(), beams]
+    return [torch.as_tensor(windows.past_beams, dtype=torch.float32), beams]
+
+
+@torch.no_grad()
+def predict(model: torch.nn.Module, name: str, windows: Windows) -> np.ndarray:
+    """(S, 3) velocity estimates, m/s."""
+    model.eval()
+    return model(*model_inputs(name, windows)).double().numpy()
+
+
+def file_identity(path: str | Path) -> dict:
+    """Path, SHA-256 and generating config of a dataset file."""
+    from auvsim.dataset import open_dataset
+
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            digest.update(block)
+    with open_dataset(path) as f:
+        config_json = str(f.attrs.get("config_json", ""))
+    return dict(path=str(path), sha256=digest.hexdigest(), config_json=config_json)
+
+
+def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
+          progress: bool = True) -> dict:
+    """Train one model on ``dataset`` and save it under the directory ``out``.
+
+    Returns:
+        A summary: the per-epoch losses and where the checkpoint and the plot went.
+    """
+    windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
+    train_w, test_w = split(windows, config.train_fraction)
+    torch.manual_seed(config.seed)
+    order = torch.Generator().manual_seed(config.seed)
+    kwargs = model_kwargs(config, windows)
+    model = build(config.model, **kwargs)
+    x_train, y_train = model_inputs(config.model, train_w), torch.as_tensor(
+        train_w.target, dtype=torch.float32)
+    x_test, y_test = model_inputs(config.model, test_w), torch.as_tensor(
+        test_w.target, dtype=torch.float32)
+    optimizer = torch.optim.RMSprop(model.parameters(), lr=config.lr, foreach=True)
+    schedule = torch.optim.lr_scheduler.StepLR(optimizer, config.lr_step, config.lr_gamma)
+    loss_fn = torch.nn.MSELoss()
+
+    n = len(y_train)
+    steps = math.ceil(n / config.batch_size)
+    history = {"train": [], "test": []}
+    started = time.perf_counter()
+    bar = tqdm(total=config.epochs * steps, disable=None if progress else True, leave=False,
+               unit=" steps", desc=f"BeamsNet{config.model.upper()}")
+    with bar:
+        for _ in range(config.epochs):
+            model.train()
+            perm = torch.randperm(n, generator=order)
+            total = 0.0
+            for i in range(0, n, config.batch_size):
+                idx = perm[i:i + config.batch_size]
+                loss = loss_fn(model(*(x[idx] for x in x_train)), y_train[idx])
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                optimizer.step()
+                total += loss.item() * len(idx)
+            schedule.step()
+            model.eval()
+            with torch.no_grad():
+                test_loss = loss_fn(model(*x_test), y_test).item() if len(y_test) else math.nan
+            history["train"].append(total / n)
+            history["test"].append(test_loss)
+            bar.update(steps)
+            bar.set_postfix(train=f"{total / n:.3g}", test=f"{test_loss:.3g}")
+    seconds = time.perf_counter() - started
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    checkpoint = dict(model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
+                      train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
+                      history=history, samples=dict(train=n, test=len(y_test)))
+    tmp = out / ".model.pt.tmp"
+    torch.save(checkpoint, tmp)
+    tmp.replace(out / "model.pt")
+    (out / "history.json").write_text(json.dumps(history, indent=1))
+    plot = _plot_losses(history, out / "losses.png", config)
+    return dict(checkpoint=str(out / "model.pt"), plot=str(plot), history=history,
+                seconds=seconds, samples_per_second=config.epochs * n / seconds)
+
+
+def load(run: str | Path) -> tuple[torch.nn.Module, dict]:
+    """The trained model of a run directory (or ``model.pt`` path) and its checkpoint."""
+    path = Path(run)
+    path = path / "model.pt" if path.is_dir() else path
+    checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    model = build(checkpoint["model"], **checkpoint["kwargs"])
+    model.load_state_dict(checkpoint["state_dict"])
+    model.eval()
+    return model, checkpoint
+
+
+def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    epochs = np.arange(1, len(history["train"]) + 1)
+    ax.semilogy(epochs, history["train"], label="training")
+    ax.semilogy(epochs, history["test"], label="test split")
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("MSE loss, (m/s)^2")
+    ax.set_title(f"BeamsNet{config.model.upper()}, lr {config.lr:g}, batch {config.batch_size}")
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
