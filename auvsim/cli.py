@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from .config import SCENARIOS, Config, ScenarioConfig
@@ -69,12 +71,14 @@ def _load_toml(path: Path) -> Config:
             data = tomllib.load(f)
     except FileNotFoundError:
         raise ConfigError(f"--config {str(path)!r}: no such file") from None
-    except tomllib.TOMLDecodeError as e:
+    except OSError as e:
+        raise ConfigError(f"--config {str(path)!r}: cannot read it ({e.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ConfigError(f"--config {str(path)!r}: not valid TOML ({e})") from None
     floor = data.get("seafloor")
     if isinstance(floor, dict) and isinstance(floor.get("heightmap"), str):
         # A heightmap named in a config file is found next to that file.
-        floor["heightmap"] = str(path.parent / Path(floor["heightmap"]).expanduser())
+        floor["heightmap"] = str((path.parent / Path(floor["heightmap"]).expanduser()).resolve())
     return Config.from_dict(data)
 
 
@@ -125,13 +129,23 @@ def _inspect(args: argparse.Namespace) -> None:
     print(describe(args.file))
 
 
+def _stop(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        # A scheduler's SIGTERM unwinds like Ctrl-C: workers stop, temporary files go.
+        signal.signal(signal.SIGTERM, _stop)
     try:
         {"generate": _generate, "presets": _presets, "inspect": _inspect}[args.command](args)
     except AuvsimError as e:
         print(f"auvsim: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("auvsim: interrupted; nothing was written", file=sys.stderr)
+        return 130
     return 0
 
 

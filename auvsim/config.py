@@ -23,8 +23,8 @@ def _check(ok: bool, name: str, expected: str, got: object) -> None:
 
 
 def _finite(name: str, value: float) -> None:
-    _check(isinstance(value, (int, float)) and math.isfinite(value), name, "a finite number",
-           value)
+    _check(isinstance(value, (int, float)) and not isinstance(value, bool)
+           and math.isfinite(value), name, "a finite number", value)
 
 
 @dataclass(frozen=True)
@@ -93,8 +93,8 @@ class MissionConfig:
     def __post_init__(self) -> None:
         _check(isinstance(self.name, str) and self.name.isidentifier(), "mission.name",
                "a name of letters, digits and underscores", self.name)
-        _check(isinstance(self.seed, int) and self.seed >= 0, "seed", "an integer >= 0",
-               self.seed)
+        _check(isinstance(self.seed, int) and not isinstance(self.seed, bool)
+               and 0 <= self.seed < 2**63, "seed", "an integer in [0, 2**63)", self.seed)
 
 
 @dataclass(frozen=True)
@@ -139,6 +139,8 @@ class SeafloorConfig:
         _check(self.cell_size > 0, "seafloor.cell_size", "a spacing > 0 m", self.cell_size)
         _check((self.kind == "heightmap") == (self.heightmap is not None), "seafloor.heightmap",
                "a .npy path exactly when kind is heightmap", self.heightmap)
+        _check(self.heightmap is None or isinstance(self.heightmap, str), "seafloor.heightmap",
+               "a path to a .npy file", self.heightmap)
 
 
 @dataclass(frozen=True)
@@ -312,6 +314,8 @@ def _from_dict(cls, d, path: str):
 
 def _vector(name: str, value, n: int) -> tuple[float, ...]:
     try:
+        if isinstance(value, str) or any(isinstance(v, (bool, str)) for v in value):
+            raise TypeError
         out = tuple(float(v) for v in value)
     except (TypeError, ValueError):
         out = ()

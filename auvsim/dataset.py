@@ -33,9 +33,16 @@ REQUIRED_FIELDS = (
     "imu/time", "imu/specific_force", "imu/angular_rate", "imu/index_of_dvl",
     "dvl/time", "dvl/velocity", "dvl/beam_velocity_true", "dvl/beam_velocity",
     "dvl/beam_range", "dvl/valid", "dvl/velocity_ls",
+    "control/propeller_rpm", "control/thrust", "control/rudder", "control/stern_planes",
 )
-REQUIRED_ATTRS = ("scenario", "seed", "duration_s", "vehicle", "dvl_rate_hz", "imu_rate_hz",
-                  "beam_angle_deg", "dvl_scale_factor", "dvl_bias", "dvl_noise_std")
+REQUIRED_ATTRS = (
+    "scenario", "seed", "duration_s", "vehicle", "dvl_rate_hz", "imu_rate_hz",
+    "beam_angle_deg", "dvl_scale_factor", "dvl_bias", "dvl_noise_std", "dvl_min_range",
+    "dvl_max_range", "dvl_mounting_rpy_deg", "dvl_position_body", "imu_position_body",
+    "imu_accel_turn_on_bias", "imu_gyro_turn_on_bias", "imu_accel_noise_density",
+    "imu_gyro_noise_density", "imu_accel_bias_instability", "imu_gyro_bias_instability",
+    "imu_bias_correlation_time",
+)
 
 
 class DatasetWriter:
@@ -51,6 +58,8 @@ class DatasetWriter:
                  compression: str = "lzf") -> None:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
+        if self.path.is_dir():
+            raise ConfigError(f"--out {str(self.path)!r} is a directory: expected a file name")
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -84,10 +93,11 @@ class DatasetWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.file.close()
-        if exc_type is None:
-            os.replace(self.tmp, self.path)
-        else:
+        try:
+            self.file.close()
+            if exc_type is None:
+                os.replace(self.tmp, self.path)
+        finally:
             self.tmp.unlink(missing_ok=True)
 
 
@@ -182,6 +192,8 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
         raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
                            f"reads version {FORMAT_VERSION}")
     try:
+        if not isinstance(f.get("missions"), h5py.Group):
+            raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
         for name, mission in f["missions"].items():
             missing = [k for k in REQUIRED_FIELDS if k not in mission]
             missing += [f"attribute {k}" for k in REQUIRED_ATTRS if k not in mission.attrs]

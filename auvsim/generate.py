@@ -15,6 +15,7 @@ import os
 import queue
 import shutil
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -36,12 +37,19 @@ from .vehicle import Vehicle
 BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
 
 
+MIN_SPEED = 0.5  # m/s: above the stern planes' reversal speed (models/README.md)
+
+
 def check_reachable(config: Config) -> None:
-    """Refuse set points the vehicle cannot hold (speeds beyond 95 % of its top speed,
-    leaving margin for the autopilot)."""
+    """Refuse set points the vehicle cannot hold: speeds beyond 95 % of its top speed
+    (margin for the autopilot) or below ``MIN_SPEED`` (no depth control)."""
     vehicle = Vehicle(config.vehicle.model)
     limit = 0.95 * vehicle.max_speed
     for m in config.missions:
+        if m.scenario.speed < MIN_SPEED:
+            raise ConfigError(
+                f"speed {m.scenario.speed:g} m/s is too slow to hold depth: expected at least "
+                f"{MIN_SPEED:g} m/s (below about 0.4 m/s the stern planes reverse)")
         if m.scenario.speed > limit:
             raise ConfigError(
                 f"speed {m.scenario.speed:g} m/s is beyond what vehicle "
@@ -70,6 +78,9 @@ class MissionRun:
             raise ConfigError(f"imu.rate_hz: expected a whole divisor of the {1 / dt:g} Hz "
                               f"physics rate, got {config.imu.rate_hz!r}")
         self.dvl_every = round(config.imu.rate_hz / config.dvl.rate_hz)  # IMU samples per ping
+        if round(mission.scenario.duration / dt) < 1:
+            raise ConfigError(f"duration: expected at least the {dt:g} s physics step, got "
+                              f"{mission.scenario.duration!r}")
         self.dvl = DvlGeometry.from_config(config.dvl, self.vehicle.dvl_position)
         self.dvl_errors = draw_errors(config.dvl, streams[1])
         self.dvl_noise = streams[2]
@@ -104,8 +115,9 @@ class MissionRun:
         pings = -(-n // self.dvl_every)
         return {"truth": n, "imu": n, "control": n, "dvl": pings, "imu/index_of_dvl": pings}
 
-    def blocks(self) -> Iterator[dict[str, np.ndarray]]:
-        """Yield the mission's arrays block by block, keyed by their dataset paths.
+    def blocks(self, stop: threading.Event | None = None) -> Iterator[dict[str, np.ndarray]]:
+        """Yield the mission's arrays block by block, keyed by their dataset paths; end
+        early, raising ``Cancelled``, once ``stop`` is set.
 
         The physics of block k + 1 runs in a background thread (the compiled loop releases
         the GIL) while block k's sensors are computed and written: the two stages take
@@ -128,6 +140,8 @@ class MissionRun:
             ahead = physics_thread.submit(physics, starts[0])
             for i, start in enumerate(starts):
                 steps, traj = ahead.result()
+                if stop is not None and stop.is_set():
+                    raise Cancelled(self.mission.name)
                 if i + 1 < len(starts):
                     ahead = physics_thread.submit(physics, starts[i + 1])
                 yield self._sensors(steps, traj, first_imu=start // self.decimation)
@@ -190,15 +204,23 @@ class MissionRun:
         }
 
     def _altitude(self, truth: dict[str, np.ndarray]) -> np.ndarray:
-        pos = truth["truth/position_ned"]
+        pos, t = truth["truth/position_ned"], truth["truth/time"]
+        self.seafloor.follow(pos[::100, :2], reach=self.vehicle.length)
         altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
-        hit = np.flatnonzero(altitude <= 0)
-        if hit.size:
-            k = hit[0]
-            raise SimulationError(
-                f"{self.mission.name}: the vehicle reached the seafloor at t = "
-                f"{truth['truth/time'][k]:.1f} s (depth {pos[k, 2]:.1f} m): expected a "
-                "scenario depth that stays above the terrain")
+        problems = (
+            (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "
+             "terrain"),
+            (pos[:, 2] < 0, "broke the surface", "a speed, buoyancy and current it can hold "
+             "depth in"),
+            (np.isnan(altitude), "left the terrain", "a track that stays over the heightmap"),
+        )
+        for bad, what, expected in problems:
+            if bad.any():
+                k = np.flatnonzero(bad)[0]
+                raise SimulationError(
+                    f"{self.mission.name}: the vehicle {what} at t = {t[k]:.1f} s (north "
+                    f"{pos[k, 0]:.0f} m, east {pos[k, 1]:.0f} m, depth {pos[k, 2]:.1f} m): "
+                    f"expected {expected}")
         return altitude
 
 
@@ -212,13 +234,18 @@ def _report_to_queue(progress: queue.Queue) -> None:
     _report = lambda index, seconds: progress.put((index, seconds))  # noqa: E731
 
 
-def _stream_mission(config: Config, index: int, writer: DatasetWriter) -> None:
+class Cancelled(Exception):
+    """A mission stopped early because another failed or the run was interrupted."""
+
+
+def _stream_mission(config: Config, index: int, writer: DatasetWriter,
+                    stop: threading.Event | None = None) -> None:
     """Simulate mission ``index`` and stream it into ``writer``."""
     mission = config.missions[index]
     run = MissionRun(config, mission)
     sink = writer.mission(mission.name, run.attrs, rows=run.rows)
     sink.link("imu/time", "truth/time")  # the IMU samples at the truth's times
-    for arrays in run.blocks():
+    for arrays in run.blocks(stop):
         sink.append(arrays)
         if _report is not None:
             _report(index, len(arrays["truth/time"]) / config.imu.rate_hz)
@@ -250,7 +277,8 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
         config: what to simulate.
         out: the HDF5 file to write (replaced only once it is complete).
         workers: worker processes (default ``default_workers``); with 1 the missions run
-            one after the other in this process and stream straight into ``out``.
+            in this process, ``MISSIONS_IN_FLIGHT`` at a time on threads, and stream
+            straight into ``out``.
         executor: a ``concurrent.futures`` executor to use instead of the default process
             pool (it must accept this module's ``_write_mission``).
         progress: show a progress bar on a terminal.
@@ -268,18 +296,32 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
     with DatasetWriter(out, config_json=config.to_json(), compression=config.compression) as ds, \
             _progress_bar(simulated, progress) as bar:
         if workers == 1 and executor is None:
-            # Missions on threads in this process, straight into the output file: their
-            # physics runs without the GIL, their sensors and writing take turns with it
-            # (h5py serialises its calls), and each mission touches only its own datasets.
-            with ThreadPoolExecutor(max_workers=MISSIONS_IN_FLIGHT) as pool:
-                futures = [pool.submit(_stream_mission, config, i, ds)
-                           for i in range(len(config.missions))]
-                for future in futures:
-                    future.result()
+            _in_threads(config, ds)
         else:
             _in_parallel(config, ds, workers, executor, bar)
     return dict(missions=len(config.missions), simulated_s=simulated,
                 wall_s=time.perf_counter() - started)
+
+
+def _in_threads(config: Config, ds: DatasetWriter) -> None:
+    """Missions on threads in this process, straight into the output file: their physics
+    runs without the GIL, their sensors and writing take turns with it (h5py serialises
+    its calls), and each mission touches only its own datasets. The first error (or an
+    interrupt) stops the others at their next block."""
+    stop = threading.Event()
+    pool = ThreadPoolExecutor(max_workers=MISSIONS_IN_FLIGHT)
+    futures = [pool.submit(_stream_mission, config, i, ds, stop)
+               for i in range(len(config.missions))]
+    try:
+        while True:
+            done, pending = cf.wait(futures, timeout=0.5, return_when=cf.FIRST_EXCEPTION)
+            for future in done:
+                future.result()
+            if not pending:
+                return
+    finally:
+        stop.set()
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 @contextlib.contextmanager
@@ -314,11 +356,12 @@ def _in_parallel(config: Config, ds: DatasetWriter, workers: int,
         futures = [executor.submit(_write_mission, config, i, p) for i, p in enumerate(paths)]
         copied = 0
         while copied < len(futures):
-            cf.wait(futures[copied:], timeout=0.2, return_when=cf.FIRST_COMPLETED)
+            done, _ = cf.wait(futures[copied:], timeout=0.5, return_when=cf.FIRST_EXCEPTION)
+            for future in done:
+                future.result()  # a worker's error is raised here, as soon as it happens
             while not reports.empty():
                 bar.update(round(reports.get()[1]))
             while copied < len(futures) and futures[copied].done():
-                futures[copied].result()  # a worker's error is raised here
                 with h5py.File(paths[copied], "r") as part:
                     name = config.missions[copied].name
                     part.copy(part[f"missions/{name}"], ds.file["missions"])
@@ -326,6 +369,10 @@ def _in_parallel(config: Config, ds: DatasetWriter, workers: int,
                 copied += 1
     finally:
         if own:
-            executor.shutdown(cancel_futures=True)
+            # Stop the workers now rather than after their missions: on an error or an
+            # interrupt nothing they would still write is wanted.
+            for process in list(getattr(executor, "_processes", {}).values()):
+                process.terminate()
+            executor.shutdown(wait=True, cancel_futures=True)
         manager.shutdown()
         shutil.rmtree(parts, ignore_errors=True)

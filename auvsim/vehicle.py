@@ -145,13 +145,19 @@ class Vehicle:
                  current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  seafloor=None) -> None:
         self.name = vehicle
-        spec = mujoco.MjSpec.from_file(str(model_path(vehicle)))
-        if seafloor is not None:
-            seafloor.attach(spec)
-        self.model = spec.compile()
-        self.data = mujoco.MjData(self.model)
-        self.body_id = self.model.body("vehicle").id
-        self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy)
+        path = model_path(vehicle)
+        try:
+            spec = mujoco.MjSpec.from_file(str(path))
+            if seafloor is not None:
+                seafloor.attach(spec)
+            self.model = spec.compile()
+            self.data = mujoco.MjData(self.model)
+            self.body_id = self.model.body("vehicle").id
+            self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy)
+        except (ValueError, KeyError) as e:  # MuJoCo's parse errors are ValueErrors
+            reason = " ".join(str(e).split())
+            raise ConfigError(f"vehicle {str(path)!r}: not a vehicle model of auvsim's layout "
+                              f"({reason}); expected one like models/auv.xml") from None
         self.length = 2.0 * float(self.model.geom("hull").size[0])
         self.gains = Gains(length=self.length)
         self.current_ned = np.array(current_ned, dtype=float)

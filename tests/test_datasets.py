@@ -255,6 +255,9 @@ BAD = [
     ("[dvl]\nbeam_angel_deg = 30\n", "unknown setting(s) beam_angel_deg"),
     ("[seafloor]\nkind = \"moon\"\n", "seafloor.kind"),
     ("this is not toml", "not valid TOML"),
+    ("[seafloor]\nkind = \"heightmap\"\nheightmap = 5\n", "seafloor.heightmap"),
+    ("[[missions]]\nseed = true\n", "seed"),
+    ("[dvl]\nscale_factor = \"1234\"\n", "dvl.scale_factor"),
     ("[seafloor]\nkind = \"procedural\"\n[dvl]\nmax_range = 2000\n", "dvl.max_range"),
     ("[[missions]]\n[missions.scenario]\ndepth = 59.5\nduration = 5\n"
      "[seafloor]\nkind = \"procedural\"\ndepth = 60\nroughness = 3\n", "reached the seafloor"),
@@ -315,3 +318,66 @@ cell_size = 2.0
         np.testing.assert_allclose(m["truth/altitude"][()], 50.0 + 0.1 * pos[:, 1] - pos[:, 2],
                                    atol=1e-4)
         assert m["dvl/valid"][()].all()
+
+
+def test_one_missions_failure_stops_the_others_early(tmp_path, capsys):
+    """Mission a reaches the seafloor within seconds; the long mission b must not be
+    simulated to its end before the error is reported."""
+    import time
+
+    toml = tmp_path / "fail.toml"
+    toml.write_text("""
+[[missions]]
+name = "a"
+[missions.scenario]
+depth = 59.8
+duration = 600
+[[missions]]
+name = "b"
+[missions.scenario]
+duration = 200000
+[seafloor]
+kind = "procedural"
+depth = 60
+roughness = 3
+""")
+    started = time.perf_counter()
+    assert main(["generate", "--config", str(toml), "--out", str(tmp_path / "x.h5"),
+                 "--workers", "1", "--quiet"]) == 2
+    assert time.perf_counter() - started < 30  # b alone would take about two minutes
+    assert "a: the vehicle reached the seafloor" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fail.toml"]
+
+
+def test_sigterm_stops_cleanly(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "auvsim", "generate", "--preset", "paper-sim", "--workers", "2",
+         "--quiet", "--out", str(tmp_path / "x.h5")], stderr=subprocess.PIPE, text=True)
+    time.sleep(8)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--speed", "0.2"], "too slow"),
+    (["--seed", "99999999999999999999999"], "seed"),
+])
+def test_more_bad_options(tmp_path, capsys, args, message):
+    assert main(["generate", *args, "--duration", "5", "--out", str(tmp_path / "x.h5")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_out_may_not_be_a_directory(tmp_path, capsys):
+    assert main(["generate", "--duration", "5", "--out", str(tmp_path)]) == 2
+    assert "is a directory" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

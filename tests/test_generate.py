@@ -208,7 +208,7 @@ def test_failure_midway_leaves_nothing(tmp_path, monkeypatch):
         yield from []
         raise RuntimeError("simulated crash")
 
-    monkeypatch.setattr(gen.MissionRun, "blocks", lambda self: failing(None, None))
+    monkeypatch.setattr(gen.MissionRun, "blocks", lambda self, stop=None: failing(None, None))
     with pytest.raises(RuntimeError):
         generate(straight(duration=10), tmp_path / "x.h5", progress=False)
     assert list(tmp_path.iterdir()) == []
