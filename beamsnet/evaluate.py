@@ -60,11 +60,17 @@ def markdown(rows: dict[str, dict], title: str) -> str:
            "vector RMSE (m/s) | RMSE x | RMSE y | RMSE z |"
     lines = [f"### {title}", "", head, "|" + "---|" * (len(COLUMNS) + 1)]
     for name, row in rows.items():
-        cells = [f"{row['rmse']:.6f}", f"{row['mae']:.6f}", f"{row['r2']:.4f}",
-                 f"{row['vaf']:.2f}", f"{row['improvement']:.2f}", f"{row['rmse_vector']:.6f}",
+        cells = [f"{row['rmse']:.6f}", f"{row['mae']:.6f}", _or_na(row["r2"], ".4f"),
+                 _or_na(row["vaf"], ".2f"), f"{row['improvement']:.2f}",
+                 f"{row['rmse_vector']:.6f}",
                  f"{row['rmse_x']:.6f}", f"{row['rmse_y']:.6f}", f"{row['rmse_z']:.6f}"]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def _or_na(value: float, spec: str) -> str:
+    """A number, or n/a where it is undefined (R^2 and VAF at constant speed)."""
+    return "n/a" if np.isnan(value) else format(value, spec)
 
 
 def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path) -> dict:

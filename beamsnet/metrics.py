@@ -58,20 +58,31 @@ def mae(pred: np.ndarray, true: np.ndarray) -> float:
     return float(np.mean(np.abs(sp - st)))
 
 
+# Below this spread (m/s) the true speed counts as constant and R^2 and VAF, which divide
+# by its variance, are undefined: on a constant-speed line the variance is round-off
+# (about 1e-15 m/s), and dividing by it gave figures of -1e27.
+CONSTANT_SPEED_STD = 1e-6
+
+
+def _speed_variance(st: np.ndarray) -> float:
+    var = float(np.var(st))
+    return var if var > CONSTANT_SPEED_STD**2 else 0.0
+
+
 def r2(pred: np.ndarray, true: np.ndarray) -> float:
     """Coefficient of determination of the speed, unitless (paper eq. 18): 1 - SSE/SST.
 
     SSE = sum (|p| - |t|)^2, SST = sum (|t| - mean |t|)^2. 1 is perfect; predicting the mean
-    speed scores 0; worse than that is negative. NaN when the true speed is constant
-    (SST = 0), as on a constant-speed straight line.
+    speed scores 0; worse than that is negative. NaN when the true speed is constant (its
+    std below ``CONSTANT_SPEED_STD``), as on a constant-speed straight line.
 
     Args:
         pred: (S, 3) estimated velocities, m/s.
         true: (S, 3) true velocities, m/s.
     """
     sp, st = _speeds(pred, true)
-    sst = np.sum((st - st.mean()) ** 2)
-    return float(1.0 - np.sum((sp - st) ** 2) / sst) if sst > 0 else float("nan")
+    var = _speed_variance(st)
+    return float(1.0 - np.mean((sp - st) ** 2) / var) if var > 0 else float("nan")
 
 
 def vaf(pred: np.ndarray, true: np.ndarray) -> float:
@@ -79,15 +90,15 @@ def vaf(pred: np.ndarray, true: np.ndarray) -> float:
 
     e = |p| - |t| and var is the population variance (ddof 0, as the published code). 100 is
     perfect. Unlike R^2 it ignores a constant error: a speed bias alone still scores 100.
-    NaN when the true speed is constant.
+    NaN when the true speed is constant (std below ``CONSTANT_SPEED_STD``).
 
     Args:
         pred: (S, 3) estimated velocities, m/s.
         true: (S, 3) true velocities, m/s.
     """
     sp, st = _speeds(pred, true)
-    var_true = np.var(st)
-    return float((1.0 - np.var(sp - st) / var_true) * 100.0) if var_true > 0 else float("nan")
+    var = _speed_variance(st)
+    return float((1.0 - np.var(sp - st) / var) * 100.0) if var > 0 else float("nan")
 
 
 def improvement(rmse_model: float, rmse_ls: float) -> float:

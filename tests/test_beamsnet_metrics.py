@@ -122,3 +122,16 @@ def test_nan_rows_are_counted(func):
     pred[1, 2] = np.inf
     with pytest.raises(ValueError, match="pred has 1 of 3 rows with NaN or inf"):
         func(pred, TRUE)
+
+
+def test_r2_and_vaf_are_undefined_when_the_speed_only_varies_by_round_off():
+    from beamsnet import metrics
+
+    rng = np.random.default_rng(0)
+    true = np.column_stack([2.0 + 1e-15 * rng.standard_normal(100), np.zeros(100),
+                            np.zeros(100)])
+    pred = true + 0.01
+    assert np.isnan(metrics.r2(pred, true)) and np.isnan(metrics.vaf(pred, true))
+    varied = true.copy()
+    varied[:, 0] = np.linspace(1.0, 2.0, 100)  # a real speed change: defined again
+    assert np.isfinite(metrics.r2(varied + 0.01, varied))
