@@ -357,8 +357,9 @@ def test_sigterm_stops_cleanly(tmp_path):
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "auvsim", "generate", "--preset", "paper-sim", "--workers", "2",
-         "--quiet", "--out", str(tmp_path / "x.h5")], stderr=subprocess.PIPE, text=True)
-    time.sleep(8)
+         "--duration", "200000", "--quiet", "--out", str(tmp_path / "x.h5")],
+        stderr=subprocess.PIPE, text=True)  # about five minutes of work: it cannot finish
+    time.sleep(6)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
