@@ -120,6 +120,10 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     """
     windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
     train_w, test_w = split(windows, config.train_fraction)
+    # RMSprop's running mean of squared gradients decays geometrically for units whose
+    # gradient is zero (dead ReLUs) and reaches float32's subnormal range within a few
+    # thousand steps, where x86 arithmetic is tens of times slower: flush them to zero.
+    torch.set_flush_denormal(True)
     torch.manual_seed(config.seed)
     order = torch.Generator().manual_seed(config.seed)
     kwargs = model_kwargs(config, windows)
