@@ -13,7 +13,7 @@ from .config import SCENARIOS, Config, ScenarioConfig
 from .errors import AuvsimError, ConfigError
 
 
-class _Parser(argparse.ArgumentParser):
+class OneLineErrorParser(argparse.ArgumentParser):
     """Reports a usage error on one line and exits with status 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
@@ -30,8 +30,9 @@ _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="auvsim", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = OneLineErrorParser(prog="auvsim", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True,
+                                parser_class=OneLineErrorParser)
     gen = sub.add_parser(
         "generate", help="simulate missions and write an HDF5 dataset",
         description="Simulate missions and write an HDF5 dataset. Without --preset or "

@@ -12,7 +12,6 @@ import concurrent.futures as cf
 import contextlib
 import multiprocessing
 import os
-import queue
 import shutil
 import tempfile
 import threading
@@ -229,7 +228,7 @@ class MissionRun:
 _report = None
 
 
-def _report_to_queue(progress: queue.Queue) -> None:
+def _report_to_queue(progress) -> None:
     global _report
     _report = lambda index, seconds: progress.put((index, seconds))  # noqa: E731
 
@@ -341,14 +340,13 @@ def _in_parallel(config: Config, ds: DatasetWriter, workers: int,
     """Run the missions in worker processes, each into a file of its own, and copy each
     into ``ds`` in mission order as soon as it and those before it are done."""
     parts = Path(tempfile.mkdtemp(prefix=f".{ds.path.name}.", dir=ds.path.parent))
-    manager = multiprocessing.Manager()
-    reports = manager.Queue()
+    # forkserver: workers fork from a server that has imported auvsim (numba, MuJoCo)
+    # once, so they start in milliseconds, without inheriting this process's threads.
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(["auvsim.generate"])
+    reports = context.SimpleQueue()  # progress from the workers, handed over at their start
     own = executor is None
     if own:
-        # forkserver: workers fork from a server that has imported auvsim (numba, MuJoCo)
-        # once, so they start in milliseconds, without inheriting this process's threads.
-        context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["auvsim.generate"])
         executor = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                           initializer=_report_to_queue, initargs=(reports,))
     try:
@@ -374,5 +372,5 @@ def _in_parallel(config: Config, ds: DatasetWriter, workers: int,
             for process in list(getattr(executor, "_processes", {}).values()):
                 process.terminate()
             executor.shutdown(wait=True, cancel_futures=True)
-        manager.shutdown()
+        reports.close()
         shutil.rmtree(parts, ignore_errors=True)

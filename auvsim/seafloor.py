@@ -40,6 +40,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from .config import SeafloorConfig
 from .errors import ConfigError
+from .hydro import FLIP as _FLIP  # NED <-> MuJoCo's north-west-up, either way
 
 NAME = "seafloor"  # the plane geom; hfield tiles and their geoms are seafloor_<row>_<col>
 GROUP = 3  # geom group of the seafloor alone, so ray casts can select it
@@ -63,7 +64,6 @@ MAX_NOISE_CELLS = 2048  # per side: 32 MB of float64 (and the FFT's scratch) at 
 BASE = 1.0  # m, thickness of the solid box MuJoCo puts under an hfield
 EDGE = 1e-6  # m: hits this close to the terrain's edge are on its side walls
 
-_FLIP = np.array([1.0, -1.0, -1.0])  # NED <-> MuJoCo NWU, either way
 
 
 class Seafloor:

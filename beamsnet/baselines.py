@@ -36,11 +36,6 @@ class Estimator(Protocol):
     def predict(self, windows: Windows) -> np.ndarray: ...
 
 
-def rmse(estimate: np.ndarray, target: np.ndarray) -> float:
-    """Root mean square of the 3-D velocity error, sqrt(mean |v_hat - v|^2), m/s."""
-    return float(np.sqrt(np.mean(np.sum((estimate - target) ** 2, axis=1))))
-
-
 class LeastSquares:
     """Paper eq. 9 on the current beams: ``v = (H^T H)^-1 H^T y``. Nothing to fit."""
 

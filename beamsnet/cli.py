@@ -6,17 +6,14 @@ import argparse
 import sys
 from pathlib import Path
 
+from auvsim.cli import OneLineErrorParser
 from auvsim.errors import AuvsimError
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="beamsnet", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True,
+                                parser_class=OneLineErrorParser)
     tr = sub.add_parser("train", help="train BeamsNetV1 or V2 on a dataset",
                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     tr.add_argument("dataset", type=Path)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import mujoco
 
-from auvsim.config import Config, MissionConfig, ScenarioConfig
+from auvsim.config import Config, MissionConfig, ScenarioConfig, VehicleConfig
 from auvsim.generate import MissionRun, generate
 from auvsim.vehicle import model_path
 
@@ -41,9 +41,9 @@ def main() -> None:
     parser.add_argument("--vehicle", default="auv")
     args = parser.parse_args()
 
-    config = Config(missions=(MissionConfig(scenario=ScenarioConfig(
-        speed=2.0, heading_deg=30.0, depth=20.0, duration=args.duration)),))
-    config = Config(vehicle=config.vehicle.__class__(model=args.vehicle), missions=config.missions)
+    config = Config(vehicle=VehicleConfig(model=args.vehicle),
+                    missions=(MissionConfig(scenario=ScenarioConfig(
+                        speed=2.0, heading_deg=30.0, depth=20.0, duration=args.duration)),))
     model = mujoco.MjModel.from_xml_path(str(model_path(args.vehicle)))
     model.opt.gravity[:] = 0.0  # the bare body floats instead of falling for an hour
     data = mujoco.MjData(model)

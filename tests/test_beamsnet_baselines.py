@@ -18,9 +18,9 @@ from beamsnet.baselines import (
     AffineCalibration,
     KalmanFilter,
     LeastSquares,
-    rmse,
 )
 from beamsnet.data import load_windows, select, split
+from beamsnet.metrics import rmse_vector as rmse
 
 
 def make(tmp_path_factory, name: str, dvl: DvlConfig, missions=None):
