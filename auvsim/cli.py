@@ -59,6 +59,23 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("presets", help="list the named configs")
     inspect = sub.add_parser("inspect", help="describe a dataset file")
     inspect.add_argument("file", type=Path)
+    imp = sub.add_parser(
+        "import-velocity", help="make a dataset from recorded DVL velocities",
+        description="Take recorded DVL velocities as the truth and synthesise the beams a "
+        "DVL under test would measure, with a preset's DVL error model (paper eq. 7), as "
+        "the BeamsNet paper's sea experiment did. Each file becomes one mission (named by "
+        "its stem) with no IMU, so only models without IMU input can use it.")
+    imp.add_argument("files", type=Path, nargs="+",
+                     help=".npy of shape (3, N) or .csv of N rows vx,vy,vz, m/s, DVL frame")
+    imp.add_argument("--rate", type=float, default=1.0, help="ping rate of the files, Hz")
+    imp.add_argument("--preset", default="paper-sim",
+                     help="whose DVL (beam angle, scale factor, bias, noise) to apply")
+    imp.add_argument("--noise-std", type=float, help="beam noise std, m/s (default: the "
+                     "preset's)")
+    imp.add_argument("--seed", type=int, default=0, help="seed of the first file's errors "
+                     "and noise; the others follow")
+    imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf")
+    imp.add_argument("--out", type=Path, required=True, help="HDF5 file to write")
     return parser
 
 
@@ -130,6 +147,20 @@ def _inspect(args: argparse.Namespace) -> None:
     print(describe(args.file))
 
 
+def _import_velocity(args: argparse.Namespace) -> None:
+    from .importer import import_velocity
+    from .presets import preset
+
+    dvl = dataclasses.replace(preset(args.preset).dvl, rate_hz=args.rate,
+                              **({} if args.noise_std is None else
+                                 {"noise_std": args.noise_std}))
+    summary = import_velocity(args.files, args.out, dvl=dvl, seed=args.seed,
+                              compression=args.compression)
+    missions = ", ".join(f"{name} ({n} pings)" for name, n in summary.items())
+    print(f"wrote {args.out}: {missions}; beams at {dvl.beam_angle_deg:g} deg, scale factor "
+          f"{dvl.scale_factor}, bias {dvl.bias} m/s, noise {dvl.noise_std:g} m/s")
+
+
 def _stop(signum, frame) -> None:
     raise KeyboardInterrupt
 
@@ -140,7 +171,8 @@ def main(argv: list[str] | None = None) -> int:
         # A scheduler's SIGTERM unwinds like Ctrl-C: workers stop, temporary files go.
         signal.signal(signal.SIGTERM, _stop)
     try:
-        {"generate": _generate, "presets": _presets, "inspect": _inspect}[args.command](args)
+        {"generate": _generate, "presets": _presets, "inspect": _inspect,
+         "import-velocity": _import_velocity}[args.command](args)
     except AuvsimError as e:
         print(f"auvsim: error: {e}", file=sys.stderr)
         return 2

@@ -1,4 +1,4 @@
-"""The only module that knows the HDF5 layout (schema v1 in docs/ARCHITECTURE.md).
+"""The only module that knows the HDF5 layout (schema v2 in docs/ARCHITECTURE.md).
 
 Writing streams chunks into resizable, compressed datasets, so memory stays flat in mission
 length; the file is built under a temporary name and renamed when complete, so a failed or
@@ -19,30 +19,39 @@ from . import __version__
 from .errors import ConfigError, DatasetError
 
 FORMAT = "auvsim-dataset"
-FORMAT_VERSION = 1
+# Version 2 = version 1 + a mission attribute ``origin``, which lets a mission imported from
+# a recorded DVL stream hold only its DVL group. Version 1 files are read as all simulated.
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 CHUNK_ROWS = 6000  # rows per HDF5 chunk: 60 s at 100 Hz, 48 kB for a float64 column
 # lzf: fast, built into h5py; gzip (level 1): about 1.5x the writing cost, but every HDF5
 # tool reads it without a plugin.
 COMPRESSION = {"lzf": dict(compression="lzf", shuffle=True),
                "gzip": dict(compression="gzip", compression_opts=1, shuffle=True)}
 
-# What every mission of a schema-v1 file holds (extra fields are allowed).
+# What every mission holds, by origin (extra fields are allowed).
+DVL_FIELDS = ("dvl/time", "dvl/velocity", "dvl/beam_velocity_true", "dvl/beam_velocity",
+              "dvl/valid", "dvl/velocity_ls")
+DVL_ATTRS = ("origin", "scenario", "seed", "duration_s", "dvl_rate_hz", "beam_angle_deg",
+             "dvl_scale_factor", "dvl_bias", "dvl_noise_std")
 REQUIRED_FIELDS = (
     "truth/time", "truth/position_ned", "truth/velocity_ned", "truth/velocity_body",
     "truth/quaternion", "truth/angular_rate", "truth/specific_force", "truth/altitude",
     "imu/time", "imu/specific_force", "imu/angular_rate", "imu/index_of_dvl",
-    "dvl/time", "dvl/velocity", "dvl/beam_velocity_true", "dvl/beam_velocity",
-    "dvl/beam_range", "dvl/valid", "dvl/velocity_ls",
+    *DVL_FIELDS, "dvl/beam_range",
     "control/propeller_rpm", "control/thrust", "control/rudder", "control/stern_planes",
 )
 REQUIRED_ATTRS = (
-    "scenario", "seed", "duration_s", "vehicle", "dvl_rate_hz", "imu_rate_hz",
-    "beam_angle_deg", "dvl_scale_factor", "dvl_bias", "dvl_noise_std", "dvl_min_range",
-    "dvl_max_range", "dvl_mounting_rpy_deg", "dvl_position_body", "imu_position_body",
+    *DVL_ATTRS, "vehicle", "imu_rate_hz", "dvl_min_range", "dvl_max_range",
+    "dvl_mounting_rpy_deg", "dvl_position_body", "imu_position_body",
     "imu_accel_turn_on_bias", "imu_gyro_turn_on_bias", "imu_accel_noise_density",
     "imu_gyro_noise_density", "imu_accel_bias_instability", "imu_gyro_bias_instability",
     "imu_bias_correlation_time",
 )
+IMPORTED_FIELDS = DVL_FIELDS
+IMPORTED_ATTRS = (*DVL_ATTRS, "source_file", "source_sha256")
+ORIGINS = {"simulated": (REQUIRED_FIELDS, REQUIRED_ATTRS),
+           "imported": (IMPORTED_FIELDS, IMPORTED_ATTRS)}
 
 
 class DatasetWriter:
@@ -187,19 +196,25 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
         f.close()
         raise DatasetError(f"{path}: not an auvsim dataset (format attribute is {fmt!r}, "
                            f"expected {FORMAT!r})")
-    if version != FORMAT_VERSION:
+    if version not in READABLE_VERSIONS:
         f.close()
         raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
-                           f"reads version {FORMAT_VERSION}")
+                           f"reads versions {', '.join(map(str, READABLE_VERSIONS))}")
     try:
         if not isinstance(f.get("missions"), h5py.Group):
             raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
         for name, mission in f["missions"].items():
-            missing = [k for k in REQUIRED_FIELDS if k not in mission]
-            missing += [f"attribute {k}" for k in REQUIRED_ATTRS if k not in mission.attrs]
+            origin = mission.attrs.get("origin", "simulated" if version == 1 else None)
+            if origin not in ORIGINS:
+                raise DatasetError(f"{path}: mission {name} has origin {origin!r}; expected "
+                                   f"one of {', '.join(ORIGINS)} (schema v{version})")
+            fields, attrs = ORIGINS[origin]
+            missing = [k for k in fields if k not in mission]
+            missing += [f"attribute {k}" for k in attrs
+                        if k not in mission.attrs and not (k == "origin" and version == 1)]
             if missing:
-                raise DatasetError(f"{path}: mission {name} lacks {', '.join(missing)} "
-                                   f"(schema v{FORMAT_VERSION})")
+                raise DatasetError(f"{path}: mission {name} ({origin}) lacks "
+                                   f"{', '.join(missing)} (schema v{version})")
     except (KeyError, OSError) as e:
         f.close()
         raise DatasetError(f"{path}: corrupt auvsim dataset ({e})") from None
@@ -222,16 +237,25 @@ def describe(path: str | os.PathLike) -> str:
         for name, m in f["missions"].items():
             a = m.attrs
             valid = m["dvl/valid"][()]
-            lines += [
-                f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, "
-                f"vehicle {a['vehicle']}",
-                f"    IMU {a['imu_rate_hz']:g} Hz ({len(m['imu/time'])} samples); DVL "
-                f"{a['dvl_rate_hz']:g} Hz ({len(valid)} pings), beams at "
-                f"{a['beam_angle_deg']:g} deg, {100 * valid.mean():.1f} % of beams valid, "
-                f"{100 * (valid.sum(axis=1) >= 3).mean():.1f} % of pings solvable",
-                f"    DVL errors: scale factor {fmt(a['dvl_scale_factor'])}, bias "
-                f"{fmt(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s",
-            ]
+            solvable = (f"{100 * valid.mean():.1f} % of beams valid, "
+                        f"{100 * (valid.sum(axis=1) >= 3).mean():.1f} % of pings solvable")
+            if a.get("origin") == "imported":
+                lines += [
+                    f"  {name}: imported from {a['source_file']} (sha256 "
+                    f"{a['source_sha256'][:12]}...), seed {a['seed']}, {a['duration_s']:g} s",
+                    f"    DVL {a['dvl_rate_hz']:g} Hz ({len(valid)} pings), beams at "
+                    f"{a['beam_angle_deg']:g} deg, {solvable}; no truth, IMU or controls",
+                ]
+            else:
+                lines += [
+                    f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, "
+                    f"vehicle {a['vehicle']}",
+                    f"    IMU {a['imu_rate_hz']:g} Hz ({len(m['imu/time'])} samples); DVL "
+                    f"{a['dvl_rate_hz']:g} Hz ({len(valid)} pings), beams at "
+                    f"{a['beam_angle_deg']:g} deg, {solvable}",
+                ]
+            lines.append(f"    DVL errors: scale factor {fmt(a['dvl_scale_factor'])}, bias "
+                         f"{fmt(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s")
             if "imu_accel_turn_on_bias" in a:
                 lines.append(
                     f"    IMU errors: accel turn-on bias {fmt(a['imu_accel_turn_on_bias'])} "

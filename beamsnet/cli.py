@@ -9,6 +9,8 @@ from pathlib import Path
 from auvsim.cli import OneLineErrorParser
 from auvsim.errors import AuvsimError
 
+DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
+
 
 def _parser() -> argparse.ArgumentParser:
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
@@ -32,11 +34,18 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--also", type=Path, action="append", default=[],
                     help="another run to put in the same tables (repeatable)")
     ev.add_argument("--out", type=Path, default=Path("reports/evaluation"))
-    rp = sub.add_parser("reproduce", help="reproduce the paper's simulation (Table 1)")
-    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text"))
-    rp.add_argument("--data", type=Path, help="use this dataset instead of generating one")
-    rp.add_argument("--duration", type=float, default=7200.0, help="s per speed")
-    rp.add_argument("--epochs", type=int, default=30)
+    rp = sub.add_parser(
+        "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
+        "the Snapir sea data's Table 3",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir"))
+    rp.add_argument("--data", type=Path,
+                    help="paper-sim: use this dataset instead of generating one; snapir: the "
+                    f"directory with V.npy and V_test.npy (default {DEFAULT_SNAPIR_TEXT})")
+    rp.add_argument("--duration", type=float, default=7200.0, help="s per speed (paper-sim)")
+    rp.add_argument("--epochs", type=int, help="default: 30 for paper-sim, 50 for snapir")
+    rp.add_argument("--lr", type=float,
+                    help="default: the paper's, 0.01 for paper-sim, 0.001 for snapir")
     rp.add_argument("--out", type=Path, default=Path("reports"))
     rp.add_argument("--quiet", action="store_true")
     return parser
@@ -65,10 +74,18 @@ def _evaluate(args) -> None:
 
 
 def _reproduce(args) -> None:
-    from .reproduce import paper_sim
+    from .reproduce import DEFAULT_SNAPIR, paper_sim, snapir
 
-    report = paper_sim(args.experiment, data=args.data, duration=args.duration,
-                       epochs=args.epochs, out=args.out, progress=not args.quiet)
+    def given(value, default):
+        return default if value is None else value
+
+    if args.experiment == "snapir":
+        report = snapir(given(args.data, DEFAULT_SNAPIR), epochs=given(args.epochs, 50),
+                        lr=given(args.lr, 0.001), out=args.out, progress=not args.quiet)
+    else:
+        report = paper_sim(args.experiment, data=args.data, duration=args.duration,
+                           epochs=given(args.epochs, 30), lr=given(args.lr, 0.01),
+                           out=args.out, progress=not args.quiet)
     print(f"wrote {report}")
 
 

@@ -31,13 +31,20 @@ def estimates(runs: list[str | Path], dataset: str | Path,
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
     train_w, test_w = split(load_windows(dataset, n_past=n_past, missions=missions), fraction)
+    return test_w, predictions(models, train_w, test_w)
+
+
+def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
+                test_w: Windows) -> dict[str, np.ndarray]:
+    """Every estimator's (S, 3) predictions on ``test_w``: the baselines fitted on
+    ``train_w``, then the loaded ``models`` (run directory, model, checkpoint)."""
     out: dict[str, np.ndarray] = {}
     for baseline in (LeastSquares(), AffineCalibration(), KalmanFilter()):
         out[baseline.name] = baseline.fit(train_w).predict(test_w)
     for run, model, checkpoint in models:
         name = f"BeamsNet{checkpoint['model'].upper()} ({run.name})"
         out[name] = predict(model, checkpoint["model"], _trim(test_w, checkpoint))
-    return test_w, out
+    return out
 
 
 def _trim(windows: Windows, checkpoint: dict) -> Windows:

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from .data import Windows, load_windows, split
+from .data import DataError, Windows, load_windows, split
 from .models import build
 
 
@@ -119,6 +119,9 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
         A summary: the per-epoch losses and where the checkpoint and the plot went.
     """
     windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
+    if config.model == "v1" and windows.accel is None:
+        raise DataError(f"{dataset}: no IMU data (an imported DVL stream has none); "
+                        "BeamsNetV1 needs the IMU samples between pings: use --model v2")
     train_w, test_w = split(windows, config.train_fraction)
     # RMSprop's running mean of squared gradients decays geometrically for units whose
     # gradient is zero (dead ReLUs) and reaches float32's subnormal range within a few

@@ -56,7 +56,7 @@ def demo_file(tmp_path_factory):
 def test_generate_writes_schema_v1_truth(demo_file):
     with dataset.open_dataset(demo_file) as f:
         assert f.attrs["format"] == "auvsim-dataset"
-        assert f.attrs["format_version"] == 1
+        assert f.attrs["format_version"] == 2
         assert {"auvsim_version", "created_utc", "config_json"} <= set(f.attrs)
         config = Config.from_json(f.attrs["config_json"])
         assert config.missions[0].scenario.heading_deg == 30.0
@@ -229,9 +229,25 @@ def test_reader_refuses_foreign_corrupt_and_other_versions(tmp_path, demo_file):
     newer = tmp_path / "newer.h5"
     newer.write_bytes(demo_file.read_bytes())
     with h5py.File(newer, "r+") as f:
-        f.attrs["format_version"] = 2
-    with pytest.raises(DatasetError, match="format_version 2"):
+        f.attrs["format_version"] = 3
+    with pytest.raises(DatasetError, match="format_version 3; this auvsim reads versions 1, 2"):
         dataset.open_dataset(newer)
+
+
+def test_version_1_files_still_read_as_simulated(demo_file, tmp_path):
+    """Schema v2 only added the mission attribute ``origin``; a v1 file has none."""
+    old = tmp_path / "v1.h5"
+    old.write_bytes(demo_file.read_bytes())
+    with h5py.File(old, "r+") as f:
+        f.attrs["format_version"] = 1
+        for m in f["missions"].values():
+            del m.attrs["origin"]
+    with dataset.open_dataset(old) as f:
+        assert len(f["missions"]) == 1
+    with h5py.File(old, "r+") as f:  # the same file claiming v2 lacks the attribute
+        f.attrs["format_version"] = 2
+    with pytest.raises(DatasetError, match="origin None"):
+        dataset.open_dataset(old)
 
 
 @pytest.mark.parametrize("kwargs", [dict(speed=float("nan")), dict(duration=float("inf")),
