@@ -90,7 +90,8 @@ class MissionRun:
     def attrs(self) -> dict:
         c, m = self.config, self.mission
         return dict(
-            origin="simulated", scenario=m.scenario.name, seed=m.seed, duration_s=m.scenario.duration,
+            origin="simulated", scenario=m.scenario.name, seed=m.seed,
+            duration_s=m.scenario.duration,
             vehicle=c.vehicle.model, imu_rate_hz=c.imu.rate_hz, dvl_rate_hz=c.dvl.rate_hz,
             beam_angle_deg=c.dvl.beam_angle_deg,
             dvl_scale_factor=self.dvl_errors.scale_factor, dvl_bias=self.dvl_errors.bias,

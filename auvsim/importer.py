@@ -116,7 +116,7 @@ def import_velocity(sources: Sequence[str | os.PathLike], out: str | os.PathLike
         raise ConfigError(f"mission names must differ, got {names} (from the file stems; "
                           "rename a file)")
     velocities = [read_velocity(s) for s in sources]  # all read and checked before writing
-    for source, v in zip(sources, velocities):
+    for source, v in zip(sources, velocities, strict=True):
         if not np.isfinite(v).all(axis=1).any():
             raise ConfigError(f"{str(source)!r}: no finite velocity row; nothing to import")
     settings = dict(dvl=dataclasses.asdict(dvl), seed=seed,
@@ -124,7 +124,7 @@ def import_velocity(sources: Sequence[str | os.PathLike], out: str | os.PathLike
     summary = {}
     with DatasetWriter(out, config_json=json.dumps({"import": settings}),
                        compression=compression) as writer:
-        for i, (source, name, velocity) in enumerate(zip(sources, names, velocities)):
+        for i, (source, name, velocity) in enumerate(zip(sources, names, velocities, strict=True)):
             fields = synthesise(velocity, dvl, np.random.default_rng(seed + i))
             errors = fields.pop("errors")
             n = len(velocity)

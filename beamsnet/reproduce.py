@@ -274,8 +274,9 @@ def _snapir_reading(val: dict, test: dict, v2: str) -> str:
                     f"{rows[v2]['rmse']:.6f} m/s, {gap:+.1f} %)")
     return ("The error LS leaves is mostly the 0.7 % scale factor, a systematic error that "
             "a calibration fitted on the training split removes as well as a network "
-            "does: " + "; ".join(said) + ". Unlike the simulation, the velocity here varies (nine missions with turns and "
-            "speed changes), so no estimator can score by learning a constant.")
+            "does: " + "; ".join(said) + ". Unlike the simulation, the velocity here "
+            "varies (nine missions with turns and speed changes), so no estimator can "
+            "score by learning a constant.")
 
 
 def _snapir_figure(results: dict, path: Path) -> None:
@@ -286,13 +287,13 @@ def _snapir_figure(results: dict, path: Path) -> None:
     import numpy as np
 
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=False)
-    for ax, (part, (windows, rows)) in zip(axes, results.items()):
+    for ax, (part, (windows, rows)) in zip(axes, results.items(), strict=True):
         names = list(rows)
         rmse = [rows[n]["rmse"] for n in names]
         ax.barh(np.arange(len(names)), rmse, color="tab:blue")
         ax.set_yticks(np.arange(len(names)), names)
         ax.invert_yaxis()
-        for i, (n, r) in enumerate(zip(names, rmse)):
+        for i, (n, r) in enumerate(zip(names, rmse, strict=True)):
             ax.text(r, i, f" {r:.5f} ({rows[n]['improvement']:.1f} %)", va="center",
                     fontsize=8)
         ax.set_xlim(0, 1.35 * max(rmse))

@@ -8,7 +8,6 @@ import h5py
 import numpy as np
 import pytest
 
-from auvsim import dataset
 from auvsim.config import (
     Config,
     DvlConfig,
@@ -132,19 +131,6 @@ def test_a_beam_out_of_range_loses_lock_for_the_whole_mission(tmp_path):
     assert np.all(w.mission == 1) and len(w.target) == 27
     with pytest.raises(DataError, match="no ping of deep has all 4 beam epochs valid"):
         load_windows(tmp_path / "lost.h5", missions=["deep"])
-
-
-def test_a_file_without_imu_gives_no_imu_windows_and_the_same_samples(path, tmp_path,
-                                                                       monkeypatch):
-    monkeypatch.setattr(dataset, "REQUIRED_FIELDS",
-                        tuple(k for k in dataset.REQUIRED_FIELDS if not k.startswith("imu/")))
-    def drop_imu(f):
-        for name in f["missions"]:
-            del f["missions"][name]["imu"]
-
-    w = load_windows(edited_copy(path, tmp_path, drop_imu))
-    assert w.accel is None and w.gyro is None
-    np.testing.assert_array_equal(w.beams, load_windows(path).beams)
 
 
 def test_errors_say_what_is_wrong(path, tmp_path):
