@@ -25,6 +25,9 @@ def _parser() -> argparse.ArgumentParser:
     tr.add_argument("--lr", type=float, default=0.01, help="0.001 for sea data in the paper")
     tr.add_argument("--batch-size", type=int, default=4)
     tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--restarts", type=int, default=1,
+                    help="train seeds SEED .. SEED+N-1 in parallel and keep the one that fits "
+                    "the training split best")
     tr.add_argument("--mission", action="append", dest="missions",
                     help="train on this mission only (repeatable; default: all)")
     tr.add_argument("--quiet", action="store_true")
@@ -46,18 +49,26 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--epochs", type=int, help="default: 30 for paper-sim, 50 for snapir")
     rp.add_argument("--lr", type=float,
                     help="default: the paper's, 0.01 for paper-sim, 0.001 for snapir")
+    rp.add_argument("--restarts", type=int, default=3,
+                    help="paper-sim: seeds per model; the best on the training split is kept")
     rp.add_argument("--out", type=Path, default=Path("reports"))
     rp.add_argument("--quiet", action="store_true")
     return parser
 
 
 def _train(args) -> None:
-    from .train import TrainConfig, train
+    from .train import TrainConfig, train, train_best
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
                          missions=tuple(args.missions) if args.missions else None)
-    summary = train(args.dataset, config, args.out, progress=not args.quiet)
+    if args.restarts == 1:
+        summary = train(args.dataset, config, args.out, progress=not args.quiet)
+    else:
+        summary = train_best(args.dataset, config, args.out, restarts=args.restarts,
+                             progress=not args.quiet)
+        print(f"kept {summary['kept']} of {args.restarts} seeds (lowest final training loss; "
+              f"all in {args.out / 'restarts.json'})")
     h = summary["history"]
     print(f"trained BeamsNet{args.model.upper()}: final loss {h['train'][-1]:.3g} (training), "
           f"{h['test'][-1]:.3g} (test split), {summary['samples_per_second']:.0f} samples/s; "
@@ -85,7 +96,7 @@ def _reproduce(args) -> None:
     else:
         report = paper_sim(args.experiment, data=args.data, duration=args.duration,
                            epochs=given(args.epochs, 30), lr=given(args.lr, 0.01),
-                           out=args.out, progress=not args.quiet)
+                           restarts=args.restarts, out=args.out, progress=not args.quiet)
     print(f"wrote {report}")
 
 

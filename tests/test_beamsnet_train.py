@@ -20,7 +20,7 @@ from auvsim.generate import generate
 from beamsnet.cli import main
 from beamsnet.data import load_windows, split
 from beamsnet.evaluate import estimates, table
-from beamsnet.train import TrainConfig, load, predict, train
+from beamsnet.train import TrainConfig, load, predict, train, train_all, train_best
 
 
 def tiny(path, *, scale=0.05, noise=0.0, duration=400.0):
@@ -86,6 +86,32 @@ def test_training_is_deterministic(scale_only, tmp_path):
         assert torch.equal(a[key], b[key]), key
 
 
+def test_restarts_keep_the_seed_that_fits_the_training_split_best(scale_only, tmp_path):
+    summary = train_best(scale_only, TrainConfig(model="v2", epochs=2, seed=5), tmp_path,
+                         restarts=3, workers=2, progress=False)
+    record = json.loads((tmp_path / "restarts.json").read_text())
+    losses = record["losses"]
+    assert sorted(losses) == [str(tmp_path / f"seed_{s}") for s in (5, 6, 7)]
+    assert len(set(losses.values())) == 3  # different seeds, different fits
+    best = min(losses, key=losses.get)
+    assert record["kept"] == summary["kept"] == best
+    kept, checkpoint = load(tmp_path)
+    assert checkpoint["train_config"]["seed"] == int(best.rsplit("_", 1)[1])
+    assert checkpoint["final_train_loss"] == losses[best]
+    _, test = split(load_windows(scale_only))
+    np.testing.assert_array_equal(predict(kept, "v2", test),
+                                  predict(load(best)[0], "v2", test))
+
+
+def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path):
+    jobs = [(scale_only, TrainConfig(model="v2", epochs=1, seed=s), tmp_path / f"p{s}")
+            for s in (1, 2)]
+    parallel = train_all(jobs, workers=2, progress=False)
+    serial = train(scale_only, jobs[1][1], tmp_path / "serial", progress=False)
+    assert parallel[1]["final_train_loss"] == pytest.approx(serial["final_train_loss"],
+                                                            rel=1e-5)
+
+
 def test_v1_trains_on_imu_windows(scale_only, tmp_path):
     summary = train(scale_only, TrainConfig(model="v1", epochs=2, lr=0.001), tmp_path / "v1",
                     progress=False)
@@ -132,7 +158,9 @@ def test_too_short_for_a_window(tmp_path, capsys):
 def test_reproduce_paper_sim_end_to_end_small(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["reproduce", "paper-sim", "--duration", "120", "--epochs", "2",
-                 "--out", "reports", "--quiet"]) == 0
+                 "--restarts", "2", "--out", "reports", "--quiet"]) == 0
     report = (tmp_path / "reports" / "paper-sim.md").read_text()
     assert "| 1 m/s |" in report and "| 3 m/s |" in report and "75.45" in report
+    assert "| 2 m/s | V1 |" in report and "seed_1" in report  # every seed's result
+    assert (tmp_path / "runs" / "paper-sim" / "speed_2" / "v1" / "restarts.json").exists()
     assert (tmp_path / "reports" / "paper-sim.png").exists()
