@@ -19,3 +19,15 @@ Conventions (a contract: the HDF5 files and every public function follow them):
 """
 
 __version__ = "0.1.0"
+
+
+def _register_environment() -> None:
+    """Register ``auvsim/AUV-v0`` with gymnasium, by name only: ``auvsim.env`` (MuJoCo,
+    numba) is imported when the environment is made."""
+    import gymnasium
+
+    if "auvsim/AUV-v0" not in gymnasium.registry:
+        gymnasium.register(id="auvsim/AUV-v0", entry_point="auvsim.env:AuvEnv")
+
+
+_register_environment()

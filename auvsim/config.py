@@ -13,7 +13,9 @@ from dataclasses import dataclass, field
 
 from .errors import ConfigError
 
-SCENARIOS = ("straight",)
+# The manoeuvres of auvsim.maneuvers, by name (a test checks the two lists agree).
+SCENARIOS = ("straight", "turning_circle", "zigzag", "lawnmower", "depth_steps", "yoyo",
+             "speed_steps", "spiral_dive", "random_waypoints")
 SEAFLOORS = ("flat", "procedural", "heightmap")
 
 
@@ -61,6 +63,8 @@ class ScenarioConfig:
         duration: mission length, s.
         start_speed: initial surge speed, m/s; ``None`` starts at ``speed`` (on the set
             point, so the data is steady from the first sample).
+        options: the manoeuvre's own parameters by name (``auvsim.maneuvers``; each class
+            lists its options and their defaults).
     """
 
     name: str = "straight"
@@ -69,6 +73,7 @@ class ScenarioConfig:
     depth: float = 20.0
     duration: float = 600.0
     start_speed: float | None = None
+    options: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         _check(self.name in SCENARIOS, "scenario", f"one of {', '.join(SCENARIOS)}", self.name)
@@ -80,6 +85,11 @@ class ScenarioConfig:
         if self.start_speed is not None:
             _finite("scenario.start_speed", self.start_speed)
             _check(self.start_speed >= 0, "start_speed", "a speed >= 0 m/s", self.start_speed)
+        _check(isinstance(self.options, dict), "scenario.options",
+               "a table of option names and numbers", self.options)
+        from .maneuvers import make_maneuver  # checks the options against the manoeuvre
+
+        make_maneuver(self)
 
 
 @dataclass(frozen=True)

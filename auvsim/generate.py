@@ -27,7 +27,7 @@ from tqdm import tqdm
 from .config import Config, MissionConfig
 from .dataset import DatasetWriter
 from .errors import ConfigError, SimulationError
-from .scenarios import make_scenario
+from .maneuvers import make_maneuver
 from .seafloor import Seafloor
 from .sensors.dvl import DvlGeometry, draw_errors, least_squares, measure, rotation_matrices
 from .sensors.imu import ImuErrorModel, draw_biases
@@ -35,6 +35,12 @@ from .vehicle import Vehicle
 
 BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
 
+
+# The DVL fields of a block without a ping (an environment step between pings).
+_NO_PINGS = {"dvl/time": np.empty(0), "dvl/velocity": np.empty((0, 3)),
+             "dvl/beam_velocity_true": np.empty((0, 4)), "dvl/beam_velocity": np.empty((0, 4)),
+             "dvl/beam_range": np.empty((0, 4)), "dvl/valid": np.empty((0, 4), dtype=bool),
+             "dvl/velocity_ls": np.empty((0, 3)), "imu/index_of_dvl": np.empty(0, dtype=np.int64)}
 
 MIN_SPEED = 0.5  # m/s: above the stern planes' reversal speed (models/README.md)
 
@@ -45,16 +51,16 @@ def check_reachable(config: Config) -> None:
     vehicle = Vehicle(config.vehicle.model)
     limit = 0.95 * vehicle.max_speed
     for m in config.missions:
-        if m.scenario.speed < MIN_SPEED:
-            raise ConfigError(
-                f"speed {m.scenario.speed:g} m/s is too slow to hold depth: expected at least "
-                f"{MIN_SPEED:g} m/s (below about 0.4 m/s the stern planes reverse)")
-        if m.scenario.speed > limit:
-            raise ConfigError(
-                f"speed {m.scenario.speed:g} m/s is beyond what vehicle "
-                f"{config.vehicle.model!r} can hold: expected at most {limit:.2f} m/s "
-                f"(95 % of its {vehicle.max_speed:.2f} m/s top speed)"
-            )
+        for speed in make_maneuver(m.scenario).speeds():
+            if speed < MIN_SPEED:
+                raise ConfigError(
+                    f"speed {speed:g} m/s is too slow to hold depth: expected at least "
+                    f"{MIN_SPEED:g} m/s (below about 0.4 m/s the stern planes reverse)")
+            if speed > limit:
+                raise ConfigError(
+                    f"speed {speed:g} m/s is beyond what vehicle "
+                    f"{config.vehicle.model!r} can hold: expected at most {limit:.2f} m/s "
+                    f"(95 % of its {vehicle.max_speed:.2f} m/s top speed)")
 
 
 class MissionRun:
@@ -64,7 +70,8 @@ class MissionRun:
 
     def __init__(self, config: Config, mission: MissionConfig) -> None:
         self.config, self.mission = config, mission
-        streams = np.random.default_rng(mission.seed).spawn(5)
+        # Child streams by index: adding one at the end leaves the others unchanged.
+        streams = np.random.default_rng(mission.seed).spawn(6)
         self.seafloor = Seafloor(config.seafloor, rng=streams[0])
         v = config.vehicle
         self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,
@@ -84,7 +91,7 @@ class MissionRun:
         self.dvl_errors = draw_errors(config.dvl, streams[1])
         self.dvl_noise = streams[2]
         self.imu = ImuErrorModel(config.imu, draw_biases(config.imu, streams[3]), streams[4])
-        self.scenario = make_scenario(mission.scenario)
+        self.scenario = make_maneuver(mission.scenario, rng=streams[5])
 
     @property
     def attrs(self) -> dict:
@@ -126,6 +133,7 @@ class MissionRun:
         """
         vehicle, dt = self.vehicle, self.vehicle.dt
         vehicle.reset(**self.scenario.initial_state())
+        self.scenario.reset()
         total = round(self.mission.scenario.duration / dt)
         per_block = self.decimation * self.dvl_every
         block = per_block * max(1, round(BLOCK_SECONDS / dt / per_block))
@@ -133,8 +141,7 @@ class MissionRun:
 
         def physics(start: int):
             steps = np.arange(start, min(start + block, total))
-            return steps, vehicle.run(self.scenario.references(steps * dt),
-                                      self.scenario.closed_loop)
+            return steps, self.scenario.run(vehicle, steps * dt)
 
         with ThreadPoolExecutor(max_workers=1) as physics_thread:
             ahead = physics_thread.submit(physics, starts[0])
@@ -172,7 +179,12 @@ class MissionRun:
     def _dvl(self, truth: dict[str, np.ndarray], first_imu: int) -> dict[str, np.ndarray]:
         """The DVL pings of a block: true velocity, beams, ray-cast ranges, measurements."""
         c = self.config.dvl
-        ping = slice(None, None, self.dvl_every)
+        # Pings fall on IMU samples that are whole multiples of dvl_every, wherever the
+        # block starts (generate's blocks start on a ping; the environment's need not).
+        offset = -first_imu % self.dvl_every
+        if offset >= len(truth["truth/time"]):
+            return _NO_PINGS
+        ping = slice(offset, None, self.dvl_every)
         rotation = rotation_matrices(truth["truth/quaternion"][ping])
         velocity = self.dvl.velocity(truth["truth/velocity_body"][ping],
                                      truth["truth/angular_rate"][ping])
@@ -200,7 +212,8 @@ class MissionRun:
             "dvl/beam_range": ranges,
             "dvl/valid": valid,
             "dvl/velocity_ls": least_squares(beams, self.dvl.h),
-            "imu/index_of_dvl": first_imu + self.dvl_every * np.arange(n, dtype=np.int64),
+            "imu/index_of_dvl": first_imu + offset
+            + self.dvl_every * np.arange(n, dtype=np.int64),
         }
 
     def _altitude(self, truth: dict[str, np.ndarray]) -> np.ndarray:

@@ -195,6 +195,12 @@ class Vehicle:
         self.integrals[:] = 0.0
         mujoco.mj_forward(self.model, self.data)  # positions of every geom, for ray casts
 
+    def yaw(self) -> float:
+        """Current heading, rad from north (NED)."""
+        quat = self.data.qpos[3:7] * np.array([1.0, 1.0, -1.0, -1.0])  # NWU/FLU -> NED/FRD
+        rot = quat_to_rot(quat)
+        return math.atan2(rot[1, 0], rot[0, 0])
+
     def run(self, references: np.ndarray, closed_loop=(True, True, True)) -> Trajectory:
         """Advance ``len(references)`` physics steps and return the true state at each.
 

@@ -136,13 +136,12 @@ def test_depth_and_heading_changes_settle():
     """Set points away from the start: 10 m deeper and 60 deg to starboard."""
     config = straight(speed=2.0, heading_deg=60.0, depth=30.0, duration=300.0)
     scenario = config.missions[0].scenario
-    from auvsim.scenarios import make_scenario
+    from auvsim.maneuvers import make_maneuver
     from auvsim.vehicle import Vehicle
 
     vehicle = Vehicle("auv")
     vehicle.reset(position_ned=(0, 0, 20.0), velocity_body=(2.0, 0, 0))
-    refs = make_scenario(scenario).references(np.arange(30000) * vehicle.dt)
-    traj = vehicle.run(refs)
+    traj = make_maneuver(scenario).run(vehicle, np.arange(30000) * vehicle.dt)
     late = slice(15000, None)  # after 150 s
     q = traj.quaternion[late]
     yaw = np.degrees(np.arctan2(2 * (q[:, 0] * q[:, 3] + q[:, 1] * q[:, 2]),

@@ -1,0 +1,466 @@
+"""Scripted manoeuvres: what the autopilots (or the actuators directly) are asked to do.
+
+Each manoeuvre is a scenario (``auvsim generate --scenario NAME``) and, through
+``ManeuverPolicy``, a policy for the gymnasium environment. A manoeuvre answers, for any
+times ``t`` (s from the start), the reference of the three channels and whether each is
+closed loop (``schedule``):
+
+    channel      closed loop: reference       open loop: command
+    0 speed      surge speed, m/s             shaft speed, rpm
+    1 heading    heading, rad                 rudder angle, rad (+ turns to starboard)
+    2 depth      depth, m                     stern-plane angle, rad
+
+Every manoeuvre starts on its heading, at its depth and speed (the scenario's
+``heading_deg``, ``depth``, ``speed``), and is parameterised by ``ScenarioConfig.options``
+(names and defaults in each class's ``Options``). The Kempf zigzag switches its rudder when
+the heading crosses a limit, so it is driven in short chunks with feedback (``run``); the
+others are fixed schedules, computed for a whole block at once. ``phases`` names the parts
+of a manoeuvre, for plots.
+
+The manoeuvres (Fossen 2021, ch. 13, describes the turning circle, the Kempf zigzag and the
+spiral for ships; the depth and speed profiles are the usual AUV test legs):
+
+    straight          constant speed, heading and depth
+    turning_circle    lead-in, then a constant rudder angle, speed and depth held
+    zigzag            Kempf zigzag: rudder +d until the heading has turned +psi, then -d
+                      until it has turned -psi, ... (10/10: d = psi = 10 deg; 20/20)
+    lawnmower         survey legs joined by cross legs, turns alternating port/starboard
+    depth_steps       depth alternating between two levels
+    yoyo              sawtooth depth profile (constant descent and ascent rates)
+    speed_steps       speed alternating between two levels (accelerations, decelerations)
+    spiral_dive       constant rudder while the depth reference descends at a steady rate
+    random_waypoints  straight legs toward seeded random waypoints (planned, not guided)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+from .config import ScenarioConfig
+from .errors import ConfigError
+
+
+class Phase(NamedTuple):
+    """A named part of a manoeuvre, from ``start`` to ``end`` (s)."""
+
+    start: float
+    end: float
+    label: str
+
+
+def _options(cls, config: ScenarioConfig):
+    """The manoeuvre's ``Options`` dataclass from the config's ``options`` mapping, with
+    unknown names and non-numbers refused."""
+    known = {f.name: f.type for f in dataclasses.fields(cls)}
+    given = dict(config.options)
+    unknown = sorted(set(given) - set(known))
+    if unknown:
+        raise ConfigError(f"scenario.options: unknown option(s) {', '.join(unknown)} for "
+                          f"{config.name}; expected some of {', '.join(sorted(known)) or 'none'}")
+    for key, value in given.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not math.isfinite(value):
+            raise ConfigError(f"scenario.options.{key}: expected a finite number, got {value!r}")
+    return cls(**given)
+
+
+def _positive(name: str, value: float) -> None:
+    if not value > 0:
+        raise ConfigError(f"scenario.options.{name}: expected a positive number, got {value!r}")
+
+
+class Maneuver:
+    """Base of the scripted manoeuvres; subclasses define ``Options`` and ``schedule``.
+
+    Args:
+        config: the scenario; ``config.options`` sets the manoeuvre's parameters.
+        rng: the seeded stream of manoeuvres that draw something (random waypoints).
+    """
+
+    name: ClassVar[str]
+
+    @dataclass(frozen=True)
+    class Options:
+        pass
+
+    def __init__(self, config: ScenarioConfig, rng: np.random.Generator | None = None) -> None:
+        self.config = config
+        self.options = _options(self.Options, config)
+        self.speed = config.speed
+        self.heading = math.radians(config.heading_deg)
+        self.depth = config.depth
+        self.duration = config.duration
+
+    def initial_state(self) -> dict:
+        start = self.speed if self.config.start_speed is None else self.config.start_speed
+        return dict(position_ned=(0.0, 0.0, self.depth), yaw=self.heading,
+                    velocity_body=(start, 0.0, 0.0))
+
+    def speeds(self) -> tuple[float, ...]:
+        """Every surge speed the manoeuvre asks the speed autopilot for, m/s."""
+        return (self.speed,)
+
+    def schedule(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) references and (N, 3) bool closed-loop flags at times ``t`` (s)."""
+        raise NotImplementedError
+
+    def phases(self) -> list[Phase]:
+        return [Phase(0.0, self.duration, self.name)]
+
+    def reset(self) -> None:
+        """Forget any feedback state (before a new run)."""
+
+    def command(self, t: float, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+        """The (3,) reference and (3,) closed-loop flags at one time, given the heading
+        (rad): what a policy asks for at each of its steps."""
+        refs, closed = self.schedule(np.array([t]))
+        return refs[0], closed[0]
+
+    def run(self, vehicle, t: np.ndarray):
+        """Drive ``vehicle`` over the physics steps at times ``t``; its ``Trajectory``."""
+        refs, closed = self.schedule(t)
+        return drive(vehicle, refs, closed)
+
+    def _hold(self, n: int, speed=None, heading=None, depth=None) -> np.ndarray:
+        """(n, 3) references: the given channels, the others at the scenario's values."""
+        refs = np.empty((n, 3))
+        refs[:, 0] = self.speed if speed is None else speed
+        refs[:, 1] = self.heading if heading is None else heading
+        refs[:, 2] = self.depth if depth is None else depth
+        return refs
+
+
+def drive(vehicle, refs: np.ndarray, closed: np.ndarray):
+    """Run the vehicle over the rows of ``refs``, one compiled call per stretch of steps
+    whose closed-loop flags stay the same; the concatenated ``Trajectory``."""
+    change = np.flatnonzero((closed[1:] != closed[:-1]).any(axis=1)) + 1
+    bounds = [0, *change.tolist(), len(refs)]
+    parts = [vehicle.run(refs[a:b], tuple(bool(c) for c in closed[a]))
+             for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    if len(parts) == 1:
+        return parts[0]
+    return type(parts[0])(*(np.concatenate(fields) for fields in zip(*parts, strict=True)))
+
+
+ALL_CLOSED = np.array([True, True, True])
+RUDDER_OPEN = np.array([True, False, True])
+
+
+class Straight(Maneuver):
+    """Constant speed, heading and depth."""
+
+    name = "straight"
+
+    def schedule(self, t):
+        return self._hold(len(t)), np.tile(ALL_CLOSED, (len(t), 1))
+
+
+class TurningCircle(Maneuver):
+    """Straight for ``lead_s``, then the rudder held at ``rudder_deg`` (positive turns to
+    starboard) with speed and depth held: the heading then advances monotonically."""
+
+    name = "turning_circle"
+
+    @dataclass(frozen=True)
+    class Options:
+        rudder_deg: float = 15.0  # the A18-D's full rudder
+        lead_s: float = 20.0
+
+    def schedule(self, t):
+        o = self.options
+        turning = t >= o.lead_s
+        refs = self._hold(len(t))
+        refs[turning, 1] = math.radians(o.rudder_deg)
+        closed = np.where(turning[:, None], RUDDER_OPEN, ALL_CLOSED)
+        return refs, closed
+
+    def phases(self):
+        lead = min(self.options.lead_s, self.duration)
+        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, "turn")]
+
+
+class Zigzag(Maneuver):
+    """Kempf zigzag: after ``lead_s`` straight, rudder +``rudder_deg`` until the heading
+    has changed by +``angle_deg`` from the initial heading, then -``rudder_deg`` until it
+    has changed by -``angle_deg``, and so on (the 20/20 zigzag by default; 10/10 with
+    both at 10). Speed and depth are held. The rudder is decided every ``check_s``."""
+
+    name = "zigzag"
+
+    @dataclass(frozen=True)
+    class Options:
+        angle_deg: float = 20.0
+        rudder_deg: float = 20.0  # beyond a fin's limit the servo stops at the limit
+        lead_s: float = 20.0
+        check_s: float = 0.1
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        for name in ("angle_deg", "rudder_deg", "check_s"):
+            _positive(name, getattr(self.options, name))
+        self.reset()
+
+    def reset(self):
+        self.sign = 1.0  # the first swing goes to starboard
+
+    def command(self, t, yaw):
+        o = self.options
+        if t < o.lead_s:
+            return self._hold(1)[0], ALL_CLOSED
+        turned = math.remainder(yaw - self.heading, 2 * math.pi)
+        if self.sign * turned >= math.radians(o.angle_deg):
+            self.sign = -self.sign
+        ref = self._hold(1)[0]
+        ref[1] = self.sign * math.radians(o.rudder_deg)
+        return ref, RUDDER_OPEN
+
+    def run(self, vehicle, t):
+        chunk = max(1, round(self.options.check_s / vehicle.dt))
+        parts = []
+        for a in range(0, len(t), chunk):
+            yaw = vehicle.yaw()
+            ref, closed = self.command(float(t[a]), yaw)
+            n = min(chunk, len(t) - a)
+            parts.append(vehicle.run(np.tile(ref, (n, 1)), tuple(bool(c) for c in closed)))
+        return type(parts[0])(*(np.concatenate(f) for f in zip(*parts, strict=True)))
+
+    def phases(self):
+        lead = min(self.options.lead_s, self.duration)
+        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, "zigzag")]
+
+
+class Lawnmower(Maneuver):
+    """Survey legs of ``leg_m`` alternating between the initial heading and its reverse,
+    joined by cross legs of ``spacing_m`` to starboard; each leg is timed at the set
+    speed, and the heading autopilot turns at full rudder between them."""
+
+    name = "lawnmower"
+
+    @dataclass(frozen=True)
+    class Options:
+        leg_m: float = 300.0
+        spacing_m: float = 50.0
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _positive("leg_m", self.options.leg_m)
+        _positive("spacing_m", self.options.spacing_m)
+
+    def _legs(self):
+        """(start, end, heading, label) of every leg that starts within the mission."""
+        o, legs, start, k = self.options, [], 0.0, 0
+        while start < self.duration:
+            along = k % 2 == 0
+            length = o.leg_m if along else o.spacing_m
+            heading = self.heading + (math.pi * (k // 2 % 2) if along else math.pi / 2)
+            end = start + length / self.speed
+            legs.append((start, end, heading, "survey leg" if along else "cross leg"))
+            start, k = end, k + 1
+        return legs
+
+    def schedule(self, t):
+        legs = self._legs()
+        starts = np.array([leg[0] for leg in legs])
+        headings = np.array([leg[2] for leg in legs])
+        i = np.searchsorted(starts, t, side="right") - 1
+        return self._hold(len(t), heading=headings[i]), np.tile(ALL_CLOSED, (len(t), 1))
+
+    def phases(self):
+        return [Phase(a, min(b, self.duration), label) for a, b, _, label in self._legs()]
+
+
+class DepthSteps(Maneuver):
+    """The depth reference alternates between ``depth`` and ``depth + step_m`` every
+    ``period_s``, speed and heading held."""
+
+    name = "depth_steps"
+
+    @dataclass(frozen=True)
+    class Options:
+        step_m: float = 10.0
+        period_s: float = 120.0
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _positive("period_s", self.options.period_s)
+
+    def schedule(self, t):
+        o = self.options
+        low = (t // o.period_s) % 2 == 0
+        depth = np.where(low, self.depth, self.depth + o.step_m)
+        return self._hold(len(t), depth=depth), np.tile(ALL_CLOSED, (len(t), 1))
+
+    def phases(self):
+        o, out, start, k = self.options, [], 0.0, 0
+        while start < self.duration:
+            depth = self.depth + (o.step_m if k % 2 else 0.0)
+            out.append(Phase(start, min(start + o.period_s, self.duration),
+                             f"depth {depth:g} m"))
+            start, k = start + o.period_s, k + 1
+        return out
+
+
+class Yoyo(Maneuver):
+    """Sawtooth (triangle) depth profile between ``depth`` and ``depth + amplitude_m``,
+    one descent and one ascent per ``period_s``, after ``lead_s`` level."""
+
+    name = "yoyo"
+
+    @dataclass(frozen=True)
+    class Options:
+        amplitude_m: float = 10.0
+        period_s: float = 200.0
+        lead_s: float = 20.0
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _positive("period_s", self.options.period_s)
+
+    def schedule(self, t):
+        o = self.options
+        phase = np.clip(t - o.lead_s, 0.0, None) % o.period_s / o.period_s  # 0..1
+        triangle = 1.0 - np.abs(2.0 * phase - 1.0)  # 0 -> 1 -> 0
+        depth = self.depth + o.amplitude_m * triangle
+        return self._hold(len(t), depth=depth), np.tile(ALL_CLOSED, (len(t), 1))
+
+    def phases(self):
+        o = self.options
+        out, start = [Phase(0.0, min(o.lead_s, self.duration), "level")], o.lead_s
+        k = 0
+        while start < self.duration:
+            out.append(Phase(start, min(start + o.period_s / 2, self.duration),
+                             "descent" if k % 2 == 0 else "ascent"))
+            start, k = start + o.period_s / 2, k + 1
+        return out
+
+
+class SpeedSteps(Maneuver):
+    """The speed reference alternates between ``speed`` and ``low`` every ``period_s``:
+    a deceleration, then an acceleration, and so on; heading and depth held."""
+
+    name = "speed_steps"
+
+    @dataclass(frozen=True)
+    class Options:
+        low: float = 1.0
+        period_s: float = 120.0
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _positive("period_s", self.options.period_s)
+
+    def speeds(self):
+        return (self.speed, self.options.low)
+
+    def schedule(self, t):
+        o = self.options
+        high = (t // o.period_s) % 2 == 0
+        speed = np.where(high, self.speed, o.low)
+        return self._hold(len(t), speed=speed), np.tile(ALL_CLOSED, (len(t), 1))
+
+    def phases(self):
+        o, out, start, k = self.options, [], 0.0, 0
+        while start < self.duration:
+            out.append(Phase(start, min(start + o.period_s, self.duration),
+                             f"{self.speed if k % 2 == 0 else o.low:g} m/s"))
+            start, k = start + o.period_s, k + 1
+        return out
+
+
+class SpiralDive(Maneuver):
+    """After ``lead_s`` straight, the rudder held at ``rudder_deg`` while the depth
+    reference descends at ``descent_rate`` m/s by ``dive_m`` in all, speed held."""
+
+    name = "spiral_dive"
+
+    @dataclass(frozen=True)
+    class Options:
+        rudder_deg: float = 10.0
+        dive_m: float = 20.0
+        descent_rate: float = 0.1
+        lead_s: float = 20.0
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _positive("descent_rate", self.options.descent_rate)
+
+    def schedule(self, t):
+        o = self.options
+        turning = t >= o.lead_s
+        depth = self.depth + np.clip((t - o.lead_s) * o.descent_rate, 0.0, o.dive_m)
+        refs = self._hold(len(t), depth=depth)
+        refs[turning, 1] = math.radians(o.rudder_deg)
+        return refs, np.where(turning[:, None], RUDDER_OPEN, ALL_CLOSED)
+
+    def phases(self):
+        lead = min(self.options.lead_s, self.duration)
+        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, "spiral")]
+
+
+class RandomWaypoints(Maneuver):
+    """Straight legs toward ``count`` waypoints drawn (seeded) within ``radius_m`` of the
+    start and ``depth_span_m`` below the set depth; each leg is timed at the set speed
+    from the previous waypoint (planned, not guided: the track passes near them). After
+    the last waypoint the plan starts over from it."""
+
+    name = "random_waypoints"
+
+    @dataclass(frozen=True)
+    class Options:
+        count: float = 6
+        radius_m: float = 300.0
+        depth_span_m: float = 10.0
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        o = self.options
+        _positive("radius_m", o.radius_m)
+        if o.count < 1 or o.count != int(o.count):
+            raise ConfigError(f"scenario.options.count: expected a whole number >= 1, got "
+                              f"{o.count!r}")
+        rng = np.random.default_rng(0) if rng is None else rng
+        n = int(o.count)
+        radius = o.radius_m * np.sqrt(rng.uniform(0.2, 1.0, n))
+        bearing = rng.uniform(0.0, 2 * np.pi, n)
+        points = np.c_[radius * np.cos(bearing), radius * np.sin(bearing),
+                       self.depth + rng.uniform(0.0, o.depth_span_m, n)]
+        start = np.array([0.0, 0.0, self.depth])
+        legs, t = [], 0.0
+        while t < self.duration:
+            for p in points:
+                d = p[:2] - start[:2]
+                length = max(float(np.hypot(*d)), 1.0)
+                legs.append((t, math.atan2(d[1], d[0]), p[2]))
+                t, start = t + length / self.speed, p
+                if t >= self.duration:
+                    break
+        self.legs = np.array(legs)  # (start time, heading, depth) per leg
+        self.waypoints = points
+
+    def schedule(self, t):
+        i = np.searchsorted(self.legs[:, 0], t, side="right") - 1
+        refs = self._hold(len(t), heading=self.legs[i, 1], depth=self.legs[i, 2])
+        return refs, np.tile(ALL_CLOSED, (len(t), 1))
+
+    def phases(self):
+        ends = [*self.legs[1:, 0], self.duration]
+        return [Phase(float(a), float(min(b, self.duration)), f"leg {k + 1}")
+                for k, (a, b) in enumerate(zip(self.legs[:, 0], ends, strict=True))]
+
+
+MANEUVERS: dict[str, type[Maneuver]] = {
+    m.name: m for m in (Straight, TurningCircle, Zigzag, Lawnmower, DepthSteps, Yoyo,
+                        SpeedSteps, SpiralDive, RandomWaypoints)}
+
+
+def make_maneuver(config: ScenarioConfig, rng: np.random.Generator | None = None) -> Maneuver:
+    """The manoeuvre a scenario config names, with its options checked."""
+    if config.name not in MANEUVERS:
+        raise ConfigError(f"scenario: expected one of {', '.join(MANEUVERS)}, got "
+                          f"{config.name!r}")
+    return MANEUVERS[config.name](config, rng)
