@@ -76,6 +76,13 @@ def _parser() -> argparse.ArgumentParser:
                      "and noise; the others follow")
     imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf")
     imp.add_argument("--out", type=Path, required=True, help="HDF5 file to write")
+    plot = sub.add_parser("plot", help="draw each mission of a dataset to PNG: track, depth "
+                          "over the seafloor, speed, attitude, DVL velocity, bottom lock")
+    plot.add_argument("file", type=Path)
+    plot.add_argument("--mission", action="append", dest="missions",
+                      help="draw this mission only (repeatable; default: all)")
+    plot.add_argument("--out", type=Path, help="directory for the PNGs (default: beside the "
+                      "file)")
     return parser
 
 
@@ -161,6 +168,13 @@ def _import_velocity(args: argparse.Namespace) -> None:
           f"{dvl.scale_factor}, bias {dvl.bias} m/s, noise {dvl.noise_std:g} m/s")
 
 
+def _plot(args: argparse.Namespace) -> None:
+    from .plot import plot
+
+    for path in plot(args.file, missions=args.missions, out=args.out):
+        print(f"wrote {path}")
+
+
 def _stop(signum, frame) -> None:
     raise KeyboardInterrupt
 
@@ -172,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, _stop)
     try:
         {"generate": _generate, "presets": _presets, "inspect": _inspect,
-         "import-velocity": _import_velocity}[args.command](args)
+         "import-velocity": _import_velocity, "plot": _plot}[args.command](args)
     except AuvsimError as e:
         print(f"auvsim: error: {e}", file=sys.stderr)
         return 2

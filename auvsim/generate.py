@@ -63,6 +63,13 @@ def check_reachable(config: Config) -> None:
                     f"(95 % of its {vehicle.max_speed:.2f} m/s top speed)")
 
 
+def mission_streams(seed: int) -> list[np.random.Generator]:
+    """A mission's independent random streams, by index: terrain, DVL parameters, DVL
+    noise, IMU biases, IMU noise, manoeuvre (child streams: adding one at the end leaves
+    the others unchanged)."""
+    return np.random.default_rng(seed).spawn(6)
+
+
 class MissionRun:
     """One mission: the vehicle, its scenario and its sensors, all seeded from the
     mission's seed (independent child streams for the terrain, the DVL's parameters and
@@ -70,8 +77,7 @@ class MissionRun:
 
     def __init__(self, config: Config, mission: MissionConfig) -> None:
         self.config, self.mission = config, mission
-        # Child streams by index: adding one at the end leaves the others unchanged.
-        streams = np.random.default_rng(mission.seed).spawn(6)
+        streams = mission_streams(mission.seed)
         self.seafloor = Seafloor(config.seafloor, rng=streams[0])
         v = config.vehicle
         self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,

@@ -31,6 +31,35 @@ def _paper(noise_std: float) -> Config:
     )
 
 
+# The manoeuvres of the stress test, each 10 minutes at 2 m/s from 20 m depth: a straight
+# line for reference, then every manoeuvre of auvsim.maneuvers (the zigzag twice: 10/10 and
+# 20/20, the A18-D's 15 deg fin limit capping the 20 deg rudder).
+MANEUVER_MISSIONS = (
+    ("straight", "straight", {}),
+    ("turning_circle", "turning_circle", {}),
+    ("zigzag_10_10", "zigzag", {"angle_deg": 10.0, "rudder_deg": 10.0}),
+    ("zigzag_20_20", "zigzag", {"angle_deg": 20.0, "rudder_deg": 20.0}),
+    ("lawnmower", "lawnmower", {}),
+    ("depth_steps", "depth_steps", {}),
+    ("yoyo", "yoyo", {}),
+    ("speed_steps", "speed_steps", {}),
+    ("spiral_dive", "spiral_dive", {}),
+    ("random_waypoints", "random_waypoints", {}),
+)
+
+
+def maneuvers(duration: float = 600.0) -> Config:
+    """Every manoeuvre once, with the paper-sim sensors, so that models trained on the
+    paper's straight lines can be tested on them (``beamsnet stress``)."""
+    paper = _paper(PAPER_NOISE_CODE)
+    missions = tuple(
+        MissionConfig(name=name, seed=100 + i, scenario=ScenarioConfig(
+            name=kind, speed=2.0, heading_deg=0.0, depth=20.0, duration=duration,
+            options=dict(options)))
+        for i, (name, kind, options) in enumerate(MANEUVER_MISSIONS))
+    return Config(missions=missions, seafloor=paper.seafloor, dvl=paper.dvl, imu=paper.imu)
+
+
 def navigator() -> Config:
     """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
     A18-D over gently rough terrain, with a navigation-grade IMU.
@@ -59,6 +88,9 @@ PRESETS = {
                   lambda: _paper(PAPER_NOISE_CODE)),
     "paper-sim-text": ("the same with sigma = 0.042 m/s, as the paper's text states",
                        lambda: _paper(PAPER_NOISE_TEXT)),
+    "maneuvers": ("every manoeuvre (turning circle, zigzags 10/10 and 20/20, lawnmower, depth "
+                  "steps, yo-yo, speed steps, spiral dive, random waypoints) and a straight "
+                  "line, 600 s each at 2 m/s, with the paper-sim sensors", maneuvers),
 }
 DEFAULT_PRESET = "navigator"
 

@@ -1,4 +1,5 @@
-"""``beamsnet`` command line: train, evaluate, reproduce the paper's simulation table."""
+"""``beamsnet`` command line: train, evaluate, reproduce the paper's tables, stress-test
+under manoeuvres."""
 
 from __future__ import annotations
 
@@ -25,6 +26,9 @@ def _parser() -> argparse.ArgumentParser:
     tr.add_argument("--lr", type=float, default=0.01, help="0.001 for sea data in the paper")
     tr.add_argument("--batch-size", type=int, default=4)
     tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--average-epochs", type=int, default=0,
+                    help="average the weights over the last N epochs (0: the last weights, "
+                    "as the paper)")
     tr.add_argument("--restarts", type=int, default=1,
                     help="train seeds SEED .. SEED+N-1 in parallel and keep the one that fits "
                     "the training split best")
@@ -49,11 +53,44 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--epochs", type=int, help="default: 30 for paper-sim, 50 for snapir")
     rp.add_argument("--lr", type=float,
                     help="default: the paper's, 0.01 for paper-sim, 0.001 for snapir")
+    rp.add_argument("--average-epochs", type=int, default=5,
+                    help="average the weights over the last N epochs (0: the paper's last "
+                    "weights)")
     rp.add_argument("--restarts", type=int, default=3,
                     help="paper-sim: seeds per model; the best on the training split is kept")
     rp.add_argument("--out", type=Path, default=Path("reports"))
     rp.add_argument("--quiet", action="store_true")
+    st = sub.add_parser(
+        "stress", help="train on straight lines, test every estimator on manoeuvres",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    st.add_argument("--train", type=Path, dest="train_data",
+                    help="dataset to train on (default: paper-sim, generated)")
+    st.add_argument("--maneuvers", type=Path, dest="maneuver_data",
+                    help="dataset of manoeuvres to test on (default: the maneuvers preset, "
+                    "generated)")
+    st.add_argument("--train-duration", type=float, default=1800.0,
+                    help="s per speed of the generated paper-sim training data")
+    st.add_argument("--maneuver-duration", type=float, default=600.0,
+                    help="s per manoeuvre of the generated test data")
+    st.add_argument("--epochs", type=int, default=30)
+    st.add_argument("--lr", type=float, default=0.01)
+    st.add_argument("--average-epochs", type=int, default=5,
+                    help="average the weights over the last N epochs")
+    st.add_argument("--restarts", type=int, default=1, help="seeds per model")
+    st.add_argument("--out", type=Path, default=Path("reports"))
+    st.add_argument("--quiet", action="store_true")
     return parser
+
+
+def _stress(args) -> None:
+    from .stress import stress
+
+    report = stress(train_data=args.train_data, maneuver_data=args.maneuver_data,
+                    out=args.out, epochs=args.epochs, lr=args.lr,
+                    average_epochs=args.average_epochs, restarts=args.restarts,
+                    train_duration=args.train_duration,
+                    maneuver_duration=args.maneuver_duration, progress=not args.quiet)
+    print(f"wrote {report} and its figures")
 
 
 def _train(args) -> None:
@@ -61,6 +98,7 @@ def _train(args) -> None:
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
+                         average_epochs=args.average_epochs,
                          missions=tuple(args.missions) if args.missions else None)
     if args.restarts == 1:
         summary = train(args.dataset, config, args.out, progress=not args.quiet)
@@ -92,18 +130,21 @@ def _reproduce(args) -> None:
 
     if args.experiment == "snapir":
         report = snapir(given(args.data, DEFAULT_SNAPIR), epochs=given(args.epochs, 50),
-                        lr=given(args.lr, 0.001), out=args.out, progress=not args.quiet)
+                        lr=given(args.lr, 0.001), average_epochs=args.average_epochs,
+                        out=args.out, progress=not args.quiet)
     else:
         report = paper_sim(args.experiment, data=args.data, duration=args.duration,
                            epochs=given(args.epochs, 30), lr=given(args.lr, 0.01),
-                           restarts=args.restarts, out=args.out, progress=not args.quiet)
+                           restarts=args.restarts, average_epochs=args.average_epochs,
+                           out=args.out, progress=not args.quiet)
     print(f"wrote {report}")
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce}[args.command](args)
+        {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
+         "stress": _stress}[args.command](args)
     except (AuvsimError, ValueError, FileNotFoundError) as e:
         print(f"beamsnet: error: {e}", file=sys.stderr)
         return 2

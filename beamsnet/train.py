@@ -51,6 +51,8 @@ class TrainConfig:
             every ``lr_step`` epochs.
         warmup_epochs: ramp the learning rate linearly from 0 over this many epochs (0:
             none, as the paper).
+        average_epochs: keep the average of the weights over the steps of the last this
+            many epochs (Polyak averaging; 0: the last weights, as the paper).
         batch_size: samples per step.
         n_past: past DVL pings for V2 (also sets which pings have a window, for all models).
         train_fraction: leading fraction of each mission used for training.
@@ -66,6 +68,7 @@ class TrainConfig:
     lr_step: int = 15
     lr_gamma: float = 0.1
     warmup_epochs: float = 0.0
+    average_epochs: int = 0
     batch_size: int = 4
     n_past: int = 3
     train_fraction: float = 0.75
@@ -165,12 +168,14 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda k: config.lr_gamma ** (
         k // steps // config.lr_step) * min(1.0, (k + 1) / warmup))
     loss_fn = torch.nn.MSELoss()
+    averaged = torch.optim.swa_utils.AveragedModel(model) if config.average_epochs else None
     history = {"train": [], "test": []}
     started = time.perf_counter()
     bar = tqdm(total=config.epochs * steps, disable=None if progress else True, leave=False,
                unit=" steps", desc=f"BeamsNet{config.model.upper()}")
     with bar:
-        for _ in range(config.epochs):
+        for epoch in range(config.epochs):
+            averaging = averaged is not None and epoch >= config.epochs - config.average_epochs
             model.train()
             perm = torch.randperm(n, generator=order)
             total = 0.0
@@ -181,6 +186,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                 loss.backward()
                 optimizer.step()
                 schedule.step()
+                if averaging:
+                    averaged.update_parameters(model)
                 total += loss.item() * len(idx)
             test_loss = _mse(model, x_test, y_test)
             history["train"].append(total / n)
@@ -188,6 +195,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
             bar.update(steps)
             bar.set_postfix(train=f"{total / n:.3g}", test=f"{test_loss:.3g}")
     seconds = time.perf_counter() - started
+    if averaged is not None:
+        model = averaged.module
     final_train_loss = _mse(model, x_train, y_train)  # what train_best compares seeds by
 
     out = Path(out)

@@ -1,0 +1,133 @@
+"""``auvsim plot``: a mission at a glance, as a PNG per mission.
+
+A simulated mission gets six panels: the track in plan view, the depth profile over the
+seafloor, speed, attitude, the DVL velocity (true and least squares) and the beams' bottom
+lock. An imported mission (a recorded DVL stream, no trajectory) gets the last two.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .dataset import open_dataset
+from .errors import ConfigError
+
+
+def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
+         out: str | os.PathLike | None = None) -> list[Path]:
+    """Draw each (or each named) mission of a dataset.
+
+    Args:
+        path: an auvsim dataset.
+        missions: names of the missions to draw (default: all).
+        out: directory for the PNGs (default: beside the file); one
+            ``<file stem>_<mission>.png`` per mission.
+
+    Returns:
+        The paths written.
+    """
+    path = Path(path)
+    out = path.parent if out is None else Path(out)
+    written = []
+    with open_dataset(path) as f:
+        group = f["missions"]
+        names = list(group) if missions is None else list(missions)
+        unknown = [n for n in names if n not in group]
+        if unknown:
+            raise ConfigError(f"--mission {', '.join(unknown)}: not in {path}; it has "
+                              f"{', '.join(group)}")
+        out.mkdir(parents=True, exist_ok=True)
+        for name in names:
+            target = out / f"{path.stem}_{name}.png"
+            _draw(group[name], f"{path.name}: {name}", target)
+            written.append(target)
+    return written
+
+
+def _draw(m, title: str, target: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    simulated = "truth" in m
+    rows = 3 if simulated else 1
+    fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False)
+    t_dvl = m["dvl/time"][()]
+    if simulated:
+        t = m["truth/time"][()]
+        pos = m["truth/position_ned"][()]
+        ax = axes[0, 0]
+        ax.plot(pos[:, 1], pos[:, 0], lw=1)
+        ax.plot(pos[0, 1], pos[0, 0], "go", label="start")
+        ax.plot(pos[-1, 1], pos[-1, 0], "rs", label="end")
+        ax.set_xlabel("east, m")
+        ax.set_ylabel("north, m")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title("track, plan view")
+        ax.legend(fontsize=8)
+
+        ax = axes[0, 1]
+        floor = pos[:, 2] + m["truth/altitude"][()]
+        ax.plot(t, pos[:, 2], label="vehicle")
+        ax.fill_between(t, floor, floor.max() + 5, color="tan", alpha=0.6, label="seafloor")
+        ax.invert_yaxis()
+        ax.set_xlabel("time, s")
+        ax.set_ylabel("depth, m")
+        ax.set_title("depth profile")
+        ax.legend(fontsize=8)
+
+        ax = axes[1, 0]
+        v = m["truth/velocity_body"][()]
+        ax.plot(t, np.linalg.norm(v, axis=1), label="speed")
+        ax.plot(t, v[:, 0], "--", lw=0.8, label="surge u")
+        ax.set_xlabel("time, s")
+        ax.set_ylabel("m/s")
+        ax.set_title("speed")
+        ax.legend(fontsize=8)
+
+        ax = axes[1, 1]
+        q = m["truth/quaternion"][()]
+        w, x, y, z = q.T
+        roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+        pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
+        yaw = np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+        for angle, label in ((roll, "roll"), (pitch, "pitch")):
+            ax.plot(t, np.degrees(angle), label=label)
+        ax.set_ylabel("roll, pitch, deg")
+        twin = ax.twinx()
+        twin.plot(t, np.degrees(yaw), "k", lw=0.8, label="yaw")
+        twin.set_ylabel("yaw (unwrapped), deg")
+        ax.set_xlabel("time, s")
+        ax.set_title("attitude")
+        ax.legend(fontsize=8, loc="upper left")
+        twin.legend(fontsize=8, loc="upper right")
+
+    ax = axes[-1, 0]
+    true, ls = m["dvl/velocity"][()], m["dvl/velocity_ls"][()]
+    for k, axis in enumerate("xyz"):
+        line, = ax.plot(t_dvl, true[:, k], lw=1, label=f"v{axis} true")
+        ax.plot(t_dvl, ls[:, k], ".", ms=1.5, color=line.get_color(), label=f"v{axis} LS")
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("m/s, DVL frame")
+    ax.set_title("DVL velocity")
+    ax.legend(fontsize=7, ncol=3)
+
+    ax = axes[-1, 1]
+    valid = m["dvl/valid"][()]
+    ax.imshow(valid.T, aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0, vmax=1,
+              extent=(t_dvl[0], t_dvl[-1] if len(t_dvl) > 1 else t_dvl[0] + 1, 4.5, 0.5))
+    ax.set_yticks([1, 2, 3, 4])
+    ax.set_ylabel("beam")
+    ax.set_xlabel("time, s")
+    ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
+
+    fig.suptitle(title)
+    fig.tight_layout()
+    tmp = target.with_name(f".{target.name}.tmp.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    tmp.replace(target)

@@ -1,0 +1,67 @@
+"""``beamsnet stress`` end to end at a tiny size, the dead-reckoning error, ``auvsim plot``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from auvsim.cli import main as auvsim_main
+from auvsim.presets import MANEUVER_MISSIONS
+from beamsnet.cli import main
+from beamsnet.data import load_windows
+from beamsnet.stress import dead_reckoning_error
+
+
+@pytest.mark.slow
+def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["stress", "--train-duration", "120", "--maneuver-duration", "60",
+                 "--epochs", "1", "--average-epochs", "1", "--out", "reports",
+                 "--quiet"]) == 0
+    report = (tmp_path / "reports" / "stress.md").read_text()
+    rows = json.loads((tmp_path / "reports" / "stress.json").read_text())
+    assert list(rows) == [name for name, _, _ in MANEUVER_MISSIONS]
+    for name, row in rows.items():
+        assert set(row) == {"LS", "Affine", "KF", "BeamsNetV1 (v1)", "BeamsNetV2 (v2)"}
+        assert all(np.isfinite(c["rmse_vector"]) and c["dr_error"] >= 0 for c in row.values())
+        assert f"| {name} |" in report
+    assert "## What it shows" in report
+    for figure in ("stress_intensity.png", "stress_time.png"):
+        assert (tmp_path / "reports" / figure).stat().st_size > 10_000
+    # Models are reused on a second run with the same data.
+    runs = tmp_path / "runs" / "stress" / "paper-sim_120s"
+    stamp = (runs / "v2" / "seed_0" / "model.pt").stat().st_mtime_ns
+    assert main(["stress", "--train-duration", "120", "--maneuver-duration", "60",
+                 "--epochs", "1", "--average-epochs", "1", "--out", "reports",
+                 "--quiet"]) == 0
+    assert (runs / "v2" / "seed_0" / "model.pt").stat().st_mtime_ns == stamp
+
+
+def test_dead_reckoning_error_of_a_constant_velocity_bias(tmp_path):
+    """A 0.01 m/s forward bias over a straight 100 s at heading 0 drifts 1 m north."""
+    path = tmp_path / "line.h5"
+    assert auvsim_main(["generate", "--preset", "paper-sim", "--duration", "104",
+                        "--out", str(path), "--quiet"]) == 0
+    windows = load_windows(path, missions=["speed_2"])
+    from beamsnet.stress import _truth_at_pings
+
+    truth = _truth_at_pings(path, windows)
+    biased = windows.target + np.array([0.01, 0.0, 0.0])
+    drift, travelled = dead_reckoning_error(windows, biased, truth, 0)
+    assert drift == pytest.approx(0.01 * len(windows.target), rel=2e-3)
+    assert travelled == pytest.approx(2.0 * len(windows.target), rel=1e-3)
+    assert dead_reckoning_error(windows, windows.target, truth, 0)[0] == 0.0
+
+
+def test_plot_draws_every_mission_and_refuses_unknown_ones(tmp_path, capsys):
+    path = tmp_path / "m.h5"
+    assert auvsim_main(["generate", "--scenario", "turning_circle", "--duration", "60",
+                        "--out", str(path), "--quiet"]) == 0
+    assert auvsim_main(["plot", str(path), "--out", str(tmp_path / "png")]) == 0
+    pngs = list((tmp_path / "png").glob("m_*.png"))
+    assert len(pngs) == 1 and pngs[0].stat().st_size > 20_000
+    assert auvsim_main(["plot", str(path), "--mission", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "nope" in err
