@@ -274,35 +274,68 @@ class Lawnmower(Maneuver):
         return [Phase(a, min(b, self.duration), label) for a, b, _, label in self._legs()]
 
 
-class DepthSteps(Maneuver):
+class _Steps(Maneuver):
+    """One channel's reference alternating between the scenario's value and ``other()``
+    every ``period_s`` (``Options`` must have ``period_s``)."""
+
+    channel: ClassVar[int]  # 0 speed, 2 depth
+    unit: ClassVar[str]
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _positive("period_s", self.options.period_s)
+
+    def levels(self) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def schedule(self, t):
+        first, second = self.levels()
+        refs = self._hold(len(t))
+        refs[:, self.channel] = np.where((t // self.options.period_s) % 2 == 0, first, second)
+        return refs, np.tile(ALL_CLOSED, (len(t), 1))
+
+    def phases(self):
+        period, out, start, k = self.options.period_s, [], 0.0, 0
+        while start < self.duration:
+            out.append(Phase(start, min(start + period, self.duration),
+                             f"{self.levels()[k % 2]:g} {self.unit}"))
+            start, k = start + period, k + 1
+        return out
+
+
+class DepthSteps(_Steps):
     """The depth reference alternates between ``depth`` and ``depth + step_m`` every
     ``period_s``, speed and heading held."""
 
     name = "depth_steps"
+    channel, unit = 2, "m"
 
     @dataclass(frozen=True)
     class Options:
         step_m: float = 10.0
         period_s: float = 120.0
 
-    def __init__(self, config, rng=None):
-        super().__init__(config, rng)
-        _positive("period_s", self.options.period_s)
+    def levels(self):
+        return self.depth, self.depth + self.options.step_m
 
-    def schedule(self, t):
-        o = self.options
-        low = (t // o.period_s) % 2 == 0
-        depth = np.where(low, self.depth, self.depth + o.step_m)
-        return self._hold(len(t), depth=depth), np.tile(ALL_CLOSED, (len(t), 1))
 
-    def phases(self):
-        o, out, start, k = self.options, [], 0.0, 0
-        while start < self.duration:
-            depth = self.depth + (o.step_m if k % 2 else 0.0)
-            out.append(Phase(start, min(start + o.period_s, self.duration),
-                             f"depth {depth:g} m"))
-            start, k = start + o.period_s, k + 1
-        return out
+class SpeedSteps(_Steps):
+    """The speed reference alternates between ``speed`` and ``low`` every ``period_s``:
+    a deceleration, then an acceleration, and so on; heading and depth held."""
+
+    name = "speed_steps"
+    channel, unit = 0, "m/s"
+
+    @dataclass(frozen=True)
+    class Options:
+        low: float = 1.0
+        period_s: float = 120.0
+
+    def levels(self):
+        return self.speed, self.options.low
+
+    def speeds(self):
+        return self.levels()
 
 
 class Yoyo(Maneuver):
@@ -336,39 +369,6 @@ class Yoyo(Maneuver):
             out.append(Phase(start, min(start + o.period_s / 2, self.duration),
                              "descent" if k % 2 == 0 else "ascent"))
             start, k = start + o.period_s / 2, k + 1
-        return out
-
-
-class SpeedSteps(Maneuver):
-    """The speed reference alternates between ``speed`` and ``low`` every ``period_s``:
-    a deceleration, then an acceleration, and so on; heading and depth held."""
-
-    name = "speed_steps"
-
-    @dataclass(frozen=True)
-    class Options:
-        low: float = 1.0
-        period_s: float = 120.0
-
-    def __init__(self, config, rng=None):
-        super().__init__(config, rng)
-        _positive("period_s", self.options.period_s)
-
-    def speeds(self):
-        return (self.speed, self.options.low)
-
-    def schedule(self, t):
-        o = self.options
-        high = (t // o.period_s) % 2 == 0
-        speed = np.where(high, self.speed, o.low)
-        return self._hold(len(t), speed=speed), np.tile(ALL_CLOSED, (len(t), 1))
-
-    def phases(self):
-        o, out, start, k = self.options, [], 0.0, 0
-        while start < self.duration:
-            out.append(Phase(start, min(start + o.period_s, self.duration),
-                             f"{self.speed if k % 2 == 0 else o.low:g} m/s"))
-            start, k = start + o.period_s, k + 1
         return out
 
 

@@ -17,6 +17,7 @@ import dataclasses
 import math
 from pathlib import Path
 
+from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
 from .train import TrainConfig, file_identity, keep_best, load, train, train_all
@@ -137,12 +138,14 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
     train_w, validation = split(load_windows(dataset, missions=["train"]),
                                 config.train_fraction)
     test = load_windows(dataset, missions=["test"])
-    results = {}
+    results, estimates = {}, {}
     for part, windows in (("validation", validation), ("test", test)):
-        results[part] = (windows, table(windows, predictions(models, train_w, windows)))
+        estimates[part] = predictions(models, train_w, windows)
+        results[part] = (windows, table(windows, estimates[part]))
     report = out / "snapir.md"
     out.mkdir(parents=True, exist_ok=True)
-    report.write_text(_snapir_report(data, dataset, config, train_w, results))
+    report.write_text(_snapir_report(data, dataset, config, train_w, results,
+                                     estimates["test"]))
     _snapir_figure(results, out / "snapir.png")
     return report
 
@@ -290,7 +293,7 @@ def _figure(summary, path: Path) -> None:
     plt.close(fig)
 
 
-def _snapir_report(data, dataset, config, train_w, results) -> str:
+def _snapir_report(data, dataset, config, train_w, results, test_estimates) -> str:
     val = results["validation"][1]
     test = results["test"][1]
     v2 = next(name for name in val if name.startswith("BeamsNetV2"))
@@ -335,7 +338,7 @@ def _snapir_report(data, dataset, config, train_w, results) -> str:
         "",
         "How to read it. " + _snapir_reading(val, test, v2),
         "",
-        _coverage(train_w, results["test"][0]),
+        _coverage(train_w, results["test"][0], test_estimates, v2),
         "",
         "## Full tables",
         "",
@@ -364,22 +367,30 @@ def _snapir_reading(val: dict, test: dict, v2: str) -> str:
             "score by learning a constant.")
 
 
-def _coverage(train_w, test_w) -> str:
-    """Where the test mission's true velocities lie against the training split's: a
-    network is fitted only over the velocities it saw, a linear calibration everywhere."""
+def _coverage(train_w, test_w, estimates: dict, v2: str) -> str:
+    """Where the test mission's true velocities lie against the training split's, and how
+    BeamsNetV2 and LS fare inside and outside that range: a network is fitted only over
+    the velocities it saw, a linear calibration everywhere."""
     lo, hi = train_w.target.min(axis=0), train_w.target.max(axis=0)
     outside = ~((test_w.target >= lo) & (test_w.target <= hi)).all(axis=1)
     fmt = ", ".join
+
+    def rmse(name, part):
+        return metrics.rmse(estimates[name][part], test_w.target[part])
+
     return (f"The test mission flies other velocities than the training stream: its mean "
             f"DVL-frame velocity is ({fmt(f'{x:.2f}' for x in test_w.target.mean(axis=0))}) "
             f"m/s against ({fmt(f'{x:.2f}' for x in train_w.target.mean(axis=0))}) m/s, and "
             f"{100 * outside.mean():.0f} % of its pings have a velocity component outside "
             "the range the training split covers (per axis, x from "
             f"{lo[0]:.2f} to {hi[0]:.2f}, y from {lo[1]:.2f} to {hi[1]:.2f}, z from "
-            f"{lo[2]:.2f} to {hi[2]:.2f} m/s). BeamsNet's correction is a nonlinear function "
-            "fitted on the training velocities and extrapolates outside them; the affine "
-            "calibration is linear in the beams, so the scale factor it learned holds at "
-            "any velocity.")
+            f"{lo[2]:.2f} to {hi[2]:.2f} m/s). On the pings inside that range BeamsNetV2's "
+            f"speed RMSE is {rmse(v2, ~outside):.4f} m/s against LS "
+            f"{rmse('LS', ~outside):.4f}; on those outside it, {rmse(v2, outside):.4f} "
+            f"against {rmse('LS', outside):.4f}. The network's correction is a nonlinear "
+            "function fitted on the training velocities and extrapolates badly outside "
+            "them; the affine calibration is linear in the beams, so the scale factor it "
+            "learned holds at any velocity.")
 
 
 def _snapir_figure(results: dict, path: Path) -> None:
