@@ -11,12 +11,17 @@ The checkpoint (``model.pt``) carries the model's name and constructor arguments
 training config, and the dataset's identity (path, SHA-256, its ``config_json``), so
 evaluation rebuilds exactly what was trained and can tell which data it came from.
 
-Restarts. Which minimum RMSprop reaches at batch 4 depends on the seed: on the paper's
-1 m/s mission one seed's BeamsNetV1 ends 61 % better than LS and another's 75 %, a spread
-as wide as the gaps the paper reports between its models. ``train_best`` therefore trains
-several seeds (in parallel processes, one thread each) and keeps the one whose final
-weights fit the TRAINING split best: the classic random-restart remedy for a non-convex
-fit, which looks at no test sample. Every seed's loss is kept in ``restarts.json``.
+Two additions to the paper's protocol, off by default, measured on paper-sim (the report
+of ``beamsnet reproduce paper-sim`` lists every seed):
+
+* Polyak averaging (``average_epochs``): at batch 4 the last weights jitter about the
+  minimum, and on the paper's straight lines that jitter was most of the error; averaging
+  the weights over the steps of the last epochs removes it.
+* Restarts (``train_best``): which minimum RMSprop reaches depends on the seed, by as much
+  as the gaps the paper reports between its models. ``train_best`` trains several seeds
+  (in parallel processes, one thread each) and keeps the one whose final weights fit the
+  TRAINING split best: the classic random-restart remedy for a non-convex fit, which
+  looks at no test sample. Every seed's loss is kept in ``restarts.json``.
 """
 
 from __future__ import annotations
@@ -49,8 +54,6 @@ class TrainConfig:
         model: ``v1`` (beams + IMU) or ``v2`` (beams + past beams).
         epochs, lr, lr_step, lr_gamma: RMSprop learning rate, multiplied by ``lr_gamma``
             every ``lr_step`` epochs.
-        warmup_epochs: ramp the learning rate linearly from 0 over this many epochs (0:
-            none, as the paper).
         average_epochs: keep the average of the weights over the steps of the last this
             many epochs (Polyak averaging; 0: the last weights, as the paper).
         batch_size: samples per step.
@@ -67,7 +70,6 @@ class TrainConfig:
     lr: float = 0.01
     lr_step: int = 15
     lr_gamma: float = 0.1
-    warmup_epochs: float = 0.0
     average_epochs: int = 0
     batch_size: int = 4
     n_past: int = 3
@@ -84,6 +86,10 @@ class TrainConfig:
             if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
                 raise ValueError(f"{name}: expected a whole number >= 1, got "
                                  f"{getattr(self, name)!r}")
+        if not (isinstance(self.average_epochs, int)
+                and 0 <= self.average_epochs <= self.epochs):
+            raise ValueError(f"average_epochs: expected a whole number from 0 to epochs "
+                             f"({self.epochs}), got {self.average_epochs!r}")
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise ValueError(f"lr: expected a positive learning rate, got {self.lr!r}")
 
@@ -161,12 +167,9 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     x_test, y_test = model_inputs(config.model, test_w), torch.as_tensor(
         test_w.target, dtype=torch.float32)
     optimizer = torch.optim.RMSprop(model.parameters(), lr=config.lr, foreach=True)
+    schedule = torch.optim.lr_scheduler.StepLR(optimizer, config.lr_step, config.lr_gamma)
     n = len(y_train)
     steps = math.ceil(n / config.batch_size)
-    warmup = max(1, round(config.warmup_epochs * steps))
-    # Per step: the paper's decay by whole epochs, times the warm-up ramp.
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda k: config.lr_gamma ** (
-        k // steps // config.lr_step) * min(1.0, (k + 1) / warmup))
     loss_fn = torch.nn.MSELoss()
     averaged = torch.optim.swa_utils.AveragedModel(model) if config.average_epochs else None
     history = {"train": [], "test": []}
@@ -185,10 +188,10 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 optimizer.step()
-                schedule.step()
                 if averaging:
                     averaged.update_parameters(model)
                 total += loss.item() * len(idx)
+            schedule.step()
             test_loss = _mse(model, x_test, y_test)
             history["train"].append(total / n)
             history["test"].append(test_loss)

@@ -103,6 +103,27 @@ def test_restarts_keep_the_seed_that_fits_the_training_split_best(scale_only, tm
                                   predict(load(best)[0], "v2", test))
 
 
+def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, tmp_path):
+    """With averaging over the last epoch the saved weights are the mean over that epoch's
+    steps, not the last step's: the same training, other saved weights, and the loss
+    recorded for them is theirs."""
+    last = train(scale_only, TrainConfig(model="v2", epochs=3, seed=1), tmp_path / "last",
+                 progress=False)
+    mean = train(scale_only, TrainConfig(model="v2", epochs=3, seed=1, average_epochs=1),
+                 tmp_path / "mean", progress=False)
+    assert last["history"] == mean["history"]  # the same trajectory of the weights
+    a = torch.load(tmp_path / "last" / "model.pt", weights_only=False)["state_dict"]
+    b = torch.load(tmp_path / "mean" / "model.pt", weights_only=False)["state_dict"]
+    assert set(a) == set(b) and any(not torch.equal(a[k], b[k]) for k in a)
+    model, checkpoint = load(tmp_path / "mean")
+    train_w, _ = split(load_windows(scale_only))
+    mse = np.mean((predict(model, "v2", train_w) - train_w.target) ** 2)
+    assert checkpoint["final_train_loss"] == pytest.approx(mse, rel=1e-4)
+    assert checkpoint["final_train_loss"] != last["final_train_loss"]
+    with pytest.raises(ValueError, match="average_epochs"):
+        TrainConfig(epochs=3, average_epochs=4)
+
+
 def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path):
     jobs = [(scale_only, TrainConfig(model="v2", epochs=1, seed=s), tmp_path / f"p{s}")
             for s in (1, 2)]
