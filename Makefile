@@ -20,6 +20,7 @@ demo: $(STAMP)
 	$(BIN)/auvsim generate --scenario straight --speed 2 --heading-deg 30 --depth 20 \
 		--duration 600 --seed 1 --out demo/straight.h5
 	$(BIN)/auvsim inspect demo/straight.h5
+	$(BIN)/auvsim plot demo/straight.h5
 
 test: $(STAMP)
 	$(BIN)/ruff check auvsim beamsnet tests benchmarks
