@@ -117,10 +117,15 @@ def build_config(args: argparse.Namespace) -> Config:
         config = preset(args.preset or DEFAULT_PRESET)
     overrides = {name: getattr(args, flag) for flag, (name, _) in _SCENARIO_FLAGS.items()
                  if getattr(args, flag) is not None}
+    def scenario(old: ScenarioConfig) -> ScenarioConfig:
+        fields = {**dataclasses.asdict(old), **overrides}
+        if fields["name"] != old.name:
+            fields["options"] = {}  # another manoeuvre: the old one's options do not apply
+        return ScenarioConfig(**fields)
+
     missions = tuple(
-        dataclasses.replace(
-            m, scenario=ScenarioConfig(**{**dataclasses.asdict(m.scenario), **overrides}),
-            seed=m.seed if args.seed is None else args.seed + i)
+        dataclasses.replace(m, scenario=scenario(m.scenario),
+                            seed=m.seed if args.seed is None else args.seed + i)
         for i, m in enumerate(config.missions))
     changes: dict = {"missions": missions}
     if args.vehicle is not None:

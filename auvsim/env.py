@@ -230,8 +230,9 @@ class EpisodeRecorder(gym.Wrapper):
         """Set the finished (or interrupted) episode aside for writing."""
         env = self.env.unwrapped
         if getattr(env, "blocks", None):
+            samples = sum(len(b["truth/time"]) for b in env.blocks)
             attrs = dict(env.run.attrs, scenario="environment",
-                         duration_s=env.step_index * env.run.vehicle.dt)
+                         duration_s=samples / env.config.imu.rate_hz)
             self.episodes.append((attrs, env.blocks))
             env.blocks = []
 

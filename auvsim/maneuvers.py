@@ -69,6 +69,12 @@ def _options(cls, config: ScenarioConfig):
     return cls(**given)
 
 
+def _at_least(name: str, value: float, least: float, unit: str) -> None:
+    if not value >= least:
+        raise ConfigError(f"scenario.options.{name}: expected at least {least:g} {unit}, got "
+                          f"{value!r}")
+
+
 def _positive(name: str, value: float) -> None:
     if not value > 0:
         raise ConfigError(f"scenario.options.{name}: expected a positive number, got {value!r}")
@@ -248,8 +254,9 @@ class Lawnmower(Maneuver):
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
-        _positive("leg_m", self.options.leg_m)
-        _positive("spacing_m", self.options.spacing_m)
+        _at_least("leg_m", self.options.leg_m, 1.0, "m")
+        _at_least("spacing_m", self.options.spacing_m, 1.0, "m")
+        self.legs = self._legs()
 
     def _legs(self):
         """(start, end, heading, label) of every leg that starts within the mission."""
@@ -264,14 +271,13 @@ class Lawnmower(Maneuver):
         return legs
 
     def schedule(self, t):
-        legs = self._legs()
-        starts = np.array([leg[0] for leg in legs])
-        headings = np.array([leg[2] for leg in legs])
+        starts = np.array([leg[0] for leg in self.legs])
+        headings = np.array([leg[2] for leg in self.legs])
         i = np.searchsorted(starts, t, side="right") - 1
         return self._hold(len(t), heading=headings[i]), np.tile(ALL_CLOSED, (len(t), 1))
 
     def phases(self):
-        return [Phase(a, min(b, self.duration), label) for a, b, _, label in self._legs()]
+        return [Phase(a, min(b, self.duration), label) for a, b, _, label in self.legs]
 
 
 class _Steps(Maneuver):
@@ -283,7 +289,7 @@ class _Steps(Maneuver):
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
-        _positive("period_s", self.options.period_s)
+        _at_least("period_s", self.options.period_s, 1.0, "s")
 
     def levels(self) -> tuple[float, float]:
         raise NotImplementedError
@@ -352,7 +358,7 @@ class Yoyo(Maneuver):
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
-        _positive("period_s", self.options.period_s)
+        _at_least("period_s", self.options.period_s, 1.0, "s")
 
     def schedule(self, t):
         o = self.options

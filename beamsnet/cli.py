@@ -107,10 +107,10 @@ def _train(args) -> None:
                              progress=not args.quiet)
         print(f"kept {summary['kept']} of {args.restarts} seeds (lowest final training loss; "
               f"all in {args.out / 'restarts.json'})")
-    h = summary["history"]
-    print(f"trained BeamsNet{args.model.upper()}: final loss {h['train'][-1]:.3g} (training), "
-          f"{h['test'][-1]:.3g} (test split), {summary['samples_per_second']:.0f} samples/s; "
-          f"wrote {summary['checkpoint']} and {summary['plot']}")
+    print(f"trained BeamsNet{args.model.upper()}: final loss "
+          f"{summary['final_train_loss']:.3g} (training), {summary['final_test_loss']:.3g} "
+          f"(test split), {summary['samples_per_second']:.0f} samples/s; wrote "
+          f"{summary['checkpoint']} and {summary['plot']}")
 
 
 def _evaluate(args) -> None:

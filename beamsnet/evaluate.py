@@ -16,6 +16,7 @@ import numpy as np
 from . import metrics
 from .baselines import AffineCalibration, KalmanFilter, LeastSquares
 from .data import Windows, load_windows, split
+from .files import save_figure, write_text
 from .train import load, predict
 
 COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",
@@ -97,8 +98,8 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
         sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
         _plot(windows, predictions, per_mission, out / f"{stem}_errors.png")
-    (out / "evaluation.md").write_text("\n\n".join(sections) + "\n")
-    (out / "evaluation.json").write_text(json.dumps(results, indent=1))
+    write_text(out / "evaluation.md", "\n\n".join(sections) + "\n")
+    write_text(out / "evaluation.json", json.dumps(results, indent=1))
     return results
 
 
@@ -127,5 +128,4 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
     ax_m.set_ylabel("speed RMSE, m/s")
     ax_m.set_title("per mission")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)

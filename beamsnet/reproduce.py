@@ -20,7 +20,8 @@ from pathlib import Path
 from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
-from .train import TrainConfig, file_identity, keep_best, load, train, train_all
+from .files import save_figure, write_text
+from .train import TrainConfig, file_identity, keep_best, load, train, train_all, trained
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -48,6 +49,10 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
     from auvsim.generate import generate
     from auvsim.presets import preset
 
+    # Every training setting is checked before minutes go into generating the data.
+    TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
+    if not isinstance(restarts, int) or restarts < 1:
+        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
     config = preset(experiment)
     config = dataclasses.replace(config, missions=tuple(
         dataclasses.replace(m, scenario=ScenarioConfig(
@@ -67,7 +72,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
                 run = runs / mission.name / model / f"seed_{seed}"
                 job = TrainConfig(model=model, epochs=epochs, lr=lr, seed=seed,
                                   average_epochs=average_epochs, missions=(mission.name,))
-                if not _trained(run, job, sha256):
+                if not trained(run, job, sha256):
                     jobs.append((data, job, run))
                 seeds_of[mission.name, model].append(run)
     train_all(jobs, workers=workers, progress=progress)
@@ -96,7 +101,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
         summary.append((speed, by_model))
     report = out / f"{experiment}.md"
     out.mkdir(parents=True, exist_ok=True)
-    report.write_text(_report(experiment, data, duration, epochs, lr, restarts,
+    write_text(report, _report(experiment, data, duration, epochs, lr, restarts,
                               average_epochs, summary, sections))
     _figure(summary, out / f"{experiment}.png")
     return report
@@ -132,7 +137,7 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
     run = runs / "snapir" / "v2"
     config = TrainConfig(model="v2", epochs=epochs, lr=lr, average_epochs=average_epochs,
                          missions=("train",))
-    if not _trained(run, config, file_identity(dataset)["sha256"]):
+    if not trained(run, config, file_identity(dataset)["sha256"]):
         train(dataset, config, run, progress=progress)
     models = [(run, *load(run))]
     train_w, validation = split(load_windows(dataset, missions=["train"]),
@@ -144,7 +149,7 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
         results[part] = (windows, table(windows, estimates[part]))
     report = out / "snapir.md"
     out.mkdir(parents=True, exist_ok=True)
-    report.write_text(_snapir_report(data, dataset, config, train_w, results,
+    write_text(report, _snapir_report(data, dataset, config, train_w, results,
                                      estimates["test"]))
     _snapir_figure(results, out / "snapir.png")
     return report
@@ -160,17 +165,6 @@ def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:
         found = [missions[n].attrs.get("source_sha256") if n in missions else None
                  for n in ("train", "test")]
     return found == digests
-
-
-def _trained(run: Path, config: TrainConfig, sha256: str) -> bool:
-    """Whether ``run`` already holds this config trained on the file with this SHA-256
-    (re-running the report then re-evaluates without retraining)."""
-    if not (run / "model.pt").exists():
-        return False
-    _, checkpoint = load(run)
-    return (checkpoint["train_config"] == dataclasses.asdict(config)
-            and checkpoint["dataset"]["sha256"] == sha256
-            and "final_train_loss" in checkpoint)
 
 
 def _report(experiment, data, duration, epochs, lr, restarts, average_epochs, summary,
@@ -289,8 +283,7 @@ def _figure(summary, path: Path) -> None:
     ax.legend(ncol=6, fontsize=8, loc="upper center")
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _snapir_report(data, dataset, config, train_w, results, test_estimates) -> str:
@@ -415,5 +408,4 @@ def _snapir_figure(results: dict, path: Path) -> None:
         ax.set_title(f"{part}: {len(windows.target)} pings")
         ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)

@@ -31,7 +31,8 @@ import numpy as np
 from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
-from .train import TrainConfig, file_identity, keep_best, load, train_all
+from .files import save_figure, write_text
+from .train import TrainConfig, file_identity, keep_best, load, train_all, trained
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -60,6 +61,10 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     from auvsim.generate import generate
     from auvsim.presets import maneuvers, preset
 
+    # Every training setting is checked before minutes go into generating the data.
+    TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
+    if not isinstance(restarts, int) or restarts < 1:
+        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
     if train_data is None:
         train_data = Path("datasets") / f"paper-sim_{train_duration:g}s.h5"
         if not train_data.exists():
@@ -76,6 +81,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     train_w, _ = split(load_windows(train_data, n_past=n_past))
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
     test_w = load_windows(maneuver_data, n_past=n_past, missions=list(phases) or None)
+    trained_on = _scenarios(train_data)
     estimates = predictions(models, train_w, test_w)
     truth = _truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth)
@@ -83,9 +89,10 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     out.mkdir(parents=True, exist_ok=True)
     _plot_intensity(test_w, estimates, truth, out / "stress_intensity.png")
     _plot_time(test_w, estimates, phases, out / "stress_time.png")
-    (out / "stress.json").write_text(json.dumps(rows, indent=1))
+    write_text(out / "stress.json", json.dumps(rows, indent=1))
     report = out / "stress.md"
-    report.write_text(_report(train_data, maneuver_data, models, test_w, estimates, truth,
+    write_text(report, _report(train_data, trained_on, maneuver_data, models, test_w,
+                               estimates, truth,
                               rows))
     return report
 
@@ -110,21 +117,13 @@ def _train(data: Path, runs: Path, *, epochs, lr, average_epochs, restarts,
             config = TrainConfig(model=name, epochs=epochs, lr=lr, seed=seed,
                                  average_epochs=average_epochs)
             run = runs / name / f"seed_{seed}"
-            if not _trained(run, config, sha256):
+            if not trained(run, config, sha256):
                 jobs.append((data, config, run))
             seeds[name].append(run)
     train_all(jobs, progress=progress)
     for name in names:
         keep_best(seeds[name], runs / name)
     return [(runs / name, *load(runs / name)) for name in names]
-
-
-def _trained(run: Path, config: TrainConfig, sha256: str) -> bool:
-    if not (run / "model.pt").exists():
-        return False
-    _, checkpoint = load(run)
-    return (checkpoint["train_config"] == dataclasses.asdict(config)
-            and checkpoint["dataset"]["sha256"] == sha256 and "final_train_loss" in checkpoint)
 
 
 def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
@@ -187,20 +186,42 @@ def _table(windows: Windows, estimates: dict[str, np.ndarray],
     return rows
 
 
-def _phases(path: Path) -> dict[str, list]:
-    """The manoeuvre phases of every mission, rebuilt from the file's config."""
+def _config(path: Path):
+    """The generating config of a dataset, or None (a recording or an import)."""
     from auvsim.config import Config
     from auvsim.dataset import open_dataset
     from auvsim.errors import AuvsimError
-    from auvsim.generate import mission_streams
-    from auvsim.maneuvers import make_maneuver
 
     with open_dataset(path) as f:
         text = str(f.attrs.get("config_json", ""))
+        names = set(f["missions"])
     try:
         config = Config.from_json(text)
     except (AuvsimError, ValueError, TypeError):
-        return {}  # not made by auvsim generate (a recording): no phases to shade
+        return None
+    return config if {m.name for m in config.missions} == names else None
+
+
+def _scenarios(path: Path) -> str:
+    """What the training file's missions fly, in words for the report."""
+    config = _config(path)
+    if config is None:
+        return "the missions of that file"
+    kinds = sorted({m.scenario.name for m in config.missions})
+    if kinds == ["straight"]:
+        return "straight lines, as in the paper"
+    return "missions flying " + ", ".join(kinds)
+
+
+def _phases(path: Path) -> dict[str, list]:
+    """The manoeuvre phases of every mission, rebuilt from the file's config (none for a
+    file whose config does not name its missions, such as a recording)."""
+    from auvsim.generate import mission_streams
+    from auvsim.maneuvers import make_maneuver
+
+    config = _config(path)
+    if config is None:
+        return {}
     return {m.name: make_maneuver(m.scenario, rng=mission_streams(m.seed)[5]).phases()
             for m in config.missions}
 
@@ -210,7 +231,8 @@ def _short(name: str) -> str:
     return name.split(" (")[0]
 
 
-def _report(train_data, maneuver_data, models, windows, estimates, truth, rows) -> str:
+def _report(train_data, trained_on, maneuver_data, models, windows, estimates, truth,
+            rows) -> str:
     names = list(estimates)
     head = "| manoeuvre | pings | " + " | ".join(_short(n) for n in names) + " |"
     rule = "|---|---|" + "---|" * len(names)
@@ -228,7 +250,7 @@ def _report(train_data, maneuver_data, models, windows, estimates, truth, rows) 
         "# Manoeuvre stress test: where each DVL estimator holds and where it breaks",
         "",
         f"Made by `beamsnet stress` (trained on `{train_data}`, tested on "
-        f"`{maneuver_data}`). The networks were trained on straight lines as in the paper: "
+        f"`{maneuver_data}`). The networks were trained on {trained_on}: "
         f"{trained}; the affine calibration and the Kalman filter were fitted on the same "
         "training split. Every row uses the same pings of each manoeuvre.",
         "",
@@ -371,8 +393,7 @@ def _plot_intensity(windows, estimates, truth, path: Path) -> None:
     axes[0].legend(fontsize=8)
     fig.suptitle("Error against manoeuvre intensity (pings binned by sixths)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _plot_time(windows, estimates, phases, path: Path) -> None:
@@ -404,6 +425,5 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
         ax.set_xlabel("time, s")
     fig.suptitle("Velocity error over each manoeuvre (grey: alternate phases)")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 

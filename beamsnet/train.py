@@ -43,6 +43,7 @@ import torch
 from tqdm import tqdm
 
 from .data import DataError, Windows, load_windows, split
+from .files import save_figure, write_text
 from .models import build
 
 
@@ -200,22 +201,35 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     seconds = time.perf_counter() - started
     if averaged is not None:
         model = averaged.module
+    # The saved weights' losses (the history's are the last weights', before averaging).
     final_train_loss = _mse(model, x_train, y_train)  # what train_best compares seeds by
+    final_test_loss = _mse(model, x_test, y_test)
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     checkpoint = dict(model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
                       train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
                       history=history, samples=dict(train=n, test=len(y_test)),
-                      final_train_loss=final_train_loss)
+                      final_train_loss=final_train_loss, final_test_loss=final_test_loss)
     tmp = out / ".model.pt.tmp"
     torch.save(checkpoint, tmp)
     tmp.replace(out / "model.pt")
-    (out / "history.json").write_text(json.dumps(history, indent=1))
+    write_text(out / "history.json", json.dumps(history, indent=1))
     plot = _plot_losses(history, out / "losses.png", config)
     return dict(checkpoint=str(out / "model.pt"), plot=str(plot), history=history,
                 seconds=seconds, samples_per_second=config.epochs * n / seconds,
-                final_train_loss=final_train_loss)
+                final_train_loss=final_train_loss, final_test_loss=final_test_loss)
+
+
+def trained(run: str | Path, config: TrainConfig, sha256: str) -> bool:
+    """Whether ``run`` already holds this config trained on the file with this SHA-256
+    (then a report re-evaluates it instead of training again)."""
+    path = Path(run) / "model.pt"
+    if not path.exists():
+        return False
+    checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    return (checkpoint["train_config"] == dataclasses.asdict(config)
+            and checkpoint["dataset"]["sha256"] == sha256 and "final_train_loss" in checkpoint)
 
 
 def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
@@ -243,9 +257,14 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             tqdm(total=len(jobs), disable=None if progress else True, leave=False,
                  unit=" models", desc="training") as bar:
         futures = [pool.submit(train, d, c, o, progress=False) for d, c, o in jobs]
-        for future in cf.as_completed(futures):
-            future.result()  # the first error stops here, naming what went wrong
-            bar.update()
+        try:
+            for future in cf.as_completed(futures):
+                future.result()  # the first error stops here, naming what went wrong
+                bar.update()
+        except BaseException:
+            for future in futures:
+                future.cancel()  # the jobs not started yet; the running ones finish
+            raise
         return [f.result() for f in futures]
 
 
@@ -257,7 +276,11 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
         ``{"kept": run, "losses": {run: loss}}``.
     """
     losses = {str(r): load(r)[1]["final_train_loss"] for r in runs}
-    kept = Path(min(losses, key=losses.get))
+    finite = {r: loss for r, loss in losses.items() if math.isfinite(loss)}
+    if not finite:
+        raise ValueError(f"every run diverged (training loss not finite): {', '.join(losses)}; "
+                         "expected at least one to train (try a smaller --lr)")
+    kept = Path(min(finite, key=finite.get))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for name in ("model.pt", "history.json", "losses.png"):
@@ -265,7 +288,7 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
         (out / f".{name}.tmp").replace(out / name)
     record = dict(kept=str(kept), losses=losses,
                   rule="lowest final MSE on the training split (evaluation mode)")
-    (out / "restarts.json").write_text(json.dumps(record, indent=1))
+    write_text(out / "restarts.json", json.dumps(record, indent=1))
     return record
 
 
@@ -317,6 +340,5 @@ def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
     ax.legend()
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
     return path

@@ -179,7 +179,8 @@ def test_too_short_for_a_window(tmp_path, capsys):
 def test_reproduce_paper_sim_end_to_end_small(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["reproduce", "paper-sim", "--duration", "120", "--epochs", "2",
-                 "--restarts", "2", "--out", "reports", "--quiet"]) == 0
+                 "--restarts", "2", "--average-epochs", "1", "--out", "reports",
+                 "--quiet"]) == 0
     report = (tmp_path / "reports" / "paper-sim.md").read_text()
     assert "| 1 m/s |" in report and "| 3 m/s |" in report and "75.45" in report
     assert "| 2 m/s | V1 |" in report and "seed_1" in report  # every seed's result
