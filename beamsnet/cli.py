@@ -53,9 +53,9 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--epochs", type=int, help="default: 30 for paper-sim, 50 for snapir")
     rp.add_argument("--lr", type=float,
                     help="default: the paper's, 0.01 for paper-sim, 0.001 for snapir")
-    rp.add_argument("--average-epochs", type=int, default=5,
+    rp.add_argument("--average-epochs", type=int,
                     help="average the weights over the last N epochs (0: the paper's last "
-                    "weights)")
+                    "weights; default 5, at most the epochs)")
     rp.add_argument("--restarts", type=int, default=3,
                     help="paper-sim: seeds per model; the best on the training split is kept")
     rp.add_argument("--out", type=Path, default=Path("reports"))
@@ -74,12 +74,18 @@ def _parser() -> argparse.ArgumentParser:
                     help="s per manoeuvre of the generated test data")
     st.add_argument("--epochs", type=int, default=30)
     st.add_argument("--lr", type=float, default=0.01)
-    st.add_argument("--average-epochs", type=int, default=5,
-                    help="average the weights over the last N epochs")
+    st.add_argument("--average-epochs", type=int,
+                    help="average the weights over the last N epochs (default 5, at most the "
+                    "epochs)")
     st.add_argument("--restarts", type=int, default=1, help="seeds per model")
     st.add_argument("--out", type=Path, default=Path("reports"))
     st.add_argument("--quiet", action="store_true")
     return parser
+
+
+def _averaged(given: int | None, epochs: int) -> int:
+    """Epochs to average over: as given, else 5, or all of them when there are fewer."""
+    return min(5, epochs) if given is None else given
 
 
 def _stress(args) -> None:
@@ -87,7 +93,8 @@ def _stress(args) -> None:
 
     report = stress(train_data=args.train_data, maneuver_data=args.maneuver_data,
                     out=args.out, epochs=args.epochs, lr=args.lr,
-                    average_epochs=args.average_epochs, restarts=args.restarts,
+                    average_epochs=_averaged(args.average_epochs, args.epochs),
+                    restarts=args.restarts,
                     train_duration=args.train_duration,
                     maneuver_duration=args.maneuver_duration, progress=not args.quiet)
     print(f"wrote {report} and its figures")
@@ -129,13 +136,16 @@ def _reproduce(args) -> None:
         return default if value is None else value
 
     if args.experiment == "snapir":
-        report = snapir(given(args.data, DEFAULT_SNAPIR), epochs=given(args.epochs, 50),
-                        lr=given(args.lr, 0.001), average_epochs=args.average_epochs,
+        epochs = given(args.epochs, 50)
+        report = snapir(given(args.data, DEFAULT_SNAPIR), epochs=epochs,
+                        lr=given(args.lr, 0.001),
+                        average_epochs=_averaged(args.average_epochs, epochs),
                         out=args.out, progress=not args.quiet)
     else:
+        epochs = given(args.epochs, 30)
         report = paper_sim(args.experiment, data=args.data, duration=args.duration,
-                           epochs=given(args.epochs, 30), lr=given(args.lr, 0.01),
-                           restarts=args.restarts, average_epochs=args.average_epochs,
+                           epochs=epochs, lr=given(args.lr, 0.01), restarts=args.restarts,
+                           average_epochs=_averaged(args.average_epochs, epochs),
                            out=args.out, progress=not args.quiet)
     print(f"wrote {report}")
 
