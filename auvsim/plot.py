@@ -55,7 +55,8 @@ def _draw(m, title: str, target: Path) -> None:
 
     simulated = "truth" in m
     rows = 3 if simulated else 1
-    fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False,
+                             layout="constrained")
     t_dvl = m["dvl/time"][()]
     if simulated:
         t = m["truth/time"][()]
@@ -87,6 +88,7 @@ def _draw(m, title: str, target: Path) -> None:
         ax.set_xlabel("time, s")
         ax.set_ylabel("m/s")
         ax.set_title("speed")
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.legend(fontsize=8)
 
         ax = axes[1, 1]
@@ -100,7 +102,8 @@ def _draw(m, title: str, target: Path) -> None:
         ax.set_ylabel("roll, pitch, deg")
         twin = ax.twinx()
         twin.plot(t, np.degrees(yaw), "k", lw=0.8, label="yaw")
-        twin.set_ylabel("yaw (unwrapped), deg")
+        twin.set_ylabel("yaw, deg")
+        twin.ticklabel_format(axis="y", useOffset=False)
         ax.set_xlabel("time, s")
         ax.set_title("attitude")
         ax.legend(fontsize=8, loc="upper left")
@@ -126,7 +129,6 @@ def _draw(m, title: str, target: Path) -> None:
     ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
 
     fig.suptitle(title)
-    fig.tight_layout()
     tmp = target.with_name(f".{target.name}.tmp.png")
     fig.savefig(tmp, dpi=100)
     plt.close(fig)
