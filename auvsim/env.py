@@ -57,7 +57,6 @@ from .errors import ConfigError, SimulationError
 from .generate import MissionRun, check_reachable
 from .maneuvers import Maneuver, make_maneuver
 from .presets import preset
-from .vehicle import quat_to_rot
 
 TRUTH_KEYS = ("position_ned", "velocity_ned", "velocity_body", "quaternion", "angular_rate")
 
@@ -143,20 +142,10 @@ class AuvEnv(gym.Env):
         return self._observation(block), 0.0, terminated, truncated and not terminated, \
             self._info()
 
-    def _state(self) -> dict[str, np.ndarray]:
-        """The truth now, from MuJoCo (after the last step)."""
-        d, flip = self.run.vehicle.data, np.array([1.0, -1.0, -1.0])
-        quat = np.r_[d.qpos[3], d.qpos[4:7] * flip]
-        v_ned = d.qvel[:3] * flip
-        rot = quat_to_rot(quat)
-        return dict(position_ned=d.qpos[:3] * flip, velocity_ned=v_ned,
-                    velocity_body=rot.T @ v_ned, quaternion=quat,
-                    angular_rate=d.qvel[3:6] * flip)
-
     def _observation(self, block) -> np.ndarray:
         if block is None:
             imu = np.zeros(6)
-            depth = self._state()["position_ned"][2]
+            depth = self.run.vehicle.state()["position_ned"][2]
         else:
             imu = np.r_[block["imu/specific_force"][-1], block["imu/angular_rate"][-1]]
             depth = block["truth/position_ned"][-1, 2]
@@ -164,7 +153,7 @@ class AuvEnv(gym.Env):
         return np.r_[imu, ping["beams"], ping["valid"], depth].astype(np.float32)
 
     def _info(self) -> dict:
-        state = self._state()
+        state = self.run.vehicle.state()
         altitude = float(self.run.seafloor.depth_at(state["position_ned"][:1],
                                                     state["position_ned"][1:2])[0]
                          - state["position_ned"][2])

@@ -195,10 +195,19 @@ class Vehicle:
         self.integrals[:] = 0.0
         mujoco.mj_forward(self.model, self.data)  # positions of every geom, for ray casts
 
+    def state(self) -> dict[str, np.ndarray]:
+        """The true state now (NED/FRD, SI): ``position_ned``, ``velocity_ned``,
+        ``velocity_body``, ``quaternion`` and ``angular_rate``, as a Trajectory row."""
+        d = self.data
+        quat = np.r_[d.qpos[3], d.qpos[4:7] * FLIP]  # MuJoCo NWU/FLU -> NED/FRD
+        v_ned = d.qvel[:3] * FLIP
+        return dict(position_ned=d.qpos[:3] * FLIP, velocity_ned=v_ned,
+                    velocity_body=quat_to_rot(quat).T @ v_ned, quaternion=quat,
+                    angular_rate=d.qvel[3:6] * FLIP)
+
     def yaw(self) -> float:
         """Current heading, rad from north (NED)."""
-        quat = self.data.qpos[3:7] * np.array([1.0, 1.0, -1.0, -1.0])  # NWU/FLU -> NED/FRD
-        rot = quat_to_rot(quat)
+        rot = quat_to_rot(self.state()["quaternion"])
         return math.atan2(rot[1, 0], rot[0, 0])
 
     def run(self, references: np.ndarray, closed_loop=(True, True, True)) -> Trajectory:

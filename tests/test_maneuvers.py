@@ -131,3 +131,13 @@ def test_generate_a_manoeuvre_and_the_same_seed_twice(tmp_path):
         other = b["missions"][next(iter(b["missions"]))]
         np.testing.assert_array_equal(m["dvl/beam_velocity"][()],
                                       other["dvl/beam_velocity"][()])
+
+
+def test_vehicle_state_is_what_reset_set(vehicle):
+    vehicle.reset(position_ned=(1.0, 2.0, 30.0), yaw=0.5, velocity_body=(1.5, 0.0, 0.0))
+    state = vehicle.state()
+    np.testing.assert_allclose(state["position_ned"], [1.0, 2.0, 30.0], atol=1e-12)
+    np.testing.assert_allclose(state["velocity_body"], [1.5, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(state["velocity_ned"][:2], 1.5 * np.array([np.cos(0.5),
+                                                                           np.sin(0.5)]))
+    assert vehicle.yaw() == pytest.approx(0.5)
