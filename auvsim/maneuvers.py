@@ -146,8 +146,12 @@ def drive(vehicle, refs: np.ndarray, closed: np.ndarray):
     whose closed-loop flags stay the same; the concatenated ``Trajectory``."""
     change = np.flatnonzero((closed[1:] != closed[:-1]).any(axis=1)) + 1
     bounds = [0, *change.tolist(), len(refs)]
-    parts = [vehicle.run(refs[a:b], tuple(bool(c) for c in closed[a]))
-             for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    return _joined([vehicle.run(refs[a:b], tuple(bool(c) for c in closed[a]))
+                    for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
+
+
+def _joined(parts: list):
+    """One ``Trajectory`` from consecutive ones."""
     if len(parts) == 1:
         return parts[0]
     return type(parts[0])(*(np.concatenate(fields) for fields in zip(*parts, strict=True)))
@@ -233,7 +237,7 @@ class Zigzag(Maneuver):
             ref, closed = self.command(float(t[a]), yaw)
             n = min(chunk, len(t) - a)
             parts.append(vehicle.run(np.tile(ref, (n, 1)), tuple(bool(c) for c in closed)))
-        return type(parts[0])(*(np.concatenate(f) for f in zip(*parts, strict=True)))
+        return _joined(parts)
 
     def phases(self):
         lead = min(self.options.lead_s, self.duration)
