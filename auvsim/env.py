@@ -20,7 +20,8 @@ Observation, ``Box(-inf, inf, (15,), float32)``:
 
     index   what                                    unit
     0-2     specific force, latest IMU sample, FRD   m/s^2 (measured, with IMU errors;
-                                                        0 before the first step)
+                                                        0 before the first step and at
+                                                        a terminal one)
     3-5     angular rate, latest IMU sample, FRD     rad/s (measured)
     6-9     beam velocities of the latest DVL ping   m/s (measured; 0 where not valid)
     10-13   bottom lock of each beam at that ping     1 valid, 0 not
@@ -57,9 +58,6 @@ from .errors import ConfigError, SimulationError
 from .generate import MissionRun, check_reachable
 from .maneuvers import Maneuver, make_maneuver
 from .presets import preset
-
-TRUTH_KEYS = ("position_ned", "velocity_ned", "velocity_body", "quaternion", "angular_rate")
-
 
 def euler(q: np.ndarray) -> np.ndarray:
     """Roll, pitch, yaw (rad, ZYX) of a body -> NED quaternion [w, x, y, z]."""
@@ -143,12 +141,9 @@ class AuvEnv(gym.Env):
             self._info()
 
     def _observation(self, block) -> np.ndarray:
-        if block is None:
-            imu = np.zeros(6)
-            depth = self.run.vehicle.state()["position_ned"][2]
-        else:
-            imu = np.r_[block["imu/specific_force"][-1], block["imu/angular_rate"][-1]]
-            depth = block["truth/position_ned"][-1, 2]
+        imu = np.zeros(6) if block is None else np.r_[block["imu/specific_force"][-1],
+                                                      block["imu/angular_rate"][-1]]
+        depth = self.run.vehicle.state()["position_ned"][2]  # now, as info's position
         ping = self.last_ping
         return np.r_[imu, ping["beams"], ping["valid"], depth].astype(np.float32)
 
