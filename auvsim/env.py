@@ -59,6 +59,7 @@ from .generate import MissionRun, check_reachable
 from .maneuvers import Maneuver, make_maneuver
 from .presets import preset
 
+
 def euler(q: np.ndarray) -> np.ndarray:
     """Roll, pitch, yaw (rad, ZYX) of a body -> NED quaternion [w, x, y, z]."""
     w, x, y, z = q
