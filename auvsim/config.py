@@ -278,6 +278,12 @@ class Config:
                        f"a depth above the seafloor at {self.seafloor.depth:g} m",
                        m.scenario.depth)
 
+    def with_duration(self, duration: float) -> Config:
+        """The same config with every mission lasting ``duration`` s."""
+        return dataclasses.replace(self, missions=tuple(
+            dataclasses.replace(m, scenario=dataclasses.replace(m.scenario, duration=duration))
+            for m in self.missions))
+
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
 

@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -45,7 +44,6 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
     Each model is trained from ``restarts`` seeds and the one that fits its training split
     best is kept (``beamsnet.train.keep_best``); the report lists every seed's result.
     """
-    from auvsim.config import ScenarioConfig
     from auvsim.generate import generate
     from auvsim.presets import preset
 
@@ -53,11 +51,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
     TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
     if not isinstance(restarts, int) or restarts < 1:
         raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
-    config = preset(experiment)
-    config = dataclasses.replace(config, missions=tuple(
-        dataclasses.replace(m, scenario=ScenarioConfig(
-            **{**dataclasses.asdict(m.scenario), "duration": duration}))
-        for m in config.missions))
+    config = preset(experiment).with_duration(duration)
     if data is None:
         data = Path("datasets") / f"{experiment}_{duration:g}s.h5"
         if not data.exists():

@@ -21,7 +21,6 @@ IMU interval valid (``beamsnet.data``). The whole manoeuvre file is test data.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from pathlib import Path
@@ -68,7 +67,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     if train_data is None:
         train_data = Path("datasets") / f"paper-sim_{train_duration:g}s.h5"
         if not train_data.exists():
-            generate(_with_duration(preset("paper-sim"), train_duration), train_data,
+            generate(preset("paper-sim").with_duration(train_duration), train_data,
                      progress=progress)
     if maneuver_data is None:
         maneuver_data = Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5"
@@ -92,15 +91,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     write_text(out / "stress.json", json.dumps(rows, indent=1))
     report = out / "stress.md"
     write_text(report, _report(train_data, trained_on, maneuver_data, models, test_w,
-                               estimates, truth,
-                              rows))
+                               estimates, truth, rows))
     return report
-
-
-def _with_duration(config, duration: float):
-    return dataclasses.replace(config, missions=tuple(
-        dataclasses.replace(m, scenario=dataclasses.replace(m.scenario, duration=duration))
-        for m in config.missions))
 
 
 def _train(data: Path, runs: Path, *, epochs, lr, average_epochs, restarts,
