@@ -18,7 +18,6 @@ Side by side in one run (these machines are noisy):
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import statistics
 import subprocess
@@ -29,7 +28,6 @@ from pathlib import Path
 
 import mujoco
 
-from auvsim.config import ScenarioConfig
 from auvsim.generate import generate
 from auvsim.presets import preset
 from auvsim.vehicle import model_path
@@ -63,11 +61,7 @@ def main() -> None:
     parser.add_argument("--skip-memory", action="store_true")
     args = parser.parse_args()
 
-    config = preset("paper-sim")
-    config = dataclasses.replace(config, missions=tuple(
-        dataclasses.replace(m, scenario=ScenarioConfig(
-            **{**dataclasses.asdict(m.scenario), "duration": args.duration}))
-        for m in config.missions))
+    config = preset("paper-sim").with_duration(args.duration)
     simulated = sum(m.scenario.duration for m in config.missions)
     cores = os.cpu_count() or 1
 
