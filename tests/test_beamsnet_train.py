@@ -159,6 +159,10 @@ def test_cli_train_and_evaluate(scale_only, tmp_path, capsys):
     (["train", "{data}", "--out", "{tmp}/r", "--mission", "nope"], "nope"),
     (["train", "{data}", "--out", "{tmp}/r", "--epochs", "0"], "epochs"),
     (["train", "{data}", "--model", "v3", "--out", "x"], "invalid choice"),
+    (["train", "{data}", "--out", "{tmp}/r", "--restarts", "0"], "restarts"),
+    # Checked before any data is generated:
+    (["stress", "--restarts", "0", "--out", "{tmp}/s"], "restarts"),
+    (["reproduce", "paper-sim", "--epochs", "2", "--average-epochs", "3"], "average_epochs"),
 ])
 def test_bad_input_gives_one_line_and_exit_2(scale_only, tmp_path, capsys, args, message):
     args = [a.format(data=scale_only, tmp=tmp_path) for a in args]
