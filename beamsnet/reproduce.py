@@ -20,7 +20,17 @@ from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
 from .files import save_figure, write_text
-from .train import TrainConfig, file_identity, keep_best, load, train, train_all, trained
+from .train import (
+    TrainConfig,
+    check_restarts,
+    file_identity,
+    keep_best,
+    load,
+    seed_runs,
+    train,
+    train_all,
+    trained,
+)
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -49,8 +59,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
 
     # Every training setting is checked before minutes go into generating the data.
     TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
-    if not isinstance(restarts, int) or restarts < 1:
-        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
+    check_restarts(restarts)
     config = preset(experiment).with_duration(duration)
     if data is None:
         data = Path("datasets") / f"{experiment}_{duration:g}s.h5"
@@ -61,29 +70,28 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
     seeds_of, jobs = {}, []  # (mission, model) -> the seed runs; what is left to train
     for mission in config.missions:
         for model in ("v1", "v2"):
-            seeds_of[mission.name, model] = []
-            for seed in range(restarts):
-                run = runs / mission.name / model / f"seed_{seed}"
-                job = TrainConfig(model=model, epochs=epochs, lr=lr, seed=seed,
-                                  average_epochs=average_epochs, missions=(mission.name,))
-                if not trained(run, job, sha256):
-                    jobs.append((data, job, run))
-                seeds_of[mission.name, model].append(run)
+            pairs = seed_runs(TrainConfig(model=model, epochs=epochs, lr=lr,
+                                          average_epochs=average_epochs,
+                                          missions=(mission.name,)),
+                              runs / mission.name / model, restarts)
+            seeds_of[mission.name, model] = [r for _, r in pairs]
+            jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
     train_all(jobs, workers=workers, progress=progress)
 
     sections, summary = [], []
     for mission in config.missions:
         speed = round(mission.scenario.speed)
-        kept, seeds = [], {}
+        all_seeds = [r for model in ("v1", "v2") for r in seeds_of[mission.name, model]]
+        windows, predictions = estimates(all_seeds, data, missions=[mission.name])
+        per_seed = table(windows, predictions)
+        # The kept models are copies of seed runs: their rows are those seeds' rows.
+        rows = {name: row for name, row in per_seed.items() if not name.startswith("BeamsNet")}
+        seeds = {}
         for model in ("v1", "v2"):
             record = keep_best(seeds_of[mission.name, model], runs / mission.name / model)
-            kept.append(runs / mission.name / model)
             seeds[model] = Path(record["kept"]).name
-        windows, predictions = estimates(kept, data, missions=[mission.name])
-        rows = table(windows, predictions)
-        all_seeds = [r for model in ("v1", "v2") for r in seeds_of[mission.name, model]]
-        _, seed_predictions = estimates(all_seeds, data, missions=[mission.name])
-        per_seed = table(windows, seed_predictions)
+            rows[f"BeamsNet{model.upper()} ({model})"] = \
+                per_seed[f"BeamsNet{model.upper()} ({seeds[model]})"]
         sections.append(markdown(rows, f"{speed} m/s ({mission.name}), test split: "
                                        f"{len(windows.target)} pings"))
         by_model = {name.split(" ")[0]: row for name, row in rows.items()}

@@ -31,7 +31,16 @@ from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
 from .files import save_figure, write_text
-from .train import TrainConfig, file_identity, keep_best, load, train_all, trained
+from .train import (
+    TrainConfig,
+    check_restarts,
+    file_identity,
+    keep_best,
+    load,
+    seed_runs,
+    train_all,
+    trained,
+)
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -62,8 +71,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
 
     # Every training setting is checked before minutes go into generating the data.
     TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
-    if not isinstance(restarts, int) or restarts < 1:
-        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
+    check_restarts(restarts)
     if train_data is None:
         train_data = Path("datasets") / f"paper-sim_{train_duration:g}s.h5"
         if not train_data.exists():
@@ -74,44 +82,40 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         if not maneuver_data.exists():
             generate(maneuvers(maneuver_duration), maneuver_data, progress=progress)
 
-    models = _train(train_data, runs / "stress" / Path(train_data).stem, epochs=epochs, lr=lr,
+    windows = load_windows(train_data)  # the models' own (default) n_past
+    models = _train(train_data, runs / "stress" / Path(train_data).stem,
+                    with_imu=windows.accel is not None, epochs=epochs, lr=lr,
                     average_epochs=average_epochs, restarts=restarts, progress=progress)
-    n_past = max([c["train_config"]["n_past"] for _, _, c in models], default=3)
-    train_w, _ = split(load_windows(train_data, n_past=n_past))
+    train_w, _ = split(windows)
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
-    test_w = load_windows(maneuver_data, n_past=n_past, missions=list(phases) or None)
+    test_w = load_windows(maneuver_data, missions=list(phases) or None)
     trained_on = _scenarios(train_data)
     estimates = predictions(models, train_w, test_w)
     truth = _truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth)
 
     out.mkdir(parents=True, exist_ok=True)
-    _plot_intensity(test_w, estimates, truth, out / "stress_intensity.png")
+    binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
+    _plot_intensity(binned, out / "stress_intensity.png")
     _plot_time(test_w, estimates, phases, out / "stress_time.png")
     write_text(out / "stress.json", json.dumps(rows, indent=1))
     report = out / "stress.md"
-    write_text(report, _report(train_data, trained_on, maneuver_data, models, test_w,
-                               estimates, truth, rows))
+    write_text(report, _report(train_data, trained_on, maneuver_data, models, binned, rows))
     return report
 
 
-def _train(data: Path, runs: Path, *, epochs, lr, average_epochs, restarts,
-           progress) -> list[tuple[Path, object, dict]]:
+def _train(data: Path, runs: Path, *, with_imu: bool, epochs, lr, average_epochs,
+           restarts, progress) -> list[tuple[Path, object, dict]]:
     """V1 (when the file has IMU data) and V2 trained on every mission of ``data``, each
     kept from ``restarts`` seeds; reused when already trained on this very file."""
-    windows = load_windows(data)
-    names = ["v1", "v2"] if windows.accel is not None else ["v2"]
+    names = ["v1", "v2"] if with_imu else ["v2"]
     sha256 = file_identity(data)["sha256"]
     jobs, seeds = [], {}
     for name in names:
-        seeds[name] = []
-        for seed in range(restarts):
-            config = TrainConfig(model=name, epochs=epochs, lr=lr, seed=seed,
-                                 average_epochs=average_epochs)
-            run = runs / name / f"seed_{seed}"
-            if not trained(run, config, sha256):
-                jobs.append((data, config, run))
-            seeds[name].append(run)
+        pairs = seed_runs(TrainConfig(model=name, epochs=epochs, lr=lr,
+                                      average_epochs=average_epochs), runs / name, restarts)
+        seeds[name] = [r for _, r in pairs]
+        jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
     train_all(jobs, progress=progress)
     for name in names:
         keep_best(seeds[name], runs / name)
@@ -223,9 +227,8 @@ def _short(name: str) -> str:
     return name.split(" (")[0]
 
 
-def _report(train_data, trained_on, maneuver_data, models, windows, estimates, truth,
-            rows) -> str:
-    names = list(estimates)
+def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
+    names = list(next(iter(rows.values())))
     head = "| manoeuvre | pings | " + " | ".join(_short(n) for n in names) + " |"
     rule = "|---|---|" + "---|" * len(names)
 
@@ -264,7 +267,7 @@ def _report(train_data, trained_on, maneuver_data, models, windows, estimates, t
         "",
         "## What it shows",
         "",
-        *_findings(windows, estimates, truth, rows),
+        *_findings(binned, rows),
     ]
     return "\n".join(lines) + "\n"
 
@@ -281,14 +284,15 @@ def _binned(windows: Windows, estimates: dict, intensity: np.ndarray, bins: int 
     return edges, out
 
 
-def _findings(windows, estimates, truth, rows) -> list[str]:
-    """Plain sentences computed from the results."""
-    names = list(estimates)
+def _findings(binned: dict, rows: dict) -> list[str]:
+    """Plain sentences computed from the results: ``binned`` holds each intensity's
+    ``_binned``, ``rows`` the ``_table``."""
+    names = list(next(iter(rows.values())))
     v2 = next((n for n in names if n.startswith("BeamsNetV2")), None)
     lines = []
     calm = rows.get("straight")
     for key, label in INTENSITY.items():
-        edges, rmse = _binned(windows, estimates, truth[key])
+        edges, rmse = binned[key]
         ratios = ", ".join(f"{_short(n)} {rmse[n][-1] / rmse[n][0]:.1f}x" for n in names)
         lines.append(f"- From the calmest to the most intense sixth of the pings by {label} "
                      f"({edges[0]:.3g} to {edges[1]:.3g} against {edges[-2]:.3g} to "
@@ -309,23 +313,19 @@ def _findings(windows, estimates, truth, rows) -> list[str]:
                 f"against LS {rows[worst]['LS']['rmse_vector']:.4f}.")
         lines.append("- Best estimator (vector RMSE) per manoeuvre: "
                      + ", ".join(f"{m}: {_short(b)}" for m, b in best.items()) + ".")
-    if v2 is not None:
-        lines += _verdict(windows, estimates, truth, rows, v2)
+        lines += _verdict(binned, rows, v2)
     return lines
 
 
-def _verdict(windows, estimates, truth, rows, v2: str) -> list[str]:
+def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
     """What the growth of each estimator's error with the manoeuvres' intensity says:
     which estimators degrade at all, whether V2 degrades more than the memoryless affine
     calibration fitted on the same data (its past-ping premise), and each one's worst
     manoeuvre."""
-    growth = {}
-    for key in INTENSITY:
-        _, rmse = _binned(windows, estimates, truth[key])
-        for name in rmse:
-            growth[name] = max(growth.get(name, 0.0), rmse[name][-1] / rmse[name][0])
+    names = list(next(iter(rows.values())))
+    growth = {n: max(rmse[n][-1] / rmse[n][0] for _, rmse in binned.values()) for n in names}
     lines = []
-    grows = [n for n in estimates if n != "LS" and growth[n] > 2 * growth["LS"]]
+    grows = [n for n in names if n != "LS" and growth[n] > 2 * growth["LS"]]
     if grows:
         lines.append(
             "- Wherever the vehicle turns or changes depth or speed, the estimators fitted "
@@ -341,20 +341,20 @@ def _verdict(windows, estimates, truth, rows, v2: str) -> list[str]:
             f"squares' ({growth[v2]:.1f}x against {growth['LS']:.1f}x): at these "
             "manoeuvres' rates its premise, that the past pings show the motion of the "
             "current one, holds.")
-    elif "Affine" in estimates and growth[v2] > 1.5 * growth["Affine"]:
+    elif "Affine" in growth and growth[v2] > 1.5 * growth["Affine"]:
         lines.append(
             f"- BeamsNetV2 degrades more than the affine calibration fitted on the same "
             f"data but blind to the past ({growth[v2]:.1f}x against {growth['Affine']:.1f}x):"
             " the difference is its premise, that the past pings show the motion of the "
             "current one, failing.")
-    elif "Affine" in estimates:
+    elif "Affine" in growth:
         lines.append(
             f"- BeamsNetV2 degrades no more than the affine calibration fitted on the same "
             f"data and blind to the past ({growth[v2]:.1f}x against "
             f"{growth['Affine']:.1f}x), so here its past-ping premise is not what fails "
             "first: the training data's reach is. Training on manoeuvres (`beamsnet "
             "stress --train FILE`) separates the two.")
-    worst = {n: max(rows, key=lambda m, n=n: rows[m][n]["rmse_vector"]) for n in estimates}
+    worst = {n: max(rows, key=lambda m, n=n: rows[m][n]["rmse_vector"]) for n in names}
     lines.append("- Worst manoeuvre per estimator (vector RMSE): " + "; ".join(
         f"{_short(n)}: {m} ({rows[m][n]['rmse_vector']:.4f} m/s)" for n, m in worst.items())
         + ".")
@@ -366,7 +366,7 @@ def _verdict(windows, estimates, truth, rows, v2: str) -> list[str]:
     return lines
 
 
-def _plot_intensity(windows, estimates, truth, path: Path) -> None:
+def _plot_intensity(binned: dict, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -374,7 +374,7 @@ def _plot_intensity(windows, estimates, truth, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, (key, label) in zip(axes, INTENSITY.items(), strict=True):
-        edges, rmse = _binned(windows, estimates, truth[key])
+        edges, rmse = binned[key]
         centres = 0.5 * (edges[1:] + edges[:-1])
         for name, values in rmse.items():
             ax.plot(centres, values, "o-", label=_short(name))

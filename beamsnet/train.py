@@ -292,25 +292,35 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
     return record
 
 
+def check_restarts(restarts: int) -> None:
+    if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 1:
+        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
+
+
+def seed_runs(config: TrainConfig, out: str | Path,
+              restarts: int) -> list[tuple[TrainConfig, Path]]:
+    """The restarts of ``config``: seeds ``config.seed .. config.seed + restarts - 1``,
+    each with its run directory ``out/seed_<s>``."""
+    check_restarts(restarts)
+    seeds = range(config.seed, config.seed + restarts)
+    return [(dataclasses.replace(config, seed=s), Path(out) / f"seed_{s}") for s in seeds]
+
+
 def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                restarts: int = 3, workers: int | None = None, progress: bool = True) -> dict:
-    """Train seeds ``config.seed .. config.seed + restarts - 1`` into ``out/seed_<s>`` and
-    keep the best on the training split in ``out`` (see the module docstring).
+    """Train the ``seed_runs`` of ``config`` and keep the best on the training split in
+    ``out`` (see the module docstring).
 
     Returns:
         ``keep_best``'s record plus the kept run's ``train`` summary.
     """
-    if not isinstance(restarts, int) or restarts < 1:
-        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
-    out = Path(out)
-    seeds = [config.seed + i for i in range(restarts)]
-    runs = [out / f"seed_{s}" for s in seeds]
-    summaries = train_all([(dataset, dataclasses.replace(config, seed=s), r)
-                           for s, r in zip(seeds, runs, strict=True)],
-                          workers=workers, progress=progress)
+    pairs = seed_runs(config, out, restarts)
+    summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
+                          progress=progress)
+    runs = [r for _, r in pairs]
     record = keep_best(runs, out)
     return {**record, **summaries[[str(r) for r in runs].index(record["kept"])],
-            "checkpoint": str(out / "model.pt"), "plot": str(out / "losses.png")}
+            "checkpoint": str(Path(out) / "model.pt"), "plot": str(Path(out) / "losses.png")}
 
 
 def load(run: str | Path) -> tuple[torch.nn.Module, dict]:
