@@ -132,6 +132,19 @@ class Maneuver:
         refs, closed = self.schedule(t)
         return drive(vehicle, refs, closed)
 
+    def _lead_then(self, label: str) -> list[Phase]:
+        """Phases: straight for the ``lead_s`` option, then ``label`` to the end."""
+        lead = min(self.options.lead_s, self.duration)
+        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, label)]
+
+    def _alternating(self, start: float, length: float, labels: tuple[str, str]) -> list[Phase]:
+        """Phases of ``length`` s from ``start`` to the end, labelled in turn."""
+        out, k = [], 0
+        while start < self.duration:
+            out.append(Phase(start, min(start + length, self.duration), labels[k % 2]))
+            start, k = start + length, k + 1
+        return out
+
     def _hold(self, n: int, speed=None, heading=None, depth=None) -> np.ndarray:
         """(n, 3) references: the given channels, the others at the scenario's values."""
         refs = np.empty((n, 3))
@@ -175,6 +188,7 @@ class TurningCircle(Maneuver):
     starboard) with speed and depth held: the heading then advances monotonically."""
 
     name = "turning_circle"
+    turn_label: ClassVar[str] = "turn"
 
     @dataclass(frozen=True)
     class Options:
@@ -190,8 +204,7 @@ class TurningCircle(Maneuver):
         return refs, closed
 
     def phases(self):
-        lead = min(self.options.lead_s, self.duration)
-        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, "turn")]
+        return self._lead_then(self.turn_label)
 
 
 class Zigzag(Maneuver):
@@ -240,8 +253,7 @@ class Zigzag(Maneuver):
         return _joined(parts)
 
     def phases(self):
-        lead = min(self.options.lead_s, self.duration)
-        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, "zigzag")]
+        return self._lead_then("zigzag")
 
 
 class Lawnmower(Maneuver):
@@ -305,12 +317,9 @@ class _Steps(Maneuver):
         return refs, np.tile(ALL_CLOSED, (len(t), 1))
 
     def phases(self):
-        period, out, start, k = self.options.period_s, [], 0.0, 0
-        while start < self.duration:
-            out.append(Phase(start, min(start + period, self.duration),
-                             f"{self.levels()[k % 2]:g} {self.unit}"))
-            start, k = start + period, k + 1
-        return out
+        first, second = self.levels()
+        return self._alternating(0.0, self.options.period_s,
+                                 (f"{first:g} {self.unit}", f"{second:g} {self.unit}"))
 
 
 class DepthSteps(_Steps):
@@ -373,20 +382,16 @@ class Yoyo(Maneuver):
 
     def phases(self):
         o = self.options
-        out, start = [Phase(0.0, min(o.lead_s, self.duration), "level")], o.lead_s
-        k = 0
-        while start < self.duration:
-            out.append(Phase(start, min(start + o.period_s / 2, self.duration),
-                             "descent" if k % 2 == 0 else "ascent"))
-            start, k = start + o.period_s / 2, k + 1
-        return out
+        return [Phase(0.0, min(o.lead_s, self.duration), "level"),
+                *self._alternating(o.lead_s, o.period_s / 2, ("descent", "ascent"))]
 
 
-class SpiralDive(Maneuver):
-    """After ``lead_s`` straight, the rudder held at ``rudder_deg`` while the depth
-    reference descends at ``descent_rate`` m/s by ``dive_m`` in all, speed held."""
+class SpiralDive(TurningCircle):
+    """A turning circle (after ``lead_s`` straight, the rudder held at ``rudder_deg``)
+    while the depth reference descends at ``descent_rate`` m/s by ``dive_m`` in all."""
 
     name = "spiral_dive"
+    turn_label = "spiral"
 
     @dataclass(frozen=True)
     class Options:
@@ -401,15 +406,9 @@ class SpiralDive(Maneuver):
 
     def schedule(self, t):
         o = self.options
-        turning = t >= o.lead_s
-        depth = self.depth + np.clip((t - o.lead_s) * o.descent_rate, 0.0, o.dive_m)
-        refs = self._hold(len(t), depth=depth)
-        refs[turning, 1] = math.radians(o.rudder_deg)
-        return refs, np.where(turning[:, None], RUDDER_OPEN, ALL_CLOSED)
-
-    def phases(self):
-        lead = min(self.options.lead_s, self.duration)
-        return [Phase(0.0, lead, "straight"), Phase(lead, self.duration, "spiral")]
+        refs, closed = super().schedule(t)
+        refs[:, 2] = self.depth + np.clip((t - o.lead_s) * o.descent_rate, 0.0, o.dive_m)
+        return refs, closed
 
 
 class RandomWaypoints(Maneuver):
