@@ -58,14 +58,7 @@ from .errors import ConfigError, SimulationError
 from .generate import MissionRun, check_reachable
 from .maneuvers import Maneuver, make_maneuver
 from .presets import preset
-
-
-def euler(q: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw (rad, ZYX) of a body -> NED quaternion [w, x, y, z]."""
-    w, x, y, z = q
-    return np.array([math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-                     math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))),
-                     math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))])
+from .sensors.dvl import euler_angles
 
 
 class AuvEnv(gym.Env):
@@ -154,7 +147,7 @@ class AuvEnv(gym.Env):
                                                     state["position_ned"][1:2])[0]
                          - state["position_ned"][2])
         return dict(time=self.step_index * self.run.vehicle.dt, **state,
-                    euler=euler(state["quaternion"]), altitude=altitude,
+                    euler=euler_angles(state["quaternion"]), altitude=altitude,
                     dvl_velocity=self.last_ping["velocity"].copy(),
                     ping_time=self.last_ping["time"])
 

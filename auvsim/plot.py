@@ -14,6 +14,7 @@ import numpy as np
 
 from .dataset import open_dataset
 from .errors import ConfigError
+from .sensors.dvl import euler_angles
 
 
 def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
@@ -92,11 +93,8 @@ def _draw(m, title: str, target: Path) -> None:
         ax.legend(fontsize=8)
 
         ax = axes[1, 1]
-        q = m["truth/quaternion"][()]
-        w, x, y, z = q.T
-        roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-        pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
-        yaw = np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+        roll, pitch, yaw = euler_angles(m["truth/quaternion"][()]).T
+        yaw = np.unwrap(yaw)
         for angle, label in ((roll, "roll"), (pitch, "pitch")):
             ax.plot(t, np.degrees(angle), label=label)
         ax.set_ylabel("roll, pitch, deg")

@@ -141,3 +141,13 @@ def test_vehicle_state_is_what_reset_set(vehicle):
     np.testing.assert_allclose(state["velocity_ned"][:2], 1.5 * np.array([np.cos(0.5),
                                                                            np.sin(0.5)]))
     assert vehicle.yaw() == pytest.approx(0.5)
+
+
+def test_euler_angles_are_those_the_vehicle_was_placed_at(vehicle):
+    from auvsim.sensors.dvl import euler_angles
+
+    vehicle.reset(position_ned=(0.0, 0.0, 20.0), roll=0.1, pitch=-0.2, yaw=2.5)
+    q = vehicle.state()["quaternion"]
+    np.testing.assert_allclose(euler_angles(q), [0.1, -0.2, 2.5], atol=1e-12)
+    np.testing.assert_allclose(euler_angles(np.tile(q, (3, 1))), np.tile([0.1, -0.2, 2.5],
+                                                                          (3, 1)), atol=1e-12)

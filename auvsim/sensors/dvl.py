@@ -135,3 +135,12 @@ def rotation_matrices(quaternion: np.ndarray) -> np.ndarray:
         np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
     ], axis=1)
+
+
+def euler_angles(quaternion: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (rad, ZYX), shape (..., 3), of body -> NED unit quaternions
+    [w, x, y, z], shape (..., 4)."""
+    w, x, y, z = np.moveaxis(np.asarray(quaternion, dtype=float), -1, 0)
+    return np.stack([np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                     np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)),
+                     np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))], axis=-1)
