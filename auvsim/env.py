@@ -93,7 +93,9 @@ class AuvEnv(gym.Env):
         self.limits = np.array([h.rpm_max, h.fin_max, h.fin_max])
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (15,), np.float32)
-        self.blocks: list[dict[str, np.ndarray]] = []  # this episode's sensor blocks
+        # The arrays (truth, IMU, DVL, control) of the last step, for EpisodeRecorder;
+        # None before the first step and at a terminal one.
+        self.last_block: dict[str, np.ndarray] | None = None
 
     def _mission(self, seed: int) -> MissionRun:
         mission = MissionConfig(name="episode", seed=seed,
@@ -106,7 +108,7 @@ class AuvEnv(gym.Env):
         self.run = self._mission(seed=int(self.np_random.integers(2**63)))
         self.run.vehicle.reset(**self.run.scenario.initial_state())
         self.step_index = 0
-        self.blocks = []
+        self.last_block = None
         self.last_ping = dict(beams=np.zeros(4), valid=np.zeros(4), velocity=np.zeros(3),
                               time=math.nan)
         return self._observation(None), self._info()
@@ -123,13 +125,12 @@ class AuvEnv(gym.Env):
         except SimulationError:
             terminated, block = True, None  # reached the seafloor or broke the surface
         self.step_index += self.frame_skip
-        if block is not None:
-            self.blocks.append(block)
-            if len(block["dvl/time"]):
-                self.last_ping = dict(beams=np.nan_to_num(block["dvl/beam_velocity"][-1]),
-                                      valid=block["dvl/valid"][-1].astype(float),
-                                      velocity=block["dvl/velocity"][-1],
-                                      time=float(block["dvl/time"][-1]))
+        self.last_block = block
+        if block is not None and len(block["dvl/time"]):
+            self.last_ping = dict(beams=np.nan_to_num(block["dvl/beam_velocity"][-1]),
+                                  valid=block["dvl/valid"][-1].astype(float),
+                                  velocity=block["dvl/velocity"][-1],
+                                  time=float(block["dvl/time"][-1]))
         truncated = self.step_index * vehicle.dt >= self.max_episode_seconds - 1e-9
         return self._observation(block), 0.0, terminated, truncated and not terminated, \
             self._info()
@@ -199,20 +200,28 @@ class EpisodeRecorder(gym.Wrapper):
         self.path = Path(path)
         self.name = name
         self.episodes: list[tuple[dict, list[dict]]] = []
+        self.blocks: list[dict[str, np.ndarray]] = []  # the current episode's steps
 
     def reset(self, **kwargs):
         self._keep()
         return self.env.reset(**kwargs)
 
+    def step(self, action):
+        out = self.env.step(action)
+        block = self.env.unwrapped.last_block
+        if block is not None:
+            self.blocks.append(block)
+        return out
+
     def _keep(self) -> None:
         """Set the finished (or interrupted) episode aside for writing."""
-        env = self.env.unwrapped
-        if getattr(env, "blocks", None):
-            samples = sum(len(b["truth/time"]) for b in env.blocks)
+        if self.blocks:
+            env = self.env.unwrapped
+            samples = sum(len(b["truth/time"]) for b in self.blocks)
             attrs = dict(env.run.attrs, scenario="environment",
                          duration_s=samples / env.config.imu.rate_hz)
-            self.episodes.append((attrs, env.blocks))
-            env.blocks = []
+            self.episodes.append((attrs, self.blocks))
+            self.blocks = []
 
     def close(self) -> None:
         self._keep()
