@@ -14,6 +14,7 @@ import numpy as np
 
 from .dataset import open_dataset
 from .errors import ConfigError
+from .files import save_figure
 from .sensors.dvl import euler_angles
 
 
@@ -127,7 +128,4 @@ def _draw(m, title: str, target: Path) -> None:
     ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
 
     fig.suptitle(title)
-    tmp = target.with_name(f".{target.name}.tmp.png")
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    tmp.replace(target)
+    save_figure(fig, target, dpi=100)

@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.files import save_figure, write_text
+
 from . import metrics
 from .baselines import AffineCalibration, KalmanFilter, LeastSquares
 from .data import Windows, load_windows, split
-from .files import save_figure, write_text
 from .train import load, predict
 
 COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",

@@ -16,10 +16,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from auvsim.files import save_figure, write_text
+
 from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
-from .files import save_figure, write_text
 from .train import (
     TrainConfig,
     check_restarts,

@@ -27,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.files import save_figure, write_text
+
 from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
-from .files import save_figure, write_text
 from .train import (
     TrainConfig,
     check_restarts,

@@ -42,8 +42,9 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from auvsim.files import save_figure, write_text
+
 from .data import DataError, Windows, load_windows, split
-from .files import save_figure, write_text
 from .models import build
 
 
