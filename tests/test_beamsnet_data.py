@@ -133,6 +133,21 @@ def test_a_beam_out_of_range_loses_lock_for_the_whole_mission(tmp_path):
         load_windows(tmp_path / "lost.h5", missions=["deep"])
 
 
+def test_a_file_without_imu_gives_no_imu_windows_and_the_same_samples(path, tmp_path):
+    """Missions without an IMU group (schema v2 lets imported ones go without) give the
+    same samples, with no IMU windows."""
+    def drop_imu(f):
+        for name in f["missions"]:
+            m = f["missions"][name]
+            del m["imu"]
+            m.attrs.update(origin="imported", source_file="recorded.npy",
+                           source_sha256="0" * 64)
+
+    w = load_windows(edited_copy(path, tmp_path, drop_imu))
+    assert w.accel is None and w.gyro is None
+    np.testing.assert_array_equal(w.beams, load_windows(path).beams)
+
+
 def test_errors_say_what_is_wrong(path, tmp_path):
     plain = tmp_path / "plain.h5"
     with h5py.File(plain, "w") as f:
