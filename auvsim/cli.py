@@ -10,15 +10,11 @@ import threading
 from pathlib import Path
 
 from .config import SCENARIOS, Config, ScenarioConfig
-from .errors import AuvsimError, ConfigError
+from .errors import AuvsimError, ConfigError, OneLineErrorParser
 
-
-class OneLineErrorParser(argparse.ArgumentParser):
-    """Reports a usage error on one line and exits with status 2."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
+# The flag each library argument is given on this command line (errors name arguments).
+FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
+         "workers": "--workers"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -193,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         {"generate": _generate, "presets": _presets, "inspect": _inspect,
          "import-velocity": _import_velocity, "plot": _plot}[args.command](args)
     except AuvsimError as e:
-        print(f"auvsim: error: {e}", file=sys.stderr)
+        print(f"auvsim: error: {e.for_cli(FLAGS)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("auvsim: interrupted; nothing was written", file=sys.stderr)

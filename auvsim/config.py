@@ -12,10 +12,9 @@ import math
 from dataclasses import dataclass, field
 
 from .errors import ConfigError
+from .maneuvers import MANEUVERS, check_scenario
 
-# The manoeuvres of auvsim.maneuvers, by name (a test checks the two lists agree).
-SCENARIOS = ("straight", "turning_circle", "zigzag", "lawnmower", "depth_steps", "yoyo",
-             "speed_steps", "spiral_dive", "random_waypoints")
+SCENARIOS = tuple(MANEUVERS)  # the manoeuvres' registry is the one list of names
 SEAFLOORS = ("flat", "procedural", "heightmap")
 
 
@@ -87,9 +86,7 @@ class ScenarioConfig:
             _check(self.start_speed >= 0, "start_speed", "a speed >= 0 m/s", self.start_speed)
         _check(isinstance(self.options, dict), "scenario.options",
                "a table of option names and numbers", self.options)
-        from .maneuvers import make_maneuver  # checks the options against the manoeuvre
-
-        make_maneuver(self)
+        check_scenario(self)  # the options, against the manoeuvre's
 
 
 @dataclass(frozen=True)

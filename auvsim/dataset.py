@@ -68,16 +68,16 @@ class DatasetWriter:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
         if self.path.is_dir():
-            raise ConfigError(f"--out {str(self.path)!r} is a directory: expected a file name")
+            raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name",
+                              argument="out")
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             open(self.tmp, "wb").close()  # plain open: its OSError says what is wrong
         except OSError as e:
             raise ConfigError(
-                f"--out {str(self.path)!r}: cannot write there ({e.strerror or e}); "
-                "expected a path in a writable directory"
-            ) from None
+                f"{str(self.path)!r}: cannot write there ({e.strerror or e}); "
+                "expected a path in a writable directory", argument="out") from None
         # No chunk cache: whole chunks are written at once, so caching them would only
         # defer their compression to the close, outside the physics/sensors overlap.
         self.file = h5py.File(self.tmp, "w", rdcc_nbytes=0)

@@ -55,10 +55,10 @@ from .config import Config, MissionConfig, ScenarioConfig
 from .control import autopilot
 from .dataset import DatasetWriter
 from .errors import ConfigError, SimulationError
+from .frames import euler_angles
 from .generate import MissionRun, check_reachable
 from .maneuvers import Maneuver, make_maneuver
 from .presets import preset
-from .sensors.dvl import euler_angles
 
 
 class AuvEnv(gym.Env):

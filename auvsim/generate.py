@@ -27,9 +27,10 @@ from tqdm import tqdm
 from .config import Config, MissionConfig
 from .dataset import DatasetWriter
 from .errors import ConfigError, SimulationError
-from .maneuvers import make_maneuver
+from .frames import rotation_matrices
+from .maneuvers import check_scenario, make_maneuver
 from .seafloor import Seafloor
-from .sensors.dvl import DvlGeometry, draw_errors, least_squares, measure, rotation_matrices
+from .sensors.dvl import DvlGeometry, draw_errors, least_squares, measure
 from .sensors.imu import ImuErrorModel, draw_biases
 from .vehicle import Vehicle
 
@@ -51,7 +52,7 @@ def check_reachable(config: Config) -> None:
     vehicle = Vehicle(config.vehicle.model)
     limit = 0.95 * vehicle.max_speed
     for m in config.missions:
-        for speed in make_maneuver(m.scenario).speeds():
+        for speed in check_scenario(m.scenario).speeds():
             if speed < MIN_SPEED:
                 raise ConfigError(
                     f"speed {speed:g} m/s is too slow to hold depth: expected at least "

@@ -26,8 +26,9 @@ import mujoco
 import numba
 import numpy as np
 
+from .frames import FLIP
+
 N_STRIPS = 20  # cross-flow drag strips along the hull (Fossen uses 20 as well)
-FLIP = np.array([1.0, -1.0, -1.0])  # FLU <-> FRD, NWU <-> NED
 
 
 class Hydro(NamedTuple):

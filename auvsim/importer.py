@@ -109,7 +109,7 @@ def import_velocity(sources: Sequence[str | os.PathLike], out: str | os.PathLike
         A summary: mission names and their number of pings.
     """
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"--seed: expected a whole number >= 0, got {seed!r}")
+        raise ConfigError(f": expected a whole number >= 0, got {seed!r}", argument="seed")
     sources = [Path(s) for s in sources]
     names = [s.stem for s in sources] if names is None else list(names)
     if len(set(names)) != len(names):

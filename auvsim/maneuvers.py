@@ -17,6 +17,11 @@ the heading crosses a limit, so it is driven in short chunks with feedback (``ru
 others are fixed schedules, computed for a whole block at once. ``phases`` names the parts
 of a manoeuvre, for plots.
 
+This module is a leaf: it knows the scenario only as an object with the attributes of
+``Scenario`` (``auvsim.config.ScenarioConfig`` is one), and the registry ``MANEUVERS`` is
+the one list of scenario names. Adding a manoeuvre is a subclass here, added to
+``MANEUVERS``, and its tests.
+
 The manoeuvres (Fossen 2021, ch. 13, describes the turning circle, the Kempf zigzag and the
 spiral for ships; the depth and speed profiles are the usual AUV test legs):
 
@@ -36,13 +41,25 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar, NamedTuple
+from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
-from .config import ScenarioConfig
 from .errors import ConfigError
+
+
+class Scenario(Protocol):
+    """What a manoeuvre reads of its scenario (``auvsim.config.ScenarioConfig``)."""
+
+    name: str
+    speed: float  # m/s
+    heading_deg: float  # deg from north
+    depth: float  # m
+    duration: float  # s
+    start_speed: float | None  # m/s; None: start at ``speed``
+    options: Mapping[str, float]
 
 
 class Phase(NamedTuple):
@@ -53,7 +70,7 @@ class Phase(NamedTuple):
     label: str
 
 
-def _options(cls, config: ScenarioConfig):
+def _options(cls, config: Scenario):
     """The manoeuvre's ``Options`` dataclass from the config's ``options`` mapping, with
     unknown names and non-numbers refused."""
     known = {f.name: f.type for f in dataclasses.fields(cls)}
@@ -85,16 +102,21 @@ class Maneuver:
 
     Args:
         config: the scenario; ``config.options`` sets the manoeuvre's parameters.
-        rng: the seeded stream of manoeuvres that draw something (random waypoints).
+        rng: the mission's seeded manoeuvre stream, required by manoeuvres that draw
+            something (random waypoints).
+
+    ``variants`` names the option sets the test library flies (``missions``): by default
+    one mission named after the manoeuvre, with its default options.
     """
 
     name: ClassVar[str]
+    variants: ClassVar[dict[str, dict[str, float]] | None] = None
 
     @dataclass(frozen=True)
     class Options:
         pass
 
-    def __init__(self, config: ScenarioConfig, rng: np.random.Generator | None = None) -> None:
+    def __init__(self, config: Scenario, rng: np.random.Generator | None = None) -> None:
         self.config = config
         self.options = _options(self.Options, config)
         self.speed = config.speed
@@ -214,6 +236,10 @@ class Zigzag(Maneuver):
     both at 10). Speed and depth are held. The rudder is decided every ``check_s``."""
 
     name = "zigzag"
+    # The two zigzags of the manoeuvring standards (IMO MSC.137(76)); the 20/20 one's rudder
+    # is capped by the A18-D's 15 deg fin limit.
+    variants = {"zigzag_10_10": {"angle_deg": 10.0, "rudder_deg": 10.0},
+                "zigzag_20_20": {"angle_deg": 20.0, "rudder_deg": 20.0}}
 
     @dataclass(frozen=True)
     class Options:
@@ -432,7 +458,9 @@ class RandomWaypoints(Maneuver):
         if o.count < 1 or o.count != int(o.count):
             raise ConfigError(f"scenario.options.count: expected a whole number >= 1, got "
                               f"{o.count!r}")
-        rng = np.random.default_rng(0) if rng is None else rng
+        if rng is None:
+            raise ValueError("random_waypoints draws its waypoints: pass the mission's seeded "
+                             "manoeuvre stream (rng=)")
         n = int(o.count)
         radius = o.radius_m * np.sqrt(rng.uniform(0.2, 1.0, n))
         bearing = rng.uniform(0.0, 2 * np.pi, n)
@@ -467,9 +495,29 @@ MANEUVERS: dict[str, type[Maneuver]] = {
                         SpeedSteps, SpiralDive, RandomWaypoints)}
 
 
-def make_maneuver(config: ScenarioConfig, rng: np.random.Generator | None = None) -> Maneuver:
-    """The manoeuvre a scenario config names, with its options checked."""
+def make_maneuver(config: Scenario, rng: np.random.Generator | None = None) -> Maneuver:
+    """The manoeuvre a scenario names, with its options checked.
+
+    Args:
+        config: the scenario.
+        rng: the mission's manoeuvre stream (``auvsim.mission.mission_streams``); required
+            by the manoeuvres that draw something.
+    """
     if config.name not in MANEUVERS:
         raise ConfigError(f"scenario: expected one of {', '.join(MANEUVERS)}, got "
                           f"{config.name!r}")
     return MANEUVERS[config.name](config, rng)
+
+
+def check_scenario(config: Scenario) -> Maneuver:
+    """Build the manoeuvre once to check its options, with a throwaway stream (what it
+    draws is not used)."""
+    return make_maneuver(config, rng=np.random.default_rng(0))
+
+
+def missions() -> list[tuple[str, str, dict[str, float]]]:
+    """The test library: (mission name, manoeuvre name, options) for every manoeuvre of
+    ``MANEUVERS`` and each of its ``variants``, in registry order."""
+    return [(mission, name, dict(options))
+            for name, cls in MANEUVERS.items()
+            for mission, options in (cls.variants or {name: {}}).items()]

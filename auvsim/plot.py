@@ -15,7 +15,7 @@ import numpy as np
 from .dataset import open_dataset
 from .errors import ConfigError
 from .files import save_figure
-from .sensors.dvl import euler_angles
+from .frames import euler_angles
 
 
 def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
@@ -39,8 +39,8 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
         names = list(group) if missions is None else list(missions)
         unknown = [n for n in names if n not in group]
         if unknown:
-            raise ConfigError(f"--mission {', '.join(unknown)}: not in {path}; it has "
-                              f"{', '.join(group)}")
+            raise ConfigError(f"{', '.join(unknown)}: not in {path}; it has "
+                              f"{', '.join(group)}", argument="missions")
         out.mkdir(parents=True, exist_ok=True)
         for name in names:
             target = out / f"{path.stem}_{name}.png"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from .config import Config, DvlConfig, MissionConfig, ScenarioConfig, SeafloorConfig
 from .errors import ConfigError
+from .maneuvers import missions as maneuver_missions
 from .sensors.imu import IMU_GRADES
 
 # The BeamsNet paper's simulation (sec. 4.1) as its published code ran it: straight lines
@@ -31,21 +32,9 @@ def _paper(noise_std: float) -> Config:
     )
 
 
-# The manoeuvres of the stress test, each 10 minutes at 2 m/s from 20 m depth: a straight
-# line for reference, then every manoeuvre of auvsim.maneuvers (the zigzag twice: 10/10 and
-# 20/20, the A18-D's 15 deg fin limit capping the 20 deg rudder).
-MANEUVER_MISSIONS = (
-    ("straight", "straight", {}),
-    ("turning_circle", "turning_circle", {}),
-    ("zigzag_10_10", "zigzag", {"angle_deg": 10.0, "rudder_deg": 10.0}),
-    ("zigzag_20_20", "zigzag", {"angle_deg": 20.0, "rudder_deg": 20.0}),
-    ("lawnmower", "lawnmower", {}),
-    ("depth_steps", "depth_steps", {}),
-    ("yoyo", "yoyo", {}),
-    ("speed_steps", "speed_steps", {}),
-    ("spiral_dive", "spiral_dive", {}),
-    ("random_waypoints", "random_waypoints", {}),
-)
+# The manoeuvres of the stress test, each 10 minutes at 2 m/s from 20 m depth: every
+# manoeuvre of auvsim.maneuvers and its variants (the straight line first, for reference).
+MANEUVER_MISSIONS = tuple(maneuver_missions())
 
 
 def maneuvers(duration: float = 600.0) -> Config:

@@ -40,7 +40,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from .config import SeafloorConfig
 from .errors import ConfigError
-from .hydro import FLIP as _FLIP  # NED <-> MuJoCo's north-west-up, either way
+from .frames import FLIP as _FLIP  # NED <-> MuJoCo's north-west-up, either way
 
 NAME = "seafloor"  # the plane geom; hfield tiles and their geoms are seafloor_<row>_<col>
 GROUP = 3  # geom group of the seafloor alone, so ray casts can select it

@@ -20,7 +20,15 @@ from numba import types
 
 from .control import Gains, autopilot, feedforward_rpm, max_speed, servo
 from .errors import ConfigError
-from .hydro import FLIP, Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, water_wrench
+from .frames import (
+    FLIP,
+    mujoco_from_ned,
+    ned_from_mujoco,
+    quat_to_rot,
+    quaternion_from_euler,
+    yaw_of,
+)
+from .hydro import Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, water_wrench
 
 MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
 VEHICLES = ("auv", "remus100")
@@ -60,18 +68,6 @@ def model_path(vehicle: str) -> Path:
     raise ConfigError(
         f"unknown vehicle {vehicle!r}: expected one of {', '.join(VEHICLES)} "
         "or a path to an .xml model"
-    )
-
-
-@numba.njit(cache=True)
-def quat_to_rot(q):
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
     )
 
 
@@ -179,16 +175,8 @@ class Vehicle:
         """Place the vehicle (m, rad, m/s in NED/FRD); a forward speed starts the shaft at
         the rpm that holds it."""
         mujoco.mj_resetData(self.model, self.data)
-        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-        cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-        quat_ned = np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
-        self.data.qpos[:3] = np.asarray(position_ned, dtype=float) * FLIP
-        self.data.qpos[3] = quat_ned[0]
-        self.data.qpos[4:7] = quat_ned[1:] * FLIP
-        rot = quat_to_rot(quat_ned)
-        self.data.qvel[:3] = rot @ np.asarray(velocity_body, dtype=float) * FLIP
+        self.data.qpos[:7], self.data.qvel[:3] = mujoco_from_ned(
+            position_ned, quaternion_from_euler(roll, pitch, yaw), velocity_body)
         self.actuators[:] = 0.0
         u = float(velocity_body[0])
         self.actuators[0] = math.copysign(feedforward_rpm(self.hydro, abs(u)), u)
@@ -198,17 +186,11 @@ class Vehicle:
     def state(self) -> dict[str, np.ndarray]:
         """The true state now (NED/FRD, SI): ``position_ned``, ``velocity_ned``,
         ``velocity_body``, ``quaternion`` and ``angular_rate``, as a Trajectory row."""
-        d = self.data
-        quat = np.r_[d.qpos[3], d.qpos[4:7] * FLIP]  # MuJoCo NWU/FLU -> NED/FRD
-        v_ned = d.qvel[:3] * FLIP
-        return dict(position_ned=d.qpos[:3] * FLIP, velocity_ned=v_ned,
-                    velocity_body=quat_to_rot(quat).T @ v_ned, quaternion=quat,
-                    angular_rate=d.qvel[3:6] * FLIP)
+        return ned_from_mujoco(self.data.qpos, self.data.qvel)
 
     def yaw(self) -> float:
         """Current heading, rad from north (NED)."""
-        rot = quat_to_rot(self.state()["quaternion"])
-        return math.atan2(rot[1, 0], rot[0, 0])
+        return yaw_of(quat_to_rot(self.state()["quaternion"]))
 
     def run(self, references: np.ndarray, closed_loop=(True, True, True)) -> Trajectory:
         """Advance ``len(references)`` physics steps and return the true state at each.

@@ -7,9 +7,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from auvsim.cli import OneLineErrorParser
-from auvsim.errors import AuvsimError
+from auvsim.errors import AuvsimError, OneLineErrorParser
 
+# The flag each library argument is given on this command line (errors name arguments).
+FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
+         "lr": "--lr", "epochs": "--epochs", "restarts": "--restarts",
+         "average_epochs": "--average-epochs", "batch_size": "--batch-size",
+         "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
@@ -155,7 +159,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
          "stress": _stress}[args.command](args)
-    except (AuvsimError, ValueError, FileNotFoundError) as e:
+    except AuvsimError as e:
+        print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
+        return 2
+    except (ValueError, FileNotFoundError) as e:
         print(f"beamsnet: error: {e}", file=sys.stderr)
         return 2
     return 0

@@ -126,9 +126,9 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
     missing = [str(p) for p in sources if not p.is_file()]
     if missing:
         raise ConfigError(
-            f"--data {str(data)!r}: no {', '.join(missing)}; expected a directory with the "
+            f"{str(data)!r}: no {', '.join(missing)}; expected a directory with the "
             "Snapir AUV's V.npy and V_test.npy (3 x N DVL velocities), from the public "
-            "repository of the BeamsNet paper (see the README)")
+            "repository of the BeamsNet paper (see the README)", argument="data")
     dataset = Path("datasets") / "snapir.h5"
     digests = [hashlib.sha256(p.read_bytes()).hexdigest() for p in sources]
     if not _imported_from(dataset, digests, open_dataset):

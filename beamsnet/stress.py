@@ -128,7 +128,7 @@ def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
     (S, 3, 3), yaw rate (S,) and the rate of change of the true DVL-frame velocity since
     the previous ping (S,)."""
     from auvsim.dataset import open_dataset
-    from auvsim.sensors.dvl import rotation_matrices, rotation_rpy
+    from auvsim.frames import rotation_matrices, rotation_rpy
 
     parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration")}
     with open_dataset(path) as f:

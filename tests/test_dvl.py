@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from auvsim.config import DvlConfig
+from auvsim.frames import rotation_matrices, rotation_rpy
 from auvsim.sensors.dvl import (
     DvlErrors,
     DvlGeometry,
@@ -15,8 +16,6 @@ from auvsim.sensors.dvl import (
     draw_errors,
     least_squares,
     measure,
-    rotation_matrices,
-    rotation_rpy,
 )
 
 RNG = np.random.default_rng(12)

@@ -33,8 +33,17 @@ def fly(vehicle, name, duration=400.0, speed=2.0, rng=None, **options):
     return t, traj, np.degrees(yaw), maneuver
 
 
-def test_the_config_and_the_library_name_the_same_manoeuvres():
-    assert tuple(MANEUVERS) == SCENARIOS
+def test_random_waypoints_refuse_an_unseeded_stream():
+    with pytest.raises(ValueError, match="seeded"):
+        make_maneuver(ScenarioConfig(name="random_waypoints", duration=600.0))
+
+
+def test_the_test_library_flies_every_manoeuvre_once_and_the_zigzag_twice():
+    from auvsim.maneuvers import missions
+
+    flown = [kind for _, kind, _ in missions()]
+    assert set(flown) == set(SCENARIOS) == set(MANEUVERS)
+    assert flown.count("zigzag") == 2 and len(flown) == len(MANEUVERS) + 1
 
 
 def test_turning_circle_heading_advances_monotonically(vehicle):
@@ -144,7 +153,7 @@ def test_vehicle_state_is_what_reset_set(vehicle):
 
 
 def test_euler_angles_are_those_the_vehicle_was_placed_at(vehicle):
-    from auvsim.sensors.dvl import euler_angles
+    from auvsim.frames import euler_angles
 
     vehicle.reset(position_ned=(0.0, 0.0, 20.0), roll=0.1, pitch=-0.2, yaw=2.5)
     q = vehicle.state()["quaternion"]

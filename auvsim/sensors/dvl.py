@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..config import DvlConfig
+from ..frames import rotation_rpy
 
 
 def beam_matrix(beam_angle: float) -> np.ndarray:
@@ -27,18 +28,6 @@ def beam_matrix(beam_angle: float) -> np.ndarray:
     psi = np.arange(4) * np.pi / 2 + np.pi / 4
     s, c = math.sin(beam_angle), math.cos(beam_angle)
     return np.column_stack([np.cos(psi) * s, np.sin(psi) * s, np.full(4, c)])
-
-
-def rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """(3, 3) rotation of ZYX Euler angles (rad): vectors in the rotated frame -> parent."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
 
 
 class DvlErrors(NamedTuple):
@@ -125,22 +114,3 @@ class DvlGeometry(NamedTuple):
         beams_body = self.h @ self.mounting.T  # (4, 3)
         directions = np.einsum("mij,kj->mki", rotation, beams_body)
         return origins, directions
-
-
-def rotation_matrices(quaternion: np.ndarray) -> np.ndarray:
-    """(M, 3, 3) body -> NED rotations of (M, 4) unit quaternions [w, x, y, z]."""
-    w, x, y, z = quaternion.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], axis=1)
-
-
-def euler_angles(quaternion: np.ndarray) -> np.ndarray:
-    """Roll, pitch, yaw (rad, ZYX), shape (..., 3), of body -> NED unit quaternions
-    [w, x, y, z], shape (..., 4)."""
-    w, x, y, z = np.moveaxis(np.asarray(quaternion, dtype=float), -1, 0)
-    return np.stack([np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-                     np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)),
-                     np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))], axis=-1)

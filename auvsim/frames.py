@@ -1,0 +1,103 @@
+"""Frames and rotations, in one place (the conventions are in the package docstring).
+
+* NED world / FRD body, and MuJoCo's north-west-up world / forward-left-up body: the two
+  differ by a rotation of pi about x, so converting flips the y and z components of
+  vectors and of a quaternion's vector part (``FLIP``, ``ned_from_mujoco``).
+* Quaternions ``[w, x, y, z]`` rotate body vectors into NED; Euler angles are roll, pitch,
+  yaw (ZYX).
+
+``quat_to_rot`` is the one scalar copy, compiled with numba for the physics loop;
+``rotation_matrices`` is its vectorised numpy twin for whole arrays, and a test checks
+that they agree.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+FLIP = np.array([1.0, -1.0, -1.0])  # FLU <-> FRD, NWU <-> NED, either way
+
+
+@numba.njit(cache=True)
+def quat_to_rot(q):
+    """(3, 3) body -> NED rotation of one unit quaternion [w, x, y, z] (compiled)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def rotation_matrices(quaternion: np.ndarray) -> np.ndarray:
+    """(M, 3, 3) body -> NED rotations of (M, 4) unit quaternions [w, x, y, z]."""
+    w, x, y, z = quaternion.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], axis=1)
+
+
+def rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """(3, 3) rotation of ZYX Euler angles (rad): vectors in the rotated frame -> parent."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def quaternion_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """(4,) unit quaternion [w, x, y, z] of ZYX Euler angles (rad)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+
+
+def euler_angles(quaternion: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (rad, ZYX), shape (..., 3), of body -> NED unit quaternions
+    [w, x, y, z], shape (..., 4)."""
+    w, x, y, z = np.moveaxis(np.asarray(quaternion, dtype=float), -1, 0)
+    return np.stack([np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                     np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0)),
+                     np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))], axis=-1)
+
+
+def ned_from_mujoco(qpos: np.ndarray, qvel: np.ndarray) -> dict[str, np.ndarray]:
+    """The NED/FRD state of a free body from MuJoCo's NWU/FLU ``qpos`` (7,) and ``qvel``
+    (6,): ``position_ned``, ``velocity_ned``, ``velocity_body``, ``quaternion`` and
+    ``angular_rate`` (SI)."""
+    quat = np.r_[qpos[3], qpos[4:7] * FLIP]
+    v_ned = qvel[:3] * FLIP
+    return dict(position_ned=qpos[:3] * FLIP, velocity_ned=v_ned,
+                velocity_body=quat_to_rot(quat).T @ v_ned, quaternion=quat,
+                angular_rate=qvel[3:6] * FLIP)
+
+
+def mujoco_from_ned(position_ned, quaternion: np.ndarray,
+                    velocity_body) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's ``qpos`` (7,) and the linear part of ``qvel`` (3,) of a free body placed at
+    ``position_ned`` (m) with attitude ``quaternion`` (body -> NED) and moving at
+    ``velocity_body`` (m/s, FRD)."""
+    qpos = np.empty(7)
+    qpos[:3] = np.asarray(position_ned, dtype=float) * FLIP
+    qpos[3] = quaternion[0]
+    qpos[4:7] = quaternion[1:] * FLIP
+    v_world = quat_to_rot(quaternion) @ np.asarray(velocity_body, dtype=float) * FLIP
+    return qpos, v_world
+
+
+def yaw_of(rotation: np.ndarray) -> float:
+    """Heading (rad from north) of a (3, 3) body -> NED rotation."""
+    return math.atan2(rotation[1, 0], rotation[0, 0])

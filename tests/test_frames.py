@@ -1,0 +1,55 @@
+"""Frames: the compiled and the vectorised rotation agree, and every conversion inverts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from auvsim.frames import (
+    FLIP,
+    euler_angles,
+    mujoco_from_ned,
+    ned_from_mujoco,
+    quat_to_rot,
+    quaternion_from_euler,
+    rotation_matrices,
+    rotation_rpy,
+)
+
+
+def _random_quaternions(n: int, seed: int = 4) -> np.ndarray:
+    q = np.random.default_rng(seed).standard_normal((n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def test_compiled_and_vectorised_rotations_agree_and_are_rotations():
+    q = _random_quaternions(50)
+    vectorised = rotation_matrices(q)
+    for k in range(len(q)):
+        np.testing.assert_array_equal(quat_to_rot(q[k]), vectorised[k])
+    np.testing.assert_allclose(vectorised @ vectorised.transpose(0, 2, 1),
+                               np.broadcast_to(np.eye(3), (50, 3, 3)), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(vectorised), 1.0, atol=1e-12)
+
+
+def test_euler_round_trip_matches_the_zyx_rotation():
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        rpy = rng.uniform([-3, -1.5, -3], [3, 1.5, 3])
+        q = quaternion_from_euler(*rpy)
+        np.testing.assert_allclose(np.linalg.norm(q), 1.0, atol=1e-15)
+        np.testing.assert_allclose(euler_angles(q), rpy, atol=1e-12)
+        np.testing.assert_allclose(quat_to_rot(q), rotation_rpy(*rpy), atol=1e-12)
+
+
+def test_mujoco_conversion_inverts():
+    q = quaternion_from_euler(0.1, -0.2, 2.0)
+    position, v_body = np.array([3.0, -4.0, 20.0]), np.array([1.5, 0.2, -0.1])
+    qpos, v_world = mujoco_from_ned(position, q, v_body)
+    np.testing.assert_array_equal(qpos[:3], position * FLIP)  # NWU: y west, z up
+    qvel = np.r_[v_world, 0.01, -0.02, 0.03]
+    state = ned_from_mujoco(qpos, qvel)
+    np.testing.assert_allclose(state["position_ned"], position)
+    np.testing.assert_allclose(state["quaternion"], q)
+    np.testing.assert_allclose(state["velocity_body"], v_body, atol=1e-15)
+    np.testing.assert_allclose(state["velocity_ned"], quat_to_rot(q) @ v_body, atol=1e-15)
+    np.testing.assert_array_equal(state["angular_rate"], [0.01, 0.02, -0.03])
