@@ -224,6 +224,16 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
     return f
 
 
+def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:
+    """The root attributes of a dataset and each mission's attributes, as plain Python
+    values (numpy arrays for vectors), after ``open_dataset``'s checks."""
+    def plain(attrs) -> dict:
+        return {k: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items()}
+
+    with open_dataset(path) as f:
+        return plain(f.attrs), {name: plain(m.attrs) for name, m in f["missions"].items()}
+
+
 def describe(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
     the realised error parameters and the fields."""
