@@ -239,6 +239,33 @@ class ImuConfig:
 
 
 @dataclass(frozen=True)
+class DepthConfig:
+    """A pressure depth sensor at the body origin, per sample k:
+    ``depth[k] = resolution * round((true[k] + bias + n[k]) / resolution)``,
+    ``n[k] ~ N(0, noise_std^2)``; bias is drawn per mission, ``N(0, bias_std^2)``, and
+    stored in its attributes; ``resolution`` 0 means no quantisation.
+
+    Attributes:
+        rate_hz: sample rate; the IMU rate must be a whole multiple of it.
+        noise_std: m, white noise per sample.
+        bias_std: m, spread of the per-mission offset (the sensor's accuracy).
+        resolution: m, quantisation step of the output (0: none).
+    """
+
+    rate_hz: float = 10.0
+    noise_std: float = 0.0
+    bias_std: float = 0.0
+    resolution: float = 0.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _finite(f"depth.{f.name}", getattr(self, f.name))
+            _check(getattr(self, f.name) >= 0, f"depth.{f.name}", "a value >= 0",
+                   getattr(self, f.name))
+        _check(self.rate_hz > 0, "depth.rate_hz", "a positive rate in Hz", self.rate_hz)
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that determines a dataset.
 
@@ -249,6 +276,7 @@ class Config:
         dvl: the DVL and its error model.
         imu: the IMU and its error model; its rate is the rate of the truth group, and the
             physics rate must be a whole multiple of it.
+        depth: the pressure depth sensor and its error model.
         compression: HDF5 compression, ``lzf`` (fast) or ``gzip`` (read by every HDF5 tool).
     """
 
@@ -257,6 +285,7 @@ class Config:
     seafloor: SeafloorConfig = field(default_factory=SeafloorConfig)
     dvl: DvlConfig = field(default_factory=DvlConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
+    depth: DepthConfig = field(default_factory=DepthConfig)
     compression: str = "lzf"
 
     def __post_init__(self) -> None:
@@ -266,9 +295,11 @@ class Config:
         _check(len(set(names)) == len(names), "missions", "distinct mission names", names)
         _check(self.compression in ("lzf", "gzip"), "compression", "lzf or gzip",
                self.compression)
-        ratio = self.imu.rate_hz / self.dvl.rate_hz
-        _check(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1, "dvl.rate_hz",
-               f"a whole divisor of the {self.imu.rate_hz:g} Hz IMU rate", self.dvl.rate_hz)
+        for name, rate in (("dvl.rate_hz", self.dvl.rate_hz),
+                           ("depth.rate_hz", self.depth.rate_hz)):
+            ratio = self.imu.rate_hz / rate
+            _check(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1, name,
+                   f"a whole divisor of the {self.imu.rate_hz:g} Hz IMU rate", rate)
         if self.seafloor.kind != "heightmap":
             for m in self.missions:
                 _check(m.scenario.depth < self.seafloor.depth, "depth",
@@ -299,6 +330,7 @@ _NESTED = {
     (Config, "seafloor"): SeafloorConfig,
     (Config, "dvl"): DvlConfig,
     (Config, "imu"): ImuConfig,
+    (Config, "depth"): DepthConfig,
     (MissionConfig, "scenario"): ScenarioConfig,
 }
 
