@@ -1,15 +1,23 @@
-"""The only module that knows the HDF5 layout (schema v2 in docs/ARCHITECTURE.md).
+"""The one module that knows the file format (HDF5, schema v3 in docs/ARCHITECTURE.md).
 
-Writing streams chunks into resizable, compressed datasets, so memory stays flat in mission
-length; the file is built under a temporary name and renamed when complete, so a failed or
+Nothing else in auvsim or beamsnet opens an HDF5 file or spells a dataset path: writers
+go through ``DatasetWriter`` (and ``mission_attrs``, ``copy_mission``), readers through
+``open_dataset``, which checks a file before handing out typed, read-only ``Mission``
+views. The schema is the core (truth, controls and mission attributes, here) plus the
+fields and attributes each sensor plugin declares (``auvsim.sensors``).
+
+Writing streams chunks into resizable, compressed datasets with a Fletcher-32 checksum
+each, so memory stays flat in mission length and a flipped byte is refused when read; the
+file is built under a temporary name and renamed when complete, so a failed or
 interrupted run leaves nothing half-written behind.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from datetime import datetime, timezone
+from functools import cache
 from pathlib import Path
 
 import h5py
@@ -17,41 +25,94 @@ import numpy as np
 
 from . import __version__
 from .errors import ConfigError, DatasetError
+from .files import temporary
+from .sensors import Attr, Field, Truth, registry
 
 FORMAT = "auvsim-dataset"
 # Version 2 = version 1 + a mission attribute ``origin``, which lets a mission imported from
-# a recorded DVL stream hold only its DVL group. Version 1 files are read as all simulated.
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+# a recorded DVL stream hold only its DVL group. Version 3 = version 2 + the depth sensor's
+# group and attributes, and a Fletcher-32 checksum on every dataset. Older files are read.
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
+ORIGINS = ("simulated", "imported")
 CHUNK_ROWS = 6000  # rows per HDF5 chunk: 60 s at 100 Hz, 48 kB for a float64 column
 # lzf: fast, built into h5py; gzip (level 1): about 1.5x the writing cost, but every HDF5
-# tool reads it without a plugin.
-COMPRESSION = {"lzf": dict(compression="lzf", shuffle=True),
-               "gzip": dict(compression="gzip", compression_opts=1, shuffle=True)}
+# tool reads it without a plugin. Fletcher-32 costs a few % and catches corruption.
+COMPRESSION = {"lzf": dict(compression="lzf", shuffle=True, fletcher32=True),
+               "gzip": dict(compression="gzip", compression_opts=1, shuffle=True,
+                            fletcher32=True)}
 
-# What every mission holds, by origin (extra fields are allowed).
-DVL_FIELDS = ("dvl/time", "dvl/velocity", "dvl/beam_velocity_true", "dvl/beam_velocity",
-              "dvl/valid", "dvl/velocity_ls")
-DVL_ATTRS = ("origin", "scenario", "seed", "duration_s", "dvl_rate_hz", "beam_angle_deg",
-             "dvl_scale_factor", "dvl_bias", "dvl_noise_std")
-REQUIRED_FIELDS = (
-    "truth/time", "truth/position_ned", "truth/velocity_ned", "truth/velocity_body",
-    "truth/quaternion", "truth/angular_rate", "truth/specific_force", "truth/altitude",
-    "imu/time", "imu/specific_force", "imu/angular_rate", "imu/index_of_dvl",
-    *DVL_FIELDS, "dvl/beam_range",
-    "control/propeller_rpm", "control/thrust", "control/rudder", "control/stern_planes",
+# The core of every simulated mission; the sensors add their own (``schema``).
+CORE_FIELDS = (
+    Field("truth/time", (), "f", "imu", "s", "at the IMU rate"),
+    Field("truth/position_ned", (3,), "f", "imu", "m", "body origin"),
+    Field("truth/velocity_ned", (3,), "f", "imu", "m/s", ""),
+    Field("truth/velocity_body", (3,), "f", "imu", "m/s", "at the vehicle origin"),
+    Field("truth/quaternion", (4,), "f", "imu", "-", "body -> NED, [w, x, y, z]"),
+    Field("truth/angular_rate", (3,), "f", "imu", "rad/s", "body"),
+    Field("truth/specific_force", (3,), "f", "imu", "m/s^2", "body, at the IMU"),
+    Field("truth/altitude", (), "f", "imu", "m", "body origin above the seafloor below it"),
+    Field("control/propeller_rpm", (), "f", "imu", "rpm", "shaft speed reached"),
+    Field("control/thrust", (), "f", "imu", "N", "propeller thrust"),
+    Field("control/rudder", (), "f", "imu", "rad", "rudder angle reached"),
+    Field("control/stern_planes", (), "f", "imu", "rad", "stern-plane angle reached"),
 )
-REQUIRED_ATTRS = (
-    *DVL_ATTRS, "vehicle", "imu_rate_hz", "dvl_min_range", "dvl_max_range",
-    "dvl_mounting_rpy_deg", "dvl_position_body", "imu_position_body",
-    "imu_accel_turn_on_bias", "imu_gyro_turn_on_bias", "imu_accel_noise_density",
-    "imu_gyro_noise_density", "imu_accel_bias_instability", "imu_gyro_bias_instability",
-    "imu_bias_correlation_time",
+CORE_ATTRS = (
+    Attr("origin", None, "simulated or imported", imported=True),
+    Attr("scenario", None, "the manoeuvre's name", imported=True),
+    Attr("seed", (), "the mission's seed", imported=True),
+    Attr("duration_s", (), "s", imported=True),
+    Attr("vehicle", None, "vehicle name or model path"),
 )
-IMPORTED_FIELDS = DVL_FIELDS
-IMPORTED_ATTRS = (*DVL_ATTRS, "source_file", "source_sha256")
-ORIGINS = {"simulated": (REQUIRED_FIELDS, REQUIRED_ATTRS),
-           "imported": (IMPORTED_FIELDS, IMPORTED_ATTRS)}
+IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
+                Attr("source_sha256", None, "its SHA-256"))
+
+
+def core_block(truth: Truth, *, propeller_rpm: np.ndarray, thrust: np.ndarray,
+               rudder: np.ndarray, stern_planes: np.ndarray,
+               altitude: np.ndarray) -> dict[str, np.ndarray]:
+    """The core fields of one block, by path: the truth (``auvsim.sensors.Truth``), the
+    altitude and the controls, (N,) each at the truth's samples (rpm, N, rad, rad, m)."""
+    return {
+        "truth/time": truth.time,
+        "truth/position_ned": truth.position_ned,
+        "truth/velocity_ned": truth.velocity_ned,
+        "truth/velocity_body": truth.velocity_body,
+        "truth/quaternion": truth.quaternion,
+        "truth/angular_rate": truth.angular_rate,
+        "truth/specific_force": truth.specific_force,
+        "truth/altitude": altitude,
+        "control/propeller_rpm": propeller_rpm,
+        "control/thrust": thrust,
+        "control/rudder": rudder,
+        "control/stern_planes": stern_planes,
+    }
+
+
+@cache
+def schema(origin: str, version: int = FORMAT_VERSION) -> tuple[tuple[Field, ...],
+                                                                 tuple[Attr, ...]]:
+    """The fields and attributes every mission of this origin holds in a file of this
+    format version (extra ones are allowed)."""
+    sensors = [s for s in registry().values() if s.since_version <= version]
+    fields = CORE_FIELDS + tuple(f for s in sensors for f in s.fields)
+    attrs = CORE_ATTRS + tuple(a for s in sensors for a in s.attributes)
+    if origin == "imported":
+        return (tuple(f for f in fields if f.imported),
+                tuple(a for a in attrs if a.imported) + IMPORT_ATTRS)
+    return fields, attrs
+
+
+def mission_attrs(*, origin: str, **attrs) -> dict[str, object]:
+    """A mission's attributes, checked complete for its origin: the one builder, used by
+    every writer (``auvsim.mission``, ``auvsim.importer``, the environment's recorder)."""
+    if origin not in ORIGINS:
+        raise ValueError(f"origin: expected one of {', '.join(ORIGINS)}, got {origin!r}")
+    out = dict(origin=origin, **attrs)
+    missing = [a.name for a in schema(origin)[1] if a.name not in out]
+    if missing:
+        raise ValueError(f"mission attributes: {origin} missions need {', '.join(missing)}")
+    return out
 
 
 class DatasetWriter:
@@ -70,7 +131,7 @@ class DatasetWriter:
         if self.path.is_dir():
             raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name",
                               argument="out")
-        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self.tmp = temporary(self.path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             open(self.tmp, "wb").close()  # plain open: its OSError says what is wrong
@@ -91,12 +152,24 @@ class DatasetWriter:
         self.file.create_group("missions")
 
     def mission(self, name: str, attrs: Mapping[str, object],
-                rows: Mapping[str, int] | None = None) -> MissionWriter:
-        """Start a mission; ``rows`` gives the expected rows per group (``truth``: N) or
-        per dataset (``imu/index_of_dvl``: M)."""
+                rows: Mapping[str, int] | None = None,
+                links: Mapping[str, str] | None = None) -> MissionWriter:
+        """Start a mission.
+
+        Args:
+            name: the mission's name.
+            attrs: its attributes (``mission_attrs``).
+            rows: the expected rows per group (``truth``: N) or per dataset
+                (``imu/index_of_dvl``: M), so datasets are made at their final size.
+            links: fields to write as hard links to another (``imu/time`` ->
+                ``truth/time``).
+        """
         group = self.file["missions"].create_group(name)
         group.attrs.update(attrs)
-        return MissionWriter(group, self.filters, rows)
+        sink = MissionWriter(group, self.filters, rows)
+        for key, target in (links or {}).items():
+            sink.link(key, target)
+        return sink
 
     def __enter__(self) -> DatasetWriter:
         return self
@@ -176,12 +249,167 @@ class MissionWriter:
         self.written[key] = end
 
 
-def open_dataset(path: str | os.PathLike) -> h5py.File:
-    """Open an auvsim dataset for reading, after checking that it is one.
+def copy_mission(source: str | os.PathLike, name: str, writer: DatasetWriter) -> None:
+    """Copy mission ``name`` of the dataset file ``source`` into ``writer``'s file, as it
+    is stored (no recompression; hard links stay links)."""
+    with h5py.File(source, "r") as part:
+        part.copy(part[f"missions/{name}"], writer.file["missions"])
+
+
+# Reading ---------------------------------------------------------------------------------
+
+class Block:
+    """A block of a mission's fields keyed by path (``MissionRun.measure``'s), read as a
+    mission is: ``Block(arrays).dvl.beam_velocity``."""
+
+    def __init__(self, arrays: Mapping[str, np.ndarray]) -> None:
+        self._arrays = arrays
+
+    def __getattr__(self, group: str) -> _BlockGroup:
+        if group.startswith("_"):
+            raise AttributeError(group)
+        return _BlockGroup(self._arrays, group)
+
+
+class _BlockGroup:
+    def __init__(self, arrays: Mapping[str, np.ndarray], group: str) -> None:
+        self._arrays, self._group = arrays, group
+
+    def __getattr__(self, field: str) -> np.ndarray:
+        if field.startswith("_"):
+            raise AttributeError(field)
+        return self._arrays[f"{self._group}/{field}"]
+
+
+_KINDS = {"f": "float", "b": "bool", "i": "integer"}
+
+
+class Group:
+    """One group of a mission (``truth``, ``imu``, ``dvl``, ``control``, a sensor's),
+    read-only: ``group.velocity`` reads that field whole (a numpy array)."""
+
+    def __init__(self, mission: Mission, name: str) -> None:
+        self._mission = mission
+        self._name = name
+
+    def __contains__(self, field: str) -> bool:
+        return field in self._mission._fields(self._name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._mission._fields(self._name))
+
+    @property
+    def rows(self) -> int:
+        """Rows of the group's fields (of its first field)."""
+        first = next(iter(self._mission._fields(self._name)))
+        return self._mission._dataset(f"{self._name}/{first}").shape[0]
+
+    def __getattr__(self, field: str) -> np.ndarray:
+        if field.startswith("_"):
+            raise AttributeError(field)
+        return self._mission.read(f"{self._name}/{field}")
+
+
+class Mission:
+    """A mission of an open dataset: its ``name``, ``origin``, ``attrs`` (plain Python
+    values and numpy arrays, the realised error parameters among them) and groups as
+    attributes (``mission.truth.position_ned``, ``mission.dvl.beam_velocity``)."""
+
+    def __init__(self, dataset: Dataset, name: str, group: h5py.Group, origin: str) -> None:
+        self.dataset = dataset
+        self.name = name
+        self.origin = origin
+        self._group = group
+        self.attrs = _plain(group.attrs)
+        self.attrs.setdefault("origin", origin)
+
+    @property
+    def simulated(self) -> bool:
+        return self.origin == "simulated"
+
+    def has(self, group: str) -> bool:
+        """Whether the mission holds this group (an imported one has only ``dvl``)."""
+        return isinstance(self._group.get(group), h5py.Group)
+
+    def __getattr__(self, group: str) -> Group:
+        if group.startswith("_") or not self.has(group):
+            raise AttributeError(f"mission {self.name} has no group {group!r}")
+        return Group(self, group)
+
+    def read(self, path: str) -> np.ndarray:
+        """One field, whole; a field that fails its checksum or cannot be decoded is
+        refused with ``DatasetError`` naming the file and the field."""
+        try:
+            return self._dataset(path)[()]
+        except OSError as e:
+            what = ("fails its checksum" if "checksum" in str(e).lower()
+                    or "fletcher" in str(e).lower() else "cannot be read")
+            raise DatasetError(f"{self.dataset.path}: mission {self.name} field {path} "
+                               f"{what} ({_reason(e)}): the file is corrupt") from None
+
+    def _dataset(self, path: str) -> h5py.Dataset:
+        item = self._group.get(path)
+        if not isinstance(item, h5py.Dataset):
+            raise DatasetError(f"{self.dataset.path}: mission {self.name} has no field {path}")
+        return item
+
+    def _fields(self, group: str) -> list[str]:
+        g = self._group.get(group)
+        return [k for k, v in g.items() if isinstance(v, h5py.Dataset)] if g else []
+
+
+class Dataset:
+    """An open, checked dataset file (``open_dataset``); use as a context manager.
+
+    Attributes:
+        path: the file.
+        version: its format version.
+        attrs: the root attributes (``config_json``, ``created_utc``, ...).
+        missions: name -> ``Mission``, in the file's order.
+    """
+
+    def __init__(self, path: Path, file: h5py.File) -> None:
+        self.path = path
+        self._file = file
+        self.attrs = _plain(file.attrs)
+        self.version = int(self.attrs["format_version"])
+        self.missions: dict[str, Mission] = {}
+
+    @property
+    def config_json(self) -> str:
+        return str(self.attrs.get("config_json", ""))
+
+    def verify(self) -> None:
+        """Read every field of every mission, so each checksum is verified."""
+        for mission in self.missions.values():
+            for group in ("truth", "imu", "dvl", "control", *registry()):
+                if mission.has(group):
+                    for field in getattr(mission, group):
+                        mission.read(f"{group}/{field}")
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> Dataset:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
+    """Open an auvsim dataset for reading, after checking that it is one and that every
+    mission has every field and attribute of its origin with the right shape and type,
+    fields of one clock of equal length, and indices in range.
+
+    Args:
+        path: the file.
+        verify: also read every field now, checking its checksum (``Dataset.verify``);
+            otherwise a corrupt field is refused when it is read.
 
     Raises:
         DatasetError: the file is missing, not HDF5, not an auvsim dataset, of another
-            format version, or a mission lacks a field of the schema.
+            format version, or inconsistent; the message names the file and the field.
     """
     path = Path(path)
     if not path.is_file():
@@ -190,66 +418,133 @@ def open_dataset(path: str | os.PathLike) -> h5py.File:
         f = h5py.File(path, "r")
     except OSError:
         raise DatasetError(f"{path}: not an HDF5 file, or corrupt") from None
-    fmt = f.attrs.get("format")
-    version = f.attrs.get("format_version")
-    if fmt != FORMAT:
-        f.close()
-        raise DatasetError(f"{path}: not an auvsim dataset (format attribute is {fmt!r}, "
-                           f"expected {FORMAT!r})")
-    if version not in READABLE_VERSIONS:
-        f.close()
-        raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
-                           f"reads versions {', '.join(map(str, READABLE_VERSIONS))}")
     try:
-        if not isinstance(f.get("missions"), h5py.Group):
-            raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
-        for name, mission in f["missions"].items():
-            origin = mission.attrs.get("origin", "simulated" if version == 1 else None)
-            if origin not in ORIGINS:
-                raise DatasetError(f"{path}: mission {name} has origin {origin!r}; expected "
-                                   f"one of {', '.join(ORIGINS)} (schema v{version})")
-            fields, attrs = ORIGINS[origin]
-            missing = [k for k in fields if k not in mission]
-            missing += [f"attribute {k}" for k in attrs
-                        if k not in mission.attrs and not (k == "origin" and version == 1)]
-            if missing:
-                raise DatasetError(f"{path}: mission {name} ({origin}) lacks "
-                                   f"{', '.join(missing)} (schema v{version})")
-    except (KeyError, OSError) as e:
-        f.close()
-        raise DatasetError(f"{path}: corrupt auvsim dataset ({e})") from None
+        dataset = _checked(path, f)
+        if verify:
+            dataset.verify()
     except DatasetError:
         f.close()
         raise
-    return f
+    except (KeyError, OSError, ValueError, TypeError) as e:
+        f.close()
+        raise DatasetError(f"{path}: corrupt auvsim dataset ({_reason(e)})") from None
+    return dataset
+
+
+def _checked(path: Path, f: h5py.File) -> Dataset:
+    fmt = f.attrs.get("format")
+    version = f.attrs.get("format_version")
+    if fmt != FORMAT:
+        raise DatasetError(f"{path}: not an auvsim dataset (format attribute is {fmt!r}, "
+                           f"expected {FORMAT!r})")
+    if not isinstance(version, (int, np.integer)) or version not in READABLE_VERSIONS:
+        raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
+                           f"reads versions {', '.join(map(str, READABLE_VERSIONS))}")
+    if not isinstance(f.get("missions"), h5py.Group):
+        raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
+    dataset = Dataset(path, f)
+    for name, group in f["missions"].items():
+        if not isinstance(group, h5py.Group):
+            raise DatasetError(f"{path}: missions/{name} is not a mission group")
+        origin = group.attrs.get("origin", "simulated" if version == 1 else None)
+        if origin not in ORIGINS:
+            raise DatasetError(f"{path}: mission {name} has origin {origin!r}; expected "
+                               f"one of {', '.join(ORIGINS)} (schema v{version})")
+        _check_mission(path, name, group, origin, int(version))
+        dataset.missions[name] = Mission(dataset, name, group, origin)
+    return dataset
+
+
+def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
+                   version: int) -> None:
+    fields, attrs = schema(origin, version)
+    where = f"{path}: mission {name} ({origin})"
+    missing = [fl.path for fl in fields if not isinstance(group.get(fl.path), h5py.Dataset)]
+    missing += [f"attribute {a.name}" for a in attrs
+                if a.name not in group.attrs and not (a.name == "origin" and version == 1)]
+    if missing:
+        raise DatasetError(f"{where} lacks {', '.join(missing)} (schema v{version})")
+    rows: dict[str, tuple[int, str]] = {}
+    for fl in fields:
+        ds = group[fl.path]
+        expected = ("N", *fl.shape)
+        if ds.ndim != 1 + len(fl.shape) or ds.shape[1:] != fl.shape:
+            raise DatasetError(f"{where}: field {fl.path} has shape {ds.shape}; expected "
+                               f"{_shape(expected)}")
+        if ds.dtype.kind != fl.kind and not (fl.kind == "i" and ds.dtype.kind == "u"):
+            raise DatasetError(f"{where}: field {fl.path} holds {ds.dtype}; expected "
+                               f"{_KINDS[fl.kind]} values")
+        n = ds.shape[0]
+        if fl.clock in rows and rows[fl.clock][0] != n:
+            other, first = rows[fl.clock][0], rows[fl.clock][1]
+            raise DatasetError(f"{where}: field {fl.path} has {n} rows but {first} has "
+                               f"{other}; expected fields of one clock to have equal rows")
+        rows.setdefault(fl.clock, (n, fl.path))
+    for n, first in rows.values():
+        if n == 0:
+            raise DatasetError(f"{where}: field {first} has no rows; expected at least one "
+                               "sample")
+    for fl in fields:
+        if fl.index_of is not None and fl.index_of in rows:
+            index = group[fl.path][()]
+            limit = rows[fl.index_of][0]
+            if len(index) and (index.min() < 0 or index.max() >= limit):
+                raise DatasetError(f"{where}: field {fl.path} holds indices from {index.min()} "
+                                   f"to {index.max()}; expected indices in [0, {limit})")
+    for a in attrs:
+        if a.name not in group.attrs:
+            continue
+        value = group.attrs[a.name]
+        if a.shape is None:
+            ok = isinstance(value, str)
+            expected = "a string"
+        else:
+            array = np.asarray(value)
+            ok = (array.dtype.kind in "iuf" and array.shape == a.shape
+                  and bool(np.isfinite(array).all()))
+            expected = ("a finite number" if a.shape == () else
+                        f"{a.shape[0]} finite numbers")
+        if not ok:
+            raise DatasetError(f"{where}: attribute {a.name} is {value!r}; expected "
+                               f"{expected}")
+
+
+def _shape(shape: tuple) -> str:
+    return "(" + ", ".join(map(str, shape)) + ("," if len(shape) == 1 else "") + ")"
+
+
+def _reason(e: BaseException) -> str:
+    return " ".join(str(e).split()) or type(e).__name__
+
+
+def _plain(attrs) -> dict:
+    return {k: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items()}
 
 
 def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:
     """The root attributes of a dataset and each mission's attributes, as plain Python
     values (numpy arrays for vectors), after ``open_dataset``'s checks."""
-    def plain(attrs) -> dict:
-        return {k: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items()}
-
     with open_dataset(path) as f:
-        return plain(f.attrs), {name: plain(m.attrs) for name, m in f["missions"].items()}
+        return f.attrs, {name: m.attrs for name, m in f.missions.items()}
 
 
 def describe(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
-    the realised error parameters and the fields."""
+    the realised error parameters and the fields. Every field is read, so a corrupt one
+    is refused here (``DatasetError``)."""
     def fmt(values) -> str:
         return np.array2string(np.asarray(values), precision=6, separator=", ")
 
-    with open_dataset(path) as f:
-        lines = [f"{path}: auvsim dataset v{f.attrs['format_version']} "
+    with open_dataset(path, verify=True) as f:
+        lines = [f"{path}: auvsim dataset v{f.version} "
                  f"(auvsim {f.attrs.get('auvsim_version', '?')}, created "
-                 f"{f.attrs.get('created_utc', '?')}), {len(f['missions'])} mission(s)"]
-        for name, m in f["missions"].items():
+                 f"{f.attrs.get('created_utc', '?')}), {len(f.missions)} mission(s)"]
+        for name, m in f.missions.items():
             a = m.attrs
-            valid = m["dvl/valid"][()]
+            valid = m.dvl.valid
             solvable = (f"{100 * valid.mean():.1f} % of beams valid, "
                         f"{100 * (valid.sum(axis=1) >= 3).mean():.1f} % of pings solvable")
-            if a.get("origin") == "imported":
+            if m.origin == "imported":
                 lines += [
                     f"  {name}: imported from {a['source_file']} (sha256 "
                     f"{a['source_sha256'][:12]}...), seed {a['seed']}, {a['duration_s']:g} s",
@@ -260,7 +555,7 @@ def describe(path: str | os.PathLike) -> str:
                 lines += [
                     f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, "
                     f"vehicle {a['vehicle']}",
-                    f"    IMU {a['imu_rate_hz']:g} Hz ({len(m['imu/time'])} samples); DVL "
+                    f"    IMU {a['imu_rate_hz']:g} Hz ({m.imu.rows} samples); DVL "
                     f"{a['dvl_rate_hz']:g} Hz ({len(valid)} pings), beams at "
                     f"{a['beam_angle_deg']:g} deg, {solvable}",
                 ]
@@ -272,9 +567,14 @@ def describe(path: str | os.PathLike) -> str:
                     f"m/s^2, gyro {fmt(a['imu_gyro_turn_on_bias'])} rad/s; noise densities "
                     f"{a['imu_accel_noise_density']:.3g} m/s^2/rtHz, "
                     f"{a['imu_gyro_noise_density']:.3g} rad/s/rtHz")
-        first = next(iter(f["missions"].values()), None)
+            if "depth_rate_hz" in a:
+                lines.append(
+                    f"    depth sensor {a['depth_rate_hz']:g} Hz ({m.depth.rows} samples): "
+                    f"offset {a['depth_bias']:.4g} m, noise std {a['depth_noise_std']:g} m, "
+                    f"resolution {a['depth_resolution']:g} m")
+        first = next(iter(f.missions.values()), None)
         if first is not None:
             lines.append("  fields of each mission:")
-            for group in sorted(first):
-                lines.append(f"    {group}: " + ", ".join(sorted(first[group])))
+            for group in sorted(first._group):
+                lines.append(f"    {group}: " + ", ".join(sorted(getattr(first, group))))
         return "\n".join(lines)

@@ -1,14 +1,19 @@
 """``auvsim/AUV-v0``: the torpedo AUV as a gymnasium environment, with its DVL and IMU.
 
+## Description
+
 The environment is thin: the physics is ``auvsim.vehicle`` and the sensors are those of
-``auvsim generate`` (``MissionRun._sensors``), stepped ``frame_skip`` physics steps at a
-time with the actuator commands the action gives. ``EpisodeRecorder`` writes the episodes
-a policy flies to a schema-v2 dataset, and ``ManeuverPolicy`` flies any scripted manoeuvre
-of ``auvsim.maneuvers`` through the autopilots, so a scripted or a learned policy yields
+``auvsim generate`` (``auvsim.mission.MissionRun.measure``), stepped ``frame_skip``
+physics steps at a time with the actuator commands the action gives. ``EpisodeRecorder``
+writes the episodes a policy flies to a dataset (the same fields as ``auvsim generate``'s,
+the depth sensor's included), and ``ManeuverPolicy`` flies any scripted manoeuvre of
+``auvsim.maneuvers`` through the autopilots, so a scripted or a learned policy yields
 training data for BeamsNet.
 
-Action, ``Box(-1, 1, (3,), float32)``, mapped to the actuators' limits (the model file's
-control ranges):
+## Action Space
+
+``Box(-1, 1, (3,), float32)``, mapped to the actuators' limits (the model file's control
+ranges); a non-finite or wrongly shaped action is refused (``ValueError``):
 
     index  actuator                     -1 .. 1 maps to
     0      propeller shaft speed        -rpm_max .. rpm_max (900 rpm on the A18-D)
@@ -16,30 +21,67 @@ control ranges):
     2      stern-plane angle             -fin_max .. fin_max (+ = trailing edge down,
                                                            pitches the nose up)
 
-Observation, ``Box(-inf, inf, (15,), float32)``:
+## Observation Space
 
-    index   what                                    unit
-    0-2     specific force, latest IMU sample, FRD   m/s^2 (measured, with IMU errors;
-                                                        0 before the first step and at
-                                                        a terminal one)
-    3-5     angular rate, latest IMU sample, FRD     rad/s (measured)
-    6-9     beam velocities of the latest DVL ping   m/s (measured; 0 where not valid)
-    10-13   bottom lock of each beam at that ping     1 valid, 0 not
-    14      depth of the body origin                 m (true: a pressure sensor's error
-                                                        is not modelled)
+``Box(low, high, (15,), float32)`` with finite bounds; each reading saturates at its
+bound, as the instrument's does:
 
-Reward: 0. The environment is a data and test harness with no task of its own; give it
-one with a wrapper (``gymnasium.wrappers.TransformReward``) or a subclass.
+    index   what                                    unit     bounds
+    0-2     specific force, latest IMU sample, FRD   m/s^2    +-16 g (1)
+            (measured, with IMU errors; 0 before
+            the first step and at a terminal one)
+    3-5     angular rate, latest IMU sample, FRD     rad/s    +-2000 deg/s (1)
+    6-9     beam velocities of the latest DVL ping   m/s      +-10 (2)
+            (measured; 0 where not valid)
+    10-13   bottom lock of each beam at that ping     1 / 0    0 .. 1
+    14      depth of the body origin (true)          m        0 .. 11,000 (3)
 
-``info``: the truth at the end of the step: ``time`` (s), ``position_ned`` (m),
-``velocity_ned``, ``velocity_body`` (m/s), ``quaternion`` ([w, x, y, z], body -> NED),
-``angular_rate`` (rad/s), ``euler`` (roll, pitch, yaw, rad), ``altitude`` (m), and, at the
-latest ping, ``dvl_velocity`` (true, DVL frame, m/s) and ``ping_time`` (s).
+(1) The measurement ranges of a VN-100-class MEMS IMU (VectorNav VN-100 datasheet); a
+navigation-grade unit's are of the same order. (2) Our assumption of a bottom-track
+DVL's velocity range: no source at hand gives the Navigator's; it is over twice the
+A18-D's top speed plus the strongest ocean currents (about 2.5 m/s). (3) No finite bound
+comes from the vehicle (the model file carries no depth rating): the deepest ocean
+(Challenger Deep, about 10,935 m) bounds it; 0 at the surface, where the episode ends.
+The depth sensor's measured readings are recorded (``depth/``) but not observed.
 
-Episodes end (``terminated``) when the vehicle reaches the seafloor or breaks the surface,
-and are truncated after ``max_episode_seconds``. ``dt = timestep x frame_skip``. All
-randomness (the seafloor, the DVL's and IMU's error draws, their noise) comes from
-``self.np_random``: ``reset(seed=s)`` gives the same episode for the same actions.
+## Rewards
+
+0. The environment is a data and test harness with no task of its own; give it one with
+a wrapper (``gymnasium.wrappers.TransformReward``) or a subclass.
+
+## Starting State
+
+The first mission of ``config`` sets the start: the vehicle at its scenario's depth and
+heading, at (0, 0) north/east, level, moving at the scenario's speed (``start_speed``, or
+``speed``) with the shaft at the rpm that holds it. Each ``reset`` draws a mission seed
+from ``self.np_random``: the seafloor (if procedural), the DVL's and IMU's error draws
+and their noise follow from it, so ``reset(seed=s)`` gives the same episode for the same
+actions.
+
+## Episode End
+
+``terminated`` when the vehicle reaches the seafloor or breaks the surface; truncated
+after ``max_episode_seconds``. ``info`` holds the truth at the end of the step: ``time``
+(s), ``position_ned`` (m), ``velocity_ned``, ``velocity_body`` (m/s), ``quaternion``
+([w, x, y, z], body -> NED), ``angular_rate`` (rad/s), ``euler`` (roll, pitch, yaw,
+rad), ``altitude`` (m), and, at the latest ping, ``dvl_velocity`` (true, DVL frame, m/s)
+and ``ping_time`` (s).
+
+## Arguments
+
+``gymnasium.make("auvsim/AUV-v0", config=None, frame_skip=10, max_episode_seconds=600.0)``:
+
+    config               vehicle, seafloor and sensors (default: the paper-sim preset's:
+                         flat floor 60 m deep, 20 deg beams at 1 Hz, navigation-grade IMU
+                         at 100 Hz); its first mission's scenario sets the start
+    frame_skip           physics steps per environment step, a multiple of the physics
+                         steps per IMU sample (10: dt = 0.1 s)
+    max_episode_seconds  truncation time, s
+
+## Version History
+
+* v0: the first version (auvsim 0.1): finite observation bounds, and every draw of the
+  policy's manoeuvre through ``np_random``, since schema v3.
 """
 
 from __future__ import annotations
@@ -53,12 +95,19 @@ import numpy as np
 
 from .config import Config, MissionConfig, ScenarioConfig
 from .control import autopilot
-from .dataset import DatasetWriter
+from .dataset import Block, DatasetWriter
 from .errors import ConfigError, SimulationError
 from .frames import euler_angles
-from .generate import MissionRun, check_reachable
 from .maneuvers import Maneuver, make_maneuver
+from .mission import MissionRun, check_reachable
 from .presets import preset
+
+G0 = 9.80665  # m/s^2
+# Observation bounds (module docstring): specific force, angular rate, beams, lock, depth.
+OBSERVATION_LOW = np.array([-16 * G0] * 3 + [-np.radians(2000.0)] * 3 + [-10.0] * 4
+                           + [0.0] * 4 + [0.0], dtype=np.float32)
+OBSERVATION_HIGH = np.array([16 * G0] * 3 + [np.radians(2000.0)] * 3 + [10.0] * 4
+                            + [1.0] * 4 + [11000.0], dtype=np.float32)
 
 
 class AuvEnv(gym.Env):
@@ -92,7 +141,8 @@ class AuvEnv(gym.Env):
         h = self.run.vehicle.hydro
         self.limits = np.array([h.rpm_max, h.fin_max, h.fin_max])
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (15,), np.float32)
+        self.observation_space = gym.spaces.Box(OBSERVATION_LOW, OBSERVATION_HIGH,
+                                                dtype=np.float32)
         # The arrays (truth, IMU, DVL, control) of the last step, for EpisodeRecorder;
         # None before the first step and at a terminal one.
         self.last_block: dict[str, np.ndarray] | None = None
@@ -114,33 +164,37 @@ class AuvEnv(gym.Env):
         return self._observation(None), self._info()
 
     def step(self, action):
-        command = np.clip(np.asarray(action, dtype=float), -1.0, 1.0) * self.limits
+        action = np.asarray(action, dtype=float)
+        if action.shape != (3,) or not np.isfinite(action).all():
+            raise ValueError(f"action: expected 3 finite numbers in [-1, 1] (propeller, "
+                             f"rudder, stern planes), got {action.tolist()!r}")
+        command = np.clip(action, -1.0, 1.0) * self.limits
         vehicle = self.run.vehicle
         traj = vehicle.run(np.tile(command, (self.frame_skip, 1)), (False, False, False))
         steps = np.arange(self.step_index, self.step_index + self.frame_skip)
         terminated = False
         try:
-            block = self.run._sensors(steps, traj, first_imu=self.step_index //
-                                      self.run.decimation)
+            block = self.run.measure(steps, traj)
         except SimulationError:
             terminated, block = True, None  # reached the seafloor or broke the surface
         self.step_index += self.frame_skip
         self.last_block = block
-        if block is not None and len(block["dvl/time"]):
-            self.last_ping = dict(beams=np.nan_to_num(block["dvl/beam_velocity"][-1]),
-                                  valid=block["dvl/valid"][-1].astype(float),
-                                  velocity=block["dvl/velocity"][-1],
-                                  time=float(block["dvl/time"][-1]))
+        dvl = None if block is None else Block(block).dvl
+        if dvl is not None and len(dvl.time):
+            self.last_ping = dict(beams=np.nan_to_num(dvl.beam_velocity[-1]),
+                                  valid=dvl.valid[-1].astype(float), velocity=dvl.velocity[-1],
+                                  time=float(dvl.time[-1]))
         truncated = self.step_index * vehicle.dt >= self.max_episode_seconds - 1e-9
         return self._observation(block), 0.0, terminated, truncated and not terminated, \
             self._info()
 
     def _observation(self, block) -> np.ndarray:
-        imu = np.zeros(6) if block is None else np.r_[block["imu/specific_force"][-1],
-                                                      block["imu/angular_rate"][-1]]
+        imu = np.zeros(6) if block is None else np.r_[Block(block).imu.specific_force[-1],
+                                                      Block(block).imu.angular_rate[-1]]
         depth = self.run.vehicle.state()["position_ned"][2]  # now, as info's position
         ping = self.last_ping
-        return np.r_[imu, ping["beams"], ping["valid"], depth].astype(np.float32)
+        observation = np.r_[imu, ping["beams"], ping["valid"], depth].astype(np.float32)
+        return np.clip(observation, OBSERVATION_LOW, OBSERVATION_HIGH)  # the ranges
 
     def _info(self) -> dict:
         state = self.run.vehicle.state()
@@ -159,20 +213,30 @@ class ManeuverPolicy:
     (``env.dt``) instead of every physics step.
 
     Args:
-        maneuver: a ``Maneuver``, or a ``ScenarioConfig`` to build one from.
+        maneuver: a ``ScenarioConfig`` to build the manoeuvre from at each ``reset``,
+            drawing what it draws (random waypoints) from the environment's
+            ``np_random``; or a ready ``Maneuver``, flown as it is.
         env: the environment it will fly (for the vehicle's limits and gains).
+
+    Call ``reset()`` after each ``env.reset()``.
     """
 
     def __init__(self, maneuver: Maneuver | ScenarioConfig, env: AuvEnv) -> None:
-        self.maneuver = maneuver if isinstance(maneuver, Maneuver) else make_maneuver(maneuver)
         self.env = env.unwrapped
-        self.reset()
+        self.scenario = None if isinstance(maneuver, Maneuver) else maneuver
+        self.maneuver = maneuver if isinstance(maneuver, Maneuver) else None
+        self.integrals = np.zeros(3)
 
     def reset(self) -> None:
+        if self.scenario is not None:
+            rng = np.random.default_rng(self.env.np_random.integers(2**63))
+            self.maneuver = make_maneuver(self.scenario, rng=rng)
         self.integrals = np.zeros(3)
         self.maneuver.reset()
 
     def __call__(self, observation, info: dict) -> np.ndarray:
+        if self.maneuver is None:
+            raise RuntimeError("ManeuverPolicy: call reset() after env.reset() first")
         env = self.env
         vehicle = env.run.vehicle
         roll, pitch, yaw = info["euler"]
@@ -217,7 +281,7 @@ class EpisodeRecorder(gym.Wrapper):
         """Set the finished (or interrupted) episode aside for writing."""
         if self.blocks:
             env = self.env.unwrapped
-            samples = sum(len(b["truth/time"]) for b in self.blocks)
+            samples = sum(len(Block(b).truth.time) for b in self.blocks)
             attrs = dict(env.run.attrs, scenario="environment",
                          duration_s=samples / env.config.imu.rate_hz)
             self.episodes.append((attrs, self.blocks))
@@ -230,8 +294,7 @@ class EpisodeRecorder(gym.Wrapper):
             with DatasetWriter(self.path, config_json=env.config.to_json(),
                                compression=env.config.compression) as writer:
                 for i, (attrs, blocks) in enumerate(self.episodes):
-                    sink = writer.mission(f"{self.name}_{i:03d}", attrs)
-                    sink.link("imu/time", "truth/time")
+                    sink = writer.mission(f"{self.name}_{i:03d}", attrs, links=env.run.links)
                     for block in blocks:
                         sink.append(block)
                     sink.flush()

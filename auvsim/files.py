@@ -8,14 +8,15 @@ import os
 from pathlib import Path
 
 
-def _temporary(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
+def temporary(path: Path, *, suffix: str = "") -> Path:
+    """The temporary name an output is written under, beside ``path``."""
+    return path.with_name(f".{path.name}.{os.getpid()}.tmp{suffix}")
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:
     """Write ``text`` to ``path`` atomically."""
     path = Path(path)
-    tmp = _temporary(path)
+    tmp = temporary(path, suffix=path.suffix)
     try:
         tmp.write_text(text)
         tmp.replace(path)
@@ -29,7 +30,7 @@ def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
     import matplotlib.pyplot as plt
 
     path = Path(path)
-    tmp = _temporary(path)
+    tmp = temporary(path, suffix=path.suffix)
     try:
         fig.savefig(tmp, dpi=dpi)
         tmp.replace(path)

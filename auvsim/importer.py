@@ -3,9 +3,10 @@
 A real vehicle cannot give the true velocity beside the measured one. The BeamsNet paper's
 sea experiment (sec. 4.2) therefore took the velocity its DVL recorded as the truth and
 synthesised the beams a DVL under test would have measured, with the same error model as
-its simulation (paper eq. 7). This module does that: the beams are ``H v`` with the
-configured beam angle, then scale factor, bias and noise exactly as ``auvsim generate``
-applies them, then least squares.
+its simulation (paper eq. 7). This module does that with the DVL's own ping pipeline
+(``auvsim.sensors.dvl.synthesise``: ``H v`` with the configured beam angle, then scale
+factor, bias and noise, then least squares), drawing from the imported mission's streams
+(``auvsim.streams.imported_streams``).
 
 Each input file becomes one mission of origin ``imported`` (schema v2): the DVL group only,
 since there is no truth trajectory, IMU or control record. A row that is not finite (a
@@ -17,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from .config import DvlConfig
-from .dataset import DatasetWriter
+from .dataset import DatasetWriter, mission_attrs
 from .errors import ConfigError
-from .sensors.dvl import beam_matrix, draw_errors, least_squares, measure
+from .sensors.dvl import synthesise
+from .streams import imported_streams
 
 
 def read_velocity(path: str | os.PathLike) -> np.ndarray:
@@ -80,19 +81,6 @@ def _read_csv(path: Path) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, 3)
 
 
-def synthesise(velocity: np.ndarray, dvl: DvlConfig, rng: np.random.Generator) -> dict:
-    """The DVL fields of a mission whose true DVL-frame velocity is ``velocity`` (N, 3):
-    beams with the error model of ``dvl``, their validity and least squares, and the
-    realised scale factors and biases."""
-    h = beam_matrix(math.radians(dvl.beam_angle_deg))
-    valid = np.repeat(np.isfinite(velocity).all(axis=1)[:, None], 4, axis=1)
-    true = np.where(valid, np.nan_to_num(velocity) @ h.T, np.nan)
-    errors = draw_errors(dvl, rng)
-    beams = measure(true, valid, errors=errors, noise_std=dvl.noise_std, rng=rng)
-    return dict(beam_velocity_true=true, beam_velocity=beams, valid=valid,
-                velocity_ls=least_squares(beams, h), errors=errors)
-
-
 def import_velocity(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
                     dvl: DvlConfig, seed: int = 0, names: Sequence[str] | None = None,
                     compression: str = "lzf") -> dict:
@@ -125,18 +113,14 @@ def import_velocity(sources: Sequence[str | os.PathLike], out: str | os.PathLike
     with DatasetWriter(out, config_json=json.dumps({"import": settings}),
                        compression=compression) as writer:
         for i, (source, name, velocity) in enumerate(zip(sources, names, velocities, strict=True)):
-            fields = synthesise(velocity, dvl, np.random.default_rng(seed + i))
-            errors = fields.pop("errors")
+            fields, dvl_attrs = synthesise(velocity, dvl, imported_streams(seed + i))
             n = len(velocity)
-            attrs = dict(origin="imported", scenario="imported", seed=seed + i,
-                         duration_s=n / dvl.rate_hz, dvl_rate_hz=dvl.rate_hz,
-                         beam_angle_deg=dvl.beam_angle_deg,
-                         dvl_scale_factor=errors.scale_factor, dvl_bias=errors.bias,
-                         dvl_noise_std=dvl.noise_std, source_file=str(source),
-                         source_sha256=hashlib.sha256(source.read_bytes()).hexdigest())
+            attrs = mission_attrs(origin="imported", scenario="imported", seed=seed + i,
+                                  duration_s=n / dvl.rate_hz, **dvl_attrs,
+                                  source_file=str(source),
+                                  source_sha256=hashlib.sha256(source.read_bytes()).hexdigest())
             sink = writer.mission(name, attrs, rows={"dvl": n})
-            sink.append({"dvl/time": np.arange(n) / dvl.rate_hz, "dvl/velocity": velocity,
-                         **{f"dvl/{k}": v for k, v in fields.items()}})
+            sink.append(fields)
             sink.flush()
             summary[name] = n
     return summary

@@ -500,7 +500,7 @@ def make_maneuver(config: Scenario, rng: np.random.Generator | None = None) -> M
 
     Args:
         config: the scenario.
-        rng: the mission's manoeuvre stream (``auvsim.mission.mission_streams``); required
+        rng: the mission's manoeuvre stream (``auvsim.streams.mission_streams``); required
             by the manoeuvres that draw something.
     """
     if config.name not in MANEUVERS:

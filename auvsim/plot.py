@@ -35,7 +35,7 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
     out = path.parent if out is None else Path(out)
     written = []
     with open_dataset(path) as f:
-        group = f["missions"]
+        group = f.missions
         names = list(group) if missions is None else list(missions)
         unknown = [n for n in names if n not in group]
         if unknown:
@@ -55,14 +55,15 @@ def _draw(m, title: str, target: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    simulated = "truth" in m
+    simulated = m.has("truth")
     rows = 3 if simulated else 1
     fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False,
                              layout="constrained")
-    t_dvl = m["dvl/time"][()]
+    t_dvl = m.dvl.time
     if simulated:
-        t = m["truth/time"][()]
-        pos = m["truth/position_ned"][()]
+        truth = m.truth
+        t = truth.time
+        pos = truth.position_ned
         ax = axes[0, 0]
         ax.plot(pos[:, 1], pos[:, 0], lw=1)
         ax.plot(pos[0, 1], pos[0, 0], "go", label="start")
@@ -74,7 +75,7 @@ def _draw(m, title: str, target: Path) -> None:
         ax.legend(fontsize=8)
 
         ax = axes[0, 1]
-        floor = pos[:, 2] + m["truth/altitude"][()]
+        floor = pos[:, 2] + truth.altitude
         ax.plot(t, pos[:, 2], label="vehicle")
         ax.fill_between(t, floor, floor.max() + 5, color="tan", alpha=0.6, label="seafloor")
         ax.invert_yaxis()
@@ -84,7 +85,7 @@ def _draw(m, title: str, target: Path) -> None:
         ax.legend(fontsize=8)
 
         ax = axes[1, 0]
-        v = m["truth/velocity_body"][()]
+        v = truth.velocity_body
         ax.plot(t, np.linalg.norm(v, axis=1), label="speed")
         ax.plot(t, v[:, 0], "--", lw=0.8, label="surge u")
         ax.set_xlabel("time, s")
@@ -94,7 +95,7 @@ def _draw(m, title: str, target: Path) -> None:
         ax.legend(fontsize=8)
 
         ax = axes[1, 1]
-        roll, pitch, yaw = euler_angles(m["truth/quaternion"][()]).T
+        roll, pitch, yaw = euler_angles(truth.quaternion).T
         yaw = np.unwrap(yaw)
         for angle, label in ((roll, "roll"), (pitch, "pitch")):
             ax.plot(t, np.degrees(angle), label=label)
@@ -109,7 +110,7 @@ def _draw(m, title: str, target: Path) -> None:
         twin.legend(fontsize=8, loc="upper right")
 
     ax = axes[-1, 0]
-    true, ls = m["dvl/velocity"][()], m["dvl/velocity_ls"][()]
+    true, ls = m.dvl.velocity, m.dvl.velocity_ls
     for k, axis in enumerate("xyz"):
         line, = ax.plot(t_dvl, true[:, k], lw=1, label=f"v{axis} true")
         ax.plot(t_dvl, ls[:, k], ".", ms=1.5, color=line.get_color(), label=f"v{axis} LS")
@@ -119,7 +120,7 @@ def _draw(m, title: str, target: Path) -> None:
     ax.legend(fontsize=7, ncol=3)
 
     ax = axes[-1, 1]
-    valid = m["dvl/valid"][()]
+    valid = m.dvl.valid
     ax.imshow(valid.T, aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0, vmax=1,
               extent=(t_dvl[0], t_dvl[-1] if len(t_dvl) > 1 else t_dvl[0] + 1, 4.5, 0.5))
     ax.set_yticks([1, 2, 3, 4])

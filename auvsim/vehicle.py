@@ -8,6 +8,7 @@ forces (``auvsim.hydro.water_wrench``), records the true state, and calls MuJoCo
 
 from __future__ import annotations
 
+import collections
 import math
 from pathlib import Path
 from typing import NamedTuple
@@ -19,7 +20,7 @@ import numpy as np
 from numba import types
 
 from .control import Gains, autopilot, feedforward_rpm, max_speed, servo
-from .errors import ConfigError
+from .errors import ConfigError, SimulationError
 from .frames import (
     FLIP,
     mujoco_from_ned,
@@ -38,6 +39,15 @@ _LIB = next(p for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
             for p in Path(mujoco.__file__).parent.glob(pattern))
 llvm.load_library_permanently(str(_LIB))
 _mj_step = types.ExternalFunction("mj_step", types.void(types.voidptr, types.voidptr))
+
+MIN_SPEED = 0.5  # m/s: above the stern planes' reversal speed (models/README.md)
+SPEED_MARGIN = 0.95  # set points up to this fraction of top speed: margin for the autopilot
+
+# MuJoCo reports an unstable simulation (a NaN or huge acceleration) as a warning, writes
+# it to MUJOCO_LOG.TXT in the working directory and resets the state. Here the warning is
+# kept instead, and ``Vehicle.run`` stops the mission with it (see ``_check_stable``).
+_warnings: collections.deque[str] = collections.deque(maxlen=8)
+mujoco.set_mju_user_warning(_warnings.append)
 
 
 class Trajectory(NamedTuple):
@@ -72,7 +82,7 @@ def model_path(vehicle: str) -> Path:
 
 
 # nogil: the sensors of one block are computed while the physics of the next one runs in
-# another thread (auvsim.generate.MissionRun.blocks).
+# another thread (auvsim.mission.MissionRun.blocks).
 @numba.njit(cache=True, nogil=True)
 def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators, integrals,
          current_ned, imu_position, dt, out):
@@ -164,6 +174,20 @@ class Vehicle:
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)
         self.integrals = np.zeros(3)
 
+    def check_speed(self, speed: float) -> None:
+        """Refuse a surge set point the vehicle cannot hold: below ``MIN_SPEED`` (no depth
+        control) or beyond ``SPEED_MARGIN`` of its top speed."""
+        limit = SPEED_MARGIN * self.max_speed
+        if speed < MIN_SPEED:
+            raise ConfigError(
+                f"speed {speed:g} m/s is too slow to hold depth: expected at least "
+                f"{MIN_SPEED:g} m/s (below about 0.4 m/s the stern planes reverse)")
+        if speed > limit:
+            raise ConfigError(
+                f"speed {speed:g} m/s is beyond what vehicle {self.name!r} can hold: "
+                f"expected at most {limit:.2f} m/s ({100 * SPEED_MARGIN:.0f} % of its "
+                f"{self.max_speed:.2f} m/s top speed)")
+
     def ray_data(self) -> mujoco.MjData:
         """A fresh ``MjData`` with every static geom placed, for ray casts only."""
         data = mujoco.MjData(self.model)
@@ -200,12 +224,34 @@ class Vehicle:
                 (rad) or depth (m) to hold, for an open-loop one the shaft rpm, rudder or
                 stern-plane angle (rad) to command.
             closed_loop: which of the three channels the autopilot drives.
+
+        Raises:
+            ValueError: ``references`` is not a finite (N, 3) array, or ``closed_loop`` not
+                three flags (the compiled loop does no bounds checks).
+            SimulationError: MuJoCo found the simulation unstable during these steps.
         """
         references = np.ascontiguousarray(references, dtype=float)
+        if references.ndim != 2 or references.shape[1] != 3:
+            raise ValueError(f"references: expected an array of shape (N, 3), got shape "
+                             f"{references.shape}")
+        if not np.isfinite(references).all():
+            raise ValueError("references: expected finite numbers, got NaN or infinity")
+        if len(closed_loop) != 3:
+            raise ValueError(f"closed_loop: expected 3 flags (speed, heading, depth), got "
+                             f"{closed_loop!r}")
         out = Trajectory.empty(len(references))
         d = self.data
         d.xfrc_applied[:] = 0.0
         _run(self.model._address, d._address, d.qpos, d.qvel, d.qfrc_applied, self.hydro,
              self.gains, references, np.array(closed_loop, dtype=np.bool_), self.actuators,
              self.integrals, self.current_ned, self.imu_position, self.dt, out)
+        self._check_stable()
         return out
+
+    def _check_stable(self) -> None:
+        bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        if bad.number:
+            said = _warnings[-1] if _warnings else "Nan, Inf or huge value in QACC"
+            raise SimulationError(f"the simulation became unstable (MuJoCo: "
+                                  f"{said.split('. ')[0]}); expected a vehicle, current and "
+                                  "buoyancy it can fly with")

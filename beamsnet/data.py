@@ -1,4 +1,4 @@
-"""Samples for BeamsNet and its baselines, cut from an auvsim dataset (schema v1).
+"""Samples for BeamsNet and its baselines, cut from an auvsim dataset.
 
 One sample per DVL ping k (paper sec. 3, and the published code):
 
@@ -16,7 +16,7 @@ no sample reaches across a mission boundary. ``split`` then cuts each mission se
 as the paper does (75 % / 25 %, no shuffling).
 
 The file is read only through ``auvsim.dataset.open_dataset``, the one module that knows
-the HDF5 layout and checks it.
+the file format and checks it; its ``Mission`` views give the arrays by name.
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
     """Cut the samples of every (or the named) mission of a dataset.
 
     Args:
-        path: an auvsim dataset (HDF5 schema v1).
+        path: an auvsim dataset.
         n_past: number of past pings per sample (BeamsNetV2 uses 3), >= 1.
         missions: names of the missions to use, in this order; default all, in file order
             (h5py lists a group's members by name).
@@ -104,7 +104,7 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
     except DatasetError as e:
         raise DataError(str(e)) from None
     with f:
-        group = f["missions"]
+        group = f.missions
         available = list(group)
         names = tuple(available if missions is None else missions)
         if not names:
@@ -121,7 +121,7 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
             raise DataError(f"{path}: missions have different beam angles "
                             f"({', '.join(f'{n} {a:g} deg' for n, a in angles.items())}); "
                             "one beam matrix is needed: pass missions= with one angle")
-        with_imu = all("imu" in group[n] for n in names)
+        with_imu = all(group[n].has("imu") for n in names)
         parts = [_mission_windows(group[n], n, i, n_past, with_imu) for i, n in enumerate(names)]
 
     widths = {p["accel"].shape[1] for p in parts if p["accel"] is not None}
@@ -138,14 +138,15 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
 
 
 def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool) -> dict:
-    """The samples of one mission (an h5py group), as a dict of Windows fields."""
-    beams = m["dvl/beam_velocity"][()]
+    """The samples of one mission (an ``auvsim.dataset.Mission``), as a dict of Windows
+    fields."""
+    beams = m.dvl.beam_velocity
     n_pings = len(beams)
     first = max(n_past, 1)  # the first ping with n_past pings and an IMU interval before it
     if n_pings <= first:
         raise DataError(f"mission {name}: {n_pings} DVL ping(s); a sample with n_past="
                         f"{n_past} needs at least {first + 1}")
-    usable = m["dvl/valid"][()].all(axis=1) & np.isfinite(beams).all(axis=1)
+    usable = m.dvl.valid.all(axis=1) & np.isfinite(beams).all(axis=1)
     # ok[k]: pings k - n_past .. k all usable (a running count of usable pings).
     count = np.concatenate([[0], np.cumsum(usable)])
     ks = np.arange(first, n_pings)
@@ -158,23 +159,23 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool) -> d
             raise DataError(f"mission {name}: IMU rate {m.attrs['imu_rate_hz']:g} Hz is not a "
                             f"whole multiple of the DVL rate {m.attrs['dvl_rate_hz']:g} Hz")
         width = round(width)
-        end = m["imu/index_of_dvl"][()]
-        n_imu = m["imu/specific_force"].shape[0]
+        end = m.imu.index_of_dvl
+        n_imu = m.imu.rows
         ok &= (end[ks] - width >= 0) & (end[ks] <= n_imu)
         ks = ks[ok]
         rows = end[ks][:, None] + np.arange(-width, 0)  # (S, W) IMU rows before each ping
-        accel = m["imu/specific_force"][()][rows]
-        gyro = m["imu/angular_rate"][()][rows]
+        accel = m.imu.specific_force[rows]
+        gyro = m.imu.angular_rate[rows]
     else:
         ks = ks[ok]
     return dict(
         beams=beams[ks],
         past_beams=beams[ks[:, None] + np.arange(-n_past, 0)],
         accel=accel, gyro=gyro,
-        target=m["dvl/velocity"][()][ks],
-        velocity_ls=m["dvl/velocity_ls"][()][ks],
+        target=m.dvl.velocity[ks],
+        velocity_ls=m.dvl.velocity_ls[ks],
         mission=np.full(len(ks), index, dtype=np.int64),
-        time=m["dvl/time"][()][ks],
+        time=m.dvl.time[ks],
     )
 
 

@@ -164,7 +164,7 @@ def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:
     if not dataset.exists():
         return False
     with open_dataset(dataset) as f:
-        missions = f["missions"]
+        missions = f.missions
         found = [missions[n].attrs.get("source_sha256") if n in missions else None
                  for n in ("train", "test")]
     return found == digests
@@ -244,7 +244,7 @@ def _noise_floor(data: Path, mission: str) -> float:
     from auvsim.dataset import open_dataset
 
     with open_dataset(data) as f:
-        attrs = f["missions"][mission].attrs
+        attrs = f.missions[mission].attrs
         sigma, alpha = float(attrs["dvl_noise_std"]), math.radians(attrs["beam_angle_deg"])
     return sigma / (math.sqrt(2) * math.sin(alpha))
 

@@ -133,19 +133,19 @@ def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
     parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration")}
     with open_dataset(path) as f:
         for i, name in enumerate(windows.names):
-            m = f["missions"][name]
-            if "truth" not in m:
+            m = f.missions[name]
+            if not m.has("truth"):
                 raise DataError(f"{path}: mission {name} has no truth group (an imported "
                                 "stream); the stress test needs simulated manoeuvres")
             mine = windows.mission == i
-            ping = np.searchsorted(m["dvl/time"][()], windows.time[mine])
-            rows = m["imu/index_of_dvl"][()][ping]
+            ping = np.searchsorted(m.dvl.time, windows.time[mine])
+            rows = m.imu.index_of_dvl[ping]
             rate = float(m.attrs["dvl_rate_hz"])
-            v_dvl = m["dvl/velocity"][()]
-            parts["rotation"].append(rotation_matrices(m["truth/quaternion"][()][rows]))
+            v_dvl = m.dvl.velocity
+            parts["rotation"].append(rotation_matrices(m.truth.quaternion[rows]))
             mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
             parts["mounting"].append(np.broadcast_to(mounting, (len(rows), 3, 3)))
-            parts["yaw_rate"].append(np.abs(np.degrees(m["truth/angular_rate"][()][rows, 2])))
+            parts["yaw_rate"].append(np.abs(np.degrees(m.truth.angular_rate[rows, 2])))
             parts["acceleration"].append(
                 np.linalg.norm(v_dvl[ping] - v_dvl[np.maximum(ping - 1, 0)], axis=1) * rate)
     return {k: np.concatenate(v) for k, v in parts.items()}
@@ -190,8 +190,8 @@ def _config(path: Path):
     from auvsim.errors import AuvsimError
 
     with open_dataset(path) as f:
-        text = str(f.attrs.get("config_json", ""))
-        names = set(f["missions"])
+        text = f.config_json
+        names = set(f.missions)
     try:
         config = Config.from_json(text)
     except (AuvsimError, ValueError, TypeError):
@@ -213,13 +213,13 @@ def _scenarios(path: Path) -> str:
 def _phases(path: Path) -> dict[str, list]:
     """The manoeuvre phases of every mission, rebuilt from the file's config (none for a
     file whose config does not name its missions, such as a recording)."""
-    from auvsim.generate import mission_streams
     from auvsim.maneuvers import make_maneuver
+    from auvsim.streams import mission_streams
 
     config = _config(path)
     if config is None:
         return {}
-    return {m.name: make_maneuver(m.scenario, rng=mission_streams(m.seed)[5]).phases()
+    return {m.name: make_maneuver(m.scenario, rng=mission_streams(m.seed)["maneuver"]).phases()
             for m in config.missions}
 
 

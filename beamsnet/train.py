@@ -140,7 +140,7 @@ def file_identity(path: str | Path) -> dict:
         for block in iter(lambda: f.read(1 << 22), b""):
             digest.update(block)
     with open_dataset(path) as f:
-        config_json = str(f.attrs.get("config_json", ""))
+        config_json = f.config_json
     return dict(path=str(path), sha256=digest.hexdigest(), config_json=config_json)
 
 

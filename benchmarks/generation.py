@@ -24,7 +24,8 @@ from pathlib import Path
 import mujoco
 
 from auvsim.config import Config, MissionConfig, ScenarioConfig, VehicleConfig
-from auvsim.generate import MissionRun, generate
+from auvsim.generate import generate
+from auvsim.mission import MissionRun
 from auvsim.vehicle import model_path
 
 

@@ -23,7 +23,8 @@ from auvsim.config import (
     VehicleConfig,
 )
 from auvsim.errors import ConfigError, DatasetError
-from auvsim.generate import MissionRun, generate
+from auvsim.generate import generate
+from auvsim.mission import MissionRun
 
 TRUTH_SHAPES = {"time": (), "position_ned": (3,), "velocity_ned": (3,), "velocity_body": (3,),
                 "quaternion": (4,), "angular_rate": (3,), "specific_force": (3,),

@@ -1,1 +1,163 @@
-"""Sensor error models: true signals from the simulation in, measurements out."""
+"""Sensors as plugins: the true signal of a mission in, measurements out.
+
+A sensor is a class with a small interface (``Sensor``): its name, the config section it
+reads, its rate, the dataset fields and mission attributes it writes (its part of the
+schema), the random streams it draws from, and ``measure``, a function of one block of
+truth and the sensor's noise stream. Every module of this package that defines ``SENSOR``
+is a plugin; ``registry`` finds them, so a new sensor is one new file here plus its
+config section (``auvsim.config``) and its tests. ``auvsim.mission`` builds each plugin
+per mission and measures every block with it; ``auvsim.dataset`` reads the plugins'
+fields to check a file.
+
+Block alignment: a sensor sampling every ``every`` IMU samples measures at the global IMU
+sample indices ``0, every, 2 every, ...``, wherever a block starts (``sample_rows``), so
+blocks of any length give the same samples.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ..config import Config
+
+
+@dataclass(frozen=True)
+class Field:
+    """One dataset of the schema, per mission.
+
+    Attributes:
+        path: ``group/name`` inside the mission.
+        shape: the shape of one row (``()`` for a column, ``(3,)`` for a vector).
+        kind: numpy dtype kind: ``f`` float64, ``b`` bool, ``i`` int64.
+        clock: whose rows it has: ``imu`` (the truth rate), or a sensor's name.
+        unit: SI unit, or ``-``.
+        doc: what it holds.
+        imported: also written for a mission imported from a recorded stream.
+        index_of: the values are row indices into this clock's fields.
+    """
+
+    path: str
+    shape: tuple[int, ...]
+    kind: str
+    clock: str
+    unit: str
+    doc: str
+    imported: bool = False
+    index_of: str | None = None
+
+
+class Attr(NamedTuple):
+    """One mission attribute of the schema: ``shape`` ``()`` for a number, ``(n,)`` for a
+    vector of n numbers, ``None`` for a string."""
+
+    name: str
+    shape: tuple[int, ...] | None
+    doc: str
+    imported: bool = False
+
+
+class Platform(NamedTuple):
+    """What a sensor may know of its mission at the start: the vehicle (sensor sites,
+    model), the seafloor and a ``MjData`` for ray casts, and the IMU (truth) rate."""
+
+    vehicle: Any  # auvsim.vehicle.Vehicle
+    seafloor: Any  # auvsim.seafloor.Seafloor
+    ray_data: Any  # mujoco.MjData of the same model, for ray casts only
+    imu_rate_hz: float
+
+
+class Truth(NamedTuple):
+    """One block of the true state at the IMU rate, NED/FRD (package conventions).
+
+    Attributes:
+        first: global index of the block's first IMU sample in its mission.
+        time: (N,) s.
+        position_ned, velocity_ned, velocity_body: (N, 3) m, m/s, m/s.
+        quaternion: (N, 4) body -> NED.
+        angular_rate: (N, 3) rad/s, body.
+        specific_force: (N, 3) m/s^2, body, at the IMU site.
+    """
+
+    first: int
+    time: np.ndarray
+    position_ned: np.ndarray
+    velocity_ned: np.ndarray
+    velocity_body: np.ndarray
+    quaternion: np.ndarray
+    angular_rate: np.ndarray
+    specific_force: np.ndarray
+
+
+class Sensor:
+    """Base of the sensor plugins.
+
+    A subclass sets the class attributes and implements ``__init__`` (draw the mission's
+    parameters from its ``parameters`` stream), ``attrs`` and ``measure``.
+
+    Args:
+        config: the whole config; the sensor reads its ``section``.
+        platform: the mission's vehicle, seafloor and rates.
+        parameters: the sensor's parameter stream (per-mission draws).
+    """
+
+    name: ClassVar[str]  # its group in the file
+    section: ClassVar[str]  # its config section
+    streams: ClassVar[tuple[str, str]]  # (parameters, noise) stream names (auvsim.streams)
+    fields: ClassVar[tuple[Field, ...]]
+    attributes: ClassVar[tuple[Attr, ...]]
+    links: ClassVar[dict[str, str]] = {}  # field -> truth field it is a hard link to
+    since_version: ClassVar[int] = 1  # first schema version that holds it
+
+    def __init__(self, config: Config, platform: Platform,
+                 parameters: np.random.Generator) -> None:
+        raise NotImplementedError
+
+    @classmethod
+    def rate_hz(cls, config: Config) -> float:
+        return float(getattr(config, cls.section).rate_hz)
+
+    @classmethod
+    def every(cls, config: Config) -> int:
+        """IMU samples per sample of this sensor."""
+        return round(config.imu.rate_hz / cls.rate_hz(config))
+
+    def rows(self, n_imu: int) -> dict[str, int]:
+        """Rows of each of its fields' clocks in a mission of ``n_imu`` IMU samples."""
+        raise NotImplementedError
+
+    def attrs(self) -> dict[str, object]:
+        """Its mission attributes: settings and the realised parameters."""
+        raise NotImplementedError
+
+    def measure(self, truth: Truth, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Its fields (by path) for one block of truth, drawing noise from ``rng``."""
+        raise NotImplementedError
+
+
+def sample_rows(first: int, n: int, every: int) -> slice:
+    """The rows of a block (first global IMU index ``first``, ``n`` rows) that fall on
+    global indices that are whole multiples of ``every``."""
+    return slice(-first % every, n, every)
+
+
+def samples_in(n_imu: int, every: int) -> int:
+    """Samples of a sensor sampling every ``every`` of ``n_imu`` IMU samples, from 0."""
+    return -(-n_imu // every)
+
+
+def registry() -> dict[str, type[Sensor]]:
+    """Every sensor plugin of this package (a module defining ``SENSOR``), by name, in
+    name order: the order ``auvsim.mission`` measures them in."""
+    found = {}
+    for info in pkgutil.iter_modules(__path__):
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        sensor = getattr(module, "SENSOR", None)
+        if sensor is not None:
+            found[sensor.name] = sensor
+    return dict(sorted(found.items()))

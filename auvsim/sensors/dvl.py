@@ -1,5 +1,7 @@
 """Janus four-beam DVL: beam geometry, the error model (paper eq. 7) and least squares
-(paper eq. 9). The geometry lives here once; everything else calls it.
+(paper eq. 9), and the DVL's sensor plugin. The geometry and the ping pipeline (ray-cast
+ranges + geometry -> true beams -> errors -> LS -> valid flags, ``ping``) live here once;
+``auvsim generate``, the environment and ``auvsim import-velocity`` all call them.
 
 Beam k = 1..4 points along, in the DVL frame,
 ``b_k = [cos(psi_k) sin(alpha), sin(psi_k) sin(alpha), cos(alpha)]``,
@@ -16,7 +18,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..config import DvlConfig
-from ..frames import rotation_rpy
+from ..errors import ConfigError
+from ..frames import rotation_matrices, rotation_rpy
+from . import Attr, Field, Sensor, sample_rows, samples_in
 
 
 def beam_matrix(beam_angle: float) -> np.ndarray:
@@ -114,3 +118,154 @@ class DvlGeometry(NamedTuple):
         beams_body = self.h @ self.mounting.T  # (4, 3)
         directions = np.einsum("mij,kj->mki", rotation, beams_body)
         return origins, directions
+
+
+def true_beams(velocity: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """(M, 4) ideal beam velocities ``H v`` of (M, 3) DVL-frame velocities, m/s; NaN on a
+    ping whose velocity is not finite (a dropout in a recorded stream)."""
+    finite = np.isfinite(velocity).all(axis=1)
+    return np.where(finite[:, None], np.nan_to_num(velocity) @ h.T, np.nan)
+
+
+def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlErrors,
+         noise_std: float, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """The DVL's pings, the one pipeline: true beams -> eq. 7 errors -> eq. 9 LS.
+
+    Args:
+        velocity: (M, 3) true velocity over ground of the DVL in its frame, m/s (NaN rows:
+            no measurement).
+        lock: (M, 4) bool, beams with bottom lock (from the ray casts' ranges).
+        h: (4, 3) beam matrix.
+        errors: the mission's scale factors and biases.
+        noise_std: beam noise, m/s.
+        rng: the DVL's noise stream (one draw per beam and ping).
+
+    Returns:
+        ``velocity``, ``beam_velocity_true`` (M, 4), ``beam_velocity`` (M, 4, NaN where not
+        valid), ``valid`` (M, 4; bottom lock on a finite ping) and ``velocity_ls`` (M, 3).
+    """
+    valid = lock & np.isfinite(velocity).all(axis=1)[:, None]
+    beams_true = true_beams(velocity, h)
+    beams = measure(beams_true, valid, errors=errors, noise_std=noise_std, rng=rng)
+    return dict(velocity=velocity, beam_velocity_true=beams_true, beam_velocity=beams,
+                valid=valid, velocity_ls=least_squares(beams, h))
+
+
+def config_attrs(config: DvlConfig, errors: DvlErrors) -> dict[str, object]:
+    """The DVL attributes every mission carries, simulated or imported."""
+    return dict(dvl_rate_hz=config.rate_hz, beam_angle_deg=config.beam_angle_deg,
+                dvl_scale_factor=errors.scale_factor, dvl_bias=errors.bias,
+                dvl_noise_std=config.noise_std)
+
+
+def synthesise(velocity: np.ndarray, config: DvlConfig,
+               streams: dict[str, np.random.Generator]) -> tuple[dict[str, np.ndarray], dict]:
+    """The DVL fields and attributes of a recorded DVL-frame velocity stream (N, 3) taken
+    as the truth, with the error model of ``config`` (the beam-synthesis half of the
+    pipeline: every finite ping has bottom lock).
+
+    Args:
+        velocity: (N, 3) m/s, one row per ping.
+        config: beam angle, rate and error model (ranges and mounting are not used).
+        streams: the ``dvl_parameters`` and ``dvl_noise`` streams (``auvsim.streams``).
+
+    Returns:
+        The ``dvl`` fields by path (pings at ``config.rate_hz`` from t = 0), and the
+        attributes.
+    """
+    h = beam_matrix(math.radians(config.beam_angle_deg))
+    errors = draw_errors(config, streams["dvl_parameters"])
+    lock = np.ones((len(velocity), 4), dtype=bool)
+    fields = ping(velocity, lock, h=h, errors=errors, noise_std=config.noise_std,
+                  rng=streams["dvl_noise"])
+    out = {"dvl/time": np.arange(len(velocity)) / config.rate_hz}
+    out.update((f"dvl/{k}", v) for k, v in fields.items())
+    return out, config_attrs(config, errors)
+
+
+class Dvl(Sensor):
+    """The Janus DVL: beams ray-cast on the seafloor from the DVL site, with the lever
+    arm and mounting, then ``ping``. Pings fall on IMU samples that are whole multiples
+    of the ping interval (``sample_rows``); ``imu/index_of_dvl`` records them."""
+
+    name = "dvl"
+    section = "dvl"
+    streams = ("dvl_parameters", "dvl_noise")
+    fields = (
+        Field("dvl/time", (), "f", "dvl", "s", "ping times", imported=True),
+        Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the DVL frame: "
+              "the regression target", imported=True),
+        Field("dvl/beam_velocity_true", (4,), "f", "dvl", "m/s", "H v", imported=True),
+        Field("dvl/beam_velocity", (4,), "f", "dvl", "m/s", "measured (NaN where the beam "
+              "has no bottom lock)", imported=True),
+        Field("dvl/beam_range", (4,), "f", "dvl", "m", "slant range to the seafloor (NaN: "
+              "no hit within max_range; a hit nearer than min_range is kept but not valid)"),
+        Field("dvl/valid", (4,), "b", "dvl", "-", "bottom lock", imported=True),
+        Field("dvl/velocity_ls", (3,), "f", "dvl", "m/s", "LS estimate from the measured "
+              "beams (NaN if < 3 valid)", imported=True),
+        Field("imu/index_of_dvl", (), "i", "dvl", "-", "IMU sample index of each ping",
+              index_of="imu"),
+    )
+    attributes = (
+        Attr("dvl_rate_hz", (), "ping rate, Hz", imported=True),
+        Attr("beam_angle_deg", (), "beam angle from the DVL's z axis, deg", imported=True),
+        Attr("dvl_scale_factor", (4,), "REALISED scale factor s_k", imported=True),
+        Attr("dvl_bias", (4,), "REALISED bias, m/s", imported=True),
+        Attr("dvl_noise_std", (), "beam noise std, m/s", imported=True),
+        Attr("dvl_min_range", (), "m"),
+        Attr("dvl_max_range", (), "m"),
+        Attr("dvl_mounting_rpy_deg", (3,), "DVL frame -> body, ZYX, deg"),
+        Attr("dvl_position_body", (3,), "m, FRD"),
+    )
+
+    def __init__(self, config, platform, parameters):
+        self.config = config.dvl
+        self.platform = platform
+        self.geometry = DvlGeometry.from_config(config.dvl, platform.vehicle.dvl_position)
+        self.errors = draw_errors(config.dvl, parameters)
+        self.every_imu = self.every(config)
+
+    def rows(self, n_imu):
+        return {"dvl": samples_in(n_imu, self.every_imu)}
+
+    def attrs(self):
+        c = self.config
+        return dict(config_attrs(c, self.errors), dvl_min_range=c.min_range,
+                    dvl_max_range=c.max_range, dvl_mounting_rpy_deg=c.mounting_rpy_deg,
+                    dvl_position_body=self.platform.vehicle.dvl_position)
+
+    def measure(self, truth, rng):
+        c, vehicle, seafloor = self.config, self.platform.vehicle, self.platform.seafloor
+        rows = sample_rows(truth.first, len(truth.time), self.every_imu)
+        if rows.start >= len(truth.time):
+            return _no_pings()
+        velocity = self.geometry.velocity(truth.velocity_body[rows], truth.angular_rate[rows])
+        origins, directions = self.geometry.rays(truth.position_ned[rows],
+                                                 rotation_matrices(truth.quaternion[rows]))
+        reach = c.max_range * np.linalg.norm(directions[..., :2], axis=-1).max()
+        try:
+            seafloor.follow(origins[:, :2], reach=reach)
+        except ValueError as e:
+            raise ConfigError(
+                f"dvl.max_range: {c.max_range:g} m beams reach beyond the procedural terrain "
+                f"window ({e}); expected a shorter max_range or a larger seafloor.cell_size"
+            ) from None
+        ranges = seafloor.cast(vehicle.model, self.platform.ray_data, origins, directions,
+                               max_range=c.max_range, exclude_body=vehicle.body_id)
+        fields = ping(velocity, ranges >= c.min_range,  # NaN (no hit) compares False
+                      h=self.geometry.h, errors=self.errors, noise_std=c.noise_std, rng=rng)
+        out = {"dvl/time": truth.time[rows]}
+        out.update((f"dvl/{k}", v) for k, v in fields.items())
+        out["dvl/beam_range"] = ranges
+        out["imu/index_of_dvl"] = (truth.first + rows.start
+                                   + self.every_imu * np.arange(len(velocity), dtype=np.int64))
+        return out
+
+
+def _no_pings() -> dict[str, np.ndarray]:
+    """The DVL fields of a block without a ping (an environment step between pings)."""
+    return {f.path: np.empty((0, *f.shape), dtype={"f": float, "b": bool, "i": np.int64}[f.kind])
+            for f in Dvl.fields}
+
+
+SENSOR = Dvl

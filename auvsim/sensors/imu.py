@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from ..config import ImuConfig
+from . import Attr, Field, Sensor
 
 G0 = 9.80665  # m/s^2, standard gravity: the g of micro-g and mg in datasheets
 DEG = math.pi / 180.0  # rad per degree
@@ -252,3 +253,58 @@ class ImuErrorModel:
         specific_force = _float_array("specific_force", specific_force, (None, 3))
         angular_rate = _float_array("angular_rate", angular_rate, (len(specific_force), 3))
         return self._accel.corrupt(specific_force), self._gyro.corrupt(angular_rate)
+
+
+class Imu(Sensor):
+    """The IMU at its site: the truth's specific force and angular rate through
+    ``ImuErrorModel``, at every truth sample (the truth group runs at the IMU rate)."""
+
+    name = "imu"
+    section = "imu"
+    streams = ("imu_biases", "imu_noise")
+    fields = (
+        Field("imu/time", (), "f", "imu", "s", "sample times (a hard link to truth/time)"),
+        Field("imu/specific_force", (3,), "f", "imu", "m/s^2", "measured, body"),
+        Field("imu/angular_rate", (3,), "f", "imu", "rad/s", "measured, body"),
+    )
+    attributes = (
+        Attr("imu_rate_hz", (), "Hz"),
+        Attr("imu_position_body", (3,), "m, FRD"),
+        Attr("imu_accel_turn_on_bias", (3,), "REALISED, m/s^2"),
+        Attr("imu_gyro_turn_on_bias", (3,), "REALISED, rad/s"),
+        Attr("imu_accel_noise_density", (), "m/s^2/sqrt(Hz)"),
+        Attr("imu_gyro_noise_density", (), "rad/s/sqrt(Hz)"),
+        Attr("imu_accel_bias_instability", (), "m/s^2"),
+        Attr("imu_gyro_bias_instability", (), "rad/s"),
+        Attr("imu_bias_correlation_time", (), "s"),
+    )
+    links = {"imu/time": "truth/time"}
+
+    def __init__(self, config, platform, parameters):
+        self.config = config.imu
+        self.position = platform.vehicle.imu_position
+        self.biases = draw_biases(config.imu, parameters)
+        self.model: ImuErrorModel | None = None  # made from the noise stream on first use
+
+    def rows(self, n_imu):
+        return {"imu": n_imu}
+
+    def attrs(self):
+        c = self.config
+        return dict(imu_rate_hz=c.rate_hz, imu_position_body=self.position,
+                    imu_accel_turn_on_bias=self.biases.accel,
+                    imu_gyro_turn_on_bias=self.biases.gyro,
+                    imu_accel_noise_density=c.accel_noise_density,
+                    imu_gyro_noise_density=c.gyro_noise_density,
+                    imu_accel_bias_instability=c.accel_bias_instability,
+                    imu_gyro_bias_instability=c.gyro_bias_instability,
+                    imu_bias_correlation_time=c.bias_correlation_time)
+
+    def measure(self, truth, rng):
+        if self.model is None:  # its four child streams, spawned once from the noise stream
+            self.model = ImuErrorModel(self.config, self.biases, rng)
+        force, rate = self.model.corrupt(truth.specific_force, truth.angular_rate)
+        return {"imu/time": truth.time, "imu/specific_force": force, "imu/angular_rate": rate}
+
+
+SENSOR = Imu

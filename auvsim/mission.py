@@ -1,0 +1,189 @@
+"""One mission, end to end: vehicle blocks -> truth -> sensors -> dataset fields.
+
+``MissionRun`` builds a mission's seafloor, vehicle, manoeuvre and sensors from its seed
+(the named streams of ``auvsim.streams``), flies it block by block (``blocks``) and turns
+each block of physics into the mission's fields (``measure``): the truth and controls at
+the IMU rate, then every sensor plugin of ``auvsim.sensors`` in name order, then the
+altitude over the seafloor. ``auvsim generate`` streams ``blocks`` into a file; the
+gymnasium environment calls ``measure`` on each step's block.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from .config import Config, MissionConfig
+from .dataset import core_block, mission_attrs
+from .errors import ConfigError, SimulationError
+from .maneuvers import check_scenario, make_maneuver
+from .seafloor import Seafloor
+from .sensors import Platform, Truth, registry
+from .streams import mission_streams
+from .vehicle import Trajectory, Vehicle
+
+BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
+
+
+class Cancelled(Exception):
+    """A mission stopped early because another failed or the run was interrupted."""
+
+
+def check_reachable(config: Config) -> None:
+    """Refuse, before anything runs, a mission whose manoeuvre asks its vehicle for a
+    speed it cannot hold (``Vehicle.check_speed``)."""
+    vehicle = Vehicle(config.vehicle.model, net_buoyancy=config.vehicle.net_buoyancy)
+    for m in config.missions:
+        for speed in check_scenario(m.scenario).speeds():
+            vehicle.check_speed(speed)
+
+
+class MissionRun:
+    """One mission: the vehicle, its scenario and its sensors, all seeded from the
+    mission's seed.
+
+    Args:
+        config: the dataset's config.
+        mission: which of its missions.
+    """
+
+    def __init__(self, config: Config, mission: MissionConfig) -> None:
+        self.config, self.mission = config, mission
+        streams = mission_streams(mission.seed)
+        self.seafloor = Seafloor(config.seafloor, rng=streams["terrain"])
+        v = config.vehicle
+        self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,
+                               seafloor=self.seafloor)
+        self.ray_data = self.vehicle.ray_data()
+        self.seafloor.bind(self.vehicle.model, self.ray_data)
+        dt = self.vehicle.dt
+        self.decimation = round(1.0 / (config.imu.rate_hz * dt))  # physics steps per sample
+        if self.decimation < 1 or abs(self.decimation * config.imu.rate_hz * dt - 1.0) > 1e-9:
+            raise ConfigError(f"imu.rate_hz: expected a whole divisor of the {1 / dt:g} Hz "
+                              f"physics rate, got {config.imu.rate_hz!r}")
+        if round(mission.scenario.duration / dt) < 1:
+            raise ConfigError(f"duration: expected at least the {dt:g} s physics step, got "
+                              f"{mission.scenario.duration!r}")
+        platform = Platform(self.vehicle, self.seafloor, self.ray_data, config.imu.rate_hz)
+        self.sensors = [sensor(config, platform, streams[sensor.streams[0]])
+                        for sensor in registry().values()]
+        self.noise = {s.name: streams[s.streams[1]] for s in self.sensors}
+        self.scenario = make_maneuver(mission.scenario, rng=streams["maneuver"])
+
+    @property
+    def attrs(self) -> dict:
+        """The mission's attributes (``auvsim.dataset.mission_attrs``)."""
+        m = self.mission
+        sensed = {}
+        for sensor in self.sensors:
+            sensed.update(sensor.attrs())
+        return mission_attrs(origin="simulated", scenario=m.scenario.name, seed=m.seed,
+                             duration_s=m.scenario.duration, vehicle=self.config.vehicle.model,
+                             **sensed)
+
+    @property
+    def samples(self) -> int:
+        """IMU (truth) samples of the whole mission."""
+        steps = round(self.mission.scenario.duration / self.vehicle.dt)
+        return -(-steps // self.decimation)
+
+    @property
+    def rows(self) -> dict[str, int]:
+        """Rows of each clock of the mission's fields (``truth``, ``control`` and each
+        sensor's)."""
+        n = self.samples
+        rows = {"truth": n, "control": n}
+        for sensor in self.sensors:
+            rows.update(sensor.rows(n))
+        return rows
+
+    @property
+    def links(self) -> dict[str, str]:
+        """Fields that are hard links to another (the IMU's time is the truth's)."""
+        return {k: v for sensor in self.sensors for k, v in sensor.links.items()}
+
+    def blocks(self, stop: threading.Event | None = None) -> Iterator[dict[str, np.ndarray]]:
+        """Yield the mission's fields block by block, keyed by their dataset paths; end
+        early, raising ``Cancelled``, once ``stop`` is set.
+
+        The physics of block k + 1 runs in a background thread (the compiled loop releases
+        the GIL) while block k's sensors are computed and written: the two stages take
+        about the same time, so a mission uses two cores. Nothing they share is written by
+        both: the physics owns ``vehicle.data``, the ray casts ``ray_data``.
+        """
+        vehicle, dt = self.vehicle, self.vehicle.dt
+        vehicle.reset(**self.scenario.initial_state())
+        self.scenario.reset()
+        total = round(self.mission.scenario.duration / dt)
+        per_block = self.decimation * max(s.every(self.config) for s in self.sensors)
+        block = per_block * max(1, round(BLOCK_SECONDS / dt / per_block))
+        starts = range(0, total, block)
+
+        def physics(start: int):
+            steps = np.arange(start, min(start + block, total))
+            try:
+                return steps, self.scenario.run(vehicle, steps * dt)
+            except SimulationError as e:
+                raise SimulationError(f"{self.mission.name}: between t = {steps[0] * dt:.1f} "
+                                      f"and {steps[-1] * dt:.1f} s, {e}") from None
+
+        with ThreadPoolExecutor(max_workers=1) as physics_thread:
+            ahead = physics_thread.submit(physics, starts[0])
+            for i in range(len(starts)):
+                steps, traj = ahead.result()
+                if stop is not None and stop.is_set():
+                    raise Cancelled(self.mission.name)
+                if i + 1 < len(starts):
+                    ahead = physics_thread.submit(physics, starts[i + 1])
+                yield self.measure(steps, traj)
+
+    def measure(self, steps: np.ndarray, traj: Trajectory) -> dict[str, np.ndarray]:
+        """The mission's fields for one block of physics: truth and controls at the IMU
+        rate, every sensor's measurements, and the altitude.
+
+        Args:
+            steps: (K,) global indices of the block's physics steps; the block starts on
+                an IMU sample (a multiple of ``decimation``).
+            traj: the vehicle's ``Trajectory`` over those steps.
+
+        Raises:
+            SimulationError: the vehicle reached the seafloor, broke the surface or left
+                the terrain during the block.
+        """
+        keep = slice(None, None, self.decimation)
+        time = steps[keep] * self.vehicle.dt
+        truth = Truth(int(steps[0]) // self.decimation, time, traj.position_ned[keep],
+                      traj.velocity_ned[keep], traj.velocity_body[keep], traj.quaternion[keep],
+                      traj.angular_rate[keep], traj.specific_force[keep])
+        sensed = {}
+        for sensor in self.sensors:
+            sensed.update(sensor.measure(truth, self.noise[sensor.name]))
+        # After the DVL: its ray casts move the terrain window first, as they always have.
+        altitude = self._altitude(truth)
+        actuators = traj.actuators[keep]
+        return {**core_block(truth, propeller_rpm=actuators[:, 0], thrust=traj.thrust[keep],
+                             rudder=actuators[:, 1], stern_planes=actuators[:, 2],
+                             altitude=altitude), **sensed}
+
+    def _altitude(self, truth: Truth) -> np.ndarray:
+        pos, t = truth.position_ned, truth.time
+        self.seafloor.follow(pos[::100, :2], reach=self.vehicle.length)
+        altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
+        problems = (
+            (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "
+             "terrain"),
+            (pos[:, 2] < 0, "broke the surface", "a speed, buoyancy and current it can hold "
+             "depth in"),
+            (np.isnan(altitude), "left the terrain", "a track that stays over the heightmap"),
+        )
+        for bad, what, expected in problems:
+            if bad.any():
+                k = np.flatnonzero(bad)[0]
+                raise SimulationError(
+                    f"{self.mission.name}: the vehicle {what} at t = {t[k]:.1f} s (north "
+                    f"{pos[k, 0]:.0f} m, east {pos[k, 1]:.0f} m, depth {pos[k, 2]:.1f} m): "
+                    f"expected {expected}")
+        return altitude

@@ -1,0 +1,38 @@
+"""The per-mission random streams, declared once.
+
+A simulated mission's seed spawns one child generator per entry of ``STREAMS``, by
+position. Children of a ``SeedSequence`` depend only on their position, so a stream added
+at the end leaves every earlier one, and every dataset made before it, unchanged: append,
+never reorder. Each consumer draws from its own streams only, so one setting never shifts
+another's numbers.
+
+An imported mission (a recorded DVL stream, ``auvsim import-velocity``) has no terrain,
+vehicle or IMU: its DVL draws its parameters and then its noise from one generator,
+``default_rng(seed)`` (``imported_streams``), as every import made so far did.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+STREAMS = (
+    "terrain",  # procedural seafloor (auvsim.seafloor)
+    "dvl_parameters",  # per-mission DVL scale factors and biases
+    "dvl_noise",  # DVL beam noise, one draw per beam and ping
+    "imu_biases",  # IMU turn-on biases
+    "imu_noise",  # IMU white noise and Gauss-Markov drive (four children)
+    "maneuver",  # what a manoeuvre draws (random waypoints)
+    "depth_parameters",  # the depth sensor's per-mission offset
+    "depth_noise",  # the depth sensor's white noise
+)
+
+
+def mission_streams(seed: int) -> dict[str, np.random.Generator]:
+    """A simulated mission's independent streams, by name (``STREAMS``)."""
+    return dict(zip(STREAMS, np.random.default_rng(seed).spawn(len(STREAMS)), strict=True))
+
+
+def imported_streams(seed: int) -> dict[str, np.random.Generator]:
+    """An imported mission's DVL streams: one generator, parameters drawn first."""
+    rng = np.random.default_rng(seed)
+    return {"dvl_parameters": rng, "dvl_noise": rng}
