@@ -327,6 +327,11 @@ class Mission:
     def simulated(self) -> bool:
         return self.origin == "simulated"
 
+    @property
+    def groups(self) -> list[str]:
+        """The groups it holds (``truth``, ``imu``, ``dvl``, ...), in name order."""
+        return sorted(k for k, v in self._group.items() if isinstance(v, h5py.Group))
+
     def has(self, group: str) -> bool:
         """Whether the mission holds this group (an imported one has only ``dvl``)."""
         return isinstance(self._group.get(group), h5py.Group)

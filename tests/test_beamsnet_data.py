@@ -76,17 +76,17 @@ def test_every_field_is_the_files_rows_of_its_own_mission(path):
     k = ping_index(w)
     with open_dataset(path) as f:
         for i, name in enumerate(w.names):
-            m = f["missions"][name]
+            m = f.missions[name]
             rows, kk = w.mission == i, k[w.mission == i]
-            beams = m["dvl/beam_velocity"][()]
+            beams = m.dvl.beam_velocity
             np.testing.assert_array_equal(w.beams[rows], beams[kk])
-            np.testing.assert_array_equal(w.time[rows], m["dvl/time"][()][kk])
-            np.testing.assert_array_equal(w.target[rows], m["dvl/velocity"][()][kk])
-            np.testing.assert_array_equal(w.velocity_ls[rows], m["dvl/velocity_ls"][()][kk])
+            np.testing.assert_array_equal(w.time[rows], m.dvl.time[kk])
+            np.testing.assert_array_equal(w.target[rows], m.dvl.velocity[kk])
+            np.testing.assert_array_equal(w.velocity_ls[rows], m.dvl.velocity_ls[kk])
             for j, ping in enumerate(kk):  # oldest first, the three pings just before
                 np.testing.assert_array_equal(w.past_beams[rows][j], beams[ping - 3:ping])
-            index = m["imu/index_of_dvl"][()]
-            force, rate = m["imu/specific_force"][()], m["imu/angular_rate"][()]
+            index = m.imu.index_of_dvl
+            force, rate = m.imu.specific_force, m.imu.angular_rate
             for j, ping in enumerate(kk):
                 end = index[ping]
                 np.testing.assert_array_equal(w.accel[rows][j], force[end - W:end])

@@ -67,10 +67,10 @@ def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_pat
         assert np.all(np.diff(turning) > 0) and turning[-1] - turning[0] > np.pi
     env.close()
     with open_dataset(path) as f:
-        assert sorted(f["missions"]) == ["episode_000", "episode_001"]
-        m = f["missions/episode_000"]
-        assert m["truth/time"].shape == (12000,) and m["dvl/time"].shape == (120,)
-        np.testing.assert_array_equal(m["imu/index_of_dvl"][()], np.arange(120) * 100)
+        assert sorted(f.missions) == ["episode_000", "episode_001"]
+        m = f.missions["episode_000"]
+        assert m.truth.time.shape == (12000,) and m.dvl.time.shape == (120,)
+        np.testing.assert_array_equal(m.imu.index_of_dvl, np.arange(120) * 100)
         assert m.attrs["duration_s"] == pytest.approx(120.0)
     windows = load_windows(path)  # BeamsNet reads what a policy flew
     assert len(windows.target) == 2 * (120 - 3)

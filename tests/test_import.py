@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 
-import h5py
 import numpy as np
 import pytest
 
@@ -40,13 +39,13 @@ def test_noise_free_beams_equal_h_v_and_ls_the_velocity(npy, tmp_path):
     import_velocity([npy], out, dvl=DvlConfig(beam_angle_deg=20.0))
     h = beam_matrix(math.radians(20.0))
     with dataset.open_dataset(out) as f:
-        m = f["missions/V"]
-        assert m.attrs["origin"] == "imported" and set(m) == {"dvl"}
+        m = f.missions["V"]
+        assert m.attrs["origin"] == "imported" and m.groups == ["dvl"]
         v = np.load(npy).T
-        np.testing.assert_array_equal(m["dvl/velocity"][()], v)
-        np.testing.assert_allclose(m["dvl/beam_velocity"][()], v @ h.T, atol=1e-15)
-        np.testing.assert_allclose(m["dvl/velocity_ls"][()], v, atol=1e-12)
-        np.testing.assert_array_equal(m["dvl/time"][()], np.arange(500.0))
+        np.testing.assert_array_equal(m.dvl.velocity, v)
+        np.testing.assert_allclose(m.dvl.beam_velocity, v @ h.T, atol=1e-15)
+        np.testing.assert_allclose(m.dvl.velocity_ls, v, atol=1e-12)
+        np.testing.assert_array_equal(m.dvl.time, np.arange(500.0))
 
 
 def test_error_model_is_eq_7_with_the_configured_noise(tmp_path):
@@ -55,10 +54,10 @@ def test_error_model_is_eq_7_with_the_configured_noise(tmp_path):
     dvl = DvlConfig(beam_angle_deg=20.0, scale_factor=0.007, bias=0.0001, noise_std=0.042)
     import_velocity([path], tmp_path / "noisy.h5", dvl=dvl, seed=3)
     with dataset.open_dataset(tmp_path / "noisy.h5") as f:
-        m = f["missions/long"]
+        m = f.missions["long"]
         s, b = m.attrs["dvl_scale_factor"], m.attrs["dvl_bias"]
         np.testing.assert_array_equal(s, 0.007)
-        residual = m["dvl/beam_velocity"][()] - ((1 + s) * m["dvl/beam_velocity_true"][()] + b)
+        residual = m.dvl.beam_velocity - ((1 + s) * m.dvl.beam_velocity_true + b)
     assert abs(residual.std() / 0.042 - 1) < 0.01
     assert abs(residual.mean()) < 3 * 0.042 / math.sqrt(residual.size)
 
@@ -70,9 +69,11 @@ def test_csv_with_header_gives_the_same_dataset_as_npy(npy, tmp_path):
     dvl = DvlConfig(beam_angle_deg=20.0, noise_std=0.01)
     import_velocity([npy], tmp_path / "a.h5", dvl=dvl)
     import_velocity([csv], tmp_path / "b.h5", dvl=dvl)
-    with h5py.File(tmp_path / "a.h5") as a, h5py.File(tmp_path / "b.h5") as b:
-        for key in dataset.IMPORTED_FIELDS:
-            np.testing.assert_array_equal(a["missions/V"][key][()], b["missions/V"][key][()])
+    with dataset.open_dataset(tmp_path / "a.h5") as a, \
+            dataset.open_dataset(tmp_path / "b.h5") as b:
+        for field in dataset.schema("imported")[0]:
+            np.testing.assert_array_equal(a.missions["V"].read(field.path),
+                                          b.missions["V"].read(field.path))
 
 
 def test_a_dropout_row_is_a_ping_without_bottom_lock(tmp_path):
@@ -81,9 +82,9 @@ def test_a_dropout_row_is_a_ping_without_bottom_lock(tmp_path):
     np.save(tmp_path / "gap.npy", v)
     import_velocity([tmp_path / "gap.npy"], tmp_path / "gap.h5", dvl=DvlConfig())
     with dataset.open_dataset(tmp_path / "gap.h5") as f:
-        m = f["missions/gap"]
-        assert not m["dvl/valid"][7].any() and m["dvl/valid"][()].sum() == 49 * 4
-        assert np.isnan(m["dvl/velocity_ls"][7]).all()
+        m = f.missions["gap"]
+        assert not m.dvl.valid[7].any() and m.dvl.valid.sum() == 49 * 4
+        assert np.isnan(m.dvl.velocity_ls[7]).all()
     w = load_windows(tmp_path / "gap.h5")  # pings 7..10 use ping 7: no samples there
     assert w.accel is None and not np.isin(w.time, [7.0, 8.0, 9.0, 10.0]).any()
     assert len(w.target) == 50 - 3 - 4
@@ -96,8 +97,8 @@ def test_cli_imports_several_files_as_missions_with_the_presets_dvl(npy, tmp_pat
                         "--out", str(out), "--seed", "4"]) == 0
     assert "V (500 pings), V_test (200 pings)" in capsys.readouterr().out
     with dataset.open_dataset(out) as f:
-        assert list(f["missions"]) == ["V", "V_test"]
-        a = f["missions/V_test"].attrs
+        assert list(f.missions) == ["V", "V_test"]
+        a = f.missions["V_test"].attrs
         assert a["seed"] == 5 and a["beam_angle_deg"] == 20.0  # paper-sim's DVL
         assert a["dvl_noise_std"] == pytest.approx(0.042**2)
     assert auvsim_main(["inspect", str(out)]) == 0

@@ -134,12 +134,12 @@ def test_generate_a_manoeuvre_and_the_same_seed_twice(tmp_path):
     assert main([*args, "--out", str(tmp_path / "a.h5")]) == 0
     assert main([*args, "--out", str(tmp_path / "b.h5")]) == 0
     with open_dataset(tmp_path / "a.h5") as a, open_dataset(tmp_path / "b.h5") as b:
-        m = a["missions"][next(iter(a["missions"]))]
+        m = a.missions[next(iter(a.missions))]
         assert m.attrs["scenario"] == "zigzag"
-        assert np.degrees(np.abs(m["control/rudder"][()]).max()) > 14.0
-        other = b["missions"][next(iter(b["missions"]))]
-        np.testing.assert_array_equal(m["dvl/beam_velocity"][()],
-                                      other["dvl/beam_velocity"][()])
+        assert np.degrees(np.abs(m.control.rudder).max()) > 14.0
+        other = b.missions[next(iter(b.missions))]
+        np.testing.assert_array_equal(m.dvl.beam_velocity,
+                                      other.dvl.beam_velocity)
 
 
 def test_vehicle_state_is_what_reset_set(vehicle):

@@ -69,10 +69,10 @@ def test_truth_at_pings_rotates_the_dvl_velocity_into_ned(tmp_path):
     windows = load_windows(path, missions=["turning_circle"])
     truth = _truth_at_pings(path, windows)
     with open_dataset(path) as f:
-        m = f["missions/turning_circle"]
-        rows = m["imu/index_of_dvl"][()][np.searchsorted(m["dvl/time"][()], windows.time)]
-        v_ned = m["truth/velocity_ned"][()][rows]
-        omega = m["truth/angular_rate"][()][rows]
+        m = f.missions["turning_circle"]
+        rows = m.imu.index_of_dvl[np.searchsorted(m.dvl.time, windows.time)]
+        v_ned = m.truth.velocity_ned[rows]
+        omega = m.truth.angular_rate[rows]
         lever = m.attrs["dvl_position_body"]
     body = np.einsum("sij,sj->si", truth["mounting"], windows.target) - np.cross(omega, lever)
     ned = np.einsum("sij,sj->si", truth["rotation"], body)
