@@ -4,16 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import flat, mission, write
 
-from auvsim.config import (
-    Config,
-    DvlConfig,
-    ImuConfig,
-    MissionConfig,
-    ScenarioConfig,
-    SeafloorConfig,
-)
-from auvsim.generate import generate
+from auvsim.config import DvlConfig
 from beamsnet.baselines import (
     AffineCalibration,
     KalmanFilter,
@@ -26,13 +19,9 @@ from beamsnet.metrics import rmse_vector as rmse
 def make(tmp_path_factory, name: str, dvl: DvlConfig, missions=None):
     """Windows of a generated dataset; by default one mission that accelerates from 0.5 to
     2 m/s, so the velocity varies enough for a calibration to be identifiable."""
-    missions = missions or (MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
-        speed=2.0, start_speed=0.5, duration=100.0)),)
-    config = Config(missions=missions, seafloor=SeafloorConfig(kind="flat", depth=60.0),
-                    dvl=dvl, imu=ImuConfig())
-    out = tmp_path_factory.mktemp(name) / f"{name}.h5"
-    generate(config, out, workers=1, progress=False)
-    return load_windows(out)
+    missions = missions or (mission("a", 1, speed=2.0, start_speed=0.5, duration=100.0),)
+    return load_windows(write(flat(*missions, dvl=dvl),
+                              tmp_path_factory.mktemp(name) / f"{name}.h5"))
 
 
 @pytest.fixture(scope="module")
@@ -51,10 +40,8 @@ def biased(tmp_path_factory):
 def noisy(tmp_path_factory):
     """Two missions at constant speed (1 and 2 m/s), white beam noise only."""
     return make(tmp_path_factory, "noisy", DvlConfig(beam_angle_deg=20.0, noise_std=0.02),
-                missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
-                              speed=2.0, duration=200.0)),
-                          MissionConfig(name="b", seed=2, scenario=ScenarioConfig(
-                              speed=1.0, duration=160.0))))
+                missions=(mission("a", 1, speed=2.0, duration=200.0),
+                          mission("b", 2, speed=1.0, duration=160.0)))
 
 
 def estimators():

@@ -7,35 +7,22 @@ import shutil
 import h5py
 import numpy as np
 import pytest
+from conftest import flat, mission, write
 
-from auvsim.config import (
-    Config,
-    DvlConfig,
-    ImuConfig,
-    MissionConfig,
-    ScenarioConfig,
-    SeafloorConfig,
-)
+from auvsim.config import DvlConfig, ImuConfig
 from auvsim.dataset import open_dataset
-from auvsim.generate import generate
 from beamsnet.data import DataError, Windows, load_windows, select, split
 
-CONFIG = Config(
-    missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(speed=2.0, duration=120.0)),
-              MissionConfig(name="b", seed=2, scenario=ScenarioConfig(speed=1.0, duration=80.0))),
-    seafloor=SeafloorConfig(kind="flat", depth=60.0),
-    dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.007, bias=1e-4, noise_std=0.01),
-    imu=ImuConfig(accel_noise_density=1e-3, gyro_noise_density=1e-4),
-)
+CONFIG = flat(mission("a", 1, speed=2.0, duration=120.0), mission("b", 2, speed=1.0, duration=80.0),
+              dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.007, bias=1e-4, noise_std=0.01),
+              imu=ImuConfig(accel_noise_density=1e-3, gyro_noise_density=1e-4))
 PINGS = {"a": 120, "b": 80}
 W = 100  # IMU samples per ping: 100 Hz / 1 Hz
 
 
 @pytest.fixture(scope="module")
-def path(tmp_path_factory):
-    out = tmp_path_factory.mktemp("data") / "two.h5"
-    generate(CONFIG, out, workers=1, progress=False)
-    return out
+def path(dataset_of):
+    return dataset_of(CONFIG, "two")
 
 
 def edited_copy(path, tmp_path, edit) -> str:
@@ -119,13 +106,9 @@ def test_pings_without_bottom_lock_are_skipped_now_and_as_past_beams(path, tmp_p
 
 def test_a_beam_out_of_range_loses_lock_for_the_whole_mission(tmp_path):
     # mission "deep" flies 55 m above the floor: slant range 58.5 m, beyond max_range 50 m
-    config = Config(
-        missions=(MissionConfig(name="near", seed=1, scenario=ScenarioConfig(duration=30.0,
-                                                                             depth=30.0)),
-                  MissionConfig(name="deep", seed=2, scenario=ScenarioConfig(duration=30.0,
-                                                                             depth=5.0))),
-        seafloor=SeafloorConfig(kind="flat", depth=60.0), dvl=DvlConfig(max_range=50.0))
-    generate(config, tmp_path / "lost.h5", workers=1, progress=False)
+    config = flat(mission("near", 1, duration=30.0, depth=30.0),
+                  mission("deep", 2, duration=30.0, depth=5.0), dvl=DvlConfig(max_range=50.0))
+    write(config, tmp_path / "lost.h5")
     w = load_windows(tmp_path / "lost.h5")
     assert w.names == ("deep", "near")  # file order: by name
     assert np.all(w.mission == 1) and len(w.target) == 27

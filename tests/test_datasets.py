@@ -9,6 +9,7 @@ import math
 import h5py
 import numpy as np
 import pytest
+from conftest import flat, mission, write
 from h5compare import assert_same_contents
 
 from auvsim import dataset
@@ -16,7 +17,6 @@ from auvsim.cli import main
 from auvsim.config import (
     Config,
     DvlConfig,
-    ImuConfig,
     MissionConfig,
     ScenarioConfig,
     SeafloorConfig,
@@ -25,13 +25,8 @@ from auvsim.generate import generate
 from auvsim.presets import PRESETS, preset
 from auvsim.sensors.dvl import beam_matrix
 
-IDEAL = Config(
-    missions=(MissionConfig(scenario=ScenarioConfig(speed=2.0, heading_deg=30.0, depth=20.0,
-                                                    duration=60.0), seed=5),),
-    seafloor=SeafloorConfig(kind="flat", depth=60.0),
-    dvl=DvlConfig(beam_angle_deg=30.0, max_range=90.0),
-    imu=ImuConfig(),
-)
+IDEAL = flat(mission(seed=5, speed=2.0, heading_deg=30.0, depth=20.0, duration=60.0),
+             dvl=DvlConfig(beam_angle_deg=30.0, max_range=90.0))
 
 
 def rotation(q: np.ndarray) -> np.ndarray:
@@ -64,7 +59,7 @@ def test_level_on_a_flat_floor_slant_range_is_altitude_over_cos_alpha():
 @pytest.fixture(scope="module")
 def ideal_file(tmp_path_factory):
     out = tmp_path_factory.mktemp("ideal") / "ideal.h5"
-    generate(IDEAL, out, workers=1, progress=False)
+    write(IDEAL, out)
     return out
 
 
@@ -114,7 +109,7 @@ def test_ideal_sensors_read_the_truth(ideal_file):
 def test_beams_beyond_max_range_are_invalid(tmp_path):
     deep = dataclasses.replace(IDEAL, seafloor=SeafloorConfig(kind="flat", depth=200.0))
     out = tmp_path / "deep.h5"
-    generate(deep, out, workers=1, progress=False)
+    write(deep, out)
     with dataset.open_dataset(out) as f:
         m = f.missions["mission_000"]
         assert not m.dvl.valid.any()
@@ -175,7 +170,7 @@ def test_long_run_beam_noise_has_the_configured_std(tmp_path):
         preset("paper-sim-text"),
         missions=(MissionConfig(scenario=ScenarioConfig(speed=2.0, duration=1500.0), seed=9),))
     out = tmp_path / "noise.h5"
-    generate(config, out, workers=1, progress=False)
+    write(config, out)
     with dataset.open_dataset(out) as f:
         m = f.missions["mission_000"]
         s, b = m.attrs["dvl_scale_factor"], m.attrs["dvl_bias"]

@@ -1,0 +1,51 @@
+"""Shared test setup: small configs on a flat floor, and datasets generated from them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from auvsim.config import (
+    Config,
+    DvlConfig,
+    ImuConfig,
+    MissionConfig,
+    ScenarioConfig,
+    SeafloorConfig,
+)
+from auvsim.generate import generate
+
+
+def mission(name: str = "mission_000", seed: int = 0, **scenario) -> MissionConfig:
+    """A mission flying ``ScenarioConfig(**scenario)`` (straight by default)."""
+    return MissionConfig(name=name, seed=seed, scenario=ScenarioConfig(**scenario))
+
+
+def flat(*missions: MissionConfig, dvl: DvlConfig | None = None, imu: ImuConfig | None = None,
+         depth: float = 60.0, **changes) -> Config:
+    """A config over a flat floor ``depth`` m deep, with ideal sensors unless given."""
+    return Config(missions=missions or (mission(),),
+                  seafloor=SeafloorConfig(kind="flat", depth=depth),
+                  dvl=DvlConfig() if dvl is None else dvl,
+                  imu=ImuConfig() if imu is None else imu, **changes)
+
+
+def write(config: Config, path: Path) -> Path:
+    """``config`` generated into ``path`` in this process, quietly."""
+    generate(config, path, workers=1, progress=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def dataset_of(tmp_path_factory):
+    """A factory: ``dataset_of(config, name)`` generates ``config`` once per module into a
+    file named ``name.h5`` and returns its path."""
+    made: dict[str, Path] = {}
+
+    def make(config: Config, name: str) -> Path:
+        if name not in made:
+            made[name] = write(config, tmp_path_factory.mktemp(name) / f"{name}.h5")
+        return made[name]
+
+    return make
