@@ -249,9 +249,10 @@ class Vehicle:
         return out
 
     def _check_stable(self) -> None:
-        bad = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
-        if bad.number:
-            said = _warnings[-1] if _warnings else "Nan, Inf or huge value in QACC"
+        w = mujoco.mjtWarning
+        if any(self.data.warning[k].number for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
+                                                     w.mjWARN_BADQACC)):
+            said = _warnings[-1] if _warnings else "Nan, Inf or huge value in the state"
             raise SimulationError(f"the simulation became unstable (MuJoCo: "
                                   f"{said.split('. ')[0]}); expected a vehicle, current and "
                                   "buoyancy it can fly with")

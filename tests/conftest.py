@@ -23,10 +23,10 @@ def mission(name: str = "mission_000", seed: int = 0, **scenario) -> MissionConf
 
 
 def flat(*missions: MissionConfig, dvl: DvlConfig | None = None, imu: ImuConfig | None = None,
-         depth: float = 60.0, **changes) -> Config:
-    """A config over a flat floor ``depth`` m deep, with ideal sensors unless given."""
+         floor: float = 60.0, **changes) -> Config:
+    """A config over a flat floor ``floor`` m deep, with ideal sensors unless given."""
     return Config(missions=missions or (mission(),),
-                  seafloor=SeafloorConfig(kind="flat", depth=depth),
+                  seafloor=SeafloorConfig(kind="flat", depth=floor),
                   dvl=DvlConfig() if dvl is None else dvl,
                   imu=ImuConfig() if imu is None else imu, **changes)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -14,11 +16,39 @@ from auvsim.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
 from beamsnet.data import load_windows
 
 
-def test_registered_and_passes_the_gymnasium_checker():
+def test_registered_and_passes_the_gymnasium_checker_without_a_warning():
     env = gym.make("auvsim/AUV-v0")
-    check_env(env.unwrapped, skip_render_check=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # infinite bounds, out-of-space observations, ...
+        check_env(env.unwrapped, skip_render_check=True)
+    space = env.unwrapped.observation_space
+    assert np.isfinite(space.low).all() and np.isfinite(space.high).all()
     assert env.unwrapped.dt == pytest.approx(0.1)
     env.close()
+
+
+def test_observations_stay_within_their_bounds_and_bad_actions_are_refused():
+    env = AuvEnv(max_episode_seconds=20.0)
+    obs, _ = env.reset(seed=3)
+    for _ in range(100):
+        obs, *_ = env.step(np.array([1.0, 1.0, -1.0]))
+        assert env.observation_space.contains(obs)
+    for bad in (np.array([np.nan, 0, 0]), np.zeros(2), np.zeros((3, 1))):
+        with pytest.raises(ValueError, match="action: expected 3 finite numbers"):
+            env.step(bad)
+
+
+def test_a_policys_random_waypoints_come_from_the_environments_np_random():
+    env = AuvEnv(max_episode_seconds=5.0)
+    policy = ManeuverPolicy(ScenarioConfig(name="random_waypoints", duration=600.0), env)
+
+    def waypoints(seed):
+        env.reset(seed=seed)
+        policy.reset()
+        return policy.maneuver.waypoints.copy()
+
+    np.testing.assert_array_equal(waypoints(11), waypoints(11))
+    assert not np.array_equal(waypoints(11), waypoints(12))
 
 
 def rollout(env, seed, steps=50):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 import sys
@@ -257,3 +258,54 @@ def test_scenario_validation_names_the_field(kwargs):
         ScenarioConfig(**kwargs)
     field = next(iter(kwargs))
     assert ("scenario" if field == "name" else field) in str(err.value)
+
+
+def test_an_unstable_mission_stops_the_run_naming_mission_and_time(tmp_path, monkeypatch):
+    from auvsim.errors import SimulationError
+    from auvsim.vehicle import Vehicle
+
+    calls = {"n": 0}
+
+    def unstable_on_the_second_block(self):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise SimulationError("the simulation became unstable (MuJoCo: test)")
+
+    monkeypatch.setattr(Vehicle, "_check_stable", unstable_on_the_second_block)
+    with pytest.raises(SimulationError, match=r"mission_000: between t = 60\.0 and 120\.0 s, "
+                                              r"the simulation became unstable"):
+        generate(straight(duration=180), tmp_path / "x.h5", progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_progress_comes_back_from_any_executor(tmp_path, monkeypatch):
+    """A thread pool stands in for a cluster's executor: jobs report through the part
+    folder, and the file is the one the built-in paths write."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    config = straight(duration=130)
+    config = dataclasses.replace(config, missions=(
+        config.missions[0], dataclasses.replace(config.missions[0], name="other", seed=4)))
+    updates = []
+
+    class Bar:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def update(self, n):
+            updates.append(n)
+
+    monkeypatch.setattr("auvsim.generate.tqdm", Bar)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        generate(config, tmp_path / "pool.h5", executor=pool, progress=False)
+    monkeypatch.undo()
+    generate(config, tmp_path / "threads.h5", workers=1, progress=False)
+    assert sum(updates) == 260
+    assert_same_contents(tmp_path / "pool.h5", tmp_path / "threads.h5")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pool.h5", "threads.h5"]

@@ -639,3 +639,29 @@ def test_specific_force_matches_mujoco_site_acceleration():
     np.testing.assert_allclose(acc[3:] * FLIP, traj.specific_force[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(acc[:3] * FLIP,
                                (data.qacc[3:] * FLIP), rtol=0, atol=1e-12)
+
+
+def test_an_unstable_simulation_stops_with_one_line_and_no_log_file(tmp_path, monkeypatch):
+    from auvsim.errors import SimulationError
+
+    monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
+    vehicle = Vehicle("auv")
+    vehicle.reset(position_ned=(0, 0, 20.0), velocity_body=(2.0, 0, 0))
+    vehicle.data.qvel[:] = 1e200  # a state no force model survives
+    with pytest.raises(SimulationError, match="unstable") as caught:
+        vehicle.run(np.tile([2.0, 0.0, 20.0], (50, 1)))
+    assert "\n" not in str(caught.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("references, closed", [
+    (np.zeros((50, 2)), (True, True, True)),
+    (np.zeros(3), (True, True, True)),
+    (np.full((5, 3), np.nan), (True, True, True)),
+    (np.zeros((5, 3)), (True, True)),
+])
+def test_run_refuses_references_the_compiled_loop_would_misread(references, closed):
+    vehicle = Vehicle("auv")
+    vehicle.reset(position_ned=(0, 0, 20.0), velocity_body=(2.0, 0, 0))
+    with pytest.raises(ValueError, match="references|closed_loop"):
+        vehicle.run(references, closed)

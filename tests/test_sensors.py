@@ -1,0 +1,86 @@
+"""The sensor plugins, the named random streams and the depth sensor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import flat, mission
+
+from auvsim import dataset
+from auvsim.config import Config, DepthConfig
+from auvsim.mission import MissionRun
+from auvsim.sensors import Sensor, registry, sample_rows
+from auvsim.streams import STREAMS, imported_streams, mission_streams
+
+
+def test_the_registry_finds_every_plugin_with_its_part_of_the_schema():
+    sensors = registry()
+    assert list(sensors) == ["depth", "dvl", "imu"]
+    for name, sensor in sensors.items():
+        assert issubclass(sensor, Sensor) and sensor.name == name
+        assert sensor.section in {f.name for f in Config.__dataclass_fields__.values()}
+        assert set(sensor.streams) <= set(STREAMS)
+        assert all(f.path.split("/")[0] in (name, "imu") for f in sensor.fields)
+    # The file's schema is the core plus every plugin's fields and attributes.
+    fields, attrs = dataset.schema("simulated")
+    paths = {f.path for f in fields}
+    assert {"depth/depth", "dvl/beam_velocity", "imu/specific_force", "truth/time"} <= paths
+    assert {"depth_bias", "dvl_scale_factor", "imu_gyro_turn_on_bias"} <= {a.name for a in attrs}
+    # Version-2 files have no depth group and still read.
+    assert "depth/depth" not in {f.path for f in dataset.schema("simulated", 2)[0]}
+
+
+def test_streams_keep_their_positions_as_the_layout_grows():
+    """Streams are spawned by position: the first six are those of every dataset made
+    before the depth sensor's were appended."""
+    streams = mission_streams(42)
+    before = np.random.default_rng(42).spawn(6)
+    for name, old in zip(STREAMS[:6], before, strict=True):
+        np.testing.assert_array_equal(streams[name].standard_normal(5), old.standard_normal(5))
+    assert len(set(STREAMS)) == len(STREAMS)
+    imported = imported_streams(3)
+    assert imported["dvl_parameters"] is imported["dvl_noise"]
+
+
+def test_samples_fall_on_global_multiples_wherever_a_block_starts():
+    rows = [np.arange(start, start + n)[sample_rows(start, n, 7)]
+            for start, n in ((0, 20), (20, 5), (25, 30))]
+    np.testing.assert_array_equal(np.concatenate(rows), np.arange(0, 55, 7))
+
+
+def depth_run(duration: float, **depth) -> tuple[MissionRun, dict]:
+    config = flat(mission(duration=duration, depth=20.0), depth=DepthConfig(**depth))
+    run = MissionRun(config, config.missions[0])
+    blocks = list(run.blocks())
+    return run, {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+
+
+def test_depth_sensor_noise_bias_and_resolution_have_their_statistics():
+    run, data = depth_run(600.0, rate_hz=20.0, noise_std=0.05, bias_std=0.3)
+    t, measured = data["depth/time"], data["depth/depth"]
+    np.testing.assert_allclose(np.diff(t), 0.05, atol=1e-12)  # 20 Hz from t = 0
+    true = data["truth/position_ned"][::5, 2]  # every 5th 100 Hz sample
+    error = measured - true
+    bias = run.attrs["depth_bias"]
+    assert bias != 0 and abs(bias) < 4 * 0.3
+    n = len(error)
+    assert abs(error.mean() - bias) < 4 * 0.05 / np.sqrt(n)
+    assert error.std() == pytest.approx(0.05, rel=4 / np.sqrt(2 * n))
+    # Quantised output is a whole number of steps, within half a step of the unrounded.
+    _, q = depth_run(60.0, rate_hz=10.0, noise_std=0.0, resolution=0.01)
+    steps = q["depth/depth"] / 0.01
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
+    assert np.abs(q["depth/depth"] - q["truth/position_ned"][::10, 2]).max() <= 0.005 + 1e-12
+
+
+def test_an_ideal_depth_sensor_reads_the_truth():
+    _, data = depth_run(30.0)
+    np.testing.assert_array_equal(data["depth/depth"], data["truth/position_ned"][::10, 2])
+
+
+def test_the_depth_sensor_does_not_change_the_other_sensors():
+    """Its own streams: the DVL and IMU read the same with any depth-sensor setting."""
+    _, a = depth_run(30.0)
+    _, b = depth_run(30.0, noise_std=1.0, bias_std=1.0, rate_hz=50.0)
+    for key in ("dvl/beam_velocity", "imu/specific_force", "truth/position_ned"):
+        np.testing.assert_array_equal(a[key], b[key])
