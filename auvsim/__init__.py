@@ -5,8 +5,9 @@ Conventions (a contract: the HDF5 files and every public function follow them):
 * World frame NED (x north, y east, z down); body frame FRD (x forward, y starboard,
   z down). Inside MuJoCo the world is north-west-up and the body forward-left-up; the two
   differ by a rotation of pi about x, so converting flips the sign of the y and z
-  components (of vectors, and of a quaternion's vector part). Only ``auvsim.vehicle``
-  touches MuJoCo coordinates.
+  components (of vectors, and of a quaternion's vector part). ``auvsim.frames`` holds
+  every conversion; only ``auvsim.vehicle``, ``auvsim.hydro`` (reading the model) and
+  ``auvsim.seafloor`` (ray casts) see MuJoCo coordinates.
 * Quaternions ``[w, x, y, z]`` rotate body vectors into NED. Euler angles are roll,
   pitch, yaw (ZYX).
 * SI units: m, s, rad, m/s, m/s^2, rad/s, N, N m. Degrees only in CLI and config inputs

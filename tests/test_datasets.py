@@ -1,4 +1,4 @@
-"""Full schema-v1 datasets: sensors in the generated files, presets, TOML configs, workers,
+"""Full datasets: sensors in the generated files, presets, TOML configs, workers,
 `auvsim inspect`, and bad input."""
 
 from __future__ import annotations
