@@ -320,6 +320,7 @@ class Mission:
         self.name = name
         self.origin = origin
         self._group = group
+        self._where = _where(dataset.path, name, origin)
         self.attrs = _plain(group.attrs)
         self.attrs.setdefault("origin", origin)
 
@@ -336,6 +337,10 @@ class Mission:
         """Whether the mission holds this group (an imported one has only ``dvl``)."""
         return isinstance(self._group.get(group), h5py.Group)
 
+    def groups(self) -> list[str]:
+        """The names of the mission's groups, in the file's order."""
+        return [k for k, v in self._group.items() if isinstance(v, h5py.Group)]
+
     def __getattr__(self, group: str) -> Group:
         if group.startswith("_") or not self.has(group):
             raise AttributeError(f"mission {self.name} has no group {group!r}")
@@ -343,24 +348,19 @@ class Mission:
 
     def read(self, path: str) -> np.ndarray:
         """One field, whole; a field that fails its checksum or cannot be decoded is
-        refused with ``DatasetError`` naming the file and the field."""
-        try:
-            return self._dataset(path)[()]
-        except OSError as e:
-            what = ("fails its checksum" if "checksum" in str(e).lower()
-                    or "fletcher" in str(e).lower() else "cannot be read")
-            raise DatasetError(f"{self.dataset.path}: mission {self.name} field {path} "
-                               f"{what} ({_reason(e)}): the file is corrupt") from None
+        refused with ``DatasetError`` naming the file, the mission and the field."""
+        return _read(self._where, path, self._dataset(path))
 
     def _dataset(self, path: str) -> h5py.Dataset:
         item = self._group.get(path)
         if not isinstance(item, h5py.Dataset):
-            raise DatasetError(f"{self.dataset.path}: mission {self.name} has no field {path}")
+            raise DatasetError(f"{self._where} has no field {path}")
         return item
 
     def _fields(self, group: str) -> list[str]:
         g = self._group.get(group)
-        return [k for k, v in g.items() if isinstance(v, h5py.Dataset)] if g else []
+        return [k for k, v in g.items() if isinstance(v, h5py.Dataset)] \
+            if isinstance(g, h5py.Group) else []
 
 
 class Dataset:
@@ -385,12 +385,11 @@ class Dataset:
         return str(self.attrs.get("config_json", ""))
 
     def verify(self) -> None:
-        """Read every field of every mission, so each checksum is verified."""
+        """Read every dataset of every mission (extra ones too), so each checksum is
+        verified; the first that fails is refused (``DatasetError``)."""
         for mission in self.missions.values():
-            for group in ("truth", "imu", "dvl", "control", *registry()):
-                if mission.has(group):
-                    for field in getattr(mission, group):
-                        mission.read(f"{group}/{field}")
+            for key in _dataset_paths(mission._group):
+                mission.read(key)
 
     def close(self) -> None:
         self._file.close()
@@ -405,7 +404,8 @@ class Dataset:
 def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     """Open an auvsim dataset for reading, after checking that it is one and that every
     mission has every field and attribute of its origin with the right shape and type,
-    fields of one clock of equal length, and indices in range.
+    fields of one clock of equal length (at least one row), sample times finite and
+    increasing, and indices in range.
 
     Args:
         path: the file.
@@ -414,15 +414,24 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
 
     Raises:
         DatasetError: the file is missing, not HDF5, not an auvsim dataset, of another
-            format version, or inconsistent; the message names the file and the field.
+            format version, inconsistent or corrupt; the message is one line naming the
+            file and, where there is one, the mission and the field.
     """
     path = Path(path)
-    if not path.is_file():
+    if path.is_dir():
+        raise DatasetError(f"{path}: is a directory; expected an auvsim dataset file")
+    if not path.exists():
         raise DatasetError(f"{path}: no such file")
+    if not path.is_file():
+        raise DatasetError(f"{path}: not a regular file; expected an auvsim dataset file")
+    try:
+        open(path, "rb").close()  # plain open: its OSError says what is wrong
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read it ({e.strerror or _reason(e)})") from None
     try:
         f = h5py.File(path, "r")
-    except OSError:
-        raise DatasetError(f"{path}: not an HDF5 file, or corrupt") from None
+    except OSError as e:
+        raise DatasetError(f"{path}: not an HDF5 file, or corrupt ({_reason(e)})") from None
     try:
         dataset = _checked(path, f)
         if verify:
@@ -430,32 +439,45 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     except DatasetError:
         f.close()
         raise
-    except (KeyError, OSError, ValueError, TypeError) as e:
+    except (KeyError, OSError, ValueError, TypeError, RuntimeError) as e:
         f.close()
         raise DatasetError(f"{path}: corrupt auvsim dataset ({_reason(e)})") from None
     return dataset
 
 
 def _checked(path: Path, f: h5py.File) -> Dataset:
-    fmt = f.attrs.get("format")
-    version = f.attrs.get("format_version")
-    if fmt != FORMAT:
-        raise DatasetError(f"{path}: not an auvsim dataset (format attribute is {fmt!r}, "
-                           f"expected {FORMAT!r})")
+    if "format" not in f.attrs:
+        raise DatasetError(f"{path}: not an auvsim dataset (no format attribute; expected "
+                           f"{FORMAT!r})")
+    fmt = f.attrs["format"]
+    if not (isinstance(fmt, str) and fmt == FORMAT):
+        raise DatasetError(f"{path}: not an auvsim dataset (format attribute is "
+                           f"{_show(fmt)}; expected {FORMAT!r})")
+    readable = ", ".join(map(str, READABLE_VERSIONS))
+    if "format_version" not in f.attrs:
+        raise DatasetError(f"{path}: auvsim dataset with no format_version attribute; this "
+                           f"auvsim reads versions {readable}")
+    version = f.attrs["format_version"]
     if not isinstance(version, (int, np.integer)) or version not in READABLE_VERSIONS:
-        raise DatasetError(f"{path}: auvsim dataset format_version {version}; this auvsim "
-                           f"reads versions {', '.join(map(str, READABLE_VERSIONS))}")
+        newer = (isinstance(version, (int, np.integer)) and version > FORMAT_VERSION)
+        raise DatasetError(f"{path}: auvsim dataset format_version {_show(version)}; this "
+                           f"auvsim reads versions {readable}"
+                           + (" (the file is from a newer auvsim)" if newer else ""))
+    version = int(version)
     if not isinstance(f.get("missions"), h5py.Group):
         raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
     dataset = Dataset(path, f)
     for name, group in f["missions"].items():
         if not isinstance(group, h5py.Group):
             raise DatasetError(f"{path}: missions/{name} is not a mission group")
-        origin = group.attrs.get("origin", "simulated" if version == 1 else None)
-        if origin not in ORIGINS:
-            raise DatasetError(f"{path}: mission {name} has origin {origin!r}; expected "
-                               f"one of {', '.join(ORIGINS)} (schema v{version})")
-        _check_mission(path, name, group, origin, int(version))
+        expected = f"expected one of {', '.join(ORIGINS)} (schema v{version})"
+        if "origin" not in group.attrs and version >= 2:
+            raise DatasetError(f"{path}: mission {name} has no origin attribute; {expected}")
+        origin = group.attrs.get("origin", "simulated")
+        if not (isinstance(origin, str) and origin in ORIGINS):
+            raise DatasetError(f"{path}: mission {name} has origin {_show(origin)}; "
+                               f"{expected}")
+        _check_mission(path, name, group, origin, version)
         dataset.missions[name] = Mission(dataset, name, group, origin)
     return dataset
 
@@ -463,40 +485,13 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
 def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
                    version: int) -> None:
     fields, attrs = schema(origin, version)
-    where = f"{path}: mission {name} ({origin})"
+    where = _where(path, name, origin)
     missing = [fl.path for fl in fields if not isinstance(group.get(fl.path), h5py.Dataset)]
     missing += [f"attribute {a.name}" for a in attrs
                 if a.name not in group.attrs and not (a.name == "origin" and version == 1)]
     if missing:
         raise DatasetError(f"{where} lacks {', '.join(missing)} (schema v{version})")
-    rows: dict[str, tuple[int, str]] = {}
-    for fl in fields:
-        ds = group[fl.path]
-        expected = ("N", *fl.shape)
-        if ds.ndim != 1 + len(fl.shape) or ds.shape[1:] != fl.shape:
-            raise DatasetError(f"{where}: field {fl.path} has shape {ds.shape}; expected "
-                               f"{_shape(expected)}")
-        if ds.dtype.kind != fl.kind and not (fl.kind == "i" and ds.dtype.kind == "u"):
-            raise DatasetError(f"{where}: field {fl.path} holds {ds.dtype}; expected "
-                               f"{_KINDS[fl.kind]} values")
-        n = ds.shape[0]
-        if fl.clock in rows and rows[fl.clock][0] != n:
-            other, first = rows[fl.clock][0], rows[fl.clock][1]
-            raise DatasetError(f"{where}: field {fl.path} has {n} rows but {first} has "
-                               f"{other}; expected fields of one clock to have equal rows")
-        rows.setdefault(fl.clock, (n, fl.path))
-    for n, first in rows.values():
-        if n == 0:
-            raise DatasetError(f"{where}: field {first} has no rows; expected at least one "
-                               "sample")
-    for fl in fields:
-        if fl.index_of is not None and fl.index_of in rows:
-            index = group[fl.path][()]
-            limit = rows[fl.index_of][0]
-            if len(index) and (index.min() < 0 or index.max() >= limit):
-                raise DatasetError(f"{where}: field {fl.path} holds indices from {index.min()} "
-                                   f"to {index.max()}; expected indices in [0, {limit})")
-    for a in attrs:
+    for a in attrs:  # attributes first: they are small, and say what the fields mean
         if a.name not in group.attrs:
             continue
         value = group.attrs[a.name]
@@ -510,12 +505,125 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
             expected = ("a finite number" if a.shape == () else
                         f"{a.shape[0]} finite numbers")
         if not ok:
-            raise DatasetError(f"{where}: attribute {a.name} is {value!r}; expected "
+            raise DatasetError(f"{where}: attribute {a.name} is {_show(value)}; expected "
                                f"{expected}")
+    rows: dict[str, tuple[int, str]] = {}
+    for fl in fields:
+        ds = group[fl.path]
+        expected = ("N", *fl.shape)
+        if ds.ndim != 1 + len(fl.shape) or ds.shape[1:] != fl.shape:
+            raise DatasetError(f"{where}: field {fl.path} has shape {_shape(ds.shape)}; "
+                               f"expected {_shape(expected)}")
+        if ds.dtype.kind != fl.kind and not (fl.kind == "i" and ds.dtype.kind == "u"):
+            raise DatasetError(f"{where}: field {fl.path} holds {_dtype(ds.dtype)}; "
+                               f"expected {_KINDS[fl.kind]} values")
+        n = ds.shape[0]
+        if fl.clock in rows and rows[fl.clock][0] != n:
+            other, first = rows[fl.clock][0], rows[fl.clock][1]
+            raise DatasetError(f"{where}: field {fl.path} has {n} rows but {first} has "
+                               f"{other}; expected fields of one clock to have equal rows")
+        rows.setdefault(fl.clock, (n, fl.path))
+    for n, first in rows.values():
+        if n == 0:
+            raise DatasetError(f"{where}: field {first} has no rows; expected at least one "
+                               "sample")
+    times: dict[str, tuple[np.ndarray, str]] = {}  # clock -> its sample times, their field
+    for fl in fields:
+        if fl.path.rsplit("/", 1)[-1] == "time" and fl.clock not in times:
+            t = _read(where, fl.path, group[fl.path])
+            _check_times(where, fl.path, t)
+            times[fl.clock] = t, fl.path
+    for fl in fields:
+        if fl.index_of is None or fl.index_of not in rows:
+            continue
+        index = _read(where, fl.path, group[fl.path])
+        limit, target = rows[fl.index_of]
+        if index.min() < 0 or index.max() >= limit:
+            raise DatasetError(f"{where}: field {fl.path} holds indices from {index.min()} "
+                               f"to {index.max()}; expected indices in [0, {limit}) (the "
+                               f"rows of {target})")
+        if fl.clock in times and fl.index_of in times:
+            # Each index is the sample of the other clock at this row's time (a ping's
+            # IMU sample): an index in range but off by some rows would cut the wrong data.
+            (own, own_path), (other, other_path) = times[fl.clock], times[fl.index_of]
+            step = float(np.diff(other).min()) if len(other) > 1 else np.inf
+            bad = np.flatnonzero(np.abs(other[index] - own) > step / 2)
+            if len(bad):
+                k = bad[0]
+                raise DatasetError(
+                    f"{where}: field {fl.path} row {k} is {index[k]}, the sample of "
+                    f"{other_path} at {other[index[k]]:.9g} s, but {own_path} is "
+                    f"{own[k]:.9g} s there; expected the index of the sample at that time")
+
+
+def _check_times(where: str, path: str, t: np.ndarray) -> None:
+    """Sample times must be finite and strictly increasing (every reader indexes by them,
+    and a plot's axes cannot hold NaN)."""
+    bad = np.flatnonzero(~np.isfinite(t))
+    if len(bad):
+        raise DatasetError(f"{where}: field {path} holds {t[bad[0]]} at row {bad[0]}; "
+                           "expected finite sample times")
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if len(back):
+        k = back[0]
+        raise DatasetError(f"{where}: field {path} goes from {t[k]:.9g} s to {t[k + 1]:.9g} "
+                           f"s at row {k + 1}; expected increasing sample times")
+
+
+def _read(where: str, path: str, ds: h5py.Dataset) -> np.ndarray:
+    """A dataset whole; one that fails its checksum or cannot be decoded is refused with a
+    ``DatasetError`` naming the field, not read as data."""
+    try:
+        return ds[()]
+    except OSError as e:
+        text = str(e).lower()
+        # HDF5 says only "filter returned failure": with Fletcher-32 on, that filter runs
+        # first when reading, so a changed byte fails it before decompression is tried.
+        checksum = (ds.fletcher32 and "filter" in text) or "checksum" in text
+        what = "fails its checksum" if checksum else "cannot be read"
+        raise DatasetError(f"{where}: field {path} {what} (HDF5: {_reason(e)}); the file "
+                           "is corrupt") from None
+
+
+def _dataset_paths(group: h5py.Group) -> list[str]:
+    """The paths of every dataset under ``group``, at any depth, in the file's order."""
+    paths: list[str] = []
+
+    def visit(key: str, item: object) -> None:
+        if isinstance(item, h5py.Dataset):
+            paths.append(key)
+
+    group.visititems(visit)
+    return paths
+
+
+def _where(path: Path, name: str, origin: str) -> str:
+    return f"{path}: mission {name} ({origin})"
 
 
 def _shape(shape: tuple) -> str:
     return "(" + ", ".join(map(str, shape)) + ("," if len(shape) == 1 else "") + ")"
+
+
+def _dtype(dtype: np.dtype) -> str:
+    if dtype.kind in "SUO":
+        return f"strings ({dtype})"
+    return str(dtype) if dtype.names is None else "a compound type"
+
+
+def _show(value: object, limit: int = 80) -> str:
+    """A value from a file as one short line: strings quoted, numbers and arrays as numpy
+    prints them (numpy scalars without their type), long ones cut."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, np.ndarray):
+        text = np.array2string(value, threshold=8, edgeitems=3, max_line_width=10**6)
+        if value.ndim > 1 or value.size > 8:
+            text += f" (shape {_shape(value.shape)})"
+    else:
+        text = repr(value)
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _reason(e: BaseException) -> str:
@@ -580,6 +688,6 @@ def describe(path: str | os.PathLike) -> str:
         first = next(iter(f.missions.values()), None)
         if first is not None:
             lines.append("  fields of each mission:")
-            for group in sorted(first._group):
-                lines.append(f"    {group}: " + ", ".join(sorted(getattr(first, group))))
+            for group in sorted(first.groups()):
+                lines.append(f"    {group}: " + ", ".join(sorted(Group(first, group))))
         return "\n".join(lines)

@@ -7,20 +7,25 @@ lock. An imported mission (a recorded DVL stream, no trajectory) gets the last t
 
 from __future__ import annotations
 
+import io
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .dataset import open_dataset
-from .errors import ConfigError
-from .files import save_figure
+from .dataset import Mission, open_dataset
+from .errors import ConfigError, DatasetError
+from .files import temporary
 from .frames import euler_angles
 
 
 def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
          out: str | os.PathLike | None = None) -> list[Path]:
     """Draw each (or each named) mission of a dataset.
+
+    Only checked data is drawn: the file is opened with every checksum verified, and
+    nothing is written (not even the ``out`` directory) until every figure is drawn.
 
     Args:
         path: an auvsim dataset.
@@ -30,35 +35,75 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
 
     Returns:
         The paths written.
+
+    Raises:
+        DatasetError: the file is not a readable, consistent auvsim dataset, has no
+            missions, or a mission's values cannot be drawn.
+        ConfigError: a mission name is not in the file; ``out`` is not a directory.
     """
     path = Path(path)
     out = path.parent if out is None else Path(out)
-    written = []
-    with open_dataset(path) as f:
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{str(out)!r}: not a directory; expected a directory for the "
+                          "PNGs", argument="out")
+    with open_dataset(path, verify=True) as f:
         group = f.missions
         names = list(group) if missions is None else list(missions)
         unknown = [n for n in names if n not in group]
         if unknown:
             raise ConfigError(f"{', '.join(unknown)}: not in {path}; it has "
-                              f"{', '.join(group)}", argument="missions")
+                              f"{', '.join(group) or 'no missions'}", argument="missions")
+        if not names:
+            raise DatasetError(f"{path}: no missions to draw")
+        pngs = {out / f"{path.stem}_{name}.png": _render(group[name], path)
+                for name in names}
+    try:
         out.mkdir(parents=True, exist_ok=True)
-        for name in names:
-            target = out / f"{path.stem}_{name}.png"
-            _draw(group[name], f"{path.name}: {name}", target)
-            written.append(target)
-    return written
+    except OSError as e:
+        raise ConfigError(f"{str(out)!r}: cannot make it ({e.strerror or e}); expected a "
+                          "writable directory", argument="out") from None
+    for target, png in pngs.items():
+        tmp = temporary(target, suffix=target.suffix)
+        try:
+            tmp.write_bytes(png)
+            tmp.replace(target)
+        finally:
+            tmp.unlink(missing_ok=True)
+    return list(pngs)
 
 
-def _draw(m, title: str, target: Path) -> None:
+def _render(m: Mission, path: Path) -> bytes:
+    """One mission's figure as PNG bytes; values matplotlib cannot draw (limits beyond
+    float range) are refused with a ``DatasetError`` naming the mission."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    simulated = m.has("truth")
-    rows = 3 if simulated else 1
+    rows = 3 if m.has("truth") else 1
     fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False,
                              layout="constrained")
+    buffer = io.BytesIO()
+    try:
+        # NaN and huge values are valid data (no bottom lock, a diverged filter): numpy's
+        # and matplotlib's warnings about them would only clutter the command's output.
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            _draw(m, axes)
+            fig.suptitle(f"{path.name}: {m.name}")
+            fig.savefig(buffer, format="png", dpi=100)
+    except (ValueError, OverflowError, FloatingPointError) as e:
+        reason = " ".join(str(e).split()) or type(e).__name__
+        raise DatasetError(f"{path}: mission {m.name} ({m.origin}): cannot be drawn "
+                           f"({reason})") from None
+    finally:
+        plt.close(fig)
+    return buffer.getvalue()
+
+
+def _draw(m: Mission, axes: np.ndarray) -> None:
+    """Draw one mission on a (3, 2) grid of axes (simulated) or a (1, 2) one (imported)."""
+    simulated = m.has("truth")
     t_dvl = m.dvl.time
     if simulated:
         truth = m.truth
@@ -127,6 +172,3 @@ def _draw(m, title: str, target: Path) -> None:
     ax.set_ylabel("beam")
     ax.set_xlabel("time, s")
     ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
-
-    fig.suptitle(title)
-    save_figure(fig, target, dpi=100)
