@@ -337,10 +337,6 @@ class Mission:
         """Whether the mission holds this group (an imported one has only ``dvl``)."""
         return isinstance(self._group.get(group), h5py.Group)
 
-    def groups(self) -> list[str]:
-        """The names of the mission's groups, in the file's order."""
-        return [k for k, v in self._group.items() if isinstance(v, h5py.Group)]
-
     def __getattr__(self, group: str) -> Group:
         if group.startswith("_") or not self.has(group):
             raise AttributeError(f"mission {self.name} has no group {group!r}")
@@ -688,6 +684,6 @@ def describe(path: str | os.PathLike) -> str:
         first = next(iter(f.missions.values()), None)
         if first is not None:
             lines.append("  fields of each mission:")
-            for group in sorted(first.groups()):
+            for group in first.groups:
                 lines.append(f"    {group}: " + ", ".join(sorted(Group(first, group))))
         return "\n".join(lines)

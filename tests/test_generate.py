@@ -247,7 +247,7 @@ def test_version_1_files_still_read_as_simulated(demo_file, tmp_path):
         assert len(f.missions) == 1
     with h5py.File(old, "r+") as f:  # the same file claiming v2 lacks the attribute
         f.attrs["format_version"] = 2
-    with pytest.raises(DatasetError, match="origin None"):
+    with pytest.raises(DatasetError, match="has no origin attribute"):
         dataset.open_dataset(old)
 
 
