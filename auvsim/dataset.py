@@ -60,8 +60,8 @@ CORE_FIELDS = (
 CORE_ATTRS = (
     Attr("origin", None, "simulated or imported", imported=True),
     Attr("scenario", None, "the manoeuvre's name", imported=True),
-    Attr("seed", (), "the mission's seed", imported=True),
-    Attr("duration_s", (), "s", imported=True),
+    Attr("seed", (), "the mission's seed", imported=True, low=0, whole=True),
+    Attr("duration_s", (), "s", imported=True, low=0, strict=True),
     Attr("vehicle", None, "vehicle name or model path"),
 )
 IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
@@ -500,6 +500,11 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
                   and bool(np.isfinite(array).all()))
             expected = ("a finite number" if a.shape == () else
                         f"{a.shape[0]} finite numbers")
+            if ok and a.whole:
+                ok, expected = array.dtype.kind in "iu", "a whole number"
+            if ok and a.low is not None:
+                ok = bool((array > a.low).all() if a.strict else (array >= a.low).all())
+                expected = f"{'a number above' if a.strict else 'a number of at least'} {a.low:g}"
         if not ok:
             raise DatasetError(f"{where}: attribute {a.name} is {_show(value)}; expected "
                                f"{expected}")

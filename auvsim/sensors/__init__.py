@@ -54,12 +54,16 @@ class Field:
 
 class Attr(NamedTuple):
     """One mission attribute of the schema: ``shape`` ``()`` for a number, ``(n,)`` for a
-    vector of n numbers, ``None`` for a string."""
+    vector of n numbers, ``None`` for a string; ``low`` the least value it may take (and
+    ``strict`` whether it must exceed it), ``whole`` for a whole number."""
 
     name: str
     shape: tuple[int, ...] | None
     doc: str
     imported: bool = False
+    low: float | None = None
+    strict: bool = False
+    whole: bool = False
 
 
 class Platform(NamedTuple):

@@ -32,7 +32,7 @@ class PressureDepth(Sensor):
         Field("depth/depth", (), "f", "depth", "m", "measured depth of the body origin"),
     )
     attributes = (
-        Attr("depth_rate_hz", (), "Hz"),
+        Attr("depth_rate_hz", (), "Hz", low=0, strict=True),
         Attr("depth_bias", (), "REALISED offset, m"),
         Attr("depth_noise_std", (), "m"),
         Attr("depth_resolution", (), "m (0: not quantised)"),

@@ -207,13 +207,14 @@ class Dvl(Sensor):
               index_of="imu"),
     )
     attributes = (
-        Attr("dvl_rate_hz", (), "ping rate, Hz", imported=True),
-        Attr("beam_angle_deg", (), "beam angle from the DVL's z axis, deg", imported=True),
+        Attr("dvl_rate_hz", (), "ping rate, Hz", imported=True, low=0, strict=True),
+        Attr("beam_angle_deg", (), "beam angle from the DVL's z axis, deg", imported=True,
+             low=0, strict=True),
         Attr("dvl_scale_factor", (4,), "REALISED scale factor s_k", imported=True),
         Attr("dvl_bias", (4,), "REALISED bias, m/s", imported=True),
-        Attr("dvl_noise_std", (), "beam noise std, m/s", imported=True),
-        Attr("dvl_min_range", (), "m"),
-        Attr("dvl_max_range", (), "m"),
+        Attr("dvl_noise_std", (), "beam noise std, m/s", imported=True, low=0),
+        Attr("dvl_min_range", (), "m", low=0),
+        Attr("dvl_max_range", (), "m", low=0, strict=True),
         Attr("dvl_mounting_rpy_deg", (3,), "DVL frame -> body, ZYX, deg"),
         Attr("dvl_position_body", (3,), "m, FRD"),
     )

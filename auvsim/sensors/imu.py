@@ -268,7 +268,7 @@ class Imu(Sensor):
         Field("imu/angular_rate", (3,), "f", "imu", "rad/s", "measured, body"),
     )
     attributes = (
-        Attr("imu_rate_hz", (), "Hz"),
+        Attr("imu_rate_hz", (), "Hz", low=0, strict=True),
         Attr("imu_position_body", (3,), "m, FRD"),
         Attr("imu_accel_turn_on_bias", (3,), "REALISED, m/s^2"),
         Attr("imu_gyro_turn_on_bias", (3,), "REALISED, rad/s"),
