@@ -162,9 +162,6 @@ def main(argv: list[str] | None = None) -> int:
     except AuvsimError as e:
         print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
         return 2
-    except (ValueError, FileNotFoundError) as e:
-        print(f"beamsnet: error: {e}", file=sys.stderr)
-        return 2
     return 0
 
 

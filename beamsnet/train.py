@@ -42,10 +42,11 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from auvsim.errors import ConfigError
 from auvsim.files import save_figure, write_text
 
 from .data import DataError, Windows, load_windows, split
-from .models import build
+from .models import MODELS, build
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,9 @@ class TrainConfig:
         shared_imu_conv: V1 with one conv for both IMU windows, as the published code.
         seed: seeds the weights and the batch order.
         missions: names of the missions to use (default: all).
+
+    Raises:
+        ConfigError: a field is out of range, with ``argument`` the field's name.
     """
 
     model: str = "v2"
@@ -82,18 +86,39 @@ class TrainConfig:
     missions: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        if self.model not in ("v1", "v2"):
-            raise ValueError(f"model: expected v1 or v2, got {self.model!r}")
+        def check(ok: bool, name: str, expected: str) -> None:
+            if not ok:
+                raise ConfigError(f": expected {expected}, got {getattr(self, name)!r}",
+                                  argument=name)
+
+        check(self.model in MODELS, "model", " or ".join(MODELS))
         for name in ("epochs", "batch_size", "n_past", "lr_step"):
-            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
-                raise ValueError(f"{name}: expected a whole number >= 1, got "
-                                 f"{getattr(self, name)!r}")
-        if not (isinstance(self.average_epochs, int)
-                and 0 <= self.average_epochs <= self.epochs):
-            raise ValueError(f"average_epochs: expected a whole number from 0 to epochs "
-                             f"({self.epochs}), got {self.average_epochs!r}")
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise ValueError(f"lr: expected a positive learning rate, got {self.lr!r}")
+            check(_whole(getattr(self, name), 1), name, "a whole number >= 1")
+        check(_whole(self.average_epochs, 0) and self.average_epochs <= self.epochs,
+              "average_epochs", f"a whole number from 0 to epochs ({self.epochs})")
+        check(_real(self.lr) and self.lr > 0, "lr", "a positive learning rate")
+        check(_real(self.lr_gamma) and self.lr_gamma > 0, "lr_gamma", "a positive factor")
+        check(_real(self.train_fraction) and 0 < self.train_fraction < 1, "train_fraction",
+              "a fraction in (0, 1)")
+        check(_real(self.dropout) and 0 <= self.dropout < 1, "dropout",
+              "a probability in [0, 1)")
+        check(isinstance(self.shared_imu_conv, bool), "shared_imu_conv", "True or False")
+        check(_whole(self.seed, 0), "seed", "a whole number >= 0")
+        if self.missions is not None:
+            check(isinstance(self.missions, (list, tuple)) and len(self.missions) > 0
+                  and all(isinstance(m, str) for m in self.missions), "missions",
+                  "a sequence of mission names (or None: all)")
+            # A list and a tuple of the same names are one config (``trained`` compares).
+            object.__setattr__(self, "missions", tuple(self.missions))
+
+
+def _whole(value: object, least: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= least
+
+
+def _real(value: object) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
 
 
 def model_kwargs(config: TrainConfig, windows: Windows) -> dict:
@@ -108,7 +133,8 @@ def model_inputs(name: str, windows: Windows) -> list[torch.Tensor]:
     beams = torch.as_tensor(windows.beams, dtype=torch.float32)
     if name == "v1":
         if windows.accel is None:
-            raise ValueError("the dataset has no IMU data: BeamsNetV1 needs it (use v2)")
+            raise ConfigError("v2 is needed: the windows have no IMU data, which "
+                              "BeamsNetV1 takes", argument="model")
         # (S, W, 3) -> (S, 3, W): the axes are the conv's channels, time runs along W.
         accel = torch.as_tensor(windows.accel, dtype=torch.float32).transpose(1, 2)
         gyro = torch.as_tensor(windows.gyro, dtype=torch.float32).transpose(1, 2)
@@ -131,6 +157,8 @@ def _mse(model: torch.nn.Module, x: list[torch.Tensor], y: torch.Tensor) -> floa
     return torch.nn.functional.mse_loss(model(*x), y).item() if len(y) else math.nan
 
 
+
+
 def file_identity(path: str | Path) -> dict:
     """Path, SHA-256 and generating config of a dataset file."""
     from auvsim.dataset import open_dataset
@@ -150,12 +178,20 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
 
     Returns:
         A summary: the per-epoch losses and where the checkpoint and the plot went.
+
+    Raises:
+        ConfigError: BeamsNetV1 on a file without IMU data.
+        DataError: the dataset cannot give the samples.
     """
     windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
     if config.model == "v1" and windows.accel is None:
-        raise DataError(f"{dataset}: no IMU data (an imported DVL stream has none); "
-                        "BeamsNetV1 needs the IMU samples between pings: use --model v2")
-    train_w, test_w = split(windows, config.train_fraction)
+        raise ConfigError(f"v2 is needed: {dataset} has no IMU data (an imported DVL stream "
+                          "has none), and BeamsNetV1 takes the IMU samples between pings",
+                          argument="model")
+    try:
+        train_w, test_w = split(windows, config.train_fraction)
+    except ValueError as e:
+        raise DataError(f"{dataset}: {e}") from None
     # RMSprop's running mean of squared gradients decays geometrically for units whose
     # gradient is zero (dead ReLUs) and reaches float32's subnormal range within a few
     # thousand steps, where x86 arithmetic is tens of times slower: flush them to zero.
@@ -275,12 +311,16 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
 
     Returns:
         ``{"kept": run, "losses": {run: loss}}``.
+
+    Raises:
+        ConfigError: every run diverged (its training loss is not finite).
     """
     losses = {str(r): load(r)[1]["final_train_loss"] for r in runs}
     finite = {r: loss for r, loss in losses.items() if math.isfinite(loss)}
     if not finite:
-        raise ValueError(f"every run diverged (training loss not finite): {', '.join(losses)}; "
-                         "expected at least one to train (try a smaller --lr)")
+        raise ConfigError(f": every run diverged (training loss not finite): "
+                          f"{', '.join(losses)}; expected at least one to train, with a "
+                          "smaller learning rate", argument="lr")
     kept = Path(min(finite, key=finite.get))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -294,8 +334,10 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
 
 
 def check_restarts(restarts: int) -> None:
-    if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 1:
-        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
+    """Raises ConfigError unless ``restarts`` is a whole number >= 1."""
+    if not _whole(restarts, 1):
+        raise ConfigError(f": expected a whole number >= 1, got {restarts!r}",
+                          argument="restarts")
 
 
 def seed_runs(config: TrainConfig, out: str | Path,

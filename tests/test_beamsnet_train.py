@@ -16,11 +16,19 @@ from auvsim.config import (
     ScenarioConfig,
     SeafloorConfig,
 )
+from auvsim.errors import ConfigError
 from auvsim.generate import generate
 from beamsnet.cli import main
 from beamsnet.data import load_windows, split
 from beamsnet.evaluate import estimates, table
-from beamsnet.train import TrainConfig, load, predict, train, train_all, train_best
+from beamsnet.train import (
+    TrainConfig,
+    load,
+    predict,
+    train,
+    train_all,
+    train_best,
+)
 
 
 def tiny(path, *, scale=0.05, noise=0.0, duration=400.0):
@@ -120,8 +128,9 @@ def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, 
     mse = np.mean((predict(model, "v2", train_w) - train_w.target) ** 2)
     assert checkpoint["final_train_loss"] == pytest.approx(mse, rel=1e-4)
     assert checkpoint["final_train_loss"] != last["final_train_loss"]
-    with pytest.raises(ValueError, match="average_epochs"):
+    with pytest.raises(ConfigError, match="average_epochs") as refused:
         TrainConfig(epochs=3, average_epochs=4)
+    assert refused.value.argument == "average_epochs"
 
 
 def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path):
@@ -162,7 +171,8 @@ def test_cli_train_and_evaluate(scale_only, tmp_path, capsys):
     (["train", "{data}", "--out", "{tmp}/r", "--restarts", "0"], "restarts"),
     # Checked before any data is generated:
     (["stress", "--restarts", "0", "--out", "{tmp}/s"], "restarts"),
-    (["reproduce", "paper-sim", "--epochs", "2", "--average-epochs", "3"], "average_epochs"),
+    (["reproduce", "paper-sim", "--epochs", "2", "--average-epochs", "3"],
+     "--average-epochs: expected a whole number from 0 to epochs (2), got 3"),
 ])
 def test_bad_input_gives_one_line_and_exit_2(scale_only, tmp_path, capsys, args, message):
     args = [a.format(data=scale_only, tmp=tmp_path) for a in args]
@@ -190,3 +200,21 @@ def test_reproduce_paper_sim_end_to_end_small(tmp_path, monkeypatch):
     assert "| 2 m/s | V1 |" in report and "seed_1" in report  # every seed's result
     assert (tmp_path / "runs" / "paper-sim" / "speed_2" / "v1" / "restarts.json").exists()
     assert (tmp_path / "reports" / "paper-sim.png").exists()
+
+
+@pytest.mark.parametrize("field,value", [
+    ("model", "v3"), ("epochs", 0), ("epochs", True), ("lr", -0.1), ("lr", float("nan")),
+    ("lr_gamma", 0.0), ("batch_size", 2.5), ("train_fraction", 1.0), ("dropout", 1.0),
+    ("shared_imu_conv", 1), ("seed", -1), ("missions", "a"), ("missions", ()), ("missions", 5),
+])
+def test_train_config_errors_name_the_field(field, value):
+    with pytest.raises(ConfigError) as refused:
+        TrainConfig(**{field: value})
+    assert refused.value.argument == field
+    assert str(refused.value).startswith(f"{field}: expected ")
+    assert "--" not in str(refused.value)  # a library message names no flag
+
+
+def test_train_config_keeps_one_spelling_of_the_missions():
+    assert TrainConfig(missions=["a", "b"]).missions == ("a", "b")
+    assert TrainConfig(missions=["a"]) == TrainConfig(missions=("a",))
