@@ -1,18 +1,21 @@
 """``beamsnet reproduce``: the paper's two experiments end to end.
 
 * ``paper-sim`` (and ``paper-sim-text``): generate (or read) the paper's simulated
-  dataset, train BeamsNetV1 and V2 on each speed's mission as the paper did (lr 0.01,
-  30 epochs, batch 4), evaluate every estimator on each mission's test split, and write a
-  report with the paper's Table 1 beside ours.
+  dataset, train BeamsNetV1 and V2 on each speed's mission as the paper did (the
+  ``paper-sim`` training profile: the paper's settings, several seeds, averaged weights),
+  evaluate every estimator on each mission's test split, and write a report with the
+  paper's Table 1 beside ours.
 * ``snapir``: import the Snapir AUV's recorded DVL velocities (the paper's sea data),
   synthesise the beams with the paper's error model, train BeamsNetV2 on the first 75 %
-  of the training stream (lr 0.001, 50 epochs), and report the validation split (its last
-  25 %) and the separate test mission beside the paper's Table 3. V1 needs the IMU record,
-  which was not published, so it is skipped.
+  of the training stream (the ``snapir`` profile: the paper's sea-data learning rate and
+  epochs), and report the validation split (its last 25 %) and the separate test mission
+  beside the paper's Table 3. V1 needs the IMU record, which was not published, so it is
+  skipped.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -22,6 +25,7 @@ from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
 from .train import (
+    PROFILES,
     TrainConfig,
     check_restarts,
     file_identity,
@@ -46,20 +50,36 @@ SNAPIR_FILES = ("V.npy", "V_test.npy")  # training + validation stream, test mis
 DEFAULT_SNAPIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir"
 
 
-def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: int,
-              out: Path, lr: float = 0.01, restarts: int = 3, average_epochs: int = 5,
+def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
+              training: TrainConfig | None = None, restarts: int | None = None,
               workers: int | None = None, runs: Path = Path("runs"),
               progress: bool = True) -> Path:
     """Run the experiment; the report goes to ``out``, the trained models to ``runs``.
 
-    Each model is trained from ``restarts`` seeds and the one that fits its training split
-    best is kept (``beamsnet.train.keep_best``); the report lists every seed's result.
+    Args:
+        experiment: ``paper-sim`` or ``paper-sim-text`` (the preset, and the report's name).
+        data: the dataset to use (default: the preset with ``duration`` s per speed, made
+            under ``datasets/`` if missing).
+        duration: s per speed of the generated dataset.
+        out: the report's directory.
+        training: the training settings, model and missions set per run (default: the
+            experiment's profile, ``beamsnet.train.PROFILES``).
+        restarts: seeds per model, the best on its training split kept (default: the
+            profile's); the report lists every seed's result.
+        workers: training processes.
+        runs: where the models go (``runs/<experiment>/<mission>/v1|v2``).
+        progress: progress bars.
+
+    Returns:
+        The report's path.
     """
     from auvsim.generate import generate
     from auvsim.presets import preset
 
-    # Every training setting is checked before minutes go into generating the data.
-    TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
+    profile = PROFILES[experiment]
+    training = profile.config if training is None else training
+    restarts = profile.restarts if restarts is None else restarts
+    # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     config = preset(experiment).with_duration(duration)
     if data is None:
@@ -71,9 +91,8 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
     seeds_of, jobs = {}, []  # (mission, model) -> the seed runs; what is left to train
     for mission in config.missions:
         for model in ("v1", "v2"):
-            pairs = seed_runs(TrainConfig(model=model, epochs=epochs, lr=lr,
-                                          average_epochs=average_epochs,
-                                          missions=(mission.name,)),
+            pairs = seed_runs(dataclasses.replace(training, model=model,
+                                                  missions=(mission.name,)),
                               runs / mission.name / model, restarts)
             seeds_of[mission.name, model] = [r for _, r in pairs]
             jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
@@ -104,17 +123,20 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: in
         summary.append((speed, by_model))
     report = out / f"{experiment}.md"
     out.mkdir(parents=True, exist_ok=True)
-    write_text(report, _report(experiment, data, duration, epochs, lr, restarts,
-                              average_epochs, summary, sections))
+    write_text(report, _report(experiment, data, duration, training, restarts, summary,
+                               sections))
     _figure(summary, out / f"{experiment}.png")
     return report
 
 
-def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
-           average_epochs: int = 5, runs: Path = Path("runs"),
-           progress: bool = True) -> Path:
+def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
+           runs: Path = Path("runs"), progress: bool = True) -> Path:
     """The paper's sea experiment on the Snapir streams in ``data``; the report goes to
-    ``out``, the model to ``runs``."""
+    ``out``, the model to ``runs`` (``runs/snapir/v2``).
+
+    ``training`` defaults to the ``snapir`` profile (``beamsnet.train.PROFILES``); the
+    model is BeamsNetV2 on the ``train`` mission.
+    """
     import hashlib
 
     from auvsim.dataset import open_dataset
@@ -122,6 +144,7 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
     from auvsim.importer import import_velocity
     from auvsim.presets import preset
 
+    training = PROFILES["snapir"].config if training is None else training
     sources = [data / name for name in SNAPIR_FILES]
     missing = [str(p) for p in sources if not p.is_file()]
     if missing:
@@ -138,8 +161,7 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
         print("beamsnet reproduce snapir: BeamsNetV1 skipped: it needs the IMU samples "
               "between pings, and the Snapir streams have none")
     run = runs / "snapir" / "v2"
-    config = TrainConfig(model="v2", epochs=epochs, lr=lr, average_epochs=average_epochs,
-                         missions=("train",))
+    config = dataclasses.replace(training, model="v2", missions=("train",))
     if not trained(run, config, file_identity(dataset)["sha256"]):
         train(dataset, config, run, progress=progress)
     models = [(run, *load(run))]
@@ -170,16 +192,18 @@ def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:
     return found == digests
 
 
-def _report(experiment, data, duration, epochs, lr, restarts, average_epochs, summary,
+def _report(experiment, data, duration, training: TrainConfig, restarts, summary,
             sections) -> str:
     lines = [
         f"# {experiment}: the BeamsNet paper's simulation, reproduced",
         "",
         f"Made by `beamsnet reproduce {experiment}` (dataset `{data}`, {duration:g} s per "
-        f"speed; RMSprop, batch 4, lr {lr:g} decaying x0.1 every 15 epochs, {epochs} epochs, "
-        f"as the paper; {_averaging(average_epochs)}; each model trained from {restarts} "
-        "seeds, the one that fits its training split best kept). RMSE improvement over "
-        "least squares on the speed, %, on each mission's test split (last 25 %); "
+        f"speed; RMSprop, batch {training.batch_size}, lr {training.lr:g} decaying "
+        f"x{training.lr_gamma:g} every {training.lr_step} epochs, {training.epochs} epochs, "
+        f"as the paper; {_averaging(training.average_epochs)}; each model trained from "
+        f"{restarts} seeds, the one that fits its training split best kept). RMSE "
+        "improvement over least squares on the speed, %, on each mission's test split "
+        "(last 25 %); "
         "\"within 5\" says whether ours is at most 5 percentage points below the paper's "
         "Table 1:",
         "",

@@ -21,6 +21,7 @@ IMU interval valid (``beamsnet.data``). The whole manoeuvre file is test data.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -33,6 +34,7 @@ from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
 from .train import (
+    PROFILES,
     TrainConfig,
     check_restarts,
     file_identity,
@@ -46,12 +48,16 @@ from .train import (
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
                              "m/s^2"}
+# The generated datasets' sizes: s per speed of paper-sim, s per manoeuvre.
+TRAIN_DURATION = 1800.0
+MANEUVER_DURATION = 600.0
 
 
 def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
-           epochs: int = 30, lr: float = 0.01, average_epochs: int = 5, restarts: int = 1,
-           train_duration: float = 1800.0, maneuver_duration: float = 600.0,
-           runs: Path = Path("runs"), progress: bool = True) -> Path:
+           training: TrainConfig | None = None, restarts: int | None = None,
+           train_duration: float = TRAIN_DURATION,
+           maneuver_duration: float = MANEUVER_DURATION, runs: Path = Path("runs"),
+           progress: bool = True) -> Path:
     """Train on straight lines, test on manoeuvres, write ``out/stress.md`` and figures.
 
     Args:
@@ -60,8 +66,10 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         maneuver_data: a dataset of manoeuvres to test on (default: the ``maneuvers``
             preset with ``maneuver_duration`` s each, generated if missing).
         out: the report's directory.
-        epochs, lr, average_epochs, restarts: training (the paper's settings, Polyak
-            averaging over the last epochs, seeds kept by training fit).
+        training: the training settings, the model set per run (default: the ``stress``
+            profile of ``beamsnet.train.PROFILES``: the paper's settings, Polyak
+            averaging over the last epochs).
+        restarts: seeds per model, kept by training fit (default: the profile's).
         runs: where the trained models go (``runs/stress/<file stem>/v1|v2``).
 
     Returns:
@@ -70,8 +78,10 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     from auvsim.generate import generate
     from auvsim.presets import maneuvers, preset
 
-    # Every training setting is checked before minutes go into generating the data.
-    TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
+    profile = PROFILES["stress"]
+    training = profile.config if training is None else training
+    restarts = profile.restarts if restarts is None else restarts
+    # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     if train_data is None:
         train_data = Path("datasets") / f"paper-sim_{train_duration:g}s.h5"
@@ -85,8 +95,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
 
     windows = load_windows(train_data)  # the models' own (default) n_past
     models = _train(train_data, runs / "stress" / Path(train_data).stem,
-                    with_imu=windows.accel is not None, epochs=epochs, lr=lr,
-                    average_epochs=average_epochs, restarts=restarts, progress=progress)
+                    with_imu=windows.accel is not None, training=training,
+                    restarts=restarts, progress=progress)
     train_w, _ = split(windows)
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
     test_w = load_windows(maneuver_data, missions=list(phases) or None)
@@ -105,16 +115,15 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     return report
 
 
-def _train(data: Path, runs: Path, *, with_imu: bool, epochs, lr, average_epochs,
-           restarts, progress) -> list[tuple[Path, object, dict]]:
+def _train(data: Path, runs: Path, *, with_imu: bool, training, restarts,
+           progress) -> list[tuple[Path, object, dict]]:
     """V1 (when the file has IMU data) and V2 trained on every mission of ``data``, each
     kept from ``restarts`` seeds; reused when already trained on this very file."""
     names = ["v1", "v2"] if with_imu else ["v2"]
     sha256 = file_identity(data)["sha256"]
     jobs, seeds = [], {}
     for name in names:
-        pairs = seed_runs(TrainConfig(model=name, epochs=epochs, lr=lr,
-                                      average_epochs=average_epochs), runs / name, restarts)
+        pairs = seed_runs(dataclasses.replace(training, model=name), runs / name, restarts)
         seeds[name] = [r for _, r in pairs]
         jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
     train_all(jobs, progress=progress)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -22,6 +23,7 @@ from beamsnet.cli import main
 from beamsnet.data import load_windows, split
 from beamsnet.evaluate import estimates, table
 from beamsnet.train import (
+    PROFILES,
     TrainConfig,
     load,
     predict,
@@ -218,3 +220,73 @@ def test_train_config_errors_name_the_field(field, value):
 def test_train_config_keeps_one_spelling_of_the_missions():
     assert TrainConfig(missions=["a", "b"]).missions == ("a", "b")
     assert TrainConfig(missions=["a"]) == TrainConfig(missions=("a",))
+
+
+def test_profiles_resolve_given_values_over_their_own():
+    """A profile gives its settings; given values win, and fewer epochs than the profile
+    averages over are all averaged unless the averaging is given too."""
+    paper_sim = PROFILES["paper-sim"]
+    assert paper_sim.resolve() == (paper_sim.config, paper_sim.restarts)
+    config, restarts = paper_sim.resolve(epochs=2, lr=0.5, restarts=4)
+    assert (config.epochs, config.lr, config.average_epochs, restarts) == (2, 0.5, 2, 4)
+    assert paper_sim.resolve(epochs=2, average_epochs=0)[0].average_epochs == 0
+    # Everything else is TrainConfig's: the profiles only name what they change.
+    assert dataclasses.replace(PROFILES["snapir"].config, lr=TrainConfig.lr,
+                               epochs=TrainConfig.epochs,
+                               average_epochs=TrainConfig.average_epochs) == TrainConfig()
+    with pytest.raises(ConfigError, match="restarts"):
+        paper_sim.resolve(restarts=0)
+
+
+def test_cli_defaults_are_train_configs(monkeypatch, capsys):
+    """Every training default of the command line, used or shown, comes from TrainConfig
+    and its profiles."""
+    import beamsnet.reproduce
+    import beamsnet.stress
+    import beamsnet.train
+
+    calls = {}
+
+    def record(name):
+        def fake(*args, **kwargs):
+            calls[name] = (args, kwargs)
+            return {"final_train_loss": 0.0, "final_test_loss": 0.0,
+                    "samples_per_second": 1.0, "checkpoint": "c", "plot": "p"}
+        return fake
+
+    monkeypatch.setattr(beamsnet.train, "train", record("train"))
+    monkeypatch.setattr(beamsnet.reproduce, "paper_sim", record("paper-sim"))
+    monkeypatch.setattr(beamsnet.reproduce, "snapir", record("snapir"))
+    monkeypatch.setattr(beamsnet.stress, "stress", record("stress"))
+    assert main(["train", "data.h5", "--out", "run", "--quiet"]) == 0
+    assert calls["train"][0][1] == TrainConfig()
+    for command in (["reproduce", "paper-sim"], ["reproduce", "snapir"], ["stress"]):
+        assert main([*command, "--quiet"]) == 0
+        profile = PROFILES[command[-1]]
+        kwargs = calls[command[-1]][1]
+        assert kwargs["training"] == profile.config
+        assert kwargs.get("restarts", profile.restarts) == profile.restarts  # snapir: 1
+    capsys.readouterr()
+
+    def help_of(command):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        return " ".join(capsys.readouterr().out.split())
+
+    train_help = help_of("train")
+    shown = {flag: getattr(TrainConfig(), flag[2:].replace("-", "_"))
+             for flag in ("--model", "--epochs", "--lr", "--batch-size", "--seed",
+                          "--average-epochs")}
+    shown["--restarts"] = PROFILES["train"].restarts
+    options = {o.split()[0]: o for o in train_help.split("options:")[1].split(" --")}
+    for flag, value in shown.items():
+        assert options[flag[2:]].endswith(f"(default: {value})"), flag
+    reproduce_help = help_of("reproduce")
+    assert (f"default: {PROFILES['paper-sim'].config.epochs:g} for paper-sim, "
+            f"{PROFILES['snapir'].config.epochs:g} for snapir") in reproduce_help
+    assert f"default {PROFILES['paper-sim'].restarts:g} for paper-sim" in reproduce_help
+    assert "(default: None)" not in reproduce_help
+    stress_help = help_of("stress")
+    assert f"(default: {PROFILES['stress'].config.epochs})" in stress_help
+    assert f"default {PROFILES['stress'].config.average_epochs}, at most" in stress_help
+
