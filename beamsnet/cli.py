@@ -93,8 +93,8 @@ def _parser() -> argparse.ArgumentParser:
                     "weights; default " + _per_experiment("average_epochs", "paper-sim",
                                                           "snapir") + ", at most the epochs)")
     rp.add_argument("--restarts", type=int,
-                    help="paper-sim: seeds per model; the best on the training split is kept "
-                    "(default " + _per_experiment("restarts", "paper-sim") + ")")
+                    help="seeds per model; the best on the training split is kept (default "
+                    + _per_experiment("restarts", "paper-sim", "snapir") + ")")
     rp.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
     rp.add_argument("--quiet", action="store_true")
     stress = PROFILES["stress"]
@@ -158,7 +158,7 @@ def _reproduce(args) -> None:
         restarts=args.restarts)
     if args.experiment == "snapir":
         report = snapir(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
-                        training=training, progress=not args.quiet)
+                        training=training, restarts=restarts, progress=not args.quiet)
     else:
         report = paper_sim(args.experiment, data=args.data, duration=args.duration,
                            out=args.out, training=training, restarts=restarts,

@@ -11,6 +11,9 @@
   epochs), and report the validation split (its last 25 %) and the separate test mission
   beside the paper's Table 3. V1 needs the IMU record, which was not published, so it is
   skipped.
+
+Both take their datasets and trained models from ``beamsnet.experiment``, which reuses
+what an earlier run already made from the same data.
 """
 
 from __future__ import annotations
@@ -24,18 +27,8 @@ from auvsim.files import save_figure, write_text
 from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
-from .train import (
-    PROFILES,
-    TrainConfig,
-    check_restarts,
-    file_identity,
-    keep_best,
-    load,
-    seed_runs,
-    train,
-    train_all,
-    trained,
-)
+from .experiment import ensure_dataset, train_runs
+from .train import PROFILES, TrainConfig, check_restarts
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -73,7 +66,6 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     Returns:
         The report's path.
     """
-    from auvsim.generate import generate
     from auvsim.presets import preset
 
     profile = PROFILES[experiment]
@@ -83,42 +75,33 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     check_restarts(restarts)
     config = preset(experiment).with_duration(duration)
     if data is None:
-        data = Path("datasets") / f"{experiment}_{duration:g}s.h5"
-        if not data.exists():
-            generate(config, data, progress=progress)
-    runs = runs / experiment
-    sha256 = file_identity(data)["sha256"]
-    seeds_of, jobs = {}, []  # (mission, model) -> the seed runs; what is left to train
-    for mission in config.missions:
-        for model in ("v1", "v2"):
-            pairs = seed_runs(dataclasses.replace(training, model=model,
-                                                  missions=(mission.name,)),
-                              runs / mission.name / model, restarts)
-            seeds_of[mission.name, model] = [r for _, r in pairs]
-            jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
-    train_all(jobs, workers=workers, progress=progress)
+        data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
+                              progress=progress)
+    kept = train_runs(data, {f"{mission.name}/{model}": dataclasses.replace(
+                                 training, model=model, missions=(mission.name,))
+                             for mission in config.missions for model in ("v1", "v2")},
+                      runs / experiment, restarts, workers=workers, progress=progress)
 
     sections, summary = [], []
     for mission in config.missions:
         speed = round(mission.scenario.speed)
-        all_seeds = [r for model in ("v1", "v2") for r in seeds_of[mission.name, model]]
-        windows, predictions = estimates(all_seeds, data, missions=[mission.name])
+        ours = {model: kept[f"{mission.name}/{model}"] for model in ("v1", "v2")}
+        windows, predictions = estimates([r for k in ours.values() for r in k.seeds],
+                                         data, missions=[mission.name])
         per_seed = table(windows, predictions)
         # The kept models are copies of seed runs: their rows are those seeds' rows.
         rows = {name: row for name, row in per_seed.items() if not name.startswith("BeamsNet")}
-        seeds = {}
-        for model in ("v1", "v2"):
-            record = keep_best(seeds_of[mission.name, model], runs / mission.name / model)
-            seeds[model] = Path(record["kept"]).name
+        for model, k in ours.items():
             rows[f"BeamsNet{model.upper()} ({model})"] = \
-                per_seed[f"BeamsNet{model.upper()} ({seeds[model]})"]
+                per_seed[f"BeamsNet{model.upper()} ({k.kept.name})"]
         sections.append(markdown(rows, f"{speed} m/s ({mission.name}), test split: "
                                        f"{len(windows.target)} pings"))
         by_model = {name.split(" ")[0]: row for name, row in rows.items()}
+        # (seed, improvement over LS, kept) per seed of each model.
         by_model["seeds"] = {
             model: [(r.name, per_seed[f"BeamsNet{model.upper()} ({r.name})"]["improvement"],
-                     r.name == seeds[model]) for r in seeds_of[mission.name, model]]
-            for model in ("v1", "v2")}
+                     r == k.kept) for r in k.seeds]
+            for model, k in ours.items()}
         by_model["floor"] = _noise_floor(data, mission.name)
         summary.append((speed, by_model))
     report = out / f"{experiment}.md"
@@ -130,12 +113,13 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
 
 
 def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
-           runs: Path = Path("runs"), progress: bool = True) -> Path:
+           restarts: int | None = None, runs: Path = Path("runs"),
+           progress: bool = True) -> Path:
     """The paper's sea experiment on the Snapir streams in ``data``; the report goes to
     ``out``, the model to ``runs`` (``runs/snapir/v2``).
 
-    ``training`` defaults to the ``snapir`` profile (``beamsnet.train.PROFILES``); the
-    model is BeamsNetV2 on the ``train`` mission.
+    ``training`` and ``restarts`` default to the ``snapir`` profile
+    (``beamsnet.train.PROFILES``); the model is BeamsNetV2 on the ``train`` mission.
     """
     import hashlib
 
@@ -144,7 +128,10 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     from auvsim.importer import import_velocity
     from auvsim.presets import preset
 
-    training = PROFILES["snapir"].config if training is None else training
+    profile = PROFILES["snapir"]
+    training = profile.config if training is None else training
+    restarts = profile.restarts if restarts is None else restarts
+    check_restarts(restarts)
     sources = [data / name for name in SNAPIR_FILES]
     missing = [str(p) for p in sources if not p.is_file()]
     if missing:
@@ -160,11 +147,9 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     if progress:
         print("beamsnet reproduce snapir: BeamsNetV1 skipped: it needs the IMU samples "
               "between pings, and the Snapir streams have none")
-    run = runs / "snapir" / "v2"
     config = dataclasses.replace(training, model="v2", missions=("train",))
-    if not trained(run, config, file_identity(dataset)["sha256"]):
-        train(dataset, config, run, progress=progress)
-    models = [(run, *load(run))]
+    models = [train_runs(dataset, {"v2": config}, runs / "snapir", restarts,
+                         progress=progress)["v2"].loaded()]
     train_w, validation = split(load_windows(dataset, missions=["train"]),
                                 config.train_fraction)
     test = load_windows(dataset, missions=["test"])

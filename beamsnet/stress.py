@@ -33,17 +33,8 @@ from auvsim.files import save_figure, write_text
 from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
-from .train import (
-    PROFILES,
-    TrainConfig,
-    check_restarts,
-    file_identity,
-    keep_best,
-    load,
-    seed_runs,
-    train_all,
-    trained,
-)
+from .experiment import ensure_dataset, train_runs
+from .train import PROFILES, TrainConfig, check_restarts
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -75,7 +66,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     Returns:
         The report's path.
     """
-    from auvsim.generate import generate
     from auvsim.presets import maneuvers, preset
 
     profile = PROFILES["stress"]
@@ -84,19 +74,21 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     if train_data is None:
-        train_data = Path("datasets") / f"paper-sim_{train_duration:g}s.h5"
-        if not train_data.exists():
-            generate(preset("paper-sim").with_duration(train_duration), train_data,
-                     progress=progress)
+        train_data = ensure_dataset(preset("paper-sim").with_duration(train_duration),
+                                    Path("datasets") / f"paper-sim_{train_duration:g}s.h5",
+                                    progress=progress)
     if maneuver_data is None:
-        maneuver_data = Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5"
-        if not maneuver_data.exists():
-            generate(maneuvers(maneuver_duration), maneuver_data, progress=progress)
+        maneuver_data = ensure_dataset(maneuvers(maneuver_duration),
+                                       Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5",
+                                       progress=progress)
 
     windows = load_windows(train_data)  # the models' own (default) n_past
-    models = _train(train_data, runs / "stress" / Path(train_data).stem,
-                    with_imu=windows.accel is not None, training=training,
-                    restarts=restarts, progress=progress)
+    # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
+    names = ["v1", "v2"] if windows.accel is not None else ["v2"]
+    kept = train_runs(train_data, {name: dataclasses.replace(training, model=name)
+                                   for name in names},
+                      runs / "stress" / Path(train_data).stem, restarts, progress=progress)
+    models = [k.loaded() for k in kept.values()]
     train_w, _ = split(windows)
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
     test_w = load_windows(maneuver_data, missions=list(phases) or None)
@@ -113,23 +105,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     report = out / "stress.md"
     write_text(report, _report(train_data, trained_on, maneuver_data, models, binned, rows))
     return report
-
-
-def _train(data: Path, runs: Path, *, with_imu: bool, training, restarts,
-           progress) -> list[tuple[Path, object, dict]]:
-    """V1 (when the file has IMU data) and V2 trained on every mission of ``data``, each
-    kept from ``restarts`` seeds; reused when already trained on this very file."""
-    names = ["v1", "v2"] if with_imu else ["v2"]
-    sha256 = file_identity(data)["sha256"]
-    jobs, seeds = [], {}
-    for name in names:
-        pairs = seed_runs(dataclasses.replace(training, model=name), runs / name, restarts)
-        seeds[name] = [r for _, r in pairs]
-        jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
-    train_all(jobs, progress=progress)
-    for name in names:
-        keep_best(seeds[name], runs / name)
-    return [(runs / name, *load(runs / name)) for name in names]
 
 
 def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:

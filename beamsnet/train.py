@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import dataclasses
+import filecmp
 import hashlib
 import json
 import math
@@ -368,6 +369,9 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
     """Copy the run whose final weights fit their training split best into ``out`` and
     write ``out/restarts.json`` with every run's final training loss.
 
+    A file already equal to the kept one is left as it is, so that a report that reuses
+    its runs does not rewrite them.
+
     Returns:
         ``{"kept": run, "losses": {run: loss}}``.
 
@@ -384,6 +388,8 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for name in ("model.pt", "history.json", "losses.png"):
+        if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
+            continue
         shutil.copyfile(kept / name, out / f".{name}.tmp")
         (out / f".{name}.tmp").replace(out / name)
     record = dict(kept=str(kept), losses=losses,

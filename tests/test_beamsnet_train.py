@@ -264,8 +264,7 @@ def test_cli_defaults_are_train_configs(monkeypatch, capsys):
         assert main([*command, "--quiet"]) == 0
         profile = PROFILES[command[-1]]
         kwargs = calls[command[-1]][1]
-        assert kwargs["training"] == profile.config
-        assert kwargs.get("restarts", profile.restarts) == profile.restarts  # snapir: 1
+        assert (kwargs["training"], kwargs["restarts"]) == (profile.config, profile.restarts)
     capsys.readouterr()
 
     def help_of(command):
