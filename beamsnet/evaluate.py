@@ -4,6 +4,9 @@ Every row of a table is computed on the same samples: the test part (the last 25
 default) of each mission of a dataset. The baselines that need fitting (affine
 calibration, Kalman filter) are fitted on the training part of the same file, as the
 networks were trained on it.
+
+Every run and dataset is read and checked before the output directory is made, so a
+refused evaluation leaves nothing behind.
 """
 
 from __future__ import annotations
@@ -17,8 +20,8 @@ from auvsim.files import save_figure, write_text
 
 from . import metrics
 from .baselines import AffineCalibration, KalmanFilter, LeastSquares
-from .data import Windows, load_windows, split
-from .train import load, predict
+from .data import DataError, Windows, load_windows, split
+from .train import check_out_dir, load, make_out_dir, predict
 
 COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",
            "rmse_z")
@@ -28,11 +31,20 @@ def estimates(runs: list[str | Path], dataset: str | Path,
               missions: list[str] | None = None) -> tuple[Windows, dict]:
     """Test-split windows of ``dataset`` (its ``missions``, default all) and every
     estimator's (S, 3) predictions on them."""
-    models = [(Path(r), *load(r)) for r in runs]
+    return _estimates([(Path(r), *load(r)) for r in runs], dataset, missions)
+
+
+def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
+               missions: list[str] | None = None) -> tuple[Windows, dict]:
+    """``estimates`` for loaded models (run directory, model, checkpoint)."""
     configs = [c["train_config"] for _, _, c in models]
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
-    train_w, test_w = split(load_windows(dataset, n_past=n_past, missions=missions), fraction)
+    windows = load_windows(dataset, n_past=n_past, missions=missions)
+    try:
+        train_w, test_w = split(windows, fraction)
+    except ValueError as e:
+        raise DataError(f"{dataset}: {e}") from None
     return test_w, predictions(models, train_w, test_w)
 
 
@@ -83,22 +95,36 @@ def _or_na(value: float, spec: str) -> str:
 
 
 def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path) -> dict:
-    """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    results, sections = {}, []
+    """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
+
+    Args:
+        runs: run directories (``beamsnet.train``), one table row each.
+        datasets: auvsim datasets; the test split of each gets a table.
+        out: directory for ``evaluation.md``, ``evaluation.json`` and the plots; made only
+            once every run and dataset has been read and checked.
+
+    Raises:
+        ConfigError: ``out`` cannot be a directory.
+        CheckpointError: a run is missing or not a readable beamsnet run.
+        DataError: a dataset is not an auvsim dataset or gives no samples.
+    """
+    out = check_out_dir(out)
+    models = [(Path(r), *load(r)) for r in runs]
+    results, sections, figures = {}, [], []
     for dataset in datasets:
-        windows, predictions = estimates(runs, dataset)
+        windows, predictions = _estimates(models, dataset)
         rows = table(windows, predictions)
         per_mission = {
             name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
                                                   windows.target[windows.mission == m])
                    for m in np.unique(windows.mission)}
             for name, pred in predictions.items()}
-        stem = Path(dataset).stem
         results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
         sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
-        _plot(windows, predictions, per_mission, out / f"{stem}_errors.png")
+        figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
+    make_out_dir(out)  # only now: every input has been checked
+    for windows, predictions, per_mission, name in figures:
+        _plot(windows, predictions, per_mission, out / name)
     write_text(out / "evaluation.md", "\n\n".join(sections) + "\n")
     write_text(out / "evaluation.json", json.dumps(results, indent=1))
     return results

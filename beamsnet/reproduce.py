@@ -28,7 +28,7 @@ from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
 from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, TrainConfig, check_restarts
+from .train import PROFILES, TrainConfig, check_out_dir, check_restarts, make_out_dir
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -73,6 +73,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     restarts = profile.restarts if restarts is None else restarts
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
+    check_out_dir(out)
     config = preset(experiment).with_duration(duration)
     if data is None:
         data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
@@ -105,7 +106,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
         by_model["floor"] = _noise_floor(data, mission.name)
         summary.append((speed, by_model))
     report = out / f"{experiment}.md"
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     write_text(report, _report(experiment, data, duration, training, restarts, summary,
                                sections))
     _figure(summary, out / f"{experiment}.png")
@@ -132,6 +133,7 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     training = profile.config if training is None else training
     restarts = profile.restarts if restarts is None else restarts
     check_restarts(restarts)
+    check_out_dir(out)
     sources = [data / name for name in SNAPIR_FILES]
     missing = [str(p) for p in sources if not p.is_file()]
     if missing:
@@ -158,7 +160,7 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
         estimates[part] = predictions(models, train_w, windows)
         results[part] = (windows, table(windows, estimates[part]))
     report = out / "snapir.md"
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     write_text(report, _snapir_report(data, dataset, config, train_w, results,
                                      estimates["test"]))
     _snapir_figure(results, out / "snapir.png")

@@ -34,7 +34,7 @@ from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
 from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, TrainConfig, check_restarts
+from .train import PROFILES, TrainConfig, check_out_dir, check_restarts, make_out_dir
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -73,6 +73,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     restarts = profile.restarts if restarts is None else restarts
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
+    check_out_dir(out)
     if train_data is None:
         train_data = ensure_dataset(preset("paper-sim").with_duration(train_duration),
                                     Path("datasets") / f"paper-sim_{train_duration:g}s.h5",
@@ -97,7 +98,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     truth = _truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth)
 
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
     _plot_intensity(binned, out / "stress_intensity.png")
     _plot_time(test_w, estimates, phases, out / "stress_time.png")

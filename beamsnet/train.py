@@ -39,8 +39,11 @@ import json
 import math
 import multiprocessing
 import os
+import pickle
 import shutil
 import time
+import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,7 +51,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from auvsim.errors import ConfigError
+from auvsim.errors import CheckpointError, ConfigError
 from auvsim.files import save_figure, write_text
 
 from .data import DataError, Windows, load_windows, split
@@ -217,6 +220,11 @@ def _mse(model: torch.nn.Module, x: list[torch.Tensor], y: torch.Tensor) -> floa
     return torch.nn.functional.mse_loss(model(*x), y).item() if len(y) else math.nan
 
 
+# What marks a beamsnet checkpoint, and the keys (and their types) every reader relies on.
+CHECKPOINT_FORMAT = "beamsnet-checkpoint"
+CHECKPOINT_VERSION = 1
+_CHECKPOINT_KEYS = {"model": str, "kwargs": dict, "state_dict": dict, "train_config": dict,
+                    "dataset": dict}
 
 
 def file_identity(path: str | Path) -> dict:
@@ -232,17 +240,48 @@ def file_identity(path: str | Path) -> dict:
     return dict(path=str(path), sha256=digest.hexdigest(), config_json=config_json)
 
 
+def check_out_dir(out: str | Path, argument: str = "out") -> Path:
+    """``out`` as a Path, after checking that it can be made a directory (it is one, or the
+    nearest existing path above it is), so that no work is spent before a bad output path
+    is refused.
+
+    Raises:
+        ConfigError: ``out``, or a path above it, exists and is not a directory.
+    """
+    out = Path(out)
+    for path in (out, *out.parents):
+        if path.exists():
+            if not path.is_dir():
+                what = "exists" if path == out else f"is inside {str(path)!r}, which exists"
+                raise ConfigError(f"{str(out)!r}: {what} and is not a directory; expected a "
+                                  "directory to write into", argument=argument)
+            break
+    return out
+
+
+def make_out_dir(out: Path, argument: str = "out") -> None:
+    """Make the directory ``out`` (and its parents), or raise ConfigError naming it."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError(f"{str(out)!r}: cannot be made a directory ({e.strerror}); expected "
+                          "a directory to write into", argument=argument) from None
+
+
 def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
           progress: bool = True) -> dict:
     """Train one model on ``dataset`` and save it under the directory ``out``.
+
+    Every input is checked before the training starts.
 
     Returns:
         A summary: the per-epoch losses and where the checkpoint and the plot went.
 
     Raises:
-        ConfigError: BeamsNetV1 on a file without IMU data.
+        ConfigError: ``out`` cannot be a directory; BeamsNetV1 on a file without IMU data.
         DataError: the dataset cannot give the samples.
     """
+    out = check_out_dir(out)
     windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
     if config.model == "v1" and windows.accel is None:
         raise ConfigError(f"v2 is needed: {dataset} has no IMU data (an imported DVL stream "
@@ -302,9 +341,9 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     final_train_loss = _mse(model, x_train, y_train)  # what train_best compares seeds by
     final_test_loss = _mse(model, x_test, y_test)
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    checkpoint = dict(model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
+    make_out_dir(out)
+    checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
+                      model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
                       train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
                       history=history, samples=dict(train=n, test=len(y_test)),
                       final_train_loss=final_train_loss, final_test_loss=final_test_loss)
@@ -320,13 +359,18 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
 
 def trained(run: str | Path, config: TrainConfig, sha256: str) -> bool:
     """Whether ``run`` already holds this config trained on the file with this SHA-256
-    (then a report re-evaluates it instead of training again)."""
+    (then a report re-evaluates it instead of training again). A run whose checkpoint
+    cannot be read is not trained: training again replaces it."""
     path = Path(run) / "model.pt"
-    if not path.exists():
+    if not path.is_file():
         return False
-    checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        checkpoint = read_checkpoint(path)
+    except CheckpointError:
+        return False
     return (checkpoint["train_config"] == dataclasses.asdict(config)
-            and checkpoint["dataset"]["sha256"] == sha256 and "final_train_loss" in checkpoint)
+            and checkpoint["dataset"].get("sha256") == sha256
+            and "final_train_loss" in checkpoint)
 
 
 def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
@@ -386,7 +430,7 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
                           "smaller learning rate", argument="lr")
     kept = Path(min(finite, key=finite.get))
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     for name in ("model.pt", "history.json", "losses.png"):
         if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
             continue
@@ -422,6 +466,7 @@ def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     Returns:
         ``keep_best``'s record plus the kept run's ``train`` summary.
     """
+    check_out_dir(out)
     pairs = seed_runs(config, out, restarts)
     summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
                           progress=progress)
@@ -432,14 +477,140 @@ def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
 
 
 def load(run: str | Path) -> tuple[torch.nn.Module, dict]:
-    """The trained model of a run directory (or ``model.pt`` path) and its checkpoint."""
-    path = Path(run)
-    path = path / "model.pt" if path.is_dir() else path
-    checkpoint = torch.load(path, map_location="cpu", weights_only=False)
-    model = build(checkpoint["model"], **checkpoint["kwargs"])
+    """The trained model of a run directory (or ``model.pt`` path) and its checkpoint.
+
+    Raises:
+        CheckpointError: the run does not exist or has no ``model.pt``; it is not a
+            beamsnet checkpoint (empty, truncated, corrupt, another kind of file, keys
+            missing); or its weights do not fit the model it names.
+    """
+    path = _checkpoint_path(run)
+    checkpoint = read_checkpoint(path)
+    try:
+        model = build(checkpoint["model"], **checkpoint["kwargs"])
+    except (TypeError, ValueError) as e:
+        raise _refused(path, f"its model arguments {checkpoint['kwargs']} do not build "
+                       f"BeamsNet{checkpoint['model'].upper()} ({e})") from None
+    _check_weights(model, checkpoint, path)
     model.load_state_dict(checkpoint["state_dict"])
     model.eval()
     return model, checkpoint
+
+
+def read_checkpoint(path: str | Path) -> dict:
+    """The checkpoint in the file ``path``, checked to be a beamsnet checkpoint.
+
+    Only tensors and plain values are unpickled (``weights_only``): a checkpoint is data,
+    and a file that needs arbitrary Python objects to load is not one of ours.
+
+    Raises:
+        CheckpointError: as ``load``.
+    """
+    path = Path(path)
+    # torch.save has written zip archives since PyTorch 1.6: anything else (an empty,
+    # truncated or text file, a bare pickle) is refused before torch parses it.
+    if not zipfile.is_zipfile(path):
+        size = path.stat().st_size
+        raise _refused(path, "is empty" if size == 0 else
+                       f"is not a PyTorch checkpoint ({size} bytes, not a zip archive: "
+                       "truncated, corrupt or another kind of file)")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # torch's notes on pickle protocols
+            checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError:
+        raise _refused(path, "holds something other than tensors and plain values: a "
+                       "corrupt pickle, or Python objects, which a checkpoint never needs "
+                       "and which are not unpickled") from None
+    except _TORCH_LOAD_ERRORS as e:
+        raise _refused(path, f"is a corrupt PyTorch checkpoint ({type(e).__name__}: "
+                       f"{_first_line(e)})") from None
+    if not isinstance(checkpoint, dict):
+        raise _refused(path, f"holds a {type(checkpoint).__name__}, not a beamsnet "
+                       "checkpoint (a dict)")
+    # Checkpoints from before the format marker have the same keys and are read alike.
+    marker = checkpoint.get("format", CHECKPOINT_FORMAT), checkpoint.get("format_version", 1)
+    if marker != (CHECKPOINT_FORMAT, CHECKPOINT_VERSION):
+        raise _refused(path, f"has format {marker[0]!r} version {marker[1]!r}; this beamsnet "
+                       f"reads {CHECKPOINT_FORMAT!r} version {CHECKPOINT_VERSION}")
+    missing = [k for k in _CHECKPOINT_KEYS if k not in checkpoint]
+    if missing:
+        raise _refused(path, f"lacks {', '.join(missing)}: not a beamsnet checkpoint")
+    wrong = [f"{k} is a {type(checkpoint[k]).__name__}" for k, kind in _CHECKPOINT_KEYS.items()
+             if not isinstance(checkpoint[k], kind)]
+    if checkpoint["model"] not in MODELS and not wrong:
+        wrong.append(f"model is {checkpoint['model']!r}, not {' or '.join(MODELS)}")
+    if not wrong:
+        try:
+            TrainConfig(**checkpoint["train_config"])
+        except (ConfigError, TypeError) as e:
+            wrong.append(f"train_config is not a training config ({e})")
+    if wrong:
+        raise _refused(path, f"is not a beamsnet checkpoint: {'; '.join(wrong)}")
+    return checkpoint
+
+
+# What torch.load raises on a damaged zip archive or pickle inside it.
+_TORCH_LOAD_ERRORS = (RuntimeError, OSError, EOFError, zipfile.BadZipFile, KeyError,
+                      ValueError, TypeError, IndexError, AttributeError, UnicodeDecodeError)
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _checkpoint_path(run: str | Path) -> Path:
+    """The ``model.pt`` of a run directory (or the path itself, if it is a file)."""
+    path = Path(run)
+    if not path.exists():
+        raise _refused(path, "does not exist")
+    if path.is_dir():
+        path = path / "model.pt"
+        if not path.exists():
+            raise _refused(path.parent, "has no model.pt (is it a run directory, and did "
+                           "its training finish?)")
+        if not path.is_file():
+            raise _refused(path, "is a directory, not the checkpoint file" if path.is_dir()
+                           else "is not a regular file")
+    else:
+        with open(path, "rb") as f:
+            if f.read(len(_HDF5_SIGNATURE)) == _HDF5_SIGNATURE:
+                raise _refused(path, "is an HDF5 file (a dataset?), not a run")
+    return path
+
+
+def _check_weights(model: torch.nn.Module, checkpoint: dict, path: Path) -> None:
+    """Refuse a state_dict whose keys, shapes or values do not fit ``model``."""
+    state, expected = checkpoint["state_dict"], model.state_dict()
+    problems = [f"no {k}" for k in expected if k not in state]
+    problems += [f"unexpected {k}" for k in state if k not in expected]
+    for k, v in expected.items():
+        if k not in state:
+            continue
+        if not isinstance(state[k], torch.Tensor):
+            problems.append(f"{k} is a {type(state[k]).__name__}, not a tensor")
+        elif state[k].shape != v.shape:
+            problems.append(f"{k} has shape {tuple(state[k].shape)}, the model's is "
+                            f"{tuple(v.shape)}")
+        elif state[k].is_floating_point() and not torch.isfinite(state[k]).all():
+            problems.append(f"{k} holds NaN or inf")
+    if problems:
+        more = f" and {len(problems) - 3} more" if len(problems) > 3 else ""
+        raise _refused(path, f"has weights that do not fit BeamsNet"
+                       f"{checkpoint['model'].upper()}({_kwargs(checkpoint['kwargs'])}): "
+                       f"{'; '.join(problems[:3])}{more}")
+
+
+def _refused(path: Path, what: str) -> CheckpointError:
+    return CheckpointError(f"{str(path)!r}: {what}; expected a run directory with the "
+                           "model.pt that beamsnet training writes", argument="run")
+
+
+def _kwargs(kwargs: dict) -> str:
+    return ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
+
+
+def _first_line(error: BaseException) -> str:
+    """The start of an exception's message, for a one-line error."""
+    text = (str(error).strip().splitlines() or [""])[0]
+    return text if len(text) <= 100 else text[:97] + "..."
 
 
 def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
