@@ -9,7 +9,8 @@ before they can evaluate anything, and this module is the one place that does th
   in parallel processes (``train_all``), the seed that fits its training split best kept
   (``keep_best``), and the kept models loaded. A seed run that already holds the same
   config trained on the same file (by SHA-256) is reused rather than trained again, so a
-  report rerun on unchanged data only re-evaluates.
+  report rerun on unchanged data only re-evaluates. A seed whose loss diverges is
+  recorded and dropped, as long as another seed of the same model trains.
 """
 
 from __future__ import annotations
@@ -58,6 +59,8 @@ class KeptRun:
         checkpoint: its checkpoint (``beamsnet.train.load``).
         kept: the seed run that was kept (one of ``seeds``).
         seeds: every seed run, in seed order.
+        diverged: the seed runs whose training loss became non-finite (they have no
+            checkpoint), with the reason.
     """
 
     run: Path
@@ -65,6 +68,12 @@ class KeptRun:
     checkpoint: dict
     kept: Path
     seeds: tuple[Path, ...]
+    diverged: Mapping[Path, str]
+
+    @property
+    def trained_seeds(self) -> tuple[Path, ...]:
+        """The seed runs that trained (have a checkpoint), in seed order."""
+        return tuple(r for r in self.seeds if r not in self.diverged)
 
     def loaded(self) -> tuple[Path, torch.nn.Module, dict]:
         """(run, model, checkpoint): what ``beamsnet.evaluate.predictions`` takes."""
@@ -91,8 +100,8 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         name -> ``KeptRun``, in the order of ``configs``.
 
     Raises:
-        ConfigError: ``restarts`` < 1, or every seed of a config diverged; and what
-            ``beamsnet.train.train`` raises for bad data.
+        ConfigError: ``restarts`` < 1; ``DivergedError`` when every seed of a config
+            diverged; and what ``beamsnet.train.train`` raises for bad data.
     """
     check_restarts(restarts)
     runs_dir = Path(runs_dir)
@@ -102,11 +111,15 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         pairs = seed_runs(config, runs_dir / name, restarts)
         seeds[name] = [run for _, run in pairs]
         jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
-    train_all(jobs, workers=workers, progress=progress)
+    summaries = train_all(jobs, workers=workers, progress=progress, diverged="record")
+    diverged = {Path(run): s["diverged"]
+                for (_, _, run), s in zip(jobs, summaries, strict=True) if "diverged" in s}
 
     kept = {}
     for name in configs:
-        record = keep_best(seeds[name], runs_dir / name)
+        record = keep_best(seeds[name], runs_dir / name,
+                           diverged={r: diverged[r] for r in seeds[name] if r in diverged})
         kept[name] = KeptRun(runs_dir / name, *load(runs_dir / name), kept=Path(record["kept"]),
-                             seeds=tuple(seeds[name]))
+                             seeds=tuple(seeds[name]),
+                             diverged={r: diverged[r] for r in seeds[name] if r in diverged})
     return kept

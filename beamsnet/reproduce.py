@@ -87,7 +87,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     for mission in config.missions:
         speed = round(mission.scenario.speed)
         ours = {model: kept[f"{mission.name}/{model}"] for model in ("v1", "v2")}
-        windows, predictions = estimates([r for k in ours.values() for r in k.seeds],
+        windows, predictions = estimates([r for k in ours.values() for r in k.trained_seeds],
                                          data, missions=[mission.name])
         per_seed = table(windows, predictions)
         # The kept models are copies of seed runs: their rows are those seeds' rows.
@@ -98,9 +98,10 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
         sections.append(markdown(rows, f"{speed} m/s ({mission.name}), test split: "
                                        f"{len(windows.target)} pings"))
         by_model = {name.split(" ")[0]: row for name, row in rows.items()}
-        # (seed, improvement over LS, kept) per seed of each model.
+        # (seed, improvement over LS or None if it diverged, kept) per seed of each model.
         by_model["seeds"] = {
-            model: [(r.name, per_seed[f"BeamsNet{model.upper()} ({r.name})"]["improvement"],
+            model: [(r.name, None if r in k.diverged else
+                     per_seed[f"BeamsNet{model.upper()} ({r.name})"]["improvement"],
                      r == k.kept) for r in k.seeds]
             for model, k in ours.items()}
         by_model["floor"] = _noise_floor(data, mission.name)
@@ -234,7 +235,8 @@ def _report(experiment, data, duration, training: TrainConfig, restarts, summary
     for speed, rows in summary:
         floor = 100 * (1 - rows["floor"] / rows["LS"]["rmse"])
         for model, seeds in rows["seeds"].items():
-            cells = ", ".join(f"{name} {value:.2f}{' *' if kept else ''}"
+            cells = ", ".join(f"{name} diverged" if value is None else
+                              f"{name} {value:.2f}{' *' if kept else ''}"
                               for name, value, kept in seeds)
             lines.append(f"| {speed} m/s | {model.upper()} | {floor:.2f} | {cells} |")
     lines += ["", "## Full tables", ""]

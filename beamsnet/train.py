@@ -27,6 +27,10 @@ of ``beamsnet reproduce paper-sim`` lists every seed):
 training default is written: ``PROFILES`` names what each use changes (the reports'
 averaging and seeds, the sea data's learning rate and epochs), and the command line and
 the experiments read their defaults from there.
+
+Training refuses windows holding NaN or inf before anything is written, and stops with
+``DivergedError`` when the loss stops being finite: a run either trains or leaves nothing.
+Under restarts a diverged seed is recorded and dropped, and the others go on.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import dataclasses
 import filecmp
+import functools
 import hashlib
 import json
 import math
@@ -44,6 +49,7 @@ import shutil
 import time
 import warnings
 import zipfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -220,11 +226,20 @@ def _mse(model: torch.nn.Module, x: list[torch.Tensor], y: torch.Tensor) -> floa
     return torch.nn.functional.mse_loss(model(*x), y).item() if len(y) else math.nan
 
 
+class DivergedError(ConfigError):
+    """The training loss became NaN or inf: the learning rate (``argument``) is too large
+    for this data, or the data's scale is. Nothing of the run is written."""
+
+
 # What marks a beamsnet checkpoint, and the keys (and their types) every reader relies on.
 CHECKPOINT_FORMAT = "beamsnet-checkpoint"
 CHECKPOINT_VERSION = 1
 _CHECKPOINT_KEYS = {"model": str, "kwargs": dict, "state_dict": dict, "train_config": dict,
                     "dataset": dict}
+# The dataset field each network input comes from, for the messages about bad values.
+_FIELDS = {"target": "dvl/velocity", "beams": "dvl/beam_velocity",
+           "past_beams": "dvl/beam_velocity", "accel": "imu/specific_force",
+           "gyro": "imu/angular_rate"}
 
 
 def file_identity(path: str | Path) -> dict:
@@ -268,18 +283,45 @@ def make_out_dir(out: Path, argument: str = "out") -> None:
                           "a directory to write into", argument=argument) from None
 
 
+def check_finite(windows: Windows, model: str, dataset: str | Path) -> None:
+    """Refuse samples whose target or ``model``'s inputs hold NaN or inf: the loss of a
+    single such sample is NaN, and so is every weight after one step.
+
+    Args:
+        windows: the samples (``beamsnet.data.Windows``).
+        model: ``v1`` (checks the IMU windows and beams) or ``v2`` (past and current beams).
+        dataset: the file they came from, for the message.
+
+    Raises:
+        DataError: naming the dataset, the field, and where the first such sample is.
+    """
+    inputs = ("accel", "gyro", "beams") if model == "v1" else ("past_beams", "beams")
+    for key in ("target", *inputs):
+        values = getattr(windows, key)
+        bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"{dataset}: {_FIELDS[key]} holds NaN or inf in {int(bad.sum())} of "
+                f"{len(values)} samples (the first in mission "
+                f"{windows.names[windows.mission[first]]} at {windows.time[first]:g} s); "
+                "expected finite values to train on")
+
+
 def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
           progress: bool = True) -> dict:
     """Train one model on ``dataset`` and save it under the directory ``out``.
 
-    Every input is checked before the training starts.
+    Every input is checked before the training starts, and nothing is written unless it
+    ends with finite weights.
 
     Returns:
         A summary: the per-epoch losses and where the checkpoint and the plot went.
 
     Raises:
         ConfigError: ``out`` cannot be a directory; BeamsNetV1 on a file without IMU data.
-        DataError: the dataset cannot give the samples.
+        DataError: the dataset cannot give the samples, or they hold NaN or inf.
+        DivergedError: the training loss became NaN or inf.
     """
     out = check_out_dir(out)
     windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
@@ -287,6 +329,7 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
         raise ConfigError(f"v2 is needed: {dataset} has no IMU data (an imported DVL stream "
                           "has none), and BeamsNetV1 takes the IMU samples between pings",
                           argument="model")
+    check_finite(windows, config.model, dataset)
     try:
         train_w, test_w = split(windows, config.train_fraction)
     except ValueError as e:
@@ -322,12 +365,17 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
             for i in range(0, n, config.batch_size):
                 idx = perm[i:i + config.batch_size]
                 loss = loss_fn(model(*(x[idx] for x in x_train)), y_train[idx])
+                value = loss.item()
+                if not math.isfinite(value):
+                    # One non-finite step makes every weight NaN: stop before writing.
+                    raise _diverged(config, value, f"at epoch {epoch + 1}, step "
+                                    f"{i // config.batch_size + 1} of {steps}")
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 optimizer.step()
                 if averaging:
                     averaged.update_parameters(model)
-                total += loss.item() * len(idx)
+                total += value * len(idx)
             schedule.step()
             test_loss = _mse(model, x_test, y_test)
             history["train"].append(total / n)
@@ -340,6 +388,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     # The saved weights' losses (the history's are the last weights', before averaging).
     final_train_loss = _mse(model, x_train, y_train)  # what train_best compares seeds by
     final_test_loss = _mse(model, x_test, y_test)
+    if not math.isfinite(final_train_loss):  # the last step's update overflowed
+        raise _diverged(config, final_train_loss, "after the last step")
 
     make_out_dir(out)
     checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
@@ -355,6 +405,12 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     return dict(checkpoint=str(out / "model.pt"), plot=str(plot), history=history,
                 seconds=seconds, samples_per_second=config.epochs * n / seconds,
                 final_train_loss=final_train_loss, final_test_loss=final_test_loss)
+
+
+def _diverged(config: TrainConfig, loss: float, where: str) -> DivergedError:
+    return DivergedError(f"{config.lr:g}: BeamsNet{config.model.upper()} (seed {config.seed}) "
+                         f"diverged, its training loss became {loss} {where}; expected a "
+                         "finite loss, with a smaller learning rate", argument="lr")
 
 
 def trained(run: str | Path, config: TrainConfig, sha256: str) -> bool:
@@ -374,7 +430,8 @@ def trained(run: str | Path, config: TrainConfig, sha256: str) -> bool:
 
 
 def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
-              workers: int | None = None, progress: bool = True) -> list[dict]:
+              workers: int | None = None, progress: bool = True,
+              diverged: str = "raise") -> list[dict]:
     """Run ``train(dataset, config, out)`` for every job, in parallel processes.
 
     Each process trains with ``cpu_count // workers`` threads (one when the jobs fill the
@@ -384,20 +441,28 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         jobs: (dataset, config, out) triples.
         workers: processes (default: as many as cores, at most one per job).
         progress: a progress bar over jobs (over steps when there is one process).
+        diverged: ``"raise"``: a job whose loss became non-finite stops the others, as
+            any error does; ``"record"``: its summary is ``{"diverged": why,
+            "final_train_loss": nan}`` and the others go on (restarts: a seed that
+            diverged is dropped, the others are compared).
 
     Returns:
         The summaries of ``train``, in job order.
     """
+    if diverged not in ("raise", "record"):
+        raise ConfigError(f": expected 'raise' or 'record', got {diverged!r}",
+                          argument="diverged")
+    job = functools.partial(_job, record=diverged == "record")
     cores = os.cpu_count() or 1
     workers = max(1, min(workers or cores, len(jobs)))
     if workers == 1:
-        return [train(d, c, o, progress=progress) for d, c, o in jobs]
+        return [job(d, c, o, progress=progress) for d, c, o in jobs]
     context = multiprocessing.get_context("forkserver")
     with cf.ProcessPoolExecutor(workers, mp_context=context, initializer=torch.set_num_threads,
                                 initargs=(max(1, cores // workers),)) as pool, \
             tqdm(total=len(jobs), disable=None if progress else True, leave=False,
                  unit=" models", desc="training") as bar:
-        futures = [pool.submit(train, d, c, o, progress=False) for d, c, o in jobs]
+        futures = [pool.submit(job, d, c, o, progress=False) for d, c, o in jobs]
         try:
             for future in cf.as_completed(futures):
                 future.result()  # the first error stops here, naming what went wrong
@@ -409,25 +474,45 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         return [f.result() for f in futures]
 
 
-def keep_best(runs: list[str | Path], out: str | Path) -> dict:
+def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress: bool,
+         record: bool) -> dict:
+    """One job of ``train_all`` (module level, so worker processes can run it)."""
+    try:
+        return train(dataset, config, out, progress=progress)
+    except DivergedError as e:
+        if not record:
+            raise
+        return dict(diverged=str(e), final_train_loss=math.nan)
+
+
+def keep_best(runs: list[str | Path], out: str | Path, *,
+              diverged: Mapping[str | Path, str] | None = None) -> dict:
     """Copy the run whose final weights fit their training split best into ``out`` and
     write ``out/restarts.json`` with every run's final training loss.
 
     A file already equal to the kept one is left as it is, so that a report that reuses
     its runs does not rewrite them.
 
+    Args:
+        runs: run directories.
+        out: where the kept run is copied.
+        diverged: runs of ``runs`` whose training diverged (they have no checkpoint), with
+            the reason; they are recorded, never kept.
+
     Returns:
-        ``{"kept": run, "losses": {run: loss}}``.
+        ``{"kept": run, "losses": {run: loss}, "diverged": {run: why}}``.
 
     Raises:
-        ConfigError: every run diverged (its training loss is not finite).
+        DivergedError: every run diverged.
     """
-    losses = {str(r): load(r)[1]["final_train_loss"] for r in runs}
+    diverged = {str(r): why for r, why in (diverged or {}).items()}
+    losses = {str(r): math.nan if str(r) in diverged else load(r)[1]["final_train_loss"]
+              for r in runs}
     finite = {r: loss for r, loss in losses.items() if math.isfinite(loss)}
     if not finite:
-        raise ConfigError(f": every run diverged (training loss not finite): "
-                          f"{', '.join(losses)}; expected at least one to train, with a "
-                          "smaller learning rate", argument="lr")
+        raise DivergedError(f": every run diverged (training loss not finite): "
+                            f"{', '.join(losses)}; expected at least one to train, with a "
+                            "smaller learning rate", argument="lr")
     kept = Path(min(finite, key=finite.get))
     out = Path(out)
     make_out_dir(out)
@@ -436,7 +521,7 @@ def keep_best(runs: list[str | Path], out: str | Path) -> dict:
             continue
         shutil.copyfile(kept / name, out / f".{name}.tmp")
         (out / f".{name}.tmp").replace(out / name)
-    record = dict(kept=str(kept), losses=losses,
+    record = dict(kept=str(kept), losses=losses, diverged=diverged,
                   rule="lowest final MSE on the training split (evaluation mode)")
     write_text(out / "restarts.json", json.dumps(record, indent=1))
     return record
@@ -461,17 +546,22 @@ def seed_runs(config: TrainConfig, out: str | Path,
 def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                restarts: int = 3, workers: int | None = None, progress: bool = True) -> dict:
     """Train the ``seed_runs`` of ``config`` and keep the best on the training split in
-    ``out`` (see the module docstring).
+    ``out`` (see the module docstring). A seed that diverges is recorded and dropped.
 
     Returns:
         ``keep_best``'s record plus the kept run's ``train`` summary.
+
+    Raises:
+        DivergedError: every seed diverged (and what ``train`` raises for bad input).
     """
     check_out_dir(out)
     pairs = seed_runs(config, out, restarts)
     summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
-                          progress=progress)
+                          progress=progress, diverged="record")
     runs = [r for _, r in pairs]
-    record = keep_best(runs, out)
+    record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
+                                            zip(runs, summaries, strict=True)
+                                            if "diverged" in s})
     return {**record, **summaries[[str(r) for r in runs].index(record["kept"])],
             "checkpoint": str(Path(out) / "model.pt"), "plot": str(Path(out) / "losses.png")}
 

@@ -1,5 +1,5 @@
 """The experiment runner: datasets made once, models trained once from a few seeds and
-the best kept."""
+the best kept, a diverged seed dropped."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import json
 
 import pytest
 
+import beamsnet.train
 from auvsim.config import (
     Config,
     DvlConfig,
@@ -18,7 +19,7 @@ from auvsim.config import (
 )
 from auvsim.dataset import read_attrs
 from beamsnet.experiment import ensure_dataset, train_runs
-from beamsnet.train import TrainConfig, load
+from beamsnet.train import DivergedError, TrainConfig, load
 
 TWO_LINES = Config(
     missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
@@ -33,6 +34,17 @@ TWO_LINES = Config(
 def data(tmp_path_factory):
     return ensure_dataset(TWO_LINES, tmp_path_factory.mktemp("exp") / "datasets" / "two.h5",
                           progress=False)
+
+
+def _diverging(seeds):
+    """``train``, except that the seeds in ``seeds`` diverge."""
+    real = beamsnet.train.train
+
+    def train(dataset, config, out, *, progress=True):
+        if config.seed in seeds:
+            raise DivergedError(f"0.01: seed {config.seed} diverged", argument="lr")
+        return real(dataset, config, out, progress=progress)
+    return train
 
 
 def test_ensure_dataset_generates_only_a_missing_file(data):
@@ -50,6 +62,7 @@ def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data,
     for name, k in kept.items():
         assert k.run == tmp_path / name and k.loaded()[0] == k.run
         assert k.seeds == (tmp_path / name / "seed_0", tmp_path / name / "seed_1")
+        assert k.trained_seeds == k.seeds and k.diverged == {}
         losses = {r: load(r)[1]["final_train_loss"] for r in k.seeds}
         assert losses[k.seeds[0]] != losses[k.seeds[1]]
         assert k.kept == min(losses, key=losses.get)
@@ -73,3 +86,38 @@ def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data,
     assert {tmp_path / "a" / "v2" / f"seed_{s}" / "model.pt" for s in (0, 1)} <= moved
     assert not any(p.is_relative_to(tmp_path / "b") for p in moved)
 
+
+def test_a_diverged_seed_is_dropped_and_recorded(data, tmp_path, monkeypatch):
+    monkeypatch.setattr(beamsnet.train, "train", _diverging({0}))
+    k = train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path, 2, workers=1,
+                   progress=False)["v2"]
+    seed_0, seed_1 = tmp_path / "v2" / "seed_0", tmp_path / "v2" / "seed_1"
+    assert k.diverged == {seed_0: "lr 0.01: seed 0 diverged"}
+    assert k.kept == seed_1 and k.trained_seeds == (seed_1,) and not seed_0.exists()
+    record = json.loads((tmp_path / "v2" / "restarts.json").read_text())
+    assert record["diverged"] == {str(seed_0): "lr 0.01: seed 0 diverged"}
+
+
+def test_every_seed_diverging_is_an_error_and_writes_nothing(data, tmp_path, monkeypatch):
+    monkeypatch.setattr(beamsnet.train, "train", _diverging({0, 1}))
+    with pytest.raises(DivergedError, match="every run diverged") as refused:
+        train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path / "runs", 2, workers=1,
+                   progress=False)
+    assert refused.value.argument == "lr"
+    assert not (tmp_path / "runs").exists()
+
+
+def test_the_paper_sim_report_lists_a_diverged_seed(tmp_path, monkeypatch):
+    from beamsnet.reproduce import paper_sim
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(beamsnet.train, "train", _diverging({1}))
+    report = paper_sim("paper-sim", data=None, duration=60.0, out=tmp_path / "reports",
+                       training=TrainConfig(epochs=1), restarts=2, workers=1,
+                       progress=False).read_text()
+    assert (tmp_path / "datasets" / "paper-sim_60s.h5").exists()
+    for speed in (1, 2, 3):
+        for model in ("V1", "V2"):
+            assert f"| {speed} m/s | {model} |" in report
+    assert report.count("seed_1 diverged") == 6 and report.count("seed_0 ") == 6
+    assert "each model trained from 2 seeds" in report

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 
+import h5py
 import numpy as np
 import pytest
 import torch
@@ -20,10 +22,11 @@ from auvsim.config import (
 from auvsim.errors import ConfigError
 from auvsim.generate import generate
 from beamsnet.cli import main
-from beamsnet.data import load_windows, split
+from beamsnet.data import DataError, load_windows, split
 from beamsnet.evaluate import estimates, table
 from beamsnet.train import (
     PROFILES,
+    DivergedError,
     TrainConfig,
     load,
     predict,
@@ -289,3 +292,65 @@ def test_cli_defaults_are_train_configs(monkeypatch, capsys):
     assert f"(default: {PROFILES['stress'].config.epochs})" in stress_help
     assert f"default {PROFILES['stress'].config.average_epochs}, at most" in stress_help
 
+
+def test_training_refuses_non_finite_data_before_writing(scale_only, tmp_path, capsys):
+    """A dataset whose targets (or a network's inputs) hold NaN is refused with one line
+    naming the file and the field, before anything is written."""
+    bad = tmp_path / "nan.h5"
+    shutil.copyfile(scale_only, bad)
+    with h5py.File(bad, "r+") as f:
+        f["missions/a/dvl/velocity"][...] = np.nan
+        f["missions/b/imu/specific_force"][5000:] = np.inf
+    out = tmp_path / "run"
+    assert main(["train", str(bad), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"{bad}: dvl/velocity holds NaN or inf in " in err and "mission a" in err
+    assert not out.exists()
+    with pytest.raises(DataError, match="imu/specific_force holds NaN or inf") as refused:
+        train(bad, TrainConfig(model="v1", missions=("b",)), out, progress=False)
+    assert "mission b at 51 s" in str(refused.value)
+    assert not out.exists()
+
+
+def test_a_diverging_loss_stops_training_and_writes_nothing(scale_only, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", str(scale_only), "--model", "v1", "--lr", "1e20", "--epochs", "1",
+                 "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith("beamsnet: error: --lr 1e+20: BeamsNetV1 (seed 0) diverged, its "
+                          "training loss became ")
+    assert not out.exists()
+    # Under restarts (in worker processes) a diverged seed is dropped; when every seed
+    # diverges, that is the error, and still nothing is written.
+    assert main(["train", str(scale_only), "--model", "v1", "--lr", "1e20", "--epochs", "1",
+                 "--restarts", "2", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("beamsnet: error: --lr: every run diverged")
+    assert str(out / "seed_0") in err and str(out / "seed_1") in err
+    assert not out.exists()
+
+
+def test_restarts_drop_a_diverged_seed_and_record_why(scale_only, tmp_path, monkeypatch):
+    import beamsnet.train
+
+    real = beamsnet.train.train
+
+    def seed_1_diverges(dataset, config, out, *, progress=True):
+        if config.seed == 1:
+            raise DivergedError("0.01: seed 1 diverged", argument="lr")
+        return real(dataset, config, out, progress=progress)
+
+    monkeypatch.setattr(beamsnet.train, "train", seed_1_diverges)
+    out = tmp_path / "best"
+    summary = train_best(scale_only, TrainConfig(epochs=1), out, restarts=3, workers=1,
+                         progress=False)
+    record = json.loads((out / "restarts.json").read_text())
+    assert record["diverged"] == {str(out / "seed_1"): "lr 0.01: seed 1 diverged"}
+    assert np.isnan(record["losses"][str(out / "seed_1")])
+    finite = {r: v for r, v in record["losses"].items() if np.isfinite(v)}
+    assert sorted(finite) == [str(out / "seed_0"), str(out / "seed_2")]
+    assert summary["kept"] == min(finite, key=finite.get) != str(out / "seed_1")
+    assert not (out / "seed_1").exists()
+    assert load(out)[1]["final_train_loss"] == finite[summary["kept"]]
