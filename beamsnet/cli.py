@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from auvsim.errors import AuvsimError, OneLineErrorParser
 
+from .evaluate import SensorSetupWarning
 from .stress import MANEUVER_DURATION, TRAIN_DURATION
 from .train import PROFILES, TrainConfig
 
@@ -16,7 +18,8 @@ from .train import PROFILES, TrainConfig
 FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
          "lr": "--lr", "epochs": "--epochs", "restarts": "--restarts",
          "average_epochs": "--average-epochs", "batch_size": "--batch-size",
-         "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers"}
+         "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers",
+         "allow_mismatch": "--allow-mismatch"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
@@ -76,6 +79,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="another run to put in the same tables (repeatable)")
     ev.add_argument("--out", type=Path, default=Path("reports/evaluation"),
                     help="report directory, made once every input has been checked")
+    ev.add_argument("--allow-mismatch", action="store_true",
+                    help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
+                    "a run's training data (with a warning) instead of refusing it")
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
@@ -144,7 +150,8 @@ def _train(args) -> None:
 def _evaluate(args) -> None:
     from .evaluate import evaluate, markdown
 
-    results = evaluate([args.run, *args.also], args.datasets, args.out)
+    results = evaluate([args.run, *args.also], args.datasets, args.out,
+                       allow_mismatch=args.allow_mismatch)
     for dataset, result in results.items():
         print(markdown(result["rows"], str(dataset)))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
@@ -179,14 +186,23 @@ def _stress(args) -> None:
     print(f"wrote {report} and its figures")
 
 
+def _warn(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning on one line of stderr, as errors are."""
+    print(f"beamsnet: warning: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    try:
-        {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
-         "stress": _stress}[args.command](args)
-    except AuvsimError as e:
-        print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        warnings.showwarning = _warn
+        # Each says something about this evaluation's inputs: never once per session.
+        warnings.simplefilter("always", SensorSetupWarning)
+        try:
+            {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
+             "stress": _stress}[args.command](args)
+        except AuvsimError as e:
+            print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
+            return 2
     return 0
 
 

@@ -49,7 +49,7 @@ import shutil
 import time
 import warnings
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -236,6 +236,10 @@ CHECKPOINT_FORMAT = "beamsnet-checkpoint"
 CHECKPOINT_VERSION = 1
 _CHECKPOINT_KEYS = {"model": str, "kwargs": dict, "state_dict": dict, "train_config": dict,
                     "dataset": dict}
+# The training data's sensor setup a network is tied to (the geometry and rates: it
+# learned one beam matrix and one ping spacing) and the error model it learned to undo.
+SENSOR_GEOMETRY = ("beam_angle_deg", "dvl_mounting_rpy_deg", "dvl_rate_hz", "imu_rate_hz")
+SENSOR_ERRORS = ("dvl_scale_factor", "dvl_bias", "dvl_noise_std")
 # The dataset field each network input comes from, for the messages about bad values.
 _FIELDS = {"target": "dvl/velocity", "beams": "dvl/beam_velocity",
            "past_beams": "dvl/beam_velocity", "accel": "imu/specific_force",
@@ -253,6 +257,20 @@ def file_identity(path: str | Path) -> dict:
     with open_dataset(path) as f:
         config_json = str(f.attrs.get("config_json", ""))
     return dict(path=str(path), sha256=digest.hexdigest(), config_json=config_json)
+
+
+def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dict[str, dict]:
+    """Per mission of a dataset (the named ones, default all): its sensor geometry and
+    rates (``SENSOR_GEOMETRY``) and realised DVL error model (``SENSOR_ERRORS``), as
+    floats and lists of floats (what a checkpoint stores). An attribute a mission does
+    not have (an imported stream has no IMU rate or mounting) is left out."""
+    from auvsim.dataset import read_attrs
+
+    _, attrs = read_attrs(path)
+    names = list(attrs) if missions is None else missions
+    return {name: {key: np.asarray(attrs[name][key], dtype=float).tolist()
+                   for key in SENSOR_GEOMETRY + SENSOR_ERRORS if key in attrs[name]}
+            for name in names}
 
 
 def check_out_dir(out: str | Path, argument: str = "out") -> Path:
@@ -395,6 +413,7 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
                       model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
                       train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
+                      sensors=sensor_setup(dataset, windows.names),
                       history=history, samples=dict(train=n, test=len(y_test)),
                       final_train_loss=final_train_loss, final_test_loss=final_test_loss)
     tmp = out / ".model.pt.tmp"
