@@ -5,107 +5,130 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from auvsim.errors import AuvsimError, OneLineErrorParser
+
+from .evaluate import SensorSetupWarning
+from .stress import MANEUVER_DURATION, TRAIN_DURATION
+from .train import PROFILES, TrainConfig
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
          "lr": "--lr", "epochs": "--epochs", "restarts": "--restarts",
          "average_epochs": "--average-epochs", "batch_size": "--batch-size",
-         "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers"}
+         "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers",
+         "allow_mismatch": "--allow-mismatch"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
+class _Defaults(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default, except where it is None: there the default depends
+    on other options, and the help says what it is."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None:
+            return action.help or ""
+        return super()._get_help_string(action)
+
+
+def _per_experiment(field: str, *names: str) -> str:
+    """``"30 for paper-sim, 50 for snapir"``: a training profile field per experiment."""
+    def value(name: str):
+        profile = PROFILES[name]
+        return profile.restarts if field == "restarts" else getattr(profile.config, field)
+
+    return ", ".join(f"{value(name):g} for {name}" for name in names)
+
+
 def _parser() -> argparse.ArgumentParser:
+    # Every training default shown and used here is read from beamsnet.train's TrainConfig
+    # and PROFILES: the command line writes none of its own.
+    train = PROFILES["train"]
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True,
                                 parser_class=OneLineErrorParser)
     tr = sub.add_parser("train", help="train BeamsNetV1 or V2 on a dataset",
-                        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                        formatter_class=_Defaults)
     tr.add_argument("dataset", type=Path)
-    tr.add_argument("--model", choices=("v1", "v2"), default="v2")
+    tr.add_argument("--model", choices=("v1", "v2"), default=train.config.model,
+                    help="BeamsNetV1 (beams + IMU) or V2 (beams + past beams)")
     tr.add_argument("--out", type=Path, required=True, help="run directory to write")
-    tr.add_argument("--epochs", type=int, default=30)
-    tr.add_argument("--lr", type=float, default=0.01, help="0.001 for sea data in the paper")
-    tr.add_argument("--batch-size", type=int, default=4)
-    tr.add_argument("--seed", type=int, default=0)
-    tr.add_argument("--average-epochs", type=int, default=0,
+    tr.add_argument("--epochs", type=int, default=train.config.epochs, help="epochs")
+    tr.add_argument("--lr", type=float, default=train.config.lr,
+                    help=f"{PROFILES['snapir'].config.lr:g} for sea data in the paper")
+    tr.add_argument("--batch-size", type=int, default=train.config.batch_size,
+                    help="samples per step")
+    tr.add_argument("--seed", type=int, default=train.config.seed,
+                    help="seeds the weights and the batch order")
+    tr.add_argument("--average-epochs", type=int, default=train.config.average_epochs,
                     help="average the weights over the last N epochs (0: the last weights, "
                     "as the paper)")
-    tr.add_argument("--restarts", type=int, default=1,
+    tr.add_argument("--restarts", type=int, default=train.restarts,
                     help="train seeds SEED .. SEED+N-1 in parallel and keep the one that fits "
                     "the training split best")
     tr.add_argument("--mission", action="append", dest="missions",
                     help="train on this mission only (repeatable; default: all)")
     tr.add_argument("--quiet", action="store_true")
-    ev = sub.add_parser("evaluate", help="compare a trained run with the baselines")
+    ev = sub.add_parser("evaluate", help="compare a trained run with the baselines",
+                        formatter_class=_Defaults)
     ev.add_argument("run", type=Path, help="run directory written by beamsnet train")
     ev.add_argument("datasets", type=Path, nargs="+", help="datasets (.h5) to evaluate on")
     ev.add_argument("--also", type=Path, action="append", default=[],
                     help="another run to put in the same tables (repeatable)")
-    ev.add_argument("--out", type=Path, default=Path("reports/evaluation"))
+    ev.add_argument("--out", type=Path, default=Path("reports/evaluation"),
+                    help="report directory, made once every input has been checked")
+    ev.add_argument("--allow-mismatch", action="store_true",
+                    help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
+                    "a run's training data (with a warning) instead of refusing it")
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
-        "the Snapir sea data's Table 3",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        "the Snapir sea data's Table 3", formatter_class=_Defaults)
     rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir"))
     rp.add_argument("--data", type=Path,
                     help="paper-sim: use this dataset instead of generating one; snapir: the "
                     f"directory with V.npy and V_test.npy (default {DEFAULT_SNAPIR_TEXT})")
     rp.add_argument("--duration", type=float, default=7200.0, help="s per speed (paper-sim)")
-    rp.add_argument("--epochs", type=int, help="default: 30 for paper-sim, 50 for snapir")
+    rp.add_argument("--epochs", type=int,
+                    help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,
-                    help="default: the paper's, 0.01 for paper-sim, 0.001 for snapir")
+                    help="default: the paper's, " + _per_experiment("lr", "paper-sim", "snapir"))
     rp.add_argument("--average-epochs", type=int,
                     help="average the weights over the last N epochs (0: the paper's last "
-                    "weights; default 5, at most the epochs)")
-    rp.add_argument("--restarts", type=int, default=3,
-                    help="paper-sim: seeds per model; the best on the training split is kept")
-    rp.add_argument("--out", type=Path, default=Path("reports"))
+                    "weights; default " + _per_experiment("average_epochs", "paper-sim",
+                                                          "snapir") + ", at most the epochs)")
+    rp.add_argument("--restarts", type=int,
+                    help="seeds per model; the best on the training split is kept (default "
+                    + _per_experiment("restarts", "paper-sim", "snapir") + ")")
+    rp.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
     rp.add_argument("--quiet", action="store_true")
+    stress = PROFILES["stress"]
     st = sub.add_parser(
         "stress", help="train on straight lines, test every estimator on manoeuvres",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=_Defaults)
     st.add_argument("--train", type=Path, dest="train_data",
                     help="dataset to train on (default: paper-sim, generated)")
     st.add_argument("--maneuvers", type=Path, dest="maneuver_data",
                     help="dataset of manoeuvres to test on (default: the maneuvers preset, "
                     "generated)")
-    st.add_argument("--train-duration", type=float, default=1800.0,
+    st.add_argument("--train-duration", type=float, default=TRAIN_DURATION,
                     help="s per speed of the generated paper-sim training data")
-    st.add_argument("--maneuver-duration", type=float, default=600.0,
+    st.add_argument("--maneuver-duration", type=float, default=MANEUVER_DURATION,
                     help="s per manoeuvre of the generated test data")
-    st.add_argument("--epochs", type=int, default=30)
-    st.add_argument("--lr", type=float, default=0.01)
+    st.add_argument("--epochs", type=int, default=stress.config.epochs, help="epochs")
+    st.add_argument("--lr", type=float, default=stress.config.lr, help="learning rate")
     st.add_argument("--average-epochs", type=int,
-                    help="average the weights over the last N epochs (default 5, at most the "
-                    "epochs)")
-    st.add_argument("--restarts", type=int, default=1, help="seeds per model")
-    st.add_argument("--out", type=Path, default=Path("reports"))
+                    help="average the weights over the last N epochs (default "
+                    f"{stress.config.average_epochs}, at most the epochs)")
+    st.add_argument("--restarts", type=int, default=stress.restarts, help="seeds per model")
+    st.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
     st.add_argument("--quiet", action="store_true")
     return parser
 
 
-def _averaged(given: int | None, epochs: int) -> int:
-    """Epochs to average over: as given, else 5, or all of them when there are fewer."""
-    return min(5, epochs) if given is None else given
-
-
-def _stress(args) -> None:
-    from .stress import stress
-
-    report = stress(train_data=args.train_data, maneuver_data=args.maneuver_data,
-                    out=args.out, epochs=args.epochs, lr=args.lr,
-                    average_epochs=_averaged(args.average_epochs, args.epochs),
-                    restarts=args.restarts,
-                    train_duration=args.train_duration,
-                    maneuver_duration=args.maneuver_duration, progress=not args.quiet)
-    print(f"wrote {report} and its figures")
-
-
 def _train(args) -> None:
-    from .train import TrainConfig, train, train_best
+    from .train import train, train_best
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
@@ -127,7 +150,8 @@ def _train(args) -> None:
 def _evaluate(args) -> None:
     from .evaluate import evaluate, markdown
 
-    results = evaluate([args.run, *args.also], args.datasets, args.out)
+    results = evaluate([args.run, *args.also], args.datasets, args.out,
+                       allow_mismatch=args.allow_mismatch)
     for dataset, result in results.items():
         print(markdown(result["rows"], str(dataset)))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
@@ -136,35 +160,49 @@ def _evaluate(args) -> None:
 def _reproduce(args) -> None:
     from .reproduce import DEFAULT_SNAPIR, paper_sim, snapir
 
-    def given(value, default):
-        return default if value is None else value
-
+    training, restarts = PROFILES[args.experiment].resolve(
+        epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
+        restarts=args.restarts)
     if args.experiment == "snapir":
-        epochs = given(args.epochs, 50)
-        report = snapir(given(args.data, DEFAULT_SNAPIR), epochs=epochs,
-                        lr=given(args.lr, 0.001),
-                        average_epochs=_averaged(args.average_epochs, epochs),
-                        out=args.out, progress=not args.quiet)
+        report = snapir(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
+                        training=training, restarts=restarts, progress=not args.quiet)
     else:
-        epochs = given(args.epochs, 30)
         report = paper_sim(args.experiment, data=args.data, duration=args.duration,
-                           epochs=epochs, lr=given(args.lr, 0.01), restarts=args.restarts,
-                           average_epochs=_averaged(args.average_epochs, epochs),
-                           out=args.out, progress=not args.quiet)
+                           out=args.out, training=training, restarts=restarts,
+                           progress=not args.quiet)
     print(f"wrote {report}")
+
+
+def _stress(args) -> None:
+    from .stress import stress
+
+    training, restarts = PROFILES["stress"].resolve(
+        epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
+        restarts=args.restarts)
+    report = stress(train_data=args.train_data, maneuver_data=args.maneuver_data,
+                    out=args.out, training=training, restarts=restarts,
+                    train_duration=args.train_duration,
+                    maneuver_duration=args.maneuver_duration, progress=not args.quiet)
+    print(f"wrote {report} and its figures")
+
+
+def _warn(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning on one line of stderr, as errors are."""
+    print(f"beamsnet: warning: {message}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    try:
-        {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
-         "stress": _stress}[args.command](args)
-    except AuvsimError as e:
-        print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
-        return 2
-    except (ValueError, FileNotFoundError) as e:
-        print(f"beamsnet: error: {e}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        warnings.showwarning = _warn
+        # Each says something about this evaluation's inputs: never once per session.
+        warnings.simplefilter("always", SensorSetupWarning)
+        try:
+            {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
+             "stress": _stress}[args.command](args)
+        except AuvsimError as e:
+            print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
+            return 2
     return 0
 
 

@@ -4,36 +4,134 @@ Every row of a table is computed on the same samples: the test part (the last 25
 default) of each mission of a dataset. The baselines that need fitting (affine
 calibration, Kalman filter) are fitted on the training part of the same file, as the
 networks were trained on it.
+
+A network learned one beam matrix and one ping spacing: ``evaluate`` refuses data whose
+beam geometry or sensor rates differ from its training data's (as the checkpoint recorded
+them) unless told to allow it, and warns (``SensorSetupWarning``) when only the DVL error
+model differs, which is a legitimate robustness test. Every run and dataset is read and
+checked before the output directory is made, so a refused evaluation leaves nothing
+behind.
 """
 
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from auvsim.errors import ConfigError
 from auvsim.files import save_figure, write_text
 
 from . import metrics
 from .baselines import AffineCalibration, KalmanFilter, LeastSquares
-from .data import Windows, load_windows, split
-from .train import load, predict
+from .data import DataError, Windows, load_windows, split
+from .train import (
+    SENSOR_ERRORS,
+    SENSOR_GEOMETRY,
+    check_out_dir,
+    load,
+    make_out_dir,
+    predict,
+    sensor_setup,
+)
 
 COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",
            "rmse_z")
+
+
+class SensorSetupWarning(UserWarning):
+    """The evaluation data's sensors differ from the training data's: the DVL error model
+    (a robustness test), a geometry or rate the caller allowed, or a run too old to
+    tell."""
 
 
 def estimates(runs: list[str | Path], dataset: str | Path,
               missions: list[str] | None = None) -> tuple[Windows, dict]:
     """Test-split windows of ``dataset`` (its ``missions``, default all) and every
     estimator's (S, 3) predictions on them."""
-    models = [(Path(r), *load(r)) for r in runs]
+    return _estimates([(Path(r), *load(r)) for r in runs], dataset, missions)
+
+
+def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
+               missions: list[str] | None = None) -> tuple[Windows, dict]:
+    """``estimates`` for loaded models (run directory, model, checkpoint)."""
     configs = [c["train_config"] for _, _, c in models]
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
-    train_w, test_w = split(load_windows(dataset, n_past=n_past, missions=missions), fraction)
+    windows = load_windows(dataset, n_past=n_past, missions=missions)
+    try:
+        train_w, test_w = split(windows, fraction)
+    except ValueError as e:
+        raise DataError(f"{dataset}: {e}") from None
     return test_w, predictions(models, train_w, test_w)
+
+
+def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
+                  allow_mismatch: bool = False) -> None:
+    """Compare the sensors of every mission of ``dataset`` with those of the missions
+    ``run`` was trained on (``checkpoint["sensors"]``, see ``beamsnet.train.sensor_setup``).
+
+    A value matches when it equals that of any training mission. An attribute either side
+    lacks (an imported stream has no IMU rate) is not compared.
+
+    Raises:
+        ConfigError: the beam geometry (angle, mounting) or a rate differs, naming both
+            values, unless ``allow_mismatch`` (then a ``SensorSetupWarning`` says so).
+
+    Warns:
+        SensorSetupWarning: only the DVL error model differs; or the checkpoint has no
+            sensor setup (trained before it was recorded), so nothing can be checked.
+    """
+    trained_on = checkpoint.get("sensors")
+    if not isinstance(trained_on, dict) or not trained_on:
+        warnings.warn(f"run {str(run)!r}: its checkpoint does not record its training "
+                      f"data's sensors (trained by an older beamsnet), so {str(dataset)!r}'s "
+                      "beam geometry, rates and DVL errors cannot be checked against them",
+                      SensorSetupWarning, stacklevel=2)
+        return
+    setup = sensor_setup(dataset)
+    geometry = _differences(setup, trained_on, SENSOR_GEOMETRY)
+    if geometry and not allow_mismatch:
+        raise ConfigError(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} "
+                          f"was trained on: {geometry}; expected the training data's beam "
+                          "geometry and DVL and IMU rates (allow_mismatch evaluates "
+                          "anyway)", argument="datasets")
+    if geometry:
+        warnings.warn(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} was "
+                      f"trained on: {geometry}; evaluated anyway, as allowed",
+                      SensorSetupWarning, stacklevel=2)
+    errors = _differences(setup, trained_on, SENSOR_ERRORS)
+    if errors:
+        warnings.warn(f"{str(dataset)!r}: its DVL error model differs from the training data "
+                      f"of run {str(run)!r}: {errors}; a test of robustness to other sensor "
+                      "errors", SensorSetupWarning, stacklevel=2)
+
+
+def _differences(setup: dict[str, dict], trained_on: dict[str, dict], keys) -> str:
+    """The values of ``keys`` in the missions of ``setup`` that no training mission has,
+    in words ("beam_angle_deg 30 (mission a) against 20"); empty when all match."""
+    said = []
+    for key in keys:
+        reference = [s[key] for s in trained_on.values() if key in s]
+        seen: dict[str, list[str]] = {}  # value -> the missions that have it
+        for name, attrs in setup.items():
+            if key in attrs and reference and not any(
+                    np.shape(attrs[key]) == np.shape(r)
+                    and np.allclose(attrs[key], r, rtol=1e-9, atol=0) for r in reference):
+                seen.setdefault(_value(attrs[key]), []).append(name)
+        theirs = " or ".join(dict.fromkeys(_value(r) for r in reference))
+        said += [f"{key} {value} (mission {', '.join(names)}) against {theirs}"
+                 for value, names in seen.items()]
+    return "; ".join(said)
+
+
+def _value(value) -> str:
+    """A float or a list of floats, short (``20``, ``[0.007, 0.007, 0.007, 0.007]``)."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    return f"{value:g}"
 
 
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
@@ -82,23 +180,42 @@ def _or_na(value: float, spec: str) -> str:
     return "n/a" if np.isnan(value) else format(value, spec)
 
 
-def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path) -> dict:
-    """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    results, sections = {}, []
+def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path, *,
+             allow_mismatch: bool = False) -> dict:
+    """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
+
+    Args:
+        runs: run directories (``beamsnet.train``), one table row each.
+        datasets: auvsim datasets; the test split of each gets a table.
+        out: directory for ``evaluation.md``, ``evaluation.json`` and the plots; made only
+            once every run and dataset has been read and checked.
+        allow_mismatch: evaluate on data whose beam geometry or rates differ from a run's
+            training data (with a warning) instead of refusing it.
+
+    Raises:
+        ConfigError: ``out`` cannot be a directory; a dataset's sensors do not match.
+        CheckpointError: a run is missing or not a readable beamsnet run.
+        DataError: a dataset is not an auvsim dataset or gives no samples.
+    """
+    out = check_out_dir(out)
+    models = [(Path(r), *load(r)) for r in runs]
+    results, sections, figures = {}, [], []
     for dataset in datasets:
-        windows, predictions = estimates(runs, dataset)
+        for run, _, checkpoint in models:
+            check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch)
+        windows, predictions = _estimates(models, dataset)
         rows = table(windows, predictions)
         per_mission = {
             name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
                                                   windows.target[windows.mission == m])
                    for m in np.unique(windows.mission)}
             for name, pred in predictions.items()}
-        stem = Path(dataset).stem
         results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
         sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
-        _plot(windows, predictions, per_mission, out / f"{stem}_errors.png")
+        figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
+    make_out_dir(out)  # only now: every input has been checked
+    for windows, predictions, per_mission, name in figures:
+        _plot(windows, predictions, per_mission, out / name)
     write_text(out / "evaluation.md", "\n\n".join(sections) + "\n")
     write_text(out / "evaluation.json", json.dumps(results, indent=1))
     return results

@@ -1,18 +1,24 @@
 """``beamsnet reproduce``: the paper's two experiments end to end.
 
 * ``paper-sim`` (and ``paper-sim-text``): generate (or read) the paper's simulated
-  dataset, train BeamsNetV1 and V2 on each speed's mission as the paper did (lr 0.01,
-  30 epochs, batch 4), evaluate every estimator on each mission's test split, and write a
-  report with the paper's Table 1 beside ours.
+  dataset, train BeamsNetV1 and V2 on each speed's mission as the paper did (the
+  ``paper-sim`` training profile: the paper's settings, several seeds, averaged weights),
+  evaluate every estimator on each mission's test split, and write a report with the
+  paper's Table 1 beside ours.
 * ``snapir``: import the Snapir AUV's recorded DVL velocities (the paper's sea data),
   synthesise the beams with the paper's error model, train BeamsNetV2 on the first 75 %
-  of the training stream (lr 0.001, 50 epochs), and report the validation split (its last
-  25 %) and the separate test mission beside the paper's Table 3. V1 needs the IMU record,
-  which was not published, so it is skipped.
+  of the training stream (the ``snapir`` profile: the paper's sea-data learning rate and
+  epochs), and report the validation split (its last 25 %) and the separate test mission
+  beside the paper's Table 3. V1 needs the IMU record, which was not published, so it is
+  skipped.
+
+Both take their datasets and trained models from ``beamsnet.experiment``, which reuses
+what an earlier run already made from the same data.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -21,17 +27,8 @@ from auvsim.files import save_figure, write_text
 from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
-from .train import (
-    TrainConfig,
-    check_restarts,
-    file_identity,
-    keep_best,
-    load,
-    seed_runs,
-    train,
-    train_all,
-    trained,
-)
+from .experiment import ensure_dataset, train_runs
+from .train import PROFILES, TrainConfig, check_out_dir, check_restarts, make_out_dir
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -46,75 +43,86 @@ SNAPIR_FILES = ("V.npy", "V_test.npy")  # training + validation stream, test mis
 DEFAULT_SNAPIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir"
 
 
-def paper_sim(experiment: str, *, data: Path | None, duration: float, epochs: int,
-              out: Path, lr: float = 0.01, restarts: int = 3, average_epochs: int = 5,
+def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
+              training: TrainConfig | None = None, restarts: int | None = None,
               workers: int | None = None, runs: Path = Path("runs"),
               progress: bool = True) -> Path:
     """Run the experiment; the report goes to ``out``, the trained models to ``runs``.
 
-    Each model is trained from ``restarts`` seeds and the one that fits its training split
-    best is kept (``beamsnet.train.keep_best``); the report lists every seed's result.
+    Args:
+        experiment: ``paper-sim`` or ``paper-sim-text`` (the preset, and the report's name).
+        data: the dataset to use (default: the preset with ``duration`` s per speed, made
+            under ``datasets/`` if missing).
+        duration: s per speed of the generated dataset.
+        out: the report's directory.
+        training: the training settings, model and missions set per run (default: the
+            experiment's profile, ``beamsnet.train.PROFILES``).
+        restarts: seeds per model, the best on its training split kept (default: the
+            profile's); the report lists every seed's result.
+        workers: training processes.
+        runs: where the models go (``runs/<experiment>/<mission>/v1|v2``).
+        progress: progress bars.
+
+    Returns:
+        The report's path.
     """
-    from auvsim.generate import generate
     from auvsim.presets import preset
 
-    # Every training setting is checked before minutes go into generating the data.
-    TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
+    profile = PROFILES[experiment]
+    training = profile.config if training is None else training
+    restarts = profile.restarts if restarts is None else restarts
+    # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
+    check_out_dir(out)
     config = preset(experiment).with_duration(duration)
     if data is None:
-        data = Path("datasets") / f"{experiment}_{duration:g}s.h5"
-        if not data.exists():
-            generate(config, data, progress=progress)
-    runs = runs / experiment
-    sha256 = file_identity(data)["sha256"]
-    seeds_of, jobs = {}, []  # (mission, model) -> the seed runs; what is left to train
-    for mission in config.missions:
-        for model in ("v1", "v2"):
-            pairs = seed_runs(TrainConfig(model=model, epochs=epochs, lr=lr,
-                                          average_epochs=average_epochs,
-                                          missions=(mission.name,)),
-                              runs / mission.name / model, restarts)
-            seeds_of[mission.name, model] = [r for _, r in pairs]
-            jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
-    train_all(jobs, workers=workers, progress=progress)
+        data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
+                              progress=progress)
+    kept = train_runs(data, {f"{mission.name}/{model}": dataclasses.replace(
+                                 training, model=model, missions=(mission.name,))
+                             for mission in config.missions for model in ("v1", "v2")},
+                      runs / experiment, restarts, workers=workers, progress=progress)
 
     sections, summary = [], []
     for mission in config.missions:
         speed = round(mission.scenario.speed)
-        all_seeds = [r for model in ("v1", "v2") for r in seeds_of[mission.name, model]]
-        windows, predictions = estimates(all_seeds, data, missions=[mission.name])
+        ours = {model: kept[f"{mission.name}/{model}"] for model in ("v1", "v2")}
+        windows, predictions = estimates([r for k in ours.values() for r in k.trained_seeds],
+                                         data, missions=[mission.name])
         per_seed = table(windows, predictions)
         # The kept models are copies of seed runs: their rows are those seeds' rows.
         rows = {name: row for name, row in per_seed.items() if not name.startswith("BeamsNet")}
-        seeds = {}
-        for model in ("v1", "v2"):
-            record = keep_best(seeds_of[mission.name, model], runs / mission.name / model)
-            seeds[model] = Path(record["kept"]).name
+        for model, k in ours.items():
             rows[f"BeamsNet{model.upper()} ({model})"] = \
-                per_seed[f"BeamsNet{model.upper()} ({seeds[model]})"]
+                per_seed[f"BeamsNet{model.upper()} ({k.kept.name})"]
         sections.append(markdown(rows, f"{speed} m/s ({mission.name}), test split: "
                                        f"{len(windows.target)} pings"))
         by_model = {name.split(" ")[0]: row for name, row in rows.items()}
+        # (seed, improvement over LS or None if it diverged, kept) per seed of each model.
         by_model["seeds"] = {
-            model: [(r.name, per_seed[f"BeamsNet{model.upper()} ({r.name})"]["improvement"],
-                     r.name == seeds[model]) for r in seeds_of[mission.name, model]]
-            for model in ("v1", "v2")}
+            model: [(r.name, None if r in k.diverged else
+                     per_seed[f"BeamsNet{model.upper()} ({r.name})"]["improvement"],
+                     r == k.kept) for r in k.seeds]
+            for model, k in ours.items()}
         by_model["floor"] = _noise_floor(data, mission.name)
         summary.append((speed, by_model))
     report = out / f"{experiment}.md"
-    out.mkdir(parents=True, exist_ok=True)
-    write_text(report, _report(experiment, data, duration, epochs, lr, restarts,
-                              average_epochs, summary, sections))
+    make_out_dir(out)
+    write_text(report, _report(experiment, data, duration, training, restarts, summary,
+                               sections))
     _figure(summary, out / f"{experiment}.png")
     return report
 
 
-def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
-           average_epochs: int = 5, runs: Path = Path("runs"),
+def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
+           restarts: int | None = None, runs: Path = Path("runs"),
            progress: bool = True) -> Path:
     """The paper's sea experiment on the Snapir streams in ``data``; the report goes to
-    ``out``, the model to ``runs``."""
+    ``out``, the model to ``runs`` (``runs/snapir/v2``).
+
+    ``training`` and ``restarts`` default to the ``snapir`` profile
+    (``beamsnet.train.PROFILES``); the model is BeamsNetV2 on the ``train`` mission.
+    """
     import hashlib
 
     from auvsim.dataset import open_dataset
@@ -122,6 +130,11 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
     from auvsim.importer import import_velocity
     from auvsim.presets import preset
 
+    profile = PROFILES["snapir"]
+    training = profile.config if training is None else training
+    restarts = profile.restarts if restarts is None else restarts
+    check_restarts(restarts)
+    check_out_dir(out)
     sources = [data / name for name in SNAPIR_FILES]
     missing = [str(p) for p in sources if not p.is_file()]
     if missing:
@@ -137,12 +150,9 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
     if progress:
         print("beamsnet reproduce snapir: BeamsNetV1 skipped: it needs the IMU samples "
               "between pings, and the Snapir streams have none")
-    run = runs / "snapir" / "v2"
-    config = TrainConfig(model="v2", epochs=epochs, lr=lr, average_epochs=average_epochs,
-                         missions=("train",))
-    if not trained(run, config, file_identity(dataset)["sha256"]):
-        train(dataset, config, run, progress=progress)
-    models = [(run, *load(run))]
+    config = dataclasses.replace(training, model="v2", missions=("train",))
+    models = [train_runs(dataset, {"v2": config}, runs / "snapir", restarts,
+                         progress=progress)["v2"].loaded()]
     train_w, validation = split(load_windows(dataset, missions=["train"]),
                                 config.train_fraction)
     test = load_windows(dataset, missions=["test"])
@@ -151,7 +161,7 @@ def snapir(data: Path, *, epochs: int, out: Path, lr: float = 0.001,
         estimates[part] = predictions(models, train_w, windows)
         results[part] = (windows, table(windows, estimates[part]))
     report = out / "snapir.md"
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     write_text(report, _snapir_report(data, dataset, config, train_w, results,
                                      estimates["test"]))
     _snapir_figure(results, out / "snapir.png")
@@ -170,16 +180,18 @@ def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:
     return found == digests
 
 
-def _report(experiment, data, duration, epochs, lr, restarts, average_epochs, summary,
+def _report(experiment, data, duration, training: TrainConfig, restarts, summary,
             sections) -> str:
     lines = [
         f"# {experiment}: the BeamsNet paper's simulation, reproduced",
         "",
         f"Made by `beamsnet reproduce {experiment}` (dataset `{data}`, {duration:g} s per "
-        f"speed; RMSprop, batch 4, lr {lr:g} decaying x0.1 every 15 epochs, {epochs} epochs, "
-        f"as the paper; {_averaging(average_epochs)}; each model trained from {restarts} "
-        "seeds, the one that fits its training split best kept). RMSE improvement over "
-        "least squares on the speed, %, on each mission's test split (last 25 %); "
+        f"speed; RMSprop, batch {training.batch_size}, lr {training.lr:g} decaying "
+        f"x{training.lr_gamma:g} every {training.lr_step} epochs, {training.epochs} epochs, "
+        f"as the paper; {_averaging(training.average_epochs)}; each model trained from "
+        f"{restarts} seeds, the one that fits its training split best kept). RMSE "
+        "improvement over least squares on the speed, %, on each mission's test split "
+        "(last 25 %); "
         "\"within 5\" says whether ours is at most 5 percentage points below the paper's "
         "Table 1:",
         "",
@@ -223,7 +235,8 @@ def _report(experiment, data, duration, epochs, lr, restarts, average_epochs, su
     for speed, rows in summary:
         floor = 100 * (1 - rows["floor"] / rows["LS"]["rmse"])
         for model, seeds in rows["seeds"].items():
-            cells = ", ".join(f"{name} {value:.2f}{' *' if kept else ''}"
+            cells = ", ".join(f"{name} diverged" if value is None else
+                              f"{name} {value:.2f}{' *' if kept else ''}"
                               for name, value, kept in seeds)
             lines.append(f"| {speed} m/s | {model.upper()} | {floor:.2f} | {cells} |")
     lines += ["", "## Full tables", ""]

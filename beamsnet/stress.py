@@ -21,6 +21,7 @@ IMU interval valid (``beamsnet.data``). The whole manoeuvre file is test data.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -32,26 +33,22 @@ from auvsim.files import save_figure, write_text
 from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
-from .train import (
-    TrainConfig,
-    check_restarts,
-    file_identity,
-    keep_best,
-    load,
-    seed_runs,
-    train_all,
-    trained,
-)
+from .experiment import ensure_dataset, train_runs
+from .train import PROFILES, TrainConfig, check_out_dir, check_restarts, make_out_dir
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
                              "m/s^2"}
+# The generated datasets' sizes: s per speed of paper-sim, s per manoeuvre.
+TRAIN_DURATION = 1800.0
+MANEUVER_DURATION = 600.0
 
 
 def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
-           epochs: int = 30, lr: float = 0.01, average_epochs: int = 5, restarts: int = 1,
-           train_duration: float = 1800.0, maneuver_duration: float = 600.0,
-           runs: Path = Path("runs"), progress: bool = True) -> Path:
+           training: TrainConfig | None = None, restarts: int | None = None,
+           train_duration: float = TRAIN_DURATION,
+           maneuver_duration: float = MANEUVER_DURATION, runs: Path = Path("runs"),
+           progress: bool = True) -> Path:
     """Train on straight lines, test on manoeuvres, write ``out/stress.md`` and figures.
 
     Args:
@@ -60,33 +57,39 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         maneuver_data: a dataset of manoeuvres to test on (default: the ``maneuvers``
             preset with ``maneuver_duration`` s each, generated if missing).
         out: the report's directory.
-        epochs, lr, average_epochs, restarts: training (the paper's settings, Polyak
-            averaging over the last epochs, seeds kept by training fit).
+        training: the training settings, the model set per run (default: the ``stress``
+            profile of ``beamsnet.train.PROFILES``: the paper's settings, Polyak
+            averaging over the last epochs).
+        restarts: seeds per model, kept by training fit (default: the profile's).
         runs: where the trained models go (``runs/stress/<file stem>/v1|v2``).
 
     Returns:
         The report's path.
     """
-    from auvsim.generate import generate
     from auvsim.presets import maneuvers, preset
 
-    # Every training setting is checked before minutes go into generating the data.
-    TrainConfig(epochs=epochs, lr=lr, average_epochs=average_epochs)
+    profile = PROFILES["stress"]
+    training = profile.config if training is None else training
+    restarts = profile.restarts if restarts is None else restarts
+    # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
+    check_out_dir(out)
     if train_data is None:
-        train_data = Path("datasets") / f"paper-sim_{train_duration:g}s.h5"
-        if not train_data.exists():
-            generate(preset("paper-sim").with_duration(train_duration), train_data,
-                     progress=progress)
+        train_data = ensure_dataset(preset("paper-sim").with_duration(train_duration),
+                                    Path("datasets") / f"paper-sim_{train_duration:g}s.h5",
+                                    progress=progress)
     if maneuver_data is None:
-        maneuver_data = Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5"
-        if not maneuver_data.exists():
-            generate(maneuvers(maneuver_duration), maneuver_data, progress=progress)
+        maneuver_data = ensure_dataset(maneuvers(maneuver_duration),
+                                       Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5",
+                                       progress=progress)
 
     windows = load_windows(train_data)  # the models' own (default) n_past
-    models = _train(train_data, runs / "stress" / Path(train_data).stem,
-                    with_imu=windows.accel is not None, epochs=epochs, lr=lr,
-                    average_epochs=average_epochs, restarts=restarts, progress=progress)
+    # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
+    names = ["v1", "v2"] if windows.accel is not None else ["v2"]
+    kept = train_runs(train_data, {name: dataclasses.replace(training, model=name)
+                                   for name in names},
+                      runs / "stress" / Path(train_data).stem, restarts, progress=progress)
+    models = [k.loaded() for k in kept.values()]
     train_w, _ = split(windows)
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
     test_w = load_windows(maneuver_data, missions=list(phases) or None)
@@ -95,7 +98,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     truth = _truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth)
 
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
     _plot_intensity(binned, out / "stress_intensity.png")
     _plot_time(test_w, estimates, phases, out / "stress_time.png")
@@ -103,24 +106,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     report = out / "stress.md"
     write_text(report, _report(train_data, trained_on, maneuver_data, models, binned, rows))
     return report
-
-
-def _train(data: Path, runs: Path, *, with_imu: bool, epochs, lr, average_epochs,
-           restarts, progress) -> list[tuple[Path, object, dict]]:
-    """V1 (when the file has IMU data) and V2 trained on every mission of ``data``, each
-    kept from ``restarts`` seeds; reused when already trained on this very file."""
-    names = ["v1", "v2"] if with_imu else ["v2"]
-    sha256 = file_identity(data)["sha256"]
-    jobs, seeds = [], {}
-    for name in names:
-        pairs = seed_runs(TrainConfig(model=name, epochs=epochs, lr=lr,
-                                      average_epochs=average_epochs), runs / name, restarts)
-        seeds[name] = [r for _, r in pairs]
-        jobs += [(data, c, r) for c, r in pairs if not trained(r, c, sha256)]
-    train_all(jobs, progress=progress)
-    for name in names:
-        keep_best(seeds[name], runs / name)
-    return [(runs / name, *load(runs / name)) for name in names]
 
 
 def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:

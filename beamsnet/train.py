@@ -22,19 +22,34 @@ of ``beamsnet reproduce paper-sim`` lists every seed):
   (in parallel processes, one thread each) and keeps the one whose final weights fit the
   TRAINING split best: the classic random-restart remedy for a non-convex fit, which
   looks at no test sample. Every seed's loss is kept in ``restarts.json``.
+
+``TrainConfig``'s defaults are the paper's simulation settings, and the one place any
+training default is written: ``PROFILES`` names what each use changes (the reports'
+averaging and seeds, the sea data's learning rate and epochs), and the command line and
+the experiments read their defaults from there.
+
+Training refuses windows holding NaN or inf before anything is written, and stops with
+``DivergedError`` when the loss stops being finite: a run either trains or leaves nothing.
+Under restarts a diverged seed is recorded and dropped, and the others go on.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import dataclasses
+import filecmp
+import functools
 import hashlib
 import json
 import math
 import multiprocessing
 import os
+import pickle
 import shutil
 import time
+import warnings
+import zipfile
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,15 +57,17 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from auvsim.errors import CheckpointError, ConfigError
 from auvsim.files import save_figure, write_text
 
 from .data import DataError, Windows, load_windows, split
-from .models import build
+from .models import MODELS, build
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """How to train. Defaults are the paper's simulation settings.
+    """How to train. Defaults are the paper's simulation settings (the one place they are
+    written; ``PROFILES`` below names what each use changes).
 
     Attributes:
         model: ``v1`` (beams + IMU) or ``v2`` (beams + past beams).
@@ -65,6 +82,9 @@ class TrainConfig:
         shared_imu_conv: V1 with one conv for both IMU windows, as the published code.
         seed: seeds the weights and the batch order.
         missions: names of the missions to use (default: all).
+
+    Raises:
+        ConfigError: a field is out of range, with ``argument`` the field's name.
     """
 
     model: str = "v2"
@@ -82,18 +102,92 @@ class TrainConfig:
     missions: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        if self.model not in ("v1", "v2"):
-            raise ValueError(f"model: expected v1 or v2, got {self.model!r}")
+        def check(ok: bool, name: str, expected: str) -> None:
+            if not ok:
+                raise ConfigError(f": expected {expected}, got {getattr(self, name)!r}",
+                                  argument=name)
+
+        check(self.model in MODELS, "model", " or ".join(MODELS))
         for name in ("epochs", "batch_size", "n_past", "lr_step"):
-            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
-                raise ValueError(f"{name}: expected a whole number >= 1, got "
-                                 f"{getattr(self, name)!r}")
-        if not (isinstance(self.average_epochs, int)
-                and 0 <= self.average_epochs <= self.epochs):
-            raise ValueError(f"average_epochs: expected a whole number from 0 to epochs "
-                             f"({self.epochs}), got {self.average_epochs!r}")
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise ValueError(f"lr: expected a positive learning rate, got {self.lr!r}")
+            check(_whole(getattr(self, name), 1), name, "a whole number >= 1")
+        check(_whole(self.average_epochs, 0) and self.average_epochs <= self.epochs,
+              "average_epochs", f"a whole number from 0 to epochs ({self.epochs})")
+        check(_real(self.lr) and self.lr > 0, "lr", "a positive learning rate")
+        check(_real(self.lr_gamma) and self.lr_gamma > 0, "lr_gamma", "a positive factor")
+        check(_real(self.train_fraction) and 0 < self.train_fraction < 1, "train_fraction",
+              "a fraction in (0, 1)")
+        check(_real(self.dropout) and 0 <= self.dropout < 1, "dropout",
+              "a probability in [0, 1)")
+        check(isinstance(self.shared_imu_conv, bool), "shared_imu_conv", "True or False")
+        check(_whole(self.seed, 0), "seed", "a whole number >= 0")
+        if self.missions is not None:
+            check(isinstance(self.missions, (list, tuple)) and len(self.missions) > 0
+                  and all(isinstance(m, str) for m in self.missions), "missions",
+                  "a sequence of mission names (or None: all)")
+            # A list and a tuple of the same names are one config (``trained`` compares).
+            object.__setattr__(self, "missions", tuple(self.missions))
+
+
+def _whole(value: object, least: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= least
+
+
+def _real(value: object) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A named training setup: the settings and how many seeds each model is trained from.
+
+    Attributes:
+        config: the training settings; a user of the profile sets the model and missions.
+        restarts: seeds per model, the one that fits its training split best kept
+            (``keep_best``).
+    """
+
+    config: TrainConfig
+    restarts: int = 1
+
+    def resolve(self, *, epochs: int | None = None, lr: float | None = None,
+                average_epochs: int | None = None,
+                restarts: int | None = None) -> tuple[TrainConfig, int]:
+        """The profile's config and restarts with the values given (None: the profile's).
+
+        Fewer epochs than the profile averages over are all averaged, unless
+        ``average_epochs`` is given.
+
+        Raises:
+            ConfigError: a value is out of range (``TrainConfig``, ``check_restarts``).
+        """
+        epochs = self.config.epochs if epochs is None else epochs
+        if average_epochs is None:
+            average_epochs = self.config.average_epochs
+            if isinstance(epochs, int):
+                average_epochs = min(average_epochs, epochs)
+        config = dataclasses.replace(self.config, epochs=epochs, average_epochs=average_epochs,
+                                     lr=self.config.lr if lr is None else lr)
+        restarts = self.restarts if restarts is None else restarts
+        check_restarts(restarts)
+        return config, restarts
+
+
+# What each use of training changes from the paper's simulation defaults, and why. Both
+# additions to the paper (averaging, restarts; see the module docstring) were measured on
+# paper-sim; the reports say when they are on.
+REPORT = TrainConfig(average_epochs=5)  # the reports: Polyak averaging over 5 epochs
+PROFILES = {
+    # ``beamsnet train``: the paper's protocol as published, one seed, the last weights.
+    "train": Profile(TrainConfig()),
+    # The paper's simulation: 3 seeds per model, since the seed moved V1 from 36 % to 77 %.
+    "paper-sim": Profile(REPORT, restarts=3),
+    "paper-sim-text": Profile(REPORT, restarts=3),
+    # The stress test trains on every mission at once; one seed per model keeps it short.
+    "stress": Profile(REPORT, restarts=1),
+    # The paper's sea data: lr 0.001 and 50 epochs (the reference's training protocol).
+    "snapir": Profile(dataclasses.replace(REPORT, lr=0.001, epochs=50), restarts=1),
+}
 
 
 def model_kwargs(config: TrainConfig, windows: Windows) -> dict:
@@ -108,7 +202,8 @@ def model_inputs(name: str, windows: Windows) -> list[torch.Tensor]:
     beams = torch.as_tensor(windows.beams, dtype=torch.float32)
     if name == "v1":
         if windows.accel is None:
-            raise ValueError("the dataset has no IMU data: BeamsNetV1 needs it (use v2)")
+            raise ConfigError("v2 is needed: the windows have no IMU data, which "
+                              "BeamsNetV1 takes", argument="model")
         # (S, W, 3) -> (S, 3, W): the axes are the conv's channels, time runs along W.
         accel = torch.as_tensor(windows.accel, dtype=torch.float32).transpose(1, 2)
         gyro = torch.as_tensor(windows.gyro, dtype=torch.float32).transpose(1, 2)
@@ -131,6 +226,26 @@ def _mse(model: torch.nn.Module, x: list[torch.Tensor], y: torch.Tensor) -> floa
     return torch.nn.functional.mse_loss(model(*x), y).item() if len(y) else math.nan
 
 
+class DivergedError(ConfigError):
+    """The training loss became NaN or inf: the learning rate (``argument``) is too large
+    for this data, or the data's scale is. Nothing of the run is written."""
+
+
+# What marks a beamsnet checkpoint, and the keys (and their types) every reader relies on.
+CHECKPOINT_FORMAT = "beamsnet-checkpoint"
+CHECKPOINT_VERSION = 1
+_CHECKPOINT_KEYS = {"model": str, "kwargs": dict, "state_dict": dict, "train_config": dict,
+                    "dataset": dict}
+# The training data's sensor setup a network is tied to (the geometry and rates: it
+# learned one beam matrix and one ping spacing) and the error model it learned to undo.
+SENSOR_GEOMETRY = ("beam_angle_deg", "dvl_mounting_rpy_deg", "dvl_rate_hz", "imu_rate_hz")
+SENSOR_ERRORS = ("dvl_scale_factor", "dvl_bias", "dvl_noise_std")
+# The dataset field each network input comes from, for the messages about bad values.
+_FIELDS = {"target": "dvl/velocity", "beams": "dvl/beam_velocity",
+           "past_beams": "dvl/beam_velocity", "accel": "imu/specific_force",
+           "gyro": "imu/angular_rate"}
+
+
 def file_identity(path: str | Path) -> dict:
     """Path, SHA-256 and generating config of a dataset file."""
     from auvsim.dataset import open_dataset
@@ -144,18 +259,99 @@ def file_identity(path: str | Path) -> dict:
     return dict(path=str(path), sha256=digest.hexdigest(), config_json=config_json)
 
 
+def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dict[str, dict]:
+    """Per mission of a dataset (the named ones, default all): its sensor geometry and
+    rates (``SENSOR_GEOMETRY``) and realised DVL error model (``SENSOR_ERRORS``), as
+    floats and lists of floats (what a checkpoint stores). An attribute a mission does
+    not have (an imported stream has no IMU rate or mounting) is left out."""
+    from auvsim.dataset import read_attrs
+
+    _, attrs = read_attrs(path)
+    names = list(attrs) if missions is None else missions
+    return {name: {key: np.asarray(attrs[name][key], dtype=float).tolist()
+                   for key in SENSOR_GEOMETRY + SENSOR_ERRORS if key in attrs[name]}
+            for name in names}
+
+
+def check_out_dir(out: str | Path, argument: str = "out") -> Path:
+    """``out`` as a Path, after checking that it can be made a directory (it is one, or the
+    nearest existing path above it is), so that no work is spent before a bad output path
+    is refused.
+
+    Raises:
+        ConfigError: ``out``, or a path above it, exists and is not a directory.
+    """
+    out = Path(out)
+    for path in (out, *out.parents):
+        if path.exists():
+            if not path.is_dir():
+                what = "exists" if path == out else f"is inside {str(path)!r}, which exists"
+                raise ConfigError(f"{str(out)!r}: {what} and is not a directory; expected a "
+                                  "directory to write into", argument=argument)
+            break
+    return out
+
+
+def make_out_dir(out: Path, argument: str = "out") -> None:
+    """Make the directory ``out`` (and its parents), or raise ConfigError naming it."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError(f"{str(out)!r}: cannot be made a directory ({e.strerror}); expected "
+                          "a directory to write into", argument=argument) from None
+
+
+def check_finite(windows: Windows, model: str, dataset: str | Path) -> None:
+    """Refuse samples whose target or ``model``'s inputs hold NaN or inf: the loss of a
+    single such sample is NaN, and so is every weight after one step.
+
+    Args:
+        windows: the samples (``beamsnet.data.Windows``).
+        model: ``v1`` (checks the IMU windows and beams) or ``v2`` (past and current beams).
+        dataset: the file they came from, for the message.
+
+    Raises:
+        DataError: naming the dataset, the field, and where the first such sample is.
+    """
+    inputs = ("accel", "gyro", "beams") if model == "v1" else ("past_beams", "beams")
+    for key in ("target", *inputs):
+        values = getattr(windows, key)
+        bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"{dataset}: {_FIELDS[key]} holds NaN or inf in {int(bad.sum())} of "
+                f"{len(values)} samples (the first in mission "
+                f"{windows.names[windows.mission[first]]} at {windows.time[first]:g} s); "
+                "expected finite values to train on")
+
+
 def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
           progress: bool = True) -> dict:
     """Train one model on ``dataset`` and save it under the directory ``out``.
 
+    Every input is checked before the training starts, and nothing is written unless it
+    ends with finite weights.
+
     Returns:
         A summary: the per-epoch losses and where the checkpoint and the plot went.
+
+    Raises:
+        ConfigError: ``out`` cannot be a directory; BeamsNetV1 on a file without IMU data.
+        DataError: the dataset cannot give the samples, or they hold NaN or inf.
+        DivergedError: the training loss became NaN or inf.
     """
+    out = check_out_dir(out)
     windows = load_windows(dataset, n_past=config.n_past, missions=config.missions)
     if config.model == "v1" and windows.accel is None:
-        raise DataError(f"{dataset}: no IMU data (an imported DVL stream has none); "
-                        "BeamsNetV1 needs the IMU samples between pings: use --model v2")
-    train_w, test_w = split(windows, config.train_fraction)
+        raise ConfigError(f"v2 is needed: {dataset} has no IMU data (an imported DVL stream "
+                          "has none), and BeamsNetV1 takes the IMU samples between pings",
+                          argument="model")
+    check_finite(windows, config.model, dataset)
+    try:
+        train_w, test_w = split(windows, config.train_fraction)
+    except ValueError as e:
+        raise DataError(f"{dataset}: {e}") from None
     # RMSprop's running mean of squared gradients decays geometrically for units whose
     # gradient is zero (dead ReLUs) and reaches float32's subnormal range within a few
     # thousand steps, where x86 arithmetic is tens of times slower: flush them to zero.
@@ -187,12 +383,17 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
             for i in range(0, n, config.batch_size):
                 idx = perm[i:i + config.batch_size]
                 loss = loss_fn(model(*(x[idx] for x in x_train)), y_train[idx])
+                value = loss.item()
+                if not math.isfinite(value):
+                    # One non-finite step makes every weight NaN: stop before writing.
+                    raise _diverged(config, value, f"at epoch {epoch + 1}, step "
+                                    f"{i // config.batch_size + 1} of {steps}")
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 optimizer.step()
                 if averaging:
                     averaged.update_parameters(model)
-                total += loss.item() * len(idx)
+                total += value * len(idx)
             schedule.step()
             test_loss = _mse(model, x_test, y_test)
             history["train"].append(total / n)
@@ -205,11 +406,14 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     # The saved weights' losses (the history's are the last weights', before averaging).
     final_train_loss = _mse(model, x_train, y_train)  # what train_best compares seeds by
     final_test_loss = _mse(model, x_test, y_test)
+    if not math.isfinite(final_train_loss):  # the last step's update overflowed
+        raise _diverged(config, final_train_loss, "after the last step")
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    checkpoint = dict(model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
+    make_out_dir(out)
+    checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
+                      model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
                       train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
+                      sensors=sensor_setup(dataset, windows.names),
                       history=history, samples=dict(train=n, test=len(y_test)),
                       final_train_loss=final_train_loss, final_test_loss=final_test_loss)
     tmp = out / ".model.pt.tmp"
@@ -222,19 +426,31 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                 final_train_loss=final_train_loss, final_test_loss=final_test_loss)
 
 
+def _diverged(config: TrainConfig, loss: float, where: str) -> DivergedError:
+    return DivergedError(f"{config.lr:g}: BeamsNet{config.model.upper()} (seed {config.seed}) "
+                         f"diverged, its training loss became {loss} {where}; expected a "
+                         "finite loss, with a smaller learning rate", argument="lr")
+
+
 def trained(run: str | Path, config: TrainConfig, sha256: str) -> bool:
     """Whether ``run`` already holds this config trained on the file with this SHA-256
-    (then a report re-evaluates it instead of training again)."""
+    (then a report re-evaluates it instead of training again). A run whose checkpoint
+    cannot be read is not trained: training again replaces it."""
     path = Path(run) / "model.pt"
-    if not path.exists():
+    if not path.is_file():
         return False
-    checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        checkpoint = read_checkpoint(path)
+    except CheckpointError:
+        return False
     return (checkpoint["train_config"] == dataclasses.asdict(config)
-            and checkpoint["dataset"]["sha256"] == sha256 and "final_train_loss" in checkpoint)
+            and checkpoint["dataset"].get("sha256") == sha256
+            and "final_train_loss" in checkpoint)
 
 
 def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
-              workers: int | None = None, progress: bool = True) -> list[dict]:
+              workers: int | None = None, progress: bool = True,
+              diverged: str = "raise") -> list[dict]:
     """Run ``train(dataset, config, out)`` for every job, in parallel processes.
 
     Each process trains with ``cpu_count // workers`` threads (one when the jobs fill the
@@ -244,20 +460,28 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         jobs: (dataset, config, out) triples.
         workers: processes (default: as many as cores, at most one per job).
         progress: a progress bar over jobs (over steps when there is one process).
+        diverged: ``"raise"``: a job whose loss became non-finite stops the others, as
+            any error does; ``"record"``: its summary is ``{"diverged": why,
+            "final_train_loss": nan}`` and the others go on (restarts: a seed that
+            diverged is dropped, the others are compared).
 
     Returns:
         The summaries of ``train``, in job order.
     """
+    if diverged not in ("raise", "record"):
+        raise ConfigError(f": expected 'raise' or 'record', got {diverged!r}",
+                          argument="diverged")
+    job = functools.partial(_job, record=diverged == "record")
     cores = os.cpu_count() or 1
     workers = max(1, min(workers or cores, len(jobs)))
     if workers == 1:
-        return [train(d, c, o, progress=progress) for d, c, o in jobs]
+        return [job(d, c, o, progress=progress) for d, c, o in jobs]
     context = multiprocessing.get_context("forkserver")
     with cf.ProcessPoolExecutor(workers, mp_context=context, initializer=torch.set_num_threads,
                                 initargs=(max(1, cores // workers),)) as pool, \
             tqdm(total=len(jobs), disable=None if progress else True, leave=False,
                  unit=" models", desc="training") as bar:
-        futures = [pool.submit(train, d, c, o, progress=False) for d, c, o in jobs]
+        futures = [pool.submit(job, d, c, o, progress=False) for d, c, o in jobs]
         try:
             for future in cf.as_completed(futures):
                 future.result()  # the first error stops here, naming what went wrong
@@ -269,33 +493,64 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         return [f.result() for f in futures]
 
 
-def keep_best(runs: list[str | Path], out: str | Path) -> dict:
+def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress: bool,
+         record: bool) -> dict:
+    """One job of ``train_all`` (module level, so worker processes can run it)."""
+    try:
+        return train(dataset, config, out, progress=progress)
+    except DivergedError as e:
+        if not record:
+            raise
+        return dict(diverged=str(e), final_train_loss=math.nan)
+
+
+def keep_best(runs: list[str | Path], out: str | Path, *,
+              diverged: Mapping[str | Path, str] | None = None) -> dict:
     """Copy the run whose final weights fit their training split best into ``out`` and
     write ``out/restarts.json`` with every run's final training loss.
 
+    A file already equal to the kept one is left as it is, so that a report that reuses
+    its runs does not rewrite them.
+
+    Args:
+        runs: run directories.
+        out: where the kept run is copied.
+        diverged: runs of ``runs`` whose training diverged (they have no checkpoint), with
+            the reason; they are recorded, never kept.
+
     Returns:
-        ``{"kept": run, "losses": {run: loss}}``.
+        ``{"kept": run, "losses": {run: loss}, "diverged": {run: why}}``.
+
+    Raises:
+        DivergedError: every run diverged.
     """
-    losses = {str(r): load(r)[1]["final_train_loss"] for r in runs}
+    diverged = {str(r): why for r, why in (diverged or {}).items()}
+    losses = {str(r): math.nan if str(r) in diverged else load(r)[1]["final_train_loss"]
+              for r in runs}
     finite = {r: loss for r, loss in losses.items() if math.isfinite(loss)}
     if not finite:
-        raise ValueError(f"every run diverged (training loss not finite): {', '.join(losses)}; "
-                         "expected at least one to train (try a smaller --lr)")
+        raise DivergedError(f": every run diverged (training loss not finite): "
+                            f"{', '.join(losses)}; expected at least one to train, with a "
+                            "smaller learning rate", argument="lr")
     kept = Path(min(finite, key=finite.get))
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    make_out_dir(out)
     for name in ("model.pt", "history.json", "losses.png"):
+        if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
+            continue
         shutil.copyfile(kept / name, out / f".{name}.tmp")
         (out / f".{name}.tmp").replace(out / name)
-    record = dict(kept=str(kept), losses=losses,
+    record = dict(kept=str(kept), losses=losses, diverged=diverged,
                   rule="lowest final MSE on the training split (evaluation mode)")
     write_text(out / "restarts.json", json.dumps(record, indent=1))
     return record
 
 
 def check_restarts(restarts: int) -> None:
-    if isinstance(restarts, bool) or not isinstance(restarts, int) or restarts < 1:
-        raise ValueError(f"restarts: expected a whole number >= 1, got {restarts!r}")
+    """Raises ConfigError unless ``restarts`` is a whole number >= 1."""
+    if not _whole(restarts, 1):
+        raise ConfigError(f": expected a whole number >= 1, got {restarts!r}",
+                          argument="restarts")
 
 
 def seed_runs(config: TrainConfig, out: str | Path,
@@ -310,29 +565,161 @@ def seed_runs(config: TrainConfig, out: str | Path,
 def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                restarts: int = 3, workers: int | None = None, progress: bool = True) -> dict:
     """Train the ``seed_runs`` of ``config`` and keep the best on the training split in
-    ``out`` (see the module docstring).
+    ``out`` (see the module docstring). A seed that diverges is recorded and dropped.
 
     Returns:
         ``keep_best``'s record plus the kept run's ``train`` summary.
+
+    Raises:
+        DivergedError: every seed diverged (and what ``train`` raises for bad input).
     """
+    check_out_dir(out)
     pairs = seed_runs(config, out, restarts)
     summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
-                          progress=progress)
+                          progress=progress, diverged="record")
     runs = [r for _, r in pairs]
-    record = keep_best(runs, out)
+    record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
+                                            zip(runs, summaries, strict=True)
+                                            if "diverged" in s})
     return {**record, **summaries[[str(r) for r in runs].index(record["kept"])],
             "checkpoint": str(Path(out) / "model.pt"), "plot": str(Path(out) / "losses.png")}
 
 
 def load(run: str | Path) -> tuple[torch.nn.Module, dict]:
-    """The trained model of a run directory (or ``model.pt`` path) and its checkpoint."""
-    path = Path(run)
-    path = path / "model.pt" if path.is_dir() else path
-    checkpoint = torch.load(path, map_location="cpu", weights_only=False)
-    model = build(checkpoint["model"], **checkpoint["kwargs"])
+    """The trained model of a run directory (or ``model.pt`` path) and its checkpoint.
+
+    Raises:
+        CheckpointError: the run does not exist or has no ``model.pt``; it is not a
+            beamsnet checkpoint (empty, truncated, corrupt, another kind of file, keys
+            missing); or its weights do not fit the model it names.
+    """
+    path = _checkpoint_path(run)
+    checkpoint = read_checkpoint(path)
+    try:
+        model = build(checkpoint["model"], **checkpoint["kwargs"])
+    except (TypeError, ValueError) as e:
+        raise _refused(path, f"its model arguments {checkpoint['kwargs']} do not build "
+                       f"BeamsNet{checkpoint['model'].upper()} ({e})") from None
+    _check_weights(model, checkpoint, path)
     model.load_state_dict(checkpoint["state_dict"])
     model.eval()
     return model, checkpoint
+
+
+def read_checkpoint(path: str | Path) -> dict:
+    """The checkpoint in the file ``path``, checked to be a beamsnet checkpoint.
+
+    Only tensors and plain values are unpickled (``weights_only``): a checkpoint is data,
+    and a file that needs arbitrary Python objects to load is not one of ours.
+
+    Raises:
+        CheckpointError: as ``load``.
+    """
+    path = Path(path)
+    # torch.save has written zip archives since PyTorch 1.6: anything else (an empty,
+    # truncated or text file, a bare pickle) is refused before torch parses it.
+    if not zipfile.is_zipfile(path):
+        size = path.stat().st_size
+        raise _refused(path, "is empty" if size == 0 else
+                       f"is not a PyTorch checkpoint ({size} bytes, not a zip archive: "
+                       "truncated, corrupt or another kind of file)")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # torch's notes on pickle protocols
+            checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError:
+        raise _refused(path, "holds something other than tensors and plain values: a "
+                       "corrupt pickle, or Python objects, which a checkpoint never needs "
+                       "and which are not unpickled") from None
+    except _TORCH_LOAD_ERRORS as e:
+        raise _refused(path, f"is a corrupt PyTorch checkpoint ({type(e).__name__}: "
+                       f"{_first_line(e)})") from None
+    if not isinstance(checkpoint, dict):
+        raise _refused(path, f"holds a {type(checkpoint).__name__}, not a beamsnet "
+                       "checkpoint (a dict)")
+    # Checkpoints from before the format marker have the same keys and are read alike.
+    marker = checkpoint.get("format", CHECKPOINT_FORMAT), checkpoint.get("format_version", 1)
+    if marker != (CHECKPOINT_FORMAT, CHECKPOINT_VERSION):
+        raise _refused(path, f"has format {marker[0]!r} version {marker[1]!r}; this beamsnet "
+                       f"reads {CHECKPOINT_FORMAT!r} version {CHECKPOINT_VERSION}")
+    missing = [k for k in _CHECKPOINT_KEYS if k not in checkpoint]
+    if missing:
+        raise _refused(path, f"lacks {', '.join(missing)}: not a beamsnet checkpoint")
+    wrong = [f"{k} is a {type(checkpoint[k]).__name__}" for k, kind in _CHECKPOINT_KEYS.items()
+             if not isinstance(checkpoint[k], kind)]
+    if checkpoint["model"] not in MODELS and not wrong:
+        wrong.append(f"model is {checkpoint['model']!r}, not {' or '.join(MODELS)}")
+    if not wrong:
+        try:
+            TrainConfig(**checkpoint["train_config"])
+        except (ConfigError, TypeError) as e:
+            wrong.append(f"train_config is not a training config ({e})")
+    if wrong:
+        raise _refused(path, f"is not a beamsnet checkpoint: {'; '.join(wrong)}")
+    return checkpoint
+
+
+# What torch.load raises on a damaged zip archive or pickle inside it.
+_TORCH_LOAD_ERRORS = (RuntimeError, OSError, EOFError, zipfile.BadZipFile, KeyError,
+                      ValueError, TypeError, IndexError, AttributeError, UnicodeDecodeError)
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _checkpoint_path(run: str | Path) -> Path:
+    """The ``model.pt`` of a run directory (or the path itself, if it is a file)."""
+    path = Path(run)
+    if not path.exists():
+        raise _refused(path, "does not exist")
+    if path.is_dir():
+        path = path / "model.pt"
+        if not path.exists():
+            raise _refused(path.parent, "has no model.pt (is it a run directory, and did "
+                           "its training finish?)")
+        if not path.is_file():
+            raise _refused(path, "is a directory, not the checkpoint file" if path.is_dir()
+                           else "is not a regular file")
+    else:
+        with open(path, "rb") as f:
+            if f.read(len(_HDF5_SIGNATURE)) == _HDF5_SIGNATURE:
+                raise _refused(path, "is an HDF5 file (a dataset?), not a run")
+    return path
+
+
+def _check_weights(model: torch.nn.Module, checkpoint: dict, path: Path) -> None:
+    """Refuse a state_dict whose keys, shapes or values do not fit ``model``."""
+    state, expected = checkpoint["state_dict"], model.state_dict()
+    problems = [f"no {k}" for k in expected if k not in state]
+    problems += [f"unexpected {k}" for k in state if k not in expected]
+    for k, v in expected.items():
+        if k not in state:
+            continue
+        if not isinstance(state[k], torch.Tensor):
+            problems.append(f"{k} is a {type(state[k]).__name__}, not a tensor")
+        elif state[k].shape != v.shape:
+            problems.append(f"{k} has shape {tuple(state[k].shape)}, the model's is "
+                            f"{tuple(v.shape)}")
+        elif state[k].is_floating_point() and not torch.isfinite(state[k]).all():
+            problems.append(f"{k} holds NaN or inf")
+    if problems:
+        more = f" and {len(problems) - 3} more" if len(problems) > 3 else ""
+        raise _refused(path, f"has weights that do not fit BeamsNet"
+                       f"{checkpoint['model'].upper()}({_kwargs(checkpoint['kwargs'])}): "
+                       f"{'; '.join(problems[:3])}{more}")
+
+
+def _refused(path: Path, what: str) -> CheckpointError:
+    return CheckpointError(f"{str(path)!r}: {what}; expected a run directory with the "
+                           "model.pt that beamsnet training writes", argument="run")
+
+
+def _kwargs(kwargs: dict) -> str:
+    return ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
+
+
+def _first_line(error: BaseException) -> str:
+    """The start of an exception's message, for a one-line error."""
+    text = (str(error).strip().splitlines() or [""])[0]
+    return text if len(text) <= 100 else text[:97] + "..."
 
 
 def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import shutil
 
+import h5py
 import numpy as np
 import pytest
 import torch
@@ -16,11 +19,21 @@ from auvsim.config import (
     ScenarioConfig,
     SeafloorConfig,
 )
+from auvsim.errors import ConfigError
 from auvsim.generate import generate
 from beamsnet.cli import main
-from beamsnet.data import load_windows, split
+from beamsnet.data import DataError, load_windows, split
 from beamsnet.evaluate import estimates, table
-from beamsnet.train import TrainConfig, load, predict, train, train_all, train_best
+from beamsnet.train import (
+    PROFILES,
+    DivergedError,
+    TrainConfig,
+    load,
+    predict,
+    train,
+    train_all,
+    train_best,
+)
 
 
 def tiny(path, *, scale=0.05, noise=0.0, duration=400.0):
@@ -120,8 +133,9 @@ def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, 
     mse = np.mean((predict(model, "v2", train_w) - train_w.target) ** 2)
     assert checkpoint["final_train_loss"] == pytest.approx(mse, rel=1e-4)
     assert checkpoint["final_train_loss"] != last["final_train_loss"]
-    with pytest.raises(ValueError, match="average_epochs"):
+    with pytest.raises(ConfigError, match="average_epochs") as refused:
         TrainConfig(epochs=3, average_epochs=4)
+    assert refused.value.argument == "average_epochs"
 
 
 def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path):
@@ -162,7 +176,8 @@ def test_cli_train_and_evaluate(scale_only, tmp_path, capsys):
     (["train", "{data}", "--out", "{tmp}/r", "--restarts", "0"], "restarts"),
     # Checked before any data is generated:
     (["stress", "--restarts", "0", "--out", "{tmp}/s"], "restarts"),
-    (["reproduce", "paper-sim", "--epochs", "2", "--average-epochs", "3"], "average_epochs"),
+    (["reproduce", "paper-sim", "--epochs", "2", "--average-epochs", "3"],
+     "--average-epochs: expected a whole number from 0 to epochs (2), got 3"),
 ])
 def test_bad_input_gives_one_line_and_exit_2(scale_only, tmp_path, capsys, args, message):
     args = [a.format(data=scale_only, tmp=tmp_path) for a in args]
@@ -190,3 +205,152 @@ def test_reproduce_paper_sim_end_to_end_small(tmp_path, monkeypatch):
     assert "| 2 m/s | V1 |" in report and "seed_1" in report  # every seed's result
     assert (tmp_path / "runs" / "paper-sim" / "speed_2" / "v1" / "restarts.json").exists()
     assert (tmp_path / "reports" / "paper-sim.png").exists()
+
+
+@pytest.mark.parametrize("field,value", [
+    ("model", "v3"), ("epochs", 0), ("epochs", True), ("lr", -0.1), ("lr", float("nan")),
+    ("lr_gamma", 0.0), ("batch_size", 2.5), ("train_fraction", 1.0), ("dropout", 1.0),
+    ("shared_imu_conv", 1), ("seed", -1), ("missions", "a"), ("missions", ()), ("missions", 5),
+])
+def test_train_config_errors_name_the_field(field, value):
+    with pytest.raises(ConfigError) as refused:
+        TrainConfig(**{field: value})
+    assert refused.value.argument == field
+    assert str(refused.value).startswith(f"{field}: expected ")
+    assert "--" not in str(refused.value)  # a library message names no flag
+
+
+def test_train_config_keeps_one_spelling_of_the_missions():
+    assert TrainConfig(missions=["a", "b"]).missions == ("a", "b")
+    assert TrainConfig(missions=["a"]) == TrainConfig(missions=("a",))
+
+
+def test_profiles_resolve_given_values_over_their_own():
+    """A profile gives its settings; given values win, and fewer epochs than the profile
+    averages over are all averaged unless the averaging is given too."""
+    paper_sim = PROFILES["paper-sim"]
+    assert paper_sim.resolve() == (paper_sim.config, paper_sim.restarts)
+    config, restarts = paper_sim.resolve(epochs=2, lr=0.5, restarts=4)
+    assert (config.epochs, config.lr, config.average_epochs, restarts) == (2, 0.5, 2, 4)
+    assert paper_sim.resolve(epochs=2, average_epochs=0)[0].average_epochs == 0
+    # Everything else is TrainConfig's: the profiles only name what they change.
+    assert dataclasses.replace(PROFILES["snapir"].config, lr=TrainConfig.lr,
+                               epochs=TrainConfig.epochs,
+                               average_epochs=TrainConfig.average_epochs) == TrainConfig()
+    with pytest.raises(ConfigError, match="restarts"):
+        paper_sim.resolve(restarts=0)
+
+
+def test_cli_defaults_are_train_configs(monkeypatch, capsys):
+    """Every training default of the command line, used or shown, comes from TrainConfig
+    and its profiles."""
+    import beamsnet.reproduce
+    import beamsnet.stress
+    import beamsnet.train
+
+    calls = {}
+
+    def record(name):
+        def fake(*args, **kwargs):
+            calls[name] = (args, kwargs)
+            return {"final_train_loss": 0.0, "final_test_loss": 0.0,
+                    "samples_per_second": 1.0, "checkpoint": "c", "plot": "p"}
+        return fake
+
+    monkeypatch.setattr(beamsnet.train, "train", record("train"))
+    monkeypatch.setattr(beamsnet.reproduce, "paper_sim", record("paper-sim"))
+    monkeypatch.setattr(beamsnet.reproduce, "snapir", record("snapir"))
+    monkeypatch.setattr(beamsnet.stress, "stress", record("stress"))
+    assert main(["train", "data.h5", "--out", "run", "--quiet"]) == 0
+    assert calls["train"][0][1] == TrainConfig()
+    for command in (["reproduce", "paper-sim"], ["reproduce", "snapir"], ["stress"]):
+        assert main([*command, "--quiet"]) == 0
+        profile = PROFILES[command[-1]]
+        kwargs = calls[command[-1]][1]
+        assert (kwargs["training"], kwargs["restarts"]) == (profile.config, profile.restarts)
+    capsys.readouterr()
+
+    def help_of(command):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        return " ".join(capsys.readouterr().out.split())
+
+    train_help = help_of("train")
+    shown = {flag: getattr(TrainConfig(), flag[2:].replace("-", "_"))
+             for flag in ("--model", "--epochs", "--lr", "--batch-size", "--seed",
+                          "--average-epochs")}
+    shown["--restarts"] = PROFILES["train"].restarts
+    options = {o.split()[0]: o for o in train_help.split("options:")[1].split(" --")}
+    for flag, value in shown.items():
+        assert options[flag[2:]].endswith(f"(default: {value})"), flag
+    reproduce_help = help_of("reproduce")
+    assert (f"default: {PROFILES['paper-sim'].config.epochs:g} for paper-sim, "
+            f"{PROFILES['snapir'].config.epochs:g} for snapir") in reproduce_help
+    assert f"default {PROFILES['paper-sim'].restarts:g} for paper-sim" in reproduce_help
+    assert "(default: None)" not in reproduce_help
+    stress_help = help_of("stress")
+    assert f"(default: {PROFILES['stress'].config.epochs})" in stress_help
+    assert f"default {PROFILES['stress'].config.average_epochs}, at most" in stress_help
+
+
+def test_training_refuses_non_finite_data_before_writing(scale_only, tmp_path, capsys):
+    """A dataset whose targets (or a network's inputs) hold NaN is refused with one line
+    naming the file and the field, before anything is written."""
+    bad = tmp_path / "nan.h5"
+    shutil.copyfile(scale_only, bad)
+    with h5py.File(bad, "r+") as f:
+        f["missions/a/dvl/velocity"][...] = np.nan
+        f["missions/b/imu/specific_force"][5000:] = np.inf
+    out = tmp_path / "run"
+    assert main(["train", str(bad), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"{bad}: dvl/velocity holds NaN or inf in " in err and "mission a" in err
+    assert not out.exists()
+    with pytest.raises(DataError, match="imu/specific_force holds NaN or inf") as refused:
+        train(bad, TrainConfig(model="v1", missions=("b",)), out, progress=False)
+    assert "mission b at 51 s" in str(refused.value)
+    assert not out.exists()
+
+
+def test_a_diverging_loss_stops_training_and_writes_nothing(scale_only, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", str(scale_only), "--model", "v1", "--lr", "1e20", "--epochs", "1",
+                 "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith("beamsnet: error: --lr 1e+20: BeamsNetV1 (seed 0) diverged, its "
+                          "training loss became ")
+    assert not out.exists()
+    # Under restarts (in worker processes) a diverged seed is dropped; when every seed
+    # diverges, that is the error, and still nothing is written.
+    assert main(["train", str(scale_only), "--model", "v1", "--lr", "1e20", "--epochs", "1",
+                 "--restarts", "2", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("beamsnet: error: --lr: every run diverged")
+    assert str(out / "seed_0") in err and str(out / "seed_1") in err
+    assert not out.exists()
+
+
+def test_restarts_drop_a_diverged_seed_and_record_why(scale_only, tmp_path, monkeypatch):
+    import beamsnet.train
+
+    real = beamsnet.train.train
+
+    def seed_1_diverges(dataset, config, out, *, progress=True):
+        if config.seed == 1:
+            raise DivergedError("0.01: seed 1 diverged", argument="lr")
+        return real(dataset, config, out, progress=progress)
+
+    monkeypatch.setattr(beamsnet.train, "train", seed_1_diverges)
+    out = tmp_path / "best"
+    summary = train_best(scale_only, TrainConfig(epochs=1), out, restarts=3, workers=1,
+                         progress=False)
+    record = json.loads((out / "restarts.json").read_text())
+    assert record["diverged"] == {str(out / "seed_1"): "lr 0.01: seed 1 diverged"}
+    assert np.isnan(record["losses"][str(out / "seed_1")])
+    finite = {r: v for r, v in record["losses"].items() if np.isfinite(v)}
+    assert sorted(finite) == [str(out / "seed_0"), str(out / "seed_2")]
+    assert summary["kept"] == min(finite, key=finite.get) != str(out / "seed_1")
+    assert not (out / "seed_1").exists()
+    assert load(out)[1]["final_train_loss"] == finite[summary["kept"]]

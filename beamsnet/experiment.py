@@ -1,0 +1,125 @@
+"""Running an experiment's trainings: its datasets made once, its models trained once.
+
+``beamsnet reproduce`` (paper-sim, snapir) and ``beamsnet stress`` need the same steps
+before they can evaluate anything, and this module is the one place that does them:
+
+* ``ensure_dataset``: a preset's dataset under ``datasets/``, generated if it is missing.
+  Data generation never runs inside training: the file exists before any model reads it.
+* ``train_runs``: every model of the experiment trained from a few seeds (``seed_runs``),
+  in parallel processes (``train_all``), the seed that fits its training split best kept
+  (``keep_best``), and the kept models loaded. A seed run that already holds the same
+  config trained on the same file (by SHA-256) is reused rather than trained again, so a
+  report rerun on unchanged data only re-evaluates. A seed whose loss diverges is
+  recorded and dropped, as long as another seed of the same model trains.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+
+from .train import (
+    TrainConfig,
+    check_restarts,
+    file_identity,
+    keep_best,
+    load,
+    seed_runs,
+    train_all,
+    trained,
+)
+
+
+def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True) -> Path:
+    """``path``, generated from ``config`` (an ``auvsim.config.Config``) if it is not there.
+
+    An existing file is taken as it is: its name says which preset and duration made it.
+    ``generate`` writes the file whole or not at all, so an interrupted generation leaves
+    nothing that a later run would take for a finished file.
+    """
+    from auvsim.generate import generate
+
+    path = Path(path)
+    if not path.exists():
+        generate(config, path, progress=progress)
+    return path
+
+
+@dataclass(frozen=True)
+class KeptRun:
+    """One model of an experiment: trained from several seeds, the best one kept.
+
+    Attributes:
+        run: the directory the kept seed was copied into (``runs_dir / name``).
+        model: the kept network, in evaluation mode.
+        checkpoint: its checkpoint (``beamsnet.train.load``).
+        kept: the seed run that was kept (one of ``seeds``).
+        seeds: every seed run, in seed order.
+        diverged: the seed runs whose training loss became non-finite (they have no
+            checkpoint), with the reason.
+    """
+
+    run: Path
+    model: torch.nn.Module
+    checkpoint: dict
+    kept: Path
+    seeds: tuple[Path, ...]
+    diverged: Mapping[Path, str]
+
+    @property
+    def trained_seeds(self) -> tuple[Path, ...]:
+        """The seed runs that trained (have a checkpoint), in seed order."""
+        return tuple(r for r in self.seeds if r not in self.diverged)
+
+    def loaded(self) -> tuple[Path, torch.nn.Module, dict]:
+        """(run, model, checkpoint): what ``beamsnet.evaluate.predictions`` takes."""
+        return self.run, self.model, self.checkpoint
+
+
+def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
+               runs_dir: str | os.PathLike, restarts: int, *, workers: int | None = None,
+               progress: bool = True) -> dict[str, KeptRun]:
+    """Train every config of ``configs`` on ``data`` from ``restarts`` seeds, keep each
+    one's best, and load the kept models.
+
+    Args:
+        data: the dataset every model trains on (each config's ``missions`` of it).
+        configs: name -> config. A name is a directory under ``runs_dir`` and may have
+            several parts (``speed_1/v1``); its seeds go to ``runs_dir/name/seed_<s>``,
+            the kept copy to ``runs_dir/name``.
+        runs_dir: where the runs go.
+        restarts: seeds per config (``seed_runs``), >= 1.
+        workers: training processes (default: one per core, at most one per job).
+        progress: progress bars.
+
+    Returns:
+        name -> ``KeptRun``, in the order of ``configs``.
+
+    Raises:
+        ConfigError: ``restarts`` < 1; ``DivergedError`` when every seed of a config
+            diverged; and what ``beamsnet.train.train`` raises for bad data.
+    """
+    check_restarts(restarts)
+    runs_dir = Path(runs_dir)
+    sha256 = file_identity(data)["sha256"]
+    seeds, jobs = {}, []  # name -> its seed runs; (data, config, run) left to train
+    for name, config in configs.items():
+        pairs = seed_runs(config, runs_dir / name, restarts)
+        seeds[name] = [run for _, run in pairs]
+        jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
+    summaries = train_all(jobs, workers=workers, progress=progress, diverged="record")
+    diverged = {Path(run): s["diverged"]
+                for (_, _, run), s in zip(jobs, summaries, strict=True) if "diverged" in s}
+
+    kept = {}
+    for name in configs:
+        record = keep_best(seeds[name], runs_dir / name,
+                           diverged={r: diverged[r] for r in seeds[name] if r in diverged})
+        kept[name] = KeptRun(runs_dir / name, *load(runs_dir / name), kept=Path(record["kept"]),
+                             seeds=tuple(seeds[name]),
+                             diverged={r: diverged[r] for r in seeds[name] if r in diverged})
+    return kept

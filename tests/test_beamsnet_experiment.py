@@ -1,0 +1,123 @@
+"""The experiment runner: datasets made once, models trained once from a few seeds and
+the best kept, a diverged seed dropped."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+import beamsnet.train
+from auvsim.config import (
+    Config,
+    DvlConfig,
+    ImuConfig,
+    MissionConfig,
+    ScenarioConfig,
+    SeafloorConfig,
+)
+from auvsim.dataset import read_attrs
+from beamsnet.experiment import ensure_dataset, train_runs
+from beamsnet.train import DivergedError, TrainConfig, load
+
+TWO_LINES = Config(
+    missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
+        speed=2.0, duration=90.0, start_speed=0.0)),
+              MissionConfig(name="b", seed=2, scenario=ScenarioConfig(
+                  speed=1.0, duration=90.0, start_speed=0.0))),
+    seafloor=SeafloorConfig(kind="flat", depth=60.0),
+    dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.05), imu=ImuConfig())
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    return ensure_dataset(TWO_LINES, tmp_path_factory.mktemp("exp") / "datasets" / "two.h5",
+                          progress=False)
+
+
+def _diverging(seeds):
+    """``train``, except that the seeds in ``seeds`` diverge."""
+    real = beamsnet.train.train
+
+    def train(dataset, config, out, *, progress=True):
+        if config.seed in seeds:
+            raise DivergedError(f"0.01: seed {config.seed} diverged", argument="lr")
+        return real(dataset, config, out, progress=progress)
+    return train
+
+
+def test_ensure_dataset_generates_only_a_missing_file(data):
+    root, missions = read_attrs(data)
+    assert sorted(missions) == ["a", "b"] and root["config_json"] == TWO_LINES.to_json()
+    stamp = data.stat().st_mtime_ns
+    assert ensure_dataset(TWO_LINES, data, progress=False) == data
+    assert data.stat().st_mtime_ns == stamp
+
+
+def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data, tmp_path):
+    configs = {f"{m}/v2": TrainConfig(epochs=1, missions=(m,)) for m in ("a", "b")}
+    kept = train_runs(data, configs, tmp_path, 2, workers=1, progress=False)
+    assert list(kept) == ["a/v2", "b/v2"]
+    for name, k in kept.items():
+        assert k.run == tmp_path / name and k.loaded()[0] == k.run
+        assert k.seeds == (tmp_path / name / "seed_0", tmp_path / name / "seed_1")
+        assert k.trained_seeds == k.seeds and k.diverged == {}
+        losses = {r: load(r)[1]["final_train_loss"] for r in k.seeds}
+        assert losses[k.seeds[0]] != losses[k.seeds[1]]
+        assert k.kept == min(losses, key=losses.get)
+        assert k.checkpoint["final_train_loss"] == losses[k.kept]
+        assert k.checkpoint["train_config"]["missions"] == (name[0],)
+        record = json.loads((k.run / "restarts.json").read_text())
+        assert record["kept"] == str(k.kept)
+
+    # Run again on the same file: nothing is trained or copied again.
+    stamps = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*") if p.is_file()
+              and p.name != "restarts.json"}
+    again = train_runs(data, configs, tmp_path, 2, workers=1, progress=False)
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
+    assert {n: k.kept for n, k in again.items()} == {n: k.kept for n, k in kept.items()}
+
+    # Another config of one model trains that model's seeds again, and only those.
+    changed = train_runs(data, {"a/v2": dataclasses.replace(configs["a/v2"], lr=0.005)},
+                         tmp_path, 2, workers=1, progress=False)
+    assert changed["a/v2"].checkpoint["train_config"]["lr"] == 0.005
+    moved = {p for p, stamp in stamps.items() if p.stat().st_mtime_ns != stamp}
+    assert {tmp_path / "a" / "v2" / f"seed_{s}" / "model.pt" for s in (0, 1)} <= moved
+    assert not any(p.is_relative_to(tmp_path / "b") for p in moved)
+
+
+def test_a_diverged_seed_is_dropped_and_recorded(data, tmp_path, monkeypatch):
+    monkeypatch.setattr(beamsnet.train, "train", _diverging({0}))
+    k = train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path, 2, workers=1,
+                   progress=False)["v2"]
+    seed_0, seed_1 = tmp_path / "v2" / "seed_0", tmp_path / "v2" / "seed_1"
+    assert k.diverged == {seed_0: "lr 0.01: seed 0 diverged"}
+    assert k.kept == seed_1 and k.trained_seeds == (seed_1,) and not seed_0.exists()
+    record = json.loads((tmp_path / "v2" / "restarts.json").read_text())
+    assert record["diverged"] == {str(seed_0): "lr 0.01: seed 0 diverged"}
+
+
+def test_every_seed_diverging_is_an_error_and_writes_nothing(data, tmp_path, monkeypatch):
+    monkeypatch.setattr(beamsnet.train, "train", _diverging({0, 1}))
+    with pytest.raises(DivergedError, match="every run diverged") as refused:
+        train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path / "runs", 2, workers=1,
+                   progress=False)
+    assert refused.value.argument == "lr"
+    assert not (tmp_path / "runs").exists()
+
+
+def test_the_paper_sim_report_lists_a_diverged_seed(tmp_path, monkeypatch):
+    from beamsnet.reproduce import paper_sim
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(beamsnet.train, "train", _diverging({1}))
+    report = paper_sim("paper-sim", data=None, duration=60.0, out=tmp_path / "reports",
+                       training=TrainConfig(epochs=1), restarts=2, workers=1,
+                       progress=False).read_text()
+    assert (tmp_path / "datasets" / "paper-sim_60s.h5").exists()
+    for speed in (1, 2, 3):
+        for model in ("V1", "V2"):
+            assert f"| {speed} m/s | {model} |" in report
+    assert report.count("seed_1 diverged") == 6 and report.count("seed_0 ") == 6
+    assert "each model trained from 2 seeds" in report

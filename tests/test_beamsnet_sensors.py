@@ -1,0 +1,123 @@
+"""A run remembers its training data's sensors; evaluating it on other sensors is refused
+(geometry, rates) or said (error model), on one line."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+import torch
+
+from auvsim.config import (
+    Config,
+    DvlConfig,
+    ImuConfig,
+    MissionConfig,
+    ScenarioConfig,
+    SeafloorConfig,
+)
+from auvsim.errors import ConfigError
+from auvsim.generate import generate
+from beamsnet.cli import main
+from beamsnet.evaluate import SensorSetupWarning, check_sensors
+from beamsnet.train import TrainConfig, load, sensor_setup, train
+
+
+def line(path, **dvl):
+    """One straight 90 s mission "a" at 2 m/s; the DVL is 20 deg beams with a 5 % scale
+    factor unless ``dvl`` says otherwise."""
+    config = Config(
+        missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
+            speed=2.0, duration=90.0, start_speed=0.0)),),
+        seafloor=SeafloorConfig(kind="flat", depth=60.0),
+        dvl=DvlConfig(**{"beam_angle_deg": 20.0, "scale_factor": 0.05, **dvl}),
+        imu=ImuConfig())
+    generate(config, path, workers=1, progress=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sensors")
+    return dict(trained=line(d / "trained.h5"), wide=line(d / "wide.h5", beam_angle_deg=30.0),
+                noisier=line(d / "noisier.h5", scale_factor=0.02, noise_std=0.01))
+
+
+@pytest.fixture(scope="module")
+def run(data, tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "v2"
+    train(data["trained"], TrainConfig(model="v2", epochs=1), out, progress=False)
+    return out
+
+
+def test_the_checkpoint_stores_the_training_datas_sensors(run):
+    _, checkpoint = load(run)
+    assert checkpoint["sensors"] == {"a": {
+        "beam_angle_deg": 20.0, "dvl_mounting_rpy_deg": [0.0, 0.0, 0.0], "dvl_rate_hz": 1.0,
+        "imu_rate_hz": 100.0, "dvl_scale_factor": [0.05] * 4, "dvl_bias": [0.0] * 4,
+        "dvl_noise_std": 0.0}}
+
+
+def test_the_same_sensors_evaluate_without_a_word(run, data, tmp_path, capsys):
+    assert main(["evaluate", str(run), str(data["trained"]), "--out", str(tmp_path / "r")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_other_beams_are_refused_unless_allowed(run, data, tmp_path, capsys):
+    out = tmp_path / "report"
+    assert main(["evaluate", str(run), str(data["wide"]), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"beamsnet: error: datasets "
+                                                   f"'{data['wide']}': its sensors differ")
+    assert f"run '{run}'" in err and "beam_angle_deg 30 (mission a) against 20;" in err
+    assert "allow_mismatch" in err and not out.exists()
+
+    assert main(["evaluate", str(run), str(data["wide"]), "--out", str(out),
+                 "--allow-mismatch"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("beamsnet: warning: ")
+    assert "beam_angle_deg 30 (mission a) against 20; evaluated anyway, as allowed" in err
+    assert (out / "evaluation.md").exists()
+
+
+def test_another_error_model_is_a_robustness_test_said_in_one_line(run, data, tmp_path,
+                                                                  capsys):
+    assert main(["evaluate", str(run), str(data["noisier"]), "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("beamsnet: warning: ")
+    assert ("dvl_scale_factor [0.02, 0.02, 0.02, 0.02] (mission a) against "
+            "[0.05, 0.05, 0.05, 0.05]; dvl_noise_std 0.01 (mission a) against 0;") in err
+    assert "beam_angle" not in err and "robustness" in err
+
+
+def test_a_run_from_before_the_sensor_record_is_evaluated_with_a_warning(
+        run, data, tmp_path, capsys):
+    old = tmp_path / "old"
+    old.mkdir()
+    checkpoint = torch.load(run / "model.pt", weights_only=True)
+    del checkpoint["sensors"]
+    torch.save(checkpoint, old / "model.pt")
+    assert main(["evaluate", str(old), str(data["wide"]), "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"beamsnet: warning: run '{old}': ")
+    assert "cannot be checked" in err
+
+
+def test_rates_and_mounting_are_geometry(run, data):
+    """A network learned one ping spacing, one IMU window and one mounting: other values
+    are refused, naming both; an attribute one side lacks (an imported stream has no IMU
+    rate) is not compared."""
+    _, checkpoint = load(run)
+    other = copy.deepcopy(checkpoint)
+    other["sensors"]["a"].update(dvl_rate_hz=2.0, dvl_mounting_rpy_deg=[0.0, 0.0, 45.0])
+    with pytest.raises(ConfigError) as refused:
+        check_sensors(run, other, data["trained"])
+    assert refused.value.argument == "datasets"
+    assert ("dvl_mounting_rpy_deg [0, 0, 0] (mission a) against [0, 0, 45]; "
+            "dvl_rate_hz 1 (mission a) against 2;") in str(refused.value)
+    with pytest.warns(SensorSetupWarning, match="dvl_rate_hz 1 .mission a. against 2"):
+        check_sensors(run, other, data["trained"], allow_mismatch=True)
+    imported = copy.deepcopy(checkpoint)
+    del imported["sensors"]["a"]["imu_rate_hz"]
+    check_sensors(run, imported, data["trained"])  # no error, no warning
+    assert sensor_setup(data["trained"]) == checkpoint["sensors"]
