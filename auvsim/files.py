@@ -11,6 +11,9 @@ node), so its temporaries are a ``Claim``: the file, a ``.parts`` folder for pie
 owner's last descriptor, however the owner ended, so a lock that can be taken proves its
 temporaries dead even if the pid has been reused since; ``sweep`` (run by every new
 claim) removes those, and leaves anything else alone.
+
+Some steps must not be cut in half by Ctrl-C or SIGTERM either: ``interrupts_held``
+delivers them after the step.
 """
 
 from __future__ import annotations
@@ -19,7 +22,11 @@ import fcntl
 import os
 import re
 import shutil
+import signal
 import socket
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 TAG = "auvsim-tmp"
@@ -129,6 +136,35 @@ def _still_named(fd: int, path: Path) -> bool:
         return os.path.samestat(os.fstat(fd), os.stat(path))
     except FileNotFoundError:
         return False
+
+
+@contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends, then deliver the first (in the main
+    thread, where Python runs signal handlers; elsewhere a no-op). For steps that a
+    KeyboardInterrupt would break: a process pool starting a worker loses track of it,
+    and some swallow it, so the run goes on: MuJoCo's extension init, importing, and
+    LLVM's callbacks as numba loads compiled code from its cache."""
+    held: list[int] = []
+    with interrupt_handler(lambda signum, frame: held.append(signum)):
+        yield
+    if held:
+        signal.raise_signal(held[0])
+
+
+@contextmanager
+def interrupt_handler(handler: Callable | int) -> Iterator[None]:
+    """Set ``handler`` for SIGINT and SIGTERM while the block runs (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, previous in old.items():
+            if previous is not None:  # None: set outside Python, cannot be restored
+                signal.signal(sig, previous)
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:

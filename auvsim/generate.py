@@ -32,10 +32,9 @@ import select
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
 from pathlib import Path
 
 from tqdm import tqdm
@@ -43,7 +42,7 @@ from tqdm import tqdm
 from .config import Config
 from .dataset import Block, DatasetWriter, copy_mission
 from .errors import ConfigError, SimulationError
-from .files import HOST, sweep
+from .files import HOST, interrupt_handler, interrupts_held, sweep
 from .mission import MissionRun, check_reachable
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
@@ -126,7 +125,8 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
     Returns:
         A summary: number of missions, simulated seconds, wall seconds.
     """
-    check_reachable(config)
+    with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
+        check_reachable(config)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 1):
         raise ConfigError(f": expected a whole number >= 1, got {workers!r}",
@@ -179,7 +179,7 @@ def _in_jobs(config: Config, ds: DatasetWriter, workers: int,
     reported = [0.0] * len(paths)
     futures: list[cf.Future] = []
     try:
-        with _interrupts_held():
+        with interrupts_held():
             if executor is None:
                 executor = pool = _process_pool(workers, parent, ds.path.parent)
             for i, path in enumerate(paths):
@@ -218,43 +218,14 @@ def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolE
     idle one also ends with it."""
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(["auvsim.generate"])
-    if threading.current_thread() is threading.main_thread():
-        # Ignored signals stay ignored across exec and fork, and Python then installs no
-        # KeyboardInterrupt handler: the server and its workers (and the resource
-        # tracker it starts) never see the group's Ctrl-C or SIGTERM, even while they
-        # import. A signal to this process in these milliseconds is lost.
-        with _handlers(signal.SIG_IGN):
-            multiprocessing.forkserver.ensure_running()
+    # Ignored signals stay ignored across exec and fork, and Python then installs no
+    # KeyboardInterrupt handler: the server and its workers (and the resource tracker it
+    # starts) never see the group's Ctrl-C or SIGTERM, even while they import. A signal
+    # to this process in these milliseconds is lost.
+    with interrupt_handler(signal.SIG_IGN):
+        multiprocessing.forkserver.ensure_running()
     return cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                   initializer=_exit_with, initargs=(parent, folder))
-
-
-@contextmanager
-def _interrupts_held() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM until the block ends, then deliver the first: a
-    KeyboardInterrupt inside the pool as it starts a worker would leave that worker
-    unknown to it, so not waited for, and failing to start (with a traceback) once this
-    process has gone. Signal handlers run in the main thread only."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    held: list[int] = []
-    with _handlers(lambda signum, frame: held.append(signum)):
-        yield
-    if held:
-        signal.raise_signal(held[0])
-
-
-@contextmanager
-def _handlers(handler) -> Iterator[None]:
-    """Set ``handler`` for SIGINT and SIGTERM while the block runs."""
-    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for sig, previous in old.items():
-            if previous is not None:  # None: set outside Python, cannot be restored
-                signal.signal(sig, previous)
 
 
 def this_process() -> Parent:
