@@ -132,7 +132,10 @@ def build_config(args: argparse.Namespace) -> Config:
 
 
 def _generate(args: argparse.Namespace) -> None:
-    from .generate import generate  # numba compilation only for the commands that need it
+    from .files import interrupts_held
+
+    with interrupts_held():  # MuJoCo's extension init would swallow a Ctrl-C
+        from .generate import generate  # numba compilation only for the commands that need it
 
     config = build_config(args)
     summary = generate(config, args.out, workers=args.workers, progress=not args.quiet)
