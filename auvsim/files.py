@@ -56,14 +56,17 @@ class Claim:
 
     def __init__(self, path: str | os.PathLike) -> None:
         path = Path(path)
-        sweep(path.parent)
         self.file = temporary(path)
         self.folder, self._lock = _parts(self.file), _lock(self.file)
         if self._lock in _held:
             raise FileExistsError(f"{str(path)!r} is being written by this process already")
+        sweep(path.parent)
         while True:
             fd = os.open(self._lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-            fcntl.flock(fd, fcntl.LOCK_EX)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            except OSError:  # a file system without flock (Lustre, say): never swept then
+                break
             if _still_named(fd, self._lock):
                 break
             os.close(fd)  # a sweep removed a dead namesake's lock as we opened it

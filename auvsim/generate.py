@@ -257,9 +257,11 @@ def _exit_with(parent: Parent, folder: Path) -> None:
 
 def _watch(parent: Parent, folders: set[Path]) -> None:
     _wait_for_end(*parent[1:])
-    for folder in list(folders):
-        sweep(folder)  # the dead parent's lock is free: the kernel dropped it first
-    os._exit(1)
+    try:
+        for folder in list(folders):
+            sweep(folder)  # the dead parent's lock is free: the kernel dropped it first
+    finally:
+        os._exit(1)
 
 
 def _wait_for_end(pid: int, started: str | None) -> None:
