@@ -179,31 +179,26 @@ def _plot(args: argparse.Namespace) -> None:
         print(f"wrote {path}")
 
 
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, which unwinds like Ctrl-C."""
-
-
-def _terminate(signum, frame) -> None:
-    raise _Terminated
+def _stop(signum, frame) -> None:
+    raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run a command line; returns the exit status: 0, 2 on an error, and on Ctrl-C or
-    SIGTERM (after the workers have stopped and the temporary files have gone) 130 or
-    143, 128 + the signal's number as a shell reports it."""
+    """Run a command line; returns the exit status: 0, 2 on an error, 130 on Ctrl-C or
+    SIGTERM alike (after the workers have stopped and the temporary files have gone)."""
     args = _parser().parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         # A scheduler's SIGTERM unwinds like Ctrl-C: workers stop, temporary files go.
-        signal.signal(signal.SIGTERM, _terminate)
+        signal.signal(signal.SIGTERM, _stop)
     try:
         {"generate": _generate, "presets": _presets, "inspect": _inspect,
          "import-velocity": _import_velocity, "plot": _plot}[args.command](args)
     except AuvsimError as e:
         print(f"auvsim: error: {e.for_cli(FLAGS)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as e:
+    except KeyboardInterrupt:
         print("auvsim: interrupted; nothing was written", file=sys.stderr)
-        return 128 + (signal.SIGTERM if isinstance(e, _Terminated) else signal.SIGINT)
+        return 130
     return 0
 
 
