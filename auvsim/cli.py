@@ -132,7 +132,10 @@ def build_config(args: argparse.Namespace) -> Config:
 
 
 def _generate(args: argparse.Namespace) -> None:
-    from .generate import generate  # numba compilation only for the commands that need it
+    from .files import interrupts_held
+
+    with interrupts_held():  # MuJoCo's extension init would swallow a Ctrl-C
+        from .generate import generate  # numba compilation only for the commands that need it
 
     config = build_config(args)
     summary = generate(config, args.out, workers=args.workers, progress=not args.quiet)
@@ -181,6 +184,8 @@ def _stop(signum, frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run a command line; returns the exit status: 0, 2 on an error, 130 on Ctrl-C or
+    SIGTERM alike (after the workers have stopped and the temporary files have gone)."""
     args = _parser().parse_args(argv)
     if threading.current_thread() is threading.main_thread():
         # A scheduler's SIGTERM unwinds like Ctrl-C: workers stop, temporary files go.

@@ -25,7 +25,7 @@ import numpy as np
 
 from . import __version__
 from .errors import ConfigError, DatasetError
-from .files import temporary
+from .files import Claim
 from .sensors import Attr, Field, Truth, registry
 
 FORMAT = "auvsim-dataset"
@@ -131,17 +131,22 @@ class DatasetWriter:
         if self.path.is_dir():
             raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name",
                               argument="out")
-        self.tmp = temporary(self.path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            open(self.tmp, "wb").close()  # plain open: its OSError says what is wrong
+            # Temporaries of killed runs in this folder go first (``files.sweep``).
+            self.claim = Claim(self.path)
         except OSError as e:
             raise ConfigError(
                 f"{str(self.path)!r}: cannot write there ({e.strerror or e}); "
                 "expected a path in a writable directory", argument="out") from None
-        # No chunk cache: whole chunks are written at once, so caching them would only
-        # defer their compression to the close, outside the physics/sensors overlap.
-        self.file = h5py.File(self.tmp, "w", rdcc_nbytes=0)
+        self.tmp = self.claim.file
+        try:
+            # No chunk cache: whole chunks are written at once, so caching them would only
+            # defer their compression to the close, outside the physics/sensors overlap.
+            self.file = h5py.File(self.tmp, "w", rdcc_nbytes=0)
+        except BaseException:
+            self.claim.release()
+            raise
         self.file.attrs.update(
             format=FORMAT,
             format_version=FORMAT_VERSION,
@@ -180,7 +185,7 @@ class DatasetWriter:
             if exc_type is None:
                 os.replace(self.tmp, self.path)
         finally:
-            self.tmp.unlink(missing_ok=True)
+            self.claim.release()  # the temporary file if still there, parts, lock
 
 
 class MissionWriter:

@@ -1,16 +1,173 @@
-"""Writing outputs whole or not at all: each file is written under a temporary name beside
-its final one and renamed when complete, so an interrupted run leaves no half-written
-report, table or figure."""
+"""Writing outputs whole or not at all, and cleaning up after runs that were killed.
+
+Every output is written under a temporary name beside its final one and renamed when
+complete, so an interrupted run leaves no half-written dataset, report or figure. The
+temporary names say what they are and whose they are: ``.{name}.auvsim-tmp.{host}.{pid}``
+(reports and figures add their suffix, which matplotlib needs to pick the format).
+
+A dataset takes longer than a report and its run may be killed (``kill -9``, a lost
+node), so its temporaries are a ``Claim``: the file, a ``.parts`` folder for pieces, and a
+``.lock`` file flocked for as long as they are in use. The kernel drops an flock with its
+owner's last descriptor, however the owner ended, so a lock that can be taken proves its
+temporaries dead even if the pid has been reused since; ``sweep`` (run by every new
+claim) removes those, and leaves anything else alone.
+
+Some steps must not be cut in half by Ctrl-C or SIGTERM either: ``interrupts_held``
+delivers them after the step.
+"""
 
 from __future__ import annotations
 
+import fcntl
 import os
+import re
+import shutil
+import signal
+import socket
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+TAG = "auvsim-tmp"
+HOST = socket.gethostname()
+# A claim's temporary file (the parts folder and the lock add a suffix): only this
+# host's, since a lock held on another host may not be visible here.
+_CLAIMED = re.compile(rf"\..+\.{TAG}\.{re.escape(HOST)}\.\d+")
+_held: set[Path] = set()  # this process's claims: a second one would wait on its own lock
 
 
 def temporary(path: Path, *, suffix: str = "") -> Path:
-    """The temporary name an output is written under, beside ``path``."""
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp{suffix}")
+    """The temporary name this process writes ``path`` under, beside it."""
+    return path.with_name(f".{path.name}.{TAG}.{HOST}.{os.getpid()}{suffix}")
+
+
+class Claim:
+    """The temporaries of an output that takes a while to build, held until ``release``
+    (or the end of a ``with`` block); claiming first sweeps the folder (``sweep``).
+
+    Args:
+        path: the final output, whose folder exists.
+
+    Attributes:
+        file: the temporary file to build the output in (``temporary(path)``).
+        folder: a folder for pieces, ``file`` + ``.parts``, made by whoever needs it.
+    """
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        path = Path(path)
+        self.file = temporary(path)
+        self.folder, self._lock = _parts(self.file), _lock(self.file)
+        if self._lock in _held:
+            raise FileExistsError(f"{str(path)!r} is being written by this process already")
+        sweep(path.parent)
+        while True:
+            fd = os.open(self._lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            except OSError:  # a file system without flock (Lustre, say): never swept then
+                break
+            if _still_named(fd, self._lock):
+                break
+            os.close(fd)  # a sweep removed a dead namesake's lock as we opened it
+        self._fd = fd
+        _held.add(self._lock)
+
+    def release(self) -> None:
+        """Remove the temporaries (the lock last: see ``sweep``) and let the name go."""
+        if self._fd is None:
+            return
+        self.file.unlink(missing_ok=True)
+        shutil.rmtree(self.folder, ignore_errors=True)
+        self._lock.unlink(missing_ok=True)
+        os.close(self._fd)
+        self._fd = None
+        _held.discard(self._lock)
+
+    def __enter__(self) -> Claim:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def sweep(folder: str | os.PathLike) -> None:
+    """Remove from ``folder`` the claims of this host whose owner has ended: those whose
+    lock can be taken, and parts folders whose lock is gone (a claim's lock is made first
+    and removed last, so such a folder was made again by a dead run's straggler). Other
+    files, including other hosts' and live claims, are left alone."""
+    folder = Path(folder)
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return
+    claims = {n.removesuffix(".lock").removesuffix(".parts") for n in names}
+    for name in sorted(n for n in claims if _CLAIMED.fullmatch(n)):
+        file = folder / name
+        lock, parts = _lock(file), _parts(file)
+        try:
+            fd = os.open(lock, os.O_RDONLY | os.O_CLOEXEC)
+        except FileNotFoundError:
+            shutil.rmtree(parts, ignore_errors=True)
+            continue
+        except OSError:
+            continue  # not ours to judge (another user's, say)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # BlockingIOError: in use
+            if _still_named(fd, lock):  # not swept and claimed again meanwhile
+                file.unlink(missing_ok=True)
+                shutil.rmtree(parts, ignore_errors=True)
+                if not parts.exists():
+                    lock.unlink()
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+
+
+def _lock(file: Path) -> Path:
+    return file.with_name(file.name + ".lock")
+
+
+def _parts(file: Path) -> Path:
+    return file.with_name(file.name + ".parts")
+
+
+def _still_named(fd: int, path: Path) -> bool:
+    """Whether ``path`` is still the file open as ``fd``."""
+    try:
+        return os.path.samestat(os.fstat(fd), os.stat(path))
+    except FileNotFoundError:
+        return False
+
+
+@contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends, then deliver the first (in the main
+    thread, where Python runs signal handlers; elsewhere a no-op). For steps that a
+    KeyboardInterrupt would break: a process pool starting a worker loses track of it,
+    and some swallow it, so the run goes on: MuJoCo's extension init, importing, and
+    LLVM's callbacks as numba loads compiled code from its cache."""
+    held: list[int] = []
+    with interrupt_handler(lambda signum, frame: held.append(signum)):
+        yield
+    if held:
+        signal.raise_signal(held[0])
+
+
+@contextmanager
+def interrupt_handler(handler: Callable | int) -> Iterator[None]:
+    """Set ``handler`` for SIGINT and SIGTERM while the block runs (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, previous in old.items():
+            if previous is not None:  # None: set outside Python, cannot be restored
+                signal.signal(sig, previous)
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:

@@ -11,31 +11,43 @@ of workers.
 Jobs talk back through the part folder, which works with any executor whose workers
 share this file system: each job writes the simulated seconds it has done to
 ``<part>.progress`` after every block, and stops at its next block once the folder
-holds ``STOP`` (the first error, Ctrl-C or SIGTERM in this process).
+holds ``STOP`` (the first error, Ctrl-C or SIGTERM in this process). This process then
+waits for them, so nothing is left behind.
+
+A killed parent (``kill -9``) cannot write ``STOP``: each job's process watches it instead
+(``_exit_with``) and ends at once when it has gone, first removing the run's temporaries
+(``auvsim.files.sweep``); the forkserver ends with its last client. The default pool's
+forkserver, and so its workers, ignore SIGINT and SIGTERM, which a terminal or a
+scheduler sends to the whole process group: only this process acts on them, stopping its
+jobs through ``STOP``, and no worker prints a traceback.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import multiprocessing
+import multiprocessing.forkserver
 import os
-import shutil
-import tempfile
+import select
+import signal
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from tqdm import tqdm
 
 from .config import Config
 from .dataset import Block, DatasetWriter, copy_mission
-from .errors import ConfigError
+from .errors import ConfigError, SimulationError
+from .files import HOST, interrupt_handler, interrupts_held, sweep
 from .mission import MissionRun, check_reachable
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
-POLL_S = 0.5  # how often the parent looks at its jobs
+POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
+Parent = tuple[str, int, str | None]  # host, pid, start time (``this_process``)
 
 
 def _stream_mission(config: Config, index: int, writer: DatasetWriter, *,
@@ -63,13 +75,16 @@ class _Flag:
         return self.predicate()
 
 
-def write_mission(config: Config, index: int, path: str) -> None:
+def write_mission(config: Config, index: int, path: str, parent: Parent | None = None) -> None:
     """A job: simulate mission ``index`` into its own file ``path`` (in the part folder).
 
     Progress goes to ``path + ".progress"`` after each block; the job stops at its next
-    block once the folder holds ``STOP``.
+    block once the folder holds ``STOP``, and its process ends once ``parent`` (the
+    process that submitted it: ``this_process()``) has.
     """
     part = Path(path)
+    if parent is not None:
+        _exit_with(parent, part.parent.parent)
     progress, stop_file = part.with_name(part.name + ".progress"), part.parent / "STOP"
     done = 0.0
 
@@ -104,13 +119,14 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
             straight into ``out``.
         executor: any ``concurrent.futures`` executor to run the missions' jobs
             (``write_mission``) instead of the default process pool; its workers must
-            see this file system.
+            see this file system, and those on this host end once this process has.
         progress: show a progress bar on a terminal.
 
     Returns:
         A summary: number of missions, simulated seconds, wall seconds.
     """
-    check_reachable(config)
+    with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
+        check_reachable(config)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 1):
         raise ConfigError(f": expected a whole number >= 1, got {workers!r}",
@@ -155,25 +171,29 @@ def _in_jobs(config: Config, ds: DatasetWriter, workers: int,
              executor: cf.Executor | None, bar) -> None:
     """Run the missions as jobs, each into a part file of its own, and copy each into
     ``ds`` in mission order as soon as it and those before it are done."""
-    parts = Path(tempfile.mkdtemp(prefix=f".{ds.path.name}.parts.", dir=ds.path.parent))
-    own = executor is None
-    if own:
-        # forkserver: workers fork from a server that has imported auvsim (numba, MuJoCo)
-        # once, so they start in milliseconds, without inheriting this process's threads.
-        context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["auvsim.generate"])
-        executor = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    parts = ds.claim.folder  # named and locked with the output's temporary file
+    parts.mkdir()
+    parent = this_process()
+    pool = None
     paths = [parts / f"{i}.h5" for i in range(len(config.missions))]
     reported = [0.0] * len(paths)
     futures: list[cf.Future] = []
     try:
-        futures += [executor.submit(write_mission, config, i, str(p))
-                   for i, p in enumerate(paths)]
+        with interrupts_held():
+            if executor is None:
+                executor = pool = _process_pool(workers, parent, ds.path.parent)
+            for i, path in enumerate(paths):
+                futures.append(executor.submit(write_mission, config, i, str(path), parent))
         copied = 0
         while copied < len(futures):
             done, _ = cf.wait(futures[copied:], timeout=POLL_S, return_when=cf.FIRST_EXCEPTION)
             for future in done:
-                future.result()  # a job's error is raised here, as soon as it happens
+                try:
+                    future.result()  # a job's error is raised here, as soon as it happens
+                except BrokenProcessPool:  # a traceback would say no more
+                    raise SimulationError("a worker process ended abruptly (killed, or out "
+                                          "of memory?): expected it to finish its missions"
+                                          ) from None
             for i, path in enumerate(paths):
                 seconds = _progress(path)
                 bar.update(round(seconds) - round(reported[i]))
@@ -186,9 +206,96 @@ def _in_jobs(config: Config, ds: DatasetWriter, workers: int,
         (parts / "STOP").touch()  # jobs still running stop at their next block
         for future in futures:
             future.cancel()  # those not started
-        if own:
-            executor.shutdown(wait=True, cancel_futures=True)
-        shutil.rmtree(parts, ignore_errors=True)
+        cf.wait(futures)  # before the part folder goes (``DatasetWriter`` removes it)
+        if pool is not None:
+            pool.shutdown(wait=True)
+
+
+def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolExecutor:
+    """The default pool: forkserver workers, which fork from a server that has imported
+    auvsim (numba, MuJoCo) once, so they start in milliseconds, without inheriting this
+    process's threads. Each watches this process from its start (``_exit_with``), so an
+    idle one also ends with it."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(["auvsim.generate"])
+    # Ignored signals stay ignored across exec and fork, and Python then installs no
+    # KeyboardInterrupt handler: the server and its workers (and the resource tracker it
+    # starts) never see the group's Ctrl-C or SIGTERM, even while they import. A signal
+    # to this process in these milliseconds is lost.
+    with interrupt_handler(signal.SIG_IGN):
+        multiprocessing.forkserver.ensure_running()
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                  initializer=_exit_with, initargs=(parent, folder))
+
+
+def this_process() -> Parent:
+    """This process as ``write_mission`` watches it: host, pid and start time."""
+    pid = os.getpid()
+    return HOST, pid, _start_time(pid)
+
+
+_watched: dict[Parent, set[Path]] = {}  # parent -> the folders of its temporaries
+_watched_lock = threading.Lock()
+
+
+def _exit_with(parent: Parent, folder: Path) -> None:
+    """End this process as soon as ``parent`` has ended, first sweeping ``folder`` of
+    the temporaries that run left (``auvsim.files.sweep``): a job is of no use once the
+    process that submitted it has gone, and a pool's workers would wait for it forever,
+    idle ones too (so the watch outlives the job). Not in ``parent`` itself (a thread
+    pool), nor on another host, where its pid means nothing."""
+    host, pid, _ = parent
+    if host != HOST or pid == os.getpid():
+        return
+    with _watched_lock:
+        if parent not in _watched:
+            _watched[parent] = set()
+            threading.Thread(target=_watch, args=(parent, _watched[parent]), daemon=True,
+                             name="auvsim-parent-watch").start()
+        _watched[parent].add(Path(folder))
+
+
+def _watch(parent: Parent, folders: set[Path]) -> None:
+    _wait_for_end(*parent[1:])
+    try:
+        for folder in list(folders):
+            sweep(folder)  # the dead parent's lock is free: the kernel dropped it first
+    finally:
+        os._exit(1)
+
+
+def _wait_for_end(pid: int, started: str | None) -> None:
+    """Return once process ``pid``, started at ``started``, has ended."""
+    try:
+        fd = os.pidfd_open(pid)  # Linux 5.3+: readable once the process has ended
+    except (AttributeError, OSError):  # elsewhere, or it has ended already
+        fd = None
+    while _alive(pid, started):
+        if fd is None:
+            time.sleep(POLL_S)
+        else:
+            select.select([fd], [], [])
+
+
+def _alive(pid: int, started: str | None) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass  # a process of another user: the start time tells
+    return _start_time(pid) == started  # another start time: the pid was reused
+
+
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started, in clock ticks after boot (Linux); None where there
+    is no ``/proc``, and for a process that has gone or is a zombie (ended)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()  # after the command's name
+    except (OSError, IndexError):
+        return None
+    return None if fields[0] == b"Z" else fields[19].decode()
 
 
 def _progress(part: Path) -> float:

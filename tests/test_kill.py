@@ -1,0 +1,154 @@
+"""A killed or interrupted ``auvsim generate`` leaves no process and no temporary file
+behind (issue #9), with real processes: the CLI in a session of its own, its default
+pool of forkserver workers, and signals as a terminal, a scheduler or ``kill -9`` send
+them."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from auvsim import files
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
+                                reason="follows the process tree in /proc")
+
+# Long enough that it is still simulating when the signal comes; 2 worker processes.
+LONG = ["--preset", "maneuvers", "--duration", "3000", "--workers", "2", "--quiet"]
+INTERRUPTED = "auvsim: interrupted; nothing was written"
+
+
+def _generate(out: Path, *args: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "auvsim.cli", "generate", *args, "--out", str(out)],
+        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True)  # a process group of its own, as a terminal makes
+
+
+def _processes() -> dict[int, tuple[int, bytes, bytes]]:
+    """Every process: pid -> (parent pid, state, start time), from /proc."""
+    table = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            with contextlib.suppress(OSError):
+                with open(f"/proc/{entry}/stat", "rb") as f:
+                    fields = f.read().rsplit(b")", 1)[1].split()
+                table[int(entry)] = (int(fields[1]), fields[0], fields[19])
+    return table
+
+
+def _tree(pid: int) -> set[tuple[int, bytes]]:
+    """``pid`` and its descendants, as (pid, start time): a reused pid is another."""
+    table = _processes()
+    found, i = [pid], 0
+    while i < len(found):
+        found += [p for p, (parent, _, _) in table.items() if parent == found[i]]
+        i += 1
+    return {(p, table[p][2]) for p in found if p in table}
+
+
+def _running(tree: set[tuple[int, bytes]]) -> set[int]:
+    """The processes of ``tree`` that have not ended (a zombie has)."""
+    table = _processes()
+    return {p for p, start in tree if p in table and table[p][2] == start
+            and table[p][1] != b"Z"}
+
+
+def _wait_for(condition, what: str, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"waited {timeout} s for {what}"
+        time.sleep(0.1)
+
+
+def _simulating(proc: subprocess.Popen, folder: Path) -> set[tuple[int, bytes]]:
+    """Wait until a worker has simulated a block (its progress file is in the part
+    folder), then the run's processes."""
+    def progress() -> bool:
+        assert proc.poll() is None, proc.communicate()
+        return any(folder.glob(f".*.{files.TAG}.*.parts/*.progress"))
+
+    _wait_for(progress, "a worker's progress", timeout=120)  # numba may compile first
+    tree = _tree(proc.pid)
+    assert len(tree) >= 4, tree  # this process, its forkserver, two workers (and a tracker)
+    return tree
+
+
+@contextlib.contextmanager
+def _started(out: Path, *args: str):
+    proc = _generate(out, *args)
+    try:
+        yield proc
+    finally:  # whatever happened, nothing of the run stays
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+
+
+def test_kill_9_ends_the_workers_and_the_next_run_cleans_up(tmp_path):
+    out = tmp_path / "x.h5"
+    with _started(out, *LONG) as proc:
+        tree = _simulating(proc, tmp_path)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        _wait_for(lambda: not _running(tree), "the run's processes to end", timeout=10)
+    # What a killed run can leave (a lost node's, say): its claim, pieces and all.
+    dead = tmp_path / f".x.h5.{files.TAG}.{files.HOST}.999999999"
+    (dead.parent / (dead.name + ".parts")).mkdir()
+    (dead.parent / (dead.name + ".parts") / "0.h5").write_bytes(b"stale")
+    for name in (dead.name, dead.name + ".lock"):
+        (tmp_path / name).write_bytes(b"")
+    with _started(out, "--duration", "20", "--quiet") as proc:
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, err
+    assert [p.name for p in tmp_path.iterdir()] == ["x.h5"]
+
+
+@pytest.mark.parametrize("sig, to_group", [(signal.SIGINT, True), (signal.SIGTERM, False),
+                                           (signal.SIGTERM, True)],
+                         ids=["ctrl-c", "sigterm", "sigterm-to-group"])
+def test_an_interrupt_prints_one_line_and_leaves_nothing(tmp_path, sig, to_group):
+    out = tmp_path / "x.h5"
+    with _started(out, *LONG) as proc:
+        tree = _simulating(proc, tmp_path)
+        (os.killpg if to_group else os.kill)(proc.pid, sig)
+        _, err = proc.communicate(timeout=60)  # the workers' stderr too: the pipe's end
+        assert proc.returncode == 130  # for SIGTERM too: tests/test_datasets.py
+        assert err.splitlines() == [INTERRUPTED]
+        assert list(tmp_path.iterdir()) == []
+        _wait_for(lambda: not _running(tree), "the run's processes to end", timeout=10)
+
+
+def test_sweep_removes_the_temporaries_of_dead_claims_only(tmp_path):
+    def claim_of(host: str, pid: int, *, lock: bool = True) -> list[Path]:
+        file = tmp_path / f".x.h5.{files.TAG}.{host}.{pid}"
+        made = [file, file.with_name(file.name + ".parts")]
+        made[0].write_bytes(b"")
+        made[1].mkdir()
+        (made[1] / "0.h5").write_bytes(b"")
+        if lock:
+            made.append(file.with_name(file.name + ".lock"))
+            made[-1].write_bytes(b"")
+        return made
+
+    dead = claim_of(files.HOST, 999999999)  # nobody holds its lock
+    straggler = claim_of(files.HOST, 999999998, lock=False)[1:]  # a folder made again
+    elsewhere = claim_of("another-host", 999999999)  # its lock is not ours to judge
+    others = [tmp_path / "x.h5", tmp_path / f".x.md.{files.TAG}.{files.HOST}.1.md"]
+    for path in others:
+        path.write_bytes(b"")
+    with files.Claim(tmp_path / "y.h5") as live:  # sweeps first, then holds its lock
+        live.file.write_bytes(b"")
+        live.folder.mkdir()
+        files.sweep(tmp_path)
+        left = set(tmp_path.iterdir())
+        assert not left & {*dead, *straggler}
+        assert left >= {*elsewhere, *others, live.file, live.folder}
+    assert not live.file.exists() and not live.folder.exists()
