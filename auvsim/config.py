@@ -49,8 +49,12 @@ MAX_NET_BUOYANCY = 1000.0  # N
 # Deep, is about 10.9 km deep.
 MAX_DEPTH = 11000.0  # m
 # Grid spacings up to 1 km: global bathymetry grids such as GEBCO's (15 arc-seconds) are
-# about 460 m.
+# about 460 m. Procedural terrain is held in a window of 1024 cells a side around the
+# vehicle (auvsim.seafloor): cells of at least 0.5 m keep it at least 512 m wide, more than
+# a 60 s block's track at the A18-D's top speed in the strongest current and its length
+# (about 400 m); finer cells made a window the track outran.
 MAX_CELL_SIZE = 1000.0  # m
+MIN_PROCEDURAL_CELL_SIZE = 0.5  # m
 # Terrain features up to 1000 cells long: the procedural terrain is a field on a grid of
 # at most 2048 cells a side (auvsim.seafloor), and from about 24,000 cells on the filter
 # leaves it constant, whose unit std is 0 / 0 (NaN heights).
@@ -216,7 +220,8 @@ class SeafloorConfig:
             run north, columns east, centred on the mission start (heightmap). At most
             4096 x 4096 depths, each within 11 km of the surface (``auvsim.seafloor``).
         cell_size: grid spacing, m: of the heightmap, and of the terrain grid MuJoCo
-            ray-casts against (procedural); at most ``MAX_CELL_SIZE`` (1 km), and at least
+            ray-casts against (procedural); at most ``MAX_CELL_SIZE`` (1 km), and for
+            procedural terrain at least ``MIN_PROCEDURAL_CELL_SIZE`` (0.5 m) and
             ``correlation_length / MAX_CORRELATION_CELLS``.
 
     Depths (``depth``, and ``roughness``) are at most ``MAX_DEPTH`` (11 km, the deepest
@@ -252,7 +257,11 @@ class SeafloorConfig:
         _check(self.cell_size > 0, "seafloor.cell_size", "a spacing > 0 m", self.cell_size)
         _check(self.cell_size <= MAX_CELL_SIZE, "seafloor.cell_size",
                f"a spacing of at most {MAX_CELL_SIZE:g} m", self.cell_size)
-        _check(self.correlation_length <= MAX_CORRELATION_CELLS * self.cell_size,
+        _check(self.kind != "procedural" or self.cell_size >= MIN_PROCEDURAL_CELL_SIZE,
+               "seafloor.cell_size", f"a spacing of at least {MIN_PROCEDURAL_CELL_SIZE:g} m "
+               "for procedural terrain (its window is 1024 cells wide)", self.cell_size)
+        _check(self.kind != "procedural"
+               or self.correlation_length <= MAX_CORRELATION_CELLS * self.cell_size,
                "seafloor.correlation_length",
                f"a length of at most {MAX_CORRELATION_CELLS} cells "
                f"({MAX_CORRELATION_CELLS * self.cell_size:g} m at {self.cell_size:g} m cells)",
