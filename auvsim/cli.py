@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import errno
+import os
 import signal
 import sys
 import threading
@@ -50,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
                      "(default: one per two cores)")
     gen.add_argument("--compression", choices=("lzf", "gzip"),
                      help="lzf (default) is fast; gzip is read by every HDF5 tool")
-    gen.add_argument("--out", required=True, help="HDF5 file to write")
+    gen.add_argument("--out", required=True, type=_nameable, help="HDF5 file to write")
     gen.add_argument("--quiet", action="store_true", help="no progress bar")
     sub.add_parser("presets", help="list the named configs")
     inspect = sub.add_parser("inspect", help="describe a dataset file")
@@ -82,6 +84,18 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _nameable(path: str) -> str:
+    """A path the operating system can name (no component or whole too long for it)."""
+    try:
+        os.stat(path)
+    except OSError as e:
+        if e.errno == errno.ENAMETOOLONG:
+            raise argparse.ArgumentTypeError(f"{path[:80]!r}...: {e.strerror}") from None
+    except ValueError as e:  # a NUL byte, from a caller of main() (a shell cannot pass one)
+        raise argparse.ArgumentTypeError(f"{path[:80]!r}: {e}") from None
+    return path
+
+
 def _load_toml(path: Path) -> Config:
     if sys.version_info >= (3, 11):
         import tomllib
@@ -96,11 +110,23 @@ def _load_toml(path: Path) -> Config:
         raise ConfigError(f"--config {str(path)!r}: cannot read it ({e.strerror})") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ConfigError(f"--config {str(path)!r}: not valid TOML ({e})") from None
+    except RecursionError:  # the parser recurses once per level of arrays or tables
+        raise ConfigError(f"--config {str(path)!r}: not valid TOML (arrays or tables nested "
+                          "too deeply to read)") from None
     floor = data.get("seafloor")
     if isinstance(floor, dict) and isinstance(floor.get("heightmap"), str):
         # A heightmap named in a config file is found next to that file.
-        floor["heightmap"] = str((path.parent / Path(floor["heightmap"]).expanduser()).resolve())
-    return Config.from_dict(data)
+        try:
+            floor["heightmap"] = str((path.parent / Path(floor["heightmap"]).expanduser())
+                                     .resolve())
+        except (RuntimeError, ValueError, OSError) as e:  # ~nobody, a NUL byte, a loop
+            raise ConfigError(f"seafloor.heightmap: expected a path to a .npy file, got "
+                              f"{floor['heightmap'][:200]!r} ({e})") from None
+    try:
+        return Config.from_dict(data)
+    except RecursionError:  # a deep value in a field that Python walks (its repr, say)
+        raise ConfigError(f"--config {str(path)!r}: a setting is arrays or tables nested too "
+                          "deeply to read") from None
 
 
 def build_config(args: argparse.Namespace) -> Config:

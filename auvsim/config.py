@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import reprlib
 from dataclasses import dataclass, field
 
 from .errors import ConfigError
@@ -17,15 +18,89 @@ from .maneuvers import MANEUVERS, check_scenario
 SCENARIOS = tuple(MANEUVERS)  # the manoeuvres' registry is the one list of names
 SEAFLOORS = ("flat", "procedural", "heightmap")
 
+# Bounds that keep a config's run finite and its physics meaningful (a config beyond them
+# is refused, naming the field).
+# A mission lasts at most 72 h: three times the endurance of the longest-lived vehicle
+# auvsim models, the A18-D's 24 h (../shared/reference/vehicles.md), which leaves room for
+# the 200,000 s (56 h) missions the tests use as "long".
+MAX_DURATION = 72 * 3600.0  # s
+# A dataset holds at most 1000 missions (the presets have up to 10) and 30 days of
+# simulated time in all: about 45 GB of HDF5 at 17 kB per simulated second, and about two
+# hours of two cores at 450x real time. A bigger dataset is better made as several files.
+MAX_MISSIONS = 1000
+MAX_TOTAL_DURATION = 30 * 24 * 3600.0  # s
+# Surge speeds. The models reach 3.66 m/s (A18-D) and 2.55 m/s (REMUS 100; models/README.md).
+# A set point is held to 95 % of the vehicle's own top speed by auvsim.generate; this bound
+# only keeps a manoeuvre's plan finite. A start beyond the top speed is a launch: at 5 m/s
+# the REMUS 100 rolls by up to 45 deg before it slows down, at 10 m/s by up to 80 deg.
+MAX_SPEED = 10.0  # m/s, set
+MAX_START_SPEED = 5.0  # m/s, initial
+# The current, in magnitude: the strongest ocean currents, such as the Gulf Stream, peak at
+# about 2.5 m/s, and against a current beyond the vehicle's top speed (about 3 m/s) no
+# mission can be flown.
+MAX_CURRENT = 3.0  # m/s
+# Buoyancy minus weight, in magnitude: 1 kN is 14 % of the A18-D's 7.2 kN weight and three
+# times the REMUS 100's whole weight (AUVs are trimmed close to neutral). The A18-D holds
+# depth with it and the REMUS 100 leaves its depth within seconds (an error naming the
+# time); from about 1e6 N on the REMUS 100 (1e8 N on the A18-D) MuJoCo's integration
+# blows up, and it resets the vehicle to rest.
+MAX_NET_BUOYANCY = 1000.0  # N
+# Depths of the water, the seafloor and the terrain: the deepest ocean, the Challenger
+# Deep, is about 10.9 km deep.
+MAX_DEPTH = 11000.0  # m
+# Grid spacings up to 1 km: global bathymetry grids such as GEBCO's (15 arc-seconds) are
+# about 460 m. Procedural terrain is held in a window of 1024 cells a side around the
+# vehicle (auvsim.seafloor): cells of at least 0.5 m keep it at least 512 m wide, more than
+# a 60 s block's track at the A18-D's top speed in the strongest current and its length
+# (about 400 m); finer cells made a window the track outran.
+MAX_CELL_SIZE = 1000.0  # m
+MIN_PROCEDURAL_CELL_SIZE = 0.5  # m
+# Terrain features up to 1000 cells long: the procedural terrain is a field on a grid of
+# at most 2048 cells a side (auvsim.seafloor), and from about 24,000 cells on the filter
+# leaves it constant, whose unit std is 0 / 0 (NaN heights).
+MAX_CORRELATION_CELLS = 1000
+# Angles (headings, slope heading, DVL mounting) within a turn either way.
+MAX_ANGLE = 360.0  # deg
+# DVLs ping at 1 Hz or faster (1 Hz in the paper's data, 5 Hz for the Water Linked A50:
+# ../shared/reference/sensors.md). At least 0.1 Hz keeps generate's blocks (a whole number
+# of pings) near 60 s, which the procedural terrain window is sized for: at 0.001 Hz a
+# block of 1000 s outran the window.
+MIN_DVL_RATE = 0.1  # Hz
+
+
+def _shown(value: object) -> str:
+    """A value as an error message shows it: its repr, shortened if long or deep."""
+    return _REPR.repr(value)
+
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 120
+_REPR.maxlevel = 3
+
 
 def _check(ok: bool, name: str, expected: str, got: object) -> None:
     if not ok:
-        raise ConfigError(f"{name}: expected {expected}, got {got!r}")
+        raise ConfigError(f"{name}: expected {expected}, got {_shown(got)}")
+
+
+def _is_finite(value: object) -> bool:
+    """A finite int or float (an int too big for a float is not)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def _finite(name: str, value: float) -> None:
-    _check(isinstance(value, (int, float)) and not isinstance(value, bool)
-           and math.isfinite(value), name, "a finite number", value)
+    _check(_is_finite(value), name, "a finite number", value)
+
+
+def _angle(name: str, value: float) -> None:
+    _finite(name, value)
+    _check(abs(value) <= MAX_ANGLE, name, f"an angle in [-{MAX_ANGLE:g}, {MAX_ANGLE:g}] deg",
+           value)
 
 
 @dataclass(frozen=True)
@@ -34,8 +109,10 @@ class VehicleConfig:
 
     Attributes:
         model: ``auv`` (A18-D class), ``remus100`` or a path to an MJCF model.
-        net_buoyancy: buoyancy minus weight, N (positive floats up).
-        current_ned: constant ocean current, m/s, NED.
+        net_buoyancy: buoyancy minus weight, N (positive floats up); at most
+            ``MAX_NET_BUOYANCY`` (1 kN) in magnitude.
+        current_ned: constant ocean current, m/s, NED; at most ``MAX_CURRENT`` (3 m/s) in
+            magnitude.
     """
 
     model: str = "auv"
@@ -46,8 +123,16 @@ class VehicleConfig:
         _check(isinstance(self.model, str) and self.model != "", "vehicle.model",
                "a vehicle name or model path", self.model)
         _finite("vehicle.net_buoyancy", self.net_buoyancy)
+        _check(abs(self.net_buoyancy) <= MAX_NET_BUOYANCY, "vehicle.net_buoyancy",
+               f"at most {MAX_NET_BUOYANCY:g} N either way (a trimmed vehicle's buoyancy "
+               "minus weight)", self.net_buoyancy)
         object.__setattr__(self, "current_ned",
                            _vector("vehicle.current_ned", self.current_ned, 3))
+        speed = math.hypot(*self.current_ned)
+        if speed > MAX_CURRENT:
+            raise ConfigError(f"vehicle.current_ned: expected a current of at most "
+                              f"{MAX_CURRENT:g} m/s (the strongest ocean currents are about "
+                              f"2.5 m/s), got {self.current_ned} ({speed:.4g} m/s)")
 
 
 @dataclass(frozen=True)
@@ -57,11 +142,17 @@ class ScenarioConfig:
     Attributes:
         name: one of ``SCENARIOS``.
         speed: surge speed to hold, m/s.
-        heading_deg: heading to hold, degrees from north.
-        depth: depth to hold, m.
-        duration: mission length, s.
+        heading_deg: heading to hold, degrees from north, in [-360, 360].
+        depth: depth to hold, m, at most ``MAX_DEPTH`` (11 km, the deepest ocean).
+        duration: mission length, s, at most ``MAX_DURATION``: 72 h, three times the
+            A18-D's 24 h endurance (../shared/reference/vehicles.md), which keeps every
+            accepted run finite (a dataset also holds at most ``MAX_MISSIONS``, 1000, and
+            ``MAX_TOTAL_DURATION``, 30 days, in all).
         start_speed: initial surge speed, m/s; ``None`` starts at ``speed`` (on the set
-            point, so the data is steady from the first sample).
+            point, so the data is steady from the first sample); at most
+            ``MAX_START_SPEED`` (5 m/s, above the models' top speeds of 3.66 and 2.55 m/s).
+            Set points (``speed``) are held to 95 % of the vehicle's own top speed by
+            ``generate``.
         options: the manoeuvre's own parameters by name (``auvsim.maneuvers``; each class
             lists its options and their defaults).
     """
@@ -79,11 +170,20 @@ class ScenarioConfig:
         for name in ("speed", "heading_deg", "depth", "duration"):
             _finite(f"scenario.{name}", getattr(self, name))
         _check(self.duration > 0, "duration", "a positive number of seconds", self.duration)
+        _check(self.duration <= MAX_DURATION, "duration",
+               f"at most {MAX_DURATION:g} s (72 h, three times the A18-D's 24 h endurance)",
+               self.duration)
         _check(self.speed > 0, "speed", "a positive speed in m/s", self.speed)
+        _check(self.speed <= MAX_SPEED, "speed", f"at most {MAX_SPEED:g} m/s", self.speed)
         _check(self.depth > 0, "depth", "a positive depth in m", self.depth)
+        _check(self.depth <= MAX_DEPTH, "depth",
+               f"at most {MAX_DEPTH:g} m (the deepest ocean)", self.depth)
+        _angle("scenario.heading_deg", self.heading_deg)
         if self.start_speed is not None:
             _finite("scenario.start_speed", self.start_speed)
             _check(self.start_speed >= 0, "start_speed", "a speed >= 0 m/s", self.start_speed)
+            _check(self.start_speed <= MAX_START_SPEED, "start_speed",
+                   f"at most {MAX_START_SPEED:g} m/s", self.start_speed)
         _check(isinstance(self.options, dict), "scenario.options",
                "a table of option names and numbers", self.options)
         check_scenario(self)  # the options, against the manoeuvre's
@@ -117,9 +217,15 @@ class SeafloorConfig:
         slope_deg: slope of the plane, degrees (procedural).
         slope_heading_deg: direction in which the plane gets deeper, degrees from north.
         heightmap: path of a ``.npy`` (rows, cols) array of depths in m, positive down; rows
-            run north, columns east, centred on the mission start (heightmap).
+            run north, columns east, centred on the mission start (heightmap). At most
+            4096 x 4096 depths, each within 11 km of the surface (``auvsim.seafloor``).
         cell_size: grid spacing, m: of the heightmap, and of the terrain grid MuJoCo
-            ray-casts against (procedural).
+            ray-casts against (procedural); at most ``MAX_CELL_SIZE`` (1 km), and for
+            procedural terrain at least ``MIN_PROCEDURAL_CELL_SIZE`` (0.5 m) and
+            ``correlation_length / MAX_CORRELATION_CELLS``.
+
+    Depths (``depth``, and ``roughness``) are at most ``MAX_DEPTH`` (11 km, the deepest
+    ocean); ``slope_heading_deg`` is in [-360, 360].
     """
 
     kind: str = "flat"
@@ -138,12 +244,28 @@ class SeafloorConfig:
                      "slope_heading_deg", "cell_size"):
             _finite(f"seafloor.{name}", getattr(self, name))
         _check(self.depth > 0, "seafloor.depth", "a positive depth in m", self.depth)
+        _check(self.depth <= MAX_DEPTH, "seafloor.depth",
+               f"at most {MAX_DEPTH:g} m (the deepest ocean)", self.depth)
         _check(self.roughness >= 0, "seafloor.roughness", "a height std >= 0 m", self.roughness)
+        _check(self.roughness <= MAX_DEPTH, "seafloor.roughness",
+               f"a height std of at most {MAX_DEPTH:g} m (the deepest ocean)", self.roughness)
         _check(self.correlation_length > 0, "seafloor.correlation_length", "a length > 0 m",
                self.correlation_length)
         _check(0 <= self.slope_deg < 45, "seafloor.slope_deg", "a slope in [0, 45) deg",
                self.slope_deg)
+        _angle("seafloor.slope_heading_deg", self.slope_heading_deg)
         _check(self.cell_size > 0, "seafloor.cell_size", "a spacing > 0 m", self.cell_size)
+        _check(self.cell_size <= MAX_CELL_SIZE, "seafloor.cell_size",
+               f"a spacing of at most {MAX_CELL_SIZE:g} m", self.cell_size)
+        _check(self.kind != "procedural" or self.cell_size >= MIN_PROCEDURAL_CELL_SIZE,
+               "seafloor.cell_size", f"a spacing of at least {MIN_PROCEDURAL_CELL_SIZE:g} m "
+               "for procedural terrain (its window is 1024 cells wide)", self.cell_size)
+        _check(self.kind != "procedural"
+               or self.correlation_length <= MAX_CORRELATION_CELLS * self.cell_size,
+               "seafloor.correlation_length",
+               f"a length of at most {MAX_CORRELATION_CELLS} cells "
+               f"({MAX_CORRELATION_CELLS * self.cell_size:g} m at {self.cell_size:g} m cells)",
+               self.correlation_length)
         _check((self.kind == "heightmap") == (self.heightmap is not None), "seafloor.heightmap",
                "a .npy path exactly when kind is heightmap", self.heightmap)
         _check(self.heightmap is None or isinstance(self.heightmap, str), "seafloor.heightmap",
@@ -160,9 +282,11 @@ class DvlConfig:
     its attributes. A scalar means all four beams alike.
 
     Attributes:
-        rate_hz: ping rate; the IMU rate must be a whole multiple of it.
+        rate_hz: ping rate, at least ``MIN_DVL_RATE`` (0.1 Hz); the IMU rate must be a whole
+            multiple of it.
         beam_angle_deg: angle of each beam from the DVL's z (down) axis.
-        mounting_rpy_deg: roll, pitch, yaw of the DVL frame relative to the body (ZYX).
+        mounting_rpy_deg: roll, pitch, yaw of the DVL frame relative to the body (ZYX),
+            each in [-360, 360].
         min_range, max_range: slant ranges, m, between which a beam has bottom lock.
         scale_factor, scale_factor_std: s (dimensionless): mean, and per-mission spread.
         bias, bias_std: m/s.
@@ -185,6 +309,8 @@ class DvlConfig:
                      "scale_factor_std", "bias_std", "noise_std"):
             _finite(f"dvl.{name}", getattr(self, name))
         _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
+        _check(self.rate_hz >= MIN_DVL_RATE, "dvl.rate_hz",
+               f"a rate of at least {MIN_DVL_RATE:g} Hz", self.rate_hz)
         _check(0 < self.beam_angle_deg < 90, "dvl.beam_angle_deg", "an angle in (0, 90) deg",
                self.beam_angle_deg)
         _check(0 <= self.min_range < self.max_range, "dvl.min_range, dvl.max_range",
@@ -194,6 +320,8 @@ class DvlConfig:
                    getattr(self, name))
         object.__setattr__(self, "mounting_rpy_deg", _vector("dvl.mounting_rpy_deg",
                                                              self.mounting_rpy_deg, 3))
+        _check(all(abs(a) <= MAX_ANGLE for a in self.mounting_rpy_deg), "dvl.mounting_rpy_deg",
+               f"angles in [-{MAX_ANGLE:g}, {MAX_ANGLE:g}] deg", self.mounting_rpy_deg)
         for name in ("scale_factor", "bias"):
             value = getattr(self, name)
             if not isinstance(value, (int, float)):
@@ -271,7 +399,8 @@ class Config:
 
     Attributes:
         vehicle: the vehicle and the water.
-        missions: the missions, each simulated independently from its own seed.
+        missions: the missions, each simulated independently from its own seed; at most
+            ``MAX_MISSIONS`` (1000) lasting ``MAX_TOTAL_DURATION`` (30 days) in all.
         seafloor: the terrain under every mission.
         dvl: the DVL and its error model.
         imu: the IMU and its error model; its rate is the rate of the truth group, and the
@@ -291,6 +420,13 @@ class Config:
     def __post_init__(self) -> None:
         object.__setattr__(self, "missions", tuple(self.missions))
         _check(len(self.missions) > 0, "missions", "at least one mission", self.missions)
+        if len(self.missions) > MAX_MISSIONS:
+            raise ConfigError(f"missions: expected at most {MAX_MISSIONS} missions (make "
+                              f"several datasets), got {len(self.missions)}")
+        total = sum(m.scenario.duration for m in self.missions)
+        if total > MAX_TOTAL_DURATION:
+            raise ConfigError(f"missions: expected at most {MAX_TOTAL_DURATION:g} s (30 days) "
+                              f"of missions in all (make several datasets), got {total:g} s")
         names = [m.name for m in self.missions]
         _check(len(set(names)) == len(names), "missions", "distinct mission names", names)
         _check(self.compression in ("lzf", "gzip"), "compression", "lzf or gzip",
@@ -362,7 +498,7 @@ def _vector(name: str, value, n: int) -> tuple[float, ...]:
         if isinstance(value, str) or any(isinstance(v, (bool, str)) for v in value):
             raise TypeError
         out = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         out = ()
     _check(len(out) == n and all(math.isfinite(v) for v in out), name,
            f"{n} finite numbers", value)

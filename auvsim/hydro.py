@@ -26,9 +26,21 @@ import mujoco
 import numba
 import numpy as np
 
+from .errors import ConfigError
 from .frames import FLIP
 
 N_STRIPS = 20  # cross-flow drag strips along the hull (Fossen uses 20 as well)
+# Hull length over diameter (a / b) where Lamb's factors are computed accurately: at
+# 1 + 1e-7 k' comes out negative, at 1e9 the eccentricity rounds to 1. The A18-D has 11,
+# the REMUS 100 8.4.
+MIN_SLENDERNESS, MAX_SLENDERNESS = 1.001, 1e4
+# The physics step: the shipped models take 10 ms. At 100 ms the REMUS 100 blows up in a
+# hard turn at speed (measured: MuJoCo's QACC warning), at 50 ms it does not; 20 ms keeps
+# a margin. Below 1 ms a mission costs ten times the steps of the shipped models.
+MIN_TIMESTEP, MAX_TIMESTEP = 1e-3, 0.02  # s
+MAX_GRAVITY = 30.0  # m/s^2: any planet's or moon's surface (Jupiter's is 24.8)
+MASS_FACTOR = 2.0  # how far the mass may be from the hull's displaced mass, either way
+INERTIA_FACTOR = 10.0  # how far the moments may be from the solid spheroid's, either way
 
 
 class Hydro(NamedTuple):
@@ -80,7 +92,16 @@ def lamb_k_factors(a: float, b: float) -> tuple[float, float, float]:
     Returns (k1, k2, k_prime): axial, transverse and rotational factors, so that
     X_udot = -k1 m, Y_vdot = Z_wdot = -k2 m and M_qdot = N_rdot = -k_prime I_y for the
     displaced mass m and its moment of inertia I_y (Lamb 1932, in Fossen 2021, sec. 8.4).
+
+    Raises:
+        ConfigError: unless ``MIN_SLENDERNESS <= a / b <= MAX_SLENDERNESS``, where the
+            formulas keep their accuracy (nearer a sphere they cancel to noise, and a needle
+            rounds the eccentricity to 1).
     """
+    if not (b > 0 and MIN_SLENDERNESS <= a / b <= MAX_SLENDERNESS):
+        raise ConfigError(f"lamb_k_factors: expected semi-axes a > b > 0 with a / b in "
+                          f"[{MIN_SLENDERNESS:g}, {MAX_SLENDERNESS:g}], got a = {a!r}, "
+                          f"b = {b!r}")
     e = math.sqrt(1.0 - (b / a) ** 2)
     log_term = math.log((1.0 + e) / (1.0 - e))
     alpha0 = 2.0 * (1.0 - e**2) / e**3 * (0.5 * log_term - e)
@@ -99,13 +120,135 @@ def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray:
         raise KeyError(f"model has no <numeric name={name!r}>") from None
 
 
+# Every <numeric> the force model reads: how many values, and the range of each
+# (lo, hi, whether lo itself is allowed).
+_NUMERICS = {
+    "water_density": (1, (0.0, math.inf, False)),
+    "axial_drag_coefficient": (1, (0.0, math.inf, True)),
+    "crossflow_drag_coefficient": (1, (0.0, math.inf, True)),
+    "hull_lift_coefficient": (1, (0.0, math.inf, True)),
+    "hull_lift_center": (1, (-math.inf, math.inf, True)),  # within the hull: load_hydro
+    "roll_added_inertia_ratio": (1, (0.0, math.inf, True)),
+    "linear_damping_time_constants": (3, (0.0, math.inf, True)),
+    "roll_damping_ratio": (1, (0.0, math.inf, True)),
+    "pitch_damping_ratio": (1, (0.0, math.inf, True)),
+    "yaw_damping_time_constant": (1, (0.0, math.inf, True)),
+    "munk_moment_factor": (1, (0.0, 1.0, True)),
+    "fin_area": (1, (0.0, math.inf, True)),
+    "fin_lift_slope": (1, (0.0, math.inf, True)),
+    "fin_stall_angle": (1, (0.0, math.pi / 2, False)),
+    "fin_time_constant": (1, (0.0, math.inf, False)),
+    "fin_rate_limit": (1, (0.0, math.inf, False)),
+    "propeller_diameter": (1, (0.0, math.inf, False)),
+    # KT0 and Ja_max divide the feedforward and the slopes; KQ0, KT_max, KQ_max any sign.
+    "propeller_coefficients": (5, (-math.inf, math.inf, True)),
+    "thrust_deduction": (1, (0.0, 1.0, True)),
+    "wake_fraction": (1, (0.0, 1.0, True)),
+    "shaft_time_constant": (1, (0.0, math.inf, False)),
+}
+
+
+def _require(ok: bool, what: str, expected: str, got: object) -> None:
+    if not ok:
+        raise ConfigError(f"{what}: expected {expected}, got {got}")
+
+
+def _finite_array(values) -> bool:
+    return bool(np.all(np.isfinite(np.asarray(values, dtype=float))))
+
+
+def _check_model(model: mujoco.MjModel) -> None:
+    """Refuse a vehicle model the force model cannot use: the named elements missing, or
+    a mass, inertia, hull, coefficient or physics option that is not finite or not in its
+    physical range.
+
+    Raises:
+        ConfigError: naming the quantity (the caller names the file).
+        KeyError: a named element is missing.
+    """
+    body = model.body("vehicle").id
+    joint = int(model.body_jntadr[body])
+    _require(joint >= 0 and model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_FREE
+             and model.jnt_qposadr[joint] == 0 and model.jnt_dofadr[joint] == 0,
+             "body 'vehicle'", "a free joint, the model's first", "none" if joint < 0 else
+             f"joint {model.joint(joint).name!r} of type {int(model.jnt_type[joint])}")
+    hull = model.geom("hull").id
+    size = np.array(model.geom_size[hull])
+    _require(model.geom_type[hull] == mujoco.mjtGeom.mjGEOM_ELLIPSOID, "geom 'hull'",
+             "an ellipsoid", f"geom type {int(model.geom_type[hull])}")
+    a, b = float(size[0]), float(size[1])
+    _require(_finite_array(size) and b > 0 and MIN_SLENDERNESS <= a / b <= MAX_SLENDERNESS,
+             "geom 'hull' size", f"semi-axes a > b > 0 m of a hull longer than wide, "
+             f"{MIN_SLENDERNESS:g} <= a / b <= {MAX_SLENDERNESS:g}", size.tolist())
+    # The force model's buoyancy is the hull's displacement, so the vehicle's mass must be
+    # near the displaced mass (the shipped models' equals it); far from it the vehicle
+    # sinks or rises like a stone, and a tiny mass or inertia leaves MuJoCo's acceleration
+    # to round-off.
+    rho = float(_numeric(model, "water_density")[0])
+    displaced = rho * 4.0 / 3.0 * math.pi * a * b * b
+    m = float(model.body_mass[body])
+    _require(math.isfinite(m) and displaced / MASS_FACTOR <= m <= displaced * MASS_FACTOR,
+             "body 'vehicle' mass", f"a mass within a factor {MASS_FACTOR:g} of the hull's "
+             f"displaced {displaced:.4g} kg (a vehicle near neutral buoyancy)", m)
+    inertia = np.array(model.body_inertia[body])
+    spheroid = m * np.array([2.0 / 5.0 * b * b, (a * a + b * b) / 5.0, (a * a + b * b) / 5.0])
+    _require(_finite_array(inertia) and bool(np.all(inertia >= spheroid / INERTIA_FACTOR))
+             and bool(np.all(inertia <= spheroid * INERTIA_FACTOR)), "body 'vehicle' inertia",
+             f"principal moments within a factor {INERTIA_FACTOR:g} of the solid spheroid's "
+             f"{np.round(spheroid, 6).tolist()} kg m^2", inertia.tolist())
+    iquat = np.array(model.body_iquat[body])
+    _require(np.allclose(np.abs(iquat), [1.0, 0.0, 0.0, 0.0], atol=1e-9),
+             "body 'vehicle' inertia", "principal axes along the body's (diaginertia)",
+             f"axes rotated by the quaternion {iquat.tolist()}")
+    cg = np.array(model.body_ipos[body])
+    _require(_finite_array(cg) and bool(np.all(np.abs(cg) <= [a, b, b])),
+             "body 'vehicle' centre of gravity", "a point within the hull's box "
+             f"(+/-{a:g}, +/-{b:g}, +/-{b:g}) m", cg.tolist())
+    for name, (count, (lo, hi, closed)) in _NUMERICS.items():
+        data = _numeric(model, name)
+        _require(data.size == count and _finite_array(data)
+                 and bool(np.all((data >= lo) if closed else (data > lo)))
+                 and bool(np.all(data <= hi)), f"<numeric name={name!r}>",
+                 f"{count} finite value(s) in {'[' if closed else '('}{lo:g}, {hi:g}]",
+                 data.tolist())
+    kt0, _, _, _, ja_max = _numeric(model, "propeller_coefficients")
+    _require(kt0 > 0 and ja_max > 0, "<numeric name='propeller_coefficients'>",
+             "KT0 > 0 and Ja_max > 0", [float(kt0), float(ja_max)])
+    _require(abs(float(_numeric(model, "hull_lift_center")[0])) <= a,
+             "<numeric name='hull_lift_center'>", f"a point within the hull, +/-{a:g} m",
+             float(_numeric(model, "hull_lift_center")[0]))
+    for site in ("imu", "dvl", "rudder"):
+        pos = np.array(model.site(site).pos)
+        _require(_finite_array(pos) and bool(np.all(np.abs(pos) <= [a, 2 * b, 2 * b])),
+                 f"site {site!r} position", f"a point on the hull, within (+/-{a:g}, "
+                 f"+/-{2 * b:g}, +/-{2 * b:g}) m", pos.tolist())
+    for name, most in (("propeller", math.inf), ("rudder", math.pi / 2),
+                       ("stern_planes", math.pi / 2)):
+        limit = np.array(model.actuator(name).ctrlrange)
+        # The force model takes the upper limit as the limit either way.
+        _require(_finite_array(limit) and 0 < limit[1] <= most, f"actuator {name!r} ctrlrange",
+                 f"a finite range whose upper limit is in (0, {most:g}]", limit.tolist())
+    dt = float(model.opt.timestep)
+    _require(MIN_TIMESTEP <= dt <= MAX_TIMESTEP, "option timestep",
+             f"a physics step in [{MIN_TIMESTEP:g}, {MAX_TIMESTEP:g}] s", dt)
+    gravity = np.array(model.opt.gravity)
+    _require(_finite_array(gravity) and gravity[0] == 0 and gravity[1] == 0
+             and 0 < -gravity[2] <= MAX_GRAVITY, "option gravity",
+             f"0 0 -g with 0 < g <= {MAX_GRAVITY:g} m/s^2", gravity.tolist())
+
+
 def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
     """Derive the force model's coefficients from a vehicle model.
 
     Args:
         model: a compiled vehicle model (models/auv.xml or one of the same layout).
         net_buoyancy: buoyancy minus weight, N (positive: the vehicle floats up).
+
+    Raises:
+        ConfigError, KeyError: the model is not one the force model can use
+            (``_check_model``).
     """
+    _check_model(model)
     num = lambda name: float(_numeric(model, name)[0])  # noqa: E731
     rho = num("water_density")
     g = -float(model.opt.gravity[2])

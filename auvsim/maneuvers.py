@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import reprlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple, Protocol
@@ -48,6 +49,13 @@ from typing import ClassVar, NamedTuple, Protocol
 import numpy as np
 
 from .errors import ConfigError
+
+# A rudder beyond a fin's limit is held at the limit; beyond a right angle it means nothing.
+MAX_RUDDER_DEG = 90.0
+# Legs of a lawnmower or of random waypoints per mission: 72 h at 3 m/s over 300 m legs is
+# about 2,600; more than this means legs of a few metres, planned in Python at every check.
+MAX_LEGS = 100_000
+MAX_WAYPOINTS = 1000
 
 
 class Scenario(Protocol):
@@ -80,10 +88,20 @@ def _options(cls, config: Scenario):
         raise ConfigError(f"scenario.options: unknown option(s) {', '.join(unknown)} for "
                           f"{config.name}; expected some of {', '.join(sorted(known)) or 'none'}")
     for key, value in given.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value):
-            raise ConfigError(f"scenario.options.{key}: expected a finite number, got {value!r}")
+        if not _is_finite(value):
+            raise ConfigError(f"scenario.options.{key}: expected a finite number, got "
+                              f"{reprlib.repr(value)}")
     return cls(**given)
+
+
+def _is_finite(value) -> bool:
+    """A finite int or float (an int too big for a float is not)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def _at_least(name: str, value: float, least: float, unit: str) -> None:
@@ -95,6 +113,23 @@ def _at_least(name: str, value: float, least: float, unit: str) -> None:
 def _positive(name: str, value: float) -> None:
     if not value > 0:
         raise ConfigError(f"scenario.options.{name}: expected a positive number, got {value!r}")
+
+
+def _at_most(name: str, value: float, most: float, unit: str) -> None:
+    if not value <= most:
+        raise ConfigError(f"scenario.options.{name}: expected at most {most:g} {unit}, got "
+                          f"{value!r}")
+
+
+def _rudder(name: str, value: float) -> None:
+    if not abs(value) <= MAX_RUDDER_DEG:
+        raise ConfigError(f"scenario.options.{name}: expected a rudder angle in "
+                          f"[-{MAX_RUDDER_DEG:g}, {MAX_RUDDER_DEG:g}] deg, got {value!r}")
+
+
+def _too_many_legs(names: str, given: str) -> ConfigError:
+    return ConfigError(f"scenario.options.{names}: expected legs long enough for at most "
+                       f"{MAX_LEGS} in the mission, got {given}")
 
 
 class Maneuver:
@@ -217,6 +252,11 @@ class TurningCircle(Maneuver):
         rudder_deg: float = 15.0  # the A18-D's full rudder
         lead_s: float = 20.0
 
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _rudder("rudder_deg", self.options.rudder_deg)
+        _at_least("lead_s", self.options.lead_s, 0.0, "s")
+
     def schedule(self, t):
         o = self.options
         turning = t >= o.lead_s
@@ -252,6 +292,12 @@ class Zigzag(Maneuver):
         super().__init__(config, rng)
         for name in ("angle_deg", "rudder_deg", "check_s"):
             _positive(name, getattr(self.options, name))
+        # The heading change is measured within a half turn either way.
+        if not self.options.angle_deg < 180.0:
+            raise ConfigError(f"scenario.options.angle_deg: expected a heading change below "
+                              f"180 deg, got {self.options.angle_deg!r}")
+        _rudder("rudder_deg", self.options.rudder_deg)
+        _at_least("lead_s", self.options.lead_s, 0.0, "s")
         self.reset()
 
     def reset(self):
@@ -304,6 +350,9 @@ class Lawnmower(Maneuver):
         """(start, end, heading, label) of every leg that starts within the mission."""
         o, legs, start, k = self.options, [], 0.0, 0
         while start < self.duration:
+            if len(legs) == MAX_LEGS:
+                raise _too_many_legs("leg_m, spacing_m", f"{o.leg_m!r} and {o.spacing_m!r} m "
+                                     f"over {self.duration:g} s at {self.speed:g} m/s")
             along = k % 2 == 0
             length = o.leg_m if along else o.spacing_m
             heading = self.heading + (math.pi * (k // 2 % 2) if along else math.pi / 2)
@@ -398,6 +447,7 @@ class Yoyo(Maneuver):
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
         _at_least("period_s", self.options.period_s, 1.0, "s")
+        _at_least("lead_s", self.options.lead_s, 0.0, "s")
 
     def schedule(self, t):
         o = self.options
@@ -427,8 +477,9 @@ class SpiralDive(TurningCircle):
         lead_s: float = 20.0
 
     def __init__(self, config, rng=None):
-        super().__init__(config, rng)
+        super().__init__(config, rng)  # the rudder and lead_s, as a turning circle's
         _positive("descent_rate", self.options.descent_rate)
+        _at_least("dive_m", self.options.dive_m, 0.0, "m")
 
     def schedule(self, t):
         o = self.options
@@ -455,9 +506,11 @@ class RandomWaypoints(Maneuver):
         super().__init__(config, rng)
         o = self.options
         _positive("radius_m", o.radius_m)
+        _at_least("depth_span_m", o.depth_span_m, 0.0, "m")
         if o.count < 1 or o.count != int(o.count):
             raise ConfigError(f"scenario.options.count: expected a whole number >= 1, got "
                               f"{o.count!r}")
+        _at_most("count", o.count, MAX_WAYPOINTS, "waypoints")
         if rng is None:
             raise ValueError("random_waypoints draws its waypoints: pass the mission's seeded "
                              "manoeuvre stream (rng=)")
@@ -469,6 +522,9 @@ class RandomWaypoints(Maneuver):
         start = np.array([0.0, 0.0, self.depth])
         legs, t = [], 0.0
         while t < self.duration:
+            if len(legs) >= MAX_LEGS:
+                raise _too_many_legs("radius_m", f"{o.radius_m!r} m over {self.duration:g} s "
+                                     f"at {self.speed:g} m/s")
             for p in points:
                 d = p[:2] - start[:2]
                 length = max(float(np.hypot(*d)), 1.0)

@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .config import SeafloorConfig
+from .config import MAX_DEPTH, SeafloorConfig
 from .errors import ConfigError
 from .frames import FLIP as _FLIP  # NED <-> MuJoCo's north-west-up, either way
 
@@ -61,6 +61,9 @@ MAX_TILES = 8
 # The noise tile's period, in correlation lengths; more costs memory and set-up time only.
 TILE_PERIODS = 20
 MAX_NOISE_CELLS = 2048  # per side: 32 MB of float64 (and the FFT's scratch) at most
+# A heightmap of at most 4096 x 4096 depths: its grid is held about four times over (the
+# float64 depths, their padded tiles, the float32 heights and MuJoCo's copy), about 0.5 GB.
+MAX_HEIGHTMAP_VERTICES = 4096 * 4096
 BASE = 1.0  # m, thickness of the solid box MuJoCo puts under an hfield
 EDGE = 1e-6  # m: hits this close to the terrain's edge are on its side walls
 
@@ -90,7 +93,8 @@ class Seafloor:
             otherwise).
 
     Raises:
-        ConfigError: the heightmap file is missing or is not a 2-D array of finite depths.
+        ConfigError: the heightmap file is missing or is not a 2-D array of finite depths
+            within the ocean's depth, of at most ``MAX_HEIGHTMAP_VERTICES``.
         ValueError: ``kind="procedural"`` without an rng.
     """
 
@@ -421,26 +425,37 @@ def _fast_size(n: int) -> int:
 
 
 def _load_heightmap(path: str | None) -> np.ndarray:
-    """Read and check a heightmap: (rows north, cols east) finite depths, m."""
+    """Read and check a heightmap: (rows north, cols east) finite depths, m.
+
+    The file is memory-mapped, so its shape and dtype are checked before any of its data
+    is read (a header may claim terabytes)."""
     name = f"seafloor.heightmap {path!r}"
     expected = "a .npy file holding a 2-D (rows north, columns east) array of finite depths"
     if path is None or not Path(path).is_file():
         raise ConfigError(f"{name}: expected {expected}, found no such file")
     try:
-        depths = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as err:
+        depths = np.load(path, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError, EOFError) as err:
+        reason = " ".join(str(err).split()) or "empty"
         raise ConfigError(f"{name}: expected {expected}, found a file numpy cannot read "
-                          f"({err})") from None
+                          f"({reason})") from None
     if not isinstance(depths, np.ndarray):
         depths.close()
         raise ConfigError(f"{name}: expected {expected}, found a .npz archive")
     if depths.ndim != 2 or min(depths.shape) < 2:
         raise ConfigError(f"{name}: expected {expected} of at least 2 x 2, found shape "
                           f"{depths.shape}")
+    if depths.size > MAX_HEIGHTMAP_VERTICES:
+        raise ConfigError(f"{name}: expected {expected} of at most {MAX_HEIGHTMAP_VERTICES} "
+                          f"depths (4096 x 4096), found shape {depths.shape}")
     if depths.dtype.kind not in "iuf":
         raise ConfigError(f"{name}: expected {expected}, found dtype {depths.dtype}")
-    depths = depths.astype(float)
+    depths = np.array(depths, dtype=float)
     bad = np.count_nonzero(~np.isfinite(depths))
     if bad:
         raise ConfigError(f"{name}: expected {expected}, found {bad} non-finite value(s)")
+    deepest = float(np.abs(depths).max())
+    if deepest > MAX_DEPTH:
+        raise ConfigError(f"{name}: expected {expected} within +/-{MAX_DEPTH:g} m (the "
+                          f"deepest ocean), found {deepest:g} m")
     return depths

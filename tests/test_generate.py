@@ -170,6 +170,14 @@ BAD_INPUTS = [
     (["--depth", "150"], "depth"),
     (["--speed", "fast"], "--speed"),
     (["--duration", "nan"], "duration"),
+    (["--duration", "1e9"], "duration: expected at most 259200 s"),
+    (["--duration", "1e300"], "duration: expected at most"),
+    (["--duration", "9223372036854775808"], "duration: expected at most"),
+    (["--heading-deg", "1e300"], "heading_deg"),
+    (["--depth", "1e300"], "depth: expected at most 11000 m"),
+    (["--speed", "1e300"], "speed: expected at most 10 m/s"),
+    (["--seed", "9223372036854775808"], "seed"),
+    (["--workers", "0"], "workers: expected at least 1"),
 ]
 
 
@@ -182,6 +190,57 @@ def test_bad_input_gives_one_line_and_exit_2(tmp_path, capsys, args, message):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+# The probe of issue #9 (fuzzed configs): each crashed with a traceback, ran on for ever or
+# wrote meaningless data. TOML text, files beside it, and what the one line must name.
+SHORT = "[[missions]]\n[missions.scenario]\nduration = 5\n"
+BAD_FILES = [
+    ("x = " + "[" * 2000 + "]" * 2000 + "\n", {}, "nested too deeply"),
+    ("x = " + "{a = " * 2000 + "1" + "}" * 2000 + "\n", {}, "nested too deeply"),
+    ("[[missions]]\n[missions.scenario]\nduration = 1e300\n", {}, "duration"),
+    ("[[missions]]\n[missions.scenario]\nduration = 9223372036854775808\n", {}, "duration"),
+    ("[vehicle]\ncurrent_ned = [1e6, 0, 0]\n" + SHORT, {}, "vehicle.current_ned"),
+    ("[vehicle]\nnet_buoyancy = -9223372036854775808\n" + SHORT, {}, "vehicle.net_buoyancy"),
+    ("[seafloor]\nkind = \"heightmap\"\nheightmap = \"map.npy\"\n" + SHORT,
+     {"map.npy": b""}, "map.npy"),
+    ("[seafloor]\nkind = \"heightmap\"\nheightmap = \"map.npy\"\n" + SHORT,
+     {"map.npy": b"\x93NUMPY garbage"}, "map.npy"),
+    (SHORT + "name = \"random_waypoints\"\noptions = {depth_span_m = -1}\n", {},
+     "scenario.options.depth_span_m"),
+    (SHORT + "name = \"random_waypoints\"\noptions = {count = 1e15}\n", {},
+     "scenario.options.count"),
+    ("[vehicle]\nmodel = \"sphere.xml\"\n" + SHORT, {"sphere.xml": "hull 0.25"},
+     "geom 'hull' size"),
+    ("[vehicle]\nmodel = \"wide.xml\"\n" + SHORT, {"wide.xml": "hull 0.2"},
+     "geom 'hull' size"),
+    # 0.2 m cells make a 204 m terrain window, which a 60 s block at 3.4 m/s outran.
+    ("[seafloor]\nkind = \"procedural\"\ncell_size = 0.2\n[dvl]\nmax_range = 1\n"
+     "min_range = 0.1\n" + SHORT + "speed = 3.4\n", {}, "seafloor.cell_size"),
+]
+
+
+@pytest.mark.parametrize("text,files,message", BAD_FILES)
+def test_bad_config_file_gives_one_line_and_exit_2(tmp_path, capfd, monkeypatch, text, files,
+                                                    message):
+    from auvsim.vehicle import model_path
+
+    monkeypatch.chdir(tmp_path)  # where MuJoCo would write a MUJOCO_LOG.TXT
+    for name, content in files.items():
+        if isinstance(content, bytes):
+            (tmp_path / name).write_bytes(content)
+        else:  # a hull of another length: the shipped model with its a semi-axis changed
+            a = content.split()[1]
+            model = model_path("auv").read_text().replace('size="2.75 0.25 0.25"',
+                                                          f'size="{a} 0.25 0.25"')
+            (tmp_path / name).write_text(model)
+    (tmp_path / "bad.toml").write_text(text)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["generate", "--config", "bad.toml", "--out", "x.h5", "--quiet"]) == 2
+    out, err = capfd.readouterr()
+    assert err.count("\n") == 1 and err.startswith("auvsim: error: ") and message in err
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
 def test_unwritable_output_is_refused(tmp_path, capsys):
