@@ -128,10 +128,10 @@ class DatasetWriter:
                  compression: str = "lzf") -> None:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
-        if self.path.is_dir():
-            raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name",
-                              argument="out")
         try:
+            if self.path.is_dir():
+                raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name",
+                                  argument="out")
             self.path.parent.mkdir(parents=True, exist_ok=True)
             # Temporaries of killed runs in this folder go first (``files.sweep``).
             self.claim = Claim(self.path)

@@ -170,7 +170,13 @@ class MissionRun:
 
     def _altitude(self, truth: Truth) -> np.ndarray:
         pos, t = truth.position_ned, truth.time
-        self.seafloor.follow(pos[::100, :2], reach=self.vehicle.length)
+        try:
+            self.seafloor.follow(pos[::100, :2], reach=self.vehicle.length)
+        except ValueError as e:
+            raise SimulationError(
+                f"{self.mission.name}: the vehicle outran the procedural terrain window "
+                f"between t = {t[0]:.1f} and {t[-1]:.1f} s ({e}); expected a larger "
+                "seafloor.cell_size") from None
         altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
         problems = (
             (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "
