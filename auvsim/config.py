@@ -12,6 +12,7 @@ import math
 import reprlib
 from dataclasses import dataclass, field
 
+from .checks import is_finite
 from .errors import ConfigError
 from .maneuvers import MANEUVERS, check_scenario
 
@@ -83,18 +84,8 @@ def _check(ok: bool, name: str, expected: str, got: object) -> None:
         raise ConfigError(f"{name}: expected {expected}, got {_shown(got)}")
 
 
-def _is_finite(value: object) -> bool:
-    """A finite int or float (an int too big for a float is not)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:
-        return False
-
-
 def _finite(name: str, value: float) -> None:
-    _check(_is_finite(value), name, "a finite number", value)
+    _check(is_finite(value), name, "a finite number", value)
 
 
 def _angle(name: str, value: float) -> None:

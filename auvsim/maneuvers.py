@@ -48,6 +48,7 @@ from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
+from .checks import is_finite
 from .errors import ConfigError
 
 # A rudder beyond a fin's limit is held at the limit; beyond a right angle it means nothing.
@@ -88,20 +89,10 @@ def _options(cls, config: Scenario):
         raise ConfigError(f"scenario.options: unknown option(s) {', '.join(unknown)} for "
                           f"{config.name}; expected some of {', '.join(sorted(known)) or 'none'}")
     for key, value in given.items():
-        if not _is_finite(value):
+        if not is_finite(value):
             raise ConfigError(f"scenario.options.{key}: expected a finite number, got "
                               f"{reprlib.repr(value)}")
     return cls(**given)
-
-
-def _is_finite(value) -> bool:
-    """A finite int or float (an int too big for a float is not)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:
-        return False
 
 
 def _at_least(name: str, value: float, least: float, unit: str) -> None:

@@ -10,17 +10,10 @@ import zipfile
 
 import pytest
 import torch
+from conftest import flat, mission, write
 
-from auvsim.config import (
-    Config,
-    DvlConfig,
-    ImuConfig,
-    MissionConfig,
-    ScenarioConfig,
-    SeafloorConfig,
-)
+from auvsim.config import DvlConfig
 from auvsim.errors import CheckpointError
-from auvsim.generate import generate
 from beamsnet.cli import main
 from beamsnet.train import CHECKPOINT_FORMAT, TrainConfig, load, train, trained
 
@@ -28,14 +21,9 @@ from beamsnet.train import CHECKPOINT_FORMAT, TrainConfig, load, train, trained
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     """One straight 90 s mission at 2 m/s, 20 deg beams with a 5 % scale factor."""
-    config = Config(
-        missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
-            speed=2.0, duration=90.0, start_speed=0.0)),),
-        seafloor=SeafloorConfig(kind="flat", depth=60.0),
-        dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.05), imu=ImuConfig())
-    path = tmp_path_factory.mktemp("data") / "line.h5"
-    generate(config, path, workers=1, progress=False)
-    return path
+    return write(flat(mission("a", 1, speed=2.0, duration=90.0, start_speed=0.0),
+                      dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.05)),
+                 tmp_path_factory.mktemp("data") / "line.h5")
 
 
 @pytest.fixture(scope="module")

@@ -7,27 +7,17 @@ import dataclasses
 import json
 
 import pytest
+from conftest import flat, mission
 
 import beamsnet.train
-from auvsim.config import (
-    Config,
-    DvlConfig,
-    ImuConfig,
-    MissionConfig,
-    ScenarioConfig,
-    SeafloorConfig,
-)
+from auvsim.config import DvlConfig
 from auvsim.dataset import read_attrs
 from beamsnet.experiment import ensure_dataset, train_runs
 from beamsnet.train import DivergedError, TrainConfig, load
 
-TWO_LINES = Config(
-    missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
-        speed=2.0, duration=90.0, start_speed=0.0)),
-              MissionConfig(name="b", seed=2, scenario=ScenarioConfig(
-                  speed=1.0, duration=90.0, start_speed=0.0))),
-    seafloor=SeafloorConfig(kind="flat", depth=60.0),
-    dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.05), imu=ImuConfig())
+TWO_LINES = flat(mission("a", 1, speed=2.0, duration=90.0, start_speed=0.0),
+                 mission("b", 2, speed=1.0, duration=90.0, start_speed=0.0),
+                 dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.05))
 
 
 @pytest.fixture(scope="module")

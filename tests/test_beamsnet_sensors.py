@@ -7,17 +7,10 @@ import copy
 
 import pytest
 import torch
+from conftest import flat, mission, write
 
-from auvsim.config import (
-    Config,
-    DvlConfig,
-    ImuConfig,
-    MissionConfig,
-    ScenarioConfig,
-    SeafloorConfig,
-)
+from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
-from auvsim.generate import generate
 from beamsnet.cli import main
 from beamsnet.evaluate import SensorSetupWarning, check_sensors
 from beamsnet.train import TrainConfig, load, sensor_setup, train
@@ -26,14 +19,9 @@ from beamsnet.train import TrainConfig, load, sensor_setup, train
 def line(path, **dvl):
     """One straight 90 s mission "a" at 2 m/s; the DVL is 20 deg beams with a 5 % scale
     factor unless ``dvl`` says otherwise."""
-    config = Config(
-        missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
-            speed=2.0, duration=90.0, start_speed=0.0)),),
-        seafloor=SeafloorConfig(kind="flat", depth=60.0),
-        dvl=DvlConfig(**{"beam_angle_deg": 20.0, "scale_factor": 0.05, **dvl}),
-        imu=ImuConfig())
-    generate(config, path, workers=1, progress=False)
-    return path
+    return write(flat(mission("a", 1, speed=2.0, duration=90.0, start_speed=0.0),
+                      dvl=DvlConfig(**{"beam_angle_deg": 20.0, "scale_factor": 0.05, **dvl})),
+                 path)
 
 
 @pytest.fixture(scope="module")

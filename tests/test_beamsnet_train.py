@@ -10,17 +10,10 @@ import h5py
 import numpy as np
 import pytest
 import torch
+from conftest import flat, mission, write
 
-from auvsim.config import (
-    Config,
-    DvlConfig,
-    ImuConfig,
-    MissionConfig,
-    ScenarioConfig,
-    SeafloorConfig,
-)
+from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
-from auvsim.generate import generate
 from beamsnet.cli import main
 from beamsnet.data import DataError, load_windows, split
 from beamsnet.evaluate import estimates, table
@@ -38,16 +31,10 @@ from beamsnet.train import (
 
 def tiny(path, *, scale=0.05, noise=0.0, duration=400.0):
     """Two straight missions; the beams' only error is a scale factor (and optional noise)."""
-    config = Config(
-        missions=(MissionConfig(name="a", seed=1, scenario=ScenarioConfig(
-            speed=2.0, duration=duration, start_speed=0.0)),
-                  MissionConfig(name="b", seed=2, scenario=ScenarioConfig(
-                      speed=1.0, duration=duration, start_speed=0.0))),
-        seafloor=SeafloorConfig(kind="flat", depth=60.0),
-        dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=scale, noise_std=noise),
-        imu=ImuConfig())
-    generate(config, path, workers=1, progress=False)
-    return path
+    return write(flat(mission("a", 1, speed=2.0, duration=duration, start_speed=0.0),
+                      mission("b", 2, speed=1.0, duration=duration, start_speed=0.0),
+                      dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=scale, noise_std=noise)),
+                 path)
 
 
 @pytest.fixture(scope="module")
