@@ -177,7 +177,7 @@ BAD_INPUTS = [
     (["--depth", "1e300"], "depth: expected at most 11000 m"),
     (["--speed", "1e300"], "speed: expected at most 10 m/s"),
     (["--seed", "9223372036854775808"], "seed"),
-    (["--workers", "0"], "workers: expected at least 1"),
+    (["--workers", "0"], "--workers: expected a whole number >= 1"),
 ]
 
 
