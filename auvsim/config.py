@@ -31,7 +31,7 @@ MAX_DURATION = 72 * 3600.0  # s
 MAX_MISSIONS = 1000
 MAX_TOTAL_DURATION = 30 * 24 * 3600.0  # s
 # Surge speeds. The models reach 3.66 m/s (A18-D) and 2.55 m/s (REMUS 100; models/README.md).
-# A set point is held to 95 % of the vehicle's own top speed by auvsim.generate; this bound
+# A set point is held to 95 % of the vehicle's own top speed (Vehicle.check_speed); this bound
 # only keeps a manoeuvre's plan finite. A start beyond the top speed is a launch: at 5 m/s
 # the REMUS 100 rolls by up to 45 deg before it slows down, at 10 m/s by up to 80 deg.
 MAX_SPEED = 10.0  # m/s, set
@@ -142,8 +142,8 @@ class ScenarioConfig:
         start_speed: initial surge speed, m/s; ``None`` starts at ``speed`` (on the set
             point, so the data is steady from the first sample); at most
             ``MAX_START_SPEED`` (5 m/s, above the models' top speeds of 3.66 and 2.55 m/s).
-            Set points (``speed``) are held to 95 % of the vehicle's own top speed by
-            ``generate``.
+            Set points (``speed``) are held to 95 % of the vehicle's own top speed
+            (``Vehicle.check_speed``).
         options: the manoeuvre's own parameters by name (``auvsim.maneuvers``; each class
             lists its options and their defaults).
     """
