@@ -170,16 +170,21 @@ def interrupt_handler(handler: Callable | int) -> Iterator[None]:
                 signal.signal(sig, previous)
 
 
-def write_text(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` to ``path`` atomically."""
+def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
     path = Path(path)
     tmp = temporary(path, suffix=path.suffix)
     try:
-        tmp.write_text(text)
+        tmp.write_bytes(data)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically."""
+    return write_bytes(path, text.encode("utf-8"))
 
 
 def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:

@@ -16,7 +16,7 @@ import numpy as np
 
 from .dataset import Mission, open_dataset
 from .errors import ConfigError, DatasetError
-from .files import temporary
+from .files import write_bytes
 from .frames import euler_angles
 
 
@@ -63,12 +63,7 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
         raise ConfigError(f"{str(out)!r}: cannot make it ({e.strerror or e}); expected a "
                           "writable directory", argument="out") from None
     for target, png in pngs.items():
-        tmp = temporary(target, suffix=target.suffix)
-        try:
-            tmp.write_bytes(png)
-            tmp.replace(target)
-        finally:
-            tmp.unlink(missing_ok=True)
+        write_bytes(target, png)
     return list(pngs)
 
 
