@@ -240,10 +240,10 @@ _CHECKPOINT_KEYS = {"model": str, "kwargs": dict, "state_dict": dict, "train_con
 # learned one beam matrix and one ping spacing) and the error model it learned to undo.
 SENSOR_GEOMETRY = ("beam_angle_deg", "dvl_mounting_rpy_deg", "dvl_rate_hz", "imu_rate_hz")
 SENSOR_ERRORS = ("dvl_scale_factor", "dvl_bias", "dvl_noise_std")
-# The dataset field each network input comes from, for the messages about bad values.
-_FIELDS = {"target": "dvl/velocity", "beams": "dvl/beam_velocity",
-           "past_beams": "dvl/beam_velocity", "accel": "imu/specific_force",
-           "gyro": "imu/angular_rate"}
+# What each network input is, in the dataset's words, for the messages about bad values.
+_FIELDS = {"target": "the true DVL velocity", "beams": "the measured beam velocities",
+           "past_beams": "the measured beam velocities", "accel": "the measured specific force",
+           "gyro": "the measured angular rate"}
 
 
 def file_identity(path: str | Path) -> dict:

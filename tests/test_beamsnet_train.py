@@ -292,9 +292,9 @@ def test_training_refuses_non_finite_data_before_writing(scale_only, tmp_path, c
     assert main(["train", str(bad), "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
-    assert f"{bad}: dvl/velocity holds NaN or inf in " in err and "mission a" in err
+    assert f"{bad}: the true DVL velocity holds NaN or inf in " in err and "mission a" in err
     assert not out.exists()
-    with pytest.raises(DataError, match="imu/specific_force holds NaN or inf") as refused:
+    with pytest.raises(DataError, match="the measured specific force holds NaN or inf") as refused:
         train(bad, TrainConfig(model="v1", missions=("b",)), out, progress=False)
     assert "mission b at 51 s" in str(refused.value)
     assert not out.exists()
