@@ -330,10 +330,6 @@ class Mission:
         self.attrs.setdefault("origin", origin)
 
     @property
-    def simulated(self) -> bool:
-        return self.origin == "simulated"
-
-    @property
     def groups(self) -> list[str]:
         """The groups it holds (``truth``, ``imu``, ``dvl``, ...), in name order."""
         return sorted(k for k, v in self._group.items() if isinstance(v, h5py.Group))

@@ -58,21 +58,10 @@ def _stream_mission(config: Config, index: int, writer: DatasetWriter, *,
     mission = config.missions[index]
     run = MissionRun(config, mission)
     sink = writer.mission(mission.name, run.attrs, rows=run.rows, links=run.links)
-    stopped = _Flag(stop)
-    for arrays in run.blocks(stopped):
+    for arrays in run.blocks(stop):
         sink.append(arrays)
         report(len(Block(arrays).truth.time) / config.imu.rate_hz)
     sink.flush()
-
-
-class _Flag:
-    """A ``threading.Event``-like view of a stop predicate, for ``MissionRun.blocks``."""
-
-    def __init__(self, predicate: Callable[[], bool]) -> None:
-        self.predicate = predicate
-
-    def is_set(self) -> bool:
-        return self.predicate()
 
 
 def write_mission(config: Config, index: int, path: str, parent: Parent | None = None) -> None:

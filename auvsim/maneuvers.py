@@ -149,6 +149,8 @@ class Maneuver:
         self.heading = math.radians(config.heading_deg)
         self.depth = config.depth
         self.duration = config.duration
+        if hasattr(self.options, "lead_s"):  # the straight lead-in of several manoeuvres
+            _at_least("lead_s", self.options.lead_s, 0.0, "s")
 
     def initial_state(self) -> dict:
         start = self.speed if self.config.start_speed is None else self.config.start_speed
@@ -246,7 +248,6 @@ class TurningCircle(Maneuver):
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
         _rudder("rudder_deg", self.options.rudder_deg)
-        _at_least("lead_s", self.options.lead_s, 0.0, "s")
 
     def schedule(self, t):
         o = self.options
@@ -288,7 +289,6 @@ class Zigzag(Maneuver):
             raise ConfigError(f"scenario.options.angle_deg: expected a heading change below "
                               f"180 deg, got {self.options.angle_deg!r}")
         _rudder("rudder_deg", self.options.rudder_deg)
-        _at_least("lead_s", self.options.lead_s, 0.0, "s")
         self.reset()
 
     def reset(self):
@@ -438,7 +438,6 @@ class Yoyo(Maneuver):
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
         _at_least("period_s", self.options.period_s, 1.0, "s")
-        _at_least("lead_s", self.options.lead_s, 0.0, "s")
 
     def schedule(self, t):
         o = self.options

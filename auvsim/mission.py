@@ -10,8 +10,8 @@ gymnasium environment calls ``measure`` on each step's block.
 
 from __future__ import annotations
 
-import threading
-from collections.abc import Iterator
+import math
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -67,7 +67,7 @@ class MissionRun:
         if round(mission.scenario.duration / dt) < 1:
             raise ConfigError(f"duration: expected at least the {dt:g} s physics step, got "
                               f"{mission.scenario.duration!r}")
-        platform = Platform(self.vehicle, self.seafloor, self.ray_data, config.imu.rate_hz)
+        platform = Platform(self.vehicle, self.seafloor, self.ray_data)
         self.sensors = [sensor(config, platform, streams[sensor.streams[0]])
                         for sensor in registry().values()]
         self.noise = {s.name: streams[s.streams[1]] for s in self.sensors}
@@ -105,9 +105,10 @@ class MissionRun:
         """Fields that are hard links to another (the IMU's time is the truth's)."""
         return {k: v for sensor in self.sensors for k, v in sensor.links.items()}
 
-    def blocks(self, stop: threading.Event | None = None) -> Iterator[dict[str, np.ndarray]]:
+    def blocks(self, stop: Callable[[], bool] = lambda: False
+               ) -> Iterator[dict[str, np.ndarray]]:
         """Yield the mission's fields block by block, keyed by their dataset paths; end
-        early, raising ``Cancelled``, once ``stop`` is set.
+        early, raising ``Cancelled``, once ``stop()`` says so (it is asked before each).
 
         The physics of block k + 1 runs in a background thread (the compiled loop releases
         the GIL) while block k's sensors are computed and written: the two stages take
@@ -118,7 +119,7 @@ class MissionRun:
         vehicle.reset(**self.scenario.initial_state())
         self.scenario.reset()
         total = round(self.mission.scenario.duration / dt)
-        per_block = self.decimation * max(s.every(self.config) for s in self.sensors)
+        per_block = self.decimation * math.lcm(*(s.every(self.config) for s in self.sensors))
         block = per_block * max(1, round(BLOCK_SECONDS / dt / per_block))
         starts = range(0, total, block)
 
@@ -134,7 +135,7 @@ class MissionRun:
             ahead = physics_thread.submit(physics, starts[0])
             for i in range(len(starts)):
                 steps, traj = ahead.result()
-                if stop is not None and stop.is_set():
+                if stop():
                     raise Cancelled(self.mission.name)
                 if i + 1 < len(starts):
                     ahead = physics_thread.submit(physics, starts[i + 1])

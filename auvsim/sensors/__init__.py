@@ -67,13 +67,12 @@ class Attr(NamedTuple):
 
 
 class Platform(NamedTuple):
-    """What a sensor may know of its mission at the start: the vehicle (sensor sites,
-    model), the seafloor and a ``MjData`` for ray casts, and the IMU (truth) rate."""
+    """What a sensor may know of its mission at the start (beside the config): the vehicle
+    (sensor sites, model), the seafloor and a ``MjData`` for ray casts."""
 
     vehicle: Any  # auvsim.vehicle.Vehicle
     seafloor: Any  # auvsim.seafloor.Seafloor
     ray_data: Any  # mujoco.MjData of the same model, for ray casts only
-    imu_rate_hz: float
 
 
 class Truth(NamedTuple):
