@@ -199,10 +199,11 @@ def split(windows: Windows, train_fraction: float = 0.75) -> tuple[Windows, Wind
     rest test; both keep the order of ``windows``.
 
     Raises:
-        ValueError: ``train_fraction`` is not in (0, 1), or either part is empty.
+        DataError: ``train_fraction`` is not in (0, 1), or either part is empty (a
+            ``ValueError`` too, and an ``AuvsimError``, so the command lines catch it).
     """
     if not (isinstance(train_fraction, (int, float)) and 0 < train_fraction < 1):
-        raise ValueError(f"train_fraction: expected a fraction in (0, 1), got "
+        raise DataError(f"train_fraction: expected a fraction in (0, 1), got "
                          f"{train_fraction!r}")
     train = np.zeros(len(windows.target), dtype=bool)
     for m in np.unique(windows.mission):
@@ -210,7 +211,7 @@ def split(windows: Windows, train_fraction: float = 0.75) -> tuple[Windows, Wind
         rows = rows[np.argsort(windows.time[rows], kind="stable")]
         train[rows[:int(train_fraction * len(rows))]] = True
     if train.all() or not train.any():
-        raise ValueError(f"split: train_fraction {train_fraction:g} of {len(train)} "
+        raise DataError(f"split: train_fraction {train_fraction:g} of {len(train)} "
                          f"samples leaves the {'test' if train.all() else 'training'} "
                          "part empty")
     return select(windows, train), select(windows, ~train)

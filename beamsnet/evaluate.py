@@ -69,12 +69,13 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
 
 
 def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
-                  allow_mismatch: bool = False) -> None:
+                  allow_mismatch: bool = False, setup: dict | None = None) -> None:
     """Compare the sensors of every mission of ``dataset`` with those of the missions
     ``run`` was trained on (``checkpoint["sensors"]``, see ``beamsnet.train.sensor_setup``).
 
     A value matches when it equals that of any training mission. An attribute either side
-    lacks (an imported stream has no IMU rate) is not compared.
+    lacks (an imported stream has no IMU rate) is not compared. ``setup`` is
+    ``sensor_setup(dataset)`` when the caller has read it already (once for many runs).
 
     Raises:
         ConfigError: the beam geometry (angle, mounting) or a rate differs, naming both
@@ -91,7 +92,7 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
                       "beam geometry, rates and DVL errors cannot be checked against them",
                       SensorSetupWarning, stacklevel=2)
         return
-    setup = sensor_setup(dataset)
+    setup = sensor_setup(dataset) if setup is None else setup
     geometry = _differences(setup, trained_on, SENSOR_GEOMETRY)
     if geometry and not allow_mismatch:
         raise ConfigError(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} "
@@ -201,8 +202,9 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
     models = [(Path(r), *load(r)) for r in runs]
     results, sections, figures = {}, [], []
     for dataset in datasets:
+        setup = sensor_setup(dataset)  # read once for every run
         for run, _, checkpoint in models:
-            check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch)
+            check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
         windows, predictions = _estimates(models, dataset)
         rows = table(windows, predictions)
         per_mission = {

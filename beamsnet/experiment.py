@@ -117,9 +117,8 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
 
     kept = {}
     for name in configs:
-        record = keep_best(seeds[name], runs_dir / name,
-                           diverged={r: diverged[r] for r in seeds[name] if r in diverged})
+        dropped = {r: diverged[r] for r in seeds[name] if r in diverged}
+        record = keep_best(seeds[name], runs_dir / name, diverged=dropped)
         kept[name] = KeptRun(runs_dir / name, *load(runs_dir / name), kept=Path(record["kept"]),
-                             seeds=tuple(seeds[name]),
-                             diverged={r: diverged[r] for r in seeds[name] if r in diverged})
+                             seeds=tuple(seeds[name]), diverged=dropped)
     return kept

@@ -241,8 +241,7 @@ _CHECKPOINT_KEYS = {"model": str, "kwargs": dict, "state_dict": dict, "train_con
 SENSOR_GEOMETRY = ("beam_angle_deg", "dvl_mounting_rpy_deg", "dvl_rate_hz", "imu_rate_hz")
 SENSOR_ERRORS = ("dvl_scale_factor", "dvl_bias", "dvl_noise_std")
 # What each network input is, in the dataset's words, for the messages about bad values.
-_FIELDS = {"target": "the true DVL velocity", "beams": "the measured beam velocities",
-           "past_beams": "the measured beam velocities", "accel": "the measured specific force",
+_FIELDS = {"target": "the true DVL velocity", "accel": "the measured specific force",
            "gyro": "the measured angular rate"}
 
 
@@ -273,7 +272,7 @@ def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dic
             for name in names}
 
 
-def check_out_dir(out: str | Path, argument: str = "out") -> Path:
+def check_out_dir(out: str | Path) -> Path:
     """``out`` as a Path, after checking that it can be made a directory (it is one, or the
     nearest existing path above it is), so that no work is spent before a bad output path
     is refused.
@@ -287,18 +286,18 @@ def check_out_dir(out: str | Path, argument: str = "out") -> Path:
             if not path.is_dir():
                 what = "exists" if path == out else f"is inside {str(path)!r}, which exists"
                 raise ConfigError(f"{str(out)!r}: {what} and is not a directory; expected a "
-                                  "directory to write into", argument=argument)
+                                  "directory to write into", argument="out")
             break
     return out
 
 
-def make_out_dir(out: Path, argument: str = "out") -> None:
+def make_out_dir(out: Path) -> None:
     """Make the directory ``out`` (and its parents), or raise ConfigError naming it."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise ConfigError(f"{str(out)!r}: cannot be made a directory ({e.strerror}); expected "
-                          "a directory to write into", argument=argument) from None
+                          "a directory to write into", argument="out") from None
 
 
 def check_finite(windows: Windows, model: str, dataset: str | Path) -> None:
@@ -307,14 +306,14 @@ def check_finite(windows: Windows, model: str, dataset: str | Path) -> None:
 
     Args:
         windows: the samples (``beamsnet.data.Windows``).
-        model: ``v1`` (checks the IMU windows and beams) or ``v2`` (past and current beams).
+        model: ``v1`` (checks the IMU windows too) or ``v2``. The beams need no check:
+            ``load_windows`` keeps only pings whose beams are all valid and finite.
         dataset: the file they came from, for the message.
 
     Raises:
         DataError: naming the dataset, the field, and where the first such sample is.
     """
-    inputs = ("accel", "gyro", "beams") if model == "v1" else ("past_beams", "beams")
-    for key in ("target", *inputs):
+    for key in ("target", "accel", "gyro") if model == "v1" else ("target",):
         values = getattr(windows, key)
         bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
         if bad.any():

@@ -19,29 +19,23 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from conftest import flat, mission, write
 
 from auvsim.cli import main
-from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig, SeafloorConfig
+from auvsim.config import DvlConfig
 from auvsim.dataset import open_dataset
 from auvsim.errors import DatasetError
-from auvsim.generate import generate
 
 REPO = Path(__file__).resolve().parents[1]
-CONFIG = Config(
-    missions=(MissionConfig(name="m0", seed=3,
-                            scenario=ScenarioConfig(speed=2.0, depth=20.0, duration=6.0)),),
-    seafloor=SeafloorConfig(kind="flat", depth=60.0),
-    dvl=DvlConfig(beam_angle_deg=30.0, max_range=90.0),
-)
+CONFIG = flat(mission("m0", 3, speed=2.0, depth=20.0, duration=6.0),
+              dvl=DvlConfig(beam_angle_deg=30.0, max_range=90.0))
 M = "missions/m0"  # the simulated mission
 R = "missions/rec"  # the imported mission
 
 
 @pytest.fixture(scope="module")
 def good(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("good") / "good.h5"
-    generate(CONFIG, out, workers=1, progress=False)
-    return out
+    return write(CONFIG, tmp_path_factory.mktemp("good") / "good.h5")
 
 
 @pytest.fixture(scope="module")

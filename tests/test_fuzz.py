@@ -52,7 +52,6 @@ import pytest
 
 from auvsim.cli import _parser, build_config, main
 from auvsim.config import MAX_DURATION, MAX_MISSIONS, MAX_TOTAL_DURATION, Config
-from auvsim.errors import AuvsimError
 from auvsim.maneuvers import MANEUVERS
 from auvsim.presets import PRESETS, preset
 
@@ -679,9 +678,7 @@ def accepted(argv: list[str]) -> Config | None:
     """The config ``argv`` asks for, or None if the command line is refused."""
     try:
         return build_config(_parser().parse_args(argv))
-    except (AuvsimError, SystemExit):
-        return None
-    except Exception:  # main meets it again, and the case reports it
+    except (Exception, SystemExit):  # refused; main meets it again, and the case reports it
         return None
 
 
