@@ -12,6 +12,9 @@ owner's last descriptor, however the owner ended, so a lock that can be taken pr
 temporaries dead even if the pid has been reused since; ``sweep`` (run by every new
 claim) removes those, and leaves anything else alone.
 
+Output folders are checked before any work (``check_out_dir``) and made only once every
+input has been (``make_out_dir``), so a refused command leaves no empty folder.
+
 Some steps must not be cut in half by Ctrl-C or SIGTERM either: ``interrupts_held``
 delivers them after the step.
 """
@@ -28,6 +31,8 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from .errors import ConfigError
 
 TAG = "auvsim-tmp"
 HOST = socket.gethostname()
@@ -168,6 +173,34 @@ def interrupt_handler(handler: Callable | int) -> Iterator[None]:
         for sig, previous in old.items():
             if previous is not None:  # None: set outside Python, cannot be restored
                 signal.signal(sig, previous)
+
+
+def check_out_dir(out: str | os.PathLike) -> Path:
+    """``out`` as a Path, after checking that it can be made a directory (it is one, or the
+    nearest existing path above it is), so that no work is spent before a bad output path
+    is refused.
+
+    Raises:
+        ConfigError: ``out``, or a path above it, exists and is not a directory.
+    """
+    out = Path(out)
+    for path in (out, *out.parents):
+        if path.exists():
+            if not path.is_dir():
+                what = "exists" if path == out else f"is inside {str(path)!r}, which exists"
+                raise ConfigError(f"{str(out)!r}: {what} and is not a directory; expected a "
+                                  "directory to write into", argument="out")
+            break
+    return out
+
+
+def make_out_dir(out: Path) -> None:
+    """Make the directory ``out`` (and its parents), or raise ConfigError naming it."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError(f"{str(out)!r}: cannot be made a directory ({e.strerror}); expected "
+                          "a directory to write into", argument="out") from None
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:

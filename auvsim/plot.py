@@ -16,7 +16,7 @@ import numpy as np
 
 from .dataset import Mission, open_dataset
 from .errors import ConfigError, DatasetError
-from .files import write_bytes
+from .files import check_out_dir, make_out_dir, write_bytes
 from .frames import euler_angles
 
 
@@ -42,10 +42,7 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
         ConfigError: a mission name is not in the file; ``out`` is not a directory.
     """
     path = Path(path)
-    out = path.parent if out is None else Path(out)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"{str(out)!r}: not a directory; expected a directory for the "
-                          "PNGs", argument="out")
+    out = check_out_dir(path.parent if out is None else out)
     with open_dataset(path, verify=True) as f:
         group = f.missions
         names = list(group) if missions is None else list(missions)
@@ -57,11 +54,7 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
             raise DatasetError(f"{path}: no missions to draw")
         pngs = {out / f"{path.stem}_{name}.png": _render(group[name], path)
                 for name in names}
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise ConfigError(f"{str(out)!r}: cannot make it ({e.strerror or e}); expected a "
-                          "writable directory", argument="out") from None
+    make_out_dir(out)  # only now: every input has been checked
     for target, png in pngs.items():
         write_bytes(target, png)
     return list(pngs)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.errors import ConfigError
-from auvsim.files import save_figure, write_text
+from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
 from .baselines import AffineCalibration, KalmanFilter, LeastSquares
@@ -30,9 +30,7 @@ from .data import DataError, Windows, load_windows, split
 from .train import (
     SENSOR_ERRORS,
     SENSOR_GEOMETRY,
-    check_out_dir,
     load,
-    make_out_dir,
     predict,
     sensor_setup,
 )

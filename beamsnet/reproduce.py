@@ -22,13 +22,13 @@ import dataclasses
 import math
 from pathlib import Path
 
-from auvsim.files import save_figure, write_text
+from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
 from .data import load_windows, split
 from .evaluate import estimates, markdown, predictions, table
 from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, TrainConfig, check_out_dir, check_restarts, make_out_dir
+from .train import PROFILES, TrainConfig, check_restarts
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).

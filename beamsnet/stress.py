@@ -28,13 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.files import save_figure, write_text
+from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
 from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, TrainConfig, check_out_dir, check_restarts, make_out_dir
+from .train import PROFILES, TrainConfig, check_restarts
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "

@@ -58,7 +58,7 @@ import torch
 from tqdm import tqdm
 
 from auvsim.errors import CheckpointError, ConfigError
-from auvsim.files import save_figure, write_text
+from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from .data import DataError, Windows, load_windows, split
 from .models import MODELS, build
@@ -270,34 +270,6 @@ def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dic
     return {name: {key: np.asarray(attrs[name][key], dtype=float).tolist()
                    for key in SENSOR_GEOMETRY + SENSOR_ERRORS if key in attrs[name]}
             for name in names}
-
-
-def check_out_dir(out: str | Path) -> Path:
-    """``out`` as a Path, after checking that it can be made a directory (it is one, or the
-    nearest existing path above it is), so that no work is spent before a bad output path
-    is refused.
-
-    Raises:
-        ConfigError: ``out``, or a path above it, exists and is not a directory.
-    """
-    out = Path(out)
-    for path in (out, *out.parents):
-        if path.exists():
-            if not path.is_dir():
-                what = "exists" if path == out else f"is inside {str(path)!r}, which exists"
-                raise ConfigError(f"{str(out)!r}: {what} and is not a directory; expected a "
-                                  "directory to write into", argument="out")
-            break
-    return out
-
-
-def make_out_dir(out: Path) -> None:
-    """Make the directory ``out`` (and its parents), or raise ConfigError naming it."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise ConfigError(f"{str(out)!r}: cannot be made a directory ({e.strerror}); expected "
-                          "a directory to write into", argument="out") from None
 
 
 def check_finite(windows: Windows, model: str, dataset: str | Path) -> None:
