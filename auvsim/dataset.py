@@ -31,9 +31,12 @@ from .sensors import Attr, Field, Truth, registry
 FORMAT = "auvsim-dataset"
 # Version 2 = version 1 + a mission attribute ``origin``, which lets a mission imported from
 # a recorded DVL stream hold only its DVL group. Version 3 = version 2 + the depth sensor's
-# group and attributes, and a Fletcher-32 checksum on every dataset. Older files are read.
-FORMAT_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+# group and attributes, and a Fletcher-32 checksum on every dataset. Version 4 = version 3
+# + the realism of issue 10: the water's current in the truth, the DVL's status codes,
+# error velocity and mode, and the new realised sensor parameters (each ``Field`` and
+# ``Attr`` says ``since=4``). Older files are read.
+FORMAT_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 ORIGINS = ("simulated", "imported")
 CHUNK_ROWS = 6000  # rows per HDF5 chunk: 60 s at 100 Hz, 48 kB for a float64 column
 # lzf: fast, built into h5py; gzip (level 1): about 1.5x the writing cost, but every HDF5
@@ -95,8 +98,10 @@ def schema(origin: str, version: int = FORMAT_VERSION) -> tuple[tuple[Field, ...
     """The fields and attributes every mission of this origin holds in a file of this
     format version (extra ones are allowed)."""
     sensors = [s for s in registry().values() if s.since_version <= version]
-    fields = CORE_FIELDS + tuple(f for s in sensors for f in s.fields)
-    attrs = CORE_ATTRS + tuple(a for s in sensors for a in s.attributes)
+    fields = tuple(f for f in CORE_FIELDS + tuple(f for s in sensors for f in s.fields)
+                   if f.since <= version)
+    attrs = tuple(a for a in CORE_ATTRS + tuple(a for s in sensors for a in s.attributes)
+                  if a.since <= version)
     if origin == "imported":
         return (tuple(f for f in fields if f.imported),
                 tuple(a for a in attrs if a.imported) + IMPORT_ATTRS)

@@ -40,6 +40,7 @@ class Field:
         doc: what it holds.
         imported: also written for a mission imported from a recorded stream.
         index_of: the values are row indices into this clock's fields.
+        since: the first schema version that holds it (``auvsim.dataset.FORMAT_VERSION``).
     """
 
     path: str
@@ -50,12 +51,14 @@ class Field:
     doc: str
     imported: bool = False
     index_of: str | None = None
+    since: int = 1
 
 
 class Attr(NamedTuple):
     """One mission attribute of the schema: ``shape`` ``()`` for a number, ``(n,)`` for a
     vector of n numbers, ``None`` for a string; ``low`` the least value it may take (and
-    ``strict`` whether it must exceed it), ``whole`` for a whole number."""
+    ``strict`` whether it must exceed it), ``whole`` for a whole number; ``since`` the
+    first schema version that holds it."""
 
     name: str
     shape: tuple[int, ...] | None
@@ -64,6 +67,7 @@ class Attr(NamedTuple):
     low: float | None = None
     strict: bool = False
     whole: bool = False
+    since: int = 1
 
 
 class Platform(NamedTuple):
