@@ -115,7 +115,9 @@ class Sensor:
 
     name: ClassVar[str]  # its group in the file
     section: ClassVar[str]  # its config section
-    streams: ClassVar[tuple[str, str]]  # (parameters, noise) stream names (auvsim.streams)
+    # (parameters, noise, *more) stream names (auvsim.streams); more: further parameter
+    # streams, passed to __init__ after ``parameters`` in order
+    streams: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[Field, ...]]
     attributes: ClassVar[tuple[Attr, ...]]
     links: ClassVar[dict[str, str]] = {}  # field -> truth field it is a hard link to
