@@ -124,9 +124,10 @@ IMU_GRADES: dict[str, ImuConfig] = {
 }
 
 
-# The grades above have additive errors only, and the paper's presets (paper-sim,
-# paper-sim-text, maneuvers) fly "navigation" so: their data stays what it was. The "-full"
-# grades are the same units with every error term a strapdown user calibrates.
+# The three grades above have additive errors only; the paper's presets (paper-sim,
+# paper-sim-text, maneuvers) fly "navigation", so their data stays as it was. Each "-full"
+# grade is the same unit with the errors a strapdown user calibrates as well: scale
+# factors, misalignment, g-sensitivity, and a bias correlation time per triad.
 IMU_GRADES["navigation-full"] = dataclasses.replace(
     IMU_GRADES["navigation"],
     # Groves (2013), the aviation-grade IMU of the book's example INS_GNSS_Demo_12 (the
@@ -157,7 +158,8 @@ IMU_GRADES["mems-full"] = dataclasses.replace(
     # 400, -300, -350 ppm, RMS 352 ppm; the std is each RMS, rounded.
     accel_scale_factor_std=500e-6,
     gyro_scale_factor_std=350e-6,
-    # VectorNav VN-100 datasheet: alignment error +/-0.05 deg for both triads, taken as
+    # VectorNav VN-100 datasheet (specifications table; not among the figures of
+    # ../shared/reference/sensors.md): alignment error +/-0.05 deg for both triads, taken as
     # the std of each cross-coupling term (as the DVL's accuracy figure is taken as a
     # spread in the presets). It is above Groves' tactical cross-coupling (RMS 220 ppm,
     # 0.013 deg): the VN-100's figure is its own.
@@ -220,6 +222,8 @@ class ImuCalibration(NamedTuple):
 
 NO_CALIBRATION_ERRORS = ImuCalibration(np.zeros(3), np.zeros(3), np.zeros((3, 3)),
                                        np.zeros((3, 3)), np.zeros((3, 3)))
+for _zeros in NO_CALIBRATION_ERRORS:  # a shared default: nobody may change it
+    _zeros.flags.writeable = False
 _OFF_DIAGONAL = ~np.eye(3, dtype=bool)  # row-major: (0, 1), (0, 2), (1, 0), (1, 2), ...
 
 
@@ -264,7 +268,8 @@ class _Channel:
     def __init__(self, bias: np.ndarray, noise_std: float, gm_std: float, tau_rate: float,
                  noise_rng: np.random.Generator, gm_rng: np.random.Generator,
                  matrix: np.ndarray, g_matrix: np.ndarray | None = None) -> None:
-        """
+        """Derive the triad's constants and draw its initial Gauss-Markov state.
+
         Args:
             bias: (3,) turn-on bias.
             noise_std: white noise std per sample.
