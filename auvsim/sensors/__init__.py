@@ -111,6 +111,8 @@ class Sensor:
         config: the whole config; the sensor reads its ``section``.
         platform: the mission's vehicle, seafloor and rates.
         parameters: the sensor's parameter stream (per-mission draws).
+        *more: the streams it declares after its noise stream, in order (per-mission
+            draws added later, which leave the earlier streams' draws as they were).
     """
 
     name: ClassVar[str]  # its group in the file
@@ -123,8 +125,8 @@ class Sensor:
     links: ClassVar[dict[str, str]] = {}  # field -> truth field it is a hard link to
     since_version: ClassVar[int] = 1  # first schema version that holds it
 
-    def __init__(self, config: Config, platform: Platform,
-                 parameters: np.random.Generator) -> None:
+    def __init__(self, config: Config, platform: Platform, parameters: np.random.Generator,
+                 *more: np.random.Generator) -> None:
         raise NotImplementedError
 
     @classmethod
