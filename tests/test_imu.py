@@ -404,8 +404,9 @@ def test_realised_calibration_has_the_configured_statistics():
     config = ImuConfig(accel_scale_factor_std=5e-4, gyro_scale_factor_std=3e-4,
                        accel_misalignment_std=1e-3, gyro_misalignment_std=2e-4,
                        gyro_g_sensitivity_std=5e-6)
-    seeds = 4000
-    draws = [draw_calibration(config, rng(seed)) for seed in range(seeds)]
+    seeds = 4000  # missions, each drawing from its own imu_calibration stream
+    draws = [draw_calibration(config, mission_streams(seed)["imu_calibration"])
+             for seed in range(seeds)]
     off = ~np.eye(3, dtype=bool)
     columns = []
     for name, std, pick in (
@@ -433,7 +434,8 @@ def test_realised_calibration_has_the_configured_statistics():
     assert corr.shape == (27, 27)
     assert np.all(np.abs(corr[~np.eye(27, dtype=bool)]) < 4.5 / math.sqrt(seeds))
     # one setting never shifts another's draw; a zero std gives exact zeros
-    only = draw_calibration(ImuConfig(gyro_g_sensitivity_std=5e-6), rng(0))
+    only = draw_calibration(ImuConfig(gyro_g_sensitivity_std=5e-6),
+                            mission_streams(0)["imu_calibration"])
     np.testing.assert_array_equal(only.gyro_g_sensitivity, draws[0].gyro_g_sensitivity)
     for name in ImuCalibration._fields[:4]:
         assert getattr(only, name).tobytes() == np.zeros_like(getattr(only, name)).tobytes()
