@@ -71,7 +71,7 @@ def navigator() -> Config:
                                 correlation_length=25.0),
         dvl=DvlConfig(rate_hz=1.0, beam_angle_deg=30.0, min_range=0.7, max_range=90.0,
                       scale_factor_std=0.002, bias_std=0.001, noise_std=0.02),
-        imu=IMU_GRADES["navigation"],
+        imu=IMU_GRADES["navigation-full"],
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
     )
 
