@@ -797,7 +797,8 @@ def test_remus_roll_at_full_shaft_misses_fossens_figure_by_physics(straight_roll
     roll = straight_rolls["remus100", 1525.0][0]
     vehicle = Vehicle("remus100")
     h, speed = vehicle.hydro, vehicle.max_speed
-    thrust_power = h.axial_drag * speed**2 / (1 - h.thrust_deduction) * (1 - h.wake_fraction) * speed
+    thrust = h.axial_drag * speed**2 / (1 - h.thrust_deduction)  # N, steady
+    thrust_power = thrust * (1 - h.wake_fraction) * speed  # W, T Va
     righting = h.weight * h.r_g[2]
     least = math.degrees(math.asin(thrust_power / (2 * math.pi * h.rpm_max / 60) / righting))
     needed_eta = least / (FOSSEN_ROLL_1525 + 1.0)  # small angles: roll ~ 1 / eta_0
