@@ -403,7 +403,13 @@ def mat_vec(a, x):
 @numba.njit(cache=True)
 def propeller(h, rpm, u_r):
     """Thrust (N, along +x) and shaft torque (N m) of the propeller at ``rpm`` and surge
-    speed ``u_r`` (Wageningen B-series fit, linear in the advance ratio)."""
+    speed ``u_r``: T = rho n^2 D^4 KT(J), Q = rho n^2 D^5 KQ(J), J = Va / (n D),
+    Va = (1 - w) u_r, with KT and KQ linear in J (Fossen's Wageningen B-series fit).
+
+    The torque is the shaft power over the shaft speed, Q = T Va / (2 pi n eta_0(J)), with
+    the open-water efficiency eta_0 = J KT / (2 pi KQ) of the same fit (0.6 to 0.7 at the
+    shipped models' cruise; models/README.md checks it against the REMUS 100's battery).
+    In reverse only KT0 and KQ0 act."""
     n = rpm / 60.0
     if n > 0.0:
         va_over_d = (1.0 - h.wake_fraction) * u_r / h.prop_d

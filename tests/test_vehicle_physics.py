@@ -888,10 +888,19 @@ def test_stern_plane_response_settles_where_the_righting_moment_can_hold_it(name
     print(f"\n{name} 10 deg stern planes at 1 m/s: pitch {pitch[-1]:.2f} deg after 120 s "
           f"(quasi-static {expected:.2f}), w {traj.velocity_body[-1, 2]:.4f} ({w:.4f}) m/s")
     assert np.ptp(pitch[-2000:]) < 0.05  # settled
-    # The steady dive of the quasi-static balance (measured to 1e-3 deg: the torque's 0.4
-    # deg of roll tilts the planes by a cosine).
+    # The steady dive of the quasi-static balance (the torque's 0.4 deg of roll tilts the
+    # planes by a cosine only).
     assert pitch[-1] == pytest.approx(expected, abs=0.02)
     assert traj.velocity_body[-1, 2] == pytest.approx(w, abs=1e-4)
+
+    # Below MIN_SPEED the planes must not reverse: at 0.5 m/s the dive they cause (u sin
+    # theta) still outweighs the heave velocity of their own lift (the reversal speed is
+    # 0.33 m/s for the A18-D, 0.36 m/s for the REMUS 100).
+    from auvsim.vehicle import MIN_SPEED
+
+    w, ratio = dive_balance(vehicle, MIN_SPEED, delta)
+    theta = math.asin(ratio)
+    assert -MIN_SPEED * math.sin(theta) + w * math.cos(theta) > 0.02  # m/s downward
 
     # At top speed: missed. The planes' moment exceeds the largest righting moment W BG
     # (at pitch -90 deg) above about 1.4 m/s, so no steady dive exists and the vehicle
