@@ -74,6 +74,7 @@ class Hydro(NamedTuple):
     prop_d: float  # m
     prop_kt: np.ndarray  # (2,) KT0 and the slope (KT_max - KT0) / Ja_max
     prop_kq: np.ndarray  # (2,) KQ0 and the slope (KQ_max - KQ0) / Ja_max
+    prop_rotation: float  # +1: the shaft reaction rolls the hull to starboard (K = +Q)
     rho: float  # kg/m^3
     thrust_deduction: float
     wake_fraction: float
@@ -117,6 +118,8 @@ def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray:
     try:
         return np.array(model.numeric(name).data, dtype=float)
     except KeyError:
+        if name in _V3_DEFAULTS:
+            return np.array([_V3_DEFAULTS[name]])
         raise KeyError(f"model has no <numeric name={name!r}>") from None
 
 
@@ -145,7 +148,13 @@ _NUMERICS = {
     "thrust_deduction": (1, (0.0, 1.0, True)),
     "wake_fraction": (1, (0.0, 1.0, True)),
     "shaft_time_constant": (1, (0.0, math.inf, False)),
+    # +1 or -1 (checked in _check_model): which way the shaft reaction rolls the hull.
+    "propeller_rotation": (1, (-1.0, 1.0, True)),
 }
+# Numerics that models of the layout before issue 10 (tests/data/models-v3) lack, and the
+# value that gives those models exactly the behaviour they had: their shaft reaction rolled
+# the hull to port.
+_V3_DEFAULTS = {"propeller_rotation": -1.0}
 
 
 def _require(ok: bool, what: str, expected: str, got: object) -> None:
@@ -214,6 +223,9 @@ def _check_model(model: mujoco.MjModel) -> None:
     kt0, _, _, _, ja_max = _numeric(model, "propeller_coefficients")
     _require(kt0 > 0 and ja_max > 0, "<numeric name='propeller_coefficients'>",
              "KT0 > 0 and Ja_max > 0", [float(kt0), float(ja_max)])
+    rotation = float(_numeric(model, "propeller_rotation")[0])
+    _require(rotation in (-1.0, 1.0), "<numeric name='propeller_rotation'>",
+             "+1 (the shaft reaction rolls the hull to starboard) or -1 (to port)", rotation)
     _require(abs(float(_numeric(model, "hull_lift_center")[0])) <= a,
              "<numeric name='hull_lift_center'>", f"a point within the hull, +/-{a:g} m",
              float(_numeric(model, "hull_lift_center")[0]))
@@ -325,6 +337,7 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
         prop_d=num("propeller_diameter"),
         prop_kt=np.array([kt0, (kt_max - kt0) / ja_max]),
         prop_kq=np.array([kq0, (kq_max - kq0) / ja_max]),
+        prop_rotation=num("propeller_rotation"),
         rho=rho,
         thrust_deduction=num("thrust_deduction"),
         wake_fraction=num("wake_fraction"),
@@ -390,7 +403,13 @@ def mat_vec(a, x):
 @numba.njit(cache=True)
 def propeller(h, rpm, u_r):
     """Thrust (N, along +x) and shaft torque (N m) of the propeller at ``rpm`` and surge
-    speed ``u_r`` (Wageningen B-series fit, linear in the advance ratio)."""
+    speed ``u_r``: T = rho n^2 D^4 KT(J), Q = rho n^2 D^5 KQ(J), J = Va / (n D),
+    Va = (1 - w) u_r, with KT and KQ linear in J (Fossen's Wageningen B-series fit).
+
+    The torque is the shaft power over the shaft speed, Q = T Va / (2 pi n eta_0(J)), with
+    the open-water efficiency eta_0 = J KT / (2 pi KQ) of the same fit (0.6 to 0.7 at the
+    shipped models' cruise; models/README.md checks it against the REMUS 100's battery).
+    In reverse only KT0 and KQ0 act."""
     n = rpm / 60.0
     if n > 0.0:
         va_over_d = (1.0 - h.wake_fraction) * u_r / h.prop_d
@@ -490,10 +509,11 @@ def water_wrench(h, nu, rot, actuators, current_ned):
             tau[2] += lift
             tau[4] -= h.fin_x * lift
 
-    # Propeller: thrust less the thrust deduction; the hull takes the shaft reaction.
+    # Propeller: thrust less the thrust deduction; the hull takes the shaft reaction, whose
+    # sign is the propeller's hand (models/README.md).
     thrust, torque = propeller(h, actuators[0], vr[0])
     tau[0] += (1.0 - h.thrust_deduction) * thrust
-    tau[3] -= torque
+    tau[3] += h.prop_rotation * torque
 
     # Rigid-body terms for the acceleration: weight and C_RB(nu) nu.
     f_w = scale(h.weight, down)

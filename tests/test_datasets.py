@@ -148,7 +148,10 @@ def test_paper_sim_preset_is_the_papers_setup(tmp_path, capsys):
             np.testing.assert_array_equal(a["dvl_bias"], [0.0001] * 4)
             assert a["dvl_noise_std"] == pytest.approx(0.042**2)
             v = f.missions[name].truth.velocity_body[:, 0]
-            assert np.abs(v / speed - 1).max() < 0.01
+            # 1.3 % at 1 m/s, 12 s in: the speed feedforward balances the quadratic drag
+            # only, and with Prestero's drag the faded linear surge damping is 17 % of the
+            # drag at 1 m/s (models/README.md); the integrator takes it up within a minute.
+            assert np.abs(v / speed - 1).max() < 0.015
         config = Config.from_json(f.attrs["config_json"])
         assert config.missions[0].scenario.duration == 20.0
     capsys.readouterr()

@@ -12,6 +12,7 @@ the equation of motion in auvsim/hydro.py's docstring, written in Fossen's matri
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -153,10 +154,11 @@ class Reference:
             force[axis] = -q_s * alpha
             force[0] = -q_s * alpha * alpha  # induced drag
             tau += wrench(self.fin_point, force)
-        # Propeller on the axis, and the shaft torque reaction on the hull.
+        # Propeller on the axis, and the shaft torque reaction on the hull (its sign is the
+        # propeller's hand).
         thrust, torque = self.propeller(rpm, u)
         tau += wrench(self.prop_point, np.array([(1.0 - h.thrust_deduction) * thrust, 0, 0]))
-        tau[3] -= torque
+        tau[3] += h.prop_rotation * torque
         return tau
 
     def damping(self, nu):
@@ -482,8 +484,10 @@ def test_remus_speed_at_full_shaft_matches_fossen():
     u = traj.velocity_body[-3000:, 0]
     print(f"\nREMUS 100 at 1525 rpm: u = {u.mean():.4f} m/s (last 30 s, ptp {np.ptp(u):.1e})")
     assert np.ptp(u) < 1e-3  # settled
-    # vehicles.md: Fossen's model gives about 2.44 to 2.5 m/s.
-    assert 2.3 < u.mean() < 2.6
+    # vehicles.md: Fossen's model, run as published, reaches 2.554 m/s at 1525 rpm. Ours
+    # has Prestero's (4x lower) drag and the propeller diameter that makes the same speed
+    # against it (models/README.md): the speed is the same to the published digits.
+    assert u.mean() == pytest.approx(2.554, abs=1e-3)
     assert abs(traj.position_ned[-1, 2] - 20.0) < 0.05
 
 
@@ -546,7 +550,7 @@ def test_motion_relative_to_a_uniform_current_is_galilean():
     np.testing.assert_allclose(drifting.quaternion, still.quaternion, atol=1e-9)
     np.testing.assert_allclose(drifting.angular_rate, still.angular_rate, atol=1e-9)
     np.testing.assert_allclose(drifting.specific_force, still.specific_force, atol=1e-9)
-    assert np.abs(still.angular_rate).max() > 0.1  # a real manoeuvre
+    assert np.abs(still.angular_rate).max() > 0.05  # a real manoeuvre (3.7 deg/s of yaw)
 
 
 # ---------------------------------------------------------------------------------------
@@ -665,3 +669,304 @@ def test_run_refuses_references_the_compiled_loop_would_misread(references, clos
     vehicle.reset(position_ned=(0, 0, 20.0), velocity_body=(2.0, 0, 0))
     with pytest.raises(ValueError, match="references|closed_loop"):
         vehicle.run(references, closed)
+
+
+# ---------------------------------------------------------------------------------------
+# 12: shaft torque, roll, turns and the stern-plane response (issue 10, item 1;
+# models/README.md, "Behaviour", has the figures and their derivations)
+# ---------------------------------------------------------------------------------------
+
+V3_MODELS = Path(__file__).parent / "data" / "models-v3"  # the model files before item 1
+FOSSEN_ROLL_1525 = 1.02  # deg: Fossen's remus100 after 120 s at 1525 rpm (vehicles.md)
+# REMUS 100 energy: 1 kWh of Li-ion for about 8 h at 5 kn (Hydroid's REMUS 100 brochure, as
+# quoted in models/README.md): the whole vehicle draws at most 125 W at its top speed.
+REMUS_POWER_AT_TOP_SPEED = 1000.0 / 8.0  # W
+
+
+def euler_deg(q):
+    """(N, 4) [w, x, y, z] -> roll, pitch (deg) and unwrapped yaw (rad), ZYX."""
+    w, x, y, z = q.T
+    roll = np.degrees(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
+    pitch = np.degrees(np.arcsin(np.clip(2 * (w * y - z * x), -1, 1)))
+    yaw = np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    return roll, pitch, yaw
+
+
+def open_water(h, rpm, u):
+    """KT, KQ, J and eta_0 of the published B-series fit (not the compiled propeller)."""
+    n = rpm / 60.0
+    j = (1.0 - h.wake_fraction) * u / (n * h.prop_d)
+    kt = h.prop_kt[0] + h.prop_kt[1] * j
+    kq = h.prop_kq[0] + h.prop_kq[1] * j
+    return kt, kq, j, j * kt / (2 * math.pi * kq)
+
+
+@pytest.mark.parametrize("name", VEHICLES)
+def test_shaft_torque_is_thrust_power_over_the_open_water_efficiency(name):
+    # Q = T Va / (2 pi n eta_0): the shaft delivers the thrust power divided by the
+    # propeller's open-water efficiency; with the B-series fit's eta_0(J) = J KT / (2 pi KQ)
+    # the compiled K_Q route is the same number (round-off only).
+    from auvsim.hydro import propeller
+
+    h = Vehicle(name).hydro
+    for rpm in (0.3 * h.rpm_max, h.rpm_max):
+        for u in (0.2, 1.0, 2.5):
+            thrust, torque = propeller(h, rpm, u)
+            _, _, _, eta = open_water(h, rpm, u)
+            va = (1.0 - h.wake_fraction) * u
+            assert torque == pytest.approx(thrust * va / (2 * math.pi * rpm / 60 * eta), rel=1e-12)
+    # At cruise the propeller works near its best efficiency (0.6 to 0.7 for this fit).
+    vehicle = Vehicle(name)
+    speed = vehicle.max_speed
+    kt, kq, j, eta = open_water(h, h.rpm_max, speed)
+    print(f"\n{name} at top speed {speed:.3f} m/s: J = {j:.3f}, KT = {kt:.4f}, KQ = {kq:.4f}, "
+          f"eta_0 = {eta:.3f}")
+    assert 0.6 < eta < 0.72
+
+
+def shaft_power(h, speed):
+    """Shaft power (W) at the steady top speed: 2 pi n Q."""
+    from auvsim.hydro import propeller
+
+    _, torque = propeller(h, h.rpm_max, speed)
+    return 2 * math.pi * h.rpm_max / 60 * torque
+
+
+def test_remus_shaft_power_fits_its_battery_and_the_v3_model_did_not():
+    new, old = Vehicle("remus100"), Vehicle(str(V3_MODELS / "remus100.xml"))
+    p_new, p_old = shaft_power(new.hydro, new.max_speed), shaft_power(old.hydro, old.max_speed)
+    tow = new.hydro.axial_drag * new.max_speed**3  # W: Prestero's drag times speed
+    print(f"\nREMUS 100 at {new.max_speed:.3f} m/s: tow power {tow:.1f} W, shaft power "
+          f"{p_new:.1f} W (v3 model: {p_old:.1f} W); battery allows <= "
+          f"{REMUS_POWER_AT_TOP_SPEED:.0f} W for the whole vehicle")
+    # Fossen's drag needs more shaft power than the battery gives the whole vehicle; the
+    # corrected model needs a third of it, leaving the hotel load and motor losses room.
+    assert p_old > REMUS_POWER_AT_TOP_SPEED
+    assert p_new < 0.4 * REMUS_POWER_AT_TOP_SPEED
+    assert 0.55 < tow / p_new < 0.7  # the propulsive efficiency eta_D of the model
+
+
+def steady_roll(vehicle, traj):
+    """The roll (deg) of steady straight flight: the shaft torque against W BG sin(phi)."""
+    from auvsim.hydro import propeller
+
+    h = vehicle.hydro
+    _, torque = propeller(h, traj.actuators[-1, 0], traj.velocity_body[-1, 0])
+    return math.degrees(math.asin(h.prop_rotation * torque / (h.weight * h.r_g[2])))
+
+
+@pytest.fixture(scope="module")
+def straight_rolls():
+    """Roll after 120 s: REMUS 100 open loop from rest at 500/1000/1525 rpm (Fossen's
+    protocol, vehicles.md), the A18-D holding 1/2/3 m/s, heading and depth."""
+    out = {}
+    for rpm in (500.0, 1000.0, 1525.0):
+        vehicle = Vehicle("remus100")
+        vehicle.reset(position_ned=(0.0, 0.0, 50.0))
+        traj = vehicle.run(constant((rpm, 0.0, 0.0), 12_000), closed_loop=OPEN)
+        out["remus100", rpm] = euler_deg(traj.quaternion)[0][-1], steady_roll(vehicle, traj)
+    for speed in (1.0, 2.0, 3.0):
+        vehicle = Vehicle("auv")
+        vehicle.reset(position_ned=(0.0, 0.0, 50.0), velocity_body=(speed, 0.0, 0.0))
+        traj = vehicle.run(constant((speed, 0.0, 50.0), 12_000))
+        out["auv", speed] = euler_deg(traj.quaternion)[0][-1], steady_roll(vehicle, traj)
+    print("\nroll in straight flight, deg (measured, asin(Q / (W BG))):",
+          {k: tuple(round(x, 3) for x in v) for k, v in out.items()})
+    return out
+
+
+def test_steady_roll_is_the_shaft_torque_over_the_righting_moment(straight_rolls):
+    for roll, expected in straight_rolls.values():
+        assert roll == pytest.approx(expected, abs=2e-3)
+        assert roll > 0  # Fossen's sign: the hull rolls to starboard
+
+
+def test_a18d_rolls_less_than_3_deg_at_every_speed(straight_rolls):
+    rolls = [straight_rolls["auv", s][0] for s in (1.0, 2.0, 3.0)]
+    assert max(rolls) < 3.0  # the target; measured 0.30, 1.06, 2.37 deg
+    # Roughly as Q ~ u^2, a little less at 1 m/s, where the faded linear surge damping
+    # still adds 17 % to the drag the shaft works against.
+    assert 7.0 < rolls[2] / rolls[0] < 9.0
+
+
+def test_remus_roll_at_full_shaft_misses_fossens_figure_by_physics(straight_rolls):
+    # Fossen's +1.02 deg comes from his torque divided by 10. A real shaft delivers at least
+    # the thrust power T Va (eta_0 <= 1): against Prestero's drag at 2.554 m/s that alone
+    # rolls the hull 1.6 deg, so Fossen's figure is out of reach of any propeller, and within
+    # 1 deg of it (<= 2.02 deg) needs eta_0 >= 0.81, beyond a B-series at this loading.
+    roll = straight_rolls["remus100", 1525.0][0]
+    vehicle = Vehicle("remus100")
+    h, speed = vehicle.hydro, vehicle.max_speed
+    thrust = h.axial_drag * speed**2 / (1 - h.thrust_deduction)  # N, steady
+    thrust_power = thrust * (1 - h.wake_fraction) * speed  # W, T Va
+    righting = h.weight * h.r_g[2]
+    least = math.degrees(math.asin(thrust_power / (2 * math.pi * h.rpm_max / 60) / righting))
+    needed_eta = least / (FOSSEN_ROLL_1525 + 1.0)  # small angles: roll ~ 1 / eta_0
+    _, _, _, eta = open_water(h, h.rpm_max, speed)
+    print(f"\nREMUS 100 at 1525 rpm: roll {roll:.2f} deg (Fossen {FOSSEN_ROLL_1525}); a perfect "
+          f"propeller would roll {least:.2f} deg; within 1 deg needs eta_0 >= {needed_eta:.2f}, "
+          f"the fit gives {eta:.2f}")
+    assert least > FOSSEN_ROLL_1525 + 0.5
+    assert needed_eta > 0.8 > eta
+    assert roll == pytest.approx(least / eta, rel=0.01)  # measured 2.42 deg: missed by 0.4
+
+
+def full_rudder_turn(name, side, *, depth_held=False, torque=True):
+    """Turn from top speed, 120 s: shaft at full rpm, rudder at +/- its limit, the stern
+    planes at zero (open loop) or holding the depth (``depth_held``)."""
+    vehicle = Vehicle(name)
+    if not torque:
+        vehicle.hydro = vehicle.hydro._replace(prop_rotation=0.0)
+    vehicle.reset(position_ned=(0.0, 0.0, 200.0), velocity_body=(vehicle.max_speed, 0.0, 0.0))
+    command = (vehicle.hydro.rpm_max, side * vehicle.hydro.fin_max, 200.0 if depth_held else 0.0)
+    return vehicle.run(constant(command, 12_000), closed_loop=(False, False, depth_held))
+
+
+def turn_figures(traj):
+    """Diameter (m), yaw rate (deg/s), roll (deg) over the second minute; depth change (m)."""
+    half = traj.position_ned[6000:]
+    _, _, radius = fit_circle(half[:, 0], half[:, 1])
+    roll, _, _ = euler_deg(traj.quaternion)
+    return np.array([2 * radius, math.degrees(traj.angular_rate[6000:, 2].mean()),
+                     roll[6000:].mean(), traj.position_ned[-1, 2] - 200.0])
+
+
+@pytest.mark.parametrize("name", VEHICLES)
+def test_port_and_starboard_turns_are_mirror_images(name):
+    figures = {(held, side): turn_figures(full_rudder_turn(name, side, depth_held=held))
+               for held in (False, True) for side in (1, -1)}
+    for (held, side), f in figures.items():
+        print(f"\n{name} full rudder to {'starboard' if side > 0 else 'port'} from top speed, "
+              f"stern planes {'holding depth' if held else 'at zero'}: diameter {f[0]:.2f} m, "
+              f"yaw rate {f[1]:+.2f} deg/s, roll {f[2]:+.2f} deg, depth change {f[3]:+.1f} m",
+              end="")
+    for held in (False, True):
+        stbd, port = figures[held, 1], figures[held, -1]
+        assert stbd[1] == pytest.approx(-port[1], rel=0.15)  # yaw rate: met (within 2 %)
+        # Roll: missed. The shaft torque adds the same starboard roll b to both turns, so
+        # the magnitudes are X + b and X - b (REMUS about 9.5 and 3, A18-D 8 and 1 deg).
+        assert stbd[2] > 0 and stbd[2] > 2 * abs(port[2])
+    # Diameter: met with the depth held (1 %); open loop the torque's roll tilts the turn
+    # into a dive whose pitch narrows one circle (missed: REMUS 5.9 against 7.9 m).
+    assert figures[True, 1][0] == pytest.approx(figures[True, -1][0], rel=0.02)
+    assert figures[False, 1][0] < 0.85 * figures[False, -1][0]
+    # Without the torque the open-loop turns are exact mirror images (hull and fins are
+    # symmetric): the whole asymmetry is the torque's.
+    a, b = (full_rudder_turn(name, side, torque=False) for side in (1, -1))
+    np.testing.assert_allclose(b.position_ned, a.position_ned * [1.0, -1.0, 1.0], rtol=0,
+                               atol=1e-6)
+    np.testing.assert_allclose(b.angular_rate, a.angular_rate * [-1.0, 1.0, -1.0], rtol=0,
+                               atol=1e-8)
+
+
+def dive_balance(vehicle, u, delta):
+    """Quasi-static straight dive at surge u with stern planes delta, from the force model:
+    the heave velocity w with zero heave force, and the pitch moment left over, which the
+    righting moment -W BG sin(theta) must balance. Returns (w, moment / (W BG))."""
+    h = vehicle.hydro
+    act = np.array([0.0, 0.0, delta])  # the propeller makes no pitch moment
+
+    def hydro(w):
+        nu = np.array([u, 0.0, w, 0.0, 0.0, 0.0])
+        nu_dot, applied, _ = water_wrench(h, nu, np.eye(3), act, np.zeros(3))
+        tau = applied + h.added_mass * nu_dot
+        return tau[2] + h.weight, tau[4]  # heave force less the buoyancy, pitch moment
+
+    w = brentq(lambda w: hydro(w)[0], -u, u, xtol=1e-14)
+    return w, hydro(w)[1] / (h.weight * h.r_g[2])
+
+
+@pytest.mark.parametrize("name", VEHICLES)
+def test_stern_plane_response_settles_where_the_righting_moment_can_hold_it(name):
+    delta = math.radians(10.0)
+    vehicle = Vehicle(name)
+    vehicle.reset(position_ned=(0.0, 0.0, 500.0), velocity_body=(1.0, 0.0, 0.0))
+    traj = vehicle.run(constant((vehicle.actuators[0], 0.0, delta), 12_000), closed_loop=OPEN)
+    _, pitch, _ = euler_deg(traj.quaternion)
+    w, ratio = dive_balance(vehicle, traj.velocity_body[-1, 0], delta)
+    expected = math.degrees(math.asin(ratio))
+    print(f"\n{name} 10 deg stern planes at 1 m/s: pitch {pitch[-1]:.2f} deg after 120 s "
+          f"(quasi-static {expected:.2f}), w {traj.velocity_body[-1, 2]:.4f} ({w:.4f}) m/s")
+    assert np.ptp(pitch[-2000:]) < 0.05  # settled
+    # The steady dive of the quasi-static balance (the torque's 0.4 deg of roll tilts the
+    # planes by a cosine only).
+    assert pitch[-1] == pytest.approx(expected, abs=0.02)
+    assert traj.velocity_body[-1, 2] == pytest.approx(w, abs=1e-4)
+
+    # Below MIN_SPEED the planes must not reverse: at 0.5 m/s the dive they cause (u sin
+    # theta) still outweighs the heave velocity of their own lift (the reversal speed is
+    # 0.33 m/s for the A18-D, 0.36 m/s for the REMUS 100).
+    from auvsim.vehicle import MIN_SPEED
+
+    w, ratio = dive_balance(vehicle, MIN_SPEED, delta)
+    theta = math.asin(ratio)
+    assert -MIN_SPEED * math.sin(theta) + w * math.cos(theta) > 0.02  # m/s downward
+
+    # At top speed: missed. The planes' moment exceeds the largest righting moment W BG
+    # (at pitch -90 deg) above about 1.4 m/s, so no steady dive exists and the vehicle
+    # keeps pitching over, as a looping aircraft does.
+    top = Vehicle(name)
+    _, ratio = dive_balance(top, top.max_speed, delta)
+    low, high = 1.0, top.max_speed
+    speed = brentq(lambda u: abs(dive_balance(top, u, delta)[1]) - 1.0, low, high, xtol=1e-4)
+    print(f"{name}: moment / (W BG) at top speed {abs(ratio):.2f}; steady dives exist up to "
+          f"{speed:.2f} m/s")
+    assert abs(ratio) > 3.0 and 1.3 < speed < 1.45
+    top.reset(position_ned=(0.0, 0.0, 500.0), velocity_body=(top.max_speed, 0.0, 0.0))
+    traj = top.run(constant((top.actuators[0], 0.0, delta), 2000), closed_loop=OPEN)
+    _, pitch, _ = euler_deg(traj.quaternion)
+    assert pitch.min() < -45  # and still going (the figures are in the model card)
+
+
+def test_a18d_full_rudder_turn_at_2_m_s_is_bounded_by_the_rudder_angle():
+    # Target (real Snapir): 15 to 18 deg/s at about 2 m/s and 30 to 45 % speed loss. Missed.
+    # A directionally stable hull turns only while its fins still see a positive angle of
+    # attack: delta > atan((v + x_fin r) / u) with v and x_fin r of one sign, so
+    # r L / U < tan(delta_max) L / |x_fin| = 0.57 for 15 deg. 15 deg/s at 2 m/s is already
+    # 0.72, and at the 1.1 to 1.4 m/s of the real speed loss 1.0 to 1.3.
+    vehicle = Vehicle("auv")
+    vehicle.reset(position_ned=(0.0, 0.0, 50.0), velocity_body=(2.0, 0.0, 0.0))
+    rpm = vehicle.actuators[0]
+    traj = vehicle.run(constant((rpm, vehicle.hydro.fin_max, 50.0), 6000),
+                       closed_loop=(False, False, True))
+    r = traj.angular_rate[-1000:, 2].mean()
+    speed = np.linalg.norm(traj.velocity_body[-1000:], axis=1).mean()
+    bound = math.tan(vehicle.hydro.fin_max) * vehicle.length / abs(vehicle.hydro.fin_x)
+    print(f"\nA18-D full rudder at 2 m/s ({rpm:.0f} rpm, depth held): yaw rate "
+          f"{math.degrees(r):.2f} deg/s, speed {speed:.3f} m/s (loss "
+          f"{100 * (1 - speed / 2):.1f} %), r L / U = {r * vehicle.length / speed:.3f} "
+          f"< {bound:.3f}")
+    assert r * vehicle.length / speed < bound
+    assert math.radians(15.0) * vehicle.length / 2.0 > bound  # the target is beyond it
+    assert 6.7 < math.degrees(r) < 7.1 and 0.14 < 1 - speed / 2 < 0.18  # measured 6.9, 15.8 %
+
+
+def test_v3_model_files_differ_only_in_the_corrections_and_keep_their_behaviour():
+    # The files before item 1 (tests/data/models-v3) still load, without the new numeric,
+    # and reproduce the figures the issue measured on them (REMUS -10.2 deg at 1525 rpm).
+    corrections = {"axial_drag_coefficient", "propeller_diameter", "propeller_rotation"}
+    for name in VEHICLES:
+        old = mujoco.MjModel.from_xml_path(str(V3_MODELS / f"{name}.xml"))
+        new = mujoco.MjModel.from_xml_path(str(model_path(name)))
+        numerics = lambda m: {m.numeric(i).name: tuple(m.numeric(i).data)  # noqa: E731
+                              for i in range(m.nnumeric)}
+        a, b = numerics(old), numerics(new)
+        assert {k for k in a.keys() | b.keys() if a.get(k) != b.get(k)} == corrections
+        assert load_hydro(old).prop_rotation == -1.0 and load_hydro(new).prop_rotation == 1.0
+    vehicle = Vehicle(str(V3_MODELS / "remus100.xml"))
+    vehicle.reset(position_ned=(0.0, 0.0, 50.0))
+    traj = vehicle.run(constant((1525.0, 0.0, 0.0), 12_000), closed_loop=OPEN)
+    assert euler_deg(traj.quaternion)[0][-1] == pytest.approx(-10.24, abs=0.01)
+
+
+def test_a_propeller_rotation_other_than_plus_or_minus_one_is_refused():
+    from auvsim.errors import ConfigError
+
+    text = model_path("auv").read_text()
+    line = '<numeric name="propeller_rotation" data="1"/>'
+    assert line in text
+    for bad in ("0.5", "0", "1 1"):
+        model = mujoco.MjModel.from_xml_string(text.replace(line, line.replace('"1"', f'"{bad}"')))
+        with pytest.raises(ConfigError, match="propeller_rotation") as caught:
+            load_hydro(model)
+        assert "\n" not in str(caught.value)
