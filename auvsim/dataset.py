@@ -648,6 +648,42 @@ def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:
         return f.attrs, {name: m.attrs for name, m in f.missions.items()}
 
 
+def _describe_v4(m: Mission, a: dict, fmt) -> list[str]:
+    """The lines of what schema v4 added, where the mission has it: the DVL's realised
+    calibration, its beams' status codes, modes and error velocity, and the current."""
+    from .sensors.dvl import Mode, Status
+
+    lines = []
+    if "dvl_sound_speed_ratio" in a:
+        lines.append(f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
+                     f"misalignment {fmt(a['dvl_misalignment_rpy_deg'])} deg (roll, pitch, "
+                     "yaw)")
+    dvl = m.dvl
+    if "status" in dvl:
+        status = dvl.status
+        counts = np.bincount(status.ravel().clip(0, len(Status) - 1), minlength=len(Status))
+        shares = ", ".join(f"{Status(code).name.lower()} {100 * n / status.size:.1f} %"
+                           for code, n in enumerate(counts) if n)
+        lines.append(f"    DVL beam status: {shares}")
+    if "mode" in dvl:
+        mode = dvl.mode
+        shares = ", ".join(f"{x.name.lower().replace('_', ' ')} "
+                           f"{100 * np.mean(mode == x):.1f} %" for x in Mode)
+        error = dvl.error_velocity
+        finite = error[np.isfinite(error)]
+        rms = f"{np.sqrt(np.mean(finite**2)):.3g} m/s" if finite.size else "none"
+        lines.append(f"    DVL modes: {shares}; error velocity rms {rms} over "
+                     f"{finite.size} four-beam pings")
+    if m.has("truth") and "current_ned" in m.truth:
+        current = m.truth.current_ned
+        speed = np.hypot(current[:, 0], current[:, 1])
+        mean = current.mean(axis=0)
+        toward = np.degrees(np.arctan2(mean[1], mean[0])) % 360
+        lines.append(f"    current at the vehicle: {speed.min():.3f} to {speed.max():.3f} m/s "
+                     f"(mean {np.hypot(mean[0], mean[1]):.3f} m/s toward {toward:.0f} deg)")
+    return lines
+
+
 def describe(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
     the realised error parameters and the fields. Every field is read, so a corrupt one
@@ -698,6 +734,7 @@ def describe(path: str | os.PathLike) -> str:
                     f"{largest['gyro_g_sensitivity']} rad/s per m/s^2; bias correlation "
                     f"times accel {a['imu_accel_bias_correlation_time']:g} s, gyro "
                     f"{a['imu_gyro_bias_correlation_time']:g} s")
+            lines += _describe_v4(m, a, fmt)
             if "depth_rate_hz" in a:
                 lines.append(
                     f"    depth sensor {a['depth_rate_hz']:g} Hz ({m.depth.rows} samples): "

@@ -1,8 +1,11 @@
 """``auvsim plot``: a mission at a glance, as a PNG per mission.
 
 A simulated mission gets six panels: the track in plan view, the depth profile over the
-seafloor, speed, attitude, the DVL velocity (true and least squares) and the beams' bottom
-lock. An imported mission (a recorded DVL stream, no trajectory) gets the last two.
+seafloor, speed, attitude, the DVL velocity (true and least squares, water-track segments
+shaded) and the beams' bottom lock, with the reason each beam lost it where the file says
+(``dvl/status``, schema v4). A v4 mission adds two more: the current at the vehicle
+(speed and direction) and the DVL's error velocity. An imported mission (a recorded DVL
+stream, no trajectory) gets the DVL panels only.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from .dataset import Mission, open_dataset
 from .errors import ConfigError, DatasetError
 from .files import check_out_dir, make_out_dir, write_bytes
 from .frames import euler_angles
+from .sensors.dvl import Mode, Status
 
 
 def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
@@ -68,7 +72,7 @@ def _render(m: Mission, path: Path) -> bytes:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = 3 if m.has("truth") else 1
+    rows = (4 if "current_ned" in m.truth else 3) if m.has("truth") else 1
     fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False,
                              layout="constrained")
     buffer = io.BytesIO()
@@ -90,7 +94,8 @@ def _render(m: Mission, path: Path) -> bytes:
 
 
 def _draw(m: Mission, axes: np.ndarray) -> None:
-    """Draw one mission on a (3, 2) grid of axes (simulated) or a (1, 2) one (imported)."""
+    """Draw one mission on a (3, 2) or (4, 2) grid of axes (simulated) or a (1, 2) one
+    (imported)."""
     simulated = m.has("truth")
     t_dvl = m.dvl.time
     if simulated:
@@ -142,21 +147,84 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
         ax.legend(fontsize=8, loc="upper left")
         twin.legend(fontsize=8, loc="upper right")
 
-    ax = axes[-1, 0]
+    dvl_row = 2 if simulated else 0
+    ax = axes[dvl_row, 0]
     true, ls = m.dvl.velocity, m.dvl.velocity_ls
     for k, axis in enumerate("xyz"):
         line, = ax.plot(t_dvl, true[:, k], lw=1, label=f"v{axis} true")
         ax.plot(t_dvl, ls[:, k], ".", ms=1.5, color=line.get_color(), label=f"v{axis} LS")
+    title = "DVL velocity"
+    if "mode" in m.dvl:
+        water = m.dvl.mode == Mode.WATER_TRACK
+        if water.any():
+            ax.fill_between(t_dvl, 0, 1, where=water, step="mid", color="tab:cyan", alpha=0.3,
+                            transform=ax.get_xaxis_transform(), label="water track")
+            title += f", water track in {100 * water.mean():.1f} % of pings (shaded)"
     ax.set_xlabel("time, s")
     ax.set_ylabel("m/s, DVL frame")
-    ax.set_title("DVL velocity")
+    ax.set_title(title)
     ax.legend(fontsize=7, ncol=3)
 
-    ax = axes[-1, 1]
+    ax = axes[dvl_row, 1]
     valid = m.dvl.valid
-    ax.imshow(valid.T, aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0, vmax=1,
-              extent=(t_dvl[0], t_dvl[-1] if len(t_dvl) > 1 else t_dvl[0] + 1, 4.5, 0.5))
+    extent = (t_dvl[0], t_dvl[-1] if len(t_dvl) > 1 else t_dvl[0] + 1, 4.5, 0.5)
+    if "status" in m.dvl:
+        _draw_status(ax, m.dvl.status, extent)
+    else:
+        ax.imshow(valid.T, aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0,
+                  vmax=1, extent=extent)
+        ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
     ax.set_yticks([1, 2, 3, 4])
     ax.set_ylabel("beam")
     ax.set_xlabel("time, s")
-    ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
+
+    if axes.shape[0] == 4:
+        _draw_water(m, axes[3, 0], axes[3, 1])
+
+
+def _draw_status(ax, status: np.ndarray, extent) -> None:
+    """The beams' reason codes (``Status``) over time, one colour per code, with a legend
+    of the codes that occur and their shares."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    colours = ("tab:green", "lightgrey", "dimgrey", "tab:orange", "tab:brown", "tab:red",
+               "black", "tab:purple", "tab:blue", "gold")
+    cmap = ListedColormap(colours[:len(Status)])
+    ax.imshow(status.T, aspect="auto", interpolation="nearest", cmap=cmap, vmin=-0.5,
+              vmax=len(Status) - 0.5, extent=extent)
+    counts = np.bincount(status.ravel().clip(0, len(Status) - 1), minlength=len(Status))
+    handles = [Patch(color=colours[code], label=f"{Status(code).name.lower()} "
+                     f"{100 * n / status.size:.1f} %")
+               for code, n in enumerate(counts) if n]
+    ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.8)
+    ax.set_title(f"beam status (dvl/status): ok in {100 * counts[Status.OK] / status.size:.1f}"
+                 " % of beam pings")
+
+
+def _draw_water(m: Mission, ax_current, ax_error) -> None:
+    """The current at the vehicle (horizontal speed and the direction it flows toward)
+    and the DVL's error velocity."""
+    t, current = m.truth.time, m.truth.current_ned
+    ax_current.plot(t, np.hypot(current[:, 0], current[:, 1]), label="speed")
+    ax_current.plot(t, current[:, 2], lw=0.8, label="down")
+    ax_current.set_xlabel("time, s")
+    ax_current.set_ylabel("m/s")
+    twin = ax_current.twinx()
+    twin.plot(t, np.degrees(np.arctan2(current[:, 1], current[:, 0])), "k", lw=0.6,
+              label="toward, deg")
+    twin.set_ylabel("direction toward, deg from north")
+    ax_current.set_title("current at the vehicle (truth/current_ned)")
+    ax_current.legend(fontsize=8, loc="upper left")
+
+    t_dvl = m.dvl.time
+    if "error_velocity" in m.dvl:
+        error = m.dvl.error_velocity
+        ax_error.plot(t_dvl, error, ".", ms=2)
+        finite = error[np.isfinite(error)]
+        rms = float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
+        ax_error.set_title(f"DVL error velocity (dvl/error_velocity), rms {rms:.3g} m/s")
+    else:
+        ax_error.set_title("no error velocity in this file")
+    ax_error.set_xlabel("time, s")
+    ax_error.set_ylabel("m/s")
