@@ -327,8 +327,8 @@ class DvlConfig:
         misalignment_std_deg: deg, in [0, 10]: spread of the realised mounting misalignment
             per axis (the geometry uses it, the user's ``mounting_rpy_deg`` stays nominal).
         water_track: fall back to water track when every beam has lost bottom lock.
-        water_track_range: m, > 0, at most ``max_range``: distance below the DVL of the
-            water layer it tracks.
+        water_track_range: m, > 0 (at most ``max_range`` with water track on): distance
+            below the DVL of the water layer it tracks.
         water_track_noise_std: m/s, >= 0: the beam noise in water track (in place of the
             bottom-track noise).
     """
@@ -403,8 +403,11 @@ class DvlConfig:
                f"a spread in [0, {MAX_MISALIGNMENT_STD:g}] deg", self.misalignment_std_deg)
         _check(isinstance(self.water_track, bool), "dvl.water_track", "true or false",
                self.water_track)
-        _check(0 < self.water_track_range <= self.max_range, "dvl.water_track_range",
-               f"a distance in (0, max_range = {self.max_range:g}] m", self.water_track_range)
+        _check(self.water_track_range > 0, "dvl.water_track_range", "a distance > 0 m",
+               self.water_track_range)
+        _check(not self.water_track or self.water_track_range <= self.max_range,
+               "dvl.water_track_range", f"a distance of at most max_range = "
+               f"{self.max_range:g} m with water_track on", self.water_track_range)
 
     def _check_lock_loss(self) -> None:
         """The settings of lost bottom lock (normalised to tuples, so that the JSON round

@@ -444,7 +444,7 @@ def test_a_bad_fault_setting_exits_2_with_one_line(tmp_path, capsys):
     (dict(misalignment_std_deg=45.0), "dvl.misalignment_std_deg"),
     (dict(water_track="yes"), "dvl.water_track"),
     (dict(water_track_range=0.0), "dvl.water_track_range"),
-    (dict(water_track_range=200.0), "dvl.water_track_range"),
+    (dict(water_track=True, water_track_range=200.0), "dvl.water_track_range"),
     (dict(water_track_noise_std=-0.01), "dvl.water_track_noise_std"),
 ])
 def test_bad_fault_settings_are_refused_in_one_line_naming_the_field(kwargs, field):

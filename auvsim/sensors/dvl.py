@@ -438,8 +438,8 @@ class Dvl(Sensor):
     streams = ("dvl_parameters", "dvl_noise", "dvl_calibration", "dvl_faults")
     fields = (
         Field("dvl/time", (), "f", "dvl", "s", "ping times", imported=True),
-        Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the DVL frame: "
-              "the regression target", imported=True),
+        Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the (true) DVL "
+              "frame: the regression target", imported=True),
         Field("dvl/beam_velocity_true", (4,), "f", "dvl", "m/s", "H v", imported=True),
         Field("dvl/beam_velocity", (4,), "f", "dvl", "m/s", "measured (NaN where the beam "
               "measured nothing)", imported=True),
