@@ -179,15 +179,20 @@ def test_a_mission_loses_lock_as_configured():
     """A beam fails, every beam loses lock in an interval (no water track: no velocity),
     and over a rough floor at a low grazing threshold beams are lost to grazing."""
     dvl = DvlConfig(rate_hz=5.0, beam_failures=((1, 20.0, 40.0),),
-                    lock_loss_intervals=((50.0, 60.0),), dropout_rate=0.1, dropout_burst=3.0)
+                    lock_loss_intervals=((50.0, 60.0),), dropout_rate=0.1, dropout_burst=3.0,
+                    ping_dropout_rate=0.05)
     _, data = fly(dvl, 80.0)
     t, status, valid, mode = (data["dvl/time"], data["dvl/status"], data["dvl/valid"],
                               data["dvl/mode"])
-    failed, soft = (t >= 20) & (t < 40), (t >= 50) & (t < 60)
+    lost = (status == Status.PING_DROPOUT).any(axis=1)
+    np.testing.assert_array_equal(status[lost], Status.PING_DROPOUT)  # whole pings
+    assert abs(lost.mean() - 0.05) < 3 * math.sqrt(0.05 * 0.95 / len(t))
+    failed = (t >= 20) & (t < 40) & ~lost
+    soft = (t >= 50) & (t < 60) & ~lost
     np.testing.assert_array_equal(status[failed, 1], Status.BEAM_FAILED)
     np.testing.assert_array_equal(status[soft], Status.LOCK_LOST)
-    np.testing.assert_array_equal(mode[soft], Mode.NO_VELOCITY)
-    assert np.isnan(data["dvl/velocity_ls"][soft]).all()
+    np.testing.assert_array_equal(mode[soft | lost], Mode.NO_VELOCITY)
+    assert np.isnan(data["dvl/velocity_ls"][soft | lost]).all()
     np.testing.assert_array_equal(valid, (status == Status.OK) | (status == Status.OUTLIER))
     np.testing.assert_array_equal(mode, np.where(valid.sum(axis=1) >= 3, 0, -1))
     # With three beams the ideal DVL still solves the velocity exactly.
@@ -196,7 +201,8 @@ def test_a_mission_loses_lock_as_configured():
     np.testing.assert_allclose(data["dvl/velocity_ls"][three], data["dvl/velocity"][three],
                                atol=1e-12)
     assert np.isnan(data["dvl/error_velocity"][three]).all()
-    dropped = (status[~failed & ~soft] == Status.DROPOUT).mean()
+    dropped = (status[~failed & ~soft & ~lost & ((t < 20) | (t >= 40))]
+               == Status.DROPOUT).mean()
     assert 0.04 < dropped < 0.16  # 10 % of 1200 beam-pings in bursts of 3: sigma 0.02
     rough = SeafloorConfig(kind="procedural", depth=60.0, roughness=3.0,
                            correlation_length=8.0)

@@ -103,7 +103,15 @@ class DvlCalibration(NamedTuple):
 def draw_calibration(config: DvlConfig, rng: np.random.Generator) -> DvlCalibration:
     """A mission's sound-speed ratio ``1 + sound_speed_std N(0, 1)`` and mounting
     misalignment ``misalignment_std_deg N(0, 1)`` per axis (always drawn, so each is the
-    same whatever the other's setting)."""
+    same whatever the other's setting).
+
+    A beam's echo is shifted by ``2 f0 (b . v) / c_true``; the instrument converts the
+    shift back with the sound speed it assumes, so it reads ``(b . v) c_assumed /
+    c_true``: the measured beams are the true ones divided by the ratio, which is why
+    Teledyne RDI corrects them by multiplying with it ("ADCP Coordinate Transformation",
+    P/N 951-6079-00, 2010, sec. 4.1; for the Janus piston transducers of the Workhorse,
+    whose beam angle does not depend on the sound speed).
+    """
     z = rng.standard_normal(4)
     return DvlCalibration(1.0 + config.sound_speed_std * float(z[0]),
                           config.misalignment_std_deg * z[1:])
@@ -398,7 +406,9 @@ def synthesise(velocity: np.ndarray, config: DvlConfig,
                streams: dict[str, np.random.Generator]) -> tuple[dict[str, np.ndarray], dict]:
     """The DVL fields and attributes of a recorded DVL-frame velocity stream (N, 3) taken
     as the truth, with the error model of ``config`` (the beam-synthesis half of the
-    pipeline: every finite ping has bottom lock).
+    pipeline: every finite ping has bottom lock). Eq. 7 alone: the effects beyond it
+    (lost lock, outliers, sound speed, water track) need a simulated mission's geometry
+    and are not applied, so an import writes what it always wrote.
 
     Args:
         velocity: (N, 3) m/s, one row per ping.
