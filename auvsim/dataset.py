@@ -687,6 +687,17 @@ def describe(path: str | os.PathLike) -> str:
                     f"m/s^2, gyro {fmt(a['imu_gyro_turn_on_bias'])} rad/s; noise densities "
                     f"{a['imu_accel_noise_density']:.3g} m/s^2/rtHz, "
                     f"{a['imu_gyro_noise_density']:.3g} rad/s/rtHz")
+            if "imu_accel_scale_factor" in a:  # v4
+                largest = {k: f"{np.max(np.abs(a[f'imu_{k}'])):.3g}" for k in (
+                    "accel_misalignment", "gyro_misalignment", "gyro_g_sensitivity")}
+                lines.append(
+                    f"    IMU calibration: scale factors accel "
+                    f"{fmt(a['imu_accel_scale_factor'])}, gyro {fmt(a['imu_gyro_scale_factor'])};"
+                    f" largest misalignment accel {largest['accel_misalignment']}, gyro "
+                    f"{largest['gyro_misalignment']} rad; largest g-sensitivity "
+                    f"{largest['gyro_g_sensitivity']} rad/s per m/s^2; bias correlation "
+                    f"times accel {a['imu_accel_bias_correlation_time']:g} s, gyro "
+                    f"{a['imu_gyro_bias_correlation_time']:g} s")
             if "depth_rate_hz" in a:
                 lines.append(
                     f"    depth sensor {a['depth_rate_hz']:g} Hz ({m.depth.rows} samples): "

@@ -109,7 +109,7 @@ def navigator() -> Config:
                       noise_speed_coeff=0.002, outlier_rate=0.002, outlier_std=0.3,
                       sound_speed_std=0.003, misalignment_std_deg=0.1, water_track=True,
                       water_track_range=10.0, water_track_noise_std=0.05),
-        imu=IMU_GRADES["navigation"],
+        imu=IMU_GRADES["navigation-full"],
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
     )
 
