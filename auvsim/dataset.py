@@ -648,6 +648,23 @@ def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:
         return f.attrs, {name: m.attrs for name, m in f.missions.items()}
 
 
+def _dvl_v4_summary(m: Mission, fmt) -> str:
+    """One line of a simulated v4 mission's DVL: its realised calibration, the share of
+    beams without bottom lock by reason, the pings' modes and the error velocity."""
+    from .sensors.dvl import Mode, Status  # the codes' names, where they are declared
+
+    a, status, mode = m.attrs, m.read("dvl/status"), m.read("dvl/mode")
+    lost = ", ".join(f"{Status(k).name.lower()} {100 * np.mean(status == k):.1f} %"
+                     for k in np.unique(status) if k != Status.OK) or "none"
+    modes = ", ".join(f"{Mode(k).name.lower()} {100 * np.mean(mode == k):.1f} %"
+                      for k in np.unique(mode))
+    error = m.read("dvl/error_velocity")
+    spread = f"{np.nanstd(error):.3g} m/s" if np.isfinite(error).any() else "none"
+    return (f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
+            f"misalignment {fmt(a['dvl_misalignment_rpy_deg'])} deg; beam-pings {lost}; "
+            f"pings {modes}; error velocity std {spread}")
+
+
 def describe(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
     the realised error parameters and the fields. Every field is read, so a corrupt one
@@ -681,6 +698,8 @@ def describe(path: str | os.PathLike) -> str:
                 ]
             lines.append(f"    DVL errors: scale factor {fmt(a['dvl_scale_factor'])}, bias "
                          f"{fmt(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s")
+            if "dvl_sound_speed_ratio" in a:  # v4
+                lines.append(_dvl_v4_summary(m, fmt))
             if "imu_accel_turn_on_bias" in a:
                 lines.append(
                     f"    IMU errors: accel turn-on bias {fmt(a['imu_accel_turn_on_bias'])} "

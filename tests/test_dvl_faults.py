@@ -424,6 +424,19 @@ def test_a_bad_fault_setting_exits_2_with_one_line(tmp_path, capsys):
     assert not (tmp_path / "x.h5").exists()
 
 
+def test_inspect_shows_the_calibration_the_lost_lock_and_the_modes(tmp_path, capsys):
+    from conftest import write
+
+    from auvsim.cli import main
+
+    dvl = DvlConfig(sound_speed_std=0.01, lock_loss_intervals=((5.0, 10.0),))
+    path = write(flat(mission(duration=20.0), dvl=dvl), tmp_path / "f.h5")
+    assert main(["inspect", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert "DVL calibration: sound-speed ratio " in text
+    assert "beam-pings lock_lost 25.0 %; pings no_velocity 25.0 %, bottom_track 75.0 %" in text
+
+
 # -- bad settings -----------------------------------------------------------------------
 
 
