@@ -67,9 +67,10 @@ MAX_ANGLE = 360.0  # deg
 # of pings) near 60 s, which the procedural terrain window is sized for: at 0.001 Hz a
 # block of 1000 s outran the window.
 MIN_DVL_RATE = 0.1  # Hz
-# The DVL's realised sound-speed error: sea water's sound speed spans about 1400 to
-# 1570 m/s (cold fresh to warm salty), within about 7 % of the 1500 m/s a DVL assumes, so
-# a spread of 5 % already covers the whole ocean.
+# The DVL's realised sound-speed error: by Medwin's formula (the one Teledyne RDI's ADCP
+# manuals use) sea water's sound speed spans about 1440 to 1550 m/s near the surface over
+# 0-30 deg C and 30-38 psu, and reaches about 1570 m/s deep: within about 5 % of the
+# 1500 m/s a DVL assumes, so a spread of 5 % already covers the whole ocean.
 MAX_SOUND_SPEED_STD = 0.05
 # A realised DVL mounting misalignment is a residual after installation, a fraction of a
 # degree to a degree; beyond 10 deg (per axis, 1 sigma) it is a mounting, not a
@@ -322,8 +323,8 @@ class DvlConfig:
         outlier_std: m/s, >= 0, the scale of their heavy-tailed (Student t, 3 degrees of
             freedom) error.
         sound_speed_std: spread of the realised ratio ``c_true / c_assumed - 1``, in
-            [0, 0.05]: sea water's sound speed is 1400 to 1570 m/s, within about 7 % of the
-            1500 m/s a DVL assumes.
+            [0, 0.05] (``MAX_SOUND_SPEED_STD``); the measured beams are divided by the
+            ratio.
         misalignment_std_deg: deg, in [0, 10]: spread of the realised mounting misalignment
             per axis (the geometry uses it, the user's ``mounting_rpy_deg`` stays nominal).
         water_track: fall back to water track when every beam has lost bottom lock.

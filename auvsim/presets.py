@@ -78,12 +78,13 @@ def navigator() -> Config:
       figures of the Navigator's datasheet were not at hand.
     - Outliers: 0.2 % of beam-pings, Student t of std 0.3 m/s (our choice: the spikes of
       tenths of a m/s a real log shows).
-    - Sound speed: a spread of 0.3 % of c_true / c_assumed. The sound speed changes by
-      about 1.3 m/s per psu of salinity and 3 to 4.6 m/s per deg C (Mackenzie, "Nine-term
-      equation for sound speed in the oceans", JASA 70(3), 1981): a DVL that measures its
-      temperature but assumes 35 psu is 0.3 % off (4.5 m/s) in 31.5 psu water. The
-      measured beams are divided by the ratio, as RDI's correction multiplies them by it
-      (Teledyne RDI, "ADCP Coordinate Transformation", P/N 951-6079-00, 2010, sec. 4.1).
+    - Sound speed: a spread of 0.3 % of c_true / c_assumed. By Medwin's formula, which
+      Teledyne RDI's ADCP manuals use (c = 1449.2 + 4.6 T - 0.055 T^2 + 0.00029 T^3 +
+      (1.34 - 0.01 T)(S - 35) + 0.016 z), at 10 deg C the sound speed changes by 1.24 m/s
+      per psu and 3.6 m/s per deg C: a DVL that measures its temperature but assumes
+      35 psu is 0.3 % off (4.3 m/s) in 31.5 psu water. The measured beams are divided by
+      the ratio, as RDI's correction multiplies them by it (Teledyne RDI, "ADCP
+      Coordinate Transformation", P/N 951-6079-00, 2010, sec. 4.1).
     - Misalignment: 0.1 deg per axis, our choice of a residual after a careful
       installation.
     - Water track, when bottom lock is lost, on a layer 10 m below the DVL (RDI DVLs
