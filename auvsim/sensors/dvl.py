@@ -151,8 +151,10 @@ def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
 
     With one uniform u per beam and ping, the next state is ``u < p`` from lock and
     ``u < 1 - 1/burst`` from a burst. Where both agree the ping sets the state whatever it
-    was; where they differ it keeps it (or flips it), so the state at a ping is the last
-    setting ping's, flipped once per flip since: cumulative maxima and sums, no loop.
+    was; where they differ the ping keeps the state (when ``p < 1 - 1/burst``) or flips
+    it (when ``p > 1 - 1/burst``). So the state at a ping is that of the last setting ping
+    (or ``state``), flipped once per flipping ping since: cumulative maxima and sums, no
+    loop over pings.
 
     Args:
         u: (M, 4) uniforms in [0, 1), one per ping and beam.
@@ -223,13 +225,14 @@ def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
     beam is missing, and then NaN).
 
     Teledyne RD Instruments, "ADCP Coordinate Transformation: Formulas and Calculations"
-    (P/N 951-6079-00, 2010), sec. 5.3: ``e = d (b1 + b2 - b3 - b4)``, ``d = a / sqrt(2)``,
+    (P/N 951-6079-00, 2010), sec. 5.3, beam-to-instrument transformation:
+    ``e = d (b1 + b2 - b3 - b4)``, ``d = a / sqrt(2)``,
     ``a = 1 / (2 sin(alpha))``, its beam pairs being (1, 2) and (3, 4). Here the opposite
     pairs are (1, 3) and (2, 4), so ``e = d (y1 + y3 - y2 - y4)``: the difference of the
     two pairs' estimates of the vertical velocity, scaled so that with white beam noise
     sigma its std, ``sigma / (sqrt(2) sin(alpha))``, is that of a horizontal component.
-    Ideal beams give 0 up to rounding (about 1e-16 |v|: the tabulated cosines of the
-    four azimuths are not exact negatives of each other).
+    Ideal beams give 0 up to rounding (about 1e-16 |v|: the computed cosines and sines of
+    the four azimuths are not exact negatives of each other).
 
     Args:
         beams: (M, 4) measured beam velocities, m/s.
@@ -348,6 +351,13 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
          noise_std: float, rng: np.random.Generator,
          effects: Effects | None = None) -> dict[str, np.ndarray]:
     """The DVL's pings, the one pipeline: true beams -> eq. 7 errors -> eq. 9 LS.
+
+    With ``effects`` (a simulated mission), per beam k:
+    ``y_k = (1 + s_k) (b_k . v') / ratio + bias_k + n_k + o_k``, where v' is v in bottom
+    track and ``v - v_water`` in water track (a ping with fewer than 3 bottom-locked beams
+    and at least 3 beams that can see the water layer, when water track is on), n_k the
+    eq. 7 noise plus ``extra_noise`` in bottom track and ``water_noise`` in water track,
+    and o_k the outlier error on bottom-locked outlier beams.
 
     Args:
         velocity: (M, 3) true velocity over ground of the DVL in its frame, m/s (NaN rows:
