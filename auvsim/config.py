@@ -327,7 +327,8 @@ class DvlConfig:
             ratio.
         misalignment_std_deg: deg, in [0, 10]: spread of the realised mounting misalignment
             per axis (the geometry uses it, the user's ``mounting_rpy_deg`` stays nominal).
-        water_track: fall back to water track when every beam has lost bottom lock.
+        water_track: fall back to water track on a ping with fewer than 3 beams in
+            bottom lock (no bottom-track velocity).
         water_track_range: m, > 0 (at most ``max_range`` with water track on): distance
             below the DVL of the water layer it tracks.
         water_track_noise_std: m/s, >= 0: the beam noise in water track (in place of the
