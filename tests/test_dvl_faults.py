@@ -204,12 +204,27 @@ def test_a_mission_loses_lock_as_configured():
     dropped = (status[~failed & ~soft & ~lost & ((t < 20) | (t >= 40))]
                == Status.DROPOUT).mean()
     assert 0.04 < dropped < 0.16  # 10 % of 1200 beam-pings in bursts of 3: sigma 0.02
-    rough = SeafloorConfig(kind="procedural", depth=60.0, roughness=3.0,
-                           correlation_length=8.0)
-    _, data = fly(DvlConfig(grazing_loss_angle_deg=30.0, grazing_loss_width_deg=2.0), 30.0,
-                  seafloor=rough)
-    share = (data["dvl/status"] == Status.GRAZING).mean()
-    assert 0.2 < share < 0.8  # 30 deg beams over slopes of about 20 deg
+
+def test_beams_facing_down_a_slope_are_lost_to_grazing():
+    """Flying north, level, over a plane that deepens northward at 20 deg: the seafloor's
+    upward normal is (sin 20, 0, -cos 20), so the forward beams (azimuth 45 and 315 deg,
+    30 deg off vertical) meet it at acos(cos 30 cos 20 - sin 30 cos 45 sin 20) = 46.1 deg
+    and the aft ones at acos(cos 30 cos 20 + sin 30 cos 45 sin 20) = 20.8 deg. With the
+    loss at 1/2 at 40 deg over 0.5 deg, the forward beams are lost and the aft ones kept
+    (both to within about 1e-5)."""
+    slope = SeafloorConfig(kind="procedural", depth=60.0, roughness=0.0, slope_deg=20.0,
+                           slope_heading_deg=0.0)
+    _, data = fly(DvlConfig(grazing_loss_angle_deg=40.0, grazing_loss_width_deg=0.5), 30.0,
+                  seafloor=slope)
+    s30, c30, s20, c20 = (math.sin(math.radians(30)), math.cos(math.radians(30)),
+                          math.sin(math.radians(20)), math.cos(math.radians(20)))
+    forward = math.degrees(math.acos(c30 * c20 - s30 * math.sqrt(0.5) * s20))
+    aft = math.degrees(math.acos(c30 * c20 + s30 * math.sqrt(0.5) * s20))
+    assert forward == pytest.approx(46.1, abs=0.05) and aft == pytest.approx(20.8, abs=0.05)
+    status = data["dvl/status"]
+    np.testing.assert_array_equal(status[:, [0, 3]], Status.GRAZING)
+    np.testing.assert_array_equal(status[:, [1, 2]], Status.OK)
+    np.testing.assert_array_equal(data["dvl/mode"], Mode.NO_VELOCITY)
 
 
 # -- measurement errors -----------------------------------------------------------------
