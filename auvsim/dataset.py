@@ -717,6 +717,7 @@ def describe(path: str | os.PathLike) -> str:
                 ]
             lines.append(f"    DVL errors: scale factor {fmt(a['dvl_scale_factor'])}, bias "
                          f"{fmt(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s")
+            lines += _describe_v4(m, a, fmt)
             if "imu_accel_turn_on_bias" in a:
                 lines.append(
                     f"    IMU errors: accel turn-on bias {fmt(a['imu_accel_turn_on_bias'])} "
@@ -734,7 +735,6 @@ def describe(path: str | os.PathLike) -> str:
                     f"{largest['gyro_g_sensitivity']} rad/s per m/s^2; bias correlation "
                     f"times accel {a['imu_accel_bias_correlation_time']:g} s, gyro "
                     f"{a['imu_gyro_bias_correlation_time']:g} s")
-            lines += _describe_v4(m, a, fmt)
             if "depth_rate_hz" in a:
                 lines.append(
                     f"    depth sensor {a['depth_rate_hz']:g} Hz ({m.depth.rows} samples): "
