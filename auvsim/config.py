@@ -67,6 +67,14 @@ MAX_ANGLE = 360.0  # deg
 # of pings) near 60 s, which the procedural terrain window is sized for: at 0.001 Hz a
 # block of 1000 s outran the window.
 MIN_DVL_RATE = 0.1  # Hz
+# The DVL's realised sound-speed error: sea water's sound speed spans about 1400 to
+# 1570 m/s (cold fresh to warm salty), within about 7 % of the 1500 m/s a DVL assumes, so
+# a spread of 5 % already covers the whole ocean.
+MAX_SOUND_SPEED_STD = 0.05
+# A realised DVL mounting misalignment is a residual after installation, a fraction of a
+# degree to a degree; beyond 10 deg (per axis, 1 sigma) it is a mounting, not a
+# misalignment (our choice).
+MAX_MISALIGNMENT_STD = 10.0  # deg
 
 
 def _shown(value: object) -> str:
@@ -282,6 +290,47 @@ class DvlConfig:
         scale_factor, scale_factor_std: s (dimensionless): mean, and per-mission spread.
         bias, bias_std: m/s.
         noise_std: m/s, white noise per beam and ping.
+
+        Bottom lock lost as an instrument loses it, per beam and ping (each off by
+        default; ``auvsim.sensors.dvl`` gives the reason codes of ``dvl/status``):
+
+        echo_loss_range: m, slant range at which an echo is lost with probability 1/2
+            (``None``: off); the probability is the logistic
+            ``1 / (1 + exp(-(r - echo_loss_range) / echo_loss_width))``.
+        echo_loss_width: m, > 0, the width of that curve.
+        grazing_loss_angle_deg: incidence angle (beam against the seafloor normal at its
+            hit), deg in (0, 90), lost with probability 1/2 (``None``: off); the same
+            logistic in the angle, of width ``grazing_loss_width_deg`` (> 0).
+        dropout_rate: stationary share of beam-pings inside a dropout burst, in [0, 1);
+            each beam is a two-state Markov chain (lock, dropout) per ping.
+        dropout_burst: mean burst length in pings, >= 1 (a burst ends with probability
+            1 / dropout_burst per ping); the rate is at most
+            ``dropout_burst / (1 + dropout_burst)``, else a burst could not start often
+            enough.
+        ping_dropout_rate: share of whole pings lost (every beam), in [0, 1).
+        beam_failures: ``((beam, start_s, end_s), ...)``, beam 0..3 dead for
+            ``start_s <= t < end_s``.
+        lock_loss_intervals: ``((start_s, end_s), ...)``: every beam loses bottom lock (a
+            soft bottom) for ``start_s <= t < end_s``.
+
+        Measurement errors beyond eq. 7 (each off by default):
+
+        noise_range_coeff: m/s per m of slant range, >= 0: the beam noise std grows as
+            ``noise_std + noise_range_coeff * r + noise_speed_coeff * |v|``.
+        noise_speed_coeff: dimensionless (m/s of std per m/s of speed), >= 0.
+        outlier_rate: share of beam-pings that are outliers, in [0, 1].
+        outlier_std: m/s, >= 0, the scale of their heavy-tailed (Student t, 3 degrees of
+            freedom) error.
+        sound_speed_std: spread of the realised ratio ``c_true / c_assumed - 1``, in
+            [0, 0.05]: sea water's sound speed is 1400 to 1570 m/s, within about 7 % of the
+            1500 m/s a DVL assumes.
+        misalignment_std_deg: deg, in [0, 10]: spread of the realised mounting misalignment
+            per axis (the geometry uses it, the user's ``mounting_rpy_deg`` stays nominal).
+        water_track: fall back to water track when every beam has lost bottom lock.
+        water_track_range: m, > 0, at most ``max_range``: distance below the DVL of the
+            water layer it tracks.
+        water_track_noise_std: m/s, >= 0: the beam noise in water track (in place of the
+            bottom-track noise).
     """
 
     rate_hz: float = 1.0
@@ -294,10 +343,32 @@ class DvlConfig:
     bias: float | tuple[float, float, float, float] = 0.0
     bias_std: float = 0.0
     noise_std: float = 0.0
+    echo_loss_range: float | None = None
+    echo_loss_width: float = 5.0
+    grazing_loss_angle_deg: float | None = None
+    grazing_loss_width_deg: float = 5.0
+    dropout_rate: float = 0.0
+    dropout_burst: float = 1.0
+    ping_dropout_rate: float = 0.0
+    beam_failures: tuple[tuple[int, float, float], ...] = ()
+    lock_loss_intervals: tuple[tuple[float, float], ...] = ()
+    noise_range_coeff: float = 0.0
+    noise_speed_coeff: float = 0.0
+    outlier_rate: float = 0.0
+    outlier_std: float = 0.0
+    sound_speed_std: float = 0.0
+    misalignment_std_deg: float = 0.0
+    water_track: bool = False
+    water_track_range: float = 10.0
+    water_track_noise_std: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("rate_hz", "beam_angle_deg", "min_range", "max_range",
-                     "scale_factor_std", "bias_std", "noise_std"):
+                     "scale_factor_std", "bias_std", "noise_std", "echo_loss_width",
+                     "grazing_loss_width_deg", "dropout_rate", "dropout_burst",
+                     "ping_dropout_rate", "noise_range_coeff", "noise_speed_coeff",
+                     "outlier_rate", "outlier_std", "sound_speed_std", "misalignment_std_deg",
+                     "water_track_range", "water_track_noise_std"):
             _finite(f"dvl.{name}", getattr(self, name))
         _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
         _check(self.rate_hz >= MIN_DVL_RATE, "dvl.rate_hz",
@@ -319,6 +390,73 @@ class DvlConfig:
                 object.__setattr__(self, name, _vector(f"dvl.{name}", value, 4))
             else:
                 _finite(f"dvl.{name}", value)
+        self._check_lock_loss()
+        for name in ("noise_range_coeff", "noise_speed_coeff", "outlier_std",
+                     "water_track_noise_std"):
+            _check(getattr(self, name) >= 0, f"dvl.{name}", "a value >= 0",
+                   getattr(self, name))
+        _check(0 <= self.outlier_rate <= 1, "dvl.outlier_rate", "a share in [0, 1]",
+               self.outlier_rate)
+        _check(0 <= self.sound_speed_std <= MAX_SOUND_SPEED_STD, "dvl.sound_speed_std",
+               f"a spread in [0, {MAX_SOUND_SPEED_STD:g}]", self.sound_speed_std)
+        _check(0 <= self.misalignment_std_deg <= MAX_MISALIGNMENT_STD, "dvl.misalignment_std_deg",
+               f"a spread in [0, {MAX_MISALIGNMENT_STD:g}] deg", self.misalignment_std_deg)
+        _check(isinstance(self.water_track, bool), "dvl.water_track", "true or false",
+               self.water_track)
+        _check(0 < self.water_track_range <= self.max_range, "dvl.water_track_range",
+               f"a distance in (0, max_range = {self.max_range:g}] m", self.water_track_range)
+
+    def _check_lock_loss(self) -> None:
+        """The settings of lost bottom lock (normalised to tuples, so that the JSON round
+        trip gives an equal config)."""
+        for name, limit in (("echo_loss_range", None), ("grazing_loss_angle_deg", 90.0)):
+            value = getattr(self, name)
+            if value is not None:
+                _finite(f"dvl.{name}", value)
+                _check(value > 0 and (limit is None or value < limit), f"dvl.{name}",
+                       "a range > 0 m (or null: off)" if limit is None
+                       else "an angle in (0, 90) deg (or null: off)", value)
+        for name in ("echo_loss_width", "grazing_loss_width_deg"):
+            _check(getattr(self, name) > 0, f"dvl.{name}", "a width > 0", getattr(self, name))
+        _check(0 <= self.dropout_rate < 1, "dvl.dropout_rate", "a share in [0, 1)",
+               self.dropout_rate)
+        _check(self.dropout_burst >= 1, "dvl.dropout_burst", "a mean burst length >= 1 ping",
+               self.dropout_burst)
+        most = self.dropout_burst / (1 + self.dropout_burst)
+        _check(self.dropout_rate <= most, "dvl.dropout_rate",
+               f"a share of at most dropout_burst / (1 + dropout_burst) = {most:g} (bursts "
+               f"of {self.dropout_burst:g} pings cannot start more often)", self.dropout_rate)
+        _check(0 <= self.ping_dropout_rate < 1, "dvl.ping_dropout_rate", "a share in [0, 1)",
+               self.ping_dropout_rate)
+        object.__setattr__(self, "beam_failures", _intervals(
+            "dvl.beam_failures", self.beam_failures, beam=True))
+        object.__setattr__(self, "lock_loss_intervals", _intervals(
+            "dvl.lock_loss_intervals", self.lock_loss_intervals, beam=False))
+
+
+def _intervals(name: str, value, *, beam: bool) -> tuple:
+    """Time intervals ``((start_s, end_s), ...)``, or ``((beam, start_s, end_s), ...)``
+    with a beam index 0..3, as tuples; 0 <= start < end, finite."""
+    expected = ("a list of (beam 0..3, start_s, end_s) with 0 <= start_s < end_s" if beam
+                else "a list of (start_s, end_s) with 0 <= start_s < end_s")
+    out = []
+    try:
+        items = list(value) if not isinstance(value, (str, bytes)) else None
+    except TypeError:
+        items = None
+    _check(items is not None, name, expected, value)
+    for item in items:
+        ok = (not isinstance(item, (str, bytes)) and hasattr(item, "__len__")
+              and len(item) == (3 if beam else 2))
+        if ok and beam:
+            ok = (not isinstance(item[0], bool) and isinstance(item[0], int)
+                  and 0 <= item[0] <= 3)
+        times = tuple(item[1:] if beam else item) if ok else ()
+        ok = ok and all(is_finite(t) for t in times) and 0 <= times[0] < times[1]
+        _check(ok, name, expected, value)
+        out.append((int(item[0]), float(times[0]), float(times[1])) if beam
+                   else (float(times[0]), float(times[1])))
+    return tuple(out)
 
 
 @dataclass(frozen=True)
