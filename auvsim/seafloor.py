@@ -304,6 +304,47 @@ class Seafloor:
                                    -np.asarray(east, dtype=float))
         if self.kind == "flat":
             return np.where(np.isfinite(x) & np.isfinite(y), self.config.depth, np.nan)
+        inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
+        upper = fu >= fv  # the triangle with vertex (r, c + 1)
+        big, small = np.where(upper, fu, fv), np.where(upper, fv, fu)
+        height = h00 + (side - h00) * big + (h11 - side) * small
+        depth = -(pos[..., 2] + height * self._elevation[a, b])
+        return np.where(inside, depth, np.nan)
+
+    def normal_at(self, north: np.ndarray, east: np.ndarray) -> np.ndarray:
+        """Unit normal of the ray-cast surface below NED horizontal positions, pointing up
+        into the water: the normal of the triangle ``depth_at`` interpolates on.
+
+        Args:
+            north, east: NED positions, m, any broadcastable shapes S.
+
+        Returns:
+            (*S, 3) NED unit normals; NaN outside the terrain MuJoCo currently holds.
+        """
+        x, y = np.broadcast_arrays(np.asarray(north, dtype=float),
+                                   -np.asarray(east, dtype=float))
+        if self.kind == "flat":
+            up = np.where((np.isfinite(x) & np.isfinite(y))[..., None], 1.0, np.nan)
+            return up * np.array([0.0, 0.0, -1.0])
+        inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
+        (rows, cols), (hx, hy) = self._tile_cells, self._half
+        upper = fu >= fv
+        # The triangle's height gradient along the fractional column u and row v (linear
+        # in each triangle), then in metres: u grows northward, v westward.
+        dh_du = np.where(upper, side - h00, h11 - side)
+        dh_dv = np.where(upper, h11 - side, side - h00)
+        elevation = self._elevation[a, b]
+        d_north = -elevation * dh_du * cols / (2.0 * hx)  # d depth / d north
+        d_east = elevation * dh_dv * rows / (2.0 * hy)  # d depth / d east (v runs west)
+        # The surface z = depth(n, e): its upward normal is (d_n, d_e, -1), normalised.
+        normal = np.stack([d_north, d_east, -np.ones_like(d_north)], axis=-1)
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        return np.where(inside[..., None], normal, np.nan)
+
+    def _triangle(self, x: np.ndarray, y: np.ndarray) -> tuple:
+        """Where MuJoCo's x, y (north, west) fall on the terrain: inside (bool), the tile
+        (a, b) and its position, the fractional position (fu, fv) in the cell, and the
+        three vertex heights of its triangle (h00, the side vertex, h11)."""
         x_lo, x_hi, y_lo, y_hi = self._cover
         inside = (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
         x, y = np.where(inside, x, x_lo), np.where(inside, y, y_lo)
@@ -324,10 +365,7 @@ class Seafloor:
         # Two triangles per cell, split along the (r, c) - (r + 1, c + 1) diagonal.
         upper = fu >= fv  # the triangle with vertex (r, c + 1)
         side = np.where(upper, flat[k + 1], flat[k + cols + 1]).astype(float)
-        big, small = np.where(upper, fu, fv), np.where(upper, fv, fu)
-        height = h00 + (side - h00) * big + (h11 - side) * small
-        depth = -(pos[..., 2] + height * self._elevation[a, b])
-        return np.where(inside, depth, np.nan)
+        return inside, a, b, pos, fu, fv, h00, side, h11
 
     def cast(self, model: mujoco.MjModel, data: mujoco.MjData, origins_ned: np.ndarray,
              directions_ned: np.ndarray, *, max_range: float, exclude_body: int) -> np.ndarray:

@@ -115,7 +115,9 @@ class Sensor:
 
     name: ClassVar[str]  # its group in the file
     section: ClassVar[str]  # its config section
-    streams: ClassVar[tuple[str, str]]  # (parameters, noise) stream names (auvsim.streams)
+    # (parameters, noise, *more) stream names (auvsim.streams); __init__ gets the
+    # parameters stream and then the others beyond the noise stream, in this order
+    streams: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[Field, ...]]
     attributes: ClassVar[tuple[Attr, ...]]
     links: ClassVar[dict[str, str]] = {}  # field -> truth field it is a hard link to

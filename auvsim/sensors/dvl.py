@@ -7,11 +7,28 @@ Beam k = 1..4 points along, in the DVL frame,
 ``b_k = [cos(psi_k) sin(alpha), sin(psi_k) sin(alpha), cos(alpha)]``,
 ``psi_k = (k - 1) pi/2 + pi/4``, alpha the beam angle from the DVL's z (down) axis.
 A beam measures the projection of the DVL's velocity over ground (in the DVL frame) on
-``b_k``; ``H = [b_1; ...; b_4]`` stacks them, so ideal beams are ``H v``.
+``b_k``; ``H = [b_1; ...; b_4]`` stacks them, so ideal beams are ``H v``. Beams 1 and 3,
+and 2 and 4, point in opposite directions (the Janus pairs).
+
+A simulated mission's DVL also loses bottom lock as an instrument does and errs beyond
+eq. 7 (``DvlConfig``; each effect off by default, and then every array is what it was):
+per beam and ping a reason code (``Status``, ``dvl/status``) says why a beam has no bottom
+lock; the measured beams are, per beam k (bottom track)::
+
+    y_k = (1 + s_k) (b_k . v) / (c_true / c_assumed) + bias_k + n_k + o_k
+
+with n_k of std ``noise_std + noise_range_coeff * r_k + noise_speed_coeff * |v|``
+(``beam_noise_std``) and o_k a heavy-tailed outlier on a share ``outlier_rate`` of the
+beam-pings; the ray casts and v use the TRUE mounting (nominal mounting times a realised
+misalignment). With ``water_track`` on, a ping with fewer than 3 bottom-locked beams
+measures ``H (v - v_water)`` instead (``dvl/mode``). ``error_velocity`` is the instrument's
+error velocity. The realised sound-speed ratio and misalignment come from the
+``dvl_calibration`` stream, every per-ping draw of these effects from ``dvl_faults``.
 """
 
 from __future__ import annotations
 
+import enum
 import math
 from typing import NamedTuple
 
@@ -47,6 +64,172 @@ def draw_errors(config: DvlConfig, rng: np.random.Generator) -> DvlErrors:
     bias = np.broadcast_to(np.asarray(config.bias, dtype=float), 4)
     return DvlErrors(scale + config.scale_factor_std * rng.standard_normal(4),
                      bias + config.bias_std * rng.standard_normal(4))
+
+
+class Status(enum.IntEnum):
+    """Why a beam has no bottom lock on a ping (``dvl/status``): the first that applies in
+    the order PING_DROPOUT, BEAM_FAILED, NO_HIT, TOO_NEAR, LOCK_LOST, GRAZING, ECHO_LOST,
+    DROPOUT (``lock_status``: the instrument, then the geometry, then the bottom, then
+    chance). In water track a beam keeps its bottom-lock code; ``dvl/valid`` says whether
+    it measured the water."""
+
+    OK = 0  # bottom lock, measured
+    NO_HIT = 1  # no seafloor within max_range
+    TOO_NEAR = 2  # seafloor nearer than min_range
+    ECHO_LOST = 3  # echo lost near the range limit (echo_loss_range)
+    GRAZING = 4  # incidence on the seafloor too oblique (grazing_loss_angle_deg)
+    DROPOUT = 5  # inside a random dropout burst (dropout_rate, dropout_burst)
+    PING_DROPOUT = 6  # the whole ping was lost (ping_dropout_rate)
+    BEAM_FAILED = 7  # the beam is dead (beam_failures)
+    LOCK_LOST = 8  # every beam lost lock, a soft bottom (lock_loss_intervals)
+    OUTLIER = 9  # bottom lock, measured, but an outlier: a truth label (outlier_rate)
+
+
+class Mode(enum.IntEnum):
+    """What a ping's velocity is relative to (``dvl/mode``)."""
+
+    NO_VELOCITY = -1  # fewer than 3 beams measured anything
+    BOTTOM_TRACK = 0  # at least 3 beams with bottom lock: velocity over ground
+    WATER_TRACK = 1  # bottom lock lost, velocity relative to a water layer (water_track)
+
+
+class DvlCalibration(NamedTuple):
+    """The realised calibration errors of one mission (stream ``dvl_calibration``)."""
+
+    sound_speed_ratio: float  # c_true / c_assumed
+    misalignment_rpy_deg: np.ndarray  # (3,) true DVL frame -> nominal DVL frame, ZYX, deg
+
+
+def draw_calibration(config: DvlConfig, rng: np.random.Generator) -> DvlCalibration:
+    """A mission's sound-speed ratio ``1 + sound_speed_std N(0, 1)`` and mounting
+    misalignment ``misalignment_std_deg N(0, 1)`` per axis (always drawn, so each is the
+    same whatever the other's setting)."""
+    z = rng.standard_normal(4)
+    return DvlCalibration(1.0 + config.sound_speed_std * float(z[0]),
+                          config.misalignment_std_deg * z[1:])
+
+
+def beam_noise_std(ranges: np.ndarray, speed: np.ndarray, config: DvlConfig) -> np.ndarray:
+    """(M, 4) std of each beam's noise, m/s:
+    ``noise_std + noise_range_coeff * r_k + noise_speed_coeff * |v|``.
+
+    The form of a Doppler log's specification, a constant plus terms that grow with range
+    (the echo's signal-to-noise ratio falls with spreading and absorption) and with speed
+    (the beam's width spreads the Doppler spectrum in proportion to the speed).
+
+    Args:
+        ranges: (M, 4) slant ranges, m (NaN counts as 0: such a beam measures nothing).
+        speed: (M,) |v| of the velocity the beams measure, m/s.
+        config: the coefficients.
+    """
+    return (config.noise_std + config.noise_range_coeff * np.nan_to_num(ranges)
+            + config.noise_speed_coeff * speed[:, None])
+
+
+def logistic(x: np.ndarray, middle: float, width: float) -> np.ndarray:
+    """``1 / (1 + exp(-(x - middle) / width))``: the loss probability curves, 1/2 at
+    ``middle``; NaN in gives NaN (compared False)."""
+    return 0.5 * (1.0 + np.tanh(0.5 * (x - middle) / width))  # no overflow far out
+
+
+def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
+                    burst: float) -> np.ndarray:
+    """Dropout bursts: each beam a two-state Markov chain over pings, vectorised.
+
+    A beam in lock enters a burst with probability ``p = rate / (burst (1 - rate))`` per
+    ping and a beam in a burst leaves it with probability ``1 / burst``, so bursts last
+    ``burst`` pings on average (geometric) and the stationary share of pings in a burst is
+    ``p / (p + 1 / burst) = rate``.
+
+    With one uniform u per beam and ping, the next state is ``u < p`` from lock and
+    ``u < 1 - 1/burst`` from a burst. Where both agree the ping sets the state whatever it
+    was; where they differ it keeps it (or flips it), so the state at a ping is the last
+    setting ping's, flipped once per flip since: cumulative maxima and sums, no loop.
+
+    Args:
+        u: (M, 4) uniforms in [0, 1), one per ping and beam.
+        state: (4,) bool, in a burst before the first ping.
+        rate, burst: ``DvlConfig.dropout_rate`` and ``dropout_burst``.
+
+    Returns:
+        (M, 4) bool, in a burst at each ping.
+    """
+    if rate == 0:
+        return np.zeros(u.shape, dtype=bool)
+    enter = u < rate / (burst * (1.0 - rate))
+    stay = u < 1.0 - 1.0 / burst
+    setting = enter == stay  # both say burst, or both say lock
+    flip = enter & ~stay
+    index = np.arange(len(u))[:, None]
+    last = np.maximum.accumulate(np.where(setting, index, -1), axis=0)  # -1: none yet
+    at = np.maximum(last, 0)
+    flips = np.cumsum(flip, axis=0)
+    value = np.where(last >= 0, np.take_along_axis(enter, at, axis=0), state)
+    since = flips - np.where(last >= 0, np.take_along_axis(flips, at, axis=0), 0)
+    return value ^ (since % 2 == 1)
+
+
+def in_intervals(time: np.ndarray, intervals) -> np.ndarray:
+    """(M,) bool: ``time`` (M,) s inside any ``(start, end)`` (start <= t < end)."""
+    inside = np.zeros(len(time), dtype=bool)
+    for start, end in intervals:
+        inside |= (time >= start) & (time < end)
+    return inside
+
+
+def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
+                incidence_deg: np.ndarray | None, u: np.ndarray,
+                dropout: np.ndarray) -> np.ndarray:
+    """(M, 4) int bottom-lock reason codes (``Status``, without ``OUTLIER``): the first
+    reason that applies, in the order of ``Status``'s docstring.
+
+    Args:
+        time: (M,) ping times, s.
+        ranges: (M, 4) slant ranges, m (NaN: no hit within max_range).
+        config: the DVL's settings.
+        incidence_deg: (M, 4) angle between each beam and the seafloor normal at its hit,
+            deg (None when the grazing loss is off).
+        u: (M, 9) uniforms: echo loss (4), grazing loss (4), ping dropout (1).
+        dropout: (M, 4) bool, inside a dropout burst (``markov_dropouts``).
+    """
+    c = config
+    status = np.where(dropout, Status.DROPOUT, Status.OK).astype(np.int64)
+    if c.echo_loss_range is not None:
+        lost = u[:, 0:4] < logistic(ranges, c.echo_loss_range, c.echo_loss_width)
+        status[lost] = Status.ECHO_LOST
+    if c.grazing_loss_angle_deg is not None:
+        lost = u[:, 4:8] < logistic(incidence_deg, c.grazing_loss_angle_deg,
+                                    c.grazing_loss_width_deg)
+        status[lost] = Status.GRAZING
+    status[in_intervals(time, c.lock_loss_intervals)] = Status.LOCK_LOST
+    status[ranges < c.min_range] = Status.TOO_NEAR
+    status[~np.isfinite(ranges)] = Status.NO_HIT
+    for beam, start, end in c.beam_failures:
+        status[(time >= start) & (time < end), beam] = Status.BEAM_FAILED
+    status[u[:, 8] < c.ping_dropout_rate] = Status.PING_DROPOUT
+    return status
+
+
+def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """(M,) the instrument's error velocity, m/s, from (M, 4) measured beams (NaN where a
+    beam is missing, and then NaN).
+
+    Teledyne RD Instruments, "ADCP Coordinate Transformation: Formulas and Calculations"
+    (P/N 951-6079-00, 2010), sec. 5.3: ``e = d (b1 + b2 - b3 - b4)``, ``d = a / sqrt(2)``,
+    ``a = 1 / (2 sin(alpha))``, its beam pairs being (1, 2) and (3, 4). Here the opposite
+    pairs are (1, 3) and (2, 4), so ``e = d (y1 + y3 - y2 - y4)``: the difference of the
+    two pairs' estimates of the vertical velocity, scaled so that with white beam noise
+    sigma its std, ``sigma / (sqrt(2) sin(alpha))``, is that of a horizontal component.
+    Ideal beams give 0 up to rounding (about 1e-16 |v|: the tabulated cosines of the
+    four azimuths are not exact negatives of each other).
+
+    Args:
+        beams: (M, 4) measured beam velocities, m/s.
+        h: (4, 3) beam matrix (its beam angle).
+    """
+    sin_alpha = float(np.hypot(h[0, 0], h[0, 1]))
+    d = 1.0 / (2.0 * math.sqrt(2.0) * sin_alpha)
+    return d * ((beams[:, 0] + beams[:, 2]) - (beams[:, 1] + beams[:, 3]))
 
 
 def measure(beam_velocity: np.ndarray, valid: np.ndarray, *, errors: DvlErrors,
@@ -127,8 +310,35 @@ def true_beams(velocity: np.ndarray, h: np.ndarray) -> np.ndarray:
     return np.where(finite[:, None], np.nan_to_num(velocity) @ h.T, np.nan)
 
 
+class Effects(NamedTuple):
+    """What a simulated mission's DVL adds to one block of M pings beyond eq. 7 (``ping``).
+
+    Attributes:
+        status: (M, 4) int bottom-lock reason codes (``lock_status``).
+        sound_speed_ratio: c_true / c_assumed: every measured beam is divided by it.
+        extra_noise: (M, 4) m/s, added to the bottom-track beams (the noise beyond
+            ``noise_std`` that grows with range and speed), or None.
+        outlier: (M, 4) bool, beam-pings whose bottom-track measurement is an outlier.
+        outlier_error: (M, 4) m/s, the outliers' errors.
+        water_velocity: (M, 3) m/s, in the DVL frame, the velocity over ground of the water
+            layer the DVL tracks, or None: no water track.
+        water_lock: (M, 4) bool, beams that can track it.
+        water_noise: (M, 4) m/s, the water-track beams' noise.
+    """
+
+    status: np.ndarray
+    sound_speed_ratio: float
+    extra_noise: np.ndarray | None
+    outlier: np.ndarray
+    outlier_error: np.ndarray
+    water_velocity: np.ndarray | None
+    water_lock: np.ndarray
+    water_noise: np.ndarray
+
+
 def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlErrors,
-         noise_std: float, rng: np.random.Generator) -> dict[str, np.ndarray]:
+         noise_std: float, rng: np.random.Generator,
+         effects: Effects | None = None) -> dict[str, np.ndarray]:
     """The DVL's pings, the one pipeline: true beams -> eq. 7 errors -> eq. 9 LS.
 
     Args:
@@ -139,16 +349,42 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
         errors: the mission's scale factors and biases.
         noise_std: beam noise, m/s.
         rng: the DVL's noise stream (one draw per beam and ping).
+        effects: a simulated mission's effects beyond eq. 7 (``lock`` must then be
+            ``effects.status == Status.OK``); None: eq. 7 alone.
 
     Returns:
         ``velocity``, ``beam_velocity_true`` (M, 4), ``beam_velocity`` (M, 4, NaN where not
-        valid), ``valid`` (M, 4; bottom lock on a finite ping) and ``velocity_ls`` (M, 3).
+        valid), ``valid`` (M, 4; the beam measured something on a finite ping) and
+        ``velocity_ls`` (M, 3); with ``effects`` also ``status`` (M, 4), ``mode`` (M,) and
+        ``error_velocity`` (M,).
     """
-    valid = lock & np.isfinite(velocity).all(axis=1)[:, None]
+    finite = np.isfinite(velocity).all(axis=1)
+    valid = lock & finite[:, None]
     beams_true = true_beams(velocity, h)
-    beams = measure(beams_true, valid, errors=errors, noise_std=noise_std, rng=rng)
+    if effects is None:
+        beams = measure(beams_true, valid, errors=errors, noise_std=noise_std, rng=rng)
+        return dict(velocity=velocity, beam_velocity_true=beams_true, beam_velocity=beams,
+                    valid=valid, velocity_ls=least_squares(beams, h))
+    e = effects
+    noise = noise_std * rng.standard_normal(beams_true.shape)  # as eq. 7 draws it
+    if e.extra_noise is not None:
+        noise = noise + e.extra_noise
+    mode = np.where(valid.sum(axis=1) >= 3, Mode.BOTTOM_TRACK, Mode.NO_VELOCITY)
+    signal = beams_true
+    if e.water_velocity is not None:
+        water = (mode != Mode.BOTTOM_TRACK) & ((e.water_lock & finite[:, None]).sum(axis=1) >= 3)
+        mode = np.where(water, Mode.WATER_TRACK, mode)
+        valid = np.where(water[:, None], e.water_lock & finite[:, None], valid)
+        signal = np.where(water[:, None], true_beams(velocity - e.water_velocity, h), signal)
+        noise = np.where(water[:, None], e.water_noise, noise)
+    y = (1.0 + errors.scale_factor) * (signal / e.sound_speed_ratio) + errors.bias + noise
+    outlier = e.outlier & lock & (mode != Mode.WATER_TRACK)[:, None]
+    y = np.where(outlier, y + e.outlier_error, y)
+    beams = np.where(valid, y, np.nan)
+    status = np.where(outlier, Status.OUTLIER, e.status).astype(np.int64)
     return dict(velocity=velocity, beam_velocity_true=beams_true, beam_velocity=beams,
-                valid=valid, velocity_ls=least_squares(beams, h))
+                valid=valid, velocity_ls=least_squares(beams, h), status=status,
+                mode=mode.astype(np.int64), error_velocity=error_velocity(beams, h))
 
 
 def config_attrs(config: DvlConfig, errors: DvlErrors) -> dict[str, object]:
@@ -185,24 +421,42 @@ def synthesise(velocity: np.ndarray, config: DvlConfig,
 
 class Dvl(Sensor):
     """The Janus DVL: beams ray-cast on the seafloor from the DVL site, with the lever
-    arm and mounting, then ``ping``. Pings fall on IMU samples that are whole multiples
-    of the ping interval (``sample_rows``); ``imu/index_of_dvl`` records them."""
+    arm and the true mounting, then ``ping`` with the effects of ``DvlConfig``. Pings
+    fall on IMU samples that are whole multiples of the ping interval (``sample_rows``);
+    ``imu/index_of_dvl`` records them.
+
+    Streams: ``dvl_parameters`` (scale factors, biases), ``dvl_noise`` (eq. 7's noise),
+    ``dvl_calibration`` (sound-speed ratio, misalignment) and ``dvl_faults``, split into
+    three children each drawn once per block in ping order, so that blocks of any length
+    give the same pings: uniforms (M, 17: echo loss 4, grazing loss 4, dropout chain 4,
+    ping dropout 1, outliers 4; the chain's first state 4 at the start), normals (M, 8:
+    the noise beyond ``noise_std`` 4, water-track noise 4) and Student t (M, 4: outliers).
+    """
 
     name = "dvl"
     section = "dvl"
-    streams = ("dvl_parameters", "dvl_noise")
+    streams = ("dvl_parameters", "dvl_noise", "dvl_calibration", "dvl_faults")
     fields = (
         Field("dvl/time", (), "f", "dvl", "s", "ping times", imported=True),
         Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the DVL frame: "
               "the regression target", imported=True),
         Field("dvl/beam_velocity_true", (4,), "f", "dvl", "m/s", "H v", imported=True),
         Field("dvl/beam_velocity", (4,), "f", "dvl", "m/s", "measured (NaN where the beam "
-              "has no bottom lock)", imported=True),
+              "measured nothing)", imported=True),
         Field("dvl/beam_range", (4,), "f", "dvl", "m", "slant range to the seafloor (NaN: "
               "no hit within max_range; a hit nearer than min_range is kept but not valid)"),
-        Field("dvl/valid", (4,), "b", "dvl", "-", "bottom lock", imported=True),
+        Field("dvl/valid", (4,), "b", "dvl", "-", "the beam measured (bottom lock, or the "
+              "water in water track)", imported=True),
         Field("dvl/velocity_ls", (3,), "f", "dvl", "m/s", "LS estimate from the measured "
               "beams (NaN if < 3 valid)", imported=True),
+        Field("dvl/status", (4,), "i", "dvl", "-", "bottom-lock reason code per beam "
+              "(auvsim.sensors.dvl.Status: 0 ok, 1 no hit within max_range, 2 nearer than "
+              "min_range, 3 echo lost, 4 grazing angle, 5 dropout, 6 ping dropout, "
+              "7 beam failed, 8 lock lost, 9 outlier)", since=4),
+        Field("dvl/error_velocity", (), "f", "dvl", "m/s", "the instrument's error velocity "
+              "d (y1 + y3 - y2 - y4), NaN unless all 4 beams measured", since=4),
+        Field("dvl/mode", (), "i", "dvl", "-", "0 bottom track, 1 water track, -1 no "
+              "velocity (auvsim.sensors.dvl.Mode)", since=4),
         Field("imu/index_of_dvl", (), "i", "dvl", "-", "IMU sample index of each ping",
               index_of="imu"),
     )
@@ -215,16 +469,28 @@ class Dvl(Sensor):
         Attr("dvl_noise_std", (), "beam noise std, m/s", imported=True, low=0),
         Attr("dvl_min_range", (), "m", low=0),
         Attr("dvl_max_range", (), "m", low=0, strict=True),
-        Attr("dvl_mounting_rpy_deg", (3,), "DVL frame -> body, ZYX, deg"),
+        Attr("dvl_mounting_rpy_deg", (3,), "NOMINAL DVL frame -> body, ZYX, deg (what the "
+             "user assumes)"),
         Attr("dvl_position_body", (3,), "m, FRD"),
+        Attr("dvl_sound_speed_ratio", (), "REALISED c_true / c_assumed: the measured beams "
+             "are divided by it", low=0, strict=True, since=4),
+        Attr("dvl_misalignment_rpy_deg", (3,), "REALISED misalignment, true DVL frame -> "
+             "nominal DVL frame, ZYX, deg", since=4),
     )
 
-    def __init__(self, config, platform, parameters):
-        self.config = config.dvl
+    def __init__(self, config, platform, parameters, calibration, faults):
+        c = self.config = config.dvl
         self.platform = platform
-        self.geometry = DvlGeometry.from_config(config.dvl, platform.vehicle.dvl_position)
-        self.errors = draw_errors(config.dvl, parameters)
+        self.errors = draw_errors(c, parameters)
+        self.calibration = draw_calibration(c, calibration)
+        self.geometry = DvlGeometry.from_config(c, platform.vehicle.dvl_position)
+        if c.misalignment_std_deg > 0:  # else the nominal matrices, bit for bit
+            misalignment = rotation_rpy(*np.radians(self.calibration.misalignment_rpy_deg))
+            self.geometry = self.geometry._replace(
+                mounting=self.geometry.mounting @ misalignment)
         self.every_imu = self.every(config)
+        self.uniform, self.normal, self.heavy = faults.spawn(3)
+        self.in_burst = self.uniform.random(4) < c.dropout_rate  # a stationary start
 
     def rows(self, n_imu):
         return {"dvl": samples_in(n_imu, self.every_imu)}
@@ -233,16 +499,19 @@ class Dvl(Sensor):
         c = self.config
         return dict(config_attrs(c, self.errors), dvl_min_range=c.min_range,
                     dvl_max_range=c.max_range, dvl_mounting_rpy_deg=c.mounting_rpy_deg,
-                    dvl_position_body=self.platform.vehicle.dvl_position)
+                    dvl_position_body=self.platform.vehicle.dvl_position,
+                    dvl_sound_speed_ratio=self.calibration.sound_speed_ratio,
+                    dvl_misalignment_rpy_deg=self.calibration.misalignment_rpy_deg)
 
     def measure(self, truth, rng):
         c, vehicle, seafloor = self.config, self.platform.vehicle, self.platform.seafloor
         rows = sample_rows(truth.first, len(truth.time), self.every_imu)
         if rows.start >= len(truth.time):
             return _no_pings()
+        time = truth.time[rows]
         velocity = self.geometry.velocity(truth.velocity_body[rows], truth.angular_rate[rows])
-        origins, directions = self.geometry.rays(truth.position_ned[rows],
-                                                 rotation_matrices(truth.quaternion[rows]))
+        rotation = rotation_matrices(truth.quaternion[rows])
+        origins, directions = self.geometry.rays(truth.position_ned[rows], rotation)
         reach = c.max_range * np.linalg.norm(directions[..., :2], axis=-1).max()
         try:
             seafloor.follow(origins[:, :2], reach=reach)
@@ -253,14 +522,69 @@ class Dvl(Sensor):
             ) from None
         ranges = seafloor.cast(vehicle.model, self.platform.ray_data, origins, directions,
                                max_range=c.max_range, exclude_body=vehicle.body_id)
-        fields = ping(velocity, ranges >= c.min_range,  # NaN (no hit) compares False
-                      h=self.geometry.h, errors=self.errors, noise_std=c.noise_std, rng=rng)
-        out = {"dvl/time": truth.time[rows]}
+        effects = self.effects(time, velocity, ranges, origins, directions, rotation)
+        fields = ping(velocity, effects.status == Status.OK, h=self.geometry.h,
+                      errors=self.errors, noise_std=c.noise_std, rng=rng, effects=effects)
+        out = {"dvl/time": time}
         out.update((f"dvl/{k}", v) for k, v in fields.items())
         out["dvl/beam_range"] = ranges
         out["imu/index_of_dvl"] = (truth.first + rows.start
                                    + self.every_imu * np.arange(len(velocity), dtype=np.int64))
         return out
+
+    def effects(self, time: np.ndarray, velocity: np.ndarray, ranges: np.ndarray,
+                origins: np.ndarray, directions: np.ndarray, rotation: np.ndarray) -> Effects:
+        """A block's effects beyond eq. 7, from its pings' times (M,) s, DVL velocities
+        (M, 3) m/s, slant ranges (M, 4) m, beam origins (M, 3) m and directions
+        (M, 4, 3) in NED, and body -> NED rotations (M, 3, 3)."""
+        c, m = self.config, len(time)
+        u = self.uniform.random((m, 17))
+        n = self.normal.standard_normal((m, 8))
+        t = self.heavy.standard_t(3, (m, 4))
+        incidence = None
+        if c.grazing_loss_angle_deg is not None:
+            hits = origins[:, None, :] + np.nan_to_num(ranges)[..., None] * directions
+            normal = self.platform.seafloor.normal_at(hits[..., 0], hits[..., 1])
+            cos_incidence = np.clip(-np.einsum("mki,mki->mk", directions, normal), -1, 1)
+            incidence = np.where(np.isfinite(ranges), np.degrees(np.arccos(cos_incidence)),
+                                 np.nan)
+        dropout = markov_dropouts(u[:, 8:12], self.in_burst, rate=c.dropout_rate,
+                                  burst=c.dropout_burst)
+        if m:
+            self.in_burst = dropout[-1]
+        status = lock_status(time, ranges, config=c, incidence_deg=incidence,
+                             u=np.concatenate([u[:, 0:8], u[:, 12:13]], axis=1),
+                             dropout=dropout)
+        extra = None
+        if c.noise_range_coeff > 0 or c.noise_speed_coeff > 0:
+            std = beam_noise_std(ranges, np.linalg.norm(velocity, axis=1), c)
+            extra = np.sqrt(np.maximum(std**2 - c.noise_std**2, 0.0)) * n[:, 0:4]
+        water, water_lock = None, np.zeros((m, 4), dtype=bool)
+        if c.water_track:
+            water = self.water_velocity(time, origins, rotation)
+            # The layer must lie above the seafloor along the beam; a lost or dead ping
+            # or beam measures nothing either way.
+            layer = c.water_track_range / np.where(directions[..., 2] > 0,
+                                                   directions[..., 2], np.nan)
+            water_lock = ((~np.isfinite(ranges) | (ranges > layer)) & np.isfinite(layer)
+                          & (status != Status.PING_DROPOUT) & (status != Status.BEAM_FAILED))
+        return Effects(status=status, sound_speed_ratio=self.calibration.sound_speed_ratio,
+                       extra_noise=extra, outlier=u[:, 13:17] < c.outlier_rate,
+                       outlier_error=c.outlier_std / math.sqrt(3.0) * t,
+                       water_velocity=water, water_lock=water_lock,
+                       water_noise=c.water_track_noise_std * n[:, 4:8])
+
+    def water_velocity(self, time: np.ndarray, origins: np.ndarray,
+                       rotation: np.ndarray) -> np.ndarray:
+        """(M, 3) velocity over ground of the water ``water_track_range`` below the DVL,
+        in the DVL frame, m/s: the platform's current there (still water without one)."""
+        water = getattr(self.platform, "water", None)
+        if water is None:
+            return np.zeros((len(time), 3))
+        layer = origins + np.array([0.0, 0.0, self.config.water_track_range])
+        current_ned = np.asarray(water.current_ned(time, layer), dtype=float)
+        current_body = np.einsum("mji,mj->mi", rotation, current_ned)  # R^T c
+        return current_body @ self.geometry.mounting  # rows of mounting^T c
 
 
 def _no_pings() -> dict[str, np.ndarray]:
