@@ -128,9 +128,10 @@ def _parser() -> argparse.ArgumentParser:
                     help="test the same trained models on faulted manoeuvres instead "
                     "(dropouts, a dead beam, outliers, water track): writes faults.md, "
                     "faults.json and faults.png")
-    st.add_argument("--fault-duration", type=float, default=FAULT_DURATION,
-                    help="s per manoeuvre of the faulted test data (with --faults)")
-    st.add_argument("--fault-mission", action="append", dest="fault_missions",
+    st.add_argument("--fault-duration", type=float,
+                    help=f"s per manoeuvre of the faulted test data (with --faults; default "
+                    f"{FAULT_DURATION:g})")
+    st.add_argument("--fault-mission", action="append", dest="fault_missions", metavar="NAME",
                     help="a manoeuvre of the faulted test data (repeatable; with --faults; "
                     f"default {', '.join(FAULT_MISSIONS)})")
     st.add_argument("--out", type=Path, default=Path("reports"), help="report directory")

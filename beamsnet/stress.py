@@ -97,6 +97,12 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
                               argument="maneuver_data")
         fault_duration, fault_missions = check_options(
             FAULT_DURATION if fault_duration is None else fault_duration, fault_missions)
+    else:
+        for name, value in (("fault_duration", fault_duration),
+                            ("fault_missions", fault_missions)):
+            if value is not None:
+                raise ConfigError("is a setting of the fault sweep; expected it only "
+                                  "together with faults", argument=name)
     if train_data is None:
         train_data = ensure_dataset(preset("paper-sim").with_duration(train_duration),
                                     Path("datasets") / f"paper-sim_{train_duration:g}s.h5",

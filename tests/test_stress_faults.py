@@ -91,6 +91,34 @@ def test_kalman_filter_has_no_estimate_before_the_first_measurement():
     np.testing.assert_allclose(pred[4], w.target[4], atol=1e-12)
 
 
+def test_every_ping_windows_keep_lost_beams_as_nan_and_water_track_out_of_training(
+        tmp_path):
+    """A dead beam is NaN in the every-ping windows and keeps its pings out of the
+    samples; water-track pings keep their beams there and are never samples."""
+    import dataclasses
+
+    from auvsim.generate import generate
+    from auvsim.presets import preset
+
+    base = preset("paper-sim").with_duration(40)
+    config = dataclasses.replace(
+        base, missions=base.missions[1:2], dvl=dataclasses.replace(
+            base.dvl, water_track=True, lock_loss_intervals=((10.0, 20.0),),
+            beam_failures=((1, 25.0, 30.0),)))
+    path = tmp_path / "faulty.h5"
+    generate(config, path, progress=False)
+    every = load_windows(path, every_ping=True)
+    samples = load_windows(path)
+    t = every.time
+    water = (t >= 10) & (t < 20)
+    dead = (t >= 25) & (t < 30)
+    assert np.isfinite(every.beams[water]).all()  # water track: measured, relative to water
+    assert np.isnan(every.beams[dead, 1]).all() and np.isfinite(every.beams[~dead]).all()
+    # A sample needs its ping and its 3 past pings in bottom track with every beam.
+    touched = [(s >= 10 and s < 23) or (s >= 25 and s < 33) for s in t]
+    np.testing.assert_array_equal(samples.time, t[~np.array(touched)])
+
+
 def test_every_ping_windows_equal_the_samples_on_a_clean_file(tmp_path):
     path = tmp_path / "line.h5"
     assert auvsim_main(["generate", "--preset", "paper-sim", "--duration", "30",
@@ -121,11 +149,14 @@ def test_every_sweep_has_its_settings_in_the_config():
     (["--fault-mission", "nope"], "--fault-mission"),
     (["--fault-mission", "straight", "--fault-mission", "straight"], "--fault-mission"),
     (["--maneuvers", "x.h5"], "--maneuvers"),
+    (["--no-faults", "--fault-duration", "60"], "--fault-duration"),
+    (["--no-faults", "--fault-mission", "straight"], "--fault-mission"),
 ])
 def test_bad_fault_options_get_one_line_and_exit_2(tmp_path, monkeypatch, capsys, flags,
                                                    named):
     monkeypatch.chdir(tmp_path)
-    assert main(["stress", "--faults", "--quiet", *flags]) == 2
+    faults = [] if flags[0] == "--no-faults" else ["--faults"]
+    assert main(["stress", *faults, "--quiet", *[f for f in flags if f != "--no-faults"]]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and named in err and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []  # nothing generated, trained or written
@@ -151,8 +182,16 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
                 assert 0 <= c["availability"] <= 1
                 assert c["availability"] == 0 or np.isfinite(c["rmse_vector"])
     assert (out / "faults.png").stat().st_size > 20_000
+    # The faults reach the table: LS solves the three beams a dead beam leaves, the
+    # affine map cannot and says so; dropouts cost every estimator availability.
+    dead = summary["sweeps"]["dead beam"][-1]["estimators"]
+    assert dead["LS"]["availability"] == 1 and dead["Affine"]["availability"] == 0
+    assert "n/a: needs 4 beams |" in report and "n/a: needs 4 beams on 4 pings" in report
+    worst = summary["sweeps"]["dropout"][-1]["estimators"]
+    assert all(c["availability"] < 1 for n, c in worst.items() if n != "KF")
+    assert worst["BeamsNetV2 (v2)"]["availability"] <= worst["LS"]["availability"]
     assert not (out / "stress.md").exists()  # the manoeuvre report is another run's
     # One file per distinct setting (20 % dropout in bursts of 5 is in two sweeps).
     files = sorted((tmp_path / "datasets" / "faults").iterdir())
     assert len(files) == len({r["dataset"] for rows in summary["sweeps"].values()
-                              for r in rows}) == 15
+                              for r in rows}) == 16
