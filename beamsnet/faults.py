@@ -342,11 +342,15 @@ def _trained(checkpoint: dict) -> dict:
                 seed=c["seed"])
 
 
+def _percent(share: float) -> str:
+    """A share in %, with a decimal below 1 % (so that a few pings do not read 0 %)."""
+    return f"{100 * share:.1f} %" if 0 < share < 0.01 else f"{100 * share:.0f} %"
+
+
 def _cell(name: str, c: dict) -> str:
     if c["availability"] == 0:
         return "n/a: " + NEEDS.get(_short(name), "no estimate")
-    return (f"{c['rmse_vector']:.4f} / {100 * c['availability']:.0f} % / "
-            f"{c['dr_error']:.2f} m")
+    return f"{c['rmse_vector']:.4f} / {_percent(c['availability'])} / {c['dr_error']:.2f} m"
 
 
 def _report(summary: dict) -> str:
@@ -413,9 +417,9 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
                 said.append(f"{_short(n)} no estimate ({NEEDS.get(_short(n), '')})")
                 continue
             was = ("no estimate" if a["availability"] == 0 else
-                   f"{100 * a['availability']:.0f} %, {a['rmse_vector']:.4f} m/s, "
+                   f"{_percent(a['availability'])}, {a['rmse_vector']:.4f} m/s, "
                    f"{a['dr_error']:.1f} m")
-            said.append(f"{_short(n)} {100 * b['availability']:.0f} % available, "
+            said.append(f"{_short(n)} {_percent(b['availability'])} available, "
                         f"{b['rmse_vector']:.4f} m/s, {b['dr_error']:.1f} m (from {was})")
         lines.append(f"- {sweep.capitalize()}, from {rows[0]['label']} to "
                      f"{rows[-1]['label']}: " + "; ".join(said) + ".")
@@ -431,6 +435,17 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
                       + (f" (and no estimate in {missing})" if missing else ""))
     lines.append(f"- Against the baseline, 3-beam LS, over the {len(settings)} settings of "
                  "the sweeps: a larger dead-reckoning error for " + ", ".join(counts) + ".")
+    best = []
+    for sweep, rows in sweeps_.items():
+        last = rows[-1]["estimators"]
+        have = [n for n in names if math.isfinite(last[n]["dr_error"])]
+        n = min(have, key=lambda n: last[n]["dr_error"])
+        best.append(f"{sweep} ({rows[-1]['label']}): {_short(n)}, "
+                    f"{last[n]['dr_error']:.1f} m")
+    lines.append("- Smallest dead-reckoning error at each sweep's strongest setting: "
+                 + "; ".join(best) + ". A ping without an estimate holds the last one, "
+                 "which in a turn is soon wrong, so a gap costs dead reckoning even where "
+                 "the estimates an estimator does give are accurate.")
     water = sweeps_.get("water track")
     clean = sweeps_.get("dropout", [{}])[0].get("estimators")
     if water and clean:
@@ -448,7 +463,7 @@ def _plot(results: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import NullLocator
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullLocator
 
     rows = (("rmse_vector", "vector RMSE, m/s", True), ("availability", "availability, %",
                                                          False),
@@ -465,12 +480,18 @@ def _plot(results: dict, path: Path) -> None:
                         ms=3, lw=1, label=_short(name))
             if log:
                 ax.set_yscale("log")
-                # Minor log ticks on 15 axes cost more than the rest of the figure.
+                # Labelled ticks at 1, 2, 5 x 10^k, as a panel often spans less than a
+                # decade; minor log ticks on 15 axes cost more than the rest of the figure.
+                ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+                ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
                 ax.yaxis.set_minor_locator(NullLocator())
             if key == "availability":
                 ax.set_ylim(-5, 105)
             if sweep == "burst":  # burst lengths 1, 5, 20: evenly spread on a log axis
                 ax.set_xscale("log")
+                ax.set_xticks(levels)
+                ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+                ax.xaxis.set_minor_locator(NullLocator())
             ax.grid(True, alpha=0.3)
             ax.tick_params(labelsize=7)
             if j == 0:
