@@ -67,9 +67,10 @@ MAX_ANGLE = 360.0  # deg
 # of pings) near 60 s, which the procedural terrain window is sized for: at 0.001 Hz a
 # block of 1000 s outran the window.
 MIN_DVL_RATE = 0.1  # Hz
-# The DVL's realised sound-speed error: sea water's sound speed spans about 1400 to
-# 1570 m/s (cold fresh to warm salty), within about 7 % of the 1500 m/s a DVL assumes, so
-# a spread of 5 % already covers the whole ocean.
+# The DVL's realised sound-speed error: by Medwin's formula (the one Teledyne RDI's ADCP
+# manuals use) sea water's sound speed spans about 1440 to 1550 m/s near the surface over
+# 0-30 deg C and 30-38 psu, and reaches about 1570 m/s deep: within about 5 % of the
+# 1500 m/s a DVL assumes, so a spread of 5 % already covers the whole ocean.
 MAX_SOUND_SPEED_STD = 0.05
 # A realised DVL mounting misalignment is a residual after installation, a fraction of a
 # degree to a degree; beyond 10 deg (per axis, 1 sigma) it is a mounting, not a
@@ -322,13 +323,14 @@ class DvlConfig:
         outlier_std: m/s, >= 0, the scale of their heavy-tailed (Student t, 3 degrees of
             freedom) error.
         sound_speed_std: spread of the realised ratio ``c_true / c_assumed - 1``, in
-            [0, 0.05]: sea water's sound speed is 1400 to 1570 m/s, within about 7 % of the
-            1500 m/s a DVL assumes.
+            [0, 0.05] (``MAX_SOUND_SPEED_STD``); the measured beams are divided by the
+            ratio.
         misalignment_std_deg: deg, in [0, 10]: spread of the realised mounting misalignment
             per axis (the geometry uses it, the user's ``mounting_rpy_deg`` stays nominal).
-        water_track: fall back to water track when every beam has lost bottom lock.
-        water_track_range: m, > 0, at most ``max_range``: distance below the DVL of the
-            water layer it tracks.
+        water_track: fall back to water track on a ping with fewer than 3 beams in
+            bottom lock (no bottom-track velocity).
+        water_track_range: m, > 0 (at most ``max_range`` with water track on): distance
+            below the DVL of the water layer it tracks.
         water_track_noise_std: m/s, >= 0: the beam noise in water track (in place of the
             bottom-track noise).
     """
@@ -403,8 +405,11 @@ class DvlConfig:
                f"a spread in [0, {MAX_MISALIGNMENT_STD:g}] deg", self.misalignment_std_deg)
         _check(isinstance(self.water_track, bool), "dvl.water_track", "true or false",
                self.water_track)
-        _check(0 < self.water_track_range <= self.max_range, "dvl.water_track_range",
-               f"a distance in (0, max_range = {self.max_range:g}] m", self.water_track_range)
+        _check(self.water_track_range > 0, "dvl.water_track_range", "a distance > 0 m",
+               self.water_track_range)
+        _check(not self.water_track or self.water_track_range <= self.max_range,
+               "dvl.water_track_range", f"a distance of at most max_range = "
+               f"{self.max_range:g} m with water_track on", self.water_track_range)
 
     def _check_lock_loss(self) -> None:
         """The settings of lost bottom lock (normalised to tuples, so that the JSON round
@@ -459,11 +464,28 @@ def _intervals(name: str, value, *, beam: bool) -> tuple:
     return tuple(out)
 
 
+# IMU scale-factor, misalignment and g-sensitivity errors are first-order (small) terms of
+# the sensor model (Groves, Principles of GNSS, Inertial, and Multisensor Integrated
+# Navigation Systems, 2nd ed., 2013, eqs. 4.16-4.17). The worst IMU of Groves' examples,
+# his consumer grade (Inertial_Demo_3.m of the book's software), has scale factors up to
+# 6 %, cross-coupling up to 1.5 % (0.015 rad) and g-dependent gyro biases up to
+# 190 deg/h/g (9.4e-5 rad/s per m/s^2). Our bounds leave room above it and keep the terms
+# small: a 10 % scale factor; 0.05 rad (2.9 deg) of misalignment, where (I + M) departs
+# from a rotation's matrix by about 0.05^2 / 2 = 0.1 %; and 1e-3 rad/s per m/s^2 (0.56
+# deg/s of rate from gravity alone), ten times Groves' consumer grade.
+MAX_IMU_SCALE_FACTOR_STD = 0.1
+MAX_IMU_MISALIGNMENT_STD = 0.05  # rad
+MAX_GYRO_G_SENSITIVITY_STD = 1e-3  # rad/s per m/s^2
+
+
 @dataclass(frozen=True)
 class ImuConfig:
-    """IMU error model, per axis: ``measured = true + turn_on_bias + b(t) + white noise``,
-    b(t) a first-order Gauss-Markov process with steady-state std ``*_bias_instability``
-    and correlation time ``bias_correlation_time``; white noise std = density * sqrt(rate).
+    """IMU error model (``auvsim.sensors.imu`` states it in full), per triad:
+    ``measured = (I + S + M) true + turn_on_bias + b(t) + white noise``, and for the gyros
+    ``+ G f`` (g-sensitivity, f the true specific force). S (diagonal scale factors), M
+    (off-diagonal misalignment) and G are drawn per mission, N(0, std^2) per element; b(t)
+    is a first-order Gauss-Markov process with steady-state std ``*_bias_instability``;
+    white noise std = density * sqrt(rate).
 
     Attributes:
         rate_hz: sample rate; also the rate of the truth group.
@@ -473,7 +495,17 @@ class ImuConfig:
             (m/s^2, rad/s).
         accel_bias_instability, gyro_bias_instability: std of the Gauss-Markov bias
             (m/s^2, rad/s).
-        bias_correlation_time: s.
+        bias_correlation_time: s, the Gauss-Markov correlation time of both triads unless
+            one of the two below is set (the one setting of configs before them).
+        accel_bias_correlation_time, gyro_bias_correlation_time: s, each triad's own
+            correlation time; ``None`` takes ``bias_correlation_time``.
+        accel_scale_factor_std, gyro_scale_factor_std: std of each axis's scale-factor
+            error (dimensionless, 1e-6 = 1 ppm), at most ``MAX_IMU_SCALE_FACTOR_STD``.
+        accel_misalignment_std, gyro_misalignment_std: std of each of the six off-diagonal
+            cross-coupling terms (rad: non-orthogonality and mounting), at most
+            ``MAX_IMU_MISALIGNMENT_STD``.
+        gyro_g_sensitivity_std: std of each of the nine elements of G (rad/s per m/s^2),
+            at most ``MAX_GYRO_G_SENSITIVITY_STD``.
     """
 
     rate_hz: float = 100.0
@@ -484,15 +516,48 @@ class ImuConfig:
     accel_bias_instability: float = 0.0
     gyro_bias_instability: float = 0.0
     bias_correlation_time: float = 3600.0
+    accel_bias_correlation_time: float | None = None
+    gyro_bias_correlation_time: float | None = None
+    accel_scale_factor_std: float = 0.0
+    gyro_scale_factor_std: float = 0.0
+    accel_misalignment_std: float = 0.0
+    gyro_misalignment_std: float = 0.0
+    gyro_g_sensitivity_std: float = 0.0
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            _finite(f"imu.{f.name}", getattr(self, f.name))
-            _check(getattr(self, f.name) >= 0, f"imu.{f.name}", "a value >= 0",
-                   getattr(self, f.name))
+            value = getattr(self, f.name)
+            if value is None and f.name in _IMU_OPTIONAL:
+                continue
+            _finite(f"imu.{f.name}", value)
+            _check(value >= 0, f"imu.{f.name}", "a value >= 0", value)
         _check(self.rate_hz > 0, "imu.rate_hz", "a positive rate in Hz", self.rate_hz)
-        _check(self.bias_correlation_time > 0, "imu.bias_correlation_time", "a time > 0 s",
-               self.bias_correlation_time)
+        for name in ("bias_correlation_time", *_IMU_OPTIONAL):
+            value = getattr(self, name)
+            _check(value is None or value > 0, f"imu.{name}", "a time > 0 s", value)
+        for name, bound, unit in (
+                ("accel_scale_factor_std", MAX_IMU_SCALE_FACTOR_STD, " (10 %)"),
+                ("gyro_scale_factor_std", MAX_IMU_SCALE_FACTOR_STD, " (10 %)"),
+                ("accel_misalignment_std", MAX_IMU_MISALIGNMENT_STD, " rad"),
+                ("gyro_misalignment_std", MAX_IMU_MISALIGNMENT_STD, " rad"),
+                ("gyro_g_sensitivity_std", MAX_GYRO_G_SENSITIVITY_STD, " rad/s per m/s^2")):
+            _check(getattr(self, name) <= bound, f"imu.{name}",
+                   f"a std of at most {bound:g}{unit}", getattr(self, name))
+
+    @property
+    def accel_tau(self) -> float:
+        """The accelerometers' Gauss-Markov correlation time, s."""
+        tau = self.accel_bias_correlation_time
+        return self.bias_correlation_time if tau is None else tau
+
+    @property
+    def gyro_tau(self) -> float:
+        """The gyroscopes' Gauss-Markov correlation time, s."""
+        tau = self.gyro_bias_correlation_time
+        return self.bias_correlation_time if tau is None else tau
+
+
+_IMU_OPTIONAL = ("accel_bias_correlation_time", "gyro_bias_correlation_time")
 
 
 @dataclass(frozen=True)

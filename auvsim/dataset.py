@@ -648,6 +648,23 @@ def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:
         return f.attrs, {name: m.attrs for name, m in f.missions.items()}
 
 
+def _dvl_v4_summary(m: Mission, fmt) -> str:
+    """One line of a simulated v4 mission's DVL: its realised calibration, the share of
+    beams without bottom lock by reason, the pings' modes and the error velocity."""
+    from .sensors.dvl import Mode, Status  # the codes' names, where they are declared
+
+    a, status, mode = m.attrs, m.read("dvl/status"), m.read("dvl/mode")
+    lost = ", ".join(f"{Status(k).name.lower()} {100 * np.mean(status == k):.1f} %"
+                     for k in np.unique(status) if k != Status.OK) or "none"
+    modes = ", ".join(f"{Mode(k).name.lower()} {100 * np.mean(mode == k):.1f} %"
+                      for k in np.unique(mode))
+    error = m.read("dvl/error_velocity")
+    spread = f"{np.nanstd(error):.3g} m/s" if np.isfinite(error).any() else "none"
+    return (f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
+            f"misalignment {fmt(a['dvl_misalignment_rpy_deg'])} deg; beam-pings {lost}; "
+            f"pings {modes}; error velocity std {spread}")
+
+
 def describe(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset: missions, durations, rates, DVL validity,
     the realised error parameters and the fields. Every field is read, so a corrupt one
@@ -681,12 +698,25 @@ def describe(path: str | os.PathLike) -> str:
                 ]
             lines.append(f"    DVL errors: scale factor {fmt(a['dvl_scale_factor'])}, bias "
                          f"{fmt(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s")
+            if "dvl_sound_speed_ratio" in a:  # v4
+                lines.append(_dvl_v4_summary(m, fmt))
             if "imu_accel_turn_on_bias" in a:
                 lines.append(
                     f"    IMU errors: accel turn-on bias {fmt(a['imu_accel_turn_on_bias'])} "
                     f"m/s^2, gyro {fmt(a['imu_gyro_turn_on_bias'])} rad/s; noise densities "
                     f"{a['imu_accel_noise_density']:.3g} m/s^2/rtHz, "
                     f"{a['imu_gyro_noise_density']:.3g} rad/s/rtHz")
+            if "imu_accel_scale_factor" in a:  # v4
+                largest = {k: f"{np.max(np.abs(a[f'imu_{k}'])):.3g}" for k in (
+                    "accel_misalignment", "gyro_misalignment", "gyro_g_sensitivity")}
+                lines.append(
+                    f"    IMU calibration: scale factors accel "
+                    f"{fmt(a['imu_accel_scale_factor'])}, gyro {fmt(a['imu_gyro_scale_factor'])};"
+                    f" largest misalignment accel {largest['accel_misalignment']}, gyro "
+                    f"{largest['gyro_misalignment']} rad; largest g-sensitivity "
+                    f"{largest['gyro_g_sensitivity']} rad/s per m/s^2; bias correlation "
+                    f"times accel {a['imu_accel_bias_correlation_time']:g} s, gyro "
+                    f"{a['imu_gyro_bias_correlation_time']:g} s")
             if "depth_rate_hz" in a:
                 lines.append(
                     f"    depth sensor {a['depth_rate_hz']:g} Hz ({m.depth.rows} samples): "

@@ -68,8 +68,9 @@ class MissionRun:
             raise ConfigError(f"duration: expected at least the {dt:g} s physics step, got "
                               f"{mission.scenario.duration!r}")
         platform = Platform(self.vehicle, self.seafloor, self.ray_data)
-        self.sensors = [sensor(config, platform, *(streams[n] for n in sensor.streams[:1]
-                                                   + sensor.streams[2:]))
+        # A sensor gets its parameter stream and any it declares after its noise stream.
+        self.sensors = [sensor(config, platform, streams[sensor.streams[0]],
+                               *(streams[name] for name in sensor.streams[2:]))
                         for sensor in registry().values()]
         self.noise = {s.name: streams[s.streams[1]] for s in self.sensors}
         self.scenario = make_maneuver(mission.scenario, rng=streams["maneuver"])

@@ -59,6 +59,38 @@ def navigator() -> Config:
     Snapir's DVL is given in the BeamsNet lab's later datasets). 1 Hz as in the paper's
     data. The terrain (1 m roughness, 25 m features, 60 m deep) is our choice.
 
+    The DVL loses lock and errs as an instrument does (``DvlConfig``):
+
+    - Echoes fade near the rated range: lost with probability 1/2 at 80 m of slant range
+      over a 4 m width (16 % at 73 m, 92 % at 90 m), our choice of a curve that ends at the
+      rated 90 m.
+    - Grazing loss from 60 deg of incidence (3 deg width): bottom backscatter falls as
+      Lambert's law, cos^2 of the incidence angle (Urick, Principles of Underwater Sound,
+      3rd ed., 1983, ch. 8), so a beam at 60 deg returns 4.8 dB less than at the 30 deg of
+      level flight over a flat bottom; the threshold is our choice.
+    - Dropouts: 2 % of beam-pings in bursts of 3 pings on average, 0.5 % of whole pings
+      lost, one beam (beam 3) dead from 300 to 360 s and a soft bottom from 450 to 480 s
+      (lock lost on every beam): our choices, so that every default mission shows each
+      kind of loss.
+    - Beam noise grows by 2 mm/s per m/s of speed and 0.1 mm/s per m of range (at 2 m/s
+      and 46 m, 0.029 m/s instead of 0.02): our choice of terms of the form of Teledyne
+      RDI's specifications (a constant plus a share of the speed); the single-ping
+      figures of the Navigator's datasheet were not at hand.
+    - Outliers: 0.2 % of beam-pings, Student t of std 0.3 m/s (our choice: the spikes of
+      tenths of a m/s a real log shows).
+    - Sound speed: a spread of 0.3 % of c_true / c_assumed. By Medwin's formula, which
+      Teledyne RDI's ADCP manuals use (c = 1449.2 + 4.6 T - 0.055 T^2 + 0.00029 T^3 +
+      (1.34 - 0.01 T)(S - 35) + 0.016 z), at 10 deg C the sound speed changes by 1.24 m/s
+      per psu and 3.6 m/s per deg C: a DVL that measures its temperature but assumes
+      35 psu is 0.3 % off (4.3 m/s) in 31.5 psu water. The measured beams are divided by
+      the ratio, as RDI's correction multiplies them by it (Teledyne RDI, "ADCP
+      Coordinate Transformation", P/N 951-6079-00, 2010, sec. 4.1).
+    - Misalignment: 0.1 deg per axis, our choice of a residual after a careful
+      installation.
+    - Water track, when bottom lock is lost, on a layer 10 m below the DVL (RDI DVLs
+      place the water-mass layer by command, BL), with 0.05 m/s of beam noise: our
+      choice, worse than bottom track because the water's scatterers echo more weakly.
+
     The depth sensor is a KELLER Series 36 Xi W class transmitter with a 20 bar range
     (about 200 m, enough for this floor): its datasheet gives an accuracy of 0.02 %FS
     (4 mbar, 0.04 m of sea water at 9.94 m/bar; taken as the per-mission offset's spread)
@@ -70,8 +102,15 @@ def navigator() -> Config:
         seafloor=SeafloorConfig(kind="procedural", depth=60.0, roughness=1.0,
                                 correlation_length=25.0),
         dvl=DvlConfig(rate_hz=1.0, beam_angle_deg=30.0, min_range=0.7, max_range=90.0,
-                      scale_factor_std=0.002, bias_std=0.001, noise_std=0.02),
-        imu=IMU_GRADES["navigation"],
+                      scale_factor_std=0.002, bias_std=0.001, noise_std=0.02,
+                      echo_loss_range=80.0, echo_loss_width=4.0, grazing_loss_angle_deg=60.0,
+                      grazing_loss_width_deg=3.0, dropout_rate=0.02, dropout_burst=3.0,
+                      ping_dropout_rate=0.005, beam_failures=((2, 300.0, 360.0),),
+                      lock_loss_intervals=((450.0, 480.0),), noise_range_coeff=1e-4,
+                      noise_speed_coeff=0.002, outlier_rate=0.002, outlier_std=0.3,
+                      sound_speed_std=0.003, misalignment_std_deg=0.1, water_track=True,
+                      water_track_range=10.0, water_track_noise_std=0.05),
+        imu=IMU_GRADES["navigation-full"],
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
     )
 

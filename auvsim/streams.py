@@ -24,6 +24,7 @@ STREAMS = (
     "maneuver",  # what a manoeuvre draws (random waypoints)
     "depth_parameters",  # the depth sensor's per-mission offset
     "depth_noise",  # the depth sensor's white noise
+    "imu_calibration",  # IMU scale factors, misalignment and g-sensitivity (schema v4)
     "dvl_calibration",  # the DVL's realised sound-speed ratio and mounting misalignment
     "dvl_faults",  # the DVL's lost bottom lock, outliers and extra noise, per beam and ping
 )

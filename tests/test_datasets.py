@@ -226,8 +226,8 @@ def test_inspect_describes_the_file(ideal_file, capsys):
     text = capsys.readouterr().out
     assert "mission_000: straight, seed 5, 60 s, vehicle auv" in text
     assert "DVL 1 Hz (60 pings)" in text and "100.0 % of beams valid" in text
-    assert "    dvl: beam_range, beam_velocity, beam_velocity_true, time, valid, velocity, " \
-        "velocity_ls" in text
+    assert "    dvl: beam_range, beam_velocity, beam_velocity_true, error_velocity, mode, " \
+        "status, time, valid, velocity, velocity_ls" in text
 
 
 def test_reader_refuses_a_mission_missing_a_field(tmp_path, ideal_file):

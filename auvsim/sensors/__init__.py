@@ -111,20 +111,22 @@ class Sensor:
         config: the whole config; the sensor reads its ``section``.
         platform: the mission's vehicle, seafloor and rates.
         parameters: the sensor's parameter stream (per-mission draws).
+        *more: the streams it declares after its noise stream, in order (per-mission
+            draws added later, which leave the earlier streams' draws as they were).
     """
 
     name: ClassVar[str]  # its group in the file
     section: ClassVar[str]  # its config section
-    # (parameters, noise, *more) stream names (auvsim.streams); __init__ gets the
-    # parameters stream and then the others beyond the noise stream, in this order
+    # (parameters, noise, *more) stream names (auvsim.streams); more: further parameter
+    # streams, passed to __init__ after ``parameters`` in order
     streams: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[Field, ...]]
     attributes: ClassVar[tuple[Attr, ...]]
     links: ClassVar[dict[str, str]] = {}  # field -> truth field it is a hard link to
     since_version: ClassVar[int] = 1  # first schema version that holds it
 
-    def __init__(self, config: Config, platform: Platform,
-                 parameters: np.random.Generator) -> None:
+    def __init__(self, config: Config, platform: Platform, parameters: np.random.Generator,
+                 *more: np.random.Generator) -> None:
         raise NotImplementedError
 
     @classmethod

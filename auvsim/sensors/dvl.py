@@ -103,7 +103,15 @@ class DvlCalibration(NamedTuple):
 def draw_calibration(config: DvlConfig, rng: np.random.Generator) -> DvlCalibration:
     """A mission's sound-speed ratio ``1 + sound_speed_std N(0, 1)`` and mounting
     misalignment ``misalignment_std_deg N(0, 1)`` per axis (always drawn, so each is the
-    same whatever the other's setting)."""
+    same whatever the other's setting).
+
+    A beam's echo is shifted by ``2 f0 (b . v) / c_true``; the instrument converts the
+    shift back with the sound speed it assumes, so it reads ``(b . v) c_assumed /
+    c_true``: the measured beams are the true ones divided by the ratio, which is why
+    Teledyne RDI corrects them by multiplying with it ("ADCP Coordinate Transformation",
+    P/N 951-6079-00, 2010, sec. 4.1; for the Janus piston transducers of the Workhorse,
+    whose beam angle does not depend on the sound speed).
+    """
     z = rng.standard_normal(4)
     return DvlCalibration(1.0 + config.sound_speed_std * float(z[0]),
                           config.misalignment_std_deg * z[1:])
@@ -143,8 +151,10 @@ def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
 
     With one uniform u per beam and ping, the next state is ``u < p`` from lock and
     ``u < 1 - 1/burst`` from a burst. Where both agree the ping sets the state whatever it
-    was; where they differ it keeps it (or flips it), so the state at a ping is the last
-    setting ping's, flipped once per flip since: cumulative maxima and sums, no loop.
+    was; where they differ the ping keeps the state (when ``p < 1 - 1/burst``) or flips
+    it (when ``p > 1 - 1/burst``). So the state at a ping is that of the last setting ping
+    (or ``state``), flipped once per flipping ping since: cumulative maxima and sums, no
+    loop over pings.
 
     Args:
         u: (M, 4) uniforms in [0, 1), one per ping and beam.
@@ -215,13 +225,14 @@ def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
     beam is missing, and then NaN).
 
     Teledyne RD Instruments, "ADCP Coordinate Transformation: Formulas and Calculations"
-    (P/N 951-6079-00, 2010), sec. 5.3: ``e = d (b1 + b2 - b3 - b4)``, ``d = a / sqrt(2)``,
+    (P/N 951-6079-00, 2010), sec. 5.3, beam-to-instrument transformation:
+    ``e = d (b1 + b2 - b3 - b4)``, ``d = a / sqrt(2)``,
     ``a = 1 / (2 sin(alpha))``, its beam pairs being (1, 2) and (3, 4). Here the opposite
     pairs are (1, 3) and (2, 4), so ``e = d (y1 + y3 - y2 - y4)``: the difference of the
     two pairs' estimates of the vertical velocity, scaled so that with white beam noise
     sigma its std, ``sigma / (sqrt(2) sin(alpha))``, is that of a horizontal component.
-    Ideal beams give 0 up to rounding (about 1e-16 |v|: the tabulated cosines of the
-    four azimuths are not exact negatives of each other).
+    Ideal beams give 0 up to rounding (about 1e-16 |v|: the computed cosines and sines of
+    the four azimuths are not exact negatives of each other).
 
     Args:
         beams: (M, 4) measured beam velocities, m/s.
@@ -341,6 +352,13 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
          effects: Effects | None = None) -> dict[str, np.ndarray]:
     """The DVL's pings, the one pipeline: true beams -> eq. 7 errors -> eq. 9 LS.
 
+    With ``effects`` (a simulated mission), per beam k:
+    ``y_k = (1 + s_k) (b_k . v') / ratio + bias_k + n_k + o_k``, where v' is v in bottom
+    track and ``v - v_water`` in water track (a ping with fewer than 3 bottom-locked beams
+    and at least 3 beams that can see the water layer, when water track is on), n_k the
+    eq. 7 noise plus ``extra_noise`` in bottom track and ``water_noise`` in water track,
+    and o_k the outlier error on bottom-locked outlier beams.
+
     Args:
         velocity: (M, 3) true velocity over ground of the DVL in its frame, m/s (NaN rows:
             no measurement).
@@ -398,7 +416,9 @@ def synthesise(velocity: np.ndarray, config: DvlConfig,
                streams: dict[str, np.random.Generator]) -> tuple[dict[str, np.ndarray], dict]:
     """The DVL fields and attributes of a recorded DVL-frame velocity stream (N, 3) taken
     as the truth, with the error model of ``config`` (the beam-synthesis half of the
-    pipeline: every finite ping has bottom lock).
+    pipeline: every finite ping has bottom lock). Eq. 7 alone: the effects beyond it
+    (lost lock, outliers, sound speed, water track) need a simulated mission's geometry
+    and are not applied, so an import writes what it always wrote.
 
     Args:
         velocity: (N, 3) m/s, one row per ping.
@@ -438,8 +458,8 @@ class Dvl(Sensor):
     streams = ("dvl_parameters", "dvl_noise", "dvl_calibration", "dvl_faults")
     fields = (
         Field("dvl/time", (), "f", "dvl", "s", "ping times", imported=True),
-        Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the DVL frame: "
-              "the regression target", imported=True),
+        Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the (true) DVL "
+              "frame: the regression target", imported=True),
         Field("dvl/beam_velocity_true", (4,), "f", "dvl", "m/s", "H v", imported=True),
         Field("dvl/beam_velocity", (4,), "f", "dvl", "m/s", "measured (NaN where the beam "
               "measured nothing)", imported=True),

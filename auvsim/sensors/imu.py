@@ -1,22 +1,32 @@
 """IMU error model: true specific force and angular rate in, measured values out.
 
-Per axis of each sensor (accelerometer and gyro), at sample k of a mission::
+At sample k of a mission, for the accelerometer triad (f) and the gyro triad (w), in the
+form of Groves (Principles of GNSS, Inertial, and Multisensor Integrated Navigation
+Systems, 2nd ed., 2013, eqs. 4.16-4.17)::
 
-    measured[k] = true[k] + turn_on_bias + b[k] + n[k]
-    b[k + 1]    = phi b[k] + sigma_b sqrt(1 - phi^2) w[k],   phi = exp(-dt / tau)
-    n[k]        = density sqrt(rate) v[k]
+    f_meas[k] = (I + S_a + M_a) f[k]          + turn_on_bias_a + b_a[k] + n_a[k]
+    w_meas[k] = (I + S_g + M_g) w[k] + G f[k] + turn_on_bias_g + b_g[k] + n_g[k]
+    b[k + 1]  = phi b[k] + sigma_b sqrt(1 - phi^2) u[k],   phi = exp(-dt / tau)
+    n[k]      = density sqrt(rate) v[k]
 
-``turn_on_bias`` ~ N(0, turn_on^2) is drawn once per mission (``draw_biases``); b is a
-first-order Gauss-Markov process (steady-state std sigma_b = ``*_bias_instability``,
-correlation time tau = ``bias_correlation_time``), discretised exactly and started from its
-stationary distribution, b[0] ~ N(0, sigma_b^2); w, v ~ N(0, 1) white. Errors only add:
-there is no scale factor, misalignment, quantisation or saturation.
+S = diag(s_x, s_y, s_z) holds the scale-factor errors, M (zero diagonal) the six
+cross-coupling terms of axis misalignment (non-orthogonality of the triad and its mounting
+in the body; a small rotation is the antisymmetric part), and G the gyros' g-sensitivity,
+rad/s per m/s^2 of the true specific force. S, M and G are drawn once per mission,
+N(0, std^2) per element (``draw_calibration``), and so are the turn-on biases,
+N(0, turn_on^2) per axis (``draw_biases``); b is a first-order Gauss-Markov process per
+axis (steady-state std sigma_b = ``*_bias_instability``, correlation time tau, one per
+triad: ``ImuConfig.accel_tau``, ``gyro_tau``), discretised exactly and started from its
+stationary distribution, b[0] ~ N(0, sigma_b^2); u, v ~ N(0, 1) white. There is no
+quantisation or saturation. With S, M and G zero (every config before them) the output is
+bitwise that of the additive model: the products are skipped, not multiplied by zero.
 
 Units (see ``auvsim``): specific force in m/s^2, angular rate in rad/s, body FRD axes.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -41,6 +51,11 @@ def _deg_per_hour(x: float) -> float:
 def _deg_per_root_hour(x: float) -> float:
     """Angle random walk, deg/sqrt(h) -> rad/s/sqrt(Hz): sqrt(3600 s) = 60 sqrt(s)."""
     return x * DEG / 60.0
+
+
+def _deg_per_hour_per_g(x: float) -> float:
+    """g-sensitivity, deg/h/g -> rad/s per m/s^2."""
+    return _deg_per_hour(x) / G0
 
 
 # Where sensors.md quotes a bias without saying whether it is the in-run (Gauss-Markov)
@@ -109,6 +124,57 @@ IMU_GRADES: dict[str, ImuConfig] = {
 }
 
 
+# The three grades above have additive errors only; the paper's presets (paper-sim,
+# paper-sim-text, maneuvers) fly "navigation", so their data stays as it was. Each "-full"
+# grade is the same unit with the errors a strapdown user calibrates as well: scale
+# factors, misalignment, g-sensitivity, and a bias correlation time per triad.
+IMU_GRADES["navigation-full"] = dataclasses.replace(
+    IMU_GRADES["navigation"],
+    # Groves (2013), the aviation-grade IMU of the book's example INS_GNSS_Demo_12 (the
+    # same unit the accelerometer noise above comes from; sensors.md gives no figure):
+    # accelerometer scale factors 100, -120, 90 ppm, RMS 104 ppm; cross-coupling 40 to
+    # 120 ppm, RMS 88 ppm; gyro scale factors 8, -6, -7 ppm, RMS 7 ppm; gyro
+    # cross-coupling 60 to 120 ppm (in three of the six places, the triad there defining
+    # the body axes), RMS over the three 97 ppm. We take each RMS, rounded, as the
+    # per-element std, and the gyro's over all six places because our body axes are the
+    # vehicle's, which a mounting error turns against every axis (our choice).
+    accel_scale_factor_std=100e-6,
+    accel_misalignment_std=90e-6,
+    gyro_scale_factor_std=7e-6,
+    gyro_misalignment_std=100e-6,
+    # Zero, as in the same example: optical (fibre-optic, ring-laser) gyros such as the
+    # Phins' have no proof mass, so no g-dependent bias worth a term.
+    gyro_g_sensitivity_std=0.0,
+    # Our choice, no source gives per-triad times: the gyros keep the grade's one hour; the
+    # accelerometers half of it, so that the two triads' biases decorrelate apart.
+    accel_bias_correlation_time=1800.0,
+    gyro_bias_correlation_time=3600.0,
+)
+IMU_GRADES["mems-full"] = dataclasses.replace(
+    IMU_GRADES["mems"],
+    # Groves (2013), the tactical-grade IMU of the book's example Inertial_Demo_1NED, the
+    # class the VN-100's 5 to 10 deg/h gyro drift puts it in (see "mems" above):
+    # accelerometer scale factors 500, -600, 450 ppm, RMS 520 ppm; gyro scale factors
+    # 400, -300, -350 ppm, RMS 352 ppm; the std is each RMS, rounded.
+    accel_scale_factor_std=500e-6,
+    gyro_scale_factor_std=350e-6,
+    # VectorNav VN-100 datasheet (specifications table; not among the figures of
+    # ../shared/reference/sensors.md): alignment error +/-0.05 deg for both triads, taken as
+    # the std of each cross-coupling term (as the DVL's accuracy figure is taken as a
+    # spread in the presets). It is above Groves' tactical cross-coupling (RMS 220 ppm,
+    # 0.013 deg): the VN-100's figure is its own.
+    accel_misalignment_std=0.05 * DEG,
+    gyro_misalignment_std=0.05 * DEG,
+    # Groves (2013), the same tactical-grade example: g-dependent gyro biases of 0.3 to
+    # 1.9 deg/h/g in all nine places, RMS 1.14 deg/h/g; 1.1 deg/h/g per element.
+    gyro_g_sensitivity_std=_deg_per_hour_per_g(1.1),
+    # Our choice, no source gives per-triad times: the gyros keep the grade's 300 s, the
+    # accelerometers half of it, as in "navigation-full".
+    accel_bias_correlation_time=150.0,
+    gyro_bias_correlation_time=300.0,
+)
+
+
 class ImuBiases(NamedTuple):
     """The constant turn-on biases of one mission."""
 
@@ -134,28 +200,114 @@ def draw_biases(config: ImuConfig, rng: np.random.Generator) -> ImuBiases:
     return ImuBiases(accel, gyro)
 
 
-class _Channel:
-    """One sensor triad's stochastic errors and their random streams."""
+class ImuCalibration(NamedTuple):
+    """The scale-factor, misalignment and g-sensitivity errors of one mission."""
 
-    def __init__(self, bias: np.ndarray, noise_std: float, gm_std: float, phi: float,
-                 drive_gain: float, noise_rng: np.random.Generator,
-                 gm_rng: np.random.Generator) -> None:
+    accel_scale_factor: np.ndarray  # (3,) -, the diagonal of S_a
+    gyro_scale_factor: np.ndarray  # (3,) -, the diagonal of S_g
+    accel_misalignment: np.ndarray  # (3, 3) rad, M_a, zero diagonal
+    gyro_misalignment: np.ndarray  # (3, 3) rad, M_g, zero diagonal
+    gyro_g_sensitivity: np.ndarray  # (3, 3) rad/s per m/s^2, G
+
+    @property
+    def accel_matrix(self) -> np.ndarray:
+        """(3, 3) S_a + M_a: measured f = (I + S_a + M_a) f + ..."""
+        return np.diag(self.accel_scale_factor) + self.accel_misalignment
+
+    @property
+    def gyro_matrix(self) -> np.ndarray:
+        """(3, 3) S_g + M_g: measured w = (I + S_g + M_g) w + G f + ..."""
+        return np.diag(self.gyro_scale_factor) + self.gyro_misalignment
+
+
+NO_CALIBRATION_ERRORS = ImuCalibration(np.zeros(3), np.zeros(3), np.zeros((3, 3)),
+                                       np.zeros((3, 3)), np.zeros((3, 3)))
+for _zeros in NO_CALIBRATION_ERRORS:  # a shared default: nobody may change it
+    _zeros.flags.writeable = False
+_OFF_DIAGONAL = ~np.eye(3, dtype=bool)  # row-major: (0, 1), (0, 2), (1, 0), (1, 2), ...
+
+
+def draw_calibration(config: ImuConfig, rng: np.random.Generator) -> ImuCalibration:
+    """Draw a mission's scale-factor, misalignment and g-sensitivity errors, N(0, std^2)
+    per element.
+
+    Args:
+        config: ``accel_scale_factor_std``, ``gyro_scale_factor_std`` (-),
+            ``accel_misalignment_std``, ``gyro_misalignment_std`` (rad) and
+            ``gyro_g_sensitivity_std`` (rad/s per m/s^2).
+        rng: source of the 27 draws, made whatever the stds, in this order: accel scale
+            factors x, y, z; gyro scale factors; accel misalignment (the six off-diagonal
+            places, row-major); gyro misalignment; gyro g-sensitivity (nine, row-major).
+            One setting never shifts another's draw.
+
+    Returns:
+        The errors; exactly zero (not -0.0) where the std is zero, and on the diagonals
+        of the misalignments.
+    """
+    z = rng.standard_normal(27)
+
+    def scaled(std: float, draws: np.ndarray) -> np.ndarray:
+        return std * draws if std else np.zeros_like(draws)
+
+    def off_diagonal(std: float, draws: np.ndarray) -> np.ndarray:
+        out = np.zeros((3, 3))
+        out[_OFF_DIAGONAL] = scaled(std, draws)
+        return out
+
+    return ImuCalibration(
+        accel_scale_factor=scaled(config.accel_scale_factor_std, z[0:3]),
+        gyro_scale_factor=scaled(config.gyro_scale_factor_std, z[3:6]),
+        accel_misalignment=off_diagonal(config.accel_misalignment_std, z[6:12]),
+        gyro_misalignment=off_diagonal(config.gyro_misalignment_std, z[12:18]),
+        gyro_g_sensitivity=scaled(config.gyro_g_sensitivity_std, z[18:27]).reshape(3, 3))
+
+
+class _Channel:
+    """One sensor triad's errors and their random streams."""
+
+    def __init__(self, bias: np.ndarray, noise_std: float, gm_std: float, tau_rate: float,
+                 noise_rng: np.random.Generator, gm_rng: np.random.Generator,
+                 matrix: np.ndarray, g_matrix: np.ndarray | None = None) -> None:
+        """Derive the triad's constants and draw its initial Gauss-Markov state.
+
+        Args:
+            bias: (3,) turn-on bias.
+            noise_std: white noise std per sample.
+            gm_std: Gauss-Markov steady-state std.
+            tau_rate: correlation time x sample rate (tau / dt), samples.
+            noise_rng, gm_rng: the white noise's and the Gauss-Markov drive's streams.
+            matrix: (3, 3) S + M, the triad's scale factors and misalignment.
+            g_matrix: (3, 3) G, rad/s per m/s^2 of specific force (gyros only).
+        """
         self.bias = bias
         self.noise_std = noise_std
         self.gm_std = gm_std
-        self.phi = phi
-        self.drive_std = gm_std * drive_gain  # sigma_b sqrt(1 - phi^2)
+        dt_over_tau = 1.0 / tau_rate
+        self.phi = math.exp(-dt_over_tau)
+        # sqrt(1 - phi^2) via expm1: 1 - phi^2 would lose digits as dt << tau sends phi -> 1.
+        self.drive_std = gm_std * math.sqrt(-math.expm1(-2.0 * dt_over_tau))
         self.noise_rng = noise_rng
         self.gm_rng = gm_rng
+        # Transposed once, for row vectors: truth (N, 3) @ matrix.T is (matrix @ truth[k])_k.
+        # None where zero, so that a model without these terms skips them and its output
+        # keeps every bit of the additive model (even the sign of a zero).
+        self.matrix_t = matrix.T.copy() if np.any(matrix) else None
+        self.g_matrix_t = (g_matrix.T.copy() if g_matrix is not None and np.any(g_matrix)
+                           else None)
         # Started from the stationary distribution, so the process has the same statistics
         # at every sample and no transient depends on where a mission starts.
         self.gm_state = gm_std * gm_rng.standard_normal(3) if gm_std else np.zeros(3)
-        self.exact = not (np.any(bias) or noise_std or gm_std)
+        self.exact = not (np.any(bias) or noise_std or gm_std or self.matrix_t is not None
+                          or self.g_matrix_t is not None)
 
-    def corrupt(self, truth: np.ndarray) -> np.ndarray:
+    def corrupt(self, truth: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
         out = truth.copy()  # a copy: the caller's truth stays intact
         if self.exact:
             return out
+        if self.matrix_t is not None:
+            out += truth @ self.matrix_t
+        if self.g_matrix_t is not None:
+            out += specific_force @ self.g_matrix_t
         if np.any(self.bias):
             out += self.bias
         if self.noise_std:
@@ -197,48 +349,58 @@ def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) ->
 class ImuErrorModel:
     """The error process of one mission, applied block by block.
 
-    The output depends only on the config, the biases, the state of ``rng`` at
-    construction and the full sequence of samples, not on how that sequence is split into
-    calls of ``corrupt``: white noise and Gauss-Markov drive come from four child
-    generators (accel noise, gyro noise, accel drive, gyro drive) that are only ever read
-    forward, and the Gauss-Markov state is carried from one call to the next.
+    The output depends only on the config, the biases, the calibration errors, the state
+    of ``rng`` at construction and the full sequence of samples, not on how that sequence
+    is split into calls of ``corrupt``: white noise and Gauss-Markov drive come from four
+    child generators (accel noise, gyro noise, accel drive, gyro drive) that are only ever
+    read forward, the Gauss-Markov state is carried from one call to the next, and the
+    scale-factor, misalignment and g-sensitivity terms act sample by sample.
 
     Example::
 
-        rng = np.random.default_rng(seed)
-        model = ImuErrorModel(config.imu, draw_biases(config.imu, rng), rng)
+        streams = mission_streams(seed)  # auvsim.streams
+        model = ImuErrorModel(config.imu, draw_biases(config.imu, streams["imu_biases"]),
+                              streams["imu_noise"], calibration=draw_calibration(
+                                  config.imu, streams["imu_calibration"]))
         for block in blocks:
             f_meas, w_meas = model.corrupt(block["specific_force"], block["angular_rate"])
     """
 
-    def __init__(self, config: ImuConfig, biases: ImuBiases, rng: np.random.Generator) -> None:
+    def __init__(self, config: ImuConfig, biases: ImuBiases, rng: np.random.Generator, *,
+                 calibration: ImuCalibration = NO_CALIBRATION_ERRORS) -> None:
         """Spawn the child generators and draw the initial Gauss-Markov state.
 
         Args:
             config: rates, densities and Gauss-Markov parameters (``ImuConfig``).
             biases: the mission's turn-on biases, (3,) m/s^2 and (3,) rad/s.
             rng: parent generator; four children are spawned from it (``rng.spawn(4)``).
+            calibration: the mission's scale-factor, misalignment and g-sensitivity
+                errors (``draw_calibration``); none by default.
         """
         self.config = config
         self.biases = ImuBiases(_float_array("biases.accel", biases.accel, (3,)).copy(),
                                 _float_array("biases.gyro", biases.gyro, (3,)).copy())
+        self.calibration = ImuCalibration(*(
+            _float_array(f"calibration.{name}", value, shape).copy()
+            for name, value, shape in zip(
+                ImuCalibration._fields, calibration,
+                ((3,), (3,), (3, 3), (3, 3), (3, 3)), strict=True)))
         accel_noise, gyro_noise, accel_gm, gyro_gm = rng.spawn(4)
-        dt_over_tau = 1.0 / (config.rate_hz * config.bias_correlation_time)
-        phi = math.exp(-dt_over_tau)
-        # sqrt(1 - phi^2) via expm1: 1 - phi^2 would lose digits as dt << tau sends phi -> 1.
-        drive_gain = math.sqrt(-math.expm1(-2.0 * dt_over_tau))
         root_rate = math.sqrt(config.rate_hz)
+        c = self.calibration
         self._accel = _Channel(self.biases.accel, config.accel_noise_density * root_rate,
-                               config.accel_bias_instability, phi, drive_gain, accel_noise,
-                               accel_gm)
+                               config.accel_bias_instability, config.rate_hz * config.accel_tau,
+                               accel_noise, accel_gm, c.accel_matrix)
         self._gyro = _Channel(self.biases.gyro, config.gyro_noise_density * root_rate,
-                              config.gyro_bias_instability, phi, drive_gain, gyro_noise, gyro_gm)
+                              config.gyro_bias_instability, config.rate_hz * config.gyro_tau,
+                              gyro_noise, gyro_gm, c.gyro_matrix, c.gyro_g_sensitivity)
 
     def corrupt(self, specific_force: np.ndarray,
                 angular_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Measure the next N samples of the mission and advance the error state.
 
-        ``measured = true + turn_on_bias + b[k] + n[k]`` per axis (module docstring).
+        ``f_meas = (I + S_a + M_a) f + b_a + n_a`` and
+        ``w_meas = (I + S_g + M_g) w + G f + b_g + n_g`` per sample (module docstring).
 
         Args:
             specific_force: (N, 3) true specific force f = a - g at the IMU, m/s^2, body
@@ -252,16 +414,21 @@ class ImuErrorModel:
         """
         specific_force = _float_array("specific_force", specific_force, (None, 3))
         angular_rate = _float_array("angular_rate", angular_rate, (len(specific_force), 3))
-        return self._accel.corrupt(specific_force), self._gyro.corrupt(angular_rate)
+        return (self._accel.corrupt(specific_force, specific_force),
+                self._gyro.corrupt(angular_rate, specific_force))
 
 
 class Imu(Sensor):
     """The IMU at its site: the truth's specific force and angular rate through
-    ``ImuErrorModel``, at every truth sample (the truth group runs at the IMU rate)."""
+    ``ImuErrorModel``, at every truth sample (the truth group runs at the IMU rate).
+
+    Streams: turn-on biases from ``imu_biases``, noise from ``imu_noise``, and the
+    scale-factor, misalignment and g-sensitivity errors from ``imu_calibration`` (the
+    third, added in schema v4, so that every earlier draw is what it was)."""
 
     name = "imu"
     section = "imu"
-    streams = ("imu_biases", "imu_noise")
+    streams = ("imu_biases", "imu_noise", "imu_calibration")
     fields = (
         Field("imu/time", (), "f", "imu", "s", "sample times (a hard link to truth/time)"),
         Field("imu/specific_force", (3,), "f", "imu", "m/s^2", "measured, body"),
@@ -276,21 +443,35 @@ class Imu(Sensor):
         Attr("imu_gyro_noise_density", (), "rad/s/sqrt(Hz)"),
         Attr("imu_accel_bias_instability", (), "m/s^2"),
         Attr("imu_gyro_bias_instability", (), "rad/s"),
-        Attr("imu_bias_correlation_time", (), "s"),
+        Attr("imu_bias_correlation_time", (), "s; from v4 the config's shared value, which "
+             "the two below override"),
+        Attr("imu_accel_bias_correlation_time", (), "s, the accelerometers' Gauss-Markov "
+             "correlation time", low=0, strict=True, since=4),
+        Attr("imu_gyro_bias_correlation_time", (), "s, the gyros' Gauss-Markov correlation "
+             "time", low=0, strict=True, since=4),
+        Attr("imu_accel_scale_factor", (3,), "REALISED, -: the diagonal of S_a", since=4),
+        Attr("imu_gyro_scale_factor", (3,), "REALISED, -: the diagonal of S_g", since=4),
+        Attr("imu_accel_misalignment", (9,), "REALISED, rad: M_a (3, 3) row-major, zero "
+             "diagonal", since=4),
+        Attr("imu_gyro_misalignment", (9,), "REALISED, rad: M_g (3, 3) row-major, zero "
+             "diagonal", since=4),
+        Attr("imu_gyro_g_sensitivity", (9,), "REALISED, rad/s per m/s^2: G (3, 3) "
+             "row-major", since=4),
     )
     links = {"imu/time": "truth/time"}
 
-    def __init__(self, config, platform, parameters):
+    def __init__(self, config, platform, parameters, calibration):
         self.config = config.imu
         self.position = platform.vehicle.imu_position
         self.biases = draw_biases(config.imu, parameters)
+        self.calibration = draw_calibration(config.imu, calibration)
         self.model: ImuErrorModel | None = None  # made from the noise stream on first use
 
     def rows(self, n_imu):
         return {"imu": n_imu}
 
     def attrs(self):
-        c = self.config
+        c, cal = self.config, self.calibration
         return dict(imu_rate_hz=c.rate_hz, imu_position_body=self.position,
                     imu_accel_turn_on_bias=self.biases.accel,
                     imu_gyro_turn_on_bias=self.biases.gyro,
@@ -298,11 +479,19 @@ class Imu(Sensor):
                     imu_gyro_noise_density=c.gyro_noise_density,
                     imu_accel_bias_instability=c.accel_bias_instability,
                     imu_gyro_bias_instability=c.gyro_bias_instability,
-                    imu_bias_correlation_time=c.bias_correlation_time)
+                    imu_bias_correlation_time=c.bias_correlation_time,
+                    imu_accel_bias_correlation_time=c.accel_tau,
+                    imu_gyro_bias_correlation_time=c.gyro_tau,
+                    imu_accel_scale_factor=cal.accel_scale_factor,
+                    imu_gyro_scale_factor=cal.gyro_scale_factor,
+                    imu_accel_misalignment=cal.accel_misalignment.ravel(),
+                    imu_gyro_misalignment=cal.gyro_misalignment.ravel(),
+                    imu_gyro_g_sensitivity=cal.gyro_g_sensitivity.ravel())
 
     def measure(self, truth, rng):
         if self.model is None:  # its four child streams, spawned once from the noise stream
-            self.model = ImuErrorModel(self.config, self.biases, rng)
+            self.model = ImuErrorModel(self.config, self.biases, rng,
+                                       calibration=self.calibration)
         force, rate = self.model.corrupt(truth.specific_force, truth.angular_rate)
         return {"imu/time": truth.time, "imu/specific_force": force, "imu/angular_rate": rate}
 
