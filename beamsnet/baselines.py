@@ -113,7 +113,10 @@ class KalmanFilter:
     (``|y - H v_ls|^2`` has one degree of freedom per ping: ``E = r^2``), so it needs no
     truth. q is the value of ``Q_GRID`` with the least velocity RMSE on the training split.
     Each mission starts from its first measurement (``x_0 = z_0``, ``P_0 = R``: the same as
-    a diffuse prior), so nothing carries over a mission boundary.
+    a diffuse prior), so nothing carries over a mission boundary. A sample whose
+    measurement is missing (a beam without bottom lock: the calibration needs all four)
+    is a prediction step only: the estimate holds and its covariance grows; before a
+    mission's first measurement there is no estimate (NaN).
 
     Attributes (after fit): r (m/s), q (m/s per sqrt(s)), calibration (or None),
     train_rmse (q -> training RMSE, m/s).
@@ -167,7 +170,8 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
 
     Args:
         z: (S, 3) velocity measurements, m/s, in any order (sorted by mission and time
-            here, and the estimates put back in the input order).
+            here, and the estimates put back in the input order); a row with a NaN is
+            no measurement (a prediction step; NaN estimates until the first one).
         cov: (3, 3) measurement noise covariance, (m/s)^2.
         mission, time: (S,) mission index and time, s, of each sample.
         q_grid: (G,) random-walk intensities, m/s per sqrt(s).
@@ -195,8 +199,10 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
 
     g = len(q_grid)
     eye = np.eye(3)
+    measured = np.isfinite(z).all(axis=1)
     x = np.broadcast_to(z[rows[:, 0]], (g, n_seq, 3)).copy()
     p = np.broadcast_to(cov, (g, n_seq, 3, 3)).copy()
+    started = measured[rows[:, 0]]  # (n_seq,): a sequence's first measurement came
     out = np.empty((n_seq, n_steps, 3)) if target is None else None
     sse = np.zeros(g)
     q2 = q_grid[:, None, None, None] ** 2
@@ -208,10 +214,16 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
             p_new = p_prior - gain @ p_prior
             p_new = 0.5 * (p_new + np.swapaxes(p_new, -1, -2))  # keep P symmetric
             live = active[:, k]
-            x = np.where(live[:, None], x_new, x)
-            p = np.where(live[:, None, None], p_new, p)
+            seen = measured[rows[:, k]]
+            update, first = live & seen & started, live & seen & ~started
+            coast = live & ~seen & started  # no measurement: predict only
+            x = np.where(update[:, None], x_new, np.where(first[:, None], z[rows[:, k]], x))
+            p = np.where(update[:, None, None], p_new,
+                         np.where(first[:, None, None], cov,
+                                  np.where(coast[:, None, None], p_prior, p)))
+            started = started | first
         if target is None:
-            out[:, k] = x[0]
+            out[:, k] = np.where(started[:, None], x[0], np.nan)
         else:
             err = x - target[rows[:, k]]
             sse += np.sum(np.where(active[:, k, None], err, 0.0) ** 2, axis=(1, 2))

@@ -11,6 +11,7 @@ from pathlib import Path
 from auvsim.errors import AuvsimError, OneLineErrorParser
 
 from .evaluate import SensorSetupWarning
+from .faults import FAULT_DURATION, FAULT_MISSIONS
 from .stress import MANEUVER_DURATION, TRAIN_DURATION
 from .train import PROFILES, TrainConfig
 
@@ -19,7 +20,8 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "lr": "--lr", "epochs": "--epochs", "restarts": "--restarts",
          "average_epochs": "--average-epochs", "batch_size": "--batch-size",
          "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers",
-         "allow_mismatch": "--allow-mismatch"}
+         "allow_mismatch": "--allow-mismatch", "faults": "--faults",
+         "fault_duration": "--fault-duration", "fault_missions": "--fault-mission"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
@@ -122,6 +124,16 @@ def _parser() -> argparse.ArgumentParser:
                     help="average the weights over the last N epochs (default "
                     f"{stress.config.average_epochs}, at most the epochs)")
     st.add_argument("--restarts", type=int, default=stress.restarts, help="seeds per model")
+    st.add_argument("--faults", action="store_true",
+                    help="test the same trained models on faulted manoeuvres instead "
+                    "(dropouts, a dead beam, outliers, water track): writes faults.md, "
+                    "faults.json and faults.png")
+    st.add_argument("--fault-duration", type=float,
+                    help=f"s per manoeuvre of the faulted test data (with --faults; default "
+                    f"{FAULT_DURATION:g})")
+    st.add_argument("--fault-mission", action="append", dest="fault_missions", metavar="NAME",
+                    help="a manoeuvre of the faulted test data (repeatable; with --faults; "
+                    f"default {', '.join(FAULT_MISSIONS)})")
     st.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
     st.add_argument("--quiet", action="store_true")
     return parser
@@ -182,7 +194,10 @@ def _stress(args) -> None:
     report = stress(train_data=args.train_data, maneuver_data=args.maneuver_data,
                     out=args.out, training=training, restarts=restarts,
                     train_duration=args.train_duration,
-                    maneuver_duration=args.maneuver_duration, progress=not args.quiet)
+                    maneuver_duration=args.maneuver_duration, faults=args.faults,
+                    fault_duration=args.fault_duration,
+                    fault_missions=None if args.fault_missions is None
+                    else tuple(args.fault_missions), progress=not args.quiet)
     print(f"wrote {report} and its figures")
 
 

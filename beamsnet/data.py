@@ -15,6 +15,14 @@ mission (k >= max(n_past, 1); ping 0 has no interval before it) and all the beam
 no sample reaches across a mission boundary. ``split`` then cuts each mission sequentially,
 as the paper does (75 % / 25 %, no shuffling).
 
+A water-track ping (``dvl/mode`` 1, written when bottom lock is lost and the DVL config
+allows it) measures the velocity relative to a water layer, not the velocity over ground
+that is the target, so it is never a sample: training and ``evaluate`` see bottom-track
+pings only. The fault stress test (``beamsnet.faults``) asks for ``every_ping=True``
+instead: every ping with its IMU interval, beams without bottom lock as NaN, and
+water-track beams as the instrument reports them, so that it can score what an estimator
+makes of a ping it cannot fully use.
+
 The file is read only through ``auvsim.dataset.open_dataset``, the one module that knows
 the file format and checks it; its ``Mission`` views give the arrays by name.
 """
@@ -76,7 +84,7 @@ _PER_SAMPLE = ("beams", "past_beams", "accel", "gyro", "target", "velocity_ls", 
 
 
 def load_windows(path: str | os.PathLike, *, n_past: int = 3,
-                 missions: Sequence[str] | None = None) -> Windows:
+                 missions: Sequence[str] | None = None, every_ping: bool = False) -> Windows:
     """Cut the samples of every (or the named) mission of a dataset.
 
     Args:
@@ -84,6 +92,10 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
         n_past: number of past pings per sample (BeamsNetV2 uses 3), >= 1.
         missions: names of the missions to use, in this order; default all, in file order
             (h5py lists a group's members by name).
+        every_ping: keep every ping that has n_past earlier pings and an IMU interval,
+            whatever its beams: a beam without bottom lock is NaN (in ``beams`` and
+            ``past_beams``), a water-track ping keeps its water-track beams. Default: only
+            pings whose current and past beams all have bottom lock.
 
     Returns:
         The samples (see ``Windows``).
@@ -122,7 +134,8 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
                             f"({', '.join(f'{n} {a:g} deg' for n, a in angles.items())}); "
                             "one beam matrix is needed: pass missions= with one angle")
         with_imu = all(group[n].has("imu") for n in names)
-        parts = [_mission_windows(group[n], n, i, n_past, with_imu) for i, n in enumerate(names)]
+        parts = [_mission_windows(group[n], n, i, n_past, with_imu, every_ping)
+                 for i, n in enumerate(names)]
 
     widths = {p["accel"].shape[1] for p in parts if p["accel"] is not None}
     if len(widths) > 1:
@@ -137,7 +150,8 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
                    h=beam_matrix(math.radians(next(iter(angles.values())))))
 
 
-def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool) -> dict:
+def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
+                     every_ping: bool = False) -> dict:
     """The samples of one mission (an ``auvsim.dataset.Mission``), as a dict of Windows
     fields."""
     beams = m.dvl.beam_velocity
@@ -146,7 +160,17 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool) -> d
     if n_pings <= first:
         raise DataError(f"mission {name}: {n_pings} DVL ping(s); a sample with n_past="
                         f"{n_past} needs at least {first + 1}")
-    usable = m.dvl.valid.all(axis=1) & np.isfinite(beams).all(axis=1)
+    valid = m.dvl.valid
+    # Format v4 records the mode of each ping (0 bottom track, 1 water track, -1 none).
+    mode = m.dvl.mode if "mode" in m.dvl else np.zeros(n_pings, dtype=np.int64)
+    if every_ping:
+        usable = np.ones(n_pings, dtype=bool)
+        # A beam counts if it has bottom lock or measures the water layer; any other
+        # beam is NaN, whatever the file holds there.
+        beams = np.where(valid | (mode == 1)[:, None], beams, np.nan)
+    else:
+        # A water-track ping does not measure the velocity over ground: no sample.
+        usable = valid.all(axis=1) & np.isfinite(beams).all(axis=1) & (mode == 0)
     # ok[k]: pings k - n_past .. k all usable (a running count of usable pings).
     count = np.concatenate([[0], np.cumsum(usable)])
     ks = np.arange(first, n_pings)

@@ -17,6 +17,9 @@ filter on every manoeuvre of the ``maneuvers`` preset, where the velocity does c
 
 Every estimator sees the same pings: every ping of each manoeuvre with its past pings and
 IMU interval valid (``beamsnet.data``). The whole manoeuvre file is test data.
+
+With ``faults=True`` the same trained models are tested instead on faulted versions of the
+manoeuvres (dropouts, a dead beam, outliers, water track): ``beamsnet.faults``.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.errors import ConfigError
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
@@ -48,7 +52,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
            training: TrainConfig | None = None, restarts: int | None = None,
            train_duration: float = TRAIN_DURATION,
            maneuver_duration: float = MANEUVER_DURATION, runs: Path = Path("runs"),
-           progress: bool = True) -> Path:
+           faults: bool = False, fault_duration: float | None = None,
+           fault_missions: tuple[str, ...] | None = None, progress: bool = True) -> Path:
     """Train on straight lines, test on manoeuvres, write ``out/stress.md`` and figures.
 
     Args:
@@ -62,9 +67,18 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             averaging over the last epochs).
         restarts: seeds per model, kept by training fit (default: the profile's).
         runs: where the trained models go (``runs/stress/<file stem>/v1|v2``).
+        faults: test on the fault sweep of ``beamsnet.faults`` instead of the manoeuvres
+            (``out/faults.md``); ``maneuver_data`` must then be None.
+        fault_duration: s per manoeuvre of the faulted test data (default
+            ``beamsnet.faults.FAULT_DURATION``).
+        fault_missions: the manoeuvres of the faulted test data (default
+            ``beamsnet.faults.FAULT_MISSIONS``).
 
     Returns:
         The report's path.
+
+    Raises:
+        ConfigError: a bad setting, before any data is generated or model trained.
     """
     from auvsim.presets import maneuvers, preset
 
@@ -74,11 +88,26 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     check_out_dir(out)
+    if faults:
+        from .faults import FAULT_DURATION, check_options
+
+        if maneuver_data is not None:
+            raise ConfigError("is not used by the fault sweep, which generates its own "
+                              "faulted manoeuvres; expected no manoeuvre file with faults",
+                              argument="maneuver_data")
+        fault_duration, fault_missions = check_options(
+            FAULT_DURATION if fault_duration is None else fault_duration, fault_missions)
+    else:
+        for name, value in (("fault_duration", fault_duration),
+                            ("fault_missions", fault_missions)):
+            if value is not None:
+                raise ConfigError("is a setting of the fault sweep; expected it only "
+                                  "together with faults", argument=name)
     if train_data is None:
         train_data = ensure_dataset(preset("paper-sim").with_duration(train_duration),
                                     Path("datasets") / f"paper-sim_{train_duration:g}s.h5",
                                     progress=progress)
-    if maneuver_data is None:
+    if maneuver_data is None and not faults:
         maneuver_data = ensure_dataset(maneuvers(maneuver_duration),
                                        Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5",
                                        progress=progress)
@@ -91,6 +120,13 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
                       runs / "stress" / Path(train_data).stem, restarts, progress=progress)
     models = [k.loaded() for k in kept.values()]
     train_w, _ = split(windows)
+    if faults:
+        from .faults import fault_stress
+
+        return fault_stress(models=models, train_w=train_w, train_data=train_data,
+                            trained_on=_scenarios(train_data), out=out,
+                            duration=fault_duration, missions=fault_missions,
+                            progress=progress)
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
     test_w = load_windows(maneuver_data, missions=list(phases) or None)
     trained_on = _scenarios(train_data)
