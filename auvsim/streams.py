@@ -24,6 +24,8 @@ STREAMS = (
     "maneuver",  # what a manoeuvre draws (random waypoints)
     "depth_parameters",  # the depth sensor's per-mission offset
     "depth_noise",  # the depth sensor's white noise
+    "water",  # the current: per-mission speed and direction, Gauss-Markov paths, modes
+    "disturbance",  # turbulent wrench and actuator jitter (Gauss-Markov drives)
 )
 
 
