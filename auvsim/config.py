@@ -493,7 +493,8 @@ class WaterConfig:
         object.__setattr__(self, "profile_depths", depths)
         object.__setattr__(self, "profile_factors", factors)
         _check(all(0 <= d <= MAX_DEPTH for d in depths)
-               and all(b > a for a, b in zip(depths, depths[1:])), "water.profile_depths",
+               and all(b > a for a, b in zip(depths[:-1], depths[1:], strict=True)),
+               "water.profile_depths",
                f"increasing depths in [0, {MAX_DEPTH:g}] m", depths)
         _check(len(factors) == len(depths), "water.profile_factors",
                f"one factor per profile depth ({len(depths)})", factors)
