@@ -96,7 +96,7 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
     nu = np.zeros(6)
     quat = np.zeros(4)
     reached = np.zeros(3)  # the actuators as the water meets them: with their jitter
-    wrench = np.zeros(6)
+    jolt = np.zeros(CHANNELS)  # the disturbance now: wrench (6), then actuator jitter (3)
     imu = (imu_position[0], imu_position[1], imu_position[2])
     for k in range(references.shape[0]):
         # MuJoCo (NWU world, FLU body) -> NED / FRD.
@@ -120,11 +120,10 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
         else:
             cur = (current_ned[0], current_ned[1], current_ned[2])
         if disturbed:
-            for i in range(6):
-                wrench[i] = disturbance_at(rows, base, t, i)
+            disturbance_at(rows, base, t, jolt)
             for i in range(3):
-                reached[i] = actuators[i] + disturbance_at(rows, base, t, 6 + i)
-            nu_dot, applied, thrust = water_wrench(h, nu, rot, reached, cur, wrench)
+                reached[i] = actuators[i] + jolt[6 + i]
+            nu_dot, applied, thrust = water_wrench(h, nu, rot, reached, cur, jolt[:6])
         else:
             for i in range(3):
                 reached[i] = actuators[i]

@@ -291,10 +291,11 @@ class Disturbance:
 
 
 @numba.njit(cache=True, nogil=True)
-def disturbance_at(rows, base, t, c):
-    """Channel ``c`` of the disturbance at time t (s), interpolated in ``rows``, whose first
-    row is grid point ``base``."""
+def disturbance_at(rows, base, t, out):
+    """The disturbance row at time t (s) into ``out`` (9,), interpolated in ``rows``, whose
+    first row is grid point ``base``."""
     s = t / DISTURBANCE_STEP - base
     i = min(max(int(s), 0), rows.shape[0] - 2)
     frac = s - i
-    return rows[i, c] + frac * (rows[i + 1, c] - rows[i, c])
+    for c in range(rows.shape[1]):
+        out[c] = rows[i, c] + frac * (rows[i + 1, c] - rows[i, c])
