@@ -62,8 +62,8 @@ def maneuvers(duration: float = 600.0) -> Config:
 # - Surface speed uniform in [0.1, 1.0] m/s, in any direction: tidal streams are "weak"
 #   below 0.5 m/s and "moderately strong" at 0.5-1.5 m/s (MarLIN's tidal strength scale,
 #   marlin.ac.uk/glossary/waterflowrate); shelf tides run typically at 0.1-1 m/s. With the
-#   A18-D at 1-2 m/s this gives crab angles up to 30-90 deg, and turns sway the DVL frame
-#   by up to +/- the current.
+#   A18-D at 1-2 m/s this gives crab angles of 3 to 45 deg, and turns sway the DVL frame
+#   by up to +/- the current (measured over the manoeuvre set: -0.92 to +0.99 m/s).
 # - Over depth the 1/7 power law of a tidal bottom boundary layer filling the column
 #   (Soulsby 1997, Dynamics of Marine Sands, ch. 3), over the seafloor's 60 m.
 # - In time: the semidiurnal tide (M2, 12.42 h) turns a current over about a quarter

@@ -1,7 +1,8 @@
 """The vehicle: a MuJoCo model plus the hydrodynamic force model, stepped in compiled code.
 
 ``Vehicle.run`` advances the simulation by N physics steps. Each step (in ``_run``, compiled
-with numba) reads the state from MuJoCo, runs the autopilot and servos, computes the water
+with numba) reads the state from MuJoCo, runs the autopilot and servos, looks up the current
+at the vehicle and the motion disturbances now (``auvsim.water``), computes the water
 forces (``auvsim.hydro.water_wrench``), records the true state, and calls MuJoCo's own
 ``mj_step`` through its C symbol, so no Python runs inside the loop.
 """
@@ -121,8 +122,10 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             cur = (current_ned[0], current_ned[1], current_ned[2])
         if disturbed:
             disturbance_at(rows, base, t, jolt)
-            for i in range(3):
-                reached[i] = actuators[i] + jolt[6 + i]
+            # Jitter about the angle reached, within the fins' and shaft's limits.
+            reached[0] = min(max(actuators[0] + jolt[6], -h.rpm_max), h.rpm_max)
+            for i in (1, 2):
+                reached[i] = min(max(actuators[i] + jolt[6 + i], -h.fin_max), h.fin_max)
             nu_dot, applied, thrust = water_wrench(h, nu, rot, reached, cur, jolt[:6])
         else:
             for i in range(3):
@@ -199,7 +202,7 @@ class Vehicle:
         self.length = 2.0 * float(self.model.geom("hull").size[0])
         self.gains = Gains(length=self.length)
         self.current_ned = np.array(current_ned, dtype=float)
-        self.water = water.table if water is not None else still_water()
+        self.water_table = water.table if water is not None else still_water()
         self.disturbance = disturbance if disturbance is not None and disturbance.active \
             else None
         self.step = 0  # physics steps since the last reset: the clock of water and jitter
@@ -288,8 +291,8 @@ class Vehicle:
             base, rows = 0, _NO_ROWS
         _run(self.model._address, d._address, d.qpos, d.qvel, d.qfrc_applied, self.hydro,
              self.gains, references, np.array(closed_loop, dtype=np.bool_), self.actuators,
-             self.integrals, self.current_ned, self.water, self.disturbance is not None, rows,
-             base, self.step, self.imu_position, self.dt, out)
+             self.integrals, self.current_ned, self.water_table, self.disturbance is not None,
+             rows, base, self.step, self.imu_position, self.dt, out)
         self.step += len(references)
         self._check_stable()
         return out
