@@ -89,8 +89,9 @@ def test_constant_current_is_added_and_alone_without_moving_water():
 
 def test_spatial_modes_have_the_configured_std_over_space():
     # Over many seeds and places, each component's std is spatial_std (8 modes per seed,
-    # so the field of one seed is not Gaussian; the ensemble is). Places 1 wavelength
-    # apart and more, so they are about independent.
+    # so the field of one seed is not Gaussian; the ensemble is). The sample std rests on
+    # n = 200 seeds x 8 independent amplitudes per component, so its own std is about
+    # std / sqrt(2 n); the 50 places per seed (wavelengths apart) add little to it.
     values = []
     for seed in range(200):
         w = water(WaterConfig(spatial_std=0.1, spatial_wavelength=1000.0), seed=seed)
@@ -98,7 +99,7 @@ def test_spatial_modes_have_the_configured_std_over_space():
         p[:, 2] = 0.0
         values.append(w.current_ned(np.zeros(50), p)[:, :2])
     v = np.concatenate(values)
-    n = len(v) / 50 * 8  # about independent amplitudes behind the sample
+    n = 200 * 8
     for k in range(2):
         assert abs(v[:, k].std() - 0.1) < 3 * 0.1 / math.sqrt(2 * n)
 
@@ -335,6 +336,10 @@ BAD_WATER = [
     ("turbulence_time", 0.01), ("rpm_jitter_std", -2.0), ("rpm_jitter_std", 1e3),
     ("fin_jitter_std_deg", 10.0), ("jitter_time", math.inf),
 ]
+
+
+def test_every_water_setting_has_a_bad_value_case():
+    assert {name for name, _ in BAD_WATER} == {f.name for f in dataclasses.fields(WaterConfig)}
 
 
 @pytest.mark.parametrize("name,value", BAD_WATER)
