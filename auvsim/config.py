@@ -587,6 +587,134 @@ class DepthConfig:
         _check(self.rate_hz > 0, "depth.rate_hz", "a positive rate in Hz", self.rate_hz)
 
 
+# The water section. Correlation times must span several grid steps of the paths that
+# carry them (``auvsim.water``: 10 s for the current, 0.1 s for the disturbances), so the
+# interpolated path is the Gauss-Markov process and not the grid's straight lines.
+MIN_CURRENT_TIME = 60.0  # s
+MIN_DISTURBANCE_TIME = 0.5  # s
+# A slow spatial variation is long against the vehicle and the ~400 m a block covers; at
+# most the 1000 km of an ocean basin's gyre.
+MIN_WAVELENGTH, MAX_WAVELENGTH = 100.0, 1e6  # m
+# Turbulent forces and moments: at most 1 kN (N m), like the net buoyancy: 14 % of the
+# A18-D's weight, a hundred times what a few cm/s of turbulence exert (presets.navigator).
+MAX_TURBULENCE = 1000.0  # N, N m
+MAX_RPM_JITTER = 100.0  # rpm: 10 % of the shipped shaft speeds' ~1000 rpm class
+MAX_FIN_JITTER_DEG = 5.0  # deg: a third of the shipped fins' 15 deg travel
+
+
+@dataclass(frozen=True)
+class WaterConfig:
+    """The moving water and the motion disturbances (``auvsim.water`` has the model).
+    Every default turns its effect off (still water, no disturbance).
+
+    Current: a mission's surface speed is drawn uniformly in [``speed_min``,
+    ``speed_max``] and its direction (where the water flows TOWARD, deg from north)
+    uniformly in ``direction_deg`` +/- ``direction_spread_deg``; both vary in time as
+    Gauss-Markov processes (``speed_std``/``speed_time``, ``direction_std_deg``/
+    ``direction_time``), and in space by ``spatial_std`` over ``spatial_wavelength``. The
+    depth law scales all of it: ``power`` (f = ((H - z) / H) ** ``power_exponent``, H =
+    ``water_depth``, or the seafloor's ``depth`` when None) or ``piecewise`` (factors
+    ``profile_factors`` at depths ``profile_depths``, linear between, constant beyond).
+    Added to ``vehicle.current_ned``.
+
+    Disturbances: a turbulent wrench in body axes (``turbulence_force_std`` N and
+    ``turbulence_moment_std`` N m per FRD axis, correlation ``turbulence_time``) and
+    jitter of the shaft speed (``rpm_jitter_std``) and of the rudder and stern planes
+    (``fin_jitter_std_deg``), correlation ``jitter_time``; all Gauss-Markov.
+
+    Bounds: speeds and their stds at most ``MAX_CURRENT`` (3 m/s, also for the drawn
+    speed plus three stds of each variation); correlation times of at least
+    ``MIN_CURRENT_TIME`` (60 s) and ``MIN_DISTURBANCE_TIME`` (0.5 s); wavelengths in
+    [100 m, 1000 km]; profile factors in [-1, 1] (relative to the surface: a layer may
+    flow against it, as an estuary's bottom water does); turbulence up to 1 kN (N m),
+    jitter up to 100 rpm and 5 deg.
+    """
+
+    speed_min: float = 0.0
+    speed_max: float = 0.0
+    direction_deg: float = 0.0
+    direction_spread_deg: float = 0.0
+    speed_std: float = 0.0
+    speed_time: float = 3600.0
+    direction_std_deg: float = 0.0
+    direction_time: float = 3600.0
+    spatial_std: float = 0.0
+    spatial_wavelength: float = 5000.0
+    profile: str = "power"
+    power_exponent: float = 1.0 / 7.0
+    water_depth: float | None = None
+    profile_depths: tuple[float, ...] = (0.0,)
+    profile_factors: tuple[float, ...] = (1.0,)
+    turbulence_force_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    turbulence_moment_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    turbulence_time: float = 3.0
+    rpm_jitter_std: float = 0.0
+    fin_jitter_std_deg: float = 0.0
+    jitter_time: float = 1.0
+
+    def __post_init__(self) -> None:
+        scalars = ("speed_min", "speed_max", "direction_deg", "direction_spread_deg",
+                   "speed_std", "speed_time", "direction_std_deg", "direction_time",
+                   "spatial_std", "spatial_wavelength", "power_exponent", "turbulence_time",
+                   "rpm_jitter_std", "fin_jitter_std_deg", "jitter_time")
+        for name in scalars:
+            _finite(f"water.{name}", getattr(self, name))
+        for name in ("speed_min", "speed_max", "speed_std", "spatial_std"):
+            _check(0 <= getattr(self, name) <= MAX_CURRENT, f"water.{name}",
+                   f"a speed in [0, {MAX_CURRENT:g}] m/s", getattr(self, name))
+        _check(self.speed_min <= self.speed_max, "water.speed_min",
+               f"at most speed_max ({self.speed_max:g} m/s)", self.speed_min)
+        worst = self.speed_max + 3.0 * (self.speed_std + self.spatial_std)
+        _check(worst <= MAX_CURRENT, "water.speed_max",
+               f"a current of at most {MAX_CURRENT:g} m/s with three stds of speed_std and "
+               f"spatial_std (the strongest ocean currents are about 2.5 m/s)",
+               f"{self.speed_max:g} + 3 x ({self.speed_std:g} + {self.spatial_std:g}) m/s")
+        _angle("water.direction_deg", self.direction_deg)
+        for name in ("direction_spread_deg", "direction_std_deg"):
+            _check(0 <= getattr(self, name) <= 180, f"water.{name}", "an angle in [0, 180] deg",
+                   getattr(self, name))
+        for name in ("speed_time", "direction_time"):
+            _check(getattr(self, name) >= MIN_CURRENT_TIME, f"water.{name}",
+                   f"a correlation time of at least {MIN_CURRENT_TIME:g} s", getattr(self, name))
+        for name in ("turbulence_time", "jitter_time"):
+            _check(getattr(self, name) >= MIN_DISTURBANCE_TIME, f"water.{name}",
+                   f"a correlation time of at least {MIN_DISTURBANCE_TIME:g} s",
+                   getattr(self, name))
+        _check(MIN_WAVELENGTH <= self.spatial_wavelength <= MAX_WAVELENGTH,
+               "water.spatial_wavelength",
+               f"a length in [{MIN_WAVELENGTH:g}, {MAX_WAVELENGTH:g}] m", self.spatial_wavelength)
+        _check(isinstance(self.profile, str) and self.profile in ("power", "piecewise"),
+               "water.profile", "power or piecewise", self.profile)
+        _check(0 <= self.power_exponent <= 1, "water.power_exponent",
+               "an exponent in [0, 1] (1/7 for a bottom boundary layer)", self.power_exponent)
+        if self.water_depth is not None:
+            _finite("water.water_depth", self.water_depth)
+            _check(0 < self.water_depth <= MAX_DEPTH, "water.water_depth",
+                   f"a depth in (0, {MAX_DEPTH:g}] m", self.water_depth)
+        depths = _series("water.profile_depths", self.profile_depths)
+        factors = _series("water.profile_factors", self.profile_factors)
+        object.__setattr__(self, "profile_depths", depths)
+        object.__setattr__(self, "profile_factors", factors)
+        _check(all(0 <= d <= MAX_DEPTH for d in depths)
+               and all(b > a for a, b in zip(depths[:-1], depths[1:], strict=True)),
+               "water.profile_depths",
+               f"increasing depths in [0, {MAX_DEPTH:g}] m", depths)
+        _check(len(factors) == len(depths), "water.profile_factors",
+               f"one factor per profile depth ({len(depths)})", factors)
+        _check(all(-1 <= f <= 1 for f in factors), "water.profile_factors",
+               "factors in [-1, 1] of the surface current", factors)
+        for name, most, unit in (("turbulence_force_std", MAX_TURBULENCE, "N"),
+                                 ("turbulence_moment_std", MAX_TURBULENCE, "N m")):
+            value = _vector(f"water.{name}", getattr(self, name), 3)
+            object.__setattr__(self, name, value)
+            _check(all(0 <= v <= most for v in value), f"water.{name}",
+                   f"three stds in [0, {most:g}] {unit}", value)
+        _check(0 <= self.rpm_jitter_std <= MAX_RPM_JITTER, "water.rpm_jitter_std",
+               f"a std in [0, {MAX_RPM_JITTER:g}] rpm", self.rpm_jitter_std)
+        _check(0 <= self.fin_jitter_std_deg <= MAX_FIN_JITTER_DEG, "water.fin_jitter_std_deg",
+               f"a std in [0, {MAX_FIN_JITTER_DEG:g}] deg", self.fin_jitter_std_deg)
+
+
 @dataclass(frozen=True)
 class Config:
     """Everything that determines a dataset.
@@ -600,6 +728,7 @@ class Config:
         imu: the IMU and its error model; its rate is the rate of the truth group, and the
             physics rate must be a whole multiple of it.
         depth: the pressure depth sensor and its error model.
+        water: the current and the motion disturbances (default: still water, none).
         compression: HDF5 compression, ``lzf`` (fast) or ``gzip`` (read by every HDF5 tool).
     """
 
@@ -610,6 +739,7 @@ class Config:
     imu: ImuConfig = field(default_factory=ImuConfig)
     depth: DepthConfig = field(default_factory=DepthConfig)
     compression: str = "lzf"
+    water: WaterConfig = field(default_factory=WaterConfig)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "missions", tuple(self.missions))
@@ -661,6 +791,7 @@ _NESTED = {
     (Config, "dvl"): DvlConfig,
     (Config, "imu"): ImuConfig,
     (Config, "depth"): DepthConfig,
+    (Config, "water"): WaterConfig,
     (MissionConfig, "scenario"): ScenarioConfig,
 }
 
@@ -685,6 +816,13 @@ def _from_dict(cls, d, path: str):
         else:
             kwargs[key] = tuple(value) if isinstance(value, list) else value
     return cls(**kwargs)
+
+
+def _series(name: str, value) -> tuple[float, ...]:
+    """1 to 1000 finite numbers, as a tuple."""
+    n = len(value) if isinstance(value, (list, tuple)) else 0
+    _check(1 <= n <= 1000, name, "a list of 1 to 1000 numbers", value)
+    return _vector(name, value, n)
 
 
 def _vector(name: str, value, n: int) -> tuple[float, ...]:

@@ -93,7 +93,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from .config import Config, MissionConfig, ScenarioConfig
+from .config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
 from .control import autopilot
 from .dataset import Block, DatasetWriter
 from .errors import ConfigError, SimulationError
@@ -148,9 +148,11 @@ class AuvEnv(gym.Env):
         self.last_block: dict[str, np.ndarray] | None = None
 
     def _mission(self, seed: int) -> MissionRun:
+        # As long as an episode may last, so the water's paths (auvsim.water) cover it.
+        duration = max(self.start.duration, min(self.max_episode_seconds, MAX_DURATION))
         mission = MissionConfig(name="episode", seed=seed,
                                 scenario=dataclasses.replace(self.start, name="straight",
-                                                             options={}))
+                                                             options={}, duration=duration))
         return MissionRun(self.config, mission)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

@@ -422,7 +422,7 @@ def propeller(h, rpm, u_r):
 
 
 @numba.njit(cache=True)
-def water_wrench(h, nu, rot, actuators, current_ned):
+def water_wrench(h, nu, rot, actuators, current_ned, disturbance=None):
     """Body acceleration and the wrench MuJoCo must apply for it.
 
     Args:
@@ -430,7 +430,10 @@ def water_wrench(h, nu, rot, actuators, current_ned):
         nu: (6,) body velocity [u, v, w, p, q, r], m/s and rad/s, FRD at the CO.
         rot: (3, 3) rotation body -> NED.
         actuators: (3,) propeller rpm, rudder and stern-plane angles (rad).
-        current_ned: (3,) ocean current, m/s, constant in NED.
+        current_ned: (3,) ocean current at the vehicle now, m/s, NED (its change over
+            time is neglected: ``auvsim.water``).
+        disturbance: (6,) a turbulent force and moment about the CO, FRD (N, N m), added
+            to the water's (``auvsim.water``); None (the default) for none.
 
     Returns:
         nu_dot: (6,) body acceleration, d/dt of ``nu``'s components.
@@ -514,6 +517,12 @@ def water_wrench(h, nu, rot, actuators, current_ned):
     thrust, torque = propeller(h, actuators[0], vr[0])
     tau[0] += (1.0 - h.thrust_deduction) * thrust
     tau[3] += h.prop_rotation * torque
+
+    # Motion disturbances (auvsim.water): added only when given, so that without them
+    # the arithmetic is exactly what it was.
+    if disturbance is not None:
+        for i in range(6):
+            tau[i] += disturbance[i]
 
     # Rigid-body terms for the acceleration: weight and C_RB(nu) nu.
     f_w = scale(h.weight, down)

@@ -24,6 +24,7 @@ from .seafloor import Seafloor
 from .sensors import Platform, Truth, registry
 from .streams import mission_streams
 from .vehicle import Trajectory, Vehicle
+from .water import Disturbance, Water
 
 BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
 
@@ -55,8 +56,12 @@ class MissionRun:
         streams = mission_streams(mission.seed)
         self.seafloor = Seafloor(config.seafloor, rng=streams["terrain"])
         v = config.vehicle
+        # The water is a pure function of time and place from here on (auvsim.water).
+        self.water = Water(config.water, streams["water"], duration=mission.scenario.duration,
+                           constant_ned=v.current_ned, water_depth=config.seafloor.depth)
         self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,
-                               seafloor=self.seafloor)
+                               seafloor=self.seafloor, water=self.water,
+                               disturbance=Disturbance(config.water, streams["disturbance"]))
         self.ray_data = self.vehicle.ray_data()
         self.seafloor.bind(self.vehicle.model, self.ray_data)
         dt = self.vehicle.dt
@@ -67,7 +72,7 @@ class MissionRun:
         if round(mission.scenario.duration / dt) < 1:
             raise ConfigError(f"duration: expected at least the {dt:g} s physics step, got "
                               f"{mission.scenario.duration!r}")
-        platform = Platform(self.vehicle, self.seafloor, self.ray_data)
+        platform = Platform(self.vehicle, self.seafloor, self.ray_data, self.water)
         # A sensor gets its parameter stream and any it declares after its noise stream.
         self.sensors = [sensor(config, platform, streams[sensor.streams[0]],
                                *(streams[name] for name in sensor.streams[2:]))
@@ -160,7 +165,8 @@ class MissionRun:
         time = steps[keep] * self.vehicle.dt
         truth = Truth(int(steps[0]) // self.decimation, time, traj.position_ned[keep],
                       traj.velocity_ned[keep], traj.velocity_body[keep], traj.quaternion[keep],
-                      traj.angular_rate[keep], traj.specific_force[keep])
+                      traj.angular_rate[keep], traj.specific_force[keep],
+                      traj.current_ned[keep], traj.velocity_water_body[keep])
         sensed = {}
         for sensor in self.sensors:
             sensed.update(sensor.measure(truth, self.noise[sensor.name]))

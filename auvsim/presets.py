@@ -5,7 +5,15 @@ from __future__ import annotations
 
 import dataclasses
 
-from .config import Config, DepthConfig, DvlConfig, MissionConfig, ScenarioConfig, SeafloorConfig
+from .config import (
+    Config,
+    DepthConfig,
+    DvlConfig,
+    MissionConfig,
+    ScenarioConfig,
+    SeafloorConfig,
+    WaterConfig,
+)
 from .errors import ConfigError
 from .maneuvers import missions as maneuver_missions
 from .sensors.imu import IMU_GRADES
@@ -49,6 +57,45 @@ def maneuvers(duration: float = 600.0) -> Config:
             options=dict(options)))
         for i, (name, kind, options) in enumerate(MANEUVER_MISSIONS))
     return Config(missions=missions, seafloor=paper.seafloor, dvl=paper.dvl, imu=paper.imu)
+
+
+# The navigator's water: a coastal current, with the turbulence and actuator jitter a
+# vehicle meets in it (auvsim.water has the model, config.WaterConfig the settings).
+# - Surface speed uniform in [0.1, 1.0] m/s, in any direction: tidal streams are "weak"
+#   below 0.5 m/s and "moderately strong" at 0.5-1.5 m/s (MarLIN's tidal strength scale,
+#   marlin.ac.uk/glossary/waterflowrate); shelf tides run typically at 0.1-1 m/s. With the
+#   A18-D at 1-2 m/s this gives crab angles of 3 to 45 deg, and turns sway the DVL frame
+#   by up to +/- the current (measured over the manoeuvre set: -0.92 to +0.99 m/s).
+# - Over depth the 1/7 power law of a tidal bottom boundary layer filling the column
+#   (Soulsby 1997, Dynamics of Marine Sands, ch. 3), over the seafloor's 60 m.
+# - In time: the semidiurnal tide (M2, 12.42 h) turns a current over about a quarter
+#   period, 3 h, so speed and direction are Gauss-Markov with a 3 h correlation time;
+#   0.1 m/s and 20 deg stds change a current by about 0.07 m/s and 15 deg within an hour,
+#   the rate of a 0.5 m/s tide (0.5 m/s x 2 pi / 12.42 h = 0.25 m/s per hour at most).
+# - In space: 0.05 m/s over 5 km, the submesoscale of coastal currents (0.1-10 km:
+#   McWilliams 2016, Proc. R. Soc. A 472, 20160117); our choice of magnitude.
+# - Turbulence: in a tidal boundary layer u' = 2.30 u* exp(-z/h), v' = 1.63 u* exp(-z/h),
+#   w' = 1.27 u* exp(-z/h) (Nezu & Nakagawa 1993, Turbulence in Open-Channel Flows),
+#   with u* = sqrt(C_D) U and C_D = 0.0025 (Soulsby 1997): at U = 0.5 m/s, u* = 0.025 m/s,
+#   and at mid-depth the fluctuations are 0.02-0.035 m/s; we take 0.03 m/s. Through the
+#   A18-D's force model at 2 m/s (hydro.py's coefficients at commit 8a2240a), linearised:
+#   surge 2 X_uu U u' = 2 x 42.3 x 2 x 0.03 = 5 N; sway and heave (hull lift 153.9 N s^2/m^2
+#   and fin-pair lift 147.6 N s^2/m^2, each times U v') 9 + 9 = 18 N; pitch and yaw, the
+#   same forces at the hull-lift centre (-1.32 m) and the fins (-2.6 m), 35 N m; roll, one
+#   fin pair meeting opposite flows of an eddy smaller than its span (each fin 74 x 2 x
+#   0.03 = 4.4 N, about 0.35 m from the axis), 3 N m. Correlation time 3 s: an eddy of
+#   about a hull length (6 m) passed at 2 m/s; larger ones are the slow current, smaller
+#   ones average out over the 5.5 m hull (our choice).
+# - Jitter: 0.2 deg on the rudder and stern planes (a fin servo's deadband and position
+#   sensing, a few tenths of a degree) and 2 rpm on the shaft (0.4 % at the 490 rpm of
+#   2 m/s, a speed controller's ripple), correlated over 1 s: our choices, no datasheet
+#   at hand gives them.
+NAVIGATOR_WATER = WaterConfig(
+    speed_min=0.1, speed_max=1.0, direction_deg=0.0, direction_spread_deg=180.0,
+    speed_std=0.1, speed_time=10800.0, direction_std_deg=20.0, direction_time=10800.0,
+    spatial_std=0.05, spatial_wavelength=5000.0, profile="power", power_exponent=1.0 / 7.0,
+    turbulence_force_std=(5.0, 18.0, 18.0), turbulence_moment_std=(3.0, 35.0, 35.0),
+    turbulence_time=3.0, rpm_jitter_std=2.0, fin_jitter_std_deg=0.2, jitter_time=1.0)
 
 
 def navigator() -> Config:
@@ -114,6 +161,7 @@ def navigator() -> Config:
                       water_track_range=10.0, water_track_noise_std=0.05),
         imu=IMU_GRADES["navigation-full"],
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
+        water=NAVIGATOR_WATER,
     )
 
 

@@ -27,6 +27,8 @@ STREAMS = (
     "imu_calibration",  # IMU scale factors, misalignment and g-sensitivity (schema v4)
     "dvl_calibration",  # the DVL's realised sound-speed ratio and mounting misalignment
     "dvl_faults",  # the DVL's lost bottom lock, outliers and extra noise, per beam and ping
+    "water",  # the current: per-mission speed and direction, Gauss-Markov paths, modes
+    "disturbance",  # turbulent wrench and actuator jitter (Gauss-Markov drives)
 )
 
 

@@ -1,7 +1,8 @@
 """The vehicle: a MuJoCo model plus the hydrodynamic force model, stepped in compiled code.
 
 ``Vehicle.run`` advances the simulation by N physics steps. Each step (in ``_run``, compiled
-with numba) reads the state from MuJoCo, runs the autopilot and servos, computes the water
+with numba) reads the state from MuJoCo, runs the autopilot and servos, looks up the current
+at the vehicle and the motion disturbances now (``auvsim.water``), computes the water
 forces (``auvsim.hydro.water_wrench``), records the true state, and calls MuJoCo's own
 ``mj_step`` through its C symbol, so no Python runs inside the loop.
 """
@@ -29,7 +30,8 @@ from .frames import (
     quaternion_from_euler,
     yaw_of,
 )
-from .hydro import Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, water_wrench
+from .hydro import Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, sub, water_wrench
+from .water import CHANNELS, Disturbance, Water, current_at, disturbance_at, still_water
 
 MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
 VEHICLES = ("auv", "remus100")
@@ -50,6 +52,9 @@ _warnings: collections.deque[str] = collections.deque(maxlen=8)
 mujoco.set_mju_user_warning(_warnings.append)
 
 
+_NO_ROWS = np.zeros((2, CHANNELS))  # the disturbance table when there is none
+
+
 class Trajectory(NamedTuple):
     """True state at every physics step, NED/FRD (see the package docstring). Shapes (N, .)."""
 
@@ -61,10 +66,12 @@ class Trajectory(NamedTuple):
     specific_force: np.ndarray  # (N, 3) m/s^2, body, at the IMU site
     actuators: np.ndarray  # (N, 3) shaft rpm, rudder and stern-plane angles (rad)
     thrust: np.ndarray  # (N,) N, propeller thrust
+    current_ned: np.ndarray  # (N, 3) m/s, NED, the current at the body origin
+    velocity_water_body: np.ndarray  # (N, 3) m/s, body, velocity through the water there
 
     @classmethod
     def empty(cls, n: int) -> Trajectory:
-        widths = (3, 3, 3, 4, 3, 3, 3, None)
+        widths = (3, 3, 3, 4, 3, 3, 3, None, 3, 3)
         return cls(*(np.empty((n, w) if w else n) for w in widths))
 
 
@@ -85,10 +92,12 @@ def model_path(vehicle: str) -> Path:
 # another thread (auvsim.mission.MissionRun.blocks).
 @numba.njit(cache=True, nogil=True)
 def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators, integrals,
-         current_ned, imu_position, dt, out):
+         current_ned, water, disturbed, rows, base, step0, imu_position, dt, out):
     flip = np.array([1.0, -1.0, -1.0])
     nu = np.zeros(6)
     quat = np.zeros(4)
+    reached = np.zeros(3)  # the actuators as the water meets them: with their jitter
+    jolt = np.zeros(CHANNELS)  # the disturbance now: wrench (6), then actuator jitter (3)
     imu = (imu_position[0], imu_position[1], imu_position[2])
     for k in range(references.shape[0]):
         # MuJoCo (NWU world, FLU body) -> NED / FRD.
@@ -103,7 +112,26 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             nu[3 + i] = qvel[3 + i] * flip[i]
         w = (nu[3], nu[4], nu[5])
 
-        nu_dot, applied, thrust = water_wrench(h, nu, rot, actuators, current_ned)
+        # The water at the vehicle now (auvsim.water): without a moving water exactly
+        # the constant current, as before it existed.
+        t = (step0 + k) * dt
+        if water.active:
+            c = current_at(water, t, qpos[0], -qpos[1], -qpos[2])
+            cur = (current_ned[0] + c[0], current_ned[1] + c[1], current_ned[2] + c[2])
+        else:
+            cur = (current_ned[0], current_ned[1], current_ned[2])
+        if disturbed:
+            disturbance_at(rows, base, t, jolt)
+            # Jitter about the angle reached, within the fins' and shaft's limits.
+            reached[0] = min(max(actuators[0] + jolt[6], -h.rpm_max), h.rpm_max)
+            for i in (1, 2):
+                reached[i] = min(max(actuators[i] + jolt[6 + i], -h.fin_max), h.fin_max)
+            nu_dot, applied, thrust = water_wrench(h, nu, rot, reached, cur, jolt[:6])
+        else:
+            for i in range(3):
+                reached[i] = actuators[i]
+            nu_dot, applied, thrust = water_wrench(h, nu, rot, actuators, cur)
+        v_water = sub(v_body, mat3t_vec(rot, cur))
 
         # Record the state at the start of the step, with its acceleration.
         alpha = (nu_dot[3], nu_dot[4], nu_dot[5])
@@ -115,7 +143,9 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             out.velocity_body[k, i] = nu[i]
             out.angular_rate[k, i] = w[i]
             out.specific_force[k, i] = a_imu[i] - h.gravity * rot[2, i]
-            out.actuators[k, i] = actuators[i]
+            out.actuators[k, i] = reached[i]
+            out.current_ned[k, i] = cur[i]
+            out.velocity_water_body[k, i] = v_water[i]
         for i in range(4):
             out.quaternion[k, i] = quat[i]
         out.thrust[k] = thrust
@@ -142,6 +172,10 @@ class Vehicle:
         vehicle: a name from ``VEHICLES`` or a path to an MJCF model of the same layout.
         net_buoyancy: buoyancy minus weight, N.
         current_ned: constant ocean current, m/s, NED.
+        water: the mission's moving water (``auvsim.water.Water``), added to
+            ``current_ned``; None for none.
+        disturbance: the mission's motion disturbances (``auvsim.water.Disturbance``);
+            None for none.
         seafloor: terrain to add to the scene (``auvsim.seafloor.Seafloor``), for ray casts;
             bind it to a ``MjData`` of its own (``ray_data``), not to ``self.data``, so that
             casts may run while another thread steps the physics.
@@ -149,7 +183,8 @@ class Vehicle:
 
     def __init__(self, vehicle: str = "auv", *, net_buoyancy: float = 0.0,
                  current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                 seafloor=None) -> None:
+                 seafloor=None, water: Water | None = None,
+                 disturbance: Disturbance | None = None) -> None:
         self.name = vehicle
         path = model_path(vehicle)
         try:
@@ -167,6 +202,10 @@ class Vehicle:
         self.length = 2.0 * float(self.model.geom("hull").size[0])
         self.gains = Gains(length=self.length)
         self.current_ned = np.array(current_ned, dtype=float)
+        self.water_table = water.table if water is not None else still_water()
+        self.disturbance = disturbance if disturbance is not None and disturbance.active \
+            else None
+        self.step = 0  # physics steps since the last reset: the clock of water and jitter
         self.imu_position = np.array(self.model.site("imu").pos) * FLIP  # FRD, m
         self.dvl_position = np.array(self.model.site("dvl").pos) * FLIP  # FRD, m
         self.dt = float(self.model.opt.timestep)
@@ -205,6 +244,9 @@ class Vehicle:
         u = float(velocity_body[0])
         self.actuators[0] = math.copysign(feedforward_rpm(self.hydro, abs(u)), u)
         self.integrals[:] = 0.0
+        self.step = 0
+        if self.disturbance is not None:
+            self.disturbance.reset()
         mujoco.mj_forward(self.model, self.data)  # positions of every geom, for ray casts
 
     def state(self) -> dict[str, np.ndarray]:
@@ -242,9 +284,16 @@ class Vehicle:
         out = Trajectory.empty(len(references))
         d = self.data
         d.xfrc_applied[:] = 0.0
+        if self.disturbance is not None:
+            base, rows = self.disturbance.table(self.step * self.dt,
+                                                (self.step + len(references)) * self.dt)
+        else:
+            base, rows = 0, _NO_ROWS
         _run(self.model._address, d._address, d.qpos, d.qvel, d.qfrc_applied, self.hydro,
              self.gains, references, np.array(closed_loop, dtype=np.bool_), self.actuators,
-             self.integrals, self.current_ned, self.imu_position, self.dt, out)
+             self.integrals, self.current_ned, self.water_table, self.disturbance is not None,
+             rows, base, self.step, self.imu_position, self.dt, out)
+        self.step += len(references)
         self._check_stable()
         return out
 

@@ -72,11 +72,18 @@ class Attr(NamedTuple):
 
 class Platform(NamedTuple):
     """What a sensor may know of its mission at the start (beside the config): the vehicle
-    (sensor sites, model), the seafloor and a ``MjData`` for ray casts."""
+    (sensor sites, model), the seafloor, a ``MjData`` for ray casts and the water.
+
+    ``water.current_ned(time (M,) s, position_ned (M, 3) m) -> (M, 3) m/s`` is the current
+    (NED) anywhere at any time of the mission, exactly as the vehicle's physics sees it
+    (``auvsim.water.Water``; the constant ``vehicle.current_ned`` included), e.g. at a DVL's
+    water-track layer below the vehicle. None only for a platform built without one.
+    """
 
     vehicle: Any  # auvsim.vehicle.Vehicle
     seafloor: Any  # auvsim.seafloor.Seafloor
     ray_data: Any  # mujoco.MjData of the same model, for ray casts only
+    water: Any = None  # auvsim.water.Water
 
 
 class Truth(NamedTuple):
@@ -89,6 +96,10 @@ class Truth(NamedTuple):
         quaternion: (N, 4) body -> NED.
         angular_rate: (N, 3) rad/s, body.
         specific_force: (N, 3) m/s^2, body, at the IMU site.
+        current_ned: (N, 3) m/s, NED, the current at the body origin (None: not given,
+            as by a test's stub).
+        velocity_water_body: (N, 3) m/s, body, the body origin's velocity through the
+            water, ``velocity_body - R^T current_ned`` (None: not given).
     """
 
     first: int
@@ -99,6 +110,8 @@ class Truth(NamedTuple):
     quaternion: np.ndarray
     angular_rate: np.ndarray
     specific_force: np.ndarray
+    current_ned: np.ndarray | None = None
+    velocity_water_body: np.ndarray | None = None
 
 
 class Sensor:
