@@ -150,11 +150,14 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             out.quaternion[k, i] = quat[i]
         out.thrust[k] = thrust
 
-        # Autopilot and servos act on the next step.
+        # Autopilot and servos act on the next step. The speed loop holds the surge speed
+        # through the water, as a propeller's speed control does: the stern planes and the
+        # rudder need that flow, and in a following current as strong as the set speed a
+        # hold over ground would stall them (in still water the two are the same numbers).
         yaw = math.atan2(rot[1, 0], rot[0, 0])
         pitch = -math.asin(min(max(rot[2, 0], -1.0), 1.0))
-        cmd = autopilot(h, g, references[k], closed_loop, integrals, nu[0], -qpos[2], v_ned[2],
-                        pitch, yaw, w[1], w[2], dt)
+        cmd = autopilot(h, g, references[k], closed_loop, integrals, v_water[0], -qpos[2],
+                        v_ned[2], pitch, yaw, w[1], w[2], dt)
 
         # The wrench goes to MuJoCo in its own coordinates: world force, body torque.
         f_ned = mat3_vec(rot, (applied[0], applied[1], applied[2]))

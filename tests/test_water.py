@@ -164,6 +164,18 @@ def test_uniform_water_moves_the_vehicle_exactly_as_the_constant_current_does():
     np.testing.assert_allclose(runs[1].current_ned, np.tile(c, (2000, 1)), rtol=1e-15)
 
 
+def test_the_speed_autopilot_holds_the_speed_through_the_water():
+    # A following current of 0.5 m/s: holding 1.5 m/s through the water, the vehicle makes
+    # 2.0 m/s over ground (a hold over ground would ask the propeller for 1.0 m/s of flow).
+    reference = np.tile((1.5, 0.0, 20.0), (20000, 1))  # speed, heading north, depth
+    vehicle = Vehicle("auv", water=water(uniform(0.5, 0.0), duration=200.0))
+    vehicle.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(2.0, 0.0, 0.0))
+    run = vehicle.run(reference)
+    end = slice(-1000, None)
+    assert np.abs(run.velocity_water_body[end, 0] - 1.5).max() < 0.005
+    assert np.abs(run.velocity_body[end, 0] - 2.0).max() < 0.005
+
+
 def test_in_a_steady_current_velocity_over_ground_is_through_water_plus_current():
     # Same rpm, heading and depth held in still water and in a uniform 0.6 m/s current
     # from the side: once settled, the velocity through the water is the still-water
