@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -45,7 +44,7 @@ def fly(dvl: DvlConfig, duration: float = 120.0, *, water=None, seafloor=None,
     run = MissionRun(config, config.missions[0])
     if water is not None:
         sensor = next(s for s in run.sensors if s.name == "dvl")
-        sensor.platform = SimpleNamespace(**sensor.platform._asdict(), water=water)
+        sensor.platform = sensor.platform._replace(water=water)
     blocks = list(run.blocks())
     return run, {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
 
