@@ -70,6 +70,10 @@ CORE_ATTRS = (
     Attr("seed", (), "the mission's seed", imported=True, low=0, whole=True),
     Attr("duration_s", (), "s", imported=True, low=0, strict=True),
     Attr("vehicle", None, "vehicle name or model path"),
+    Attr("water_surface_speed", (), "REALISED surface speed of the mission's current, m/s "
+         "(before its variation in time and space; auvsim.water)", low=0, since=4),
+    Attr("water_direction_deg", (), "REALISED direction the surface current flows toward, "
+         "deg from north", since=4),
 )
 IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
                 Attr("source_sha256", None, "its SHA-256"))
@@ -680,6 +684,9 @@ def _describe_v4(m: Mission, a: dict, fmt) -> list[str]:
         rms = f"{np.sqrt(np.mean(finite**2)):.3g} m/s" if finite.size else "none"
         lines.append(f"    DVL modes: {shares}; error velocity rms {rms} over "
                      f"{finite.size} four-beam pings")
+    if "water_surface_speed" in a:
+        lines.append(f"    water: surface current {a['water_surface_speed']:.3f} m/s toward "
+                     f"{a['water_direction_deg'] % 360:.0f} deg (drawn for the mission)")
     if m.has("truth") and "current_ned" in m.truth:
         current = m.truth.current_ned
         speed = np.hypot(current[:, 0], current[:, 1])

@@ -89,7 +89,8 @@ class MissionRun:
             sensed.update(sensor.attrs())
         return mission_attrs(origin="simulated", scenario=m.scenario.name, seed=m.seed,
                              duration_s=m.scenario.duration, vehicle=self.config.vehicle.model,
-                             **sensed)
+                             water_surface_speed=self.water.surface_speed,
+                             water_direction_deg=self.water.direction_deg, **sensed)
 
     @property
     def samples(self) -> int:
