@@ -112,7 +112,9 @@ class VehicleConfig:
         net_buoyancy: buoyancy minus weight, N (positive floats up); at most
             ``MAX_NET_BUOYANCY`` (1 kN) in magnitude.
         current_ned: constant ocean current, m/s, NED; at most ``MAX_CURRENT`` (3 m/s) in
-            magnitude.
+            magnitude (with the ``water`` section's current added). The speed autopilot
+            holds the speed through the water, so since schema v4 a closed-loop mission in
+            a current flies at its set speed relative to the water, not over ground.
     """
 
     model: str = "auv"
@@ -319,7 +321,7 @@ class DvlConfig:
         noise_range_coeff: m/s per m of slant range, >= 0: the beam noise std grows as
             ``noise_std + noise_range_coeff * r + noise_speed_coeff * |v|``.
         noise_speed_coeff: dimensionless (m/s of std per m/s of speed), >= 0.
-        outlier_rate: share of beam-pings that are outliers, in [0, 1].
+        outlier_rate: share of beam-pings that are outliers, in [0, 1).
         outlier_std: m/s, >= 0, the scale of their heavy-tailed (Student t, 3 degrees of
             freedom) error.
         sound_speed_std: spread of the realised ratio ``c_true / c_assumed - 1``, in
@@ -397,7 +399,7 @@ class DvlConfig:
                      "water_track_noise_std"):
             _check(getattr(self, name) >= 0, f"dvl.{name}", "a value >= 0",
                    getattr(self, name))
-        _check(0 <= self.outlier_rate <= 1, "dvl.outlier_rate", "a share in [0, 1]",
+        _check(0 <= self.outlier_rate < 1, "dvl.outlier_rate", "a share in [0, 1)",
                self.outlier_rate)
         _check(0 <= self.sound_speed_std <= MAX_SOUND_SPEED_STD, "dvl.sound_speed_std",
                f"a spread in [0, {MAX_SOUND_SPEED_STD:g}]", self.sound_speed_std)
@@ -765,6 +767,20 @@ class Config:
                 _check(m.scenario.depth < self.seafloor.depth, "depth",
                        f"a depth above the seafloor at {self.seafloor.depth:g} m",
                        m.scenario.depth)
+        w = self.water
+        moving = w.speed_max > 0 or w.speed_std > 0 or w.spatial_std > 0
+        # The power law's H defaults to the seafloor plane's depth; a heightmap has none.
+        _check(not (moving and w.profile == "power" and w.water_depth is None
+                    and self.seafloor.kind == "heightmap"), "water.water_depth",
+               "the water depth H of the power law (over a heightmap the seafloor gives no "
+               "single depth)", w.water_depth)
+        if moving:  # the constant current and the water's own, together
+            worst = (math.hypot(*self.vehicle.current_ned) + w.speed_max
+                     + 3.0 * (w.speed_std + w.spatial_std))
+            _check(worst <= MAX_CURRENT, "water.speed_max",
+                   f"a current of at most {MAX_CURRENT:g} m/s with vehicle.current_ned added "
+                   "(the strongest ocean currents are about 2.5 m/s)",
+                   f"{worst:.4g} m/s in all")
 
     def with_duration(self, duration: float) -> Config:
         """The same config with every mission lasting ``duration`` s."""

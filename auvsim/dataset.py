@@ -1,4 +1,4 @@
-"""The one module that knows the file format (HDF5, schema v3 in docs/ARCHITECTURE.md).
+"""The one module that knows the file format (HDF5, schema v4 in docs/ARCHITECTURE.md).
 
 Nothing else in auvsim or beamsnet opens an HDF5 file or spells a dataset path: writers
 go through ``DatasetWriter`` (and ``mission_attrs``, ``copy_mission``), readers through

@@ -167,15 +167,16 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
 
     ax = axes[dvl_row, 1]
     valid = m.dvl.valid
-    extent = (t_dvl[0], t_dvl[-1] if len(t_dvl) > 1 else t_dvl[0] + 1, 4.5, 0.5)
+    # Beams by their array index, 0 to 3, as dvl.beam_failures and the reports name them.
+    extent = (t_dvl[0], t_dvl[-1] if len(t_dvl) > 1 else t_dvl[0] + 1, 3.5, -0.5)
     if "status" in m.dvl:
         _draw_status(ax, m.dvl.status, extent)
     else:
         ax.imshow(valid.T, aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0,
                   vmax=1, extent=extent)
         ax.set_title(f"bottom lock (green), {100 * valid.mean():.1f} % of beam pings")
-    ax.set_yticks([1, 2, 3, 4])
-    ax.set_ylabel("beam")
+    ax.set_yticks([0, 1, 2, 3])
+    ax.set_ylabel("beam (index)")
     ax.set_xlabel("time, s")
 
     if axes.shape[0] == 4:

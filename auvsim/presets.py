@@ -78,8 +78,9 @@ def maneuvers(duration: float = 600.0) -> Config:
 #   w' = 1.27 u* exp(-z/h) (Nezu & Nakagawa 1993, Turbulence in Open-Channel Flows),
 #   with u* = sqrt(C_D) U and C_D = 0.0025 (Soulsby 1997): at U = 0.5 m/s, u* = 0.025 m/s,
 #   and at mid-depth the fluctuations are 0.02-0.035 m/s; we take 0.03 m/s. Through the
-#   A18-D's force model at 2 m/s (hydro.py's coefficients at commit 8a2240a), linearised:
-#   surge 2 X_uu U u' = 2 x 42.3 x 2 x 0.03 = 5 N; sway and heave (hull lift 153.9 N s^2/m^2
+#   A18-D's force model at 2 m/s (hydro.py's coefficients of models/auv.xml), linearised:
+#   surge 2 X_uu U u' = 2 x 11.08 x 2 x 0.03 = 1.3 N (Prestero's axial drag, C_d 0.11);
+#   sway and heave (hull lift 153.9 N s^2/m^2
 #   and fin-pair lift 147.6 N s^2/m^2, each times U v') 9 + 9 = 18 N; pitch and yaw, the
 #   same forces at the hull-lift centre (-1.32 m) and the fins (-2.6 m), 35 N m; roll, one
 #   fin pair meeting opposite flows of an eddy smaller than its span (each fin 74 x 2 x
@@ -94,7 +95,7 @@ NAVIGATOR_WATER = WaterConfig(
     speed_min=0.1, speed_max=1.0, direction_deg=0.0, direction_spread_deg=180.0,
     speed_std=0.1, speed_time=10800.0, direction_std_deg=20.0, direction_time=10800.0,
     spatial_std=0.05, spatial_wavelength=5000.0, profile="power", power_exponent=1.0 / 7.0,
-    turbulence_force_std=(5.0, 18.0, 18.0), turbulence_moment_std=(3.0, 35.0, 35.0),
+    turbulence_force_std=(1.3, 18.0, 18.0), turbulence_moment_std=(3.0, 35.0, 35.0),
     turbulence_time=3.0, rpm_jitter_std=2.0, fin_jitter_std_deg=0.2, jitter_time=1.0)
 
 
@@ -111,14 +112,14 @@ def navigator() -> Config:
     The DVL loses lock and errs as an instrument does (``DvlConfig``):
 
     - Echoes fade near the rated range: lost with probability 1/2 at 80 m of slant range
-      over a 4 m width (16 % at 73 m, 92 % at 90 m), our choice of a curve that ends at the
+      over a 4 m width (15 % at 73 m, 92 % at 90 m), our choice of a curve that ends at the
       rated 90 m.
     - Grazing loss from 60 deg of incidence (3 deg width): bottom backscatter falls as
       Lambert's law, cos^2 of the incidence angle (Urick, Principles of Underwater Sound,
       3rd ed., 1983, ch. 8), so a beam at 60 deg returns 4.8 dB less than at the 30 deg of
       level flight over a flat bottom; the threshold is our choice.
     - Dropouts: 2 % of beam-pings in bursts of 3 pings on average, 0.5 % of whole pings
-      lost, one beam (beam 3) dead from 300 to 360 s and a soft bottom from 450 to 480 s
+      lost, one beam (index 2, the third) dead from 300 to 360 s and a soft bottom from 450 to 480 s
       (lock lost on every beam): our choices, so that every default mission shows each
       kind of loss.
     - Beam noise grows by 2 mm/s per m/s of speed and 0.1 mm/s per m of range (at 2 m/s
@@ -193,8 +194,9 @@ def realistic_maneuvers(duration: float = 600.0) -> Config:
 
 
 PRESETS = {
-    "navigator": ("physical default: Navigator-like 30 deg DVL over rough terrain, "
-                  "navigation-grade IMU, one mission", navigator),
+    "navigator": ("physical default: one mission over rough terrain in a coastal current "
+                  "with turbulence; a Navigator-like 30 deg DVL with every failure and error "
+                  "beyond eq. 7 (water track included); the navigation-full IMU", navigator),
     "paper-sim": ("the BeamsNet paper's simulation as its code ran it: 1, 2, 3 m/s x 7200 s, "
                   "20 deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s",
                   lambda: _paper(PAPER_NOISE_CODE)),

@@ -134,16 +134,12 @@ class Water:
         self.config = config
         self.constant_ned = np.array(constant_ned, dtype=float)
         c = config
-        # The per-mission draws first, always, so the paths below never shift them.
+        # The per-mission draws and the spatial modes first, and each Gauss-Markov path
+        # from a child stream of its own: a longer mission extends the paths of a shorter
+        # one, so the water of a seed does not depend on the mission's duration.
         self.surface_speed = float(rng.uniform(c.speed_min, c.speed_max))
         spread = c.direction_spread_deg
         self.direction_deg = float(c.direction_deg + rng.uniform(-spread, spread))
-        n = int(math.ceil(duration / CURRENT_STEP)) + 2  # grid points covering the mission
-        speed = self.surface_speed + gauss_markov(rng, n, c.speed_std, c.speed_time,
-                                                  CURRENT_STEP)
-        theta = math.radians(self.direction_deg) + gauss_markov(
-            rng, n, math.radians(c.direction_std_deg), c.direction_time, CURRENT_STEP)
-        surface = np.stack([speed * np.cos(theta), speed * np.sin(theta)], axis=1)
         heading = rng.uniform(0.0, 2.0 * math.pi, SPATIAL_MODES)
         k = 2.0 * math.pi / c.spatial_wavelength
         wave = k * np.stack([np.cos(heading), np.sin(heading)], axis=1)
@@ -152,6 +148,14 @@ class Water:
         # each component a variance of std^2 over space.
         amplitude = rng.normal(0.0, c.spatial_std * math.sqrt(2.0 / SPATIAL_MODES),
                                (SPATIAL_MODES, 2))
+        speed_rng, direction_rng = rng.spawn(2)
+        n = int(math.ceil(duration / CURRENT_STEP)) + 2  # grid points covering the mission
+        speed = self.surface_speed + gauss_markov(speed_rng, n, c.speed_std, c.speed_time,
+                                                  CURRENT_STEP)
+        theta = math.radians(self.direction_deg) + gauss_markov(
+            direction_rng, n, math.radians(c.direction_std_deg), c.direction_time,
+            CURRENT_STEP)
+        surface = np.stack([speed * np.cos(theta), speed * np.sin(theta)], axis=1)
         active = c.speed_max > 0 or c.speed_std > 0 or c.spatial_std > 0
         self.table = WaterTable(
             active=bool(active), step=CURRENT_STEP, surface=np.ascontiguousarray(surface),

@@ -44,7 +44,8 @@ V3_FIELDS = {
     "dvl": ("rate_hz", "beam_angle_deg", "mounting_rpy_deg", "min_range", "max_range",
             "scale_factor", "scale_factor_std", "bias", "bias_std", "noise_std"),
     "imu": ("rate_hz", "accel_noise_density", "gyro_noise_density", "accel_turn_on_bias",
-            "gyro_turn_on_bias", "accel_bias_instability", "gyro_bias_instability"),
+            "gyro_turn_on_bias", "accel_bias_instability", "gyro_bias_instability",
+            "bias_correlation_time"),
     "depth": ("rate_hz", "noise_std", "bias_std", "resolution"),
 }
 

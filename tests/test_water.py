@@ -202,6 +202,17 @@ def test_in_a_steady_current_velocity_over_ground_is_through_water_plus_current(
     assert crab > 10.0  # the current pushes it to starboard, seen in the body frame
 
 
+def test_a_seeds_water_does_not_depend_on_the_missions_duration():
+    # A longer mission extends the Gauss-Markov paths of a shorter one: over the first
+    # 600 s the water of seed 1 is the same for a 600 s and a 1200 s mission.
+    t = np.linspace(0.0, 600.0, 61)
+    points = np.column_stack([2.0 * t, -t, np.full_like(t, 20.0)])
+    short, long = (water(NAVIGATOR_WATER, seed=1, duration=d).current_ned(t, points)
+                   for d in (600.0, 1200.0))
+    np.testing.assert_array_equal(short, long)
+    assert np.abs(np.diff(short[:, 0])).max() > 0  # the water does vary
+
+
 def test_the_vehicle_sees_the_current_at_its_own_depth():
     config = flat(mission(duration=20.0, depth=30.0), floor=60.0,
                   water=WaterConfig(speed_min=0.4, speed_max=0.4, direction_deg=-90.0))
@@ -371,3 +382,19 @@ def test_a_bad_water_config_file_gives_one_line_and_exit_2(tmp_path, capfd, monk
     assert main(["generate", "--config", "bad.toml", "--out", "x.h5", "--quiet"]) == 2
     err = capfd.readouterr().err
     assert err.count("\n") == 1 and "water.speed_max" in err and "Traceback" not in err
+
+
+def test_the_water_and_the_seafloor_or_the_constant_current_together():
+    # Over a heightmap the power law needs its water depth, and the constant current and
+    # the water's own together stay within MAX_CURRENT: one line each, naming the field.
+    from auvsim.config import SeafloorConfig, VehicleConfig
+
+    moving = WaterConfig(speed_min=0.5, speed_max=0.5)
+    heightmap = SeafloorConfig(kind="heightmap", heightmap="map.npy")
+    with pytest.raises(ConfigError, match=r"^water.water_depth: expected the water depth H"):
+        Config(water=moving, seafloor=heightmap)
+    Config(water=dataclasses.replace(moving, water_depth=80.0), seafloor=heightmap)
+    with pytest.raises(ConfigError, match=r"^water.speed_max: expected a current of at most "
+                                          r"3 m/s with vehicle.current_ned added"):
+        Config(water=WaterConfig(speed_min=1.0, speed_max=1.5),
+               vehicle=VehicleConfig(current_ned=(2.0, 0.0, 0.0)))

@@ -8,7 +8,9 @@ Beam k = 1..4 points along, in the DVL frame,
 ``psi_k = (k - 1) pi/2 + pi/4``, alpha the beam angle from the DVL's z (down) axis.
 A beam measures the projection of the DVL's velocity over ground (in the DVL frame) on
 ``b_k``; ``H = [b_1; ...; b_4]`` stacks them, so ideal beams are ``H v``. Beams 1 and 3,
-and 2 and 4, point in opposite directions (the Janus pairs).
+and 2 and 4, point in opposite directions (the Janus pairs). Beam k is column k - 1 of
+every (M, 4) array, and settings and reports name beams by that index, 0 to 3
+(``DvlConfig.beam_failures``, ``beamsnet stress --faults``, ``auvsim plot``).
 
 A simulated mission's DVL also loses bottom lock as an instrument does and errs beyond
 eq. 7 (``DvlConfig``; each effect off by default, and then every array is what it was):
@@ -460,7 +462,8 @@ class Dvl(Sensor):
         Field("dvl/time", (), "f", "dvl", "s", "ping times", imported=True),
         Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the (true) DVL "
               "frame: the regression target", imported=True),
-        Field("dvl/beam_velocity_true", (4,), "f", "dvl", "m/s", "H v", imported=True),
+        Field("dvl/beam_velocity_true", (4,), "f", "dvl", "m/s", "H v, over ground (in "
+              "water track too)", imported=True),
         Field("dvl/beam_velocity", (4,), "f", "dvl", "m/s", "measured (NaN where the beam "
               "measured nothing)", imported=True),
         Field("dvl/beam_range", (4,), "f", "dvl", "m", "slant range to the seafloor (NaN: "
