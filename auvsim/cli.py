@@ -173,9 +173,10 @@ def _generate(args: argparse.Namespace) -> None:
 def _presets(args: argparse.Namespace) -> None:
     from .presets import DEFAULT_PRESET, PRESETS
 
+    width = max(map(len, PRESETS)) + 2
     for name, (text, _) in PRESETS.items():
         mark = " (default)" if name == DEFAULT_PRESET else ""
-        print(f"{name:16s} {text}{mark}")
+        print(f"{name:{width}s} {text}{mark}")
 
 
 def _inspect(args: argparse.Namespace) -> None:
