@@ -25,10 +25,10 @@ import argparse
 import dataclasses
 import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import mujoco
+from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import Config
 from auvsim.generate import generate
@@ -60,12 +60,6 @@ def effects_off(config: Config) -> Config:
         keep = V3_FIELDS.get(f.name, ())
         changes[f.name] = type(section)(**{k: getattr(section, k) for k in keep})
     return dataclasses.replace(config, **changes)
-
-
-def cpu_seconds(fn) -> float:
-    start = time.process_time()
-    fn()
-    return time.process_time() - start
 
 
 def main() -> None:
