@@ -47,10 +47,11 @@ def _paper(noise_std: float) -> Config:
 MANEUVER_MISSIONS = tuple(maneuver_missions())
 
 
-def maneuvers(duration: float = 600.0) -> Config:
-    """Every manoeuvre once, with the paper-sim sensors, so that models trained on the
-    paper's straight lines can be tested on them (``beamsnet stress``)."""
-    paper = _paper(PAPER_NOISE_CODE)
+def maneuvers(duration: float = 600.0, noise_std: float = PAPER_NOISE_CODE) -> Config:
+    """Every manoeuvre once, with the paper-sim sensors (beam noise ``noise_std``, m/s: the
+    paper's code by default, ``PAPER_NOISE_TEXT`` for its text's), so that models trained
+    on the paper's straight lines can be tested on them (``beamsnet stress``)."""
+    paper = _paper(noise_std)
     missions = tuple(
         MissionConfig(name=name, seed=100 + i, scenario=ScenarioConfig(
             name=kind, speed=2.0, heading_deg=0.0, depth=20.0, duration=duration,
@@ -193,6 +194,25 @@ def realistic_maneuvers(duration: float = 600.0) -> Config:
     return dataclasses.replace(nav, missions=tuple(missions))
 
 
+# The Snapir AUV's DVL is mounted yawed 45 deg from the body: its recorded velocities
+# (../shared/reference/beamsnet-reference.md) average (1.13, -1.17, 0) m/s in the DVL frame
+# while the vehicle flies forward, i.e. the body's x axis is at -45 deg in the DVL frame.
+SNAPIR_MOUNTING_YAW_DEG = 45.0
+
+
+def sim2real(duration: float = 600.0, mounting_yaw_deg: float = SNAPIR_MOUNTING_YAW_DEG
+             ) -> Config:
+    """The training data of ``beamsnet reproduce sim2real``: ``realistic_maneuvers`` (both
+    speeds, each mission in its own current, the navigator's terrain and IMU) flown with
+    the DVL error model the BeamsNet paper put on the Snapir streams (paper-sim's DVL: 20
+    deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s, no failures), mounted yawed
+    ``mounting_yaw_deg`` from the body (the Snapir's 45 deg by default), so that its
+    DVL-frame velocities are what the Snapir's DVL frame sees."""
+    dvl = dataclasses.replace(_paper(PAPER_NOISE_CODE).dvl,
+                              mounting_rpy_deg=(0.0, 0.0, float(mounting_yaw_deg)))
+    return dataclasses.replace(realistic_maneuvers(duration), dvl=dvl)
+
+
 PRESETS = {
     "navigator": ("physical default: one mission over rough terrain in a coastal current "
                   "with turbulence; a Navigator-like 30 deg DVL with every failure and error "
@@ -208,6 +228,9 @@ PRESETS = {
     "realistic-maneuvers": ("the same manoeuvres at 2 m/s and at 0.8 m/s, 600 s each, each "
                             "in its own current, with the navigator's terrain, disturbances "
                             "and every DVL and IMU effect", realistic_maneuvers),
+    "sim2real": ("the realistic manoeuvres with the paper's DVL error model on the Snapir's "
+                 "streams and its DVL mounting (yawed 45 deg): beamsnet reproduce sim2real "
+                 "trains on it", sim2real),
 }
 DEFAULT_PRESET = "navigator"
 

@@ -12,7 +12,9 @@ from auvsim.errors import AuvsimError, OneLineErrorParser
 
 from .evaluate import SensorSetupWarning
 from .faults import FAULT_DURATION, FAULT_MISSIONS
-from .stress import MANEUVER_DURATION, TRAIN_DURATION
+from .sim2real import DURATION as SIM2REAL_DURATION
+from .sim2real import SEEDS as SIM2REAL_SEEDS
+from .stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
 from .train import PROFILES, TrainConfig
 
 # The flag each library argument is given on this command line (errors name arguments).
@@ -21,7 +23,8 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "average_epochs": "--average-epochs", "batch_size": "--batch-size",
          "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers",
          "allow_mismatch": "--allow-mismatch", "faults": "--faults",
-         "fault_duration": "--fault-duration", "fault_missions": "--fault-mission"}
+         "fault_duration": "--fault-duration", "fault_missions": "--fault-mission",
+         "seeds": "--seeds", "duration": "--duration", "noise": "--noise"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
@@ -87,11 +90,19 @@ def _parser() -> argparse.ArgumentParser:
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
-    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir"))
+    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real"),
+                    help="sim2real: train every estimator on auvsim data only, test on the "
+                    "Snapir streams")
     rp.add_argument("--data", type=Path,
-                    help="paper-sim: use this dataset instead of generating one; snapir: the "
-                    f"directory with V.npy and V_test.npy (default {DEFAULT_SNAPIR_TEXT})")
-    rp.add_argument("--duration", type=float, default=7200.0, help="s per speed (paper-sim)")
+                    help="paper-sim: use this dataset instead of generating one; snapir, "
+                    "sim2real: the directory with V.npy and V_test.npy (default "
+                    f"{DEFAULT_SNAPIR_TEXT})")
+    rp.add_argument("--duration", type=float,
+                    help="s per speed of paper-sim (default 7200), s per manoeuvre of "
+                    f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
+    rp.add_argument("--seeds", type=int,
+                    help=f"sim2real: seeds per network, every one scored (default "
+                    f"{SIM2REAL_SEEDS})")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,
@@ -134,6 +145,9 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("--fault-mission", action="append", dest="fault_missions", metavar="NAME",
                     help="a manoeuvre of the faulted test data (repeatable; with --faults; "
                     f"default {', '.join(FAULT_MISSIONS)})")
+    st.add_argument("--noise", choices=tuple(NOISE), default="code",
+                    help="beam noise of the generated data: the paper's code's 0.042^2 m/s "
+                    "(paper-sim) or its text's 0.042 m/s (paper-sim-text)")
     st.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
     st.add_argument("--quiet", action="store_true")
     return parser
@@ -170,16 +184,24 @@ def _evaluate(args) -> None:
 
 
 def _reproduce(args) -> None:
-    from .reproduce import DEFAULT_SNAPIR, paper_sim, snapir
+    from .reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
 
-    training, restarts = PROFILES[args.experiment].resolve(
+    # sim2real tests on sea data: it trains with the paper's sea-data settings.
+    profile = PROFILES["snapir" if args.experiment == "sim2real" else args.experiment]
+    training, restarts = profile.resolve(
         epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
         restarts=args.restarts)
-    if args.experiment == "snapir":
+    if args.experiment == "sim2real":
+        report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
+                          duration=SIM2REAL_DURATION if args.duration is None
+                          else args.duration, training=training, seeds=args.seeds,
+                          progress=not args.quiet)
+    elif args.experiment == "snapir":
         report = snapir(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                         training=training, restarts=restarts, progress=not args.quiet)
     else:
-        report = paper_sim(args.experiment, data=args.data, duration=args.duration,
+        report = paper_sim(args.experiment, data=args.data,
+                           duration=7200.0 if args.duration is None else args.duration,
                            out=args.out, training=training, restarts=restarts,
                            progress=not args.quiet)
     print(f"wrote {report}")
@@ -197,7 +219,8 @@ def _stress(args) -> None:
                     maneuver_duration=args.maneuver_duration, faults=args.faults,
                     fault_duration=args.fault_duration,
                     fault_missions=None if args.fault_missions is None
-                    else tuple(args.fault_missions), progress=not args.quiet)
+                    else tuple(args.fault_missions), noise=args.noise,
+                    progress=not args.quiet)
     print(f"wrote {report} and its figures")
 
 

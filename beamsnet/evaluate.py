@@ -133,13 +133,32 @@ def _value(value) -> str:
     return f"{value:g}"
 
 
+def baselines() -> list:
+    """Every model-based estimator that works on the windows alone, unfitted, LS first
+    (every table's reference row)."""
+    return [LeastSquares(), AffineCalibration(), KalmanFilter()]
+
+
+def filters(dataset: str | Path) -> list:
+    """The estimators that run on the file itself (``dataset``, the one the test windows
+    come from), unfitted: the INS/DVL filter, when the file has an IMU record (it
+    integrates the IMU between pings, which a window holds only in part)."""
+    return []
+
+
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
-                test_w: Windows) -> dict[str, np.ndarray]:
+                test_w: Windows, *, dataset: str | Path | None = None,
+                positions: dict | None = None) -> dict[str, np.ndarray]:
     """Every estimator's (S, 3) predictions on ``test_w``: the baselines fitted on
-    ``train_w``, then the loaded ``models`` (run directory, model, checkpoint)."""
+    ``train_w`` (and the INS/DVL filter run on ``dataset``, the file ``test_w`` comes
+    from, if given), then the loaded ``models`` (run directory, model, checkpoint).
+    ``positions``, a dict, receives the (S, 3) NED position of every estimator with a
+    position solution of its own."""
     out: dict[str, np.ndarray] = {}
-    for baseline in (LeastSquares(), AffineCalibration(), KalmanFilter()):
+    for baseline in baselines() + ([] if dataset is None else filters(dataset)):
         out[baseline.name] = baseline.fit(train_w).predict(test_w)
+        if positions is not None and hasattr(baseline, "positions"):
+            positions[baseline.name] = baseline.positions(test_w)
     for run, model, checkpoint in models:
         name = f"BeamsNet{checkpoint['model'].upper()} ({run.name})"
         out[name] = predict(model, checkpoint["model"], _trim(test_w, checkpoint))

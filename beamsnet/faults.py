@@ -52,9 +52,9 @@ from auvsim.errors import ConfigError
 from auvsim.files import make_out_dir, save_figure, write_text
 
 from . import metrics
-from .baselines import AffineCalibration, KalmanFilter, LeastSquares
 from .data import Windows, load_windows
-from .stress import _short, _truth_at_pings, dead_reckoning_error
+from .evaluate import baselines, filters
+from .stress import _short, _truth_at_pings, dead_reckoning_error, own_position_error
 from .train import predict
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
@@ -76,6 +76,7 @@ OUTLIER_RATES = (0.01, 0.05, 0.2)
 # beam noise (0.0018 m/s), so that a spike is an outlier to every estimator.
 OUTLIER_STD = 0.5
 WATER_SHARES = (0.0, 0.25, 0.5)
+COMBINED_DEAD_SHARES = (0.5,)
 # m/s NED: a tidal current (0.3 m/s east), so that water track, which measures the
 # velocity through the water, differs from the velocity over ground by a known amount.
 WATER_CURRENT = (0.0, 0.3, 0.0)
@@ -87,6 +88,8 @@ SWEEPS = {
     "dead beam": "share of each mission with beam 0 dead",
     "outliers": f"share of beam-pings with a {OUTLIER_STD:g} m/s outlier",
     "water track": "share of each mission in water track (0.3 m/s current)",
+    "dropout + dead beam": "share of each mission with beam 0 dead, and 20 % of the other "
+                           "beam-pings dropped (bursts of 5 pings)",
 }
 # What an estimator needs of a ping to give an estimate, for the table's n/a.
 NEEDS = {"LS": "needs 3 beams", "Affine": "needs 4 beams", "KF": "needs 4 beams",
@@ -161,6 +164,13 @@ def sweeps(duration: float) -> dict[str, list[Fault]]:
                   (("outlier_rate", r), ("outlier_std", OUTLIER_STD)))
             for r in OUTLIER_RATES],
         "water track": [water(s) for s in WATER_SHARES],
+        # The issue's hardest case: dropouts on every beam and a dead beam for a leg.
+        "dropout + dead beam": [
+            Fault("dropout + dead beam", s, f"20 % dropouts, beam {DEAD_BEAM} dead for "
+                  f"{100 * s:g} % of each mission",
+                  (("dropout_rate", BURST_RATE), ("dropout_burst", DROPOUT_BURST),
+                   ("beam_failures", ((DEAD_BEAM, *_centred(s, duration)),))))
+            for s in COMBINED_DEAD_SHARES],
     }
 
 
@@ -190,7 +200,7 @@ def check_options(duration, missions) -> tuple[float, tuple[str, ...]]:
 def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on: str,
                  out: Path, duration: float = FAULT_DURATION,
                  missions: tuple[str, ...] | None = None, datasets: Path = Path("datasets"),
-                 progress: bool = True) -> Path:
+                 noise_std: float | None = None, progress: bool = True) -> Path:
     """Test trained models and the baselines on every fault setting; write
     ``out/faults.md``, ``faults.json`` and ``faults.png``.
 
@@ -207,6 +217,8 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
         datasets: where the faulted test files are kept (generated if missing; the name
             carries the fault and a hash of the whole config, so a changed setting is a
             new file).
+        noise_std: the beam noise of the faulted test data, m/s (default the
+            ``maneuvers`` preset's, the paper's code's 0.042^2).
         progress: progress bars while generating.
 
     Returns:
@@ -215,12 +227,12 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
     from auvsim.presets import maneuvers
 
     duration, missions = check_options(duration, missions)
-    base = maneuvers(duration)
+    base = maneuvers(duration) if noise_std is None else maneuvers(duration, noise_std)
     base = dataclasses.replace(base, missions=tuple(m for m in base.missions
                                                      if m.name in missions))
     plan = sweeps(duration)
     configs = {f: f.config(base) for faults in plan.values() for f in faults}  # all checked
-    baselines = [b.fit(train_w) for b in (LeastSquares(), AffineCalibration(), KalmanFilter())]
+    fitted = [b.fit(train_w) for b in baselines()]
     n_past = max([c["train_config"]["n_past"] for _, _, c in models], default=3)
 
     # One file per distinct config: two sweeps share a setting (20 % dropout in bursts of
@@ -240,8 +252,11 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 windows = load_windows(path, n_past=n_past, missions=list(missions),
                                        every_ping=True)
                 truth = _truth_at_pings(path, windows)
-                estimates = _estimates(baselines, models, windows)
-                scored[str(path)] = {name: _score(windows, pred, truth)
+                own = [f.fit(train_w) for f in filters(path)]
+                estimates = _estimates(fitted + own, models, windows)
+                positions = {f.name: f.positions(windows) for f in own}
+                scored[str(path)] = {name: _score(windows, pred, truth,
+                                                  positions.get(name))
                                      for name, pred in estimates.items()}
             results[sweep].append(dict(
                 label=fault.label, level=fault.level, dataset=str(path),
@@ -306,20 +321,27 @@ def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
     return out
 
 
-def _score(windows: Windows, pred: np.ndarray, truth: dict) -> dict[str, float]:
-    """Vector and speed RMSE on the pings with an estimate, availability, and the mean
-    end-of-mission dead-reckoning error (m, and % of the distance travelled)."""
+def _score(windows: Windows, pred: np.ndarray, truth: dict,
+           position: np.ndarray | None = None) -> dict[str, float]:
+    """Vector and speed RMSE on the pings with an estimate, availability, and the
+    end-of-mission dead-reckoning error per mission and its mean (m, and % of the
+    distance travelled); an estimator with a position solution of its own (``position``,
+    (S, 3) m NED) is scored by that position's error instead."""
     have = np.isfinite(pred).all(axis=1)
     row = dict(pings=int(len(have)), availability=float(have.mean()),
                rmse_vector=math.nan, rmse=math.nan, dr_error=math.nan,
-               dr_percent=math.nan)
+               dr_percent=math.nan, dr_missions={})
     if not have.any():
         return row
     row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
     row["rmse"] = metrics.rmse(pred[have], windows.target[have])
     filled = held(windows, pred)
-    drift, travelled = zip(*(dead_reckoning_error(windows, filled, truth, int(m))
-                             for m in np.unique(windows.mission)), strict=True)
+    missions = [int(m) for m in np.unique(windows.mission)]
+    drift, travelled = zip(*(dead_reckoning_error(windows, filled, truth, m)
+                             for m in missions), strict=True)
+    if position is not None:
+        drift = tuple(own_position_error(windows, position, truth, m) for m in missions)
+    row["dr_missions"] = {windows.names[m]: d for m, d in zip(missions, drift, strict=True)}
     row["dr_error"] = float(np.mean(drift))
     row["dr_percent"] = 100 * sum(drift) / sum(travelled) if sum(travelled) else math.nan
     return row
@@ -399,9 +421,35 @@ def _report(summary: dict) -> str:
                   + " | ".join(_cell(n, r["estimators"][n]) for n in names) + " |"
                   for r in rows]
         lines.append("")
+    lines += _per_mission(sweeps_.get("dropout + dead beam", []), names)
     lines += ["![error, availability and dead reckoning against fault rate](faults.png)",
               "", "## What it shows", "", *_findings(sweeps_, names)]
     return "\n".join(lines) + "\n"
+
+
+def _per_mission(rows: list[dict], names: list[str]) -> list[str]:
+    """Per setting of ``rows``: each mission's dead-reckoning error per estimator (m), and
+    each one's change against LS's (held through its gaps), %."""
+    lines = []
+    for r in rows:
+        est = r["estimators"]
+        missions = list(est["LS"]["dr_missions"])
+        lines += [f"### Dead reckoning per mission: {r['label']}", "",
+                  "Horizontal position error after each mission, m (and against LS, "
+                  "%; an estimator with its own position solution, the INS/DVL filter, is "
+                  "scored by it):", "",
+                  "| mission | " + " | ".join(_short(n) for n in names) + " |",
+                  "|---|" + "---|" * len(names)]
+        for m in missions:
+            ls = est["LS"]["dr_missions"][m]
+            cells = []
+            for n in names:
+                d = est[n]["dr_missions"].get(m, math.nan)
+                cells.append("n/a" if not math.isfinite(d) else f"{d:.2f}" if n == "LS"
+                             else f"{d:.2f} ({100 * (d / ls - 1):+.0f} %)")
+            lines.append(f"| {m} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
 
 
 def _findings(sweeps_: dict, names: list[str]) -> list[str]:

@@ -123,30 +123,12 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     ``training`` and ``restarts`` default to the ``snapir`` profile
     (``beamsnet.train.PROFILES``); the model is BeamsNetV2 on the ``train`` mission.
     """
-    import hashlib
-
-    from auvsim.dataset import open_dataset
-    from auvsim.errors import ConfigError
-    from auvsim.importer import import_velocity
-    from auvsim.presets import preset
-
     profile = PROFILES["snapir"]
     training = profile.config if training is None else training
     restarts = profile.restarts if restarts is None else restarts
     check_restarts(restarts)
     check_out_dir(out)
-    sources = [data / name for name in SNAPIR_FILES]
-    missing = [str(p) for p in sources if not p.is_file()]
-    if missing:
-        raise ConfigError(
-            f"{str(data)!r}: no {', '.join(missing)}; expected a directory with the "
-            "Snapir AUV's V.npy and V_test.npy (3 x N DVL velocities), from the public "
-            "repository of the BeamsNet paper (see the README)", argument="data")
-    dataset = Path("datasets") / "snapir.h5"
-    digests = [hashlib.sha256(p.read_bytes()).hexdigest() for p in sources]
-    if not _imported_from(dataset, digests, open_dataset):
-        import_velocity(sources, dataset, dvl=preset("paper-sim").dvl, seed=0,
-                        names=("train", "test"))
+    dataset = snapir_dataset(data)
     if progress:
         print("beamsnet reproduce snapir: BeamsNetV1 skipped: it needs the IMU samples "
               "between pings, and the Snapir streams have none")
@@ -166,6 +148,51 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
                                      estimates["test"]))
     _snapir_figure(results, out / "snapir.png")
     return report
+
+
+def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
+    """``datasets/snapir.h5``: the Snapir streams in ``data`` (``SNAPIR_FILES``) imported
+    with the paper's error model, as missions ``train`` and ``test``; re-imported only when
+    the streams' SHA-256 digests differ from those the file records.
+
+    Raises:
+        ConfigError: ``data`` lacks one of the streams.
+    """
+    import hashlib
+
+    from auvsim.dataset import open_dataset
+    from auvsim.errors import ConfigError
+    from auvsim.importer import import_velocity
+    from auvsim.presets import preset
+
+    sources = [data / name for name in SNAPIR_FILES]
+    missing = [str(p) for p in sources if not p.is_file()]
+    if missing:
+        raise ConfigError(
+            f"{str(data)!r}: no {', '.join(missing)}; expected a directory with the "
+            "Snapir AUV's V.npy and V_test.npy (3 x N DVL velocities), from the public "
+            "repository of the BeamsNet paper (see the README)", argument="data")
+    dataset = datasets / "snapir.h5"
+    digests = [hashlib.sha256(p.read_bytes()).hexdigest() for p in sources]
+    if not _imported_from(dataset, digests, open_dataset):
+        import_velocity(sources, dataset, dvl=preset("paper-sim").dvl, seed=0,
+                        names=("train", "test"))
+    return dataset
+
+
+def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | None = None,
+             seeds: int | None = None, runs: Path = Path("runs"), workers: int | None = None,
+             progress: bool = True) -> Path:
+    """``beamsnet reproduce sim2real`` (``beamsnet.sim2real``) on the Snapir streams in
+    ``data``."""
+    from . import sim2real as experiment
+
+    check_out_dir(out)
+    seeds = experiment.SEEDS if seeds is None else seeds
+    check_restarts(seeds)
+    return experiment.sim2real(snapir_dataset(data), out=out, duration=duration, seeds=seeds,
+                               training=training, runs=runs, workers=workers,
+                               progress=progress)
 
 
 def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:

@@ -33,6 +33,7 @@ import numpy as np
 
 from auvsim.errors import ConfigError
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
 
 from . import metrics
 from .data import DataError, Windows, load_windows, split
@@ -43,6 +44,10 @@ from .train import PROFILES, TrainConfig, check_restarts
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
                              "m/s^2"}
+# The beam noise of the generated data: the straight-line preset trained on, the
+# manoeuvres' noise (m/s) and their file's suffix.
+NOISE = {"code": ("paper-sim", PAPER_NOISE_CODE, ""),
+         "text": ("paper-sim-text", PAPER_NOISE_TEXT, "-text")}
 # The generated datasets' sizes: s per speed of paper-sim, s per manoeuvre.
 TRAIN_DURATION = 1800.0
 MANEUVER_DURATION = 600.0
@@ -53,7 +58,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
            train_duration: float = TRAIN_DURATION,
            maneuver_duration: float = MANEUVER_DURATION, runs: Path = Path("runs"),
            faults: bool = False, fault_duration: float | None = None,
-           fault_missions: tuple[str, ...] | None = None, progress: bool = True) -> Path:
+           fault_missions: tuple[str, ...] | None = None, noise: str = "code",
+           progress: bool = True) -> Path:
     """Train on straight lines, test on manoeuvres, write ``out/stress.md`` and figures.
 
     Args:
@@ -73,6 +79,9 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             ``beamsnet.faults.FAULT_DURATION``).
         fault_missions: the manoeuvres of the faulted test data (default
             ``beamsnet.faults.FAULT_MISSIONS``).
+        noise: the beam noise of the generated training and test data: ``"code"``, the
+            paper's code's 0.042^2 m/s (``paper-sim``), or ``"text"``, its text's 0.042
+            m/s (``paper-sim-text``, and the manoeuvres flown with it).
 
     Returns:
         The report's path.
@@ -88,6 +97,9 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     check_out_dir(out)
+    if noise not in NOISE:
+        raise ConfigError(f"expected one of {', '.join(NOISE)} (the paper's code's or text's "
+                          f"beam noise), got {noise!r}", argument="noise")
     if faults:
         from .faults import FAULT_DURATION, check_options
 
@@ -103,14 +115,16 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             if value is not None:
                 raise ConfigError("is a setting of the fault sweep; expected it only "
                                   "together with faults", argument=name)
+    train_preset, noise_std, suffix = NOISE[noise]
     if train_data is None:
-        train_data = ensure_dataset(preset("paper-sim").with_duration(train_duration),
-                                    Path("datasets") / f"paper-sim_{train_duration:g}s.h5",
+        train_data = ensure_dataset(preset(train_preset).with_duration(train_duration),
+                                    Path("datasets") / f"{train_preset}_{train_duration:g}s.h5",
                                     progress=progress)
     if maneuver_data is None and not faults:
-        maneuver_data = ensure_dataset(maneuvers(maneuver_duration),
-                                       Path("datasets") / f"maneuvers_{maneuver_duration:g}s.h5",
-                                       progress=progress)
+        maneuver_data = ensure_dataset(
+            maneuvers(maneuver_duration, noise_std=noise_std),
+            Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
+            progress=progress)
 
     windows = load_windows(train_data)  # the models' own (default) n_past
     # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
@@ -126,18 +140,21 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         return fault_stress(models=models, train_w=train_w, train_data=train_data,
                             trained_on=_scenarios(train_data), out=out,
                             duration=fault_duration, missions=fault_missions,
-                            progress=progress)
+                            noise_std=noise_std, progress=progress)
     phases = _phases(maneuver_data)  # also gives the missions in the config's order
     test_w = load_windows(maneuver_data, missions=list(phases) or None)
     trained_on = _scenarios(train_data)
-    estimates = predictions(models, train_w, test_w)
+    positions: dict[str, np.ndarray] = {}
+    estimates = predictions(models, train_w, test_w, dataset=maneuver_data,
+                            positions=positions)
     truth = _truth_at_pings(maneuver_data, test_w)
-    rows = _table(test_w, estimates, truth)
+    rows = _table(test_w, estimates, truth, positions)
 
     make_out_dir(out)
     binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
     _plot_intensity(binned, out / "stress_intensity.png")
     _plot_time(test_w, estimates, phases, out / "stress_time.png")
+    plot_tracks(test_w, estimates, truth, positions, out / "stress_tracks.png")
     write_text(out / "stress.json", json.dumps(rows, indent=1))
     report = out / "stress.md"
     write_text(report, _report(train_data, trained_on, maneuver_data, models, binned, rows))
@@ -146,12 +163,12 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
 
 def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
     """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
-    (S, 3, 3), yaw rate (S,) and the rate of change of the true DVL-frame velocity since
-    the previous ping (S,)."""
+    (S, 3, 3), yaw rate (S,), the rate of change of the true DVL-frame velocity since
+    the previous ping (S,) and the true position (S, 3, m NED)."""
     from auvsim.dataset import open_dataset
     from auvsim.frames import rotation_matrices, rotation_rpy
 
-    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration")}
+    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
     with open_dataset(path) as f:
         for i, name in enumerate(windows.names):
             m = f.missions[name]
@@ -167,9 +184,23 @@ def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
             mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
             parts["mounting"].append(np.broadcast_to(mounting, (len(rows), 3, 3)))
             parts["yaw_rate"].append(np.abs(np.degrees(m.truth.angular_rate[rows, 2])))
+            parts["position"].append(m.truth.position_ned[rows])
             parts["acceleration"].append(
                 np.linalg.norm(v_dvl[ping] - v_dvl[np.maximum(ping - 1, 0)], axis=1) * rate)
     return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def dead_reckoning_track(windows: Windows, velocity: np.ndarray,
+                         truth: dict[str, np.ndarray], mission: int) -> np.ndarray:
+    """(S_m, 3) NED displacement from the mission's first sample to the end of each of its
+    pings' intervals, m, from integrating ``velocity`` (S, 3, DVL frame) with the true
+    attitude; each velocity holds until the next ping (the last for one ping period)."""
+    mine = windows.mission == mission
+    t = windows.time[mine]
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    dt = np.diff(t, append=t[-1] + step)
+    to_ned = truth["rotation"][mine] @ truth["mounting"][mine]  # DVL -> NED
+    return np.cumsum(np.einsum("sij,sj->si", to_ned, velocity[mine]) * dt[:, None], axis=0)
 
 
 def dead_reckoning_error(windows: Windows, velocity: np.ndarray,
@@ -178,24 +209,41 @@ def dead_reckoning_error(windows: Windows, velocity: np.ndarray,
     ``velocity`` (S, 3, DVL frame) instead of the true DVL velocity, with the true attitude,
     over the pings of ``windows``; and the distance travelled over them (m)."""
     mine = windows.mission == mission
+    error = (dead_reckoning_track(windows, velocity, truth, mission)
+             - dead_reckoning_track(windows, windows.target, truth, mission))[-1]
     t = windows.time[mine]
     step = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    dt = np.diff(t, append=t[-1] + step)  # a velocity holds until the next ping
-    to_ned = truth["rotation"][mine] @ truth["mounting"][mine]  # DVL -> NED
-    error = np.einsum("sij,sj->si", to_ned, velocity[mine] - windows.target[mine])
-    travelled = np.linalg.norm(windows.target[mine], axis=1) @ dt
-    return float(np.linalg.norm((error * dt[:, None]).sum(axis=0)[:2])), float(travelled)
+    travelled = np.linalg.norm(windows.target[mine], axis=1) @ np.diff(t, append=t[-1] + step)
+    return float(np.linalg.norm(error[:2])), float(travelled)
+
+
+def own_position_error(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],
+                       mission: int) -> float:
+    """Horizontal error (m) of an estimator's own position solution (``position``, (S, 3)
+    m NED at each sample's ping, such as the INS/DVL filter's) after the mission: its
+    displacement from the mission's first sample to its last against the truth's."""
+    mine = np.flatnonzero(windows.mission == mission)
+    first, last = mine[0], mine[-1]
+    error = (position[last] - position[first]) - (truth["position"][last]
+                                                  - truth["position"][first])
+    return float(np.linalg.norm(error[:2]))
 
 
 def _table(windows: Windows, estimates: dict[str, np.ndarray],
-           truth: dict[str, np.ndarray]) -> dict[str, dict[str, dict[str, float]]]:
-    """{manoeuvre: {estimator: speed RMSE, vector RMSE, dead-reckoning error}}."""
+           truth: dict[str, np.ndarray], positions: dict[str, np.ndarray] | None = None
+           ) -> dict[str, dict[str, dict[str, float]]]:
+    """{manoeuvre: {estimator: speed RMSE, vector RMSE, dead-reckoning error}}. An
+    estimator with its own position solution (``positions``) is scored by that position's
+    error instead of its integrated velocity's."""
+    positions = positions or {}
     rows = {}
     for i, name in enumerate(windows.names):
         mine = windows.mission == i
         rows[name] = {}
         for estimator, pred in estimates.items():
             drift, travelled = dead_reckoning_error(windows, pred, truth, i)
+            if estimator in positions:
+                drift = own_position_error(windows, positions[estimator], truth, i)
             rows[name][estimator] = dict(
                 rmse=metrics.rmse(pred[mine], windows.target[mine]),
                 rmse_vector=metrics.rmse_vector(pred[mine], windows.target[mine]),
@@ -441,3 +489,47 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
     fig.tight_layout()
     save_figure(fig, path, dpi=100)
 
+
+def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
+                positions: dict[str, np.ndarray], path: Path) -> None:
+    """Per mission: the true track (north against east), and below it each estimator's
+    horizontal position error over time, from dead reckoning (its velocity, NaN rows held
+    at its last estimate, integrated with the true attitude) or from its own position
+    solution (``positions``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .faults import held
+
+    n = len(windows.names)
+    fig, axes = plt.subplots(2, n, figsize=(2.6 * n, 5.4), squeeze=False)
+    for i, name in enumerate(windows.names):
+        mine = windows.mission == i
+        t = windows.time[mine]
+        p = truth["position"][mine]
+        ax_t, ax_e = axes[0, i], axes[1, i]
+        ax_t.plot(p[:, 1] - p[0, 1], p[:, 0] - p[0, 0], "k", lw=1)
+        ax_t.plot(0, 0, "ko", ms=3)
+        ax_t.set_aspect("equal", adjustable="datalim")
+        ax_t.set_title(name, fontsize=8)
+        ax_t.tick_params(labelsize=6)
+        reference = dead_reckoning_track(windows, windows.target, truth, i)
+        for est, pred in estimates.items():
+            if est in positions:
+                q = positions[est][mine]
+                err = (q - q[0]) - (p - p[0])
+            else:
+                err = dead_reckoning_track(windows, held(windows, pred), truth, i) - reference
+            ax_e.semilogy(t, np.maximum(np.linalg.norm(err[:, :2], axis=1), 1e-4), lw=0.8,
+                          label=_short(est))
+        ax_e.set_xlabel("time, s", fontsize=7)
+        ax_e.tick_params(labelsize=6)
+    axes[0, 0].set_ylabel("north, m (east across)", fontsize=7)
+    axes[1, 0].set_ylabel("horizontal position error, m", fontsize=7)
+    axes[1, 0].legend(fontsize=6)
+    fig.suptitle("True track of each mission (top) and each estimator's position error "
+                 "over it (bottom)")
+    fig.tight_layout()
+    save_figure(fig, path, dpi=100)

@@ -194,4 +194,9 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
     # One file per distinct setting (20 % dropout in bursts of 5 is in two sweeps).
     files = sorted((tmp_path / "datasets" / "faults").iterdir())
     assert len(files) == len({r["dataset"] for rows in summary["sweeps"].values()
-                              for r in rows}) == 16
+                              for r in rows}) == 17
+    # The combined setting's dead reckoning, per mission, for every estimator.
+    combined = summary["sweeps"]["dropout + dead beam"][-1]
+    assert "### Dead reckoning per mission: " + combined["label"] in report
+    for c in combined["estimators"].values():
+        assert c["availability"] == 0 or set(c["dr_missions"]) == {"straight"}

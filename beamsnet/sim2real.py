@@ -1,0 +1,214 @@
+"""``beamsnet reproduce sim2real``: does what is learned in auvsim hold on a real vehicle?
+
+Every estimator is trained (or fitted) only on auvsim data and tested on the Snapir AUV's
+recorded velocities, with the beams synthesised from them exactly as ``reproduce snapir``
+does (``auvsim import-velocity`` with the paper's error model):
+
+* the training data is the ``sim2real`` preset: the realistic manoeuvres (two speeds, each
+  mission in its own current) flown with the same DVL error model;
+* the frames are matched by flying the training data with the Snapir's DVL mounting, the
+  DVL yawed 45 deg from the body (``auvsim.presets.SNAPIR_MOUNTING_YAW_DEG``), so that
+  the DVL-frame velocities the estimators learn from are those the Snapir's DVL frame
+  sees. The same manoeuvres flown with the DVL along the body are a second training set,
+  which shows what the frame costs;
+* beside them, the same estimators trained on the first 75 % of ``V.npy``, as ``reproduce
+  snapir`` trains.
+
+The test sets are the last 25 % of ``V.npy`` (the paper's validation split) and the
+separate mission ``V_test.npy``. Each network is trained from ``seeds`` seeds and every
+seed is scored: the report gives the mean and the range over seeds, so a lucky seed
+cannot carry a row. BeamsNetV1 and the INS/DVL filter need the IMU record, which the
+Snapir streams lack, so they are not here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
+
+from . import metrics
+from .data import load_windows, split
+from .evaluate import baselines
+from .experiment import ensure_dataset
+from .train import PROFILES, TrainConfig, file_identity, load, predict, train_all, trained
+
+SEEDS = 5
+DURATION = 600.0  # s per manoeuvre of the generated training sets
+# The learned estimators, each trained from SEEDS seeds: name -> what it changes from the
+# profile's config. None of them takes the IMU: the Snapir streams have none.
+LEARNED = {"BeamsNetV2": dict(model="v2")}
+TESTS = ("validation (last 25 % of V.npy)", "test (V_test.npy)")
+
+
+def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION, seeds: int = SEEDS,
+             training: TrainConfig | None = None, runs: Path = Path("runs"),
+             datasets: Path = Path("datasets"), workers: int | None = None,
+             progress: bool = True) -> Path:
+    """Train on auvsim data (and, for comparison, on ``V.npy``), test on the Snapir streams;
+    write ``out/sim2real.md``, ``sim2real.json`` and ``sim2real.png``.
+
+    Args:
+        snapir_h5: the imported Snapir streams (missions ``train`` and ``test``, made by
+            ``beamsnet.reproduce.snapir_dataset``).
+        out: the report's directory.
+        duration: s per manoeuvre of the generated auvsim training sets.
+        seeds: seeds per learned estimator, every one scored.
+        training: the training settings, the model and seed set per run (default: the
+            ``snapir`` profile of ``beamsnet.train.PROFILES``: the paper's sea-data
+            settings, since the test is sea data).
+        runs: where the networks go (``runs/sim2real/<training file stem>/<model>/seed_<s>``).
+        datasets: where the generated training sets go.
+        workers: training processes.
+        progress: progress bars.
+
+    Returns:
+        The report's path.
+    """
+    from auvsim.presets import SNAPIR_MOUNTING_YAW_DEG
+    from auvsim.presets import sim2real as sim2real_preset
+
+    training = PROFILES["snapir"].config if training is None else training
+    check_out_dir(out)
+    sources = {
+        f"auvsim, DVL yawed {SNAPIR_MOUNTING_YAW_DEG:g} deg (the Snapir's mounting)": (
+            ensure_dataset(sim2real_preset(duration),
+                           datasets / f"sim2real_{duration:g}s.h5", progress=progress), None),
+        "auvsim, DVL along the body": (
+            ensure_dataset(sim2real_preset(duration, mounting_yaw_deg=0.0),
+                           datasets / f"sim2real-body_{duration:g}s.h5", progress=progress),
+            None),
+        "V.npy (the real vehicle)": (snapir_h5, ("train",)),
+    }
+    real_train, real_val = split(load_windows(snapir_h5, missions=["train"]),
+                                 training.train_fraction)
+    tests = dict(zip(TESTS, (real_val, load_windows(snapir_h5, missions=["test"])),
+                     strict=True))
+
+    # Every network of every source, trained in one pool.
+    jobs, runs_of = [], {}
+    for source, (path, missions) in sources.items():
+        sha = file_identity(path)["sha256"]
+        for name, change in LEARNED.items():
+            for seed in range(seeds):
+                config = dataclasses.replace(training, **change, seed=seed, missions=missions)
+                run = runs / "sim2real" / Path(path).stem / config.model / f"seed_{seed}"
+                runs_of.setdefault((source, name), []).append(run)
+                if not trained(run, config, sha):
+                    jobs.append((path, config, run))
+    train_all(jobs, workers=workers, progress=progress)
+
+    results: dict[str, dict] = {}
+    for source, (path, missions) in sources.items():
+        train_w = real_train if missions else split(load_windows(path),
+                                                    training.train_fraction)[0]
+        fitted = [b.fit(train_w) for b in baselines()]
+        nets = {name: [load(r) for r in runs_of[(source, name)]] for name in LEARNED}
+        results[source] = {}
+        for test, windows in tests.items():
+            rows = {b.name: [_score(b.predict(windows), windows)] for b in fitted}
+            for name, loaded in nets.items():
+                rows[name] = [_score(predict(m, c["model"], _trim(windows, c)), windows)
+                              for m, c in loaded]
+            ls = rows["LS"][0]["rmse"]
+            for seeds_ in rows.values():
+                for row in seeds_:
+                    row["improvement"] = metrics.improvement(row["rmse"], ls)
+            results[source][test] = rows
+    make_out_dir(out)
+    write_text(out / "sim2real.json", json.dumps(results, indent=1))
+    _figure(results, out / "sim2real.png")
+    report = out / "sim2real.md"
+    write_text(report, _report(results, sources, training, seeds, duration, tests))
+    return report
+
+
+def _trim(windows, checkpoint):
+    n = checkpoint["train_config"]["n_past"]
+    return windows._replace(past_beams=windows.past_beams[:, -n:])
+
+
+def _score(pred: np.ndarray, windows) -> dict:
+    have = np.isfinite(pred).all(axis=1)
+    return dict(rmse=metrics.rmse(pred[have], windows.target[have]),
+                rmse_vector=metrics.rmse_vector(pred[have], windows.target[have]),
+                availability=float(have.mean()))
+
+
+def _summary(seeds: list[dict], key: str) -> tuple[float, float, float]:
+    """Mean, min and max of ``key`` over a row's seeds."""
+    values = [s[key] for s in seeds]
+    return float(np.mean(values)), float(min(values)), float(max(values))
+
+
+def _cell(seeds: list[dict], key: str, spec: str) -> str:
+    mean, lo, hi = _summary(seeds, key)
+    if len(seeds) == 1:
+        return format(mean, spec)
+    return f"{mean:{spec}} ({lo:{spec}} to {hi:{spec}})"
+
+
+def _report(results, sources, training, seeds, duration, tests) -> str:
+    lines = [
+        "# sim2real: trained on auvsim, tested on the real Snapir streams",
+        "",
+        f"Made by `beamsnet reproduce sim2real`. Training sets: the `sim2real` preset "
+        f"({duration:g} s per manoeuvre; the realistic manoeuvres at 2 and 0.8 m/s, each in "
+        "its own current, with the paper's DVL error model: 20 deg beams, s = 0.7 %, "
+        "b = 1e-4 m/s, sigma = 0.042^2 m/s), flown with the DVL yawed 45 deg as on the "
+        "Snapir and again with the DVL along the body; and the first 75 % of `V.npy`. "
+        f"Networks: lr {training.lr:g} decaying x{training.lr_gamma:g} every "
+        f"{training.lr_step} epochs, {training.epochs} epochs, batch {training.batch_size}, "
+        f"each from {seeds} seeds, every seed scored: a cell gives the mean over seeds "
+        "and, in brackets, the range. Baselines are fitted on the same training split.",
+        "",
+    ]
+    for test, windows in tests.items():
+        lines += [f"## {test}: {len(windows.target)} pings", "",
+                  "| estimator | " + " | ".join(f"{s}: speed RMSE (m/s) | vs LS (%) | "
+                                                 "vector RMSE (m/s)" for s in results) + " |",
+                  "|---|" + "---|---|---|" * len(results)]
+        names = list(next(iter(results.values()))[test])
+        for name in names:
+            cells = []
+            for source in results:
+                seeds_ = results[source][test][name]
+                cells += [_cell(seeds_, "rmse", ".6f"), _cell(seeds_, "improvement", ".1f"),
+                          _cell(seeds_, "rmse_vector", ".6f")]
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += ["![improvement over LS per estimator and training set](sim2real.png)", ""]
+    return "\n".join(lines)
+
+
+def _figure(results: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tests = list(next(iter(results.values())))
+    fig, axes = plt.subplots(1, len(tests), figsize=(12, 4.5), sharey=True)
+    for ax, test in zip(axes, tests, strict=True):
+        names = [n for n in next(iter(results.values()))[test] if n != "LS"]
+        width = 0.8 / len(results)
+        for i, source in enumerate(results):
+            means, lows, highs = zip(*(_summary(results[source][test][n], "improvement")
+                                       for n in names), strict=True)
+            x = np.arange(len(names)) + i * width
+            ax.bar(x, means, width, label=source)
+            ax.errorbar(x, means, yerr=[np.subtract(means, lows), np.subtract(highs, means)],
+                        fmt="none", ecolor="k", capsize=2, lw=0.8)
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names, rotation=30,
+                      ha="right", fontsize=8)
+        ax.set_title(test)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].set_ylabel("speed RMSE improvement over LS, %")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=110)
