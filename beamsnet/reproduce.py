@@ -187,9 +187,13 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
     ``data``."""
     from . import sim2real as experiment
 
+    from auvsim.errors import ConfigError
+
     check_out_dir(out)
     seeds = experiment.SEEDS if seeds is None else seeds
-    check_restarts(seeds)
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f": expected a whole number of seeds >= 1, got {seeds!r}",
+                          argument="seeds")
     return experiment.sim2real(snapir_dataset(data), out=out, duration=duration, seeds=seeds,
                                training=training, runs=runs, workers=workers,
                                progress=progress)
