@@ -227,7 +227,8 @@ class KalmanFilter:
     chi-square with 3 degrees of freedom while the random-walk model holds; above ``gate``
     (default ``GATE``, 1e-3 false restarts per ping) the model is rejected and the filter
     restarts from the measurement (``x = z``, ``P = R``), which then holds through the
-    manoeuvre (a velocity change of a few sigma_z per ping restarts every ping) and averages
+    manoeuvre (after a restart S = 2R: a change of more than about 6 sigma per ping
+    restarts every ping, a slower one whenever the lag reaches about 4 sigma) and averages
     again from the first ping the model fits. The test is the standard consistency test of
     a Kalman filter's innovations, used as a manoeuvre detector (Bar-Shalom, Li &
     Kirubarajan 2001, Estimation with Applications to Tracking and Navigation, chs. 5
@@ -252,7 +253,8 @@ class KalmanFilter:
                              f"freedom) or None, got {gate!r}")
         self.gate = gate
         self.calibrate = calibrate
-        self.name = "KF" if calibrate else "KF (LS input)"
+        notes = [n for n, on in (("LS input", not calibrate), ("no gate", gate is None)) if on]
+        self.name = "KF" + (f" ({', '.join(notes)})" if notes else "")
         self.q_grid = Q_GRID if q_grid is None else np.asarray(q_grid, dtype=float)
         if self.q_grid.ndim != 1 or len(self.q_grid) == 0 or not np.all(self.q_grid > 0):
             raise ValueError(f"q_grid: expected positive values, m/s per sqrt(s), got "
