@@ -165,7 +165,9 @@ class ScaleOffset:
 
     With the paper's error model (one scale factor s for all beams, a small bias) LS gives
     ``(1 + s) v + pinv(H) b`` exactly, which this inverts with ``k = 1 / (1 + s)``. Per-beam
-    scale factors that differ are beyond it (``BeamCalibration`` has them). Like
+    scale factors that differ are beyond it (``BeamCalibration`` has them), and so is a
+    ping with 3 beams when there is a bias: LS then gives ``inv(H_3) b_3``, not the
+    ``pinv(H) b`` that c was fitted on (the training split has 4 beams). Like
     ``BeamCalibration`` it has no cross-axis term, so straight-line training fixes it.
 
     Attributes (after fit):
