@@ -209,11 +209,16 @@ class KalmanFilter:
     The filter is run on the velocity measurement ``z_k`` that the beams give, with
     ``H_z = I``: ``z = LS(y)``, ``R = r^2 (H^T H)^-1`` without calibration, which is the
     same filter as on the four beams (LS is a sufficient statistic of y for v), or, with
-    ``calibrate=True``, ``z = A y + c`` of an ``AffineCalibration`` fitted on the same
-    training split and ``R = r^2 A A^T`` (the beam noise carried through the calibration).
-    Calibration is the default because the DVL's scale factor and bias are systematic: a
-    filter only averages noise, it cannot remove them, and they dominate the LS error at
-    the paper's settings.
+    ``calibrate=True`` (or ``"affine"``), ``z = A y + c`` of an ``AffineCalibration``
+    fitted on the same training split and ``R = r^2 A A^T`` (the beam noise carried through
+    the calibration), or with ``calibrate="beam"`` the LS velocity of a
+    ``BeamCalibration``'s corrected beams, ``R = pinv(H_A) diag(r^2 / (1 + s_k)^2)
+    pinv(H_A)^T`` over the valid beams A. LS and the beam calibration give z on 3 beams
+    too, each ping with the R of its beams. Calibration is the default because the DVL's
+    scale factor and bias are systematic: a filter only averages noise, it cannot remove
+    them, and they dominate the LS error at the paper's settings. ``"beam"`` transfers
+    from straight-line training to manoeuvres, the affine map does not (see
+    ``BeamCalibration``).
 
     r is the RMS residual of the four-beam least-squares fit on the training beams
     (``|y - H v_ls|^2`` has one degree of freedom per ping: ``E = r^2``), so it needs no
@@ -248,20 +253,25 @@ class KalmanFilter:
     train_rmse (q -> training RMSE, m/s).
     """
 
-    def __init__(self, *, calibrate: bool = True, q_grid: np.ndarray | None = None,
+    def __init__(self, *, calibrate: bool | str = True, q_grid: np.ndarray | None = None,
                  gate: float | None = GATE) -> None:
+        if calibrate not in (True, False, "affine", "beam"):
+            raise ValueError(f"calibrate: expected True, False, 'affine' or 'beam', got "
+                             f"{calibrate!r}")
         if gate is not None and not gate > 0:
             raise ValueError(f"gate: expected a positive chi-square threshold (3 degrees of "
                              f"freedom) or None, got {gate!r}")
         self.gate = gate
         self.calibrate = calibrate
-        notes = [n for n, on in (("LS input", not calibrate), ("no gate", gate is None)) if on]
+        notes = [n for n, on in (("LS input", not calibrate),
+                                 ("beam calibration", calibrate == "beam"),
+                                 ("no gate", gate is None)) if on]
         self.name = "KF" + (f" ({', '.join(notes)})" if notes else "")
         self.q_grid = Q_GRID if q_grid is None else np.asarray(q_grid, dtype=float)
         if self.q_grid.ndim != 1 or len(self.q_grid) == 0 or not np.all(self.q_grid > 0):
             raise ValueError(f"q_grid: expected positive values, m/s per sqrt(s), got "
                              f"{q_grid!r}")
-        self.calibration: AffineCalibration | None = None
+        self.calibration: AffineCalibration | BeamCalibration | None = None
         self.h: np.ndarray | None = None
         self.r = self.q = None
         self.train_rmse: dict[float, float] = {}
@@ -270,7 +280,8 @@ class KalmanFilter:
         self.h = train.h
         residual = train.beams - least_squares(train.beams, train.h) @ train.h.T
         self.r = float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))  # 4 - 3 = 1 dof
-        self.calibration = AffineCalibration().fit(train) if self.calibrate else None
+        self.calibration = (BeamCalibration().fit(train) if self.calibrate == "beam" else
+                            AffineCalibration().fit(train) if self.calibrate else None)
         z, cov = self._measurement(train)
         sse = _filter(z, cov, train.mission, train.time, self.q_grid, gate=self.gate,
                       target=train.target)
@@ -286,12 +297,29 @@ class KalmanFilter:
                        gate=self.gate)
 
     def _measurement(self, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
-        """z (S, 3) m/s and its noise covariance R (3, 3)."""
-        if self.calibration is not None:
-            a = self.calibration.a
-            return self.calibration.predict(windows), self.r ** 2 * a @ a.T
-        h = windows.h
-        return least_squares(windows.beams, h), self.r ** 2 * np.linalg.inv(h.T @ h)
+        """z (S, 3) m/s and its noise covariance R (S, 3, 3), (m/s)^2."""
+        c = self.calibration
+        if isinstance(c, AffineCalibration):
+            r = self.r ** 2 * c.a @ c.a.T
+            return c.predict(windows), np.broadcast_to(r, (len(windows.beams), 3, 3))
+        std = np.full(4, self.r) if c is None else self.r / (1.0 + c.scale)
+        z = least_squares(windows.beams, windows.h) if c is None else c.predict(windows)
+        return z, _ls_covariance(np.isfinite(windows.beams), windows.h, std)
+
+
+def _ls_covariance(valid: np.ndarray, h: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """(S, 3, 3) covariance, (m/s)^2, of LS (paper eq. 9) on the ``valid`` (S, 4) beams of
+    each ping, with independent beam noise of ``std`` (4,) m/s: ``pinv(H_A) diag(std_A^2)
+    pinv(H_A)^T``; that of four beams where fewer than three are valid (no estimate)."""
+    out = np.empty((len(valid), 3, 3))
+    pattern = valid @ (1 << np.arange(4))
+    for code in np.unique(pattern):
+        use = (code >> np.arange(4)) & 1 == 1
+        if use.sum() < 3:
+            use[:] = True
+        g = np.linalg.pinv(h[use])
+        out[pattern == code] = g @ np.diag(std[use] ** 2) @ g.T
+    return out
 
 
 def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarray,
@@ -306,7 +334,7 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
         z: (S, 3) velocity measurements, m/s, in any order (sorted by mission and time
             here, and the estimates put back in the input order); a row with a NaN is
             no measurement (a prediction step; NaN estimates until the first one).
-        cov: (3, 3) measurement noise covariance, (m/s)^2.
+        cov: (S, 3, 3) measurement noise covariance of each row, (m/s)^2.
         mission, time: (S,) mission index and time, s, of each sample.
         q_grid: (G,) random-walk intensities, m/s per sqrt(s).
         gate: restart from the measurement where its normalised innovation squared
@@ -337,7 +365,7 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
     eye = np.eye(3)
     measured = np.isfinite(z).all(axis=1)
     x = np.broadcast_to(z[rows[:, 0]], (g, n_seq, 3)).copy()
-    p = np.broadcast_to(cov, (g, n_seq, 3, 3)).copy()
+    p = np.broadcast_to(cov[rows[:, 0]], (g, n_seq, 3, 3)).copy()
     started = measured[rows[:, 0]]  # (n_seq,): a sequence's first measurement came
     out = np.empty((n_seq, n_steps, 3)) if target is None else None
     sse = np.zeros(g)
@@ -345,7 +373,8 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
     for k in range(n_steps):
         if k > 0:
             p_prior = p + q2 * dt[:, k, None, None] * eye
-            s_inv = np.linalg.inv(p_prior + cov)
+            r_k = cov[rows[:, k]]  # (n_seq, 3, 3)
+            s_inv = np.linalg.inv(p_prior + r_k)
             gain = p_prior @ s_inv
             innovation = z[rows[:, k]] - x
             x_new = x + np.einsum("gnij,gnj->gni", gain, innovation)
@@ -365,7 +394,7 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
                 update, reset = update & ~restart, reset | restart
             x = np.where(update[..., None], x_new, np.where(reset[..., None], z[rows[:, k]], x))
             p = np.where(update[..., None, None], p_new,
-                         np.where(reset[..., None, None], cov,
+                         np.where(reset[..., None, None], r_k,
                                   np.where(coast[:, None, None], p_prior, p)))
             started = started | first
         if target is None:

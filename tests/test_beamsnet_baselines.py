@@ -86,7 +86,8 @@ def noisy(tmp_path_factory):
 
 def estimators():
     return [LeastSquares(), AffineCalibration(), BeamCalibration(), ScaleOffset(),
-            KalmanFilter(), KalmanFilter(calibrate=False), KalmanFilter(gate=None)]
+            KalmanFilter(), KalmanFilter(calibrate=False), KalmanFilter(calibrate="beam"),
+            KalmanFilter(gate=None)]
 
 
 def test_least_squares_is_the_files_velocity_ls(noisy):
@@ -270,3 +271,29 @@ def test_kalman_filter_restarts_on_a_speed_step_a_fixed_small_q_does_not():
     for kf in (gated, fixed):
         train_rmse[kf.name] = rmse(kf.predict(train), train.target)
     assert train_rmse["KF (LS input)"] < 1.1 * train_rmse["KF (LS input, no gate)"]
+
+
+def test_kalman_filter_on_the_beam_calibration_filters_three_beam_pings():
+    """Fitted on straight legs along x, run at a constant velocity across them with beam 1
+    dead on the second half: the beam-calibrated filter keeps an estimate on every ping,
+    with the 3-beam R there, and averages (measured: 0.18 x the beam calibration's RMSE);
+    the affine one is off the line it was fitted on (measured: 940 x the error), and
+    coasts through the dead leg."""
+    legs = [np.tile([speed, 0.0, 0.0], (300, 1)) for speed in (1.0, 2.0, 3.0)]
+    train = synthetic(legs, scale=SCALE, bias=BIAS, noise=2e-3, seed=8)  # as paper-sim
+    w = synthetic([np.tile([0.3, 1.2, 0.05], (400, 1))], scale=SCALE, bias=BIAS,
+                  noise=2e-3, seed=9)
+    dead = (np.arange(len(w.time)) >= 200)[:, None] & (np.arange(4) == 1)
+    w = w._replace(beams=np.where(dead, np.nan, w.beams))
+    kf = KalmanFilter(calibrate="beam").fit(train)
+    pred = kf.predict(w)
+    assert availability(pred) == 1.0
+    calibrated = BeamCalibration().fit(train).predict(w)
+    assert rmse(pred, w.target) < 0.25 * rmse(calibrated, w.target)
+    # its R on a 3-beam ping is that of LS on those three corrected beams
+    _, cov = kf._measurement(w)
+    g = np.linalg.pinv(H[[0, 2, 3]])
+    std = kf.r / (1 + kf.calibration.scale[[0, 2, 3]])
+    np.testing.assert_allclose(cov[-1], g @ np.diag(std ** 2) @ g.T, rtol=1e-12, atol=0)
+    affine = KalmanFilter().fit(train).predict(w)
+    assert rmse(affine, w.target) > 10 * rmse(pred, w.target)
