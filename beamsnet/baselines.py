@@ -10,8 +10,8 @@
   LS on the corrected beams (3 beams suffice).
 * ``ScaleOffset``: ``v = k v_LS + c``, 4 parameters on the LS velocity (3 beams suffice).
 * ``KalmanFilter``: a random-walk velocity filter over each mission's pings, on the
-  calibrated (default) or the raw LS velocity: removes much of the white-noise part, and
-  restarts on a manoeuvre its innovations reveal.
+  affine-calibrated (default), the beam-calibrated or the raw LS velocity: removes much
+  of the white-noise part, and restarts on a manoeuvre its innovations reveal.
 
 ``availability`` is the share of samples an estimator gives an estimate for.
 """
@@ -244,10 +244,10 @@ class KalmanFilter:
     ``dv^2 / sigma^2 > gate`` (dv > 4.0 sigma). ``gate=None``: no test, the filter of
     before.
 
-    A sample whose
-    measurement is missing (a beam without bottom lock: the calibration needs all four)
-    is a prediction step only: the estimate holds and its covariance grows; before a
-    mission's first measurement there is no estimate (NaN).
+    A sample without a measurement (a beam without bottom lock for the affine calibration,
+    which needs all four; two for LS and the beam calibration) is a prediction step only:
+    the estimate holds and its covariance grows; before a mission's first measurement
+    there is no estimate (NaN).
 
     Attributes (after fit): r (m/s), q (m/s per sqrt(s)), calibration (or None),
     train_rmse (q -> training RMSE, m/s).
