@@ -1,4 +1,5 @@
-"""beamsnet.baselines: LS, affine calibration and the Kalman filter on auvsim datasets."""
+"""beamsnet.baselines: LS, the calibrations and the Kalman filter, on auvsim datasets and
+on synthetic samples with a known beam matrix, scale factors and biases."""
 
 from __future__ import annotations
 
@@ -7,13 +8,52 @@ import pytest
 from conftest import flat, mission, write
 
 from auvsim.config import DvlConfig
+from auvsim.sensors.dvl import beam_matrix, least_squares
 from beamsnet.baselines import (
     AffineCalibration,
+    BeamCalibration,
     KalmanFilter,
     LeastSquares,
+    ScaleOffset,
+    availability,
 )
-from beamsnet.data import load_windows, select, split
+from beamsnet.data import Windows, load_windows, select, split
 from beamsnet.metrics import rmse_vector as rmse
+
+H = beam_matrix(np.radians(20.0))
+SCALE = np.array([0.007, -0.004, 0.01, 0.002])
+BIAS = np.array([1e-3, -2e-3, 5e-4, 0.0])  # m/s
+
+
+def synthetic(velocities, *, scale=0.0, bias=0.0, noise=0.0, seed=0, n_past=3,
+              beams=None) -> Windows:
+    """Windows of missions flying ``velocities`` (a list of (N, 3) DVL velocities per ping,
+    m/s, pings 1 s apart) with eq. 7's errors ``y = (1 + s) H v + b + noise N(0, 1)``, or
+    with the measured ``beams`` given (a list of (N, 4), NaN: missing). Every ping from
+    n_past on is a sample, as ``load_windows(every_ping=True)`` cuts them."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for i, v in enumerate(velocities):
+        y = ((1 + np.asarray(scale)) * (v @ H.T) + bias
+             + noise * rng.standard_normal((len(v), 4))) if beams is None else beams[i]
+        ks = np.arange(n_past, len(v))
+        parts.append(dict(beams=y[ks], past_beams=y[ks[:, None] + np.arange(-n_past, 0)],
+                          target=v[ks], mission=np.full(len(ks), i), time=ks.astype(float)))
+    cat = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return Windows(accel=None, gyro=None, velocity_ls=least_squares(cat["beams"], H),
+                   names=tuple(f"m{i}" for i in range(len(velocities))), h=H, **cat)
+
+
+def straight_and_turned(rng, *, n=600, sway=0.0):
+    """Velocities of a straight line at 0.5 to 3 m/s along x (with a white sway of ``sway``
+    m/s on y and z), of a leg along y at 0.5 to 2 m/s, and of random mostly horizontal
+    directions at 0.5 to 2.5 m/s."""
+    line = np.column_stack([np.linspace(0.5, 3.0, n), sway * rng.standard_normal((n, 2))])
+    along_y = np.column_stack([0.02 * rng.standard_normal(n), np.linspace(0.5, 2.0, n),
+                               np.zeros(n)])
+    d = rng.standard_normal((n, 3)) * [1.0, 1.0, 0.2]
+    mixed = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.uniform(0.5, 2.5, (n, 1))
+    return line, along_y, mixed
 
 
 def make(tmp_path_factory, name: str, dvl: DvlConfig, missions=None):
@@ -45,8 +85,9 @@ def noisy(tmp_path_factory):
 
 
 def estimators():
-    return [LeastSquares(), AffineCalibration(), KalmanFilter(),
-            KalmanFilter(calibrate=False)]
+    return [LeastSquares(), AffineCalibration(), BeamCalibration(), ScaleOffset(),
+            KalmanFilter(), KalmanFilter(calibrate=False), KalmanFilter(calibrate="beam"),
+            KalmanFilter(gate=None)]
 
 
 def test_least_squares_is_the_files_velocity_ls(noisy):
@@ -124,3 +165,135 @@ def test_every_estimator_has_the_same_interface(noisy):
         assert isinstance(estimator.name, str)
         names.add(estimator.name)
     assert len(names) == len(estimators())
+
+
+def test_beam_calibration_recovers_eq7_and_transfers_where_affine_does_not():
+    rng = np.random.default_rng(1)
+    line, along_y, mixed = straight_and_turned(rng)
+    train = synthetic([line], scale=SCALE, bias=BIAS)
+    beam, affine = BeamCalibration().fit(train), AffineCalibration().fit(train)
+    # noise-free: eq. 7's own 8 parameters exactly, from a straight line along x ...
+    np.testing.assert_allclose(beam.scale, SCALE, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(beam.bias, BIAS, rtol=0, atol=1e-12)
+    for v in (line, along_y, mixed):  # ... and so exact in every direction
+        w = synthetic([v], scale=SCALE, bias=BIAS)
+        np.testing.assert_allclose(beam.predict(w), w.target, rtol=0, atol=1e-12)
+    # The affine map is exact on the line it saw, but nothing constrained its cross-axis
+    # terms (the training beams span one direction): off it, it is far off (1.3 m/s here).
+    np.testing.assert_allclose(affine.predict(train), train.target, rtol=0, atol=1e-12)
+    for v in (along_y, mixed):
+        w = synthetic([v], scale=SCALE, bias=BIAS)
+        assert rmse(affine.predict(w), w.target) > 0.5
+
+
+def test_beam_calibration_transfers_with_noise_and_sway():
+    """A straight line with 1 cm/s of sway and 2 mm/s beam noise: the affine map fits its
+    cross-axis terms to the sway and noise; the per-beam fit stays at the noise level."""
+    rng = np.random.default_rng(1)
+    line, along_y, mixed = straight_and_turned(rng, sway=0.01)
+    train = synthetic([line], scale=SCALE, bias=BIAS, noise=2e-3, seed=2)
+    beam, affine = BeamCalibration().fit(train), AffineCalibration().fit(train)
+    assert np.abs(beam.scale - SCALE).max() < 2e-3 and np.abs(beam.bias - BIAS).max() < 1e-3
+    # LS on 4 beams with noise sigma: x and y each sigma / (sqrt(2) sin a), z
+    # sigma / (2 cos a), so sigma sqrt(1 / sin^2 a + 1 / (4 cos^2 a)) = 5.9 mm/s at 20 deg
+    a = np.radians(20)
+    floor = 2e-3 * np.sqrt(1 / np.sin(a) ** 2 + 1 / (4 * np.cos(a) ** 2))
+    for seed, v in enumerate((along_y, mixed), start=3):
+        w = synthetic([v], scale=SCALE, bias=BIAS, noise=2e-3, seed=seed)
+        e_beam, e_affine = rmse(beam.predict(w), w.target), rmse(affine.predict(w), w.target)
+        assert e_beam < 1.05 * floor  # measured: 1.006 and 0.99 x the noise floor
+        assert e_affine > 10 * e_beam  # measured: 34 and 28 x on the y leg and mixed
+
+
+def test_beam_calibration_and_scale_offset_work_on_three_beams():
+    rng = np.random.default_rng(1)
+    line, _, mixed = straight_and_turned(rng)
+    common = np.full(4, 0.007)  # the paper's single scale factor: ScaleOffset's model
+    train = synthetic([line], scale=common, bias=BIAS)
+    w = synthetic([mixed], scale=common, bias=BIAS)
+    dead = w._replace(beams=np.where(np.arange(4) == 1, np.nan, w.beams))
+    two = w._replace(beams=np.where(np.arange(4) < 2, np.nan, w.beams))
+    beam, scale_offset = BeamCalibration().fit(train), ScaleOffset().fit(train)
+    np.testing.assert_allclose(beam.predict(dead), w.target, rtol=0, atol=1e-12)
+    # LS of (1 + s) H v + b is (1 + s) v + pinv(H) b: k = 1 / (1 + s), exact on 4 beams
+    assert scale_offset.k == pytest.approx(1 / 1.007, abs=1e-12)
+    np.testing.assert_allclose(scale_offset.predict(w), w.target, rtol=0, atol=1e-12)
+    # On 3 beams the bias enters LS as inv(H_3) b_3 instead: that difference, times k,
+    # is the error of an offset fitted on 4 beams (3.6 mm/s here)
+    use = np.arange(4) != 1
+    shift = np.linalg.solve(H[use], BIAS[use]) - np.linalg.pinv(H) @ BIAS
+    np.testing.assert_allclose(scale_offset.predict(dead) - w.target,
+                               np.broadcast_to(scale_offset.k * shift, w.target.shape),
+                               rtol=0, atol=1e-12)
+    for estimator in (beam, scale_offset):
+        assert np.isnan(estimator.predict(two)).all()
+    # per-beam scale factors that differ are beyond its 4 parameters
+    w = synthetic([mixed], scale=SCALE, bias=BIAS)
+    train = synthetic([line], scale=SCALE, bias=BIAS)
+    assert rmse(ScaleOffset().fit(train).predict(w), w.target) > 1e-3
+
+
+def test_availability():
+    assert availability(np.array([[1.0, 2, 3], [np.nan, 0, 0], [4, 5, 6], [7, 8, 9]])) == 0.75
+    assert np.isnan(availability(np.empty((0, 3))))
+    with pytest.raises(ValueError, match=r"\(S, 3\)"):
+        availability(np.zeros((3, 4)))
+
+
+def test_kalman_filter_restarts_on_a_speed_step_a_fixed_small_q_does_not():
+    """Along x, a step of dv = 0.5 m/s after n0 = 200 samples at 1 m/s, beam noise 2 mm/s.
+
+    The LS x-velocity's noise is sigma_x = sigma / (sqrt(2) sin 20 deg) = 4.1 mm/s, so the
+    step's innovation squared is about (dv / sigma_x)^2 = 1.5e4, far above the gate (16.3): the
+    filter restarts on the step's own ping (N = 0 pings late) and from then on its error is
+    never more than the measurement's (below 5 sigma_x). With q -> 0 and no gate the
+    estimate is the mean of all measurements, whose error j pings after the step is
+    dv n0 / (n0 + j + 1): 0.25 m/s at the end.
+    """
+    n0, n1, dv, sigma = 200, 200, 0.5, 2e-3
+    v = np.zeros((n0 + n1 + 3, 3))
+    v[:, 0] = 1.0
+    v[n0 + 3:, 0] += dv  # synthetic() drops the first n_past = 3 pings
+    test = synthetic([v], noise=sigma, seed=5)
+    train = synthetic([np.tile([1.0, 0.0, 0.0], (403, 1))], noise=sigma, seed=6)
+    gated = KalmanFilter(calibrate=False, q_grid=[1e-6]).fit(train)
+    fixed = KalmanFilter(calibrate=False, q_grid=[1e-6], gate=None).fit(train)
+    sigma_x = sigma / (np.sqrt(2) * np.sin(np.radians(20)))
+    after = slice(n0, None)
+    error = gated.predict(test)[after, 0] - test.target[after, 0]
+    assert np.abs(error).max() < 5 * sigma_x
+    error = fixed.predict(test)[after, 0] - test.target[after, 0]
+    j = np.arange(n1)
+    np.testing.assert_allclose(error, -dv * n0 / (n0 + j + 1), rtol=0, atol=5 * sigma_x)
+    assert abs(error[-1]) > 0.2
+    # At constant velocity the gate costs little: about one false restart in 1000 pings.
+    train_rmse = {}
+    for kf in (gated, fixed):
+        train_rmse[kf.name] = rmse(kf.predict(train), train.target)
+    assert train_rmse["KF (LS input)"] < 1.1 * train_rmse["KF (LS input, no gate)"]
+
+
+def test_kalman_filter_on_the_beam_calibration_filters_three_beam_pings():
+    """Fitted on straight legs along x, run at a constant velocity across them with beam 1
+    dead on the second half: the beam-calibrated filter keeps an estimate on every ping,
+    with the 3-beam R there, and averages (measured: 0.18 x the beam calibration's RMSE);
+    the affine one is off the line it was fitted on (measured: 940 x the error), and
+    coasts through the dead leg."""
+    legs = [np.tile([speed, 0.0, 0.0], (300, 1)) for speed in (1.0, 2.0, 3.0)]
+    train = synthetic(legs, scale=SCALE, bias=BIAS, noise=2e-3, seed=8)  # as paper-sim
+    w = synthetic([np.tile([0.3, 1.2, 0.05], (400, 1))], scale=SCALE, bias=BIAS,
+                  noise=2e-3, seed=9)
+    dead = (np.arange(len(w.time)) >= 200)[:, None] & (np.arange(4) == 1)
+    w = w._replace(beams=np.where(dead, np.nan, w.beams))
+    kf = KalmanFilter(calibrate="beam").fit(train)
+    pred = kf.predict(w)
+    assert availability(pred) == 1.0
+    calibrated = BeamCalibration().fit(train).predict(w)
+    assert rmse(pred, w.target) < 0.25 * rmse(calibrated, w.target)
+    # its R on a 3-beam ping is that of LS on those three corrected beams
+    _, cov = kf._measurement(w)
+    g = np.linalg.pinv(H[[0, 2, 3]])
+    std = kf.r / (1 + kf.calibration.scale[[0, 2, 3]])
+    np.testing.assert_allclose(cov[-1], g @ np.diag(std ** 2) @ g.T, rtol=1e-12, atol=0)
+    affine = KalmanFilter().fit(train).predict(w)
+    assert rmse(affine, w.target) > 10 * rmse(pred, w.target)
