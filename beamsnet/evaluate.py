@@ -25,8 +25,15 @@ from auvsim.errors import ConfigError
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
-from .baselines import AffineCalibration, KalmanFilter, LeastSquares
+from .baselines import (
+    AffineCalibration,
+    BeamCalibration,
+    KalmanFilter,
+    LeastSquares,
+    ScaleOffset,
+)
 from .data import DataError, Windows, load_windows, split
+from .missing import MissingBeamRegressor
 from .train import (
     SENSOR_ERRORS,
     SENSOR_GEOMETRY,
@@ -136,7 +143,8 @@ def _value(value) -> str:
 def baselines() -> list:
     """Every model-based estimator that works on the windows alone, unfitted, LS first
     (every table's reference row)."""
-    return [LeastSquares(), AffineCalibration(), KalmanFilter()]
+    return [LeastSquares(), AffineCalibration(), BeamCalibration(), ScaleOffset(),
+            KalmanFilter(), KalmanFilter(calibrate="beam"), MissingBeamRegressor()]
 
 
 def filters(dataset: str | Path) -> list:

@@ -93,6 +93,8 @@ SWEEPS = {
 }
 # What an estimator needs of a ping to give an estimate, for the table's n/a.
 NEEDS = {"LS": "needs 3 beams", "Affine": "needs 4 beams", "KF": "needs 4 beams",
+         "Beam calibration": "needs 3 beams", "LS scale+offset": "needs 3 beams",
+         "KF (beam calibration)": "needs 3 beams", "Missing-beam LS": "needs past pings",
          "BeamsNetV1": "needs 4 beams", "BeamsNetV2": "needs 4 beams on 4 pings"}
 
 

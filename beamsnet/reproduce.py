@@ -185,9 +185,9 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
              progress: bool = True) -> Path:
     """``beamsnet reproduce sim2real`` (``beamsnet.sim2real``) on the Snapir streams in
     ``data``."""
-    from . import sim2real as experiment
-
     from auvsim.errors import ConfigError
+
+    from . import sim2real as experiment
 
     check_out_dir(out)
     seeds = experiment.SEEDS if seeds is None else seeds
