@@ -24,7 +24,8 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "model": "--model", "train_data": "--train", "maneuver_data": "--maneuvers",
          "allow_mismatch": "--allow-mismatch", "faults": "--faults",
          "fault_duration": "--fault-duration", "fault_missions": "--fault-mission",
-         "seeds": "--seeds", "duration": "--duration", "noise": "--noise"}
+         "seeds": "--seeds", "duration": "--duration", "noise": "--noise",
+         "estimator": "--estimator", "train": "--train"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
@@ -87,6 +88,18 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
+    es = sub.add_parser(
+        "estimate", help="run one model-based estimator (LS, a calibration, a Kalman "
+        "filter, the missing-beam regressor, the INS/DVL filter) over every ping of a "
+        "dataset", formatter_class=_Defaults)
+    es.add_argument("dataset", type=Path)
+    es.add_argument("--estimator", required=True,
+                    help="its name in the tables (case, spaces and dashes do not matter), "
+                    "e.g. LS, Affine, beam-calibration, KF, missing-beam-LS, INS/DVL")
+    es.add_argument("--train", type=Path, dest="train",
+                    help="fit on this file's training split (default: the dataset's own)")
+    es.add_argument("--out", type=Path, default=Path("reports/estimate"),
+                    help="directory for estimates.csv and summary.json")
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
@@ -183,6 +196,20 @@ def _evaluate(args) -> None:
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
 
 
+def _estimate(args) -> None:
+    from .evaluate import estimate
+
+    summary = estimate(args.estimator, args.dataset, args.out, train=args.train)
+    for mission, row in summary["missions"].items():
+        said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"]
+        if "rmse_vector" in row:
+            said.append(f"vector RMSE {row['rmse_vector']:.4f} m/s")
+        if "dr_error" in row:
+            said.append(f"position error after the mission {row['dr_error']:.2f} m")
+        print(f"{summary['estimator']} on {mission}: " + ", ".join(said))
+    print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")
+
+
 def _reproduce(args) -> None:
     from .reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
 
@@ -236,7 +263,8 @@ def main(argv: list[str] | None = None) -> int:
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
         try:
-            {"train": _train, "evaluate": _evaluate, "reproduce": _reproduce,
+            {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
+             "reproduce": _reproduce,
              "stress": _stress}[args.command](args)
         except AuvsimError as e:
             print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)

@@ -147,10 +147,19 @@ def baselines() -> list:
             KalmanFilter(), KalmanFilter(calibrate="beam"), MissingBeamRegressor()]
 
 
-def filters(dataset: str | Path) -> list:
+# The estimators ``filters`` gives, by name.
+FILTER_NAMES = ("INS/DVL",)
+
+
+def filters(dataset: str | Path, *, strict: bool = False) -> list:
     """The estimators that run on the file itself (``dataset``, the one the test windows
     come from), unfitted: the INS/DVL filter, when the file has an IMU record (it
-    integrates the IMU between pings, which a window holds only in part)."""
+    integrates the IMU between pings, which a window holds only in part).
+
+    Raises:
+        DataError: with ``strict``, the file has no IMU record (one line saying so);
+            without, that filter is left out.
+    """
     return []
 
 
@@ -274,3 +283,104 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
     ax_m.set_title("per mission")
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
+
+
+def find_estimator(name: str, dataset: str | Path) -> object:
+    """The model-based estimator (or filter on ``dataset``) whose table name is ``name``,
+    unfitted; case, spaces and dashes do not matter (``beam-calibration``).
+
+    Raises:
+        ConfigError: no estimator has that name (the message lists them); or the INS/DVL
+            filter on a file without an IMU record (its own one-line reason).
+    """
+    def key(text: str) -> str:
+        return text.lower().replace("-", " ").replace("_", " ")
+
+    for estimator in baselines():
+        if key(estimator.name) == key(name):
+            return estimator
+    try:
+        found = filters(dataset, strict=True)
+    except DataError as e:
+        if key(name) in map(key, FILTER_NAMES):
+            raise ConfigError(str(e), argument="estimator") from None
+        found = []
+    for estimator in found:
+        if key(estimator.name) == key(name):
+            return estimator
+    known = [e.name for e in baselines()] + list(FILTER_NAMES)
+    raise ConfigError(f": no estimator is called {name!r}; expected one of "
+                      f"{', '.join(map(repr, known))}", argument="estimator")
+
+
+def estimate(name: str, dataset: str | Path, out: str | Path, *,
+             train: str | Path | None = None) -> dict:
+    """Run one model-based estimator over every ping of ``dataset`` and write its
+    velocity (and position, for a filter) beside the truth: ``out/estimates.csv``, and
+    ``out/summary.json`` with its availability, vector RMSE and dead-reckoning error per
+    mission.
+
+    Args:
+        name: the estimator's table name (``find_estimator``).
+        dataset: the file to estimate on: every ping with its past pings
+            (``load_windows(every_ping=True)``).
+        out: the directory to write, made once every input has been checked.
+        train: the file whose training split the estimator is fitted on (default the
+            training split of ``dataset`` itself).
+
+    Returns:
+        The summary.
+
+    Raises:
+        ConfigError: an unknown estimator or the filter on a file without IMU; DataError:
+            a file gives no samples.
+    """
+    from .stress import _truth_at_pings, dead_reckoning_error, own_position_error
+
+    out = check_out_dir(out)
+    estimator = find_estimator(name, dataset)
+    windows = load_windows(dataset, every_ping=True)
+    try:
+        train_w = split(load_windows(dataset if train is None else train))[0]
+    except ValueError as e:
+        raise DataError(f"{train or dataset}: {e}") from None
+    pred = estimator.fit(train_w).predict(windows)
+    positions = estimator.positions(windows) if hasattr(estimator, "positions") else None
+    has_truth = all(_has_truth(dataset, n) for n in windows.names)
+    summary = dict(estimator=estimator.name, dataset=str(dataset),
+                   train=str(train or dataset), pings=len(pred),
+                   availability=float(np.isfinite(pred).all(axis=1).mean()), missions={})
+    truth = _truth_at_pings(dataset, windows) if has_truth else None
+    for i, mission in enumerate(windows.names):
+        mine = windows.mission == i
+        have = mine & np.isfinite(pred).all(axis=1)
+        row = dict(pings=int(mine.sum()), availability=float(have.sum() / mine.sum()))
+        if have.any():
+            row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
+        if truth is not None:
+            from .faults import held
+
+            row["dr_error"] = (own_position_error(windows, positions, truth, i)
+                               if positions is not None else
+                               dead_reckoning_error(windows, held(windows, pred), truth, i)[0])
+        summary["missions"][mission] = row
+    columns = ["mission", "time", "vx", "vy", "vz", "true_vx", "true_vy", "true_vz"]
+    table = [windows.names[m] for m in windows.mission], windows.time, *pred.T, \
+        *windows.target.T
+    if positions is not None:
+        columns += ["north", "east", "down"]
+        table += tuple(positions.T)
+    lines = [",".join(columns)] + [
+        ",".join(v if isinstance(v, str) else f"{v:.9g}" for v in row)
+        for row in zip(*table, strict=True)]
+    make_out_dir(out)
+    write_text(out / "estimates.csv", "\n".join(lines) + "\n")
+    write_text(out / "summary.json", json.dumps(summary, indent=1))
+    return summary
+
+
+def _has_truth(dataset, mission: str) -> bool:
+    from auvsim.dataset import open_dataset
+
+    with open_dataset(dataset) as f:
+        return f.missions[mission].has("truth")
