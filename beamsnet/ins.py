@@ -41,7 +41,8 @@ DVL, ``auvsim.sensors.dvl``)::
 with M the nominal mounting (DVL frame -> body) and L = r_dvl - r_imu, so each usable
 beam (``valid`` and bottom track) is one scalar update (Groves sec. 3.2.5: sequential
 processing of uncorrelated measurements) and one to four beams all help. Each innovation
-is gated by chi-square with 1 dof at ``gate_probability``.
+is gated by chi-square with 1 dof at ``gate_probability``. A ping whose beams all lack
+bottom lock leaves the prior: the track still has a velocity at every ping.
 """
 
 from __future__ import annotations
@@ -97,6 +98,8 @@ class FilterConfig:
             0.999 rejects 0.1 % of good beams (3.29 sigma) and a 10 sigma outlier always.
         beam_noise_std: m/s per beam; None: the dataset's ``dvl_noise_std``, at least
             ``BEAM_NOISE_FLOOR``.
+        dvl_updates: False: no beam is used, pure inertial navigation from the start
+            (the mechanisation alone, as in a DVL outage).
         accel_noise_density: m/s^2/sqrt(Hz); None: the dataset's.
         gyro_noise_density: rad/s/sqrt(Hz); None: the dataset's.
         accel_bias_psd: accelerometer bias random-walk PSD, (m/s^2)^2/s; None:
@@ -119,6 +122,7 @@ class FilterConfig:
     beam_bias_std: float = 0.01
     gate_probability: float = 0.999
     beam_noise_std: float | None = None
+    dvl_updates: bool = True
     accel_noise_density: float | None = None
     gyro_noise_density: float | None = None
     accel_bias_psd: float | None = None
@@ -156,21 +160,40 @@ class FilterTrack(NamedTuple):
     nees_velocity: np.ndarray  # (P,) e^T cov^-1 e of velocity_dvl against dvl/velocity
 
 
-def _skew(a: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
 @numba.njit(cache=True)
-def _exp(phi):
-    """Rotation matrix of rotation vector phi (Rodrigues; Groves eq. 2.39)."""
+def _exp_into(phi, out):
+    """out <- the rotation matrix of rotation vector phi (Rodrigues; Groves eq. 2.39)."""
     t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
     if t2 < 1e-12:
         a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
     else:
         t = math.sqrt(t2)
         a, b = math.sin(t) / t, (1.0 - math.cos(t)) / t2
-    k = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
-    return np.eye(3) + a * k + b * (k @ k)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = b * phi[i] * phi[j]  # (1 - cos) / t^2 (phi phi^T - t^2 I) + I
+        out[i, i] += 1.0 - b * t2
+    out[0, 1] -= a * phi[2]
+    out[1, 0] += a * phi[2]
+    out[0, 2] += a * phi[1]
+    out[2, 0] -= a * phi[1]
+    out[1, 2] -= a * phi[0]
+    out[2, 1] += a * phi[0]
+
+
+@numba.njit(cache=True)
+def _exp(phi):
+    out = np.empty((3, 3))
+    _exp_into(phi, out)
+    return out
+
+
+@numba.njit(cache=True)
+def _matmul_into(a, b, out):
+    """out <- a b for 3x3 matrices (no BLAS call, no allocation)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
 @numba.njit(cache=True)
@@ -226,25 +249,36 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
     gmb = mounting @ h.T  # (3, 4): M b_k, beam directions in the body
     k_ping = 0
     hrow = np.zeros(n)
+    fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+    c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(f.shape[0]):
         if i > 0:
-            fb = f[i - 1] - ba
-            cf = c @ fb
-            v_new = v + dt * cf
-            v_new[2] += dt * g
+            for r in range(3):
+                fb[r] = f[i - 1, r] - ba[r]
+                wb[r] = w[i, r] - bg[r]
+            for r in range(3):
+                cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
             if earth:
-                v_new -= 2.0 * dt * np.cross(omega_ie, v)
-            p += dt * v_new
-            v[:] = v_new
-            wb = w[i] - bg
-            if earth:
+                cor[:] = np.cross(omega_ie, v)
                 wb -= c.T @ omega_ie
-            c_old = c.copy()
-            c[:, :] = c @ _exp(dt * wb)
+                cf -= 2.0 * cor
+            cf[2] += g
+            for r in range(3):
+                v[r] += dt * cf[r]
+                p[r] += dt * v[r]
+                dphi[r] = dt * wb[r]
+                c_old[r, :] = c[r, :]
+            cf[2] -= g  # C f (less the Coriolis term) is what the error dynamics see
+            if earth:
+                cf += 2.0 * cor
+            _exp_into(dphi, rot)
+            _matmul_into(c_old, rot, c)
             # Covariance: Phi P Phi^T (columns, then rows of the result), + Q dt.
-            m_va = -dt * np.array([[0.0, -cf[2], cf[1]], [cf[2], 0.0, -cf[0]],
-                                   [-cf[1], cf[0], 0.0]])
-            m_c = -dt * c_old
+            m_va[0, 1], m_va[0, 2], m_va[1, 2] = dt * cf[2], -dt * cf[1], dt * cf[0]
+            m_va[1, 0], m_va[2, 0], m_va[2, 1] = -dt * cf[2], dt * cf[1], -dt * cf[0]
+            for r in range(3):
+                for j in range(3):
+                    m_c[r, j] = -dt * c_old[r, j]
             for j in range(n):
                 _phi_apply(P[:, j], dt, m_va, m_c, m_c, m_vv, m_aa)
             for j in range(n):
@@ -417,7 +451,11 @@ def run_mission(mission, config: FilterConfig = FilterConfig()) -> FilterTrack:
     dvl = mission.dvl
     beams = np.asarray(dvl.beam_velocity, dtype=float)
     mode = dvl.mode if "mode" in dvl else np.zeros(len(beams), dtype=np.int64)
-    usable = np.asarray(dvl.valid, dtype=bool) & (mode == 0)[:, None] & np.isfinite(beams)
+    # A beam with bottom lock measures the velocity over ground whether or not the ping
+    # has the 3 such beams an LS velocity needs (mode 0 or -1; ``valid`` is the lock
+    # there); in water track (mode 1) ``valid`` means it measured the water: not used.
+    usable = (np.asarray(dvl.valid, dtype=bool) & (mode != 1)[:, None] & np.isfinite(beams)
+              & cfg.dvl_updates)
     ping_row = np.asarray(mission.imu.index_of_dvl, dtype=np.int64)
     out_v, cov, pos, pos_std, b, used, rejected = _filter(
         f, w, 1.0 / rate, gravity, omega_ie, ping_row, np.nan_to_num(beams), usable, h,
