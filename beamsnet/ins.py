@@ -164,6 +164,10 @@ class FilterTrack(NamedTuple):
     accel_bias_std: np.ndarray  # (P, 3)
     gyro_bias: np.ndarray  # (P, 3) rad/s, body
     gyro_bias_std: np.ndarray  # (P, 3)
+    beam_scale: np.ndarray  # (P, 4) -, each beam's scale factor s_k (NaN: no beam states)
+    beam_scale_std: np.ndarray  # (P, 4)
+    beam_bias: np.ndarray  # (P, 4) m/s, each beam's bias c_k (NaN: no beam states)
+    beam_bias_std: np.ndarray  # (P, 4)
     beams_used: np.ndarray  # (P,) int
     beams_rejected: np.ndarray  # (P,) int, gated out
     nees_velocity: np.ndarray  # (P,) e^T cov^-1 e of velocity_dvl against dvl/velocity
@@ -242,7 +246,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
     out_cov = np.empty((n_ping, 3, 3))
     out_p = np.empty((n_ping, 3))
     out_pstd = np.empty((n_ping, 3))
-    out_b = np.empty((n_ping, 12))
+    out_b = np.full((n_ping, 28), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
     s = np.zeros(4)
@@ -361,6 +365,12 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
                 out_b[k_ping, 3 + r] = math.sqrt(P[9 + r, 9 + r])
                 out_b[k_ping, 6 + r] = bg[r]
                 out_b[k_ping, 9 + r] = math.sqrt(P[12 + r, 12 + r])
+            if n > N_CORE:
+                for k in range(4):
+                    out_b[k_ping, 12 + k] = s[k]
+                    out_b[k_ping, 16 + k] = math.sqrt(P[15 + k, 15 + k])
+                    out_b[k_ping, 20 + k] = cb[k]
+                    out_b[k_ping, 24 + k] = math.sqrt(P[19 + k, 19 + k])
             k_ping += 1
     return out_v, out_cov, out_p, out_pstd, out_b, used, rejected
 
@@ -478,6 +488,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig()) -> FilterTrack:
                        velocity_cov=cov, position_ned=pos, position_std=pos_std,
                        accel_bias=b[:, 0:3], accel_bias_std=b[:, 3:6],
                        gyro_bias=b[:, 6:9], gyro_bias_std=b[:, 9:12],
+                       beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
+                       beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees)
 
 
