@@ -47,6 +47,12 @@ than 3 such beams the ping has no LS velocity (mode -1), but its locked beams st
 measure the velocity over ground. A ping without one leaves the prior, so the track has
 a velocity at every ping.
 
+Not modelled (they make the filter optimistic where the data have them): the IMU's scale
+factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's mounting
+misalignment, sound-speed ratio, range- and speed-dependent noise and heavy-tailed
+outliers (those the gate handles), and the bias's Gauss-Markov decay (a random walk with
+the same drive: the missions are much shorter than tau).
+
 Speed (``benchmarks/filter.py``, 600 s at 100 Hz, one core): the compiled loop runs at
 about 4400x real time, ``run_mission`` with its HDF5 reads at about 2800x (15 states)
 and 2100x (23). The first call compiles the loop (about 30 s) into numba's on-disk cache;
@@ -84,12 +90,15 @@ class NoImuError(DataError):
 
 @dataclass(frozen=True)
 class FilterConfig:
-    """Settings of the INS/DVL filter. Stds are 1 sigma; None: from the dataset.
+    """Settings of the INS/DVL filter. Stds are 1 sigma; None: from the dataset. The
+    default initial stds are our choice, of the order of a navigation-grade INS aligned
+    at the start of a mission.
 
     Attributes:
         position_std: initial position error, m per NED axis.
         velocity_std: initial velocity error, m/s per NED axis.
-        attitude_std_deg: initial attitude error (level axes, heading), deg.
+        attitude_std_deg: initial attitude error (level axes, heading), deg; one number
+            sets both.
         accel_bias_std: initial accelerometer bias std, m/s^2 per axis; None:
             sqrt(turn-on spread^2 + bias instability^2) of the dataset's IMU config.
         gyro_bias_std: initial gyro bias std, rad/s per axis; None: as above.
@@ -119,7 +128,7 @@ class FilterConfig:
 
     position_std: float = 0.1
     velocity_std: float = 0.01
-    attitude_std_deg: tuple[float, float] = (0.01, 0.05)
+    attitude_std_deg: tuple[float, float] | float = (0.01, 0.05)
     accel_bias_std: float | None = None
     gyro_bias_std: float | None = None
     initial_error_seed: int | None = None
@@ -142,6 +151,8 @@ class FilterConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
+        if isinstance(self.attitude_std_deg, (int, float)):  # one std for all three axes
+            object.__setattr__(self, "attitude_std_deg", (float(self.attitude_std_deg),) * 2)
         if len(self.attitude_std_deg) != 2 or min(self.attitude_std_deg) <= 0:
             raise ValueError("FilterConfig.attitude_std_deg: expected two positive stds "
                              f"(level, heading) in deg, got {self.attitude_std_deg!r}")
