@@ -54,22 +54,22 @@ outliers (those the gate handles), and the bias's Gauss-Markov decay (a random w
 the same drive: the missions are much shorter than tau).
 
 Speed (``benchmarks/filter.py``, 600 s at 100 Hz, one core): the compiled loop runs at
-about 4400x real time, ``run_mission`` with its HDF5 reads at about 2800x (15 states)
-and 2100x (23). The first call compiles the loop (about 30 s) into numba's on-disk cache;
-later processes load it in well under a second.
+3400x to 4400x real time, ``run_mission`` with its HDF5 reads at 2200x to 2800x (15
+states) and 1800x to 2100x (23), on a shared machine. The first call compiles the loop
+(about 30 s) into numba's on-disk cache; later processes load it in under a second.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import statistics
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
 
 import numba
 import numpy as np
-from scipy.stats import chi2
 
 from auvsim.dataset import open_dataset
 from auvsim.errors import DatasetError
@@ -491,7 +491,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig()) -> FilterTrack:
     out_v, cov, pos, pos_std, b, used, rejected = _filter(
         f, w, 1.0 / rate, gravity, omega_ie, ping_row, np.nan_to_num(beams), usable, h,
         mounting, r_dvl - r_imu, r_imu, p0.copy(), v0.copy(), c0.copy(), np.zeros(3),
-        np.zeros(3), P, q, sigma_beam**2, float(chi2.ppf(cfg.gate_probability, 1)), n)
+        np.zeros(3), P, q, sigma_beam**2, _chi2_1dof(cfg.gate_probability), n)
     err = out_v - np.asarray(dvl.velocity, dtype=float)
     nees = np.einsum("pi,pi->p", err, np.linalg.solve(cov, err[..., None])[..., 0])
     return FilterTrack(ping_time=np.asarray(dvl.time, dtype=float), velocity_dvl=out_v,
@@ -502,6 +502,11 @@ def run_mission(mission, config: FilterConfig = FilterConfig()) -> FilterTrack:
                        beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
                        beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees)
+
+
+def _chi2_1dof(probability: float) -> float:
+    """Quantile of chi-square with 1 dof: the square of the normal's two-sided one."""
+    return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
 
 
 def _exp_np(phi: np.ndarray) -> np.ndarray:
