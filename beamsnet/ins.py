@@ -529,7 +529,8 @@ def run(path, mission_name: str, config: FilterConfig = FilterConfig()) -> Filte
 class InsDvlFilter:
     """The filter as a beamsnet estimator: nothing is fitted; ``predict`` runs each
     mission of the windows from its start (causal) and returns the posterior DVL-frame
-    velocity at each sample's ping. Tracks are cached per mission."""
+    velocity at each sample's ping. Tracks are cached per mission. A mission without an
+    IMU raises ``NoImuError`` (from ``tracks`` and ``predict``)."""
 
     name = "INS/DVL"
 
@@ -553,7 +554,9 @@ class InsDvlFilter:
         return {name: self._tracks[name] for name in wanted}
 
     def predict(self, windows: Windows) -> np.ndarray:
-        """(S, 3) DVL-frame velocity, m/s, at each sample's ping (matched by time)."""
+        """(S, 3) DVL-frame velocity, m/s, at each sample's ping: the track of mission
+        ``windows.names[windows.mission]`` at the ping whose time is ``windows.time``
+        (NaN if no ping has that time)."""
         tracks = self.tracks(windows)
         out = np.full((len(windows.time), 3), np.nan)
         for i in np.unique(windows.mission):
