@@ -18,7 +18,6 @@ from beamsnet import ins
 from beamsnet.data import load_windows, split
 
 PAPER_NOISE = 0.042**2  # m/s, the paper-sim preset's beam noise
-ZIGZAG = ScenarioConfig(name="zigzag", duration=120.0)
 
 
 def zigzag(duration: float, seed: int = 0) -> MissionConfig:
