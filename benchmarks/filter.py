@@ -1,0 +1,99 @@
+"""INS/DVL filter speed: real-time factor per core, and cost relative to generating the
+same mission.
+
+Generates one mission (navigation-grade IMU at 100 Hz, the paper's 1 Hz DVL noise, a
+zigzag), then runs, side by side and alternating (these machines are noisy):
+
+* ``generate``: ``auvsim generate`` of that mission, HDF5 writing included;
+* ``filter``: ``beamsnet.ins.run_mission`` on it, HDF5 reading included (15 states);
+* ``filter+beams``: the same with the 8 beam states (23 states);
+* ``kernel``: the compiled filter loop alone (15 states), no file reading.
+
+Real-time factor per core = simulated seconds / CPU seconds of this (single-threaded)
+process; the first call (numba compiling, or loading its on-disk cache) is not timed.
+
+    .venv/bin/python benchmarks/filter.py [--duration 600] [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
+from auvsim.dataset import open_dataset
+from auvsim.generate import generate
+from auvsim.sensors.imu import IMU_GRADES
+from beamsnet import ins
+
+
+def cpu_seconds(fn) -> float:
+    start = time.process_time()
+    fn()
+    return time.process_time() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=600.0, help="mission length, s")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+
+    config = Config(missions=(MissionConfig(name="zz", scenario=ScenarioConfig(
+                        name="zigzag", duration=args.duration)),),
+                    dvl=DvlConfig(beam_angle_deg=20.0, noise_std=0.042**2),
+                    imu=IMU_GRADES["navigation"])
+    kernel_times: list[float] = []
+    compiled = ins._filter
+
+    def timed_kernel(*a):
+        start = time.process_time()
+        out = compiled(*a)
+        kernel_times.append(time.process_time() - start)
+        return out
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "bench.h5"
+
+        def full() -> None:
+            generate(config, out, workers=1, progress=False)
+
+        def run(beam_states: bool):
+            def go() -> None:
+                with open_dataset(out) as f:
+                    ins.run_mission(f.missions["zz"], ins.FilterConfig(beam_states=beam_states))
+            return go
+
+        full()  # loads (or compiles) every kernel once, so that none is timed
+        run(False)()
+        run(True)()
+        times: dict[str, list[float]] = {"generate": [], "filter": [], "filter+beams": [],
+                                         "kernel": []}
+        ins._filter = timed_kernel
+        try:
+            for _ in range(args.repeats):
+                times["generate"].append(cpu_seconds(full))
+                kernel_times.clear()
+                times["filter"].append(cpu_seconds(run(False)))
+                times["kernel"].append(kernel_times[0])
+                times["filter+beams"].append(cpu_seconds(run(True)))
+        finally:
+            ins._filter = compiled
+        samples = round(args.duration * config.imu.rate_hz)
+
+    med = {k: statistics.median(v) for k, v in times.items()}
+    print(f"zigzag mission of {args.duration:g} s, {samples} IMU samples at "
+          f"{config.imu.rate_hz:g} Hz, median of {args.repeats} (CPU seconds)")
+    print(f"{'':13s} {'CPU s':>8s} {'us/sample':>10s} {'x real time':>12s} {'x generate':>11s}")
+    for name, t in med.items():
+        print(f"{name:13s} {t:8.3f} {t / samples * 1e6:10.2f} {args.duration / t:12.0f} "
+              f"{t / med['generate']:11.3f}")
+    print(f"target: filter >= 1000x real time per core -> "
+          f"{'met' if args.duration / med['filter'] >= 1000 else 'MISSED'}")
+
+
+if __name__ == "__main__":
+    main()
