@@ -160,7 +160,18 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
         DataError: with ``strict``, the file has no IMU record (one line saying so);
             without, that filter is left out.
     """
-    return []
+    from auvsim.dataset import open_dataset
+
+    from .ins import InsDvlFilter, NoImuError
+
+    with open_dataset(dataset) as f:
+        lacking = [name for name in f.missions if not f.missions[name].has("imu")]
+    if lacking:
+        if strict:
+            raise NoImuError(f"{dataset}: mission {lacking[0]} has no IMU record; the "
+                             "INS/DVL filter integrates the IMU, so it cannot run on it")
+        return []
+    return [InsDvlFilter(dataset)]
 
 
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,

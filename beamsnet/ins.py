@@ -401,12 +401,16 @@ def _dataset_config(mission) -> dict:
     return json.loads(text) if text else {}
 
 
-def run_mission(mission, config: FilterConfig = FilterConfig()) -> FilterTrack:
+def run_mission(mission, config: FilterConfig = FilterConfig(), *,
+                beam_correction: tuple[np.ndarray, np.ndarray] | None = None) -> FilterTrack:
     """Run the filter over one mission from its start.
 
     Args:
         mission: an ``auvsim.dataset`` Mission view of a simulated mission.
         config: the filter's settings.
+        beam_correction: per-beam (scale factors s, biases b (m/s)), each (4,), known from
+            a calibration (``beamsnet.baselines.BeamCalibration``): every beam is used as
+            ``(y - b) / (1 + s)``. None: the beams as measured.
 
     Returns:
         The track at every DVL ping.
@@ -481,6 +485,9 @@ def run_mission(mission, config: FilterConfig = FilterConfig()) -> FilterTrack:
 
     dvl = mission.dvl
     beams = np.asarray(dvl.beam_velocity, dtype=float)
+    if beam_correction is not None:
+        scale, bias = (np.asarray(x, dtype=float) for x in beam_correction)
+        beams = (beams - bias) / (1.0 + scale)
     mode = dvl.mode if "mode" in dvl else np.zeros(len(beams), dtype=np.int64)
     # A beam with bottom lock measures the velocity over ground whether or not the ping
     # has the 3 such beams an LS velocity needs (mode 0 or -1; ``valid`` is the lock
@@ -527,20 +534,37 @@ def run(path, mission_name: str, config: FilterConfig = FilterConfig()) -> Filte
 
 
 class InsDvlFilter:
-    """The filter as a beamsnet estimator: nothing is fitted; ``predict`` runs each
-    mission of the windows from its start (causal) and returns the posterior DVL-frame
-    velocity at each sample's ping. Tracks are cached per mission. A mission without an
-    IMU raises ``NoImuError`` (from ``tracks`` and ``predict``)."""
+    """The filter as a beamsnet estimator: ``fit`` learns the DVL's per-beam scale factors
+    and biases on the training split (``BeamCalibration``: the systematic beam errors of
+    eq. 7, which the IMU cannot tell from the velocity on a steady leg, as every other
+    calibrated estimator of the tables learns them), ``predict`` runs each mission of the
+    windows from its start (causal) on the corrected beams and returns the posterior
+    DVL-frame velocity at each sample's ping, ``positions`` its position. Tracks are cached
+    per mission until the next ``fit``. A mission without an IMU raises ``NoImuError``
+    (from ``tracks`` and ``predict``)."""
 
     name = "INS/DVL"
 
-    def __init__(self, dataset, config: FilterConfig | None = None) -> None:
-        """Args: dataset: path of the file the windows come from; config: settings."""
+    def __init__(self, dataset, config: FilterConfig | None = None, *,
+                 calibrate: bool = True) -> None:
+        """Args: dataset: path of the file the windows come from; config: settings;
+        calibrate: correct the beams by the calibration ``fit`` learns (False: the beams
+        as measured, ``fit`` learns nothing)."""
         self.dataset = dataset
         self.config = config if config is not None else FilterConfig()
+        self.calibrate = calibrate
+        if not calibrate:
+            self.name = "INS/DVL (raw beams)"
+        self.correction: tuple[np.ndarray, np.ndarray] | None = None
         self._tracks: dict[str, FilterTrack] = {}
 
     def fit(self, train: Windows) -> InsDvlFilter:
+        from .baselines import BeamCalibration
+
+        if self.calibrate:
+            calibration = BeamCalibration().fit(train)
+            self.correction = (calibration.scale, calibration.bias)
+        self._tracks = {}
         return self
 
     def tracks(self, windows: Windows) -> dict[str, FilterTrack]:
@@ -550,13 +574,21 @@ class InsDvlFilter:
         if missing:
             with open_dataset(self.dataset) as f:
                 for name in missing:
-                    self._tracks[name] = run_mission(f.missions[name], self.config)
+                    self._tracks[name] = run_mission(f.missions[name], self.config,
+                                                     beam_correction=self.correction)
         return {name: self._tracks[name] for name in wanted}
 
     def predict(self, windows: Windows) -> np.ndarray:
         """(S, 3) DVL-frame velocity, m/s, at each sample's ping: the track of mission
         ``windows.names[windows.mission]`` at the ping whose time is ``windows.time``
         (NaN if no ping has that time)."""
+        return self._at_pings(windows, "velocity_dvl")
+
+    def positions(self, windows: Windows) -> np.ndarray:
+        """(S, 3) estimated NED position of the body origin, m, at each sample's ping."""
+        return self._at_pings(windows, "position_ned")
+
+    def _at_pings(self, windows: Windows, field: str) -> np.ndarray:
         tracks = self.tracks(windows)
         out = np.full((len(windows.time), 3), np.nan)
         for i in np.unique(windows.mission):
@@ -566,5 +598,5 @@ class InsDvlFilter:
             k = np.minimum(k, len(track.ping_time) - 1)
             hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
                 1.0, np.abs(windows.time[rows]))
-            out[rows[hit]] = track.velocity_dvl[k[hit]]
+            out[rows[hit]] = getattr(track, field)[k[hit]]
         return out

@@ -292,17 +292,35 @@ def test_two_beams_give_a_velocity_at_every_ping_and_outliers_are_gated(two_beam
 def test_the_estimator_interface_predicts_every_sample_of_any_windows(navigation):
     """Each sample gets the track's velocity at its own ping, for the default windows,
     every ping (NaN beams among them) and a test split."""
-    estimator = ins.InsDvlFilter(navigation).fit(None)
+    estimator = ins.InsDvlFilter(navigation).fit(split(load_windows(navigation))[0])
     for windows in (load_windows(navigation), load_windows(navigation, every_ping=True),
                     split(load_windows(navigation))[1]):
         v = estimator.predict(windows)
+        p = estimator.positions(windows)
         tracks = estimator.tracks(windows)
-        assert v.shape == (len(windows.time), 3) and np.isfinite(v).all()
+        assert v.shape == p.shape == (len(windows.time), 3) and np.isfinite(v).all()
         for i, name in enumerate(windows.names):
             rows = windows.mission == i
             k = np.searchsorted(tracks[name].ping_time, windows.time[rows])
             np.testing.assert_array_equal(v[rows], tracks[name].velocity_dvl[k])
+            np.testing.assert_array_equal(p[rows], tracks[name].position_ned[k])
     assert estimator.name == "INS/DVL"
+
+
+def test_fit_learns_the_beams_scale_factor_that_the_imu_cannot_see(dataset_of):
+    """A 1 % scale factor on every beam, no noise: on the steady legs the IMU cannot tell
+    it from the velocity, so the raw-beam filter carries about 1 % of the velocity, while
+    the filter on the beams corrected by the calibration fitted on the training split is
+    exact to the mechanisation's error (1.2e-4 m/s, above)."""
+    path = dataset_of(flat(zigzag(120.0), imu=IMU_GRADES["ideal"],
+                           dvl=DvlConfig(scale_factor=0.01)), "scaled")
+    train, test = split(load_windows(path))
+    raw = ins.InsDvlFilter(path, calibrate=False).fit(train).predict(test)
+    calibrated = ins.InsDvlFilter(path).fit(train).predict(test)
+    speed = np.linalg.norm(test.target, axis=1)
+    raw_error = np.linalg.norm(raw - test.target, axis=1)
+    assert np.median(raw_error / speed) == pytest.approx(0.01, rel=0.3)
+    assert np.abs(calibrated - test.target).max() < 2e-4
 
 
 def test_a_mission_without_imu_raises_no_imu_error(tmp_path):

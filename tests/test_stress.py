@@ -10,8 +10,8 @@ import pytest
 from auvsim.cli import main as auvsim_main
 from auvsim.presets import MANEUVER_MISSIONS
 from beamsnet.cli import main
-from beamsnet.evaluate import baselines
 from beamsnet.data import load_windows
+from beamsnet.evaluate import baselines
 from beamsnet.stress import dead_reckoning_error
 
 

@@ -13,8 +13,8 @@ from auvsim.cli import main as auvsim_main
 from auvsim.sensors.dvl import beam_matrix
 from beamsnet.baselines import KalmanFilter
 from beamsnet.cli import main
-from beamsnet.evaluate import baselines
 from beamsnet.data import Windows, load_windows
+from beamsnet.evaluate import baselines
 from beamsnet.faults import SWEEPS, _estimates, held, sweeps
 from beamsnet.models import BeamsNetV2
 
