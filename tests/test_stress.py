@@ -11,7 +11,7 @@ from auvsim.cli import main as auvsim_main
 from auvsim.presets import MANEUVER_MISSIONS
 from beamsnet.cli import main
 from beamsnet.data import load_windows
-from beamsnet.evaluate import baselines
+from beamsnet.evaluate import FILTER_NAMES, baselines
 from beamsnet.stress import dead_reckoning_error
 
 
@@ -25,12 +25,15 @@ def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monk
     rows = json.loads((tmp_path / "reports" / "stress.json").read_text())
     assert list(rows) == [name for name, _, _ in MANEUVER_MISSIONS]
     for name, row in rows.items():
-        assert set(row) == {b.name for b in baselines()} | {"BeamsNetV1 (v1)", "BeamsNetV2 (v2)"}
+        assert set(row) == {b.name for b in baselines()} | set(FILTER_NAMES) | {"BeamsNetV1 (v1)",
+                                                               "BeamsNetV2 (v2)"}
         assert all(np.isfinite(c["rmse_vector"]) and np.isfinite(c["dr_error"])
                    for c in row.values())
         assert f"| {name} |" in report
     assert "## What it shows" in report
-    for figure in ("stress_intensity.png", "stress_time.png"):
+    # The filter is scored by its own position, the others by their dead reckoning.
+    assert all(row["INS/DVL"]["dr_error"] < row["LS"]["dr_error"] for row in rows.values())
+    for figure in ("stress_intensity.png", "stress_time.png", "stress_tracks.png"):
         assert (tmp_path / "reports" / figure).stat().st_size > 10_000
     # Models are reused on a second run with the same data.
     runs = tmp_path / "runs" / "stress" / "paper-sim_120s"

@@ -14,7 +14,7 @@ from auvsim.sensors.dvl import beam_matrix
 from beamsnet.baselines import KalmanFilter
 from beamsnet.cli import main
 from beamsnet.data import Windows, load_windows
-from beamsnet.evaluate import baselines
+from beamsnet.evaluate import FILTER_NAMES, baselines
 from beamsnet.faults import SWEEPS, _estimates, held, sweeps
 from beamsnet.models import BeamsNetV2
 
@@ -173,7 +173,8 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
     assert summary["missions"] == ["straight"]
     assert "paper-sim_60s" in summary["train_data"]
     report = (out / "faults.md").read_text()
-    names = {b.name for b in baselines()} | {"BeamsNetV1 (v1)", "BeamsNetV2 (v2)"}
+    names = {b.name for b in baselines()} | set(FILTER_NAMES) | {"BeamsNetV1 (v1)",
+                                                               "BeamsNetV2 (v2)"}
     for sweep, rows in summary["sweeps"].items():
         assert len(rows) == len(sweeps(30.0)[sweep])
         for row in rows:
@@ -189,7 +190,7 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
     assert dead["LS"]["availability"] == 1 and dead["Affine"]["availability"] == 0
     assert "n/a: needs 4 beams |" in report and "n/a: needs 4 beams on 4 pings" in report
     worst = summary["sweeps"]["dropout"][-1]["estimators"]
-    bridging = {"KF", "KF (beam calibration)", "Missing-beam LS"}  # predict through gaps
+    bridging = {"KF", "KF (beam calibration)", "Missing-beam LS", "INS/DVL"}  # no gaps
     assert all(c["availability"] < 1 for n, c in worst.items() if n not in bridging)
     assert all(worst[n]["availability"] > worst["LS"]["availability"] for n in bridging)
     assert worst["BeamsNetV2 (v2)"]["availability"] <= worst["LS"]["availability"]
