@@ -388,8 +388,10 @@ def _report(summary: dict) -> str:
         "",
         f"Made by `beamsnet stress --faults`. **Trained on** `{summary['train_data']}` "
         f"({summary['trained_on']}; clean data: every beam locked, the paper's eq. 7 "
-        f"errors only): {trained or 'no network (the file has no IMU data)'}. The affine "
-        "calibration and the Kalman filter were fitted on the same training split; LS "
+        f"errors only): {trained or 'no network (the file has no IMU data)'}. The "
+        "calibrations, the Kalman filters and the missing-beam regressor were fitted on "
+        "the same training split, and the INS/DVL filter learned its beam calibration "
+        "there; LS "
         "fits nothing. Nothing was trained on faulted data.",
         "",
         f"**Tested on** faulted versions of the `maneuvers` preset's "
@@ -402,11 +404,15 @@ def _report(summary: dict) -> str:
         "pings the estimator gives an estimate for) / **availability** (share of pings "
         "with an estimate) / **dead-reckoning error** (m, horizontal, at the end of a "
         "mission, mean over the missions; a ping without an estimate holds the last one, "
-        "zero before the first). LS solves three beams exactly and is the baseline; the "
-        "affine calibration, BeamsNetV1 and the Kalman filter's measurement need all four "
-        "beams of a ping, BeamsNetV2 all four of the ping and of its three past pings; "
-        "the Kalman filter predicts through a ping without a measurement. \"n/a\" marks an "
-        "estimator that gives no estimate at all.",
+        "zero before the first; the INS/DVL filter's own position is scored instead). LS "
+        "solves three beams exactly and is the baseline, and so do the beam calibration and "
+        "LS scale+offset; the affine calibration, BeamsNetV1 and the first Kalman filter's "
+        "measurement need all four beams of a ping, BeamsNetV2 all four of the ping and of "
+        "its three past pings; both Kalman filters predict through a ping without a "
+        "measurement (the second, on the beam calibration, measures with three beams); the "
+        "missing-beam regressor fills lost beams from the others and the past pings; the "
+        "INS/DVL filter integrates the IMU through every gap and updates on each locked "
+        "beam, however few. \"n/a\" marks an estimator that gives no estimate at all.",
         "",
         "Water-track pings measure the velocity relative to a water layer. No estimator "
         "was trained on one; here every estimator takes them as the DVL reports them and "

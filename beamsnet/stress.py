@@ -293,8 +293,9 @@ def _phases(path: Path) -> dict[str, list]:
 
 
 def _short(name: str) -> str:
-    """``BeamsNetV2 (v2)`` -> ``BeamsNetV2``."""
-    return name.split(" (")[0]
+    """A network's row without its run: ``BeamsNetV2 (v2)`` -> ``BeamsNetV2``; other
+    names as they are (``KF (beam calibration)``)."""
+    return name.split(" (")[0] if name.startswith(("BeamsNet", "CorrectionNet")) else name
 
 
 def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
@@ -316,17 +317,28 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
         "",
         f"Made by `beamsnet stress` (trained on `{train_data}`, tested on "
         f"`{maneuver_data}`). The networks were trained on {trained_on}: "
-        f"{trained}; the affine calibration and the Kalman filter were fitted on the same "
+        f"{trained}; the calibrations, the Kalman filters, the missing-beam regressor and "
+        "the INS/DVL filter's beam calibration were fitted on the same "
         "training split. Every row uses the same pings of each manoeuvre.",
         "",
         "## Speed RMSE (m/s) / vector RMSE (m/s)",
         "",
         *table(lambda c: f"{c['rmse']:.4f} / {c['rmse_vector']:.4f}"),
         "",
+        "Best estimator per manoeuvre by vector RMSE, and how far below LS it is:",
+        "",
+        "| manoeuvre | best | vector RMSE (m/s) | LS (m/s) | below LS |",
+        "|---|---|---|---|---|",
+        *[f"| {m} | {_short(b)} | {r[b]['rmse_vector']:.4f} | {r['LS']['rmse_vector']:.4f} | "
+          f"{100 * (1 - r[b]['rmse_vector'] / r['LS']['rmse_vector']):.1f} % |"
+          for m, r in rows.items()
+          for b in [min(r, key=lambda n, r=r: r[n]["rmse_vector"])]],
+        "",
         "## Dead-reckoning error after each manoeuvre",
         "",
         "Horizontal position error (m) from integrating each estimator's velocity instead "
-        "of the true DVL velocity, with the true attitude, and as % of the distance "
+        "of the true DVL velocity, with the true attitude (the INS/DVL filter: its own "
+        "position solution against the true position), and as % of the distance "
         "travelled:",
         "",
         *table(lambda c: f"{c['dr_error']:.2f} m ({c['dr_percent']:.3f} %)"),
@@ -334,6 +346,8 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
         "![error against manoeuvre intensity](stress_intensity.png)",
         "",
         "![error over time, phases shaded](stress_time.png)",
+        "",
+        "![each mission's track and every estimator's position error](stress_tracks.png)",
         "",
         "## What it shows",
         "",
