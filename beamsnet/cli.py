@@ -8,7 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from auvsim.errors import AuvsimError, OneLineErrorParser
+from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
 
 from .evaluate import SensorSetupWarning
 from .faults import FAULT_DURATION, FAULT_MISSIONS
@@ -114,7 +114,7 @@ def _parser() -> argparse.ArgumentParser:
                     help="s per speed of paper-sim (default 7200), s per manoeuvre of "
                     f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
     rp.add_argument("--seeds", type=int,
-                    help=f"sim2real: seeds per network, every one scored (default "
+                    help=f"snapir, sim2real: seeds per network, every one scored (default "
                     f"{SIM2REAL_SEEDS})")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
@@ -125,8 +125,8 @@ def _parser() -> argparse.ArgumentParser:
                     "weights; default " + _per_experiment("average_epochs", "paper-sim",
                                                           "snapir") + ", at most the epochs)")
     rp.add_argument("--restarts", type=int,
-                    help="seeds per model; the best on the training split is kept (default "
-                    + _per_experiment("restarts", "paper-sim", "snapir") + ")")
+                    help="paper-sim: seeds per model; the best on the training split is kept "
+                    "(default " + _per_experiment("restarts", "paper-sim") + ")")
     rp.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
     rp.add_argument("--quiet", action="store_true")
     stress = PROFILES["stress"]
@@ -218,6 +218,13 @@ def _reproduce(args) -> None:
     training, restarts = profile.resolve(
         epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
         restarts=args.restarts)
+    seeded = args.experiment in ("snapir", "sim2real")
+    if seeded and args.restarts is not None:
+        raise ConfigError(f"is not used by {args.experiment}, which scores every seed; "
+                          "expected --seeds N", argument="restarts")
+    if not seeded and args.seeds is not None:
+        raise ConfigError(f"is not used by {args.experiment}, which keeps the best of "
+                          "its seeds; expected --restarts N", argument="seeds")
     if args.experiment == "sim2real":
         report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                           duration=SIM2REAL_DURATION if args.duration is None
@@ -225,7 +232,7 @@ def _reproduce(args) -> None:
                           progress=not args.quiet)
     elif args.experiment == "snapir":
         report = snapir(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
-                        training=training, restarts=restarts, progress=not args.quiet)
+                        training=training, seeds=args.seeds, progress=not args.quiet)
     else:
         report = paper_sim(args.experiment, data=args.data,
                            duration=7200.0 if args.duration is None else args.duration,

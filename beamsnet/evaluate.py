@@ -189,11 +189,11 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
             positions[baseline.name] = baseline.positions(test_w)
     for run, model, checkpoint in models:
         name = f"BeamsNet{checkpoint['model'].upper()} ({run.name})"
-        out[name] = predict(model, checkpoint["model"], _trim(test_w, checkpoint))
+        out[name] = predict(model, checkpoint["model"], trimmed(test_w, checkpoint))
     return out
 
 
-def _trim(windows: Windows, checkpoint: dict) -> Windows:
+def trimmed(windows: Windows, checkpoint: dict) -> Windows:
     """Windows for a model trained with fewer past pings than the others use."""
     n = checkpoint["train_config"]["n_past"]
     return windows._replace(past_beams=windows.past_beams[:, -n:])

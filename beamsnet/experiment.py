@@ -15,6 +15,7 @@ before they can evaluate anything, and this module is the one place that does th
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -122,3 +123,35 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         kept[name] = KeptRun(runs_dir / name, *load(runs_dir / name), kept=Path(record["kept"]),
                              seeds=tuple(seeds[name]), diverged=dropped)
     return kept
+
+
+def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
+                runs_dir: str | os.PathLike, seeds: int, *, workers: int | None = None,
+                progress: bool = True) -> dict[str, list[tuple[Path, torch.nn.Module, dict]]]:
+    """Train every config of ``configs`` on ``data`` from seeds 0 .. ``seeds`` - 1 and load
+    every seed's model: for reports that score each seed (no seed kept over another).
+
+    A seed run already holding the same config trained on the same file is reused.
+
+    Args:
+        data: the dataset (each config's ``missions`` of it).
+        configs: name -> config (its seed is replaced); a name is a directory under
+            ``runs_dir``, its seeds go to ``runs_dir/name/seed_<s>``.
+        runs_dir: where the runs go.
+        seeds: how many seeds, >= 1.
+        workers, progress: as ``train_runs``.
+
+    Returns:
+        name -> [(run, model, checkpoint)] in seed order, what
+        ``beamsnet.evaluate.predictions`` takes.
+    """
+    check_restarts(seeds)
+    runs_dir = Path(runs_dir)
+    sha256 = file_identity(data)["sha256"]
+    runs, jobs = {}, []
+    for name, config in configs.items():
+        pairs = seed_runs(dataclasses.replace(config, seed=0), runs_dir / name, seeds)
+        runs[name] = [run for _, run in pairs]
+        jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
+    train_all(jobs, workers=workers, progress=progress)
+    return {name: [(run, *load(run)) for run in seed_list] for name, seed_list in runs.items()}

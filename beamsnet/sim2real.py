@@ -33,15 +33,19 @@ from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
 from .data import load_windows, split
-from .evaluate import baselines
-from .experiment import ensure_dataset
-from .train import PROFILES, TrainConfig, file_identity, load, predict, train_all, trained
+from .evaluate import baselines, trimmed
+from .experiment import ensure_dataset, train_seeds
+from .train import PROFILES, TrainConfig, predict
 
 SEEDS = 5
 DURATION = 600.0  # s per manoeuvre of the generated training sets
-# The learned estimators, each trained from SEEDS seeds: name -> what it changes from the
-# profile's config. None of them takes the IMU: the Snapir streams have none.
-LEARNED = {"BeamsNetV2": dict(model="v2")}
+# The learned estimators, each trained from SEEDS seeds: table name -> (run directory,
+# what it changes from the profile's config). None takes the IMU: the Snapir streams have
+# none. BeamsNetV2 is trained with the fixed input (its past beams as changes,
+# ``beamsnet.train``) and as published.
+LEARNED = {"BeamsNetV2": ("v2", dict(model="v2")),
+           "BeamsNetV2 (paper)": ("v2-paper", dict(model="v2", protocol="paper")),
+           "CorrectionNet": ("corr", dict(model="corr"))}
 TESTS = ("validation (last 25 % of V.npy)", "test (V_test.npy)")
 
 
@@ -89,31 +93,26 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION, seeds: i
     tests = dict(zip(TESTS, (real_val, load_windows(snapir_h5, missions=["test"])),
                      strict=True))
 
-    # Every network of every source, trained in one pool.
-    jobs, runs_of = [], {}
-    for source, (path, missions) in sources.items():
-        sha = file_identity(path)["sha256"]
-        for name, change in LEARNED.items():
-            for seed in range(seeds):
-                config = dataclasses.replace(training, **change, seed=seed, missions=missions)
-                run = runs / "sim2real" / Path(path).stem / config.model / f"seed_{seed}"
-                runs_of.setdefault((source, name), []).append(run)
-                if not trained(run, config, sha):
-                    jobs.append((path, config, run))
-    train_all(jobs, workers=workers, progress=progress)
+    # Every network of every source; the V.npy runs are those of ``reproduce snapir``.
+    nets = {source: train_seeds(path, {key: dataclasses.replace(training, **change,
+                                                                 missions=missions)
+                                       for key, change in LEARNED.values()},
+                                runs / ("snapir" if missions else
+                                        f"sim2real/{Path(path).stem}"),
+                                seeds, workers=workers, progress=progress)
+            for source, (path, missions) in sources.items()}
 
     results: dict[str, dict] = {}
     for source, (path, missions) in sources.items():
         train_w = real_train if missions else split(load_windows(path),
                                                     training.train_fraction)[0]
         fitted = [b.fit(train_w) for b in baselines()]
-        nets = {name: [load(r) for r in runs_of[(source, name)]] for name in LEARNED}
         results[source] = {}
         for test, windows in tests.items():
             rows = {b.name: [_score(b.predict(windows), windows)] for b in fitted}
-            for name, loaded in nets.items():
-                rows[name] = [_score(predict(m, c["model"], _trim(windows, c)), windows)
-                              for m, c in loaded]
+            for name, (key, _) in LEARNED.items():
+                rows[name] = [_score(predict(m, c["model"], trimmed(windows, c)), windows)
+                              for _, m, c in nets[source][key]]
             ls = rows["LS"][0]["rmse"]
             for seeds_ in rows.values():
                 for row in seeds_:
@@ -125,11 +124,6 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION, seeds: i
     report = out / "sim2real.md"
     write_text(report, _report(results, sources, training, seeds, duration, tests))
     return report
-
-
-def _trim(windows, checkpoint):
-    n = checkpoint["train_config"]["n_past"]
-    return windows._replace(past_beams=windows.past_beams[:, -n:])
 
 
 def _score(pred: np.ndarray, windows) -> dict:
