@@ -240,3 +240,18 @@ def test_v1_and_v2_give_nan_rows_where_an_input_beam_is_nan(dataset, tmp_path):
     holes.past_beams[0, 1, 2] = np.nan
     out = predict(net, "v2", holes)
     assert np.isnan(out[0]).all() and np.isfinite(out[1:]).all()
+
+
+def test_cli_trains_corr_and_the_paper_v2(dataset, tmp_path, capsys):
+    from beamsnet.cli import main
+
+    assert main(["train", str(dataset), "--model", "corr", "--epochs", "1", "--out",
+                 str(tmp_path / "corr"), "--quiet"]) == 0
+    assert main(["train", str(dataset), "--model", "v2", "--protocol", "paper", "--epochs",
+                 "1", "--out", str(tmp_path / "v2"), "--quiet"]) == 0
+    assert "trained CorrectionNet" in capsys.readouterr().out
+    corr, v2 = load(tmp_path / "corr")[1], load(tmp_path / "v2")[1]
+    assert (corr["model"], corr["train_config"]["mask_rate"]) == ("corr", 0.1)
+    assert corr["kwargs"] == {"n_past": 3, "imu": False}
+    assert (v2["train_config"]["protocol"], v2["kwargs"]["past_input"]) == ("paper", "beams")
+    assert v2["train_config"]["mask_rate"] == 0.0
