@@ -59,10 +59,11 @@ def _parser() -> argparse.ArgumentParser:
                     "validity masks) or corr (LS plus a learned, bounded correction)")
     tr.add_argument("--protocol", choices=("paper", "fixed"), default=train.config.protocol,
                     help="V2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
-                    "their changes to the current beams, which extrapolates")
+                    "their changes to the current beams, so it stays affine outside the training "
+                    "velocities")
     tr.add_argument("--mask-rate", type=float, default=None,
                     help="v2m, corr: rate of beams dropped in training (default "
-                    f"{TrainConfig(model='corr').mask_rate:g} for them, 0 for v1, v2)")
+                    f"{TrainConfig(model='corr').drop_rate:g} for them, 0 for v1, v2)")
     tr.add_argument("--imu", action="store_true", help="corr: take the IMU window too")
     tr.add_argument("--out", type=Path, required=True, help="run directory to write")
     tr.add_argument("--epochs", type=int, default=train.config.epochs, help="epochs")

@@ -139,6 +139,15 @@ class TrainConfig:
     mask_rate: float | None = None
     imu: bool = False
 
+    @property
+    def drop_rate(self) -> float:
+        """``mask_rate`` with None resolved (left None in the config, so that a profile's
+        config given another model with ``dataclasses.replace`` gets that model's
+        default)."""
+        if self.mask_rate is not None:
+            return self.mask_rate
+        return MASK_RATE if self.model in MASKED else 0.0
+
     def __post_init__(self) -> None:
         def check(ok: bool, name: str, expected: str) -> None:
             if not ok:
@@ -147,11 +156,10 @@ class TrainConfig:
 
         check(self.model in MODELS, "model", " or ".join(MODELS))
         check(self.protocol in PROTOCOLS, "protocol", " or ".join(PROTOCOLS))
-        if self.mask_rate is None:  # resolved here, so the checkpoint records the rate
-            object.__setattr__(self, "mask_rate", MASK_RATE if self.model in MASKED else 0.0)
-        check(_real(self.mask_rate) and 0 <= self.mask_rate < 1
-              and (self.model in MASKED or self.mask_rate == 0), "mask_rate",
-              "a probability in [0, 1) for v2m or corr, 0 for v1 and v2 (no masks)")
+        check(self.mask_rate is None or (_real(self.mask_rate) and 0 <= self.mask_rate < 1
+                                         and (self.model in MASKED or self.mask_rate == 0)),
+              "mask_rate", "None or a probability in [0, 1) for v2m or corr, 0 for v1 and v2 "
+              "(no masks)")
         check(isinstance(self.imu, bool) and (self.model == "corr" or not self.imu), "imu",
               "True only for corr (V1 always takes the IMU, v2 and v2m never)")
         for name in ("epochs", "batch_size", "n_past", "lr_step"):
@@ -452,8 +460,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
             for i in range(0, n, config.batch_size):
                 idx = perm[i:i + config.batch_size]
                 batch = [x[idx] for x in x_train]
-                if config.mask_rate:
-                    batch = _drop_beams(config.model, batch, config.mask_rate, order)
+                if config.drop_rate:
+                    batch = _drop_beams(config.model, batch, config.drop_rate, order)
                 loss = loss_fn(model(*batch), y_train[idx])
                 value = loss.item()
                 if not math.isfinite(value):

@@ -3,6 +3,7 @@ synthetic samples built here and a 90 s simulated mission."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -187,11 +188,11 @@ def dataset(tmp_path_factory):
 @pytest.mark.parametrize("model", ["corr", "v2m"])
 def test_checkpoint_round_trip_and_corrupt_files_are_refused(model, dataset, tmp_path):
     config = TrainConfig(model=model, epochs=1, lr=1e-3)
-    assert config.mask_rate == 0.1  # the masked models train with beams dropped
+    assert config.drop_rate == 0.1  # the masked models train with beams dropped
     train(dataset, config, tmp_path / "run", progress=False)
     net, checkpoint = load(tmp_path / "run")
     again, _ = load(tmp_path / "run" / "model.pt")
-    assert checkpoint["train_config"]["mask_rate"] == 0.1
+    assert TrainConfig(**checkpoint["train_config"]).drop_rate == 0.1
     _, test = split(load_windows(dataset, n_past=3))
     np.testing.assert_array_equal(predict(net, model, test), predict(again, model, test))
     assert torch.equal(net.h, torch.as_tensor(test.h, dtype=torch.float32))
@@ -251,7 +252,10 @@ def test_cli_trains_corr_and_the_paper_v2(dataset, tmp_path, capsys):
                  "1", "--out", str(tmp_path / "v2"), "--quiet"]) == 0
     assert "trained CorrectionNet" in capsys.readouterr().out
     corr, v2 = load(tmp_path / "corr")[1], load(tmp_path / "v2")[1]
-    assert (corr["model"], corr["train_config"]["mask_rate"]) == ("corr", 0.1)
+    assert corr["model"] == "corr"
+    assert TrainConfig(**corr["train_config"]).drop_rate == 0.1
     assert corr["kwargs"] == {"n_past": 3, "imu": False}
     assert (v2["train_config"]["protocol"], v2["kwargs"]["past_input"]) == ("paper", "beams")
-    assert v2["train_config"]["mask_rate"] == 0.0
+    assert TrainConfig(**v2["train_config"]).drop_rate == 0.0
+    # A profile's config given the masked model keeps the masked model's default rate.
+    assert dataclasses.replace(TrainConfig(), model="v2m").drop_rate == 0.1
