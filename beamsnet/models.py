@@ -1,4 +1,7 @@
-"""BeamsNetV1 and BeamsNetV2 (Cohen & Klein 2022): DVL velocity from raw beam velocities.
+"""BeamsNetV1 and BeamsNetV2 (Cohen & Klein 2022): DVL velocity from raw beam velocities;
+and two models of ours that run on pings with missing beams: BeamsNetV2M (V2 with validity
+masks, as MissBeamNet, Yona & Klein 2024, gives its network the missing beams) and
+CorrectionNet (least squares on the valid beams plus a learned, bounded correction).
 
 Both networks regress the DVL's velocity (m/s, DVL frame) from the four measured beam
 velocities of the current epoch (m/s, along each beam), helped by the IMU window that ends
@@ -20,6 +23,9 @@ Where these models differ from the published code, and why:
 * V2's ``forward`` takes ``(past_beams, beams)``: context first, current beams last, as in
   V1. The published ``forward(x, y)`` takes the current beams first.
 * Inputs are checked: a wrong shape raises ValueError instead of a broadcasting surprise.
+* ``BeamsNetV2(past_input="changes")`` feeds the past beams as their changes to the current
+  ones (same layers): the fix of V2's extrapolation, see ``BeamsNetV2``. The default,
+  ``"beams"``, is the published input, and what a checkpoint without the option builds.
 * Parameter names differ from the published ``state_dict`` keys (``conv_layer``,
   ``ConvToFc``, ``FC_output``), so the published ``.pkl`` weights need a key mapping.
 
