@@ -55,11 +55,20 @@ def _parser() -> argparse.ArgumentParser:
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True,
                                 parser_class=OneLineErrorParser)
-    tr = sub.add_parser("train", help="train BeamsNetV1 or V2 on a dataset",
+    tr = sub.add_parser("train", help="train BeamsNetV1, V2, V2M or CorrectionNet on a dataset",
                         formatter_class=_Defaults)
     tr.add_argument("dataset", type=Path)
-    tr.add_argument("--model", choices=("v1", "v2"), default=train.config.model,
-                    help="BeamsNetV1 (beams + IMU) or V2 (beams + past beams)")
+    tr.add_argument("--model", choices=("v1", "v2", "v2m", "corr"), default=train.config.model,
+                    help="BeamsNetV1 (beams + IMU), V2 (beams + past beams), V2M (V2 with "
+                    "validity masks) or corr (LS plus a learned, bounded correction)")
+    tr.add_argument("--protocol", choices=("paper", "fixed"), default=train.config.protocol,
+                    help="V2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
+                    "their changes to the current beams, so it stays affine outside the training "
+                    "velocities")
+    tr.add_argument("--mask-rate", type=float, default=None,
+                    help="v2m, corr: rate of beams dropped in training (default "
+                    f"{TrainConfig(model='corr').drop_rate:g} for them, 0 for v1, v2)")
+    tr.add_argument("--imu", action="store_true", help="corr: take the IMU window too")
     tr.add_argument("--out", type=Path, required=True, help="run directory to write")
     tr.add_argument("--epochs", type=int, default=train.config.epochs, help="epochs")
     tr.add_argument("--lr", type=float, default=train.config.lr,
@@ -167,12 +176,13 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _train(args) -> None:
-    from .train import train, train_best
+    from .train import TITLES, train, train_best
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
                          average_epochs=args.average_epochs,
-                         missions=tuple(args.missions) if args.missions else None)
+                         missions=tuple(args.missions) if args.missions else None,
+                         protocol=args.protocol, mask_rate=args.mask_rate, imu=args.imu)
     if args.restarts == 1:
         summary = train(args.dataset, config, args.out, progress=not args.quiet)
     else:
@@ -180,7 +190,7 @@ def _train(args) -> None:
                              progress=not args.quiet)
         print(f"kept {summary['kept']} of {args.restarts} seeds (lowest final training loss; "
               f"all in {args.out / 'restarts.json'})")
-    print(f"trained BeamsNet{args.model.upper()}: final loss "
+    print(f"trained {TITLES[args.model]}: final loss "
           f"{summary['final_train_loss']:.3g} (training), {summary['final_test_loss']:.3g} "
           f"(test split), {summary['samples_per_second']:.0f} samples/s; wrote "
           f"{summary['checkpoint']} and {summary['plot']}")

@@ -1,4 +1,7 @@
-"""BeamsNetV1 and BeamsNetV2 (Cohen & Klein 2022): DVL velocity from raw beam velocities.
+"""BeamsNetV1 and BeamsNetV2 (Cohen & Klein 2022): DVL velocity from raw beam velocities;
+and two models of ours that run on pings with missing beams: BeamsNetV2M (V2 with validity
+masks, as MissBeamNet, Yona & Klein 2024, gives its network the missing beams) and
+CorrectionNet (least squares on the valid beams plus a learned, bounded correction).
 
 Both networks regress the DVL's velocity (m/s, DVL frame) from the four measured beam
 velocities of the current epoch (m/s, along each beam), helped by the IMU window that ends
@@ -20,6 +23,9 @@ Where these models differ from the published code, and why:
 * V2's ``forward`` takes ``(past_beams, beams)``: context first, current beams last, as in
   V1. The published ``forward(x, y)`` takes the current beams first.
 * Inputs are checked: a wrong shape raises ValueError instead of a broadcasting surprise.
+* ``BeamsNetV2(past_input="changes")`` feeds the past beams as their changes to the current
+  ones (same layers): the fix of V2's extrapolation, see ``BeamsNetV2``. The default,
+  ``"beams"``, is the published input, and what a checkpoint without the option builds.
 * Parameter names differ from the published ``state_dict`` keys (``conv_layer``,
   ``ConvToFc``, ``FC_output``), so the published ``.pkl`` weights need a key mapping.
 
@@ -41,6 +47,8 @@ N_AXES = 3  # x, y, z of an accelerometer or gyroscope triad, and of the velocit
 CONV_CHANNELS = 6  # "six filters of size 2 x 1" (paper, sec. 3.1)
 CONV_KERNEL = 2  # the smallest kernel that sees a change between neighbouring samples
 N_FEATURES = 2  # what the context branch hands to the output layer, next to the 4 beams
+PAST_INPUTS = ("beams", "changes")  # what V2's conv sees of the past epochs (see BeamsNetV2)
+MIN_BEAMS = 3  # valid beams for a 3-D velocity: any 3 of a Janus DVL's 4 are independent
 
 
 def _conv_head(in_channels: int) -> nn.Sequential:
@@ -150,18 +158,35 @@ class BeamsNetV2(nn.Module):
     The epochs are the conv's input channels and the kernel slides over neighbouring beams
     (1-2, 2-3, 3-4), as in the published code.
 
+    ``past_input="changes"`` feeds the conv ``past_beams - beams`` (each past epoch's change
+    to the current one) instead of the raw past beams; the architecture and the 401
+    parameters are the same. Why (measured on the Snapir streams, ``reports/snapir.md``): the
+    output layer is linear in the current beams plus the 2 ReLU features, and with raw past
+    beams the features' pre-activations grow with the velocity itself, since the past beams
+    are nearly the current ones. Training then lets the features carry part of the velocity;
+    at velocities outside the training range their ReLUs switch on or off and that part is
+    lost or doubled, so the network extrapolates badly where an affine calibration does not.
+    The changes do not depend on the velocity level (a constant velocity gives zero changes,
+    whatever it is), only on the accelerations between pings: the velocity then reaches the
+    output through the linear path alone, and the network stays affine in the current beams
+    at any velocity, with the features as a bounded-dynamics correction.
+
     Args:
         n_past: previous DVL epochs in the input (3: the best of 2..7 in the paper's fig. 9).
+        past_input: ``"beams"`` (the paper and the published code) or ``"changes"``.
     """
 
     name: ClassVar[str] = "v2"
 
-    def __init__(self, *, n_past: int = 3) -> None:
+    def __init__(self, *, n_past: int = 3, past_input: str = "beams") -> None:
         super().__init__()
         if not (isinstance(n_past, int) and n_past >= 1):
             raise ValueError(f"n_past must be an int >= 1, got {n_past!r}")
-        self.kwargs = dict(n_past=n_past)
+        if past_input not in PAST_INPUTS:
+            raise ValueError(f"past_input must be one of {PAST_INPUTS}, got {past_input!r}")
+        self.kwargs = dict(n_past=n_past, past_input=past_input)
         self.n_past = n_past
+        self.past_input = past_input
         self.head = _conv_head(n_past)
         # 6 channels x (4 - 1) beam pairs = 18 features, then a small funnel: the whole
         # model has 401 parameters at n_past = 3, so it trains on a few thousand epochs.
@@ -186,18 +211,265 @@ class BeamsNetV2(nn.Module):
         b = beams.shape[0]
         _check_shape("beams", beams, (b, N_BEAMS))
         _check_shape("past_beams", past_beams, (b, self.n_past, N_BEAMS))
+        if self.past_input == "changes":
+            past_beams = past_beams - beams[:, None, :]
         x = self.fc(self.head(past_beams).flatten(1))  # (B, 2)
         return self.out(torch.cat([beams, x], dim=1))  # published order: beams, features
 
 
-MODELS: dict[str, type[nn.Module]] = {"v1": BeamsNetV1, "v2": BeamsNetV2}
+def _valid(x: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
+    """The validity mask of beam values ``x``: ``mask`` (if given) and finite."""
+    ok = torch.isfinite(x)
+    return ok if mask is None else ok & mask.bool()
+
+
+def masked_least_squares(beams: torch.Tensor, mask: torch.Tensor,
+                         h: torch.Tensor) -> torch.Tensor:
+    """Least squares on the valid beams of each sample, ``(H^T M H)^-1 H^T M y``.
+
+    Args:
+        beams: (B, 4) beam velocities, m/s; values where ``mask`` is False are ignored.
+        mask: (B, 4) bool, the valid beams.
+        h: (4, 3) beam matrix (unit beam directions, DVL frame).
+
+    Returns:
+        (B, 3) velocity, m/s; NaN where fewer than 3 beams are valid (no estimate).
+    """
+    m = mask.to(beams.dtype)
+    y = torch.where(mask, beams, torch.zeros_like(beams))
+    a = torch.einsum("bk,ki,kj->bij", m, h, h)
+    rhs = torch.einsum("bk,ki->bi", m * y, h)
+    ok = mask.sum(dim=1) >= MIN_BEAMS
+    eye = torch.eye(N_AXES, dtype=beams.dtype).expand_as(a)
+    v = torch.linalg.solve(torch.where(ok[:, None, None], a, eye), rhs)
+    return torch.where(ok[:, None], v, torch.full_like(v, float("nan")))
+
+
+class BeamsNetV2M(nn.Module):
+    """BeamsNetV2 with validity masks: runs on pings where beams have no bottom lock.
+
+    past changes (B, n, 4), zero where invalid, and their masks (B, n, 4)
+    -> Conv1d(2n -> 6, kernel 2) over the 4 beams + Tanh -> (B, 6, 3)
+    -> flatten (B, 18) -> FC 18 -> 16 -> 2, each ReLU
+    -> concat [4 current beams, 4 current masks, 2 features] -> Linear(10, 3) -> velocity
+
+    V2's layers, with each past epoch's mask as one more input channel of the conv and the
+    current beams' masks as 4 more inputs of the output layer (449 parameters at n = 3,
+    V2's 401 plus 48). A missing CURRENT beam is not zero-filled: a linear output layer
+    cannot re-weight the other three beams when one is missing, and a zero would read as a
+    velocity. It is filled with its value under the beam geometry, ``h_k . v`` with v the
+    least squares of the other three (exact without noise, since 4 beams over-determine a
+    3-D velocity by one), and its mask tells the output layer that it was filled. The past
+    epochs enter as their changes to the current beams (``BeamsNetV2(past_input=
+    "changes")``: no velocity scale in the features); a past value whose beam is missing
+    then or now is zero and masked. So: NaN (no estimate) only where fewer than 3 current
+    beams are valid; any past beams may be missing.
+
+    Args:
+        n_past: previous DVL epochs in the input.
+    """
+
+    name: ClassVar[str] = "v2m"
+
+    def __init__(self, *, n_past: int = 3) -> None:
+        super().__init__()
+        if not (isinstance(n_past, int) and n_past >= 1):
+            raise ValueError(f"n_past must be an int >= 1, got {n_past!r}")
+        self.kwargs = dict(n_past=n_past)
+        self.n_past = n_past
+        self.head = _conv_head(2 * n_past)
+        self.fc = nn.Sequential(
+            nn.Linear(CONV_CHANNELS * (N_BEAMS - CONV_KERNEL + 1), 16), nn.ReLU(),
+            nn.Linear(16, N_FEATURES), nn.ReLU(),
+        )
+        self.out = nn.Linear(2 * N_BEAMS + N_FEATURES, N_AXES)
+        _init_weights(self)
+        # The training data's beam matrix (set by ``initialise``, saved with the weights).
+        self.register_buffer("h", torch.zeros(N_BEAMS, N_AXES))
+
+    def initialise(self, inputs: list[torch.Tensor], target: torch.Tensor,
+                   h: torch.Tensor) -> None:
+        """Take the beam matrix ``h`` (4, 3) of the training data; nothing else is fitted."""
+        self.h.copy_(torch.as_tensor(h, dtype=self.h.dtype))
+
+    def forward(self, past_beams: torch.Tensor, beams: torch.Tensor, *,
+                past_mask: torch.Tensor | None = None,
+                mask: torch.Tensor | None = None) -> torch.Tensor:
+        """Estimate the DVL velocity of each sample.
+
+        Args:
+            past_beams: (B, n_past, 4) beam velocities of the previous epochs, oldest first,
+                m/s; NaN (or ``past_mask`` False) where a beam had no bottom lock.
+            beams: (B, 4) beam velocities of the current epoch, m/s; NaN where invalid.
+            past_mask, mask: optional bool masks of the valid values (default: finite).
+
+        Returns:
+            (B, 3) DVL velocity, m/s; NaN rows where fewer than 3 current beams are valid.
+        """
+        b = beams.shape[0]
+        _check_shape("beams", beams, (b, N_BEAMS))
+        _check_shape("past_beams", past_beams, (b, self.n_past, N_BEAMS))
+        ok = _valid(beams, mask)
+        filled = torch.where(ok, beams, masked_least_squares(beams, ok, self.h) @ self.h.T)
+        past_ok = _valid(past_beams, past_mask) & ok[:, None, :]
+        changes = torch.where(past_ok, past_beams - filled[:, None, :],
+                              torch.zeros_like(past_beams))
+        x = self.head(torch.cat([changes, past_ok.to(beams.dtype)], dim=1))
+        x = self.fc(x.flatten(1))
+        return self.out(torch.cat([filled, ok.to(beams.dtype), x], dim=1))
+
+
+class CorrectionNet(nn.Module):
+    """Our estimator: least squares on the valid beams plus a learned, bounded correction.
+
+    v = v_ls + (A v_ls + c) + bound * tanh(MLP(z))
+
+    * v_ls: least squares on the valid current beams (3 of 4 suffice; fewer: NaN, no
+      estimate), the model-based estimate (BeamsNet, Cohen & Klein 2022, eq. 9).
+    * A v_ls + c: a linear correction, A (3, 3), c (3,) m/s, initialised at the closed-form
+      least-squares fit of ``target - v_ls`` on the training split (``initialise``): an
+      affine calibration of the DVL's scale factors and biases, which holds at any velocity.
+    * bound * tanh(MLP(z)): a nonlinear correction of the normalised inputs z, at most
+      ``bound`` (3,) m/s per axis, the largest residual of the linear fit on the training
+      split: it may correct what the training data showed, never more. Its last layer starts
+      at zero, so training starts from the affine fit. Each input is normalised by its
+      training mean and standard deviation and clipped to its training range, so outside
+      the training range the MLP sees the edge of that range: the nonlinear term stays
+      bounded (and constant in the clipped inputs), and the velocity follows the linear
+      part, as LS does, instead of a nonlinear fit's extrapolation.
+
+    z holds, each value with its validity mask (missing: the training mean, i.e. 0 after
+    normalising, and mask 0; as MissBeamNet, Yona & Klein 2024, feeds the network which
+    beams are missing): the current beams; the changes of the ``n_past`` previous epochs'
+    beams to the current ones (no velocity level in them, see ``BeamsNetV2``); and with
+    ``imu`` the mean and standard deviation over the IMU window of the specific force and
+    the angular rate (the average acceleration and turn rate between pings, and how much
+    they vary: 12 numbers instead of 600 raw samples).
+
+    The normalisation statistics, clipping ranges, bound and beam matrix are buffers, so the
+    checkpoint carries them.
+
+    Args:
+        n_past: previous DVL epochs in the input (0: none).
+        imu: take the IMU window (accelerometer and gyro) too.
+        hidden: width of the MLP's two hidden layers (32: a few thousand weights, small
+            beside the ~10^4 training pings of the Snapir stream).
+    """
+
+    name: ClassVar[str] = "corr"
+
+    def __init__(self, *, n_past: int = 3, imu: bool = False, hidden: int = 32) -> None:
+        super().__init__()
+        if not (isinstance(n_past, int) and n_past >= 0):
+            raise ValueError(f"n_past must be an int >= 0, got {n_past!r}")
+        if not (isinstance(hidden, int) and hidden >= 1):
+            raise ValueError(f"hidden must be an int >= 1, got {hidden!r}")
+        self.kwargs = dict(n_past=n_past, imu=bool(imu), hidden=hidden)
+        self.n_past, self.imu = n_past, bool(imu)
+        n_values = N_BEAMS * (1 + n_past) + (4 * N_AXES if imu else 0)
+        n_masks = N_BEAMS * (1 + n_past)
+        self.linear = nn.Linear(N_AXES, N_AXES)
+        self.mlp = nn.Sequential(nn.Linear(n_values + n_masks, hidden), nn.Tanh(),
+                                 nn.Linear(hidden, hidden), nn.Tanh(),
+                                 nn.Linear(hidden, N_AXES))
+        for layer in (self.linear, self.mlp[-1]):
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
+        for key, size in (("h", (N_BEAMS, N_AXES)), ("mean", (n_values,)),
+                          ("std", (n_values,)), ("low", (n_values,)), ("high", (n_values,)),
+                          ("bound", (N_AXES,))):
+            self.register_buffer(key, torch.ones(size) if key == "std" else torch.zeros(size))
+
+    def _values(self, beams, past_beams, accel, gyro, mask, past_mask):
+        """(B, n_values) raw inputs, (B, n_values) their validity, and the LS velocity."""
+        b = beams.shape[0]
+        _check_shape("beams", beams, (b, N_BEAMS))
+        _check_shape("past_beams", past_beams, (b, self.n_past, N_BEAMS))
+        ok = _valid(beams, mask)
+        past_ok = _valid(past_beams, past_mask) & ok[:, None, :]
+        zero = torch.zeros((), dtype=beams.dtype)
+        values = [torch.where(ok, beams, zero),
+                  torch.where(past_ok, past_beams - beams[:, None, :], zero).flatten(1)]
+        valid = [ok, past_ok.flatten(1)]
+        if self.imu:
+            if accel is None or gyro is None:
+                raise ValueError("accel and gyro are needed: this CorrectionNet takes the "
+                                 "IMU window (imu=True)")
+            for x in (accel, gyro):  # (B, 3, W), as BeamsNetV1 takes them
+                stats = torch.cat([x.mean(dim=2), x.std(dim=2)], dim=1)
+                values.append(stats)
+                valid.append(torch.ones_like(stats, dtype=torch.bool))
+        ls = masked_least_squares(beams, ok, self.h)
+        return torch.cat(values, dim=1), torch.cat(valid, dim=1), ls
+
+    @torch.no_grad()
+    def initialise(self, inputs: list[torch.Tensor], target: torch.Tensor,
+                   h: torch.Tensor) -> None:
+        """Fit the buffers and the linear term on the training split.
+
+        Args:
+            inputs: what ``forward`` takes, for the training samples.
+            target: (S, 3) true velocity, m/s.
+            h: (4, 3) beam matrix of the training data.
+        """
+        self.h.copy_(torch.as_tensor(h, dtype=self.h.dtype))
+        values, valid, ls = self._values(*self._split(inputs), None, None)
+        v = values.double()
+        for j in range(v.shape[1]):
+            col = v[valid[:, j], j]
+            if len(col) == 0:
+                continue
+            self.mean[j], self.low[j], self.high[j] = col.mean(), col.min(), col.max()
+            spread = col.std() if len(col) > 1 else torch.zeros(())
+            self.std[j] = spread if spread > 0 else 1.0  # a constant input: only centred
+        self.low.sub_(self.mean).div_(self.std)
+        self.high.sub_(self.mean).div_(self.std)
+        rows = torch.isfinite(ls).all(dim=1)
+        x = torch.cat([ls[rows], torch.ones(int(rows.sum()), 1)], dim=1).double()
+        coef = torch.linalg.lstsq(x, (target[rows] - ls[rows]).double()).solution  # (4, 3)
+        self.linear.weight.copy_(coef[:N_AXES].T)
+        self.linear.bias.copy_(coef[N_AXES])
+        residual = target[rows] - ls[rows] - self.linear(ls[rows])
+        self.bound.copy_(residual.abs().amax(dim=0))
+
+    def _split(self, inputs):
+        beams, past_beams, *imu = inputs
+        return beams, past_beams, *(imu if imu else (None, None))
+
+    def forward(self, beams: torch.Tensor, past_beams: torch.Tensor,
+                accel: torch.Tensor | None = None, gyro: torch.Tensor | None = None, *,
+                mask: torch.Tensor | None = None,
+                past_mask: torch.Tensor | None = None) -> torch.Tensor:
+        """Estimate the DVL velocity of each sample.
+
+        Args:
+            beams: (B, 4) beam velocities of the current epoch, m/s; NaN where invalid.
+            past_beams: (B, n_past, 4) those of the previous epochs, oldest first, m/s.
+            accel: (B, 3, W) specific force, m/s^2 (with ``imu``).
+            gyro: (B, 3, W) angular rate, rad/s (with ``imu``).
+            mask, past_mask: optional bool masks of the valid beams (default: finite).
+
+        Returns:
+            (B, 3) DVL velocity, m/s; NaN rows where fewer than 3 current beams are valid.
+        """
+        values, valid, ls = self._values(beams, past_beams, accel, gyro, mask, past_mask)
+        z = torch.maximum(torch.minimum((values - self.mean) / self.std, self.high), self.low)
+        z = torch.where(valid, z, torch.zeros_like(z))
+        masks = valid[:, :N_BEAMS * (1 + self.n_past)].to(z.dtype)
+        correction = self.bound * torch.tanh(self.mlp(torch.cat([z, masks], dim=1)))
+        return ls + self.linear(ls) + correction
+
+
+MODELS: dict[str, type[nn.Module]] = {"v1": BeamsNetV1, "v2": BeamsNetV2, "v2m": BeamsNetV2M,
+                                      "corr": CorrectionNet}
 
 
 def build(name: str, **kwargs) -> nn.Module:
     """Build a model by name, e.g. ``build(m.name, **m.kwargs)`` from a checkpoint.
 
     Args:
-        name: "v1" (BeamsNetV1) or "v2" (BeamsNetV2).
+        name: "v1" (BeamsNetV1), "v2" (BeamsNetV2), "v2m" (BeamsNetV2M) or "corr"
+            (CorrectionNet).
         **kwargs: keyword arguments of that model's constructor.
 
     Raises:

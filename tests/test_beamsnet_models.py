@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from beamsnet.models import BeamsNetV1, BeamsNetV2, build
+from beamsnet.models import BeamsNetV1, BeamsNetV2, BeamsNetV2M, CorrectionNet, build
 
 
 def n_params(model: torch.nn.Module) -> int:
@@ -41,6 +41,13 @@ def test_parameter_counts():
     assert n_params(BeamsNetV1()) == 756_779
     # V2: conv 3*6*2 + 6 = 42; fc 18*16 + 16 = 304; 16*2 + 2 = 34; output 6*3 + 3 = 21: 401.
     assert n_params(BeamsNetV2()) == 401
+    assert n_params(BeamsNetV2(past_input="changes")) == 401  # the fixed V2: same layers
+    # V2M: conv 6*6*2 + 6 = 78 (past changes and their masks); fc 304 + 34; output
+    # 10*3 + 3 = 33: 449.
+    assert n_params(BeamsNetV2M()) == 449
+    # corr, n_past 3, no IMU: MLP 32*32 + 32 (16 values, 16 masks) = 1056, 32*32 + 32 =
+    # 1056, 32*3 + 3 = 99; linear 3*3 + 3 = 12: 2223.
+    assert n_params(CorrectionNet()) == 2223
 
 
 def test_v1_dropout_is_off_in_eval_and_on_in_train():
@@ -119,10 +126,15 @@ def test_bad_constructor_arguments_are_named():
         BeamsNetV1(dropout=1.0)
     with pytest.raises(ValueError, match="n_past"):
         BeamsNetV2(n_past=0)
+    with pytest.raises(ValueError, match="past_input"):
+        BeamsNetV2(past_input="raw")
+    with pytest.raises(ValueError, match="hidden"):
+        CorrectionNet(hidden=0)
 
 
 def test_build_rejects_unknown_names():
-    with pytest.raises(ValueError, match=r"name must be one of \['v1', 'v2'\], got 'v3'"):
+    with pytest.raises(ValueError, match=r"name must be one of \['corr', 'v1', 'v2', 'v2m'\], "
+                       "got 'v3'"):
         build("v3")
 
 
@@ -130,6 +142,9 @@ def test_build_rejects_unknown_names():
     ("v1", dict(imu_window=40, dropout=0.1, shared_imu_conv=True)),
     ("v1", {}),
     ("v2", dict(n_past=5)),
+    ("v2", dict(n_past=2, past_input="changes")),
+    ("v2m", dict(n_past=4)),
+    ("corr", dict(n_past=0, imu=True, hidden=8)),
 ])
 def test_kwargs_round_trip(name, kwargs):
     model = build(name, **kwargs)

@@ -70,7 +70,8 @@ def test_checkpoint_reloads_with_identical_predictions(scale_only, v2_run):
     again, _ = load(out / "model.pt")
     _, test = split(load_windows(scale_only, n_past=3))
     np.testing.assert_array_equal(predict(model, "v2", test), predict(again, "v2", test))
-    assert checkpoint["model"] == "v2" and checkpoint["kwargs"] == {"n_past": 3}
+    assert checkpoint["model"] == "v2"
+    assert checkpoint["kwargs"] == {"n_past": 3, "past_input": "changes"}
     assert len(checkpoint["dataset"]["sha256"]) == 64
     assert checkpoint["train_config"]["epochs"] == 6
     assert (out / "losses.png").stat().st_size > 1000
