@@ -248,14 +248,20 @@ def test_cli_defaults_are_train_configs(monkeypatch, capsys):
     monkeypatch.setattr(beamsnet.train, "train", record("train"))
     monkeypatch.setattr(beamsnet.reproduce, "paper_sim", record("paper-sim"))
     monkeypatch.setattr(beamsnet.reproduce, "snapir", record("snapir"))
+    monkeypatch.setattr(beamsnet.reproduce, "sim2real", record("sim2real"))
     monkeypatch.setattr(beamsnet.stress, "stress", record("stress"))
     assert main(["train", "data.h5", "--out", "run", "--quiet"]) == 0
     assert calls["train"][0][1] == TrainConfig()
-    for command in (["reproduce", "paper-sim"], ["reproduce", "snapir"], ["stress"]):
+    for command in (["reproduce", "paper-sim"], ["stress"]):
         assert main([*command, "--quiet"]) == 0
         profile = PROFILES[command[-1]]
         kwargs = calls[command[-1]][1]
         assert (kwargs["training"], kwargs["restarts"]) == (profile.config, profile.restarts)
+    # The sea-data experiments score every seed; sim2real trains with the sea profile.
+    for command in (["reproduce", "snapir"], ["reproduce", "sim2real"]):
+        assert main([*command, "--quiet"]) == 0
+        kwargs = calls[command[-1]][1]
+        assert kwargs["training"] == PROFILES["snapir"].config and kwargs["seeds"] is None
     capsys.readouterr()
 
     def help_of(command):

@@ -144,17 +144,20 @@ def test_reproduce_snapir_end_to_end_small(tmp_path, monkeypatch, capsys):
     np.save(data / "V_test.npy", stream(120, seed=1))
     monkeypatch.chdir(tmp_path)
     assert beamsnet_main(["reproduce", "snapir", "--data", str(data), "--epochs", "2",
-                          "--out", "reports", "--quiet"]) == 0
+                          "--seeds", "2", "--out", "reports", "--quiet"]) == 0
     report = (tmp_path / "reports" / "snapir.md").read_text()
     for text in ("| validation", "| test (V_test.npy)", "62.86", "| Affine |", "| KF |",
-                 "BeamsNetV2", "test mission: V_test.npy, 117 pings"):
+                 "| BeamsNetV2 (seed_0) |", "| BeamsNetV2 (paper) (seed_1) |",
+                 "| CorrectionNet (seed_0) |", "test mission: V_test.npy, 117 pings",
+                 "| CorrectionNet | test | "):
         assert text in report
     assert (tmp_path / "reports" / "snapir.png").exists()
-    # A second run reuses the imported file and the trained model.
-    stamp = (tmp_path / "runs" / "snapir" / "v2" / "model.pt").stat().st_mtime_ns
+    # A second run reuses the imported file and the trained models.
+    model = tmp_path / "runs" / "snapir" / "v2" / "seed_1" / "model.pt"
+    stamp = model.stat().st_mtime_ns
     assert beamsnet_main(["reproduce", "snapir", "--data", str(data), "--epochs", "2",
-                          "--out", "reports", "--quiet"]) == 0
-    assert (tmp_path / "runs" / "snapir" / "v2" / "model.pt").stat().st_mtime_ns == stamp
+                          "--seeds", "2", "--out", "reports", "--quiet"]) == 0
+    assert model.stat().st_mtime_ns == stamp
 
 
 def test_reproduce_snapir_without_the_data_says_where_it_comes_from(tmp_path, capsys):
