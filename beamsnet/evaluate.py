@@ -37,6 +37,7 @@ from .missing import MissingBeamRegressor
 from .train import (
     SENSOR_ERRORS,
     SENSOR_GEOMETRY,
+    TITLES,
     load,
     predict,
     sensor_setup,
@@ -188,7 +189,7 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
         if positions is not None and hasattr(baseline, "positions"):
             positions[baseline.name] = baseline.positions(test_w)
     for run, model, checkpoint in models:
-        name = f"BeamsNet{checkpoint['model'].upper()} ({run.name})"
+        name = f"{TITLES[checkpoint['model']]} ({run.name})"
         out[name] = predict(model, checkpoint["model"], trimmed(test_w, checkpoint))
     return out
 

@@ -53,9 +53,9 @@ from auvsim.files import make_out_dir, save_figure, write_text
 
 from . import metrics
 from .data import Windows, load_windows
-from .evaluate import baselines, filters
+from .evaluate import baselines, filters, trimmed
 from .stress import _short, _truth_at_pings, dead_reckoning_error, own_position_error
-from .train import predict
+from .train import MASKED, TITLES, predict
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
 # straight line, a steady turn, a hard zigzag and random waypoints span the stress test's
@@ -95,7 +95,8 @@ SWEEPS = {
 NEEDS = {"LS": "needs 3 beams", "Affine": "needs 4 beams", "KF": "needs 4 beams",
          "Beam calibration": "needs 3 beams", "LS scale+offset": "needs 3 beams",
          "KF (beam calibration)": "needs 3 beams", "Missing-beam LS": "needs past pings",
-         "BeamsNetV1": "needs 4 beams", "BeamsNetV2": "needs 4 beams on 4 pings"}
+         "BeamsNetV1": "needs 4 beams", "BeamsNetV2": "needs 4 beams on 4 pings",
+         "BeamsNetV2M": "needs 3 beams", "CorrectionNet": "needs 3 beams"}
 
 
 @dataclass(frozen=True)
@@ -290,15 +291,19 @@ def _dataset(config, fault: Fault, duration: float, datasets: Path, progress: bo
 def _estimates(baselines: list, models: list, windows: Windows) -> dict[str, np.ndarray]:
     """Every estimator's (S, 3) estimates on ``windows``, NaN where it gives none.
 
-    The baselines give NaN themselves where a beam they need is NaN; a network is run
-    only on the pings whose inputs are all there, since its output on a NaN input is
-    NaN anyway and a network cannot be told which beam is missing.
+    The baselines give NaN themselves where a beam they need is NaN, and so do the
+    networks that take validity masks (``beamsnet.train.MASKED``: where fewer than three
+    current beams are valid); any other network is run only on the pings whose inputs
+    are all there, since its output on a NaN input is NaN anyway and it cannot be told
+    which beam is missing.
     """
     out = {b.name: b.predict(windows) for b in baselines}
     for run, model, checkpoint in models:
         name = checkpoint["model"]
-        n = checkpoint["train_config"]["n_past"]
-        mine = windows._replace(past_beams=windows.past_beams[:, -n:])
+        mine = trimmed(windows, checkpoint)
+        if name in MASKED:
+            out[f"{TITLES[name]} ({run.name})"] = predict(model, name, mine)
+            continue
         ready = np.isfinite(mine.beams).all(axis=1)
         if name == "v2":
             ready &= np.isfinite(mine.past_beams).all(axis=(1, 2))
@@ -307,7 +312,7 @@ def _estimates(baselines: list, models: list, windows: Windows) -> dict[str, np.
             from .data import select
 
             pred[ready] = predict(model, name, select(mine, ready))
-        out[f"BeamsNet{name.upper()} ({run.name})"] = pred
+        out[f"{TITLES[name]} ({run.name})"] = pred
     return out
 
 
@@ -380,7 +385,7 @@ def _cell(name: str, c: dict) -> str:
 def _report(summary: dict) -> str:
     sweeps_ = summary["sweeps"]
     names = list(next(iter(sweeps_.values()))[0]["estimators"])
-    trained = ", ".join(f"BeamsNet{m['model'].upper()} ({m['pings']} pings, lr {m['lr']:g}, "
+    trained = ", ".join(f"{TITLES[m['model']]} ({m['pings']} pings, lr {m['lr']:g}, "
                         f"{m['epochs']} epochs, weights averaged over the last "
                         f"{m['average_epochs']})" for m in summary["models"])
     lines = [

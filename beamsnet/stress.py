@@ -39,7 +39,7 @@ from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import predictions
 from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, TrainConfig, check_restarts
+from .train import PROFILES, TITLES, TrainConfig, check_restarts
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -128,7 +128,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
 
     windows = load_windows(train_data)  # the models' own (default) n_past
     # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
-    names = ["v1", "v2"] if windows.accel is not None else ["v2"]
+    # V2M and CorrectionNet take validity masks: the fault sweep's missing beams.
+    names = (["v1"] if windows.accel is not None else []) + ["v2", "v2m", "corr"]
     kept = train_runs(train_data, {name: dataclasses.replace(training, model=name)
                                    for name in names},
                       runs / "stress" / Path(train_data).stem, restarts, progress=progress)
@@ -309,7 +310,7 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
             + " | ".join(cell(r[n]) for n in names) + " |" for m, r in rows.items()]
 
     trained = ", ".join(
-        f"BeamsNet{c['model'].upper()} ({c['samples']['train']} pings, lr "
+        f"{TITLES[c['model']]} ({c['samples']['train']} pings, lr "
         f"{c['train_config']['lr']:g}, {c['train_config']['epochs']} epochs)"
         for _, _, c in models)
     lines = [

@@ -25,8 +25,8 @@ def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monk
     rows = json.loads((tmp_path / "reports" / "stress.json").read_text())
     assert list(rows) == [name for name, _, _ in MANEUVER_MISSIONS]
     for name, row in rows.items():
-        assert set(row) == {b.name for b in baselines()} | set(FILTER_NAMES) | {"BeamsNetV1 (v1)",
-                                                               "BeamsNetV2 (v2)"}
+        assert set(row) == {b.name for b in baselines()} | set(FILTER_NAMES) | {
+            "BeamsNetV1 (v1)", "BeamsNetV2 (v2)", "BeamsNetV2M (v2m)", "CorrectionNet (corr)"}
         assert all(np.isfinite(c["rmse_vector"]) and np.isfinite(c["dr_error"])
                    for c in row.values())
         assert f"| {name} |" in report

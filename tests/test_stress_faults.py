@@ -173,8 +173,8 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
     assert summary["missions"] == ["straight"]
     assert "paper-sim_60s" in summary["train_data"]
     report = (out / "faults.md").read_text()
-    names = {b.name for b in baselines()} | set(FILTER_NAMES) | {"BeamsNetV1 (v1)",
-                                                               "BeamsNetV2 (v2)"}
+    names = {b.name for b in baselines()} | set(FILTER_NAMES) | {
+            "BeamsNetV1 (v1)", "BeamsNetV2 (v2)", "BeamsNetV2M (v2m)", "CorrectionNet (corr)"}
     for sweep, rows in summary["sweeps"].items():
         assert len(rows) == len(sweeps(30.0)[sweep])
         for row in rows:
