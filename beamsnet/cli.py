@@ -14,6 +14,7 @@ from .evaluate import SensorSetupWarning
 from .faults import FAULT_DURATION, FAULT_MISSIONS
 from .sim2real import DURATION as SIM2REAL_DURATION
 from .sim2real import SEEDS as SIM2REAL_SEEDS
+from .sim2real import SIM_SEEDS
 from .stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
 from .train import PROFILES, TrainConfig
 
@@ -124,7 +125,7 @@ def _parser() -> argparse.ArgumentParser:
                     f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
     rp.add_argument("--seeds", type=int,
                     help=f"snapir, sim2real: seeds per network, every one scored (default "
-                    f"{SIM2REAL_SEEDS})")
+                    f"{SIM2REAL_SEEDS} for snapir, {SIM_SEEDS} for sim2real)")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,

@@ -207,7 +207,7 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
     from . import sim2real as experiment
 
     check_out_dir(out)
-    seeds = experiment.SEEDS if seeds is None else seeds
+    seeds = experiment.SIM_SEEDS if seeds is None else seeds
     _check_seeds(seeds)
     return experiment.sim2real(snapir_dataset(data), out=out, duration=duration, seeds=seeds,
                                training=training, runs=runs, workers=workers,
