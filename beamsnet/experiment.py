@@ -126,8 +126,9 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
 
 
 def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
-                runs_dir: str | os.PathLike, seeds: int, *, workers: int | None = None,
-                progress: bool = True) -> dict[str, list[tuple[Path, torch.nn.Module, dict]]]:
+                runs_dir: str | os.PathLike, seeds: int | Mapping[str, int], *,
+                workers: int | None = None, progress: bool = True
+                ) -> dict[str, list[tuple[Path, torch.nn.Module, dict]]]:
     """Train every config of ``configs`` on ``data`` from seeds 0 .. ``seeds`` - 1 and load
     every seed's model: for reports that score each seed (no seed kept over another).
 
@@ -138,19 +139,21 @@ def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         configs: name -> config (its seed is replaced); a name is a directory under
             ``runs_dir``, its seeds go to ``runs_dir/name/seed_<s>``.
         runs_dir: where the runs go.
-        seeds: how many seeds, >= 1.
+        seeds: how many seeds, >= 1; or name -> how many, for each config.
         workers, progress: as ``train_runs``.
 
     Returns:
         name -> [(run, model, checkpoint)] in seed order, what
         ``beamsnet.evaluate.predictions`` takes.
     """
-    check_restarts(seeds)
+    counts = seeds if isinstance(seeds, Mapping) else dict.fromkeys(configs, seeds)
+    for count in counts.values():
+        check_restarts(count)
     runs_dir = Path(runs_dir)
     sha256 = file_identity(data)["sha256"]
     runs, jobs = {}, []
     for name, config in configs.items():
-        pairs = seed_runs(dataclasses.replace(config, seed=0), runs_dir / name, seeds)
+        pairs = seed_runs(dataclasses.replace(config, seed=0), runs_dir / name, counts[name])
         runs[name] = [run for _, run in pairs]
         jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
     train_all(jobs, workers=workers, progress=progress)

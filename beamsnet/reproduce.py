@@ -124,15 +124,16 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
 
     Every learned estimator of ``beamsnet.sim2real.LEARNED`` (BeamsNetV2 fixed and as
     published, CorrectionNet) is trained on the ``train`` mission's training split from
-    ``seeds`` seeds (default ``beamsnet.sim2real.SEEDS``), and every seed is scored: the
-    seed's spread is part of the result. ``training`` defaults to the ``snapir`` profile
+    ``seeds`` seeds (default ``beamsnet.sim2real.SEEDS``, per model), and every seed is
+    scored: the seed's spread is part of the result. ``training`` defaults to the ``snapir`` profile
     (``beamsnet.train.PROFILES``).
     """
     from . import sim2real as experiment
 
     training = PROFILES["snapir"].config if training is None else training
-    seeds = experiment.SEEDS if seeds is None else seeds
-    _check_seeds(seeds)
+    if seeds is not None:
+        _check_seeds(seeds)
+    counts = experiment.SEEDS if seeds is None else dict.fromkeys(experiment.SEEDS, seeds)
     check_out_dir(out)
     dataset = snapir_dataset(data)
     if progress:
@@ -141,7 +142,7 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     nets = train_seeds(dataset, {key: dataclasses.replace(training, **change,
                                                            missions=("train",))
                                  for key, change in experiment.LEARNED.values()},
-                       runs / "snapir", seeds, workers=workers, progress=progress)
+                       runs / "snapir", counts, workers=workers, progress=progress)
     train_w, validation = split(load_windows(dataset, missions=["train"]),
                                 training.train_fraction)
     test = load_windows(dataset, missions=["test"])
@@ -155,7 +156,7 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
         results[part] = (windows, table(windows, estimates[part]))
     report = out / "snapir.md"
     make_out_dir(out)
-    write_text(report, _snapir_report(data, dataset, training, seeds, train_w, results,
+    write_text(report, _snapir_report(data, dataset, training, counts, train_w, results,
                                      estimates["test"]))
     _snapir_figure(results, out / "snapir.png")
     return report
@@ -381,8 +382,10 @@ def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimate
         f"0.042^2 m/s), into `{dataset}`. Every network trained on the first 75 % of "
         f"`V.npy` ({len(train_w.target)} pings), lr {config.lr:g} decaying "
         f"x{config.lr_gamma:g} every {config.lr_step} epochs, {config.epochs} epochs, batch "
-        f"{config.batch_size}, {_averaging(config.average_epochs)}, from {seeds} seeds "
-        "(0 upwards), every seed scored. BeamsNetV2 is trained twice: with its past beams "
+        f"{config.batch_size}, {_averaging(config.average_epochs)}, from seeds 0 upwards ("
+        + ", ".join(f"{n} for {name}" for name, (key, _) in LEARNED.items()
+                    for n in [seeds[key]])
+        + "), every seed scored. BeamsNetV2 is trained twice: with its past beams "
         "entering as their changes to the current beams (`protocol=\"fixed\"`, the default "
         "of `beamsnet train`), and exactly as published (`protocol=\"paper\"`). "
         "CorrectionNet is ours: the LS velocity plus a learned affine correction and a "
@@ -411,13 +414,15 @@ def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimate
         "",
         "Every seed's improvement over LS, %:",
         "",
-        "| estimator | split | " + " | ".join(f"seed {s}" for s in range(seeds)) + " |",
-        "|---|---|" + "---|" * seeds,
+        "| estimator | split | " + " | ".join(f"seed {s}" for s in range(max(seeds.values())))
+        + " |",
+        "|---|---|" + "---|" * max(seeds.values()),
     ]
     for name in learned:
         for part, rows in (("validation", val), ("test", test)):
-            lines.append(f"| {name} | {part} | "
-                         + " | ".join(f"{v:.2f}" for v in improvement(rows, name)) + " |")
+            values = improvement(rows, name)
+            lines.append(f"| {name} | {part} | " + " | ".join(f"{v:.2f}" for v in values)
+                         + " |" * (max(seeds.values()) - len(values) + 1))
     fixed = improvement(test, "BeamsNetV2")
     corr = [r["rmse"] for r in _seed_rows(test, "CorrectionNet")]
     affine = test["Affine"]["rmse"]
