@@ -26,7 +26,8 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "allow_mismatch": "--allow-mismatch", "faults": "--faults",
          "fault_duration": "--fault-duration", "fault_missions": "--fault-mission",
          "seeds": "--seeds", "duration": "--duration", "noise": "--noise",
-         "estimator": "--estimator", "train": "--train"}
+         "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
+         "mask_rate": "--mask-rate", "imu": "--imu"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
 
 
