@@ -71,7 +71,7 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
         train_w, test_w = split(windows, fraction)
     except ValueError as e:
         raise DataError(f"{dataset}: {e}") from None
-    return test_w, predictions(models, train_w, test_w)
+    return test_w, predictions(models, train_w, test_w, dataset=dataset)
 
 
 def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
