@@ -234,6 +234,9 @@ def _reproduce(args) -> None:
     if seeded and args.restarts is not None:
         raise ConfigError(f"is not used by {args.experiment}, which scores every seed; "
                           "expected --seeds N", argument="restarts")
+    if args.experiment == "snapir" and args.duration is not None:
+        raise ConfigError("is not used by snapir, whose data are the recorded streams; "
+                          "expected it with paper-sim or sim2real", argument="duration")
     if not seeded and args.seeds is not None:
         raise ConfigError(f"is not used by {args.experiment}, which keeps the best of "
                           "its seeds; expected --restarts N", argument="seeds")

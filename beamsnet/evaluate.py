@@ -31,6 +31,7 @@ from .baselines import (
     KalmanFilter,
     LeastSquares,
     ScaleOffset,
+    availability,
 )
 from .data import DataError, Windows, load_windows, split
 from .missing import MissingBeamRegressor
@@ -352,8 +353,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset)
     windows = load_windows(dataset, every_ping=True)
+    train_windows = load_windows(dataset if train is None else train)
     try:
-        train_w = split(load_windows(dataset if train is None else train))[0]
+        train_w = split(train_windows)[0]
     except ValueError as e:
         raise DataError(f"{train or dataset}: {e}") from None
     pred = estimator.fit(train_w).predict(windows)
@@ -361,7 +363,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     has_truth = all(_has_truth(dataset, n) for n in windows.names)
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred),
-                   availability=float(np.isfinite(pred).all(axis=1).mean()), missions={})
+                   availability=availability(pred), missions={})
     truth = _truth_at_pings(dataset, windows) if has_truth else None
     for i, mission in enumerate(windows.names):
         mine = windows.mission == i

@@ -132,7 +132,9 @@ def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
     """Train every config of ``configs`` on ``data`` from seeds 0 .. ``seeds`` - 1 and load
     every seed's model: for reports that score each seed (no seed kept over another).
 
-    A seed run already holding the same config trained on the same file is reused.
+    A seed run already holding the same config trained on the same file is reused. A
+    seed whose training diverges stops the report (``DivergedError``): every seed is a
+    row of it, and none is dropped silently.
 
     Args:
         data: the dataset (each config's ``missions`` of it).
@@ -140,7 +142,7 @@ def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
             ``runs_dir``, its seeds go to ``runs_dir/name/seed_<s>``.
         runs_dir: where the runs go.
         seeds: how many seeds, >= 1; or name -> how many, for each config.
-        workers, progress: as ``train_runs``.
+        workers, progress: training processes; progress bars.
 
     Returns:
         name -> [(run, model, checkpoint)] in seed order, what

@@ -54,7 +54,7 @@ from auvsim.files import make_out_dir, save_figure, write_text
 from . import metrics
 from .data import Windows, load_windows
 from .evaluate import baselines, filters, trimmed
-from .stress import _short, _truth_at_pings, dead_reckoning_error, own_position_error
+from .stress import _as_published, _short, _truth_at_pings, dead_reckoning_error, own_position_error
 from .train import MASKED, TITLES, predict
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
@@ -88,8 +88,8 @@ SWEEPS = {
     "dead beam": "share of each mission with beam 0 dead",
     "outliers": f"share of beam-pings with a {OUTLIER_STD:g} m/s outlier",
     "water track": "share of each mission in water track (0.3 m/s current)",
-    "dropout + dead beam": "share of each mission with beam 0 dead, and 20 % of the other "
-                           "beam-pings dropped (bursts of 5 pings)",
+    "dropout + dead beam": "share of each mission with beam 0 dead, and 20 % of every "
+                           "beam's pings dropped (bursts of 5 pings)",
 }
 # What an estimator needs of a ping to give an estimate, for the table's n/a.
 NEEDS = {"LS": "needs 3 beams", "Affine": "needs 4 beams", "KF": "needs 4 beams",
@@ -366,7 +366,8 @@ def _jsonable(value):
 def _trained(checkpoint: dict) -> dict:
     """What a network was trained with, for the summary."""
     c = checkpoint["train_config"]
-    return dict(model=checkpoint["model"], pings=checkpoint["samples"]["train"],
+    return dict(model=checkpoint["model"], as_published=_as_published(c),
+                pings=checkpoint["samples"]["train"],
                 lr=c["lr"], epochs=c["epochs"], average_epochs=c["average_epochs"],
                 seed=c["seed"])
 
@@ -385,8 +386,8 @@ def _cell(name: str, c: dict) -> str:
 def _report(summary: dict) -> str:
     sweeps_ = summary["sweeps"]
     names = list(next(iter(sweeps_.values()))[0]["estimators"])
-    trained = ", ".join(f"{TITLES[m['model']]} ({m['pings']} pings, lr {m['lr']:g}, "
-                        f"{m['epochs']} epochs, weights averaged over the last "
+    trained = ", ".join(f"{TITLES[m['model']]}{m['as_published']} ({m['pings']} pings, "
+                        f"lr {m['lr']:g}, {m['epochs']} epochs, weights averaged over the last "
                         f"{m['average_epochs']})" for m in summary["models"])
     lines = [
         "# Fault stress test: every DVL estimator on the pings a faulty DVL delivers",
@@ -458,7 +459,8 @@ def _per_mission(rows: list[dict], names: list[str]) -> list[str]:
             cells = []
             for n in names:
                 d = est[n]["dr_missions"].get(m, math.nan)
-                cells.append("n/a" if not math.isfinite(d) else f"{d:.2f}" if n == "LS"
+                cells.append("n/a" if not math.isfinite(d) else f"{d:.2f}"
+                             if n == "LS" or not ls > 0
                              else f"{d:.2f} ({100 * (d / ls - 1):+.0f} %)")
             lines.append(f"| {m} | " + " | ".join(cells) + " |")
         lines.append("")
@@ -469,8 +471,11 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
     """Plain sentences computed from the results: per sweep, its strongest setting
     against its first; per estimator, how often it dead-reckons worse than LS."""
     lines = []
+    clean = sweeps_["dropout"][0] if "dropout" in sweeps_ else None
     for sweep, rows in sweeps_.items():
-        first, last = rows[0]["estimators"], rows[-1]["estimators"]
+        # A sweep of one setting is told against the clean one.
+        start = rows[0] if len(rows) > 1 or clean is None else clean
+        first, last = start["estimators"], rows[-1]["estimators"]
         said = []
         for n in names:
             a, b = first[n], last[n]
@@ -482,7 +487,7 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
                    f"{a['dr_error']:.1f} m")
             said.append(f"{_short(n)} {_percent(b['availability'])} available, "
                         f"{b['rmse_vector']:.4f} m/s, {b['dr_error']:.1f} m (from {was})")
-        lines.append(f"- {sweep.capitalize()}, from {rows[0]['label']} to "
+        lines.append(f"- {sweep.capitalize()}, from {start['label']} to "
                      f"{rows[-1]['label']}: " + "; ".join(said) + ".")
     # Each distinct setting once (the clean one starts four sweeps).
     settings = {r["dataset"]: r["estimators"] for rows in sweeps_.values() for r in rows}

@@ -19,7 +19,8 @@ the discrete form auvsim's truth obeys: MuJoCo's semi-implicit Euler step holds 
 acceleration recorded at step i - 1 over the step and rotates by the angular velocity
 recorded at step i, and the simulated accelerometer reads C^T (a - g) with the model's
 g0. So noise-free data integrate back exactly at the body origin; at the IMU point (and
-the DVL) the one discretisation error is the lever arm's, see ``lever_arm_error``. A real
+the DVL) the one discretisation error is the lever arm's (derived, and tested to 1e-9,
+in ``tests/test_ins.py::lever_arm_error``). A real
 IMU's increments would need Savage's coning and sculling terms instead.
 
 Error state (x = x_hat + dx; Groves ch. 14.2, Sola 2017 "Quaternion kinematics for the

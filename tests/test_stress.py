@@ -55,9 +55,17 @@ def test_dead_reckoning_error_of_a_constant_velocity_bias(tmp_path):
     truth = _truth_at_pings(path, windows)
     biased = windows.target + np.array([0.01, 0.0, 0.0])
     drift, travelled = dead_reckoning_error(windows, biased, truth, 0)
-    assert drift == pytest.approx(0.01 * len(windows.target), rel=2e-3)
-    assert travelled == pytest.approx(2.0 * len(windows.target), rel=1e-3)
+    assert drift == pytest.approx(0.01 * (len(windows.target) - 1), rel=2e-3)
+    assert travelled == pytest.approx(2.0 * (len(windows.target) - 1), rel=1e-3)
     assert dead_reckoning_error(windows, windows.target, truth, 0)[0] == 0.0
+    # A position solution is scored over the same span, first ping to last: the true
+    # positions plus the biased velocity's drift score what its dead reckoning does.
+    from beamsnet.stress import dead_reckoning_track, own_position_error
+
+    drifted = truth["position"] + (dead_reckoning_track(windows, biased, truth, 0)
+                                   - dead_reckoning_track(windows, windows.target, truth, 0))
+    assert own_position_error(windows, drifted, truth, 0) == pytest.approx(drift, rel=1e-12)
+    assert own_position_error(windows, truth["position"], truth, 0) == 0.0
 
 
 def test_truth_at_pings_rotates_the_dvl_velocity_into_ned(tmp_path):
