@@ -54,7 +54,14 @@ from auvsim.files import make_out_dir, save_figure, write_text
 from . import metrics
 from .data import Windows, load_windows
 from .evaluate import baselines, filters, trimmed
-from .stress import _as_published, _short, _truth_at_pings, dead_reckoning_error, own_position_error
+from .stress import (
+    _as_published,
+    _short,
+    _truth_at_pings,
+    dead_reckoning_error,
+    own_position_error,
+    why_worse,
+)
 from .train import MASKED, TITLES, predict
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
@@ -437,6 +444,11 @@ def _report(summary: dict) -> str:
         lines.append("")
     lines += _per_mission(sweeps_.get("dropout + dead beam", []), names)
     lines += ["![error, availability and dead reckoning against fault rate](faults.png)",
+              "", "## Rows worse than LS, and why", "",
+              "By dead-reckoning error, over the distinct settings:", "",
+              *why_worse({f"{r['label']} ({sweep})": r["estimators"]
+                          for sweep, rows in sweeps_.items() for r in rows}, "dr_error",
+                         availability=True),
               "", "## What it shows", "", *_findings(sweeps_, names)]
     return "\n".join(lines) + "\n"
 

@@ -222,7 +222,12 @@ def _findings(results: dict, tests: dict) -> list[str]:
              for low in [min(s["improvement"] for s in seeds)]
              if name != "LS" and low < 0]
     lines.append("- Seeds or estimators worse than LS: " + ("; ".join(worse) if worse else
-                                                            "none") + ".")
+                                                            "none") + "."
+                 + (" Why: BeamsNetV2 as published feeds its ReLU features the raw past "
+                    "beams, which switch them at velocities outside the training range "
+                    "(`reproduce snapir` measures it inside and outside that range); any "
+                    "other network or fit, that the test's velocities or sensor errors are "
+                    "not its training data's." if worse else ""))
     test = list(tests)[-1]
     said = []
     for name in results[matched][test]:

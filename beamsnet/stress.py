@@ -292,6 +292,48 @@ def _phases(path: Path) -> dict[str, list]:
             for m in config.missions}
 
 
+# Why an estimator can be worse than LS on data unlike its training data, by its kind.
+WHY = {
+    "Affine": "its 15 parameters were fitted on the training data; cross-axis terms that "
+              "straight lines never constrain are exercised by every sway, heave and current",
+    "KF": "it filters the affine calibration's velocity (and inherits its cross-axis "
+          "errors), holding its estimate through pings without four beams",
+    "KF (beam calibration)": "a random walk lags a velocity that keeps changing, and holds "
+                             "through gaps",
+    "Beam calibration": "its 8 per-beam parameters were fitted on the training data's "
+                        "sensor errors",
+    "LS scale+offset": "its scale and offset were fitted on the training data's sensor "
+                       "errors",
+    "Missing-beam LS": "its regressed beams are noisier than LS's exact solution on three",
+    "INS/DVL": "its noise model is the file's, and it gates beams it finds inconsistent",
+}
+NETWORK_WHY = ("a network fitted on the training data meets motions (sway, heave, turns, "
+               "currents) its training data never showed")
+
+
+def why_worse(rows: dict[str, dict], key: str, *, availability: bool = False) -> list[str]:
+    """One line per estimator worse than LS by ``key`` (e.g. ``rmse_vector``) in some of
+    ``rows`` (setting or mission -> estimator -> scores), saying where and why: fewer pings
+    with an estimate than LS (gaps held through), or what the estimator is."""
+    names = [n for n in next(iter(rows.values())) if n != "LS"]
+    lines = []
+    for n in names:
+        worse = [m for m, r in rows.items()
+                 if math.isfinite(r[n][key]) and r[n][key] > r["LS"][key]]
+        if not worse:
+            continue
+        reasons = [NETWORK_WHY if n.startswith(("BeamsNet", "CorrectionNet"))
+                   else WHY.get(n, "its model differs from LS's")]
+        if availability and any(rows[m][n]["availability"] < rows[m]["LS"]["availability"]
+                                for m in worse):
+            reasons.insert(0, "it gives no estimate on pings where LS does, and a gap holds "
+                           "its last estimate")
+        lines.append(f"- {_short(n)}, worse than LS on {len(worse)} of {len(rows)} ("
+                     f"{', '.join(worse[:4])}{', ...' if len(worse) > 4 else ''}): "
+                     + "; ".join(reasons) + ".")
+    return lines or ["- None."]
+
+
 def _as_published(train_config: dict) -> str:
     """`` as published`` for a BeamsNetV2 trained with the paper's protocol (its raw past
     beams), else nothing."""
@@ -357,6 +399,16 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
         "![error over time, phases shaded](stress_time.png)",
         "",
         "![each mission's track and every estimator's position error](stress_tracks.png)",
+        "",
+        "## Rows worse than LS, and why",
+        "",
+        "By vector RMSE:",
+        "",
+        *why_worse(rows, "rmse_vector"),
+        "",
+        "By dead-reckoning error:",
+        "",
+        *why_worse(rows, "dr_error"),
         "",
         "## What it shows",
         "",
