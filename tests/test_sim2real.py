@@ -9,6 +9,7 @@ import pytest
 
 from auvsim.presets import SNAPIR_MOUNTING_YAW_DEG, sim2real
 from beamsnet.cli import main
+from beamsnet.sim2real import SEEDS
 
 
 def stream(n: int, seed: int = 0) -> np.ndarray:
@@ -48,8 +49,11 @@ def test_reproduce_sim2real_scores_every_estimator_and_seed(tmp_path, monkeypatc
     for source, tests in results.items():
         for rows in tests.values():
             assert rows["LS"][0]["improvement"] == 0.0
-            # Every seed scored: 2 asked for, one on the set along the body.
-            assert len(rows["BeamsNetV2"]) == (1 if "along the body" in source else 2)
+            # Every seed scored: 2 asked for, one on the set along the body, and on V.npy
+            # those of ``reproduce snapir``.
+            expected = (1 if "along the body" in source else
+                        SEEDS["v2"] if source.startswith("V.npy") else 2)
+            assert len(rows["BeamsNetV2"]) == expected
             for seeds in rows.values():
                 assert all(np.isfinite(s["rmse"]) and s["availability"] == 1 for s in seeds)
     assert "| Affine |" in report and "test (V_test.npy): 117 pings" in report
