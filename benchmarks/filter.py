@@ -23,17 +23,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
+
 from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.dataset import open_dataset
 from auvsim.generate import generate
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet import ins
-
-
-def cpu_seconds(fn) -> float:
-    start = time.process_time()
-    fn()
-    return time.process_time() - start
 
 
 def main() -> None:
