@@ -360,7 +360,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         raise DataError(f"{train or dataset}: {e}") from None
     pred = estimator.fit(train_w).predict(windows)
     positions = estimator.positions(windows) if hasattr(estimator, "positions") else None
-    has_truth = all(_has_truth(dataset, n) for n in windows.names)
+    has_truth = _has_truth(dataset, windows.names)
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred),
                    availability=availability(pred), missions={})
@@ -393,8 +393,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     return summary
 
 
-def _has_truth(dataset, mission: str) -> bool:
+def _has_truth(dataset, missions) -> bool:
+    """Whether every one of ``missions`` of ``dataset`` has a truth group (one open)."""
     from auvsim.dataset import open_dataset
 
     with open_dataset(dataset) as f:
-        return f.missions[mission].has("truth")
+        return all(f.missions[name].has("truth") for name in missions)
