@@ -1,0 +1,107 @@
+"""Jobs on a Dask cluster: ``--cluster local:N`` or a scheduler's address.
+
+Dask distributed is the engine (optional: ``pip install 'auvsim[cluster]'``). Its
+``Client.get_executor`` is a ``concurrent.futures`` executor, so the code that runs jobs
+(``auvsim.generate``, ``beamsnet.train.train_all``) is the same for the built-in process
+pool and for a cluster; this module only opens and closes the cluster.
+
+``local:N`` starts a ``LocalCluster`` of N worker processes (nannied, so a killed worker is
+restarted and its task run again) with ``THREADS`` threads each, and stops it at the end;
+its workers end with this process however it ends (each holds a pipe to its nanny, which
+lives in this process). Any other address is a running scheduler (``tcp://host:8786``,
+``dask ssh``, ``dask-jobqueue``): it must answer within ``CONNECT_TIMEOUT_S``, and its
+workers are left running. Tasks are submitted with ``pure=False``: two missions that look
+alike are still two tasks.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import logging
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from .errors import ConfigError, SimulationError
+
+CONNECT_TIMEOUT_S = 10.0
+THREADS = 2  # per local worker: two missions in flight, as the built-in pool's process
+_LOCAL = re.compile(r"local:(\d+)")
+_REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?[\w.\-\[\]:]+:\d+/?")
+EXPECTED = "expected local:N (N worker processes here) or a scheduler's address, host:port"
+
+
+def check_address(address: str) -> str:
+    """``address`` if it is ``local:N`` (N >= 1) or looks like a scheduler's address.
+
+    Raises:
+        ConfigError: it is neither.
+    """
+    local = _LOCAL.fullmatch(address)
+    if local is not None and int(local.group(1)) < 1:
+        raise ConfigError(f"{address!r}: expected at least one worker (local:1 or more)",
+                          argument="cluster")
+    if local is None and not _REMOTE.fullmatch(address):
+        raise ConfigError(f"{address!r}: not a cluster address; {EXPECTED} "
+                          "(tcp://10.0.0.5:8786)", argument="cluster")
+    return address
+
+
+def local_workers(address: str) -> int | None:
+    """N of ``local:N``, None for a scheduler's address."""
+    local = _LOCAL.fullmatch(address)
+    return None if local is None else int(local.group(1))
+
+
+@contextmanager
+def executor(address: str, *, threads: int = THREADS,
+             timeout: float = CONNECT_TIMEOUT_S) -> Iterator[cf.Executor]:
+    """A ``concurrent.futures`` executor whose jobs run on the Dask cluster ``address``.
+
+    Args:
+        address: ``local:N`` or a scheduler's address (``check_address``).
+        threads: threads per worker of a ``local:N`` cluster (jobs at once in each).
+        timeout: seconds to wait for the scheduler (and a local cluster's workers).
+
+    Raises:
+        ConfigError: the address is malformed, Dask distributed is not installed, or no
+            scheduler answers there within ``timeout``.
+    """
+    check_address(address)
+    try:
+        import distributed
+    except ImportError:
+        raise ConfigError("needs Dask distributed, which is not installed: expected "
+                          "pip install 'auvsim[cluster]'", argument="cluster") from None
+    n = local_workers(address)
+    cluster = None
+    try:
+        if n is not None:
+            cluster = distributed.LocalCluster(
+                n_workers=n, threads_per_worker=threads, processes=True,
+                dashboard_address=None, silence_logs=logging.ERROR)
+            client = distributed.Client(cluster, timeout=timeout)
+        else:
+            client = distributed.Client(address, timeout=timeout)
+    except (OSError, TimeoutError, ValueError) as e:
+        if cluster is not None:
+            cluster.close()
+        reason = " ".join(str(e).split()) or type(e).__name__
+        raise ConfigError(f"{address!r}: no Dask scheduler answered within "
+                          f"{timeout:g} s ({reason[:200]}); {EXPECTED}",
+                          argument="cluster") from None
+    try:
+        yield client.get_executor(pure=False)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def lost_worker(error: BaseException) -> SimulationError | None:
+    """The one-line error for a job whose workers kept dying (Dask gave up on it after
+    ``distributed.scheduler.allowed-failures`` tries), None for any other error."""
+    if type(error).__name__ != "KilledWorker":
+        return None
+    return SimulationError("a job's worker process ended abruptly on every try (killed, or "
+                           "out of memory?): expected it to finish its missions")
