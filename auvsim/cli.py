@@ -16,7 +16,7 @@ from .errors import AuvsimError, ConfigError, OneLineErrorParser
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
-         "workers": "--workers"}
+         "workers": "--workers", "shards": "--shards", "cluster": "--cluster"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -52,7 +52,16 @@ def _parser() -> argparse.ArgumentParser:
                      "(default: one per two cores)")
     gen.add_argument("--compression", choices=("lzf", "gzip"),
                      help="lzf (default) is fast; gzip is read by every HDF5 tool")
-    gen.add_argument("--out", required=True, type=_nameable, help="HDF5 file to write")
+    gen.add_argument("--cluster", metavar="ADDRESS",
+                     help="run the missions on a Dask cluster: local:N (N worker processes "
+                     "here) or a scheduler's address, host:port (needs auvsim[cluster]; "
+                     "--out must be on storage every worker reaches)")
+    gen.add_argument("--shards", type=int, metavar="N",
+                     help="write a sharded dataset into the folder --out, N missions per "
+                     "shard file, with an index that reads as one dataset (default 1 when "
+                     "--out ends in /); running again finishes or checks it")
+    gen.add_argument("--out", required=True, type=_nameable,
+                     help="HDF5 file to write, or a folder ending in / for a sharded dataset")
     gen.add_argument("--quiet", action="store_true", help="no progress bar")
     sub.add_parser("presets", help="list the named configs")
     inspect = sub.add_parser("inspect", help="describe a dataset file")
@@ -164,9 +173,13 @@ def _generate(args: argparse.Namespace) -> None:
         from .generate import generate  # numba compilation only for the commands that need it
 
     config = build_config(args)
-    summary = generate(config, args.out, workers=args.workers, progress=not args.quiet)
-    print(f"wrote {args.out}: {summary['missions']} mission(s), {summary['simulated_s']:g} s "
-          f"simulated in {summary['wall_s']:.1f} s "
+    summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
+                       shards=args.shards, progress=not args.quiet)
+    sharded = "" if "shards" not in summary else (
+        f" in {summary['shards']} shard(s), {summary['kept']} kept from an earlier run "
+        f"(index {summary['out']})")
+    print(f"wrote {args.out}: {summary['missions']} mission(s){sharded}, "
+          f"{summary['simulated_s']:g} s simulated in {summary['wall_s']:.1f} s "
           f"({summary['simulated_s'] / summary['wall_s']:.0f}x real time)")
 
 

@@ -1,4 +1,4 @@
-"""The one module that knows the file format (HDF5, schema v4 in docs/ARCHITECTURE.md).
+"""The one module that knows the file format (HDF5, schema v5 in docs/ARCHITECTURE.md).
 
 Nothing else in auvsim or beamsnet opens an HDF5 file or spells a dataset path: writers
 go through ``DatasetWriter`` (and ``mission_attrs``, ``copy_mission``), readers through
@@ -10,12 +10,20 @@ Writing streams chunks into resizable, compressed datasets with a Fletcher-32 ch
 each, so memory stays flat in mission length and a flipped byte is refused when read; the
 file is built under a temporary name and renamed when complete, so a failed or
 interrupted run leaves nothing half-written behind.
+
+A dataset is one file, or a folder of shards (each an ordinary dataset file holding some of
+the missions, with the hash of the config that made it and a digest of its data) and an
+index file whose missions are HDF5 external links into them (``write_index``): readers open
+the folder, or its index, exactly as a file, and no data is copied.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from functools import cache
 from pathlib import Path
@@ -34,9 +42,13 @@ FORMAT = "auvsim-dataset"
 # group and attributes, and a Fletcher-32 checksum on every dataset. Version 4 = version 3
 # + the realism of issue 10: the water's current in the truth, the DVL's status codes,
 # error velocity and mode, and the new realised sensor parameters (each ``Field`` and
-# ``Attr`` says ``since=4``). Older files are read.
-FORMAT_VERSION = 4
-READABLE_VERSIONS = (1, 2, 3, 4)
+# ``Attr`` says ``since=4``). Version 5 = version 4 + sharded datasets: shard files carry
+# the root attributes ``config_sha256`` and ``data_sha256`` (``data_digest``), and an index
+# file (root attribute ``layout = "index"``) links their missions. Older files are read.
+FORMAT_VERSION = 5
+READABLE_VERSIONS = (1, 2, 3, 4, 5)
+INDEX = "index.h5"  # a sharded dataset's index, in its folder
+SHARDS = "shards"  # the folder of its shards, beside the index
 ORIGINS = ("simulated", "imported")
 CHUNK_ROWS = 6000  # rows per HDF5 chunk: 60 s at 100 Hz, 48 kB for a float64 column
 # lzf: fast, built into h5py; gzip (level 1): about 1.5x the writing cost, but every HDF5
@@ -145,8 +157,9 @@ class DatasetWriter:
         self.filters = COMPRESSION[compression]
         try:
             if self.path.is_dir():
-                raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name",
-                                  argument="out")
+                raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name "
+                                  f"(or {os.path.join(str(self.path), '')!r}, with a trailing "
+                                  "/, for a sharded dataset)", argument="out")
             self.path.parent.mkdir(parents=True, exist_ok=True)
             # Temporaries of killed runs in this folder go first (``files.sweep``).
             self.claim = Claim(self.path)
@@ -190,6 +203,14 @@ class DatasetWriter:
         for key, target in (links or {}).items():
             sink.link(key, target)
         return sink
+
+    def seal(self, config_sha256: str) -> str:
+        """Make the file a shard: store the SHA-256 of the config that made its missions
+        and the digest of their data (``data_digest``, of what was written); call after
+        the last mission. Returns the digest."""
+        digest = data_digest(self.file)
+        self.file.attrs.update(config_sha256=config_sha256, data_sha256=digest)
+        return digest
 
     def __enter__(self) -> DatasetWriter:
         return self
@@ -276,6 +297,93 @@ def copy_mission(source: str | os.PathLike, name: str, writer: DatasetWriter) ->
         part.copy(part[f"missions/{name}"], writer.file["missions"])
 
 
+def data_digest(file: h5py.File) -> str:
+    """SHA-256 of a dataset file's missions: every mission's attributes and the values of
+    every field (dtype, shape and bytes, by path in name order). The same data give the
+    same digest however, whenever and wherever they were written."""
+    digest = hashlib.sha256()
+
+    def add(group: h5py.Group, prefix: str) -> None:
+        for key in sorted(group.attrs):
+            value = np.asarray(group.attrs[key])
+            digest.update(f"{prefix}@{key}:{value.dtype.str}{value.shape}".encode())
+            digest.update(value.astype(str).tobytes() if value.dtype.kind == "O"
+                          else value.tobytes())
+        for key in sorted(group):
+            item = group[key]
+            if isinstance(item, h5py.Group):
+                add(item, f"{prefix}/{key}")
+            else:
+                values = np.ascontiguousarray(item[()])
+                digest.update(f"{prefix}/{key}:{values.dtype.str}{values.shape}".encode())
+                digest.update(values.tobytes())
+
+    add(file["missions"], "")
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class Shard:
+    """One shard of a sharded dataset, as its index records it.
+
+    Attributes:
+        file: its file name in the ``SHARDS`` folder.
+        missions: the names of its missions, in dataset order.
+        config_sha256: SHA-256 of the config its missions were simulated from.
+        data_sha256: the digest of its data (``data_digest``).
+    """
+
+    file: str
+    missions: tuple[str, ...]
+    config_sha256: str
+    data_sha256: str
+
+
+def shard_state(path: str | os.PathLike, config_sha256: str) -> Shard | None:
+    """The shard at ``path`` if it is complete and holds what ``config_sha256`` makes:
+    a readable dataset file sealed with that config hash whose data still match its
+    digest (every field read again). None if it is missing, foreign, another config's,
+    or its data differ (then it is to be made again)."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        with open_dataset(path) as f:
+            attrs, file = f.attrs, f._file
+            if attrs.get("config_sha256") != config_sha256 or "data_sha256" not in attrs:
+                return None
+            if data_digest(file) != attrs["data_sha256"]:
+                return None
+            return Shard(path.name, tuple(f.missions), config_sha256, attrs["data_sha256"])
+    except (DatasetError, OSError, KeyError, ValueError, TypeError, RuntimeError):
+        return None
+
+
+def write_index(path: str | os.PathLike, shards: Sequence[Shard], *,
+                config_json: str) -> None:
+    """Write the index of a sharded dataset at ``path`` (a temporary name in the dataset's
+    folder, which the caller renames to ``INDEX``): the root attributes of a dataset file,
+    ``layout = "index"``, the shards' records, and each mission as an external link to
+    its group in ``SHARDS/<shard file>``, so readers see one dataset and no data moves."""
+    with h5py.File(path, "w") as f:
+        f.attrs.update(format=FORMAT, format_version=FORMAT_VERSION,
+                       auvsim_version=__version__,
+                       created_utc=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                       config_json=config_json, layout="index",
+                       shards=json.dumps([asdict(s) for s in shards]))
+        missions = f.create_group("missions")
+        for shard in shards:
+            for name in shard.missions:
+                missions[name] = h5py.ExternalLink(f"{SHARDS}/{shard.file}", f"/missions/{name}")
+
+
+def data_files(path: str | os.PathLike) -> list[Path]:
+    """The files that hold a dataset's data: the file itself, or a sharded dataset's
+    shards in index order (not its index, which a rewrite changes without the data)."""
+    with open_dataset(path) as f:
+        return list(f.shards) if f.shards else [f.path]
+
+
 # Reading ---------------------------------------------------------------------------------
 
 class Block:
@@ -340,7 +448,7 @@ class Mission:
         self.name = name
         self.origin = origin
         self._group = group
-        self._where = _where(dataset.path, name, origin)
+        self._where = _where(Path(group.file.filename), name, origin)  # a shard's, if one
         self.attrs = _plain(group.attrs)
         self.attrs.setdefault("origin", origin)
 
@@ -379,10 +487,11 @@ class Dataset:
     """An open, checked dataset file (``open_dataset``); use as a context manager.
 
     Attributes:
-        path: the file.
+        path: the file (a sharded dataset's index).
         version: its format version.
         attrs: the root attributes (``config_json``, ``created_utc``, ...).
         missions: name -> ``Mission``, in the file's order.
+        shards: a sharded dataset's shard files, in index order; empty for one file.
     """
 
     def __init__(self, path: Path, file: h5py.File) -> None:
@@ -391,6 +500,8 @@ class Dataset:
         self.attrs = _plain(file.attrs)
         self.version = int(self.attrs["format_version"])
         self.missions: dict[str, Mission] = {}
+        self.shards: list[Path] = []
+        self._shard_files: dict[Path, h5py.File] = {}
 
     @property
     def config_json(self) -> str:
@@ -404,6 +515,8 @@ class Dataset:
                 mission.read(key)
 
     def close(self) -> None:
+        for shard in self._shard_files.values():
+            shard.close()
         self._file.close()
 
     def __enter__(self) -> Dataset:
@@ -420,18 +533,24 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     increasing, and indices in range.
 
     Args:
-        path: the file.
+        path: the file, or a sharded dataset's folder or its index (``INDEX``): its
+            shards must be there, each the one the index lists.
         verify: also read every field now, checking its checksum (``Dataset.verify``);
             otherwise a corrupt field is refused when it is read.
 
     Raises:
         DatasetError: the file is missing, not HDF5, not an auvsim dataset, of another
-            format version, inconsistent or corrupt; the message is one line naming the
-            file and, where there is one, the mission and the field.
+            format version, inconsistent or corrupt, or a shard is missing or another
+            run's; the message is one line naming the file (the shard) and, where there
+            is one, the mission and the field.
     """
     path = Path(path)
-    if path.is_dir():
-        raise DatasetError(f"{path}: is a directory; expected an auvsim dataset file")
+    if path.is_dir() and (path / INDEX).exists():
+        path = path / INDEX
+    elif path.is_dir():
+        raise DatasetError(f"{path}: is a directory with no {INDEX}; expected an auvsim "
+                           "dataset file or a sharded dataset's folder (auvsim generate "
+                           "writes its index last: run it again to finish the dataset)")
     if not path.exists():
         raise DatasetError(f"{path}: no such file")
     if not path.is_file():
@@ -479,7 +598,14 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
     if not isinstance(f.get("missions"), h5py.Group):
         raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
     dataset = Dataset(path, f)
-    for name, group in f["missions"].items():
+    layout = f.attrs.get("layout", "file")
+    if layout not in ("file", "index"):
+        raise DatasetError(f"{path}: auvsim dataset with layout {_show(layout)}; expected "
+                           "'file' or 'index'")
+    records = _index_records(path, f) if layout == "index" else None
+    for name in f["missions"]:
+        group = (f["missions"][name] if records is None
+                 else _shard_group(path, f, name, records, dataset))
         if not isinstance(group, h5py.Group):
             raise DatasetError(f"{path}: missions/{name} is not a mission group")
         expected = f"expected one of {', '.join(ORIGINS)} (schema v{version})"
@@ -494,10 +620,52 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
     return dataset
 
 
+def _index_records(path: Path, f: h5py.File) -> dict[str, Shard]:
+    """An index's shard records by mission name."""
+    try:
+        records = [Shard(**{**r, "missions": tuple(r["missions"])})
+                   for r in json.loads(f.attrs["shards"])]
+    except (KeyError, TypeError, ValueError) as e:
+        raise DatasetError(f"{path}: corrupt auvsim index (its shards attribute: "
+                           f"{_reason(e)})") from None
+    return {name: r for r in records for name in r.missions}
+
+
+def _shard_group(path: Path, f: h5py.File, name: str, records: dict[str, Shard],
+                 dataset: Dataset) -> h5py.Group:
+    """Mission ``name`` of an index, in its shard, after checking that the shard is there
+    and is the one the index lists (sealed with the same config hash)."""
+    link = f["missions"].get(name, getlink=True)
+    if not isinstance(link, h5py.ExternalLink) or name not in records:
+        raise DatasetError(f"{path}: missions/{name} is not a link to a shard the index "
+                           "lists; expected an index written by auvsim generate")
+    shard = path.parent / link.filename
+    if not shard.is_file():
+        raise DatasetError(f"{path}: mission {name}'s shard {link.filename} is missing; "
+                           f"expected every shard the index lists in {path.parent / SHARDS} "
+                           "(running the same auvsim generate again makes it)")
+    try:
+        group = f["missions"][name]
+    except (KeyError, OSError) as e:
+        raise DatasetError(f"{shard}: cannot be read as the shard of mission {name} "
+                           f"({_reason(e)}); the shard is corrupt or not an auvsim "
+                           "dataset") from None
+    attrs = group.file.attrs
+    if attrs.get("format") != FORMAT or attrs.get("config_sha256") != \
+            records[name].config_sha256:
+        raise DatasetError(f"{shard}: not the shard the index {path} lists (another config "
+                           "or run wrote it since); expected the shards of one auvsim "
+                           "generate run (running it again makes them agree)")
+    if shard not in dataset._shard_files:
+        dataset.shards.append(shard)
+        dataset._shard_files[shard] = group.file
+    return group
+
+
 def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
                    version: int) -> None:
     fields, attrs = schema(origin, version)
-    where = _where(path, name, origin)
+    where = _where(Path(group.file.filename), name, origin)
     missing = [fl.path for fl in fields if not isinstance(group.get(fl.path), h5py.Dataset)]
     missing += [f"attribute {a.name}" for a in attrs
                 if a.name not in group.attrs and not (a.name == "origin" and version == 1)]
@@ -705,9 +873,12 @@ def describe(path: str | os.PathLike) -> str:
         return np.array2string(np.asarray(values), precision=6, separator=", ")
 
     with open_dataset(path, verify=True) as f:
+        sharded = f" in {len(f.shards)} shard(s) of {f.path.parent / SHARDS}" if f.shards \
+            else ""
         lines = [f"{path}: auvsim dataset v{f.version} "
                  f"(auvsim {f.attrs.get('auvsim_version', '?')}, created "
-                 f"{f.attrs.get('created_utc', '?')}), {len(f.missions)} mission(s)"]
+                 f"{f.attrs.get('created_utc', '?')}), {len(f.missions)} mission(s)"
+                 + sharded]
         for name, m in f.missions.items():
             a = m.attrs
             valid = m.dvl.valid

@@ -25,6 +25,8 @@ jobs through ``STOP``, and no worker prints a traceback.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
+import hashlib
 import multiprocessing
 import multiprocessing.forkserver
 import os
@@ -32,17 +34,36 @@ import select
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from pathlib import Path
 
 from tqdm import tqdm
 
+from .cluster import check_address, lost_worker
 from .config import Config
-from .dataset import Block, DatasetWriter, copy_mission
+from .dataset import (
+    INDEX,
+    SHARDS,
+    Block,
+    DatasetWriter,
+    Shard,
+    copy_mission,
+    shard_state,
+    write_index,
+)
 from .errors import ConfigError, SimulationError
-from .files import HOST, interrupt_handler, interrupts_held, sweep
+from .files import (
+    HOST,
+    Claim,
+    check_out_dir,
+    interrupt_handler,
+    interrupts_held,
+    make_out_dir,
+    sweep,
+)
 from .mission import MissionRun, check_reachable
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
@@ -74,18 +95,51 @@ def write_mission(config: Config, index: int, path: str, parent: Parent | None =
     part = Path(path)
     if parent is not None:
         _exit_with(parent, part.parent.parent)
-    progress, stop_file = part.with_name(part.name + ".progress"), part.parent / "STOP"
-    done = 0.0
-
-    def report(seconds: float) -> None:
-        nonlocal done
-        done += seconds
-        tmp = progress.with_name(progress.name + ".tmp")
-        tmp.write_text(f"{done:.6f}")
-        tmp.replace(progress)
-
+    report = _reporter(part.with_name(part.name + ".progress"))
     with DatasetWriter(part, config_json="", compression=config.compression) as writer:
-        _stream_mission(config, index, writer, stop=stop_file.exists, report=report)
+        _stream_mission(config, index, writer, stop=(part.parent / "STOP").exists,
+                        report=report)
+
+
+def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
+                parent: Parent | None = None) -> Shard:
+    """A job: simulate missions ``indices`` into the shard file ``path`` of a sharded
+    dataset, sealed with its config's hash and its data's digest (``DatasetWriter.seal``).
+
+    The shard is renamed into place only when whole, so one that exists is complete.
+    Progress goes to ``<folder>/<shard>.progress`` after each block; the job stops
+    (``Cancelled``) at its next block once ``folder`` (the run's, in the output folder)
+    holds ``STOP`` or has gone, and its process ends once ``parent`` has.
+    """
+    part, run = Path(path), Path(folder)
+    if parent is not None:
+        _exit_with(parent, part.parent)
+    sub = shard_config(config, indices)
+    report = _reporter(run / f"{part.stem}.progress")
+    with DatasetWriter(part, config_json=sub.to_json(), compression=config.compression) as w:
+        for i in indices:
+            _stream_mission(config, i, w,
+                            stop=lambda: (run / "STOP").exists() or not run.is_dir(),
+                            report=report)
+        digest = w.seal(config_sha256(sub))
+    return Shard(part.name, tuple(m.name for m in sub.missions), config_sha256(sub), digest)
+
+
+def shard_config(config: Config, indices: Sequence[int]) -> Config:
+    """The config of one shard: ``config`` with only the missions ``indices`` (each
+    mission depends on the config and its own settings, not on the others)."""
+    return dataclasses.replace(config, missions=tuple(config.missions[i] for i in indices))
+
+
+def config_sha256(config: Config) -> str:
+    return hashlib.sha256(config.to_json().encode()).hexdigest()
+
+
+def shard_plan(config: Config, per_shard: int) -> list[tuple[str, list[int]]]:
+    """The shards of a sharded dataset: file names and the missions each holds, in order."""
+    n = len(config.missions)
+    return [(f"part-{k:05d}.h5", list(range(start, min(start + per_shard, n))))
+            for k, start in enumerate(range(0, n, per_shard))]
 
 
 def default_workers(missions: int) -> int:
@@ -97,42 +151,128 @@ def default_workers(missions: int) -> int:
 
 
 def generate(config: Config, out: str | os.PathLike, *, workers: int | None = None,
-             executor: cf.Executor | None = None, progress: bool = True) -> dict:
-    """Simulate every mission of ``config`` into the dataset file ``out``.
+             executor: cf.Executor | None = None, cluster: str | None = None,
+             shards: int | None = None, progress: bool = True) -> dict:
+    """Simulate every mission of ``config`` into the dataset ``out``.
 
     Args:
         config: what to simulate.
-        out: the HDF5 file to write (replaced only once it is complete).
+        out: the HDF5 file to write (replaced only once it is complete), or a folder (a
+            path ending in a separator) for a sharded dataset.
         workers: worker processes (default ``default_workers``); with 1 the missions run
             in this process, ``MISSIONS_IN_FLIGHT`` at a time on threads, and stream
             straight into ``out``.
         executor: any ``concurrent.futures`` executor to run the missions' jobs
-            (``write_mission``) instead of the default process pool; its workers must
-            see this file system, and those on this host end once this process has.
+            (``write_mission``, ``write_shard``) instead of the default process pool;
+            its workers must see this file system, and those on this host end once this
+            process has.
+        cluster: run the jobs on this Dask cluster instead (``auvsim.cluster``):
+            ``local:N`` or a scheduler's address; the output must be on storage that
+            every worker reaches.
+        shards: missions per shard of a sharded dataset in the folder ``out``: one HDF5
+            file per shard in ``out/shards/`` and an index ``out/index.h5`` that reads as
+            one dataset (``auvsim.dataset.write_index``). Default 1 when ``out`` names a
+            folder; one file otherwise. Running again into the same folder keeps every
+            shard that is complete and holds this config's data (its config hash and data
+            digest say so) and makes the others.
         progress: show a progress bar on a terminal.
 
     Returns:
-        A summary: number of missions, simulated seconds, wall seconds.
+        A summary: number of missions, simulated seconds, wall seconds; for a sharded
+        dataset also its shards and how many were kept from an earlier run.
     """
     with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
         check_reachable(config)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                or workers < 1):
-        raise ConfigError(f": expected a whole number >= 1, got {workers!r}",
-                          argument="workers")
+    for name, value in (("workers", workers), ("shards", shards)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int)
+                                  or value < 1):
+            raise ConfigError(f": expected a whole number >= 1, got {value!r}", argument=name)
+    if cluster is not None:
+        check_address(cluster)
+        if executor is not None:
+            raise ConfigError(": expected an executor or a cluster, not both",
+                              argument="cluster")
     workers = min(workers or default_workers(len(config.missions)), len(config.missions))
     started = time.perf_counter()
     simulated = sum(m.scenario.duration for m in config.missions)
-    with DatasetWriter(Path(out), config_json=config.to_json(),
-                       compression=config.compression) as ds, \
-            tqdm(total=round(simulated), unit=" sim s", disable=None if progress else True,
-                 leave=False) as bar:
-        if workers == 1 and executor is None:
-            _in_threads(config, ds, lambda seconds: bar.update(round(seconds)))
+    summary: dict = dict(missions=len(config.missions), simulated_s=simulated)
+    with tqdm(total=round(simulated), unit=" sim s", disable=None if progress else True,
+              leave=False) as bar:
+        if shards is not None or _names_folder(out):
+            summary.update(_sharded(config, Path(out), shards or 1, workers, executor,
+                                    cluster, bar))
         else:
-            _in_jobs(config, ds, workers, executor, bar)
-    return dict(missions=len(config.missions), simulated_s=simulated,
-                wall_s=time.perf_counter() - started)
+            with DatasetWriter(Path(out), config_json=config.to_json(),
+                               compression=config.compression) as ds:
+                if workers == 1 and executor is None and cluster is None:
+                    _in_threads(config, ds, lambda seconds: bar.update(round(seconds)))
+                else:
+                    with _jobs_executor(executor, cluster) as jobs:
+                        _in_jobs(config, ds, workers, jobs, bar)
+    return dict(summary, wall_s=time.perf_counter() - started)
+
+
+def _names_folder(out: str | os.PathLike) -> bool:
+    """Whether ``out`` is written as a folder: ``datasets/rm/`` (a file name that is an
+    existing folder is refused, as a slip, by ``DatasetWriter``)."""
+    return os.fspath(out).endswith((os.sep, "/"))
+
+
+@contextmanager
+def _jobs_executor(executor: cf.Executor | None, cluster: str | None
+                   ) -> Iterator[cf.Executor | None]:
+    """The executor given, one on the Dask cluster ``cluster``, or None (the default
+    process pool)."""
+    if cluster is None:
+        yield executor
+        return
+    from .cluster import executor as cluster_executor
+
+    with cluster_executor(cluster) as dask_executor:
+        yield dask_executor
+
+
+def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
+             executor: cf.Executor | None, cluster: str | None, bar) -> dict:
+    """Write (or finish) the sharded dataset ``folder``: keep each shard that is already
+    complete and this config's, make the others as jobs, then write the index."""
+    folder = check_out_dir(folder)
+    plan = shard_plan(config, per_shard)
+    make_out_dir(folder / SHARDS)
+    index = folder / INDEX
+    with Claim(index) as claim:
+        index.unlink(missing_ok=True)  # it will list this run's shards: written last
+        kept: dict[int, Shard] = {}
+        for k, (name, indices) in enumerate(plan):
+            shard = shard_state(folder / SHARDS / name,
+                                config_sha256(shard_config(config, indices)))
+            if shard is not None:
+                kept[k] = shard
+                bar.update(round(sum(config.missions[i].scenario.duration for i in indices)))
+        todo = [k for k in range(len(plan)) if k not in kept]
+        made: dict[int, Shard] = {}
+        if todo:
+            claim.folder.mkdir()
+            cluster_jobs = cluster is not None
+            parent = None if cluster_jobs else this_process()
+            jobs = [(write_shard, (config, plan[k][1], str(folder / SHARDS / plan[k][0]),
+                                   str(claim.folder), parent)) for k in todo]
+            progress = [claim.folder / f"{Path(plan[k][0]).stem}.progress" for k in todo]
+            with _jobs_executor(executor, cluster) as given:
+                pool = None
+                if given is None:
+                    pool = (ThreadPoolExecutor(MISSIONS_IN_FLIGHT) if workers == 1 else
+                            _process_pool(workers, this_process(), folder / SHARDS))
+                try:
+                    _run_jobs(given or pool, jobs, claim.folder, progress, bar,
+                              lambda j, shard: made.__setitem__(todo[j], shard))
+                finally:
+                    if pool is not None:
+                        pool.shutdown(wait=True)
+        shards = [kept.get(k) or made[k] for k in range(len(plan))]
+        write_index(claim.file, shards, config_json=config.to_json())
+        os.replace(claim.file, index)
+    return dict(out=str(index), shards=len(plan), kept=len(kept))
 
 
 def _in_threads(config: Config, ds: DatasetWriter, report: Callable[[float], None]) -> None:
@@ -163,41 +303,87 @@ def _in_jobs(config: Config, ds: DatasetWriter, workers: int,
     parts = ds.claim.folder  # named and locked with the output's temporary file
     parts.mkdir()
     parent = this_process()
-    pool = None
     paths = [parts / f"{i}.h5" for i in range(len(config.missions))]
-    reported = [0.0] * len(paths)
+
+    def copy(i: int, result: None) -> None:
+        copy_mission(paths[i], config.missions[i].name, ds)
+        paths[i].unlink()
+
+    pool = None
+    try:
+        if executor is None:
+            with interrupts_held():
+                executor = pool = _process_pool(workers, parent, ds.path.parent)
+        _run_jobs(executor, [(write_mission, (config, i, str(path), parent))
+                             for i, path in enumerate(paths)],
+                  parts, [p.with_name(p.name + ".progress") for p in paths], bar, copy)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
+
+
+def _run_jobs(executor: cf.Executor, jobs: Sequence[tuple[Callable, tuple]], folder: Path,
+              progress: Sequence[Path], bar, done: Callable[[int, object], None]) -> None:
+    """Submit ``jobs`` (function, arguments) to ``executor`` and hand each result to
+    ``done`` in job order, as soon as it and those before it have finished; the progress
+    files the jobs write move ``bar``. The first error is raised at once; then (or on an
+    interrupt) ``folder/STOP`` stops the running jobs at their next block, the others
+    are cancelled (on a Dask cluster too), and this returns once they have ended."""
+    reported = [0.0] * len(jobs)
     futures: list[cf.Future] = []
     try:
         with interrupts_held():
-            if executor is None:
-                executor = pool = _process_pool(workers, parent, ds.path.parent)
-            for i, path in enumerate(paths):
-                futures.append(executor.submit(write_mission, config, i, str(path), parent))
-        copied = 0
-        while copied < len(futures):
-            done, _ = cf.wait(futures[copied:], timeout=POLL_S, return_when=cf.FIRST_EXCEPTION)
-            for future in done:
-                try:
-                    future.result()  # a job's error is raised here, as soon as it happens
-                except BrokenProcessPool:  # a traceback would say no more
-                    raise SimulationError("a worker process ended abruptly (killed, or out "
-                                          "of memory?): expected it to finish its missions"
-                                          ) from None
-            for i, path in enumerate(paths):
+            for fn, args in jobs:
+                futures.append(executor.submit(fn, *args))
+        finished = 0
+        while finished < len(futures):
+            ready, _ = cf.wait(futures[finished:], timeout=POLL_S,
+                               return_when=cf.FIRST_EXCEPTION)
+            for future in ready:
+                _raise_error_of(future)
+            for i, path in enumerate(progress):
                 seconds = _progress(path)
                 bar.update(round(seconds) - round(reported[i]))
                 reported[i] = max(reported[i], seconds)
-            while copied < len(futures) and futures[copied].done():
-                copy_mission(paths[copied], config.missions[copied].name, ds)
-                paths[copied].unlink()
-                copied += 1
+            while finished < len(futures) and futures[finished].done():
+                done(finished, futures[finished].result())
+                finished += 1
     finally:
-        (parts / "STOP").touch()  # jobs still running stop at their next block
+        (folder / "STOP").touch()  # jobs still running stop at their next block
         for future in futures:
-            future.cancel()  # those not started
-        cf.wait(futures)  # before the part folder goes (``DatasetWriter`` removes it)
-        if pool is not None:
-            pool.shutdown(wait=True)
+            future.cancel()  # those not started (on a cluster: its tasks, all of them)
+        cf.wait(futures)
+
+
+def _raise_error_of(future: cf.Future) -> None:
+    """A job's error, raised here as soon as it happens; a lost worker in one line."""
+    try:
+        future.result()
+    except BrokenProcessPool:  # a traceback would say no more
+        raise SimulationError("a worker process ended abruptly (killed, or out of memory?): "
+                              "expected it to finish its missions") from None
+    except cf.CancelledError:
+        raise SimulationError("the cluster cancelled a job (its scheduler restarted, or lost "
+                              "this client?): expected it to run every job") from None
+    except Exception as e:
+        lost = lost_worker(e)
+        if lost is not None:
+            raise lost from None
+        raise
+
+
+def _reporter(progress: Path) -> Callable[[float], None]:
+    """A job's ``report``: the simulated seconds done so far, written to ``progress``."""
+    done = 0.0
+
+    def report(seconds: float) -> None:
+        nonlocal done
+        done += seconds
+        tmp = progress.with_name(progress.name + ".tmp")
+        tmp.write_text(f"{done:.6f}")
+        tmp.replace(progress)
+
+    return report
 
 
 def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolExecutor:
@@ -287,9 +473,10 @@ def _start_time(pid: int) -> str | None:
     return None if fields[0] == b"Z" else fields[19].decode()
 
 
-def _progress(part: Path) -> float:
+def _progress(path: Path) -> float:
+    """The simulated seconds a job has written to its progress file ``path`` so far."""
     try:
-        return float(part.with_name(part.name + ".progress").read_text())
+        return float(path.read_text())
     except (OSError, ValueError):
         return 0.0
 
