@@ -346,13 +346,15 @@ _FIELDS = {"target": "the true DVL velocity", "accel": "the measured specific fo
 
 
 def file_identity(path: str | Path) -> dict:
-    """Path, SHA-256 and generating config of a dataset file."""
-    from auvsim.dataset import open_dataset
+    """Path, SHA-256 and generating config of a dataset: the SHA-256 of its file's bytes,
+    or of a sharded dataset's shards' bytes in index order."""
+    from auvsim.dataset import data_files, open_dataset
 
     digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 22), b""):
-            digest.update(block)
+    for file in data_files(path):
+        with open(file, "rb") as f:
+            for block in iter(lambda f=f: f.read(1 << 22), b""):
+                digest.update(block)
     with open_dataset(path) as f:
         config_json = f.config_json
     return dict(path=str(path), sha256=digest.hexdigest(), config_json=config_json)

@@ -1,0 +1,163 @@
+"""Sharded datasets (issue 12): a shard per mission and an index that reads as one file,
+the same data as one file, resume by config hash and data digest, and clear refusals."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+from conftest import flat, mission
+
+from auvsim import cli as auvsim_cli
+from auvsim import dataset
+from auvsim.dataset import INDEX, SHARDS, data_files, open_dataset
+from auvsim.errors import DatasetError
+from auvsim.generate import generate
+from beamsnet import cli as beamsnet_cli
+
+CONFIG = flat(mission("a", 1, duration=40.0), mission("b", 2, duration=30.0, speed=1.5),
+              mission("c", 3, duration=20.0, heading_deg=90.0))
+
+
+def arrays(path) -> dict:
+    """Every mission's attributes and fields, read through ``open_dataset``."""
+    out = {}
+    with open_dataset(path) as f:
+        for name, m in f.missions.items():
+            out[name, "attrs"] = json.dumps({k: np.asarray(v).tolist()
+                                             for k, v in sorted(m.attrs.items())})
+            for key in dataset._dataset_paths(m._group):
+                out[name, key] = m.read(key)
+    return out
+
+
+def assert_same_data(a, b) -> None:
+    a, b = arrays(a), arrays(b)
+    assert a.keys() == b.keys()
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=str(key))
+
+
+@pytest.fixture(scope="module")
+def single(tmp_path_factory):
+    path = tmp_path_factory.mktemp("one") / "one.h5"
+    generate(CONFIG, path, workers=1, progress=False)
+    return path
+
+
+@pytest.fixture
+def sharded(tmp_path):
+    out = tmp_path / "rm"
+    summary = generate(CONFIG, f"{out}/", workers=1, progress=False)
+    assert (summary["shards"], summary["kept"]) == (3, 0)
+    return out
+
+
+def test_a_sharded_dataset_holds_the_single_files_data(single, sharded):
+    assert sorted(p.name for p in sharded.iterdir()) == [INDEX, SHARDS]
+    assert sorted(p.name for p in (sharded / SHARDS).iterdir()) == [
+        "part-00000.h5", "part-00001.h5", "part-00002.h5"]
+    assert_same_data(single, sharded)
+    assert_same_data(single, sharded / INDEX)  # the index itself reads the same
+    with open_dataset(sharded) as f:
+        assert list(f.missions) == ["a", "b", "c"]
+        assert f.config_json == CONFIG.to_json()
+        assert f.shards == [sharded / SHARDS / f"part-0000{k}.h5" for k in range(3)]
+    assert data_files(sharded) == [sharded / SHARDS / f"part-0000{k}.h5" for k in range(3)]
+    assert data_files(single) == [single]
+
+
+def test_the_index_links_and_copies_nothing(sharded):
+    with h5py.File(sharded / INDEX) as f:
+        assert f.attrs["layout"] == "index"
+        links = {n: f["missions"].get(n, getlink=True) for n in f["missions"]}
+    assert all(isinstance(link, h5py.ExternalLink) for link in links.values())
+    assert (sharded / INDEX).stat().st_size < 64_000
+
+
+def test_shards_of_several_missions_and_other_processes_give_the_same_data(single, tmp_path):
+    two = generate(CONFIG, tmp_path / "two", shards=2, workers=2, progress=False)
+    assert (two["shards"], two["kept"]) == (2, 0)
+    assert_same_data(single, tmp_path / "two")
+
+
+def test_a_finished_dataset_is_kept_and_a_lost_or_changed_shard_made_again(sharded,
+                                                                          single):
+    shards = sharded / SHARDS
+    stamps = {p.name: p.stat().st_mtime_ns for p in shards.iterdir()}
+    again = generate(CONFIG, f"{sharded}/", workers=1, progress=False)
+    assert again["kept"] == 3
+    assert {p.name: p.stat().st_mtime_ns for p in shards.iterdir()} == stamps
+
+    (shards / "part-00001.h5").unlink()  # lost
+    with h5py.File(shards / "part-00002.h5", "r+") as f:  # data changed, checksums kept
+        ds = f["missions/c/truth/position_ned"]
+        ds[5, 0] = ds[5, 0] + 1.0
+    other = sharded.parent / "other"  # another config's shard 0
+    generate(dataclasses.replace(CONFIG, missions=(
+        dataclasses.replace(CONFIG.missions[0], seed=99),)), f"{other}/", workers=1,
+        progress=False)
+    shutil.copy(other / SHARDS / "part-00000.h5", shards / "part-00000.h5")
+    assert generate(CONFIG, f"{sharded}/", workers=1, progress=False)["kept"] == 0
+    assert_same_data(single, sharded)
+
+
+def test_a_shard_not_sealed_by_this_config_is_refused_by_the_index(sharded):
+    shard = sharded / SHARDS / "part-00001.h5"
+    with h5py.File(shard, "r+") as f:
+        f.attrs["config_sha256"] = "0" * 64
+    with pytest.raises(DatasetError, match="part-00001.h5: not the shard the index"):
+        open_dataset(sharded)
+
+
+def test_a_missing_shard_or_index_is_refused_in_one_line(sharded, capsys):
+    (sharded / SHARDS / "part-00002.h5").unlink()
+    with pytest.raises(DatasetError, match=r"mission c's shard shards/part-00002.h5 is "
+                       "missing"):
+        open_dataset(sharded)
+    (sharded / INDEX).unlink()
+    assert auvsim_cli.main(["inspect", str(sharded)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"is a directory with no {INDEX}" in err
+
+
+def test_a_corrupt_shard_names_the_shard_and_the_field(sharded, capsys):
+    shard = sharded / SHARDS / "part-00000.h5"
+    data = bytearray(shard.read_bytes())
+    with h5py.File(shard) as f:
+        offset = f["missions/a/truth/velocity_ned"].id.get_chunk_info(0).byte_offset
+    data[offset + 100] ^= 0xFF
+    shard.write_bytes(bytes(data))
+    assert auvsim_cli.main(["inspect", str(sharded)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "part-00000.h5: mission a (simulated): field truth/velocity_ned fails its checksum" \
+        in err
+
+
+def test_inspect_and_plot_read_the_folder(sharded, capsys, tmp_path):
+    assert auvsim_cli.main(["inspect", str(sharded)]) == 0
+    text = capsys.readouterr().out
+    assert "3 mission(s) in 3 shard(s)" in text
+    assert auvsim_cli.main(["plot", str(sharded), "--mission", "b", "--out",
+                            str(tmp_path / "png")]) == 0
+    assert [p.name for p in (tmp_path / "png").iterdir()] == ["rm_b.png"]
+
+
+def test_beamsnet_reads_an_index_as_a_file(single, sharded, tmp_path):
+    for name, path in (("one", single), ("sharded", sharded)):
+        assert beamsnet_cli.main(["estimate", str(path), "--estimator", "LS", "--out",
+                                  str(tmp_path / name)]) == 0
+    assert (tmp_path / "one" / "estimates.csv").read_bytes() == \
+        (tmp_path / "sharded" / "estimates.csv").read_bytes()
+
+
+def test_a_bad_shards_count_is_refused(tmp_path, capsys):
+    assert auvsim_cli.main(["generate", "--duration", "5", "--shards", "0", "--out",
+                            str(tmp_path / "x")]) == 2
+    assert "--shards: expected a whole number >= 1, got 0" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
