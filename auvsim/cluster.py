@@ -77,9 +77,11 @@ def executor(address: str, *, threads: int = THREADS,
     cluster = None
     try:
         if n is not None:
+            # ":0": the scheduler's HTTP server (and dashboard) on any free port; the
+            # workers' logs silenced (a failed task is this process's error to report).
             cluster = distributed.LocalCluster(
                 n_workers=n, threads_per_worker=threads, processes=True,
-                dashboard_address=None, silence_logs=logging.ERROR)
+                dashboard_address=":0", silence_logs=logging.CRITICAL)
             client = distributed.Client(cluster, timeout=timeout)
         else:
             client = distributed.Client(address, timeout=timeout)

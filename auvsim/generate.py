@@ -238,41 +238,38 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
     complete and this config's, make the others as jobs, then write the index."""
     folder = check_out_dir(folder)
     plan = shard_plan(config, per_shard)
-    make_out_dir(folder / SHARDS)
-    index = folder / INDEX
-    with Claim(index) as claim:
-        index.unlink(missing_ok=True)  # it will list this run's shards: written last
-        kept: dict[int, Shard] = {}
-        for k, (name, indices) in enumerate(plan):
-            shard = shard_state(folder / SHARDS / name,
-                                config_sha256(shard_config(config, indices)))
-            if shard is not None:
-                kept[k] = shard
-                bar.update(round(sum(config.missions[i].scenario.duration for i in indices)))
-        todo = [k for k in range(len(plan)) if k not in kept]
-        made: dict[int, Shard] = {}
-        if todo:
-            claim.folder.mkdir()
-            cluster_jobs = cluster is not None
-            parent = None if cluster_jobs else this_process()
-            jobs = [(write_shard, (config, plan[k][1], str(folder / SHARDS / plan[k][0]),
-                                   str(claim.folder), parent)) for k in todo]
-            progress = [claim.folder / f"{Path(plan[k][0]).stem}.progress" for k in todo]
-            with _jobs_executor(executor, cluster) as given:
-                pool = None
-                if given is None:
-                    pool = (ThreadPoolExecutor(MISSIONS_IN_FLIGHT) if workers == 1 else
-                            _process_pool(workers, this_process(), folder / SHARDS))
+    with _jobs_executor(executor, cluster) as given:  # a bad cluster: nothing made yet
+        make_out_dir(folder / SHARDS)
+        index = folder / INDEX
+        with Claim(index) as claim:
+            index.unlink(missing_ok=True)  # it will list this run's shards: written last
+            shards: list[Shard | None] = []
+            for name, indices in plan:
+                shards.append(shard_state(folder / SHARDS / name,
+                                          config_sha256(shard_config(config, indices))))
+                if shards[-1] is not None:
+                    bar.update(round(sum(config.missions[i].scenario.duration
+                                         for i in indices)))
+            todo = [k for k, shard in enumerate(shards) if shard is None]
+            kept = len(plan) - len(todo)
+            if todo:
+                claim.folder.mkdir()
+                parent = None if cluster is not None else this_process()
+                jobs = [(write_shard, (config, plan[k][1], str(folder / SHARDS / plan[k][0]),
+                                       str(claim.folder), parent)) for k in todo]
+                progress = [claim.folder / f"{Path(plan[k][0]).stem}.progress" for k in todo]
+                pool = given or (ThreadPoolExecutor(MISSIONS_IN_FLIGHT) if workers == 1 else
+                                 _process_pool(workers, this_process(), folder / SHARDS))
                 try:
-                    _run_jobs(given or pool, jobs, claim.folder, progress, bar,
-                              lambda j, shard: made.__setitem__(todo[j], shard))
+                    _run_jobs(pool, jobs, claim.folder, progress, bar,
+                              lambda j, shard: shards.__setitem__(todo[j], shard))
                 finally:
-                    if pool is not None:
+                    if given is None:
                         pool.shutdown(wait=True)
-        shards = [kept.get(k) or made[k] for k in range(len(plan))]
-        write_index(claim.file, shards, config_json=config.to_json())
-        os.replace(claim.file, index)
-    return dict(out=str(index), shards=len(plan), kept=len(kept))
+                    sweep(folder / SHARDS)  # the temporaries of workers that were killed
+            write_index(claim.file, shards, config_json=config.to_json())
+            os.replace(claim.file, index)
+    return dict(out=str(index), shards=len(plan), kept=kept)
 
 
 def _in_threads(config: Config, ds: DatasetWriter, report: Callable[[float], None]) -> None:

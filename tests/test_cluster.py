@@ -1,0 +1,206 @@
+"""``auvsim generate --cluster`` on real Dask LocalClusters of worker processes (issue 12):
+the same data as the built-in pool for any number of workers, resume after ``kill -9`` of
+the client or of a worker, the first failure and Ctrl-C stopping the run, one line for a
+bad or unreachable address, and no process left behind."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+from conftest import flat, mission
+from test_kill import _running, _tree, _wait_for
+from test_shards import assert_same_data
+
+from auvsim import cli
+from auvsim.dataset import INDEX, SHARDS
+from auvsim.errors import ConfigError
+from auvsim.generate import generate
+
+pytest.importorskip("distributed")
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
+                                reason="follows the process tree in /proc")
+
+CONFIG = flat(*(mission(f"m{i}", 10 + i, duration=25.0 + 5 * i, heading_deg=30.0 * i)
+                for i in range(4)))
+# Long enough to be killed midway, short enough for CI: 10 manoeuvres of 120 s.
+RUN = ["--preset", "maneuvers", "--duration", "120", "--quiet"]
+
+
+def _children() -> set[int]:
+    """This process's descendants but multiprocessing's resource tracker and forkserver,
+    which it starts once and which end with it."""
+    return {p.pid for p in psutil.Process().children(recursive=True)
+            if not any(s in " ".join(p.cmdline()) for s in ("resource_tracker", "forkserver"))}
+
+
+@pytest.fixture(autouse=True)
+def no_process_left():
+    """Every test's clusters, workers and children end with it."""
+    before = _children()
+    yield
+    _wait_for(lambda: not _children() - before, "the test's processes to end", timeout=20)
+
+
+def _cli(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "auvsim.cli", "generate", *args],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _finished(*args: str) -> str:
+    proc = _cli(*args)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """``RUN`` uninterrupted, by the built-in path, as one file."""
+    path = tmp_path_factory.mktemp("ref") / "ref.h5"
+    _finished(*RUN, "--workers", "1", "--out", str(path))
+    return path
+
+
+def test_local_1_local_2_and_the_pool_give_the_same_data(tmp_path):
+    pool = tmp_path / "pool.h5"
+    generate(CONFIG, pool, workers=2, progress=False)
+    for name, cluster in (("one", "local:1"), ("two", "local:2")):
+        summary = generate(CONFIG, f"{tmp_path / name}/", cluster=cluster, progress=False)
+        assert (summary["shards"], summary["kept"]) == (4, 0)
+        assert_same_data(pool, tmp_path / name)
+    generate(CONFIG, tmp_path / "file.h5", cluster="local:2", progress=False)  # parts, copied
+    assert_same_data(pool, tmp_path / "file.h5")
+
+
+def _shards_done(folder: Path) -> int:
+    return len(list((folder / SHARDS).glob("part-*.h5")))
+
+
+def test_kill_9_of_the_client_resumes_to_the_same_data(tmp_path, reference):
+    out = tmp_path / "rm"
+    proc = _cli(*RUN, "--cluster", "local:2", "--out", f"{out}/")
+    try:
+        _wait_for(lambda: proc.poll() is None and _shards_done(out) >= 1, "a first shard",
+                  timeout=240)
+        tree = _tree(proc.pid)
+        assert len(tree) >= 3, tree  # the client and its two workers (and a tracker)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    finally:
+        proc.kill()
+        proc.communicate()
+    _wait_for(lambda: not _running(tree), "the workers to end with their client", timeout=20)
+    kept = _shards_done(out)
+    assert 1 <= kept < 10 and not (out / INDEX).exists()
+    said = _finished(*RUN, "--cluster", "local:2", "--out", f"{out}/")
+    assert f"10 mission(s) in 10 shard(s), {kept} kept from an earlier run" in said
+    assert_same_data(reference, out)
+    assert sorted(p.name for p in out.iterdir()) == [INDEX, SHARDS]
+    assert len(list((out / SHARDS).iterdir())) == 10  # no temporaries left
+
+
+def _workers(pid: int) -> list[psutil.Process]:
+    return [p for p in psutil.Process(pid).children(recursive=True)
+            if "spawn_main" in " ".join(p.cmdline())]
+
+
+def test_kill_9_of_a_worker_midway_retries_its_mission(tmp_path, reference):
+    out = tmp_path / "rm"
+    proc = _cli(*RUN, "--cluster", "local:2", "--out", f"{out}/")
+    try:
+        def simulating() -> bool:
+            assert proc.poll() is None, proc.communicate()
+            return bool(list(out.glob(".*.parts/*.progress"))) and len(_workers(proc.pid)) == 2
+
+        _wait_for(simulating, "a mission under way", timeout=240)
+        victim = _workers(proc.pid)[0]
+        victim.kill()
+        out_text, err = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert not victim.is_running()
+    assert "10 mission(s) in 10 shard(s)" in out_text
+    assert_same_data(reference, out)
+    assert len(list((out / SHARDS).iterdir())) == 10
+
+
+def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
+    out = tmp_path / "rm"
+    proc = _cli(*RUN, "--cluster", "local:2", "--out", f"{out}/")
+    try:
+        _wait_for(lambda: proc.poll() is None and bool(list(out.glob(".*.parts/*.progress"))),
+                  "a mission under way", timeout=240)
+        tree = _tree(proc.pid)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert err.splitlines()[-1] == "auvsim: interrupted; nothing was written"
+    _wait_for(lambda: not _running(tree), "the cluster to end", timeout=20)
+    assert not (out / INDEX).exists()
+    assert all(p.name.startswith("part-") for p in (out / SHARDS).iterdir())  # whole shards
+    assert [p.name for p in out.iterdir()] == [SHARDS]
+
+
+def test_the_first_failure_stops_the_run(tmp_path, capsys):
+    """Mission a reaches the seafloor within seconds; the long mission b is stopped."""
+    toml = tmp_path / "fail.toml"
+    toml.write_text("""
+[[missions]]
+name = "a"
+[missions.scenario]
+depth = 59.8
+duration = 600
+[[missions]]
+name = "b"
+[missions.scenario]
+duration = 200000
+[seafloor]
+kind = "procedural"
+depth = 60
+roughness = 3
+""")
+    started = time.perf_counter()
+    assert cli.main(["generate", "--config", str(toml), "--cluster", "local:2", "--out",
+                     f"{tmp_path / 'x'}/", "--quiet"]) == 2
+    assert time.perf_counter() - started < 120  # b alone would take far longer
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "auvsim: error: a: the vehicle reached the seafloor" in err
+    assert not (tmp_path / "x" / INDEX).exists()
+    assert list((tmp_path / "x" / SHARDS).iterdir()) == []
+
+
+@pytest.mark.parametrize("address, said", [
+    ("nonsense", "--cluster 'nonsense': not a cluster address; expected local:N"),
+    ("local:0", "--cluster 'local:0': expected at least one worker"),
+    ("tcp://127.0.0.1:9", "--cluster 'tcp://127.0.0.1:9': no Dask scheduler answered "
+     "within 10 s"),
+])
+def test_a_bad_or_unreachable_address_gets_one_line(tmp_path, capsys, address, said):
+    started = time.perf_counter()
+    assert cli.main(["generate", "--duration", "5", "--cluster", address, "--out",
+                     f"{tmp_path / 'x'}/", "--quiet"]) == 2
+    assert time.perf_counter() - started < 30  # the connect timeout, no hang
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and said in err, err
+    leftovers = [p for p in tmp_path.rglob("*") if p.is_file()]
+    assert leftovers == []
+
+
+def test_without_dask_the_cluster_option_says_what_to_install(monkeypatch):
+    from auvsim.cluster import executor
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
+    with pytest.raises(ConfigError, match=r"needs Dask distributed.*auvsim\[cluster\]"):
+        with executor("local:1"):
+            pass
