@@ -189,9 +189,10 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
             raise ConfigError(f": expected a whole number >= 1, got {value!r}", argument=name)
     if cluster is not None:
         check_address(cluster)
-        if executor is not None:
-            raise ConfigError(": expected an executor or a cluster, not both",
-                              argument="cluster")
+        for name, given in (("executor", executor), ("workers", workers)):
+            if given is not None:
+                raise ConfigError(": given with a cluster, whose own workers run the "
+                                  "jobs; expected one or the other", argument=name)
     workers = min(workers or default_workers(len(config.missions)), len(config.missions))
     started = time.perf_counter()
     simulated = sum(m.scenario.duration for m in config.missions)

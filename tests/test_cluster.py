@@ -204,3 +204,11 @@ def test_without_dask_the_cluster_option_says_what_to_install(monkeypatch):
     with pytest.raises(ConfigError, match=r"needs Dask distributed.*auvsim\[cluster\]"):
         with executor("local:1"):
             pass
+
+
+def test_workers_and_a_cluster_are_one_or_the_other(tmp_path, capsys):
+    assert cli.main(["generate", "--duration", "5", "--workers", "2", "--cluster", "local:1",
+                     "--out", f"{tmp_path / 'x'}/", "--quiet"]) == 2
+    assert "--workers: given with a cluster, whose own workers run the jobs" in \
+        capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
