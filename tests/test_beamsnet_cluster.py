@@ -1,0 +1,154 @@
+"""beamsnet's training jobs on a Dask cluster (``--cluster local:N``): the same weights,
+summaries and reports as the local runs, byte for byte; a bad address refused before any
+work; no worker process left behind."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import psutil
+import pytest
+import torch
+from conftest import flat, mission, write
+
+import beamsnet.train
+from auvsim.config import DvlConfig
+from auvsim.presets import preset
+from beamsnet.cli import main
+from beamsnet.train import TrainConfig, load, train_all
+
+# The parts of a summary that say where and how fast, not what was trained.
+WHERE = ("checkpoint", "plot", "seconds", "samples_per_second")
+
+
+@pytest.fixture(autouse=True)
+def no_process_left():
+    """Every process a test starts has ended when it returns (multiprocessing's own
+    forkserver and resource tracker excepted: they live as long as this process)."""
+    def ours() -> set[psutil.Process]:
+        found = set()
+        for child in psutil.Process().children(recursive=True):
+            try:
+                if "multiprocessing.forkserver" in " ".join(child.cmdline()) or \
+                        "multiprocessing.resource_tracker" in " ".join(child.cmdline()):
+                    continue
+            except psutil.NoSuchProcess:
+                continue
+            found.add(child)
+        return found
+
+    before = ours()
+    yield
+    deadline = time.monotonic() + 5.0
+    while (left := {p for p in ours() - before if p.is_running()}) and \
+            time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not left, [" ".join(p.cmdline())[:120] for p in left]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    return write(flat(mission("a", 1, speed=2.0, duration=90.0, start_speed=0.0),
+                      mission("b", 2, speed=1.0, duration=90.0, start_speed=0.0),
+                      dvl=DvlConfig(beam_angle_deg=20.0, scale_factor=0.05, noise_std=0.01)),
+                 tmp_path_factory.mktemp("cluster") / "two.h5")
+
+
+def _same_runs(here, there, summaries_here, summaries_there, names) -> None:
+    for a, b in zip(summaries_here, summaries_there, strict=True):
+        assert {k: v for k, v in a.items() if k not in WHERE} == \
+            {k: v for k, v in b.items() if k not in WHERE}
+    for name in names:
+        mine, theirs = load(here / name)[1], load(there / name)[1]
+        assert mine["state_dict"].keys() == theirs["state_dict"].keys()
+        for key, value in mine["state_dict"].items():
+            assert torch.equal(value, theirs["state_dict"][key]), (name, key)
+        assert mine["history"] == theirs["history"]
+
+
+def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path):
+    """Two jobs on two local processes (one torch thread each) and the same two jobs on
+    a two-worker cluster: the same weights and summaries, exactly. V1's convolutions
+    change in their last bits with torch's thread count, so this holds only because each
+    job sets the count the local run would give it."""
+    def jobs(root):
+        return [(data, TrainConfig(model="v1", epochs=2, average_epochs=1), root / "v1"),
+                (data, TrainConfig(model="v2", epochs=2, seed=1), root / "v2")]
+
+    here, there = tmp_path / "here", tmp_path / "there"
+    local = train_all(jobs(here), workers=2, progress=False)
+    cluster = train_all(jobs(there), workers=2, progress=False, cluster="local:2")
+    _same_runs(here, there, local, cluster, ("v1", "v2"))
+
+
+def test_one_job_on_a_cluster_trains_with_this_process_s_threads(data, tmp_path):
+    """One job trains here in this process, with its threads: on a cluster it sets the
+    same number."""
+    here, there = tmp_path / "here", tmp_path / "there"
+    config = TrainConfig(model="v1", epochs=1)
+    local = train_all([(data, config, here / "v1")], progress=False)
+    cluster = train_all([(data, config, there / "v1")], progress=False, cluster="local:1")
+    _same_runs(here, there, local, cluster, ("v1",))
+
+
+def test_a_job_sets_its_threads_and_gives_the_workers_back(monkeypatch, tmp_path):
+    seen = []
+
+    def train(dataset, config, out, *, progress=True):
+        seen.append(torch.get_num_threads())
+        raise beamsnet.train.DivergedError("0.01: diverged", argument="lr")
+
+    before = torch.get_num_threads()
+    monkeypatch.setattr(beamsnet.train, "train", train)
+    with pytest.raises(beamsnet.train.DivergedError):
+        beamsnet.train._job("d.h5", TrainConfig(), tmp_path, progress=False, record=False,
+                            threads=before + 1)
+    assert seen == [before + 1] and torch.get_num_threads() == before
+
+
+@pytest.fixture(scope="module")
+def paper_sim_60s(tmp_path_factory):
+    return write(preset("paper-sim").with_duration(60.0),
+                 tmp_path_factory.mktemp("datasets") / "paper-sim_60s.h5")
+
+
+def test_reproduce_paper_sim_on_a_cluster_writes_the_local_report(paper_sim_60s, tmp_path,
+                                                                   monkeypatch):
+    """``beamsnet reproduce paper-sim`` here and with ``--cluster local:2``, each in a
+    folder of its own that holds the same dataset: the same report, figure, restart
+    records and checkpoints, byte for byte (the report holds no wall time)."""
+    args = ["reproduce", "paper-sim", "--duration", "60", "--epochs", "1", "--restarts", "2",
+            "--average-epochs", "1", "--out", "reports", "--quiet"]
+    for folder, extra in (("here", []), ("there", ["--cluster", "local:2"])):
+        (tmp_path / folder / "datasets").mkdir(parents=True)
+        os.link(paper_sim_60s, tmp_path / folder / "datasets" / paper_sim_60s.name)
+        monkeypatch.chdir(tmp_path / folder)
+        assert main(args + extra) == 0
+    here, there = tmp_path / "here", tmp_path / "there"
+    written = sorted(p.relative_to(here) for p in here.rglob("*")
+                     if p.is_file() and "datasets" not in p.parts)
+    assert written == sorted(p.relative_to(there) for p in there.rglob("*")
+                             if p.is_file() and "datasets" not in p.parts)
+    assert {"reports/paper-sim.md", "runs/paper-sim/speed_2/v1/restarts.json"} <= set(
+        map(str, written))
+    for path in written:
+        assert (here / path).read_bytes() == (there / path).read_bytes(), path
+
+
+@pytest.mark.parametrize("command", [
+    ["train", "data.h5", "--out", "run"],
+    ["train", "data.h5", "--out", "run", "--restarts", "3"],
+    ["reproduce", "paper-sim"],
+    ["reproduce", "snapir", "--data", "snapir"],
+    ["stress", "--train-duration", "60", "--maneuver-duration", "60"],
+])
+@pytest.mark.parametrize("address", ["nonsense", "local:0"])
+def test_a_bad_cluster_address_is_one_line_before_any_work(command, address, tmp_path,
+                                                           monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main([*command, "--cluster", address, "--quiet"]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and "Traceback" not in captured.err
+    assert captured.err.startswith(f"beamsnet: error: --cluster {address!r}: ")
+    assert list(tmp_path.iterdir()) == []
