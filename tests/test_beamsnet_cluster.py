@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import os
 import time
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 
 import psutil
 import pytest
@@ -14,6 +16,7 @@ from conftest import flat, mission, write
 
 import beamsnet.train
 from auvsim.config import DvlConfig
+from auvsim.errors import SimulationError
 from auvsim.presets import preset
 from beamsnet.cli import main
 from beamsnet.train import TrainConfig, load, train_all
@@ -22,20 +25,24 @@ from beamsnet.train import TrainConfig, load, train_all
 WHERE = ("checkpoint", "plot", "seconds", "samples_per_second")
 
 
+# multiprocessing's helpers, which live as long as this process (the pool's workers are
+# the forkserver's children, and are counted).
+HELPERS = ("multiprocessing.forkserver", "multiprocessing.resource_tracker")
+
+
 @pytest.fixture(autouse=True)
 def no_process_left():
-    """Every process a test starts has ended when it returns (multiprocessing's own
-    forkserver and resource tracker excepted: they live as long as this process)."""
+    """Every process a test starts has ended when it returns."""
     def ours() -> set[psutil.Process]:
         found = set()
         for child in psutil.Process().children(recursive=True):
             try:
-                if "multiprocessing.forkserver" in " ".join(child.cmdline()) or \
-                        "multiprocessing.resource_tracker" in " ".join(child.cmdline()):
-                    continue
+                helper = child.ppid() == os.getpid() and any(
+                    h in " ".join(child.cmdline()) for h in HELPERS)
             except psutil.NoSuchProcess:
                 continue
-            found.add(child)
+            if not helper:
+                found.add(child)
         return found
 
     before = ours()
@@ -82,29 +89,49 @@ def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path):
     _same_runs(here, there, local, cluster, ("v1", "v2"))
 
 
-def test_one_job_on_a_cluster_trains_with_this_process_s_threads(data, tmp_path):
-    """One job trains here in this process, with its threads: on a cluster it sets the
-    same number."""
-    here, there = tmp_path / "here", tmp_path / "there"
-    config = TrainConfig(model="v1", epochs=1)
-    local = train_all([(data, config, here / "v1")], progress=False)
-    cluster = train_all([(data, config, there / "v1")], progress=False, cluster="local:1")
-    _same_runs(here, there, local, cluster, ("v1",))
+@contextmanager
+def _thread_pool(address, *, threads):
+    """A thread pool standing in for a cluster's executor, one job at a time."""
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        yield pool
 
 
-def test_a_job_sets_its_threads_and_gives_the_workers_back(monkeypatch, tmp_path):
+def test_on_a_cluster_each_job_gets_the_threads_it_would_get_here(monkeypatch):
+    """One process here trains with this process's threads, N processes with a share of
+    the cores each: on a cluster every job is given that same number."""
     seen = []
 
-    def train(dataset, config, out, *, progress=True):
-        seen.append(torch.get_num_threads())
-        raise beamsnet.train.DivergedError("0.01: diverged", argument="lr")
+    def job(dataset, config, out, *, progress, record, threads):
+        seen.append(threads)
+        return {}
 
-    before = torch.get_num_threads()
-    monkeypatch.setattr(beamsnet.train, "train", train)
-    with pytest.raises(beamsnet.train.DivergedError):
-        beamsnet.train._job("d.h5", TrainConfig(), tmp_path, progress=False, record=False,
-                            threads=before + 1)
-    assert seen == [before + 1] and torch.get_num_threads() == before
+    monkeypatch.setattr(beamsnet.train, "executor", _thread_pool)
+    monkeypatch.setattr(beamsnet.train, "_job", job)
+    cores, own = os.cpu_count() or 1, torch.get_num_threads()
+    for workers, jobs, threads in ((None, 1, own), (1, 3, own), (2, 2, max(1, cores // 2)),
+                                   (None, 64, 1)):
+        seen.clear()
+        assert train_all([("d.h5", TrainConfig(), "run")] * jobs, workers=workers,
+                         progress=False, cluster="local:2") == [{}] * jobs
+        assert seen == [threads] * jobs, workers
+
+
+def test_a_lost_worker_is_one_line_and_stops_the_other_jobs(monkeypatch):
+    from distributed import KilledWorker
+
+    ran = []
+
+    def job(dataset, config, out, *, progress, record, threads):
+        ran.append(out)
+        raise KilledWorker("train-0", None, 3)
+
+    monkeypatch.setattr(beamsnet.train, "executor", _thread_pool)
+    monkeypatch.setattr(beamsnet.train, "_job", job)
+    with pytest.raises(SimulationError, match="ended abruptly on every try") as lost:
+        train_all([("d.h5", TrainConfig(), f"run_{i}") for i in range(4)], progress=False,
+                  cluster="local:2")
+    assert lost.value.__cause__ is None and lost.value.__suppress_context__
+    assert ran == ["run_0"]  # the jobs not started were cancelled
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +145,7 @@ def test_reproduce_paper_sim_on_a_cluster_writes_the_local_report(paper_sim_60s,
     """``beamsnet reproduce paper-sim`` here and with ``--cluster local:2``, each in a
     folder of its own that holds the same dataset: the same report, figure, restart
     records and checkpoints, byte for byte (the report holds no wall time)."""
-    args = ["reproduce", "paper-sim", "--duration", "60", "--epochs", "1", "--restarts", "2",
+    args = ["reproduce", "paper-sim", "--duration", "60", "--epochs", "1", "--restarts", "1",
             "--average-epochs", "1", "--out", "reports", "--quiet"]
     for folder, extra in (("here", []), ("there", ["--cluster", "local:2"])):
         (tmp_path / folder / "datasets").mkdir(parents=True)
