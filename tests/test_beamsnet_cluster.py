@@ -74,18 +74,22 @@ def _same_runs(here, there, summaries_here, summaries_there, names) -> None:
         assert mine["history"] == theirs["history"]
 
 
+@pytest.mark.slow
 def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path):
-    """Two jobs on two local processes (one torch thread each) and the same two jobs on
-    a two-worker cluster: the same weights and summaries, exactly. V1's convolutions
-    change in their last bits with torch's thread count, so this holds only because each
-    job sets the count the local run would give it."""
+    """Two jobs trained one after the other in this process, with its torch threads, and
+    the same two jobs on a one-worker cluster: the same weights and summaries, exactly.
+    This holds only because each job sets the thread count the local run had: Dask's
+    workers run torch with one thread (their nannies set OMP_NUM_THREADS=1), and V1's
+    and V2's weights differ in their last bits between one thread and two (on two or
+    more cores). Two local processes, one thread each, against the cluster: the
+    paper-sim report below."""
     def jobs(root):
         return [(data, TrainConfig(model="v1", epochs=2, average_epochs=1), root / "v1"),
                 (data, TrainConfig(model="v2", epochs=2, seed=1), root / "v2")]
 
     here, there = tmp_path / "here", tmp_path / "there"
-    local = train_all(jobs(here), workers=2, progress=False)
-    cluster = train_all(jobs(there), workers=2, progress=False, cluster="local:2")
+    local = train_all(jobs(here), workers=1, progress=False)
+    cluster = train_all(jobs(there), workers=1, progress=False, cluster="local:1")
     _same_runs(here, there, local, cluster, ("v1", "v2"))
 
 
@@ -140,11 +144,13 @@ def paper_sim_60s(tmp_path_factory):
                  tmp_path_factory.mktemp("datasets") / "paper-sim_60s.h5")
 
 
+@pytest.mark.slow
 def test_reproduce_paper_sim_on_a_cluster_writes_the_local_report(paper_sim_60s, tmp_path,
                                                                    monkeypatch):
-    """``beamsnet reproduce paper-sim`` here and with ``--cluster local:2``, each in a
-    folder of its own that holds the same dataset: the same report, figure, restart
-    records and checkpoints, byte for byte (the report holds no wall time)."""
+    """``beamsnet reproduce paper-sim`` here (its 6 jobs on a pool of one process per
+    core) and with ``--cluster local:2``, each in a folder of its own that holds the same
+    dataset: the same report, figure, restart records and checkpoints, byte for byte (the
+    report holds no wall time)."""
     args = ["reproduce", "paper-sim", "--duration", "60", "--epochs", "1", "--restarts", "1",
             "--average-epochs", "1", "--out", "reports", "--quiet"]
     for folder, extra in (("here", []), ("there", ["--cluster", "local:2"])):
