@@ -93,11 +93,31 @@ def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path):
     _same_runs(here, there, local, cluster, ("v1", "v2"))
 
 
+ADDRESSES = []  # where ``_thread_pool`` was asked to run
+
+
 @contextmanager
 def _thread_pool(address, *, threads):
     """A thread pool standing in for a cluster's executor, one job at a time."""
+    ADDRESSES.append((address, threads))
     with ThreadPoolExecutor(max_workers=1) as pool:
         yield pool
+
+
+@pytest.mark.parametrize("restarts", [1, 2])
+def test_cli_train_runs_its_jobs_on_the_cluster(data, tmp_path, monkeypatch, capsys,
+                                                restarts):
+    """``beamsnet train --cluster``: with one seed too, the job goes to the cluster."""
+    monkeypatch.setattr(beamsnet.train, "executor", _thread_pool)
+    ADDRESSES.clear()
+    run = tmp_path / "run"
+    assert main(["train", str(data), "--out", str(run), "--epochs", "1", "--restarts",
+                 str(restarts), "--cluster", "tcp://10.0.0.5:8786", "--quiet"]) == 0
+    assert ADDRESSES == [("tcp://10.0.0.5:8786", 1)]
+    out = capsys.readouterr().out
+    assert "trained BeamsNetV2: final loss" in out and str(run / "model.pt") in out
+    assert out.startswith("kept ") == (restarts == 2)  # the seed kept of the restarts
+    assert load(run)[1]["train_config"]["epochs"] == 1
 
 
 def test_on_a_cluster_each_job_gets_the_threads_it_would_get_here(monkeypatch):
