@@ -21,7 +21,8 @@ of ``beamsnet reproduce paper-sim`` lists every seed):
   as the gaps the paper reports between its models. ``train_best`` trains several seeds
   (in parallel processes, one thread each, or on a Dask cluster) and keeps the one
   whose final weights fit the TRAINING split best: the classic random-restart remedy for
-  a non-convex fit, which looks at no test sample. Every seed's loss is kept in ``restarts.json``.
+  a non-convex fit, which looks at no test sample. Every seed's loss is kept in
+  ``restarts.json``.
 
 One correction of the paper, ON by default (``protocol="fixed"``; ``"paper"`` keeps
 BeamsNetV2 exactly as published): V2's past beams enter as their changes to the current
