@@ -8,6 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from auvsim.cluster import check_address
 from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
 
 from .evaluate import SensorSetupWarning
@@ -27,8 +28,10 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "fault_duration": "--fault-duration", "fault_missions": "--fault-mission",
          "seeds": "--seeds", "duration": "--duration", "noise": "--noise",
          "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
-         "mask_rate": "--mask-rate", "imu": "--imu"}
+         "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster"}
 DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
+CLUSTER_HELP = ("run the training jobs on a Dask cluster: local:N or a scheduler's address "
+                "(needs auvsim[cluster])")
 
 
 class _Defaults(argparse.ArgumentDefaultsHelpFormatter):
@@ -87,6 +90,7 @@ def _parser() -> argparse.ArgumentParser:
                     "the training split best")
     tr.add_argument("--mission", action="append", dest="missions",
                     help="train on this mission only (repeatable; default: all)")
+    tr.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
     tr.add_argument("--quiet", action="store_true")
     ev = sub.add_parser("evaluate", help="compare a trained run with the baselines",
                         formatter_class=_Defaults)
@@ -139,6 +143,7 @@ def _parser() -> argparse.ArgumentParser:
                     help="paper-sim: seeds per model; the best on the training split is kept "
                     "(default " + _per_experiment("restarts", "paper-sim") + ")")
     rp.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
+    rp.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
     rp.add_argument("--quiet", action="store_true")
     stress = PROFILES["stress"]
     st = sub.add_parser(
@@ -173,23 +178,27 @@ def _parser() -> argparse.ArgumentParser:
                     help="beam noise of the generated data: the paper's code's 0.042^2 m/s "
                     "(paper-sim) or its text's 0.042 m/s (paper-sim-text)")
     st.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
+    st.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
     st.add_argument("--quiet", action="store_true")
     return parser
 
 
 def _train(args) -> None:
-    from .train import TITLES, train, train_best
+    from .train import TITLES, train, train_all, train_best
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
                          average_epochs=args.average_epochs,
                          missions=tuple(args.missions) if args.missions else None,
                          protocol=args.protocol, mask_rate=args.mask_rate, imu=args.imu)
-    if args.restarts == 1:
+    if args.restarts == 1 and args.cluster is None:
         summary = train(args.dataset, config, args.out, progress=not args.quiet)
+    elif args.restarts == 1:  # the one job, on the cluster
+        summary = train_all([(args.dataset, config, args.out)], progress=not args.quiet,
+                            cluster=args.cluster)[0]
     else:
         summary = train_best(args.dataset, config, args.out, restarts=args.restarts,
-                             progress=not args.quiet)
+                             progress=not args.quiet, cluster=args.cluster)
         print(f"kept {summary['kept']} of {args.restarts} seeds (lowest final training loss; "
               f"all in {args.out / 'restarts.json'})")
     print(f"trained {TITLES[args.model]}: final loss "
@@ -244,15 +253,16 @@ def _reproduce(args) -> None:
         report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                           duration=SIM2REAL_DURATION if args.duration is None
                           else args.duration, training=training, seeds=args.seeds,
-                          progress=not args.quiet)
+                          progress=not args.quiet, cluster=args.cluster)
     elif args.experiment == "snapir":
         report = snapir(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
-                        training=training, seeds=args.seeds, progress=not args.quiet)
+                        training=training, seeds=args.seeds, progress=not args.quiet,
+                        cluster=args.cluster)
     else:
         report = paper_sim(args.experiment, data=args.data,
                            duration=7200.0 if args.duration is None else args.duration,
                            out=args.out, training=training, restarts=restarts,
-                           progress=not args.quiet)
+                           progress=not args.quiet, cluster=args.cluster)
     print(f"wrote {report}")
 
 
@@ -269,7 +279,7 @@ def _stress(args) -> None:
                     fault_duration=args.fault_duration,
                     fault_missions=None if args.fault_missions is None
                     else tuple(args.fault_missions), noise=args.noise,
-                    progress=not args.quiet)
+                    progress=not args.quiet, cluster=args.cluster)
     print(f"wrote {report} and its figures")
 
 
@@ -285,6 +295,8 @@ def main(argv: list[str] | None = None) -> int:
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
         try:
+            if getattr(args, "cluster", None) is not None:
+                check_address(args.cluster)  # before any data is read or made
             {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
              "reproduce": _reproduce,
              "stress": _stress}[args.command](args)

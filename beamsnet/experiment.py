@@ -11,6 +11,9 @@ before they can evaluate anything, and this module is the one place that does th
   config trained on the same file (by SHA-256) is reused rather than trained again, so a
   report rerun on unchanged data only re-evaluates. A seed whose loss diverges is
   recorded and dropped, as long as another seed of the same model trains.
+
+Both train in parallel processes here, or with ``cluster`` as tasks on a Dask cluster
+(``train_all``), whose workers read the datasets from a folder they share with this one.
 """
 
 from __future__ import annotations
@@ -83,7 +86,7 @@ class KeptRun:
 
 def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
                runs_dir: str | os.PathLike, restarts: int, *, workers: int | None = None,
-               progress: bool = True) -> dict[str, KeptRun]:
+               progress: bool = True, cluster: str | None = None) -> dict[str, KeptRun]:
     """Train every config of ``configs`` on ``data`` from ``restarts`` seeds, keep each
     one's best, and load the kept models.
 
@@ -96,6 +99,7 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         restarts: seeds per config (``seed_runs``), >= 1.
         workers: training processes (default: one per core, at most one per job).
         progress: progress bars.
+        cluster: train on this Dask cluster (``train_all``) instead.
 
     Returns:
         name -> ``KeptRun``, in the order of ``configs``.
@@ -112,7 +116,8 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         pairs = seed_runs(config, runs_dir / name, restarts)
         seeds[name] = [run for _, run in pairs]
         jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
-    summaries = train_all(jobs, workers=workers, progress=progress, diverged="record")
+    summaries = train_all(jobs, workers=workers, progress=progress, diverged="record",
+                          cluster=cluster)
     diverged = {Path(run): s["diverged"]
                 for (_, _, run), s in zip(jobs, summaries, strict=True) if "diverged" in s}
 
@@ -127,7 +132,8 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
 
 def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
                 runs_dir: str | os.PathLike, seeds: int | Mapping[str, int], *,
-                workers: int | None = None, progress: bool = True
+                workers: int | None = None, progress: bool = True,
+                cluster: str | None = None
                 ) -> dict[str, list[tuple[Path, torch.nn.Module, dict]]]:
     """Train every config of ``configs`` on ``data`` from seeds 0 .. ``seeds`` - 1 and load
     every seed's model: for reports that score each seed (no seed kept over another).
@@ -143,6 +149,7 @@ def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         runs_dir: where the runs go.
         seeds: how many seeds, >= 1; or name -> how many, for each config.
         workers, progress: training processes; progress bars.
+        cluster: train on this Dask cluster (``train_all``) instead.
 
     Returns:
         name -> [(run, model, checkpoint)] in seed order, what
@@ -158,5 +165,5 @@ def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         pairs = seed_runs(dataclasses.replace(config, seed=0), runs_dir / name, counts[name])
         runs[name] = [run for _, run in pairs]
         jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
-    train_all(jobs, workers=workers, progress=progress)
+    train_all(jobs, workers=workers, progress=progress, cluster=cluster)
     return {name: [(run, *load(run)) for run in seed_list] for name, seed_list in runs.items()}

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.cluster import check_address
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
@@ -51,7 +52,7 @@ DEFAULT_SNAPIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "snap
 def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
               training: TrainConfig | None = None, restarts: int | None = None,
               workers: int | None = None, runs: Path = Path("runs"),
-              progress: bool = True) -> Path:
+              progress: bool = True, cluster: str | None = None) -> Path:
     """Run the experiment; the report goes to ``out``, the trained models to ``runs``.
 
     Args:
@@ -67,6 +68,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
         workers: training processes.
         runs: where the models go (``runs/<experiment>/<mission>/v1|v2``).
         progress: progress bars.
+        cluster: train on this Dask cluster (``beamsnet.train.train_all``) instead.
 
     Returns:
         The report's path.
@@ -79,6 +81,8 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
     config = preset(experiment).with_duration(duration)
     if data is None:
         data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
@@ -86,7 +90,8 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     kept = train_runs(data, {f"{mission.name}/{model}": dataclasses.replace(
                                  training, model=model, missions=(mission.name,))
                              for mission in config.missions for model in ("v1", "v2")},
-                      runs / experiment, restarts, workers=workers, progress=progress)
+                      runs / experiment, restarts, workers=workers, progress=progress,
+                      cluster=cluster)
 
     sections, summary = [], []
     for mission in config.missions:
@@ -123,7 +128,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
 
 def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
            seeds: int | None = None, runs: Path = Path("runs"), workers: int | None = None,
-           progress: bool = True) -> Path:
+           progress: bool = True, cluster: str | None = None) -> Path:
     """The paper's sea experiment on the Snapir streams in ``data``; the report goes to
     ``out``, the models to ``runs`` (``runs/snapir/<model>/seed_<s>``).
 
@@ -131,7 +136,8 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     published, CorrectionNet) is trained on the ``train`` mission's training split from
     ``seeds`` seeds (default ``beamsnet.sim2real.SEEDS``, per model), and every seed is
     scored: the seed's spread is part of the result. ``training`` defaults to the ``snapir`` profile
-    (``beamsnet.train.PROFILES``).
+    (``beamsnet.train.PROFILES``). With ``cluster`` the networks train on that Dask
+    cluster (``beamsnet.train.train_all``).
     """
     from . import sim2real as experiment
 
@@ -140,6 +146,8 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
         _check_seeds(seeds)
     counts = experiment.SEEDS if seeds is None else dict.fromkeys(experiment.SEEDS, seeds)
     check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
     dataset = snapir_dataset(data)
     if progress:
         print("beamsnet reproduce snapir: BeamsNetV1 skipped: it needs the IMU samples "
@@ -147,7 +155,8 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     nets = train_seeds(dataset, {key: dataclasses.replace(training, **change,
                                                            missions=("train",))
                                  for key, change in experiment.LEARNED.values()},
-                       runs / "snapir", counts, workers=workers, progress=progress)
+                       runs / "snapir", counts, workers=workers, progress=progress,
+                       cluster=cluster)
     train_w, validation = split(load_windows(dataset, missions=["train"]),
                                 training.train_fraction)
     test = load_windows(dataset, missions=["test"])
@@ -207,7 +216,7 @@ def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
 
 def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | None = None,
              seeds: int | None = None, runs: Path = Path("runs"), workers: int | None = None,
-             progress: bool = True) -> Path:
+             progress: bool = True, cluster: str | None = None) -> Path:
     """``beamsnet reproduce sim2real`` (``beamsnet.sim2real``) on the Snapir streams in
     ``data``."""
     from auvsim.errors import ConfigError
@@ -215,6 +224,8 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
     from . import sim2real as experiment
 
     check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
     seeds = experiment.SIM_SEEDS if seeds is None else seeds
     _check_seeds(seeds)
     if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
@@ -223,7 +234,7 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
                           f"{duration!r}", argument="duration")
     return experiment.sim2real(snapir_dataset(data), out=out, duration=duration, seeds=seeds,
                                training=training, runs=runs, workers=workers,
-                               progress=progress)
+                               progress=progress, cluster=cluster)
 
 
 def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.cluster import check_address
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from . import metrics
@@ -61,7 +62,7 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
              seeds: int = SIM_SEEDS,
              training: TrainConfig | None = None, runs: Path = Path("runs"),
              datasets: Path = Path("datasets"), workers: int | None = None,
-             progress: bool = True) -> Path:
+             progress: bool = True, cluster: str | None = None) -> Path:
     """Train on auvsim data (and, for comparison, on ``V.npy``), test on the Snapir streams;
     write ``out/sim2real.md``, ``sim2real.json`` and ``sim2real.png``.
 
@@ -80,6 +81,7 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
         datasets: where the generated training sets go.
         workers: training processes.
         progress: progress bars.
+        cluster: train on this Dask cluster (``beamsnet.train.train_all``) instead.
 
     Returns:
         The report's path.
@@ -89,6 +91,8 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
 
     training = PROFILES["snapir"].config if training is None else training
     check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
     sources = {
         f"auvsim, DVL yawed {SNAPIR_MOUNTING_YAW_DEG:g} deg (the Snapir's mounting)": (
             ensure_dataset(sim2real_preset(duration),
@@ -111,7 +115,8 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
                                        for key, change in LEARNED.values()},
                                 runs / ("snapir" if missions else
                                         f"sim2real/{Path(path).stem}"),
-                                count, workers=workers, progress=progress)
+                                count, workers=workers, progress=progress,
+                                cluster=cluster)
             for (source, (path, missions)), count in zip(sources.items(), counts,
                                                           strict=True)}
 

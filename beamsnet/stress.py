@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.cluster import check_address
 from auvsim.errors import ConfigError
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 from auvsim.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
@@ -59,7 +60,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
            maneuver_duration: float = MANEUVER_DURATION, runs: Path = Path("runs"),
            faults: bool = False, fault_duration: float | None = None,
            fault_missions: tuple[str, ...] | None = None, noise: str = "code",
-           progress: bool = True) -> Path:
+           progress: bool = True, cluster: str | None = None) -> Path:
     """Train on straight lines, test on manoeuvres, write ``out/stress.md`` and figures.
 
     Args:
@@ -82,6 +83,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         noise: the beam noise of the generated training and test data: ``"code"``, the
             paper's code's 0.042^2 m/s (``paper-sim``), or ``"text"``, its text's 0.042
             m/s (``paper-sim-text``, and the manoeuvres flown with it).
+        progress: progress bars.
+        cluster: train on this Dask cluster (``beamsnet.train.train_all``) instead.
 
     Returns:
         The report's path.
@@ -97,6 +100,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     # Every setting is checked before minutes go into generating the data.
     check_restarts(restarts)
     check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
     if noise not in NOISE:
         raise ConfigError(f"expected one of {', '.join(NOISE)} (the paper's code's or text's "
                           f"beam noise), got {noise!r}", argument="noise")
@@ -132,7 +137,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     names = (["v1"] if windows.accel is not None else []) + ["v2", "v2m", "corr"]
     kept = train_runs(train_data, {name: dataclasses.replace(training, model=name)
                                    for name in names},
-                      runs / "stress" / Path(train_data).stem, restarts, progress=progress)
+                      runs / "stress" / Path(train_data).stem, restarts, progress=progress,
+                      cluster=cluster)
     models = [k.loaded() for k in kept.values()]
     train_w, _ = split(windows)
     if faults:

@@ -19,9 +19,10 @@ of ``beamsnet reproduce paper-sim`` lists every seed):
   the weights over the steps of the last epochs removes it.
 * Restarts (``train_best``): which minimum RMSprop reaches depends on the seed, by as much
   as the gaps the paper reports between its models. ``train_best`` trains several seeds
-  (in parallel processes, one thread each) and keeps the one whose final weights fit the
-  TRAINING split best: the classic random-restart remedy for a non-convex fit, which
-  looks at no test sample. Every seed's loss is kept in ``restarts.json``.
+  (in parallel processes, one thread each, or on a Dask cluster) and keeps the one
+  whose final weights fit the TRAINING split best: the classic random-restart remedy for
+  a non-convex fit, which looks at no test sample. Every seed's loss is kept in
+  ``restarts.json``.
 
 One correction of the paper, ON by default (``protocol="fixed"``; ``"paper"`` keeps
 BeamsNetV2 exactly as published): V2's past beams enter as their changes to the current
@@ -74,6 +75,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from auvsim.cluster import check_address, executor, lost_worker
 from auvsim.errors import CheckpointError, ConfigError
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
@@ -534,58 +536,89 @@ def trained(run: str | Path, config: TrainConfig, sha256: str) -> bool:
 
 def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
               workers: int | None = None, progress: bool = True,
-              diverged: str = "raise") -> list[dict]:
-    """Run ``train(dataset, config, out)`` for every job, in parallel processes.
+              diverged: str = "raise", cluster: str | None = None) -> list[dict]:
+    """Run ``train(dataset, config, out)`` for every job, in parallel processes, or as
+    tasks on a Dask cluster.
 
     Each process trains with ``cpu_count // workers`` threads (one when the jobs fill the
-    cores: small batches parallelise across runs far better than within one).
+    cores: small batches parallelise across runs far better than within one). On a
+    cluster every job sets that same number itself, whatever the machine that runs it:
+    the number of threads changes how torch splits its sums, and so the last bits of the
+    weights, and a job must give the weights it gives here.
 
     Args:
-        jobs: (dataset, config, out) triples.
-        workers: processes (default: as many as cores, at most one per job).
-        progress: a progress bar over jobs (over steps when there is one process).
+        jobs: (dataset, config, out) triples. On a cluster every path must be one the
+            workers see (a shared folder), and means the same file there.
+        workers: processes (default: as many as cores, at most one per job); on a cluster
+            they only set the threads, as they would here.
+        progress: a progress bar over jobs (over steps when there is one process here).
         diverged: ``"raise"``: a job whose loss became non-finite stops the others, as
             any error does; ``"record"``: its summary is ``{"diverged": why,
             "final_train_loss": nan}`` and the others go on (restarts: a seed that
             diverged is dropped, the others are compared).
+        cluster: run the jobs on this Dask cluster (``auvsim.cluster``: ``local:N`` or a
+            scheduler's address), one at a time per worker process.
 
     Returns:
         The summaries of ``train``, in job order.
+
+    Raises:
+        ConfigError: a bad ``diverged`` or ``cluster``, or no scheduler answers there.
+        SimulationError: a job's worker process kept dying (Dask gave up on it).
     """
     if diverged not in ("raise", "record"):
         raise ConfigError(f": expected 'raise' or 'record', got {diverged!r}",
                           argument="diverged")
+    if cluster is not None:
+        check_address(cluster)
+    if not jobs:
+        return []
     job = functools.partial(_job, record=diverged == "record")
     cores = os.cpu_count() or 1
     workers = max(1, min(workers or cores, len(jobs)))
-    if workers == 1:
-        return [job(d, c, o, progress=progress) for d, c, o in jobs]
-    context = multiprocessing.get_context("forkserver")
-    with cf.ProcessPoolExecutor(workers, mp_context=context, initializer=torch.set_num_threads,
-                                initargs=(max(1, cores // workers),)) as pool, \
-            tqdm(total=len(jobs), disable=None if progress else True, leave=False,
-                 unit=" models", desc="training") as bar:
-        futures = [pool.submit(job, d, c, o, progress=False) for d, c, o in jobs]
+    # The threads each job trains with here: this process's own when it is the one that
+    # trains, else a share of the cores.
+    threads = torch.get_num_threads() if workers == 1 else max(1, cores // workers)
+    if workers == 1 and cluster is None:
+        return [job(d, c, o, progress=progress, threads=threads) for d, c, o in jobs]
+    if cluster is None:
+        runner = cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(
+            "forkserver"))
+    else:
+        runner = executor(cluster, threads=1)
+    with runner as pool, tqdm(total=len(jobs), disable=None if progress else True,
+                              leave=False, unit=" models", desc="training") as bar:
+        futures = [pool.submit(job, d, c, o, progress=False, threads=threads)
+                   for d, c, o in jobs]
         try:
             for future in cf.as_completed(futures):
                 future.result()  # the first error stops here, naming what went wrong
                 bar.update()
-        except BaseException:
+        except BaseException as e:
             for future in futures:
                 future.cancel()  # the jobs not started yet; the running ones finish
+            lost = lost_worker(e)
+            if lost is not None:  # Dask's KilledWorker: its traceback would say no more
+                raise lost from None
             raise
         return [f.result() for f in futures]
 
 
 def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress: bool,
-         record: bool) -> dict:
-    """One job of ``train_all`` (module level, so worker processes can run it)."""
+         record: bool, threads: int) -> dict:
+    """One job of ``train_all`` (module level, so worker processes can run it), trained
+    with ``threads`` torch threads; the process's own number is restored after, for the
+    next job of a long-lived worker."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(threads)
     try:
         return train(dataset, config, out, progress=progress)
     except DivergedError as e:
         if not record:
             raise
         return dict(diverged=str(e), final_train_loss=math.nan)
+    finally:
+        torch.set_num_threads(previous)
 
 
 def keep_best(runs: list[str | Path], out: str | Path, *,
@@ -647,9 +680,11 @@ def seed_runs(config: TrainConfig, out: str | Path,
 
 
 def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
-               restarts: int = 3, workers: int | None = None, progress: bool = True) -> dict:
+               restarts: int = 3, workers: int | None = None, progress: bool = True,
+               cluster: str | None = None) -> dict:
     """Train the ``seed_runs`` of ``config`` and keep the best on the training split in
     ``out`` (see the module docstring). A seed that diverges is recorded and dropped.
+    ``workers``, ``progress`` and ``cluster`` are ``train_all``'s.
 
     Returns:
         ``keep_best``'s record plus the kept run's ``train`` summary.
@@ -660,7 +695,7 @@ def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     check_out_dir(out)
     pairs = seed_runs(config, out, restarts)
     summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
-                          progress=progress, diverged="record")
+                          progress=progress, diverged="record", cluster=cluster)
     runs = [r for _, r in pairs]
     record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
                                             zip(runs, summaries, strict=True)
