@@ -106,4 +106,4 @@ def lost_worker(error: BaseException) -> SimulationError | None:
     if type(error).__name__ != "KilledWorker":
         return None
     return SimulationError("a job's worker process ended abruptly on every try (killed, or "
-                           "out of memory?): expected it to finish its missions")
+                           "out of memory?): expected the job to finish on one of them")

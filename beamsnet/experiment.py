@@ -38,8 +38,10 @@ from .train import (
 )
 
 
-def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True) -> Path:
-    """``path``, generated from ``config`` (an ``auvsim.config.Config``) if it is not there.
+def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
+                   cluster: str | None = None) -> Path:
+    """``path``, generated from ``config`` (an ``auvsim.config.Config``) if it is not there,
+    on the Dask cluster ``cluster`` if one is given (the same data either way).
 
     An existing file is taken as it is: its name says which preset and duration made it.
     ``generate`` writes the file whole or not at all, so an interrupted generation leaves
@@ -49,7 +51,7 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True) ->
 
     path = Path(path)
     if not path.exists():
-        generate(config, path, progress=progress)
+        generate(config, path, progress=progress, cluster=cluster)
     return path
 
 

@@ -68,7 +68,8 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
         workers: training processes.
         runs: where the models go (``runs/<experiment>/<mission>/v1|v2``).
         progress: progress bars.
-        cluster: train on this Dask cluster (``beamsnet.train.train_all``) instead.
+        cluster: generate missing datasets and train on this Dask cluster instead
+            (``auvsim.generate``, ``beamsnet.train.train_all``).
 
     Returns:
         The report's path.
@@ -86,7 +87,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     config = preset(experiment).with_duration(duration)
     if data is None:
         data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
-                              progress=progress)
+                              progress=progress, cluster=cluster)
     kept = train_runs(data, {f"{mission.name}/{model}": dataclasses.replace(
                                  training, model=model, missions=(mission.name,))
                              for mission in config.missions for model in ("v1", "v2")},

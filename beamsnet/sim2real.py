@@ -81,7 +81,8 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
         datasets: where the generated training sets go.
         workers: training processes.
         progress: progress bars.
-        cluster: train on this Dask cluster (``beamsnet.train.train_all``) instead.
+        cluster: generate missing datasets and train on this Dask cluster instead
+            (``auvsim.generate``, ``beamsnet.train.train_all``).
 
     Returns:
         The report's path.
@@ -96,10 +97,12 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
     sources = {
         f"auvsim, DVL yawed {SNAPIR_MOUNTING_YAW_DEG:g} deg (the Snapir's mounting)": (
             ensure_dataset(sim2real_preset(duration),
-                           datasets / f"sim2real_{duration:g}s.h5", progress=progress), None),
+                           datasets / f"sim2real_{duration:g}s.h5", progress=progress,
+                           cluster=cluster), None),
         "auvsim, DVL along the body": (
             ensure_dataset(sim2real_preset(duration, mounting_yaw_deg=0.0),
-                           datasets / f"sim2real-body_{duration:g}s.h5", progress=progress),
+                           datasets / f"sim2real-body_{duration:g}s.h5", progress=progress,
+                           cluster=cluster),
             None),
         "V.npy (the real vehicle)": (snapir_h5, ("train",)),
     }

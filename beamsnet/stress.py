@@ -84,7 +84,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             paper's code's 0.042^2 m/s (``paper-sim``), or ``"text"``, its text's 0.042
             m/s (``paper-sim-text``, and the manoeuvres flown with it).
         progress: progress bars.
-        cluster: train on this Dask cluster (``beamsnet.train.train_all``) instead.
+        cluster: generate missing datasets and train on this Dask cluster instead
+            (``auvsim.generate``, ``beamsnet.train.train_all``).
 
     Returns:
         The report's path.
@@ -124,12 +125,12 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     if train_data is None:
         train_data = ensure_dataset(preset(train_preset).with_duration(train_duration),
                                     Path("datasets") / f"{train_preset}_{train_duration:g}s.h5",
-                                    progress=progress)
+                                    progress=progress, cluster=cluster)
     if maneuver_data is None and not faults:
         maneuver_data = ensure_dataset(
             maneuvers(maneuver_duration, noise_std=noise_std),
             Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
-            progress=progress)
+            progress=progress, cluster=cluster)
 
     windows = load_windows(train_data)  # the models' own (default) n_past
     # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
