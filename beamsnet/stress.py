@@ -40,7 +40,7 @@ from . import metrics
 from .data import DataError, Windows, load_windows, split
 from .evaluate import FILTER_NAMES, predictions
 from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, TITLES, TrainConfig, check_restarts
+from .train import PROFILES, SENSOR_GEOMETRY, TITLES, TrainConfig, check_restarts, sensor_setup
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -132,6 +132,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
             progress=progress, cluster=cluster)
 
+    if maneuver_data is not None:
+        _check_geometry(train_data, maneuver_data)
     windows = load_windows(train_data)  # the models' own (default) n_past
     # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
     # V2M and CorrectionNet take validity masks: the fault sweep's missing beams.
@@ -353,6 +355,25 @@ def _short(name: str) -> str:
     """A network's row without its run: ``BeamsNetV2 (v2)`` -> ``BeamsNetV2``; other
     names as they are (``KF (beam calibration)``)."""
     return name.split(" (")[0] if name.startswith(("BeamsNet", "CorrectionNet")) else name
+
+
+def _check_geometry(train_data: Path, maneuver_data: Path) -> None:
+    """Refuse test data whose DVL or IMU geometry and rates (``SENSOR_GEOMETRY``) are not
+    the training data's, before anything is trained: every estimator learned one beam
+    matrix and one ping spacing."""
+    def geometry(path: Path) -> dict[str, list[float] | float]:
+        first = next(iter(sensor_setup(path).values()), {})
+        return {k: first[k] for k in SENSOR_GEOMETRY if k in first}
+
+    trained, tested = geometry(train_data), geometry(maneuver_data)
+    differ = [k for k in trained if k in tested
+              and not np.allclose(trained[k], tested[k], rtol=0, atol=1e-9)]
+    if differ:
+        said = "; ".join(f"{k} {tested[k]} against {trained[k]}" for k in differ)
+        raise ConfigError(f"{str(maneuver_data)!r}: its sensors differ from the training "
+                          f"data's ({said}); expected manoeuvres flown with the training "
+                          "data's DVL and IMU (or training data of the same sensors)",
+                          argument="maneuver_data")
 
 
 def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:

@@ -102,3 +102,21 @@ def test_plot_draws_every_mission_and_refuses_unknown_ones(tmp_path, capsys):
     assert auvsim_main(["plot", str(path), "--mission", "nope"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "nope" in err
+
+
+def test_manoeuvres_of_other_sensors_are_refused_before_training(tmp_path, monkeypatch,
+                                                                 capsys):
+    """A sharded folder of manoeuvres with the navigator's 30 deg beams against straight
+    lines with the paper's 20 deg ones: one line, nothing trained."""
+    monkeypatch.chdir(tmp_path)
+    assert auvsim_main(["generate", "--preset", "paper-sim", "--duration", "20", "--out",
+                        "train.h5", "--quiet"]) == 0
+    assert auvsim_main(["generate", "--preset", "realistic-maneuvers", "--duration", "20",
+                        "--shards", "10", "--out", "rm/", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["stress", "--train", "train.h5", "--maneuvers", "rm/", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "--maneuvers 'rm': its sensors differ from the training data's (beam_angle_deg " \
+        "30.0 against 20.0)" in err
+    assert not (tmp_path / "runs").exists() and not (tmp_path / "reports").exists()
