@@ -69,12 +69,33 @@ def reference(tmp_path_factory):
     return path
 
 
-def test_local_1_local_2_and_the_pool_give_the_same_data(tmp_path):
+class Bar:
+    """Stands in for tqdm: what the workers' progress added up to."""
+
+    total = 0
+
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        Bar.total += n
+
+
+def test_local_1_local_2_and_the_pool_give_the_same_data(tmp_path, monkeypatch):
     pool = tmp_path / "pool.h5"
     generate(CONFIG, pool, workers=2, progress=False)
+    monkeypatch.setattr("auvsim.generate.tqdm", Bar)
     for name, cluster in (("one", "local:1"), ("two", "local:2")):
+        Bar.total = 0
         summary = generate(CONFIG, f"{tmp_path / name}/", cluster=cluster, progress=False)
         assert (summary["shards"], summary["kept"]) == (4, 0)
+        assert Bar.total == sum(m.scenario.duration for m in CONFIG.missions)  # came back
         assert_same_data(pool, tmp_path / name)
     generate(CONFIG, tmp_path / "file.h5", cluster="local:2", progress=False)  # parts, copied
     assert_same_data(pool, tmp_path / "file.h5")
