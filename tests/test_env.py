@@ -151,3 +151,38 @@ def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_pat
     windows = load_windows(path)  # BeamsNet reads what a policy flew
     assert len(windows.target) == 2 * (120 - 3)
     assert windows.accel.shape[1:] == (100, 3)
+
+
+def vector_rollout(env, steps=15):
+    """Observations and truncation flags of a 2-env vector environment flown with fixed
+    actions, seeded 3 (its envs 3 and 4), over an episode end (1 s: 10 steps)."""
+    obs, _ = env.reset(seed=3)
+    out, truncated = [obs], []
+    for k in range(steps):
+        action = np.array([[0.6, np.sin(k / 5), 0.1], [0.4, -0.2, 0.0]], dtype=np.float32)
+        obs, _, _, trunc, _ = env.step(action)
+        out.append(obs)
+        truncated.append(trunc)
+    return np.array(out), np.array(truncated)
+
+
+def test_sync_and_async_vector_environments_fly_the_same_episodes():
+    sync = gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="sync",
+                        max_episode_seconds=1.0)
+    a, truncated = vector_rollout(sync)
+    sync.close()
+    env = gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="async",
+                       max_episode_seconds=1.0)
+    assert isinstance(env, gym.vector.AsyncVectorEnv)
+    try:
+        b, _ = vector_rollout(env)
+    finally:
+        env.close()
+    assert not any(p.is_alive() for p in env.processes)  # no worker left behind
+    np.testing.assert_array_equal(a, b)
+    assert a.shape == (16, 2, 15) and truncated[9].all() and not truncated[:9].any()
+    single = AuvEnv(max_episode_seconds=1.0)  # the first env is seeded 3, as alone
+    single.reset(seed=3)
+    alone = [single.step(np.array([0.6, np.sin(k / 5), 0.1], dtype=np.float32))[0]
+             for k in range(10)]
+    np.testing.assert_array_equal(a[1:11, 0], alone)
