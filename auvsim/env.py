@@ -78,6 +78,15 @@ and ``ping_time`` (s).
                          steps per IMU sample (10: dt = 0.1 s)
     max_episode_seconds  truncation time, s
 
+## Performance
+
+A step costs one call of the compiled physics loop (``frame_skip`` MuJoCo steps) and one
+``MissionRun.measure`` of its block: the sensors' numpy work on a few rows per call (the
+DVL's ping, every tenth step at the defaults, the largest part), which ``auvsim generate``
+pays once per 60 s block instead. ``benchmarks/env.py`` measures it against ``generate``
+(figures in the README); for more throughput run environments in processes,
+``gymnasium.make_vec("auvsim/AUV-v0", num_envs=N, vectorization_mode="async")``.
+
 ## Version History
 
 * v0: the first version (auvsim 0.1): finite observation bounds, and every draw of the
@@ -204,7 +213,8 @@ class AuvEnv(gym.Env):
         observation[6:10] = self.last_ping["beams"]
         observation[10:14] = self.last_ping["valid"]
         observation[14] = state["position_ned"][2]  # now, as info's position
-        return np.clip(observation.astype(np.float32), OBSERVATION_LOW, OBSERVATION_HIGH)
+        return np.clip(observation.astype(np.float32), OBSERVATION_LOW,
+                       OBSERVATION_HIGH)  # each reading saturates at its bound
 
     def _info(self, state: dict[str, np.ndarray]) -> dict:
         position = state["position_ned"]

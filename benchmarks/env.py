@@ -118,6 +118,7 @@ def main() -> None:
         clock = "CPU" if name in ("env", "generate") else "wall"
         print(f"{name:10s} {clock:>6s} {t:8.3f} {rate[name]:9.0f} "
               f"{counts[name] * unwrapped.dt / t:12.0f}")
+    print("(generate's steps/s: env steps of the same simulated time per CPU second)")
     print(f"env / generate CPU per simulated second: {med['env'] / med['generate']:.2f}")
     print(f"async x2 / 1 env (total env steps/s, wall): "
           f"{rate['async x2'] / rate['1 env']:.2f}")
