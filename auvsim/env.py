@@ -78,6 +78,15 @@ and ``ping_time`` (s).
                          steps per IMU sample (10: dt = 0.1 s)
     max_episode_seconds  truncation time, s
 
+## Performance
+
+A step costs one call of the compiled physics loop (``frame_skip`` MuJoCo steps) and one
+``MissionRun.measure`` of its block: the sensors' numpy work on a few rows per call (the
+DVL's ping, every tenth step at the defaults, the largest part), which ``auvsim generate``
+pays once per 60 s block instead. ``benchmarks/env.py`` measures it against ``generate``
+(figures in the README); for more throughput run environments in processes,
+``gymnasium.make_vec("auvsim/AUV-v0", num_envs=N, vectorization_mode="async")``.
+
 ## Version History
 
 * v0: the first version (auvsim 0.1): finite observation bounds, and every draw of the
@@ -108,6 +117,7 @@ OBSERVATION_LOW = np.array([-16 * G0] * 3 + [-np.radians(2000.0)] * 3 + [-10.0] 
                            + [0.0] * 4 + [0.0], dtype=np.float32)
 OBSERVATION_HIGH = np.array([16 * G0] * 3 + [np.radians(2000.0)] * 3 + [10.0] * 4
                             + [1.0] * 4 + [11000.0], dtype=np.float32)
+OPEN_LOOP = (False, False, False)  # the action commands every actuator directly
 
 
 class AuvEnv(gym.Env):
@@ -140,6 +150,10 @@ class AuvEnv(gym.Env):
                               "physics steps per IMU sample")
         h = self.run.vehicle.hydro
         self.limits = np.array([h.rpm_max, h.fin_max, h.fin_max])
+        # Reused by every step: the commands held over its physics steps, and their indices
+        # from the step's first.
+        self._commands = np.empty((frame_skip, 3))
+        self._steps = np.arange(frame_skip)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
         self.observation_space = gym.spaces.Box(OBSERVATION_LOW, OBSERVATION_HIGH,
                                                 dtype=np.float32)
@@ -163,46 +177,49 @@ class AuvEnv(gym.Env):
         self.last_block = None
         self.last_ping = dict(beams=np.zeros(4), valid=np.zeros(4), velocity=np.zeros(3),
                               time=math.nan)
-        return self._observation(None), self._info()
+        state = self.run.vehicle.state()
+        return self._observation(None, state), self._info(state)
 
     def step(self, action):
         action = np.asarray(action, dtype=float)
         if action.shape != (3,) or not np.isfinite(action).all():
             raise ValueError(f"action: expected 3 finite numbers in [-1, 1] (propeller, "
                              f"rudder, stern planes), got {action.tolist()!r}")
-        command = np.clip(action, -1.0, 1.0) * self.limits
+        self._commands[:] = np.clip(action, -1.0, 1.0) * self.limits
         vehicle = self.run.vehicle
-        traj = vehicle.run(np.tile(command, (self.frame_skip, 1)), (False, False, False))
-        steps = np.arange(self.step_index, self.step_index + self.frame_skip)
+        traj = vehicle.run(self._commands, OPEN_LOOP)
         terminated = False
         try:
-            block = self.run.measure(steps, traj)
+            block = self.run.measure(self._steps + self.step_index, traj)
         except SimulationError:
             terminated, block = True, None  # reached the seafloor or broke the surface
         self.step_index += self.frame_skip
         self.last_block = block
-        dvl = None if block is None else Block(block).dvl
-        if dvl is not None and len(dvl.time):
-            self.last_ping = dict(beams=np.nan_to_num(dvl.beam_velocity[-1]),
-                                  valid=dvl.valid[-1].astype(float), velocity=dvl.velocity[-1],
-                                  time=float(dvl.time[-1]))
+        if block is not None and len(block["dvl/time"]):
+            self.last_ping = dict(beams=np.nan_to_num(block["dvl/beam_velocity"][-1]),
+                                  valid=block["dvl/valid"][-1].astype(float),
+                                  velocity=block["dvl/velocity"][-1],
+                                  time=float(block["dvl/time"][-1]))
         truncated = self.step_index * vehicle.dt >= self.max_episode_seconds - 1e-9
-        return self._observation(block), 0.0, terminated, truncated and not terminated, \
-            self._info()
+        state = vehicle.state()
+        return self._observation(block, state), 0.0, terminated, \
+            truncated and not terminated, self._info(state)
 
-    def _observation(self, block) -> np.ndarray:
-        imu = np.zeros(6) if block is None else np.r_[Block(block).imu.specific_force[-1],
-                                                      Block(block).imu.angular_rate[-1]]
-        depth = self.run.vehicle.state()["position_ned"][2]  # now, as info's position
-        ping = self.last_ping
-        observation = np.r_[imu, ping["beams"], ping["valid"], depth].astype(np.float32)
-        return np.clip(observation, OBSERVATION_LOW, OBSERVATION_HIGH)  # the ranges
+    def _observation(self, block, state: dict[str, np.ndarray]) -> np.ndarray:
+        observation = np.zeros(15)
+        if block is not None:
+            observation[0:3] = block["imu/specific_force"][-1]
+            observation[3:6] = block["imu/angular_rate"][-1]
+        observation[6:10] = self.last_ping["beams"]
+        observation[10:14] = self.last_ping["valid"]
+        observation[14] = state["position_ned"][2]  # now, as info's position
+        return np.clip(observation.astype(np.float32), OBSERVATION_LOW,
+                       OBSERVATION_HIGH)  # each reading saturates at its bound
 
-    def _info(self) -> dict:
-        state = self.run.vehicle.state()
-        altitude = float(self.run.seafloor.depth_at(state["position_ned"][:1],
-                                                    state["position_ned"][1:2])[0]
-                         - state["position_ned"][2])
+    def _info(self, state: dict[str, np.ndarray]) -> dict:
+        position = state["position_ned"]
+        altitude = float(self.run.seafloor.depth_at(position[:1], position[1:2])[0]
+                         - position[2])
         return dict(time=self.step_index * self.run.vehicle.dt, **state,
                     euler=euler_angles(state["quaternion"]), altitude=altitude,
                     dvl_velocity=self.last_ping["velocity"].copy(),

@@ -188,6 +188,8 @@ class MissionRun:
                 f"between t = {t[0]:.1f} and {t[-1]:.1f} s ({e}); expected a larger "
                 "seafloor.cell_size") from None
         altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
+        if (altitude > 0).all() and (pos[:, 2] >= 0).all():  # the usual case, and no NaN
+            return altitude
         problems = (
             (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "
              "terrain"),

@@ -300,10 +300,12 @@ class Seafloor:
             Depth, m, positive down, of the broadcast shape; NaN outside the terrain that
             MuJoCo currently holds (the heightmap, or the procedural window).
         """
+        if self.kind == "flat":  # first: the environment asks once a step
+            finite = np.isfinite(np.asarray(north, dtype=float)) & np.isfinite(
+                np.asarray(east, dtype=float))
+            return np.where(finite, self.config.depth, np.nan)
         x, y = np.broadcast_arrays(np.asarray(north, dtype=float),
                                    -np.asarray(east, dtype=float))
-        if self.kind == "flat":
-            return np.where(np.isfinite(x) & np.isfinite(y), self.config.depth, np.nan)
         inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
         upper = fu >= fv  # the triangle with vertex (r, c + 1)
         big, small = np.where(upper, fu, fv), np.where(upper, fv, fu)

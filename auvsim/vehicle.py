@@ -53,6 +53,9 @@ mujoco.set_mju_user_warning(_warnings.append)
 
 
 _NO_ROWS = np.zeros((2, CHANNELS))  # the disturbance table when there is none
+# MuJoCo's warnings of an unstable simulation, as indices into ``MjData.warning``.
+_UNSTABLE = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
+             int(mujoco.mjtWarning.mjWARN_BADQACC)]
 
 
 class Trajectory(NamedTuple):
@@ -301,9 +304,7 @@ class Vehicle:
         return out
 
     def _check_stable(self) -> None:
-        w = mujoco.mjtWarning
-        if any(self.data.warning[k].number for k in (w.mjWARN_BADQPOS, w.mjWARN_BADQVEL,
-                                                     w.mjWARN_BADQACC)):
+        if self.data.warning.number[_UNSTABLE].any():
             said = _warnings[-1] if _warnings else "Nan, Inf or huge value in the state"
             raise SimulationError(f"the simulation became unstable (MuJoCo: "
                                   f"{said.split('. ')[0]}); expected a vehicle, current and "

@@ -13,6 +13,9 @@ import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import ScenarioConfig
 from auvsim.dataset import open_dataset
 from auvsim.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
+from auvsim.frames import euler_angles
+from auvsim.mission import MissionRun
+from auvsim.presets import preset
 from beamsnet.data import load_windows
 
 
@@ -67,6 +70,49 @@ def test_the_same_seed_gives_the_same_episode():
     assert not np.array_equal(a, c)  # other sensor noise
 
 
+def reference_rollout(env, seed, actions):
+    """The observations, infos and blocks of an episode as the environment defines them,
+    computed with a ``MissionRun`` of the same mission directly: each action held over
+    ``frame_skip`` physics steps, ``measure`` on them, and the observation read off the
+    latest IMU sample, the latest ping and the state now."""
+    env.reset(seed=seed)
+    run = MissionRun(env.config, env.run.mission)
+    vehicle = run.vehicle
+    vehicle.reset(**run.scenario.initial_state())
+    ping = np.zeros(8)
+    out = []
+    for k, action in enumerate(actions):
+        command = np.clip(np.asarray(action, dtype=float), -1, 1) * env.limits
+        traj = vehicle.run(np.tile(command, (env.frame_skip, 1)), (False, False, False))
+        block = run.measure(np.arange(k * env.frame_skip, (k + 1) * env.frame_skip), traj)
+        if len(block["dvl/time"]):
+            ping = np.r_[np.nan_to_num(block["dvl/beam_velocity"][-1]),
+                         block["dvl/valid"][-1]]
+        state = vehicle.state()
+        obs = np.r_[block["imu/specific_force"][-1], block["imu/angular_rate"][-1], ping,
+                    state["position_ned"][2]].astype(np.float32)
+        out.append((np.clip(obs, env.observation_space.low, env.observation_space.high),
+                    dict(state, euler=euler_angles(state["quaternion"])), block))
+    return out
+
+
+@pytest.mark.parametrize("config", [None, preset("navigator")], ids=["paper-sim", "navigator"])
+def test_the_observations_are_those_of_the_missions_sensors_bit_for_bit(config):
+    env = AuvEnv(config, max_episode_seconds=30.0)
+    actions = [np.array([0.7, np.sin(k / 4), 0.2 * np.cos(k / 9)], dtype=np.float32)
+               for k in range(45)]  # 4.5 s: five pings, IMU and depth samples every step
+    expected = reference_rollout(env, 5, actions)
+    env.reset(seed=5)
+    for action, (obs, info, block) in zip(actions, expected, strict=True):
+        got, *_, got_info = env.step(action)
+        assert got.tobytes() == obs.tobytes()  # bitwise: -0.0 and 0.0 differ too
+        for key, value in info.items():
+            assert np.asarray(got_info[key]).tobytes() == value.tobytes(), key
+        assert env.last_block.keys() == block.keys()
+        for path, value in block.items():
+            np.testing.assert_array_equal(env.last_block[path], value, err_msg=path)
+
+
 def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
     env = AuvEnv(max_episode_seconds=5.0)
     env.reset(seed=0)
@@ -105,3 +151,38 @@ def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_pat
     windows = load_windows(path)  # BeamsNet reads what a policy flew
     assert len(windows.target) == 2 * (120 - 3)
     assert windows.accel.shape[1:] == (100, 3)
+
+
+def vector_rollout(env, steps=15):
+    """Observations and truncation flags of a 2-env vector environment flown with fixed
+    actions, seeded 3 (its envs 3 and 4), over an episode end (1 s: 10 steps)."""
+    obs, _ = env.reset(seed=3)
+    out, truncated = [obs], []
+    for k in range(steps):
+        action = np.array([[0.6, np.sin(k / 5), 0.1], [0.4, -0.2, 0.0]], dtype=np.float32)
+        obs, _, _, trunc, _ = env.step(action)
+        out.append(obs)
+        truncated.append(trunc)
+    return np.array(out), np.array(truncated)
+
+
+def test_sync_and_async_vector_environments_fly_the_same_episodes():
+    sync = gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="sync",
+                        max_episode_seconds=1.0)
+    a, truncated = vector_rollout(sync)
+    sync.close()
+    env = gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="async",
+                       max_episode_seconds=1.0)
+    assert isinstance(env, gym.vector.AsyncVectorEnv)
+    try:
+        b, _ = vector_rollout(env)
+    finally:
+        env.close()
+    assert not any(p.is_alive() for p in env.processes)  # no worker left behind
+    np.testing.assert_array_equal(a, b)
+    assert a.shape == (16, 2, 15) and truncated[9].all() and not truncated[:9].any()
+    single = AuvEnv(max_episode_seconds=1.0)  # the first env is seeded 3, as alone
+    single.reset(seed=3)
+    alone = [single.step(np.array([0.6, np.sin(k / 5), 0.1], dtype=np.float32))[0]
+             for k in range(10)]
+    np.testing.assert_array_equal(a[1:11, 0], alone)

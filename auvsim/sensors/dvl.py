@@ -285,8 +285,21 @@ def least_squares(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
         if use.sum() < 3:
             continue
         rows = pattern == code
-        out[rows] = beams[rows][:, use] @ np.linalg.pinv(h[use]).T
+        out[rows] = beams[rows][:, use] @ _pinv(h, use).T
     return out
+
+
+_PINV: dict[tuple, np.ndarray] = {}  # a few entries: (beam matrix, beams used) -> pinv
+
+
+def _pinv(h: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """``np.linalg.pinv(h[use])``, computed once per beam matrix and (4,) bool choice of
+    beams: the environment solves one ping per call, and the SVD would dominate it."""
+    key = (h.shape, h.dtype.str, h.tobytes(), use.tobytes())
+    if key not in _PINV:
+        _PINV[key] = np.linalg.pinv(h[use])
+        _PINV[key].flags.writeable = False
+    return _PINV[key]
 
 
 class DvlGeometry(NamedTuple):
@@ -304,7 +317,10 @@ class DvlGeometry(NamedTuple):
     def velocity(self, velocity_body: np.ndarray, angular_rate: np.ndarray) -> np.ndarray:
         """(M, 3) velocity over ground of the DVL point in the DVL frame, m/s, from body
         velocities (M, 3) m/s and angular rates (M, 3) rad/s (lever arm included)."""
-        v_point = velocity_body + np.cross(angular_rate, self.lever_arm)
+        w, r = angular_rate, self.lever_arm  # w x r, as np.cross computes it, without its
+        v_point = velocity_body + np.stack([  # overhead
+            w[:, 1] * r[2] - w[:, 2] * r[1], w[:, 2] * r[0] - w[:, 0] * r[2],
+            w[:, 0] * r[1] - w[:, 1] * r[0]], axis=-1)
         return v_point @ self.mounting  # rows of mounting^T v
 
     def rays(self, position_ned: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -610,10 +626,20 @@ class Dvl(Sensor):
         return current_body @ self.geometry.mounting  # rows of mounting^T c
 
 
+def _empty(field: Field) -> np.ndarray:
+    empty = np.empty((0, *field.shape), dtype={"f": float, "b": bool, "i": np.int64}[field.kind])
+    empty.flags.writeable = False
+    return empty
+
+
+# Made once: most environment steps fall between pings.
+_NO_PINGS = {f.path: _empty(f) for f in Dvl.fields}
+
+
 def _no_pings() -> dict[str, np.ndarray]:
-    """The DVL fields of a block without a ping (an environment step between pings)."""
-    return {f.path: np.empty((0, *f.shape), dtype={"f": float, "b": bool, "i": np.int64}[f.kind])
-            for f in Dvl.fields}
+    """The DVL fields of a block without a ping (an environment step between pings): empty
+    and read-only."""
+    return dict(_NO_PINGS)
 
 
 SENSOR = Dvl

@@ -280,6 +280,7 @@ class _Channel:
             g_matrix: (3, 3) G, rad/s per m/s^2 of specific force (gyros only).
         """
         self.bias = bias
+        self.biased = bool(np.any(bias))  # asked once: np.any costs as much as the sum
         self.noise_std = noise_std
         self.gm_std = gm_std
         dt_over_tau = 1.0 / tau_rate
@@ -297,7 +298,7 @@ class _Channel:
         # Started from the stationary distribution, so the process has the same statistics
         # at every sample and no transient depends on where a mission starts.
         self.gm_state = gm_std * gm_rng.standard_normal(3) if gm_std else np.zeros(3)
-        self.exact = not (np.any(bias) or noise_std or gm_std or self.matrix_t is not None
+        self.exact = not (self.biased or noise_std or gm_std or self.matrix_t is not None
                           or self.g_matrix_t is not None)
 
     def corrupt(self, truth: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
@@ -308,7 +309,7 @@ class _Channel:
             out += truth @ self.matrix_t
         if self.g_matrix_t is not None:
             out += specific_force @ self.g_matrix_t
-        if np.any(self.bias):
+        if self.biased:
             out += self.bias
         if self.noise_std:
             noise = self.noise_rng.standard_normal(out.shape)
