@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from auvsim.cluster import executor
+from auvsim.cluster import THREADS, executor
 from auvsim.config import MissionConfig, ScenarioConfig
 from auvsim.dataset import (
     INDEX,
@@ -61,6 +61,8 @@ def main() -> None:
                         help="seconds per manoeuvre of the throughput runs")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--tiny", type=int, default=40, help="missions of the overhead runs")
+    parser.add_argument("--threads", type=int, default=THREADS,
+                        help="threads per worker of the local:N clusters")
     args = parser.parse_args()
 
     config = preset("maneuvers").with_duration(args.duration)
@@ -88,7 +90,7 @@ def main() -> None:
 
         for workers in (1, 2):
             started = time.perf_counter()
-            with executor(f"local:{workers}") as dask:
+            with executor(f"local:{workers}", threads=args.threads) as dask:
                 # Start-up: the workers' processes, then their first missions, which load
                 # auvsim and numba's compiled code (each pool run pays that afresh).
                 starts[f"local:{workers}"] = time.perf_counter() - started
@@ -133,7 +135,8 @@ def main() -> None:
     med = {k: statistics.median(v) for k, v in times.items()}
     simulated = sum(m.scenario.duration for m in config.missions)
     print(f"maneuvers preset, {n} missions x {args.duration:g} s ({simulated:g} s simulated), "
-          f"sharded output; median of {args.repeats}, wall seconds")
+          f"sharded output; local:N clusters of {args.threads} thread(s) per worker; median "
+          f"of {args.repeats}, wall seconds")
     print(f"{'path':28s} {'wall s':>8s} {'missions/min':>13s} {'vs pool':>8s}")
     for workers in (1, 2):
         pool = med[f"pool, {workers} worker(s)"]
