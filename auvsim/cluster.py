@@ -26,6 +26,17 @@ from .errors import ConfigError, SimulationError
 
 CONNECT_TIMEOUT_S = 10.0
 THREADS = 2  # per local worker: two missions in flight, as the built-in pool's process
+# A local cluster's settings, each measured by benchmarks/cluster.py against the built-in
+# pool: Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers, and an explicit threshold
+# turns off glibc's adaptive mmap threshold, so every block's arrays are mapped and
+# page-faulted afresh (12 % more CPU per mission); the workers' sampling profiler and a
+# 20 ms event-loop tick cost a few % more of a busy core.
+LOCAL_CONFIG = {
+    "distributed.nanny.pre-spawn-environ": {
+        "OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1},
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+}
 _LOCAL = re.compile(r"local:(\d+)")
 _REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?[\w.\-\[\]:]+:\d+/?")
 EXPECTED = "expected local:N (N worker processes here) or a scheduler's address, host:port"
@@ -69,6 +80,7 @@ def executor(address: str, *, threads: int = THREADS,
     """
     check_address(address)
     try:
+        import dask
         import distributed
     except ImportError:
         raise ConfigError("needs Dask distributed, which is not installed: expected "
@@ -79,9 +91,10 @@ def executor(address: str, *, threads: int = THREADS,
         if n is not None:
             # ":0": the scheduler's HTTP server (and dashboard) on any free port; the
             # workers' logs silenced (a failed task is this process's error to report).
-            cluster = distributed.LocalCluster(
-                n_workers=n, threads_per_worker=threads, processes=True,
-                dashboard_address=":0", silence_logs=logging.CRITICAL)
+            with dask.config.set(LOCAL_CONFIG):
+                cluster = distributed.LocalCluster(
+                    n_workers=n, threads_per_worker=threads, processes=True,
+                    dashboard_address=":0", silence_logs=logging.CRITICAL)
             client = distributed.Client(cluster, timeout=timeout)
         else:
             client = distributed.Client(address, timeout=timeout)
