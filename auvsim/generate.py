@@ -1,22 +1,27 @@
-"""``auvsim generate``: simulate the missions of a config into one dataset file.
+"""``auvsim generate``: simulate the missions of a config into a dataset: one file, or a
+folder of shards and their index.
 
 Orchestration only: each mission is an ``auvsim.mission.MissionRun`` streamed into a
 file. With one worker the missions run in this process, two at a time on threads,
-straight into the output; with more (or with an executor given), each runs as a job of
-a ``concurrent.futures`` executor into a part file of its own, and the dataset is then
-assembled in mission order by copying those missions (``auvsim.dataset.copy_mission``).
-So memory stays flat in mission length, and the output is the same whatever the number
-of workers.
+straight into the output; with more (or with an executor or a Dask cluster given), each
+runs as a job of a ``concurrent.futures`` executor into a part file of its own, and the
+dataset is then assembled in mission order by copying those missions
+(``auvsim.dataset.copy_mission``). A sharded dataset needs no copy: each job writes its
+shard into the output folder, sealed with its config's hash and its data's digest, and
+the index is written last (``auvsim.dataset.write_index``); running again keeps the
+shards that are whole and this config's (resume). So memory stays flat in mission
+length, and the output is the same whatever the number of workers.
 
-Jobs talk back through the part folder, which works with any executor whose workers
-share this file system: each job writes the simulated seconds it has done to
-``<part>.progress`` after every block, and stops at its next block once the folder
-holds ``STOP`` (the first error, Ctrl-C or SIGTERM in this process). This process then
-waits for them, so nothing is left behind.
+Jobs talk back through a folder of the run's in the output folder, which works with any
+executor whose workers share this file system: each job writes the simulated seconds it
+has done to a ``.progress`` file after every block, and stops at its next block once the
+folder holds ``STOP`` (the first error, Ctrl-C or SIGTERM in this process) or has gone.
+This process then waits for them, so nothing is left behind.
 
 A killed parent (``kill -9``) cannot write ``STOP``: each job's process watches it instead
 (``_exit_with``) and ends at once when it has gone, first removing the run's temporaries
-(``auvsim.files.sweep``); the forkserver ends with its last client. The default pool's
+(``auvsim.files.sweep``); the forkserver ends with its last client, a ``local:N``
+cluster's workers with their nannies (``auvsim.cluster``). The default pool's
 forkserver, and so its workers, ignore SIGINT and SIGTERM, which a terminal or a
 scheduler sends to the whole process group: only this process acts on them, stopping its
 jobs through ``STOP``, and no worker prints a traceback.
@@ -97,8 +102,8 @@ def write_mission(config: Config, index: int, path: str, parent: Parent | None =
         _exit_with(parent, part.parent.parent)
     report = _reporter(part.with_name(part.name + ".progress"))
     with DatasetWriter(part, config_json="", compression=config.compression) as writer:
-        _stream_mission(config, index, writer, stop=(part.parent / "STOP").exists,
-                        report=report)
+        _stream_mission(config, index, writer, report=report,
+                        stop=lambda: (part.parent / "STOP").exists() or not part.parent.is_dir())
 
 
 def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
@@ -209,7 +214,7 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
                     _in_threads(config, ds, lambda seconds: bar.update(round(seconds)))
                 else:
                     with _jobs_executor(executor, cluster) as jobs:
-                        _in_jobs(config, ds, workers, jobs, bar)
+                        _in_jobs(config, ds, workers, jobs, bar, watch=cluster is None)
     return dict(summary, wall_s=time.perf_counter() - started)
 
 
@@ -295,12 +300,13 @@ def _in_threads(config: Config, ds: DatasetWriter, report: Callable[[float], Non
 
 
 def _in_jobs(config: Config, ds: DatasetWriter, workers: int,
-             executor: cf.Executor | None, bar) -> None:
+             executor: cf.Executor | None, bar, *, watch: bool = True) -> None:
     """Run the missions as jobs, each into a part file of its own, and copy each into
-    ``ds`` in mission order as soon as it and those before it are done."""
+    ``ds`` in mission order as soon as it and those before it are done. ``watch``: the
+    jobs' processes end with this one (not on a cluster, whose workers are its own)."""
     parts = ds.claim.folder  # named and locked with the output's temporary file
     parts.mkdir()
-    parent = this_process()
+    parent = this_process() if watch else None
     paths = [parts / f"{i}.h5" for i in range(len(config.missions))]
 
     def copy(i: int, result: None) -> None:
@@ -311,7 +317,7 @@ def _in_jobs(config: Config, ds: DatasetWriter, workers: int,
     try:
         if executor is None:
             with interrupts_held():
-                executor = pool = _process_pool(workers, parent, ds.path.parent)
+                executor = pool = _process_pool(workers, this_process(), ds.path.parent)
         _run_jobs(executor, [(write_mission, (config, i, str(path), parent))
                              for i, path in enumerate(paths)],
                   parts, [p.with_name(p.name + ".progress") for p in paths], bar, copy)
@@ -325,8 +331,10 @@ def _run_jobs(executor: cf.Executor, jobs: Sequence[tuple[Callable, tuple]], fol
     """Submit ``jobs`` (function, arguments) to ``executor`` and hand each result to
     ``done`` in job order, as soon as it and those before it have finished; the progress
     files the jobs write move ``bar``. The first error is raised at once; then (or on an
-    interrupt) ``folder/STOP`` stops the running jobs at their next block, the others
-    are cancelled (on a Dask cluster too), and this returns once they have ended."""
+    interrupt) ``folder/STOP`` stops the running jobs at their next block and the others
+    are cancelled. This returns once the executor's futures are done: a pool's jobs have
+    ended then; a Dask task that was running ends at its next block, when it sees
+    ``STOP`` or that ``folder`` has gone (a ``local:N`` cluster is stopped anyway)."""
     reported = [0.0] * len(jobs)
     futures: list[cf.Future] = []
     try:
