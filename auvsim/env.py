@@ -84,8 +84,9 @@ A step costs one call of the compiled physics loop (``frame_skip`` MuJoCo steps)
 ``MissionRun.measure`` of its block: the sensors' numpy work on a few rows per call (the
 DVL's ping, every tenth step at the defaults, the largest part), which ``auvsim generate``
 pays once per 60 s block instead. ``benchmarks/env.py`` measures it against ``generate``
-(figures in the README); for more throughput run environments in processes,
-``gymnasium.make_vec("auvsim/AUV-v0", num_envs=N, vectorization_mode="async")``.
+(figures in the README). ``gymnasium.make_vec("auvsim/AUV-v0", num_envs=N,
+vectorization_mode="async")`` runs environments in processes, but its parent spends about
+as much per step as a step costs, so on 2 cores two of them gave less than one (README).
 
 ## Version History
 
