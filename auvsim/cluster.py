@@ -19,12 +19,16 @@ from __future__ import annotations
 import concurrent.futures as cf
 import logging
 import re
+import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 from .errors import ConfigError, SimulationError
+from .files import interrupt_handler
 
 CONNECT_TIMEOUT_S = 10.0
+HANDSHAKE_S = 5.0  # beyond the connect timeout, for a peer that connects but never answers
 THREADS = 2  # per local worker: two missions in flight, as the built-in pool's process
 # A local cluster's settings, each measured by benchmarks/cluster.py against the built-in
 # pool: Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers, and an explicit threshold
@@ -85,32 +89,79 @@ def executor(address: str, *, threads: int = THREADS,
     except ImportError:
         raise ConfigError("needs Dask distributed, which is not installed: expected "
                           "pip install 'auvsim[cluster]'", argument="cluster") from None
-    n = local_workers(address)
-    cluster = None
-    try:
-        if n is not None:
-            # ":0": the scheduler's HTTP server (and dashboard) on any free port; the
-            # workers' logs silenced (a failed task is this process's error to report).
-            with dask.config.set(LOCAL_CONFIG):
-                cluster = distributed.LocalCluster(
-                    n_workers=n, threads_per_worker=threads, processes=True,
-                    dashboard_address=":0", silence_logs=logging.CRITICAL)
-            client = distributed.Client(cluster, timeout=timeout)
-        else:
-            client = distributed.Client(address, timeout=timeout)
-    except (OSError, TimeoutError, ValueError) as e:
-        if cluster is not None:
-            cluster.close()
-        reason = " ".join(str(e).split()) or type(e).__name__
-        raise ConfigError(f"{address!r}: no Dask scheduler answered within "
-                          f"{timeout:g} s ({reason[:200]}); {EXPECTED}",
-                          argument="cluster") from None
+    if local_workers(address) is None:
+        client, cluster = _connect(distributed, address, timeout), None
+    else:
+        client, cluster = _local(dask, distributed, local_workers(address), threads, timeout)
     try:
         yield client.get_executor(pure=False)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _local(dask, distributed, n: int, threads: int, timeout: float):
+    """A client of a new ``LocalCluster`` of ``n`` workers, and the cluster.
+
+    Its workers ignore SIGINT, which a terminal sends to the whole process group: this
+    process stops them (the first, started while SIGINT is ignored here, inherit that; a
+    worker the nanny restarts later is told by ``_IgnoreSigint``). A Ctrl-C while it
+    starts is lost, as one to the built-in pool's forkserver is."""
+    cluster = None
+    try:
+        with interrupt_handler(signal.SIG_IGN), dask.config.set(LOCAL_CONFIG):
+            # ":0": the scheduler's HTTP server (and dashboard) on any free port; the
+            # workers' logs silenced (a failed task is this process's error to report).
+            cluster = distributed.LocalCluster(
+                n_workers=n, threads_per_worker=threads, processes=True,
+                dashboard_address=":0", silence_logs=logging.CRITICAL)
+            client = distributed.Client(cluster, timeout=timeout)
+            client.register_plugin(_ignore_sigint(distributed)())
+        return client, cluster
+    except BaseException:
+        if cluster is not None:
+            cluster.close()
+        raise
+
+
+def _ignore_sigint(distributed):
+    class _IgnoreSigint(distributed.WorkerPlugin):
+        """Every worker of a local cluster, restarted ones too, ignores SIGINT."""
+
+        def setup(self, worker) -> None:
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return _IgnoreSigint
+
+
+def _connect(distributed, address: str, timeout: float):
+    """A client of the scheduler at ``address``, within ``timeout`` s (a bit more for the
+    handshake): Dask's own timeout does not bound a peer that accepts the connection and
+    never answers, so the client is made in a thread that is given up on at the deadline.
+
+    Raises:
+        ConfigError: nothing answered there as a Dask scheduler in time.
+    """
+    made: dict = {}
+
+    def connect() -> None:
+        try:
+            made["client"] = distributed.Client(address, timeout=timeout)
+        except Exception as e:  # whatever it is, there is no scheduler to use there
+            made["error"] = e
+
+    thread = threading.Thread(target=connect, daemon=True, name="auvsim-connect")
+    thread.start()
+    thread.join(timeout + HANDSHAKE_S)
+    if "client" in made:
+        return made["client"]
+    error = made.get("error")
+    reason = ("it accepted the connection but never answered as a Dask scheduler"
+              if error is None else " ".join(str(error).split()) or type(error).__name__)
+    raise ConfigError(f"{address!r}: no Dask scheduler answered within {timeout:g} s "
+                      f"({reason[:200]}); {EXPECTED}", argument="cluster")
 
 
 def lost_worker(error: BaseException) -> SimulationError | None:

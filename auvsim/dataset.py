@@ -603,6 +603,17 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
         raise DatasetError(f"{path}: auvsim dataset with layout {_show(layout)}; expected "
                            "'file' or 'index'")
     records = _index_records(path, f) if layout == "index" else None
+    try:
+        _check_missions(path, f, dataset, records, version)
+    except BaseException:
+        for shard in dataset._shard_files.values():
+            shard.close()
+        raise
+    return dataset
+
+
+def _check_missions(path: Path, f: h5py.File, dataset: Dataset,
+                    records: dict[str, Shard] | None, version: int) -> None:
     for name in f["missions"]:
         group = (f["missions"][name] if records is None
                  else _shard_group(path, f, name, records, dataset))
@@ -617,14 +628,21 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
                                f"{expected}")
         _check_mission(path, name, group, origin, version)
         dataset.missions[name] = Mission(dataset, name, group, origin)
-    return dataset
 
 
 def _index_records(path: Path, f: h5py.File) -> dict[str, Shard]:
     """An index's shard records by mission name."""
+    records = []
     try:
-        records = [Shard(**{**r, "missions": tuple(r["missions"])})
-                   for r in json.loads(f.attrs["shards"])]
+        for r in json.loads(f.attrs["shards"]):
+            missions = r["missions"]
+            if not (isinstance(missions, list) and all(isinstance(m, str) for m in missions)
+                    and all(isinstance(r[k], str) for k in ("file", "config_sha256",
+                                                            "data_sha256"))):
+                raise ValueError("expected a file name, a list of mission names and two "
+                                 "hashes per shard")
+            records.append(Shard(r["file"], tuple(missions), r["config_sha256"],
+                                 r["data_sha256"]))
     except (KeyError, TypeError, ValueError) as e:
         raise DatasetError(f"{path}: corrupt auvsim index (its shards attribute: "
                            f"{_reason(e)})") from None
@@ -636,29 +654,35 @@ def _shard_group(path: Path, f: h5py.File, name: str, records: dict[str, Shard],
     """Mission ``name`` of an index, in its shard, after checking that the shard is there
     and is the one the index lists (sealed with the same config hash)."""
     link = f["missions"].get(name, getlink=True)
-    if not isinstance(link, h5py.ExternalLink) or name not in records:
-        raise DatasetError(f"{path}: missions/{name} is not a link to a shard the index "
+    if (not isinstance(link, h5py.ExternalLink) or name not in records
+            or link.filename != f"{SHARDS}/{records[name].file}"
+            or link.path != f"/missions/{name}"):
+        raise DatasetError(f"{path}: missions/{name} is not a link to the shard the index "
                            "lists; expected an index written by auvsim generate")
     shard = path.parent / link.filename
     if not shard.is_file():
         raise DatasetError(f"{path}: mission {name}'s shard {link.filename} is missing; "
                            f"expected every shard the index lists in {path.parent / SHARDS} "
                            "(running the same auvsim generate again makes it)")
+    file = dataset._shard_files.get(shard)
     try:
-        group = f["missions"][name]
+        if file is None:  # each shard opened once, whatever its number of missions
+            file = h5py.File(shard, "r")
+        group = file["missions"][name]
     except (KeyError, OSError) as e:
+        if file is not None and shard not in dataset._shard_files:
+            file.close()
         raise DatasetError(f"{shard}: cannot be read as the shard of mission {name} "
                            f"({_reason(e)}); the shard is corrupt or not an auvsim "
                            "dataset") from None
-    attrs = group.file.attrs
-    if attrs.get("format") != FORMAT or attrs.get("config_sha256") != \
+    if shard not in dataset._shard_files:
+        dataset.shards.append(shard)
+        dataset._shard_files[shard] = file  # closed with the dataset
+    if file.attrs.get("format") != FORMAT or file.attrs.get("config_sha256") != \
             records[name].config_sha256:
         raise DatasetError(f"{shard}: not the shard the index {path} lists (another config "
                            "or run wrote it since); expected the shards of one auvsim "
                            "generate run (running it again makes them agree)")
-    if shard not in dataset._shard_files:
-        dataset.shards.append(shard)
-        dataset._shard_files[shard] = group.file
     return group
 
 

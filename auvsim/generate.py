@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import dataclasses
+import fcntl
 import hashlib
 import multiprocessing
 import multiprocessing.forkserver
@@ -47,6 +48,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from . import __version__
 from .cluster import check_address, lost_worker
 from .config import Config
 from .dataset import (
@@ -70,6 +72,7 @@ from .files import (
     sweep,
 )
 from .mission import MissionRun, check_reachable
+from .vehicle import model_path
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
 POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
@@ -98,6 +101,7 @@ def write_mission(config: Config, index: int, path: str, parent: Parent | None =
     process that submitted it: ``this_process()``) has.
     """
     part = Path(path)
+    _check_run_folder(part.parent)
     if parent is not None:
         _exit_with(parent, part.parent.parent)
     report = _reporter(part.with_name(part.name + ".progress"))
@@ -117,6 +121,7 @@ def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
     holds ``STOP`` or has gone, and its process ends once ``parent`` has.
     """
     part, run = Path(path), Path(folder)
+    _check_run_folder(run)
     if parent is not None:
         _exit_with(parent, part.parent)
     sub = shard_config(config, indices)
@@ -130,6 +135,15 @@ def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
     return Shard(part.name, tuple(m.name for m in sub.missions), config_sha256(sub), digest)
 
 
+def _check_run_folder(folder: Path) -> None:
+    """A job starts only while its run's folder is there: one that is not was removed at
+    the end of its run (a task that started late) or is not on this worker's storage."""
+    if not folder.is_dir():
+        raise ConfigError(f"{str(folder)!r}: the run's folder is not there on {HOST}: "
+                          "expected the output on storage that every worker reaches at the "
+                          "same path", argument="out")
+
+
 def shard_config(config: Config, indices: Sequence[int]) -> Config:
     """The config of one shard: ``config`` with only the missions ``indices`` (each
     mission depends on the config and its own settings, not on the others)."""
@@ -137,7 +151,15 @@ def shard_config(config: Config, indices: Sequence[int]) -> Config:
 
 
 def config_sha256(config: Config) -> str:
-    return hashlib.sha256(config.to_json().encode()).hexdigest()
+    """SHA-256 of what makes a shard's data: the config, the vehicle's model file and the
+    heightmap's (the config holds only their paths), and this auvsim's version."""
+    digest = hashlib.sha256(f"{__version__}\n{config.to_json()}".encode())
+    files = [model_path(config.vehicle.model)]
+    if config.seafloor.kind == "heightmap":
+        files.append(Path(config.seafloor.heightmap))
+    for file in files:
+        digest.update(file.read_bytes())
+    return digest.hexdigest()
 
 
 def shard_plan(config: Config, per_shard: int) -> list[tuple[str, list[int]]]:
@@ -198,23 +220,30 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
             if given is not None:
                 raise ConfigError(": given with a cluster, whose own workers run the "
                                   "jobs; expected one or the other", argument=name)
+    sharded = shards is not None or _names_folder(out)
+    if sharded and Path(out).suffix in (".h5", ".hdf5"):
+        raise ConfigError(f"{os.fspath(out)!r}: a sharded dataset is a folder: expected a "
+                          "folder name (datasets/rm/), or a file name without --shards",
+                          argument="out")
+    out = Path(out).absolute()  # a worker's working folder is not this process's
     workers = min(workers or default_workers(len(config.missions)), len(config.missions))
     started = time.perf_counter()
     simulated = sum(m.scenario.duration for m in config.missions)
     summary: dict = dict(missions=len(config.missions), simulated_s=simulated)
     with tqdm(total=round(simulated), unit=" sim s", disable=None if progress else True,
               leave=False) as bar:
-        if shards is not None or _names_folder(out):
-            summary.update(_sharded(config, Path(out), shards or 1, workers, executor,
-                                    cluster, bar))
-        else:
-            with DatasetWriter(Path(out), config_json=config.to_json(),
+        if sharded:
+            summary.update(_sharded(config, out, shards or 1, workers, executor, cluster,
+                                    bar))
+        elif workers == 1 and executor is None and cluster is None:
+            with DatasetWriter(out, config_json=config.to_json(),
                                compression=config.compression) as ds:
-                if workers == 1 and executor is None and cluster is None:
-                    _in_threads(config, ds, lambda seconds: bar.update(round(seconds)))
-                else:
-                    with _jobs_executor(executor, cluster) as jobs:
-                        _in_jobs(config, ds, workers, jobs, bar, watch=cluster is None)
+                _in_threads(config, ds, lambda seconds: bar.update(round(seconds)))
+        else:
+            with _jobs_executor(executor, cluster) as jobs, \
+                    DatasetWriter(out, config_json=config.to_json(),
+                                  compression=config.compression) as ds:
+                _in_jobs(config, ds, workers, jobs, bar, watch=cluster is None)
     return dict(summary, wall_s=time.perf_counter() - started)
 
 
@@ -241,14 +270,15 @@ def _jobs_executor(executor: cf.Executor | None, cluster: str | None
 def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
              executor: cf.Executor | None, cluster: str | None, bar) -> dict:
     """Write (or finish) the sharded dataset ``folder``: keep each shard that is already
-    complete and this config's, make the others as jobs, then write the index."""
+    complete and this config's, make the others as jobs, then write the index (the old
+    one stays until the first shard is to be made, so a check that is cut short leaves a
+    complete dataset as it was), and remove the shards of an earlier plan."""
     folder = check_out_dir(folder)
     plan = shard_plan(config, per_shard)
     with _jobs_executor(executor, cluster) as given:  # a bad cluster: nothing made yet
         make_out_dir(folder / SHARDS)
         index = folder / INDEX
-        with Claim(index) as claim:
-            index.unlink(missing_ok=True)  # it will list this run's shards: written last
+        with _only_writer(folder), _claimed(index) as claim:
             shards: list[Shard | None] = []
             for name, indices in plan:
                 shards.append(shard_state(folder / SHARDS / name,
@@ -259,6 +289,7 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
             todo = [k for k, shard in enumerate(shards) if shard is None]
             kept = len(plan) - len(todo)
             if todo:
+                index.unlink(missing_ok=True)  # it would list shards about to change
                 claim.folder.mkdir()
                 parent = None if cluster is not None else this_process()
                 jobs = [(write_shard, (config, plan[k][1], str(folder / SHARDS / plan[k][0]),
@@ -275,7 +306,43 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
                     sweep(folder / SHARDS)  # the temporaries of workers that were killed
             write_index(claim.file, shards, config_json=config.to_json())
             os.replace(claim.file, index)
+        planned = {name for name, _ in plan}
+        for stale in (folder / SHARDS).glob("part-*.h5"):
+            if stale.name not in planned:
+                stale.unlink()
     return dict(out=str(index), shards=len(plan), kept=kept)
+
+
+@contextmanager
+def _only_writer(folder: Path) -> Iterator[None]:
+    """Hold the sharded dataset ``folder`` for this run: a second run into it at the same
+    time is refused (an flock on the folder itself, which the kernel drops with its owner
+    however it ends)."""
+    fd = os.open(folder, os.O_RDONLY | os.O_CLOEXEC)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ConfigError(f"{str(folder)!r}: another auvsim generate is writing this "
+                              "dataset: expected one run at a time into a folder",
+                              argument="out") from None
+        except OSError:  # a file system without flock (Lustre, say): not guarded then
+            pass
+        yield
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def _claimed(index: Path) -> Iterator[Claim]:
+    """The claim on a sharded dataset's index, or one line if its folder is read-only."""
+    try:
+        claim = Claim(index)
+    except OSError as e:
+        raise ConfigError(f"{str(index.parent)!r}: cannot write there ({e.strerror or e}); "
+                          "expected a writable folder", argument="out") from None
+    with claim:
+        yield claim
 
 
 def _in_threads(config: Config, ds: DatasetWriter, report: Callable[[float], None]) -> None:

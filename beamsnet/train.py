@@ -75,8 +75,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from auvsim.cluster import check_address, executor, lost_worker
-from auvsim.errors import CheckpointError, ConfigError
+from auvsim.cluster import check_address, executor, local_workers, lost_worker
+from auvsim.errors import CheckpointError, ConfigError, SimulationError
 from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
 
 from .data import DataError, Windows, load_windows, split
@@ -586,6 +586,8 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             "forkserver"))
     else:
         runner = executor(cluster, threads=1)
+        if local_workers(cluster) is None:  # a scheduler's workers have their own cwd
+            jobs = [(Path(d).absolute(), c, Path(o).absolute()) for d, c, o in jobs]
     with runner as pool, tqdm(total=len(jobs), disable=None if progress else True,
                               leave=False, unit=" models", desc="training") as bar:
         futures = [pool.submit(job, d, c, o, progress=False, threads=threads)
@@ -600,6 +602,10 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             lost = lost_worker(e)
             if lost is not None:  # Dask's KilledWorker: its traceback would say no more
                 raise lost from None
+            if isinstance(e, cf.CancelledError):
+                raise SimulationError("the cluster cancelled a training job (its scheduler "
+                                      "restarted, or lost this client?): expected it to run "
+                                      "every job") from None
             raise
         return [f.result() for f in futures]
 

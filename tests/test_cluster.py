@@ -166,7 +166,7 @@ def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
     finally:
         proc.kill()
     assert proc.returncode == 130, err
-    assert err.splitlines()[-1] == "auvsim: interrupted; nothing was written"
+    assert err.splitlines() == ["auvsim: interrupted; nothing was written"]  # no worker's
     _wait_for(lambda: not _running(tree), "the cluster to end", timeout=20)
     assert not (out / INDEX).exists()
     assert all(p.name.startswith("part-") for p in (out / SHARDS).iterdir())  # whole shards
@@ -216,6 +216,24 @@ def test_a_bad_or_unreachable_address_gets_one_line(tmp_path, capsys, address, s
     assert err.count("\n") == 1 and said in err, err
     leftovers = [p for p in tmp_path.rglob("*") if p.is_file()]
     assert leftovers == []
+
+
+def test_a_peer_that_never_answers_is_given_up_on(tmp_path):
+    """Something that accepts the connection and says nothing: one line at the deadline."""
+    import socket
+    import threading
+
+    from auvsim.cluster import executor
+
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+    threading.Thread(target=lambda: accepted.append(server.accept()), daemon=True).start()
+    started = time.perf_counter()
+    with pytest.raises(ConfigError, match="never answered as a Dask scheduler"):
+        with executor(f"tcp://127.0.0.1:{server.getsockname()[1]}", timeout=1):
+            pass
+    assert time.perf_counter() - started < 15
+    server.close()
 
 
 def test_without_dask_the_cluster_option_says_what_to_install(monkeypatch):

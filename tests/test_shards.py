@@ -161,3 +161,50 @@ def test_a_bad_shards_count_is_refused(tmp_path, capsys):
                             str(tmp_path / "x")]) == 2
     assert "--shards: expected a whole number >= 1, got 0" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_shards_count_with_a_file_name_is_refused(tmp_path, capsys):
+    assert auvsim_cli.main(["generate", "--duration", "5", "--shards", "2", "--out",
+                            str(tmp_path / "x.h5")]) == 2
+    assert "a sharded dataset is a folder" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_one_run_at_a_time_writes_a_folder(sharded):
+    import fcntl
+    import os
+
+    from auvsim.errors import ConfigError
+
+    fd = os.open(sharded, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # another run holds it
+    try:
+        with pytest.raises(ConfigError, match="another auvsim generate is writing"):
+            generate(CONFIG, f"{sharded}/", workers=1, progress=False)
+    finally:
+        os.close(fd)
+    assert (sharded / INDEX).exists()  # the finished dataset is left as it was
+
+
+def test_the_shards_of_an_earlier_plan_go(sharded, single):
+    generate(CONFIG, f"{sharded}/", shards=2, workers=1, progress=False)
+    assert sorted(p.name for p in (sharded / SHARDS).iterdir()) == [
+        "part-00000.h5", "part-00001.h5"]
+    assert_same_data(single, sharded)
+
+
+def test_closing_the_dataset_closes_its_shards(sharded):
+    generate(CONFIG, f"{sharded}/", shards=2, workers=1, progress=False)  # two in one shard
+    with open_dataset(sharded) as f:
+        mission = f.missions["b"]
+    with pytest.raises((ValueError, RuntimeError, KeyError, DatasetError)):
+        mission.read("truth/time")
+
+
+def test_an_index_with_malformed_records_is_refused(sharded):
+    with h5py.File(sharded / INDEX, "r+") as f:
+        records = json.loads(f.attrs["shards"])
+        records[0]["missions"] = "a"
+        f.attrs["shards"] = json.dumps(records)
+    with pytest.raises(DatasetError, match="corrupt auvsim index"):
+        open_dataset(sharded)
