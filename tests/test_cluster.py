@@ -251,3 +251,36 @@ def test_workers_and_a_cluster_are_one_or_the_other(tmp_path, capsys):
     assert "--workers: given with a cluster, whose own workers run the jobs" in \
         capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scheduler_of_ones_own_with_a_worker_elsewhere(tmp_path, reference):
+    """``dask scheduler`` and ``dask worker`` started apart, the worker in another working
+    folder: a relative --out still lands where the command was run, the same data."""
+    import json
+
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    file = tmp_path / "scheduler.json"
+    started = [subprocess.Popen(dask + ["--port", "0", "--no-dashboard", "--scheduler-file",
+                                        str(file)], cwd=there, start_new_session=True,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        _wait_for(file.exists, "the scheduler", timeout=60)
+        _wait_for(lambda: file.stat().st_size > 0, "the scheduler's file", timeout=10)
+        address = json.loads(file.read_text())["address"]
+        started.append(subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads",
+             "2", "--nworkers", "1", "--no-dashboard"], cwd=there, start_new_session=True,
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        proc = subprocess.run([sys.executable, "-m", "auvsim.cli", "generate", *RUN,
+                               "--cluster", address, "--out", "rel/"], cwd=here,
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        assert_same_data(reference, here / "rel")
+        assert list(there.iterdir()) == []  # nothing in the worker's working folder
+    finally:
+        for p in reversed(started):
+            os.killpg(p.pid, signal.SIGTERM)
+            p.wait(timeout=30)
