@@ -15,7 +15,7 @@ from pathlib import Path
 import psutil
 import pytest
 from conftest import flat, mission
-from test_kill import _running, _tree, _wait_for
+from test_kill import _running, _tree, _wait_for, as_from_a_terminal
 from test_shards import assert_same_data
 
 from auvsim import cli
@@ -51,7 +51,8 @@ def no_process_left():
 def _cli(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "auvsim.cli", "generate", *args],
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=as_from_a_terminal)
 
 
 def _finished(*args: str) -> str:

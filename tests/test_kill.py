@@ -29,7 +29,14 @@ def _generate(out: Path, *args: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "auvsim.cli", "generate", *args, "--out", str(out)],
         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        start_new_session=True)  # a process group of its own, as a terminal makes
+        start_new_session=True,  # a process group of its own, as a terminal makes
+        preexec_fn=as_from_a_terminal)
+
+
+def as_from_a_terminal() -> None:
+    """In a child: SIGINT as a terminal leaves it, whatever this process has (a shell
+    starts a background job, CI's perhaps, with SIGINT ignored, which a child inherits)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _processes() -> dict[int, tuple[int, bytes, bytes]]:
