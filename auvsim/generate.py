@@ -30,6 +30,7 @@ jobs through ``STOP``, and no worker prints a traceback.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import dataclasses
 import fcntl
 import hashlib
@@ -272,12 +273,14 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
     """Write (or finish) the sharded dataset ``folder``: keep each shard that is already
     complete and this config's, make the others as jobs, then write the index (the old
     one stays until the first shard is to be made, so a check that is cut short leaves a
-    complete dataset as it was), and remove the shards of an earlier plan."""
+    complete dataset as it was), and remove the shards of an earlier plan. A cluster is
+    stopped before the run's folder goes, so no worker writes into it as it does."""
     folder = check_out_dir(folder)
     plan = shard_plan(config, per_shard)
-    with _jobs_executor(executor, cluster) as given:  # a bad cluster: nothing made yet
-        make_out_dir(folder / SHARDS)
-        index = folder / INDEX
+    fresh = not folder.exists()
+    make_out_dir(folder / SHARDS)
+    index = folder / INDEX
+    try:
         with _only_writer(folder), _claimed(index) as claim:
             shards: list[Shard | None] = []
             for name, indices in plan:
@@ -287,30 +290,39 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
                     bar.update(round(sum(config.missions[i].scenario.duration
                                          for i in indices)))
             todo = [k for k, shard in enumerate(shards) if shard is None]
-            kept = len(plan) - len(todo)
             if todo:
-                index.unlink(missing_ok=True)  # it would list shards about to change
-                claim.folder.mkdir()
-                parent = None if cluster is not None else this_process()
-                jobs = [(write_shard, (config, plan[k][1], str(folder / SHARDS / plan[k][0]),
-                                       str(claim.folder), parent)) for k in todo]
-                progress = [claim.folder / f"{Path(plan[k][0]).stem}.progress" for k in todo]
-                pool = given or (ThreadPoolExecutor(MISSIONS_IN_FLIGHT) if workers == 1 else
-                                 _process_pool(workers, this_process(), folder / SHARDS))
-                try:
-                    _run_jobs(pool, jobs, claim.folder, progress, bar,
-                              lambda j, shard: shards.__setitem__(todo[j], shard))
-                finally:
-                    if given is None:
-                        pool.shutdown(wait=True)
-                    sweep(folder / SHARDS)  # the temporaries of workers that were killed
+                with _jobs_executor(executor, cluster) as given:
+                    index.unlink(missing_ok=True)  # it would list shards about to change
+                    claim.folder.mkdir()
+                    parent = None if cluster is not None else this_process()
+                    jobs = [(write_shard, (config, plan[k][1],
+                                           str(folder / SHARDS / plan[k][0]),
+                                           str(claim.folder), parent)) for k in todo]
+                    progress = [claim.folder / f"{Path(plan[k][0]).stem}.progress"
+                                for k in todo]
+                    pool = given or (
+                        ThreadPoolExecutor(MISSIONS_IN_FLIGHT) if workers == 1 else
+                        _process_pool(workers, this_process(), folder / SHARDS))
+                    try:
+                        _run_jobs(pool, jobs, claim.folder, progress, bar,
+                                  lambda j, shard: shards.__setitem__(todo[j], shard))
+                    finally:
+                        if given is None:
+                            pool.shutdown(wait=True)
+                sweep(folder / SHARDS)  # the temporaries of workers that were killed
             write_index(claim.file, shards, config_json=config.to_json())
             os.replace(claim.file, index)
-        planned = {name for name, _ in plan}
-        for stale in (folder / SHARDS).glob("part-*.h5"):
-            if stale.name not in planned:
-                stale.unlink()
-    return dict(out=str(index), shards=len(plan), kept=kept)
+    except BaseException:
+        if fresh:  # a run refused or stopped before its first shard leaves no folder
+            for made in (folder / SHARDS, folder):
+                with contextlib.suppress(OSError):
+                    made.rmdir()
+        raise
+    planned = {name for name, _ in plan}
+    for stale in (folder / SHARDS).glob("part-*.h5"):
+        if stale.name not in planned:
+            stale.unlink()
+    return dict(out=str(index), shards=len(plan), kept=len(plan) - len(todo))
 
 
 @contextmanager

@@ -169,9 +169,9 @@ def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
     assert proc.returncode == 130, err
     assert err.splitlines() == ["auvsim: interrupted; nothing was written"]  # no worker's
     _wait_for(lambda: not _running(tree), "the cluster to end", timeout=20)
-    assert not (out / INDEX).exists()
-    assert all(p.name.startswith("part-") for p in (out / SHARDS).iterdir())  # whole shards
-    assert [p.name for p in out.iterdir()] == [SHARDS]
+    if out.exists():  # whole shards, kept for the next run, and nothing else
+        assert [p.name for p in out.iterdir()] == [SHARDS]
+        assert all(p.name.startswith("part-") for p in (out / SHARDS).iterdir())
 
 
 def test_the_first_failure_stops_the_run(tmp_path, capsys):
@@ -198,8 +198,7 @@ roughness = 3
     assert time.perf_counter() - started < 120  # b alone would take far longer
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "auvsim: error: a: the vehicle reached the seafloor" in err
-    assert not (tmp_path / "x" / INDEX).exists()
-    assert list((tmp_path / "x" / SHARDS).iterdir()) == []
+    assert not (tmp_path / "x").exists()  # no shard was made: no folder either
 
 
 @pytest.mark.parametrize("address, said", [
