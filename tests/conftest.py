@@ -49,3 +49,41 @@ def dataset_of(tmp_path_factory):
         return made[name]
 
     return make
+
+
+# Mission a reaches the seafloor within seconds; mission b alone would take minutes: a run
+# that reports a's error quickly has stopped b early.
+FAILING_TOML = """
+[[missions]]
+name = "a"
+[missions.scenario]
+depth = 59.8
+duration = 600
+[[missions]]
+name = "b"
+[missions.scenario]
+duration = 200000
+[seafloor]
+kind = "procedural"
+depth = 60
+roughness = 3
+"""
+
+
+class CountingBar:
+    """Stands in for tqdm (``monkeypatch.setattr("auvsim.generate.tqdm", CountingBar)``):
+    ``CountingBar.updates`` collects what the run's progress added up to."""
+
+    updates: list[int] = []
+
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        CountingBar.updates.append(n)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import psutil
 import pytest
-from conftest import flat, mission
+from conftest import FAILING_TOML, CountingBar, flat, mission
 from test_kill import _running, _tree, _wait_for, as_from_a_terminal
 from test_shards import assert_same_data
 
@@ -70,33 +70,15 @@ def reference(tmp_path_factory):
     return path
 
 
-class Bar:
-    """Stands in for tqdm: what the workers' progress added up to."""
-
-    total = 0
-
-    def __init__(self, *args, **kwargs):
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def update(self, n):
-        Bar.total += n
-
-
 def test_local_1_local_2_and_the_pool_give_the_same_data(tmp_path, monkeypatch):
     pool = tmp_path / "pool.h5"
     generate(CONFIG, pool, workers=2, progress=False)
-    monkeypatch.setattr("auvsim.generate.tqdm", Bar)
+    monkeypatch.setattr("auvsim.generate.tqdm", CountingBar)
     for name, cluster in (("one", "local:1"), ("two", "local:2")):
-        Bar.total = 0
+        monkeypatch.setattr(CountingBar, "updates", [])
         summary = generate(CONFIG, f"{tmp_path / name}/", cluster=cluster, progress=False)
         assert (summary["shards"], summary["kept"]) == (4, 0)
-        assert Bar.total == sum(m.scenario.duration for m in CONFIG.missions)  # came back
+        assert sum(CountingBar.updates) == sum(m.scenario.duration for m in CONFIG.missions)
         assert_same_data(pool, tmp_path / name)
     generate(CONFIG, tmp_path / "file.h5", cluster="local:2", progress=False)  # parts, copied
     assert_same_data(pool, tmp_path / "file.h5")
@@ -177,21 +159,7 @@ def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
 def test_the_first_failure_stops_the_run(tmp_path, capsys):
     """Mission a reaches the seafloor within seconds; the long mission b is stopped."""
     toml = tmp_path / "fail.toml"
-    toml.write_text("""
-[[missions]]
-name = "a"
-[missions.scenario]
-depth = 59.8
-duration = 600
-[[missions]]
-name = "b"
-[missions.scenario]
-duration = 200000
-[seafloor]
-kind = "procedural"
-depth = 60
-roughness = 3
-""")
+    toml.write_text(FAILING_TOML)
     started = time.perf_counter()
     assert cli.main(["generate", "--config", str(toml), "--cluster", "local:2", "--out",
                      f"{tmp_path / 'x'}/", "--quiet"]) == 2

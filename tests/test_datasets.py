@@ -9,7 +9,7 @@ import math
 import h5py
 import numpy as np
 import pytest
-from conftest import flat, mission, write
+from conftest import FAILING_TOML, flat, mission, write
 from h5compare import assert_same_contents
 
 from auvsim import dataset
@@ -325,21 +325,7 @@ def test_one_missions_failure_stops_the_others_early(tmp_path, capsys):
     import time
 
     toml = tmp_path / "fail.toml"
-    toml.write_text("""
-[[missions]]
-name = "a"
-[missions.scenario]
-depth = 59.8
-duration = 600
-[[missions]]
-name = "b"
-[missions.scenario]
-duration = 200000
-[seafloor]
-kind = "procedural"
-depth = 60
-roughness = 3
-""")
+    toml.write_text(FAILING_TOML)
     started = time.perf_counter()
     assert main(["generate", "--config", str(toml), "--out", str(tmp_path / "x.h5"),
                  "--workers", "1", "--quiet"]) == 2

@@ -10,6 +10,7 @@ import sys
 import h5py
 import numpy as np
 import pytest
+from conftest import CountingBar
 from h5compare import assert_same_contents
 
 from auvsim import dataset
@@ -346,24 +347,11 @@ def test_progress_comes_back_from_any_executor(tmp_path, monkeypatch):
     config = straight(duration=130)
     config = dataclasses.replace(config, missions=(
         config.missions[0], dataclasses.replace(config.missions[0], name="other", seed=4)))
-    updates = []
-
-    class Bar:
-        def __init__(self, *args, **kwargs):
-            pass
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            return False
-
-        def update(self, n):
-            updates.append(n)
-
-    monkeypatch.setattr("auvsim.generate.tqdm", Bar)
+    monkeypatch.setattr(CountingBar, "updates", [])
+    monkeypatch.setattr("auvsim.generate.tqdm", CountingBar)
     with ThreadPoolExecutor(max_workers=2) as pool:
         generate(config, tmp_path / "pool.h5", executor=pool, progress=False)
+    updates = CountingBar.updates
     monkeypatch.undo()
     generate(config, tmp_path / "threads.h5", workers=1, progress=False)
     assert sum(updates) == 260
