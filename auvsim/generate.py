@@ -30,7 +30,6 @@ jobs through ``STOP``, and no worker prints a traceback.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import contextlib
 import dataclasses
 import fcntl
 import hashlib
@@ -44,7 +43,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from tqdm import tqdm
@@ -132,8 +131,9 @@ def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
             _stream_mission(config, i, w,
                             stop=lambda: (run / "STOP").exists() or not run.is_dir(),
                             report=report)
-        digest = w.seal(config_sha256(sub))
-    return Shard(part.name, tuple(m.name for m in sub.missions), config_sha256(sub), digest)
+        sha = config_sha256(sub)
+        digest = w.seal(sha)
+    return Shard(part.name, tuple(m.name for m in sub.missions), sha, digest)
 
 
 def _check_run_folder(folder: Path) -> None:
@@ -315,7 +315,7 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
     except BaseException:
         if fresh:  # a run refused or stopped before its first shard leaves no folder
             for made in (folder / SHARDS, folder):
-                with contextlib.suppress(OSError):
+                with suppress(OSError):
                     made.rmdir()
         raise
     planned = {name for name, _ in plan}

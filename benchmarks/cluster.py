@@ -26,6 +26,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from generation import wall_seconds  # the sibling script (its directory is on sys.path)
+
 from auvsim.cluster import THREADS, executor
 from auvsim.config import MissionConfig, ScenarioConfig
 from auvsim.dataset import (
@@ -40,12 +42,6 @@ from auvsim.dataset import (
 )
 from auvsim.generate import config_sha256, generate, shard_config, shard_plan
 from auvsim.presets import preset
-
-
-def wall(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
 
 
 def read_all(path: Path) -> None:
@@ -84,7 +80,7 @@ def main() -> None:
         def run(name: str, **how) -> None:
             out = tmp / f"{name}/"
             times.setdefault(name, []).append(
-                wall(lambda: generate(config, f"{out}/", progress=False, **how)))
+                wall_seconds(lambda: generate(config, f"{out}/", progress=False, **how)))
             for shard in (out / SHARDS).iterdir():
                 shard.unlink()  # the next repeat simulates them again
 
@@ -101,9 +97,9 @@ def main() -> None:
                     run(f"local:{workers}", executor=dask)
             with executor("local:1") as dask:
                 for _ in range(args.repeats):
-                    times.setdefault("tiny, this process", []).append(wall(lambda: generate(
+                    times.setdefault("tiny, this process", []).append(wall_seconds(lambda: generate(
                         tiny, f"{tmp / 'tiny-here'}/", workers=1, progress=False)))
-                    times.setdefault("tiny, local:1", []).append(wall(lambda: generate(
+                    times.setdefault("tiny, local:1", []).append(wall_seconds(lambda: generate(
                         tiny, f"{tmp / 'tiny-dask'}/", executor=dask, progress=False)))
                     for name in ("tiny-here", "tiny-dask"):
                         for shard in (tmp / name / SHARDS).iterdir():
@@ -123,14 +119,14 @@ def main() -> None:
                 with DatasetWriter(tmp / "merged.h5", config_json=hundred.to_json()) as ds:
                     for part, m in zip(parts, hundred.missions, strict=True):
                         copy_mission(part, m.name, ds)
-            times.setdefault("merge 100 parts into one file", []).append(wall(merge))
-            times.setdefault("write the index of 100 shards", []).append(wall(
+            times.setdefault("merge 100 parts into one file", []).append(wall_seconds(merge))
+            times.setdefault("write the index of 100 shards", []).append(wall_seconds(
                 lambda: write_index(tmp / "hundred" / "index-bench.h5", shards,
                                     config_json=hundred.to_json())))
             times.setdefault("read 100 missions, one file", []).append(
-                wall(lambda: read_all(tmp / "one.h5")))
+                wall_seconds(lambda: read_all(tmp / "one.h5")))
             times.setdefault("read 100 missions, index", []).append(
-                wall(lambda: read_all(tmp / "hundred" / INDEX)))
+                wall_seconds(lambda: read_all(tmp / "hundred" / INDEX)))
 
     med = {k: statistics.median(v) for k, v in times.items()}
     simulated = sum(m.scenario.duration for m in config.missions)

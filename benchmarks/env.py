@@ -25,12 +25,14 @@ import dataclasses
 import os
 import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
+from generation import (  # the sibling script (its directory is on sys.path)
+    cpu_seconds,
+    wall_seconds,
+)
 
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import MissionConfig
@@ -62,12 +64,6 @@ def vector_episode(env: gym.vector.VectorEnv, seconds: float) -> int:
         steps += env.num_envs
         if (terminated | truncated).all():
             return steps
-
-
-def wall_seconds(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
 
 
 def main() -> None:

@@ -35,6 +35,12 @@ def cpu_seconds(fn) -> float:
     return time.process_time() - start
 
 
+def wall_seconds(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=3600.0, help="mission length, s")
