@@ -162,19 +162,20 @@ class MissionRun:
             SimulationError: the vehicle reached the seafloor, broke the surface or left
                 the terrain during the block.
         """
-        keep = slice(None, None, self.decimation)
-        time = steps[keep] * self.vehicle.dt
-        truth = Truth(int(steps[0]) // self.decimation, time, traj.position_ned[keep],
-                      traj.velocity_ned[keep], traj.velocity_body[keep], traj.quaternion[keep],
-                      traj.angular_rate[keep], traj.specific_force[keep],
-                      traj.current_ned[keep], traj.velocity_water_body[keep])
+        if self.decimation > 1:  # else every row is a sample, and views would cost more
+            traj = Trajectory(*(rows[::self.decimation] for rows in traj))
+            steps = steps[::self.decimation]
+        truth = Truth(int(steps[0]) // self.decimation, steps * self.vehicle.dt,
+                      traj.position_ned, traj.velocity_ned, traj.velocity_body,
+                      traj.quaternion, traj.angular_rate, traj.specific_force,
+                      traj.current_ned, traj.velocity_water_body)
         sensed = {}
         for sensor in self.sensors:
             sensed.update(sensor.measure(truth, self.noise[sensor.name]))
         # After the DVL: its ray casts move the terrain window first, as they always have.
         altitude = self._altitude(truth)
-        actuators = traj.actuators[keep]
-        return {**core_block(truth, propeller_rpm=actuators[:, 0], thrust=traj.thrust[keep],
+        actuators = traj.actuators
+        return {**core_block(truth, propeller_rpm=actuators[:, 0], thrust=traj.thrust,
                              rudder=actuators[:, 1], stern_planes=actuators[:, 2],
                              altitude=altitude), **sensed}
 
@@ -188,7 +189,8 @@ class MissionRun:
                 f"between t = {t[0]:.1f} and {t[-1]:.1f} s ({e}); expected a larger "
                 "seafloor.cell_size") from None
         altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
-        if (altitude > 0).all() and (pos[:, 2] >= 0).all():  # the usual case, and no NaN
+        # The usual case (a NaN makes a minimum NaN, and the test false): one reduction each.
+        if altitude.min() > 0 and pos[:, 2].min() >= 0:
             return altitude
         problems = (
             (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "

@@ -53,9 +53,10 @@ mujoco.set_mju_user_warning(_warnings.append)
 
 
 _NO_ROWS = np.zeros((2, CHANNELS))  # the disturbance table when there is none
-# MuJoCo's warnings of an unstable simulation, as indices into ``MjData.warning``.
-_UNSTABLE = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
-             int(mujoco.mjtWarning.mjWARN_BADQACC)]
+# MuJoCo's warnings of an unstable simulation (BADQPOS, BADQVEL, BADQACC: neighbours in
+# mjtWarning), as a slice of ``MjData.warning``.
+_UNSTABLE = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS),
+                  int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
 
 
 class Trajectory(NamedTuple):
@@ -74,8 +75,9 @@ class Trajectory(NamedTuple):
 
     @classmethod
     def empty(cls, n: int) -> Trajectory:
-        widths = (3, 3, 3, 4, 3, 3, 3, None, 3, 3)
-        return cls(*(np.empty((n, w) if w else n) for w in widths))
+        return cls(np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 4)),
+                   np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n),
+                   np.empty((n, 3)), np.empty((n, 3)))
 
 
 def model_path(vehicle: str) -> Path:
@@ -205,6 +207,12 @@ class Vehicle:
             reason = " ".join(str(e).split())
             raise ConfigError(f"vehicle {str(path)!r}: not a vehicle model of auvsim's layout "
                               f"({reason}); expected one like models/auv.xml") from None
+        # Views into the MjData, which never moves: made once, since each attribute
+        # access makes a new array (the environment reads them every step).
+        d = self.data
+        self._qpos, self._qvel, self._qfrc, self._xfrc = (d.qpos, d.qvel, d.qfrc_applied,
+                                                          d.xfrc_applied)
+        self._warnings = d.warning.number[_UNSTABLE]
         self.length = 2.0 * float(self.model.geom("hull").size[0])
         self.gains = Gains(length=self.length)
         self.current_ned = np.array(current_ned, dtype=float)
@@ -218,6 +226,12 @@ class Vehicle:
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)
         self.integrals = np.zeros(3)
+        # The compiled loop for this vehicle's argument types, called without numba's
+        # dispatcher: it works out the types of every argument on every call, and those of
+        # the two NamedTuples (Hydro, WaterTable: 42 fields) cost 15 to 20 us, as much as
+        # the environment's whole step may. Every argument's type is fixed here: the same
+        # tuples, float64 C arrays (``references`` made so below), ints, a float.
+        self._compiled = None
 
     def check_speed(self, speed: float) -> None:
         """Refuse a surge set point the vehicle cannot hold: below ``MIN_SPEED`` (no depth
@@ -258,7 +272,7 @@ class Vehicle:
     def state(self) -> dict[str, np.ndarray]:
         """The true state now (NED/FRD, SI): ``position_ned``, ``velocity_ned``,
         ``velocity_body``, ``quaternion`` and ``angular_rate``, as a Trajectory row."""
-        return ned_from_mujoco(self.data.qpos, self.data.qvel)
+        return ned_from_mujoco(self._qpos, self._qvel)
 
     def yaw(self) -> float:
         """Current heading, rad from north (NED)."""
@@ -287,24 +301,35 @@ class Vehicle:
         if len(closed_loop) != 3:
             raise ValueError(f"closed_loop: expected 3 flags (speed, heading, depth), got "
                              f"{closed_loop!r}")
+        return self.advance(references, np.array(closed_loop, dtype=np.bool_))
+
+    def advance(self, references: np.ndarray, closed_loop: np.ndarray) -> Trajectory:
+        """``run`` without its checks, for a caller that made its arguments so: a finite
+        float64 C-contiguous (N, 3) array and a (3,) bool array (the environment, every
+        step)."""
         out = Trajectory.empty(len(references))
         d = self.data
-        d.xfrc_applied[:] = 0.0
+        self._xfrc[:] = 0.0
         if self.disturbance is not None:
             base, rows = self.disturbance.table(self.step * self.dt,
                                                 (self.step + len(references)) * self.dt)
         else:
             base, rows = 0, _NO_ROWS
-        _run(self.model._address, d._address, d.qpos, d.qvel, d.qfrc_applied, self.hydro,
-             self.gains, references, np.array(closed_loop, dtype=np.bool_), self.actuators,
-             self.integrals, self.current_ned, self.water_table, self.disturbance is not None,
-             rows, base, self.step, self.imu_position, self.dt, out)
+        args = (self.model._address, d._address, self._qpos, self._qvel, self._qfrc, self.hydro,
+                self.gains, references, closed_loop, self.actuators, self.integrals,
+                self.current_ned, self.water_table, self.disturbance is not None, rows, base,
+                self.step, self.imu_position, self.dt, out)
+        if self._compiled is None:
+            _run(*args)  # compiles, or loads from the cache, the loop for these types
+            self._compiled = _run.overloads[tuple(map(_run.typeof_pyval, args))].entry_point
+        else:
+            self._compiled(*args)
         self.step += len(references)
         self._check_stable()
         return out
 
     def _check_stable(self) -> None:
-        if self.data.warning.number[_UNSTABLE].any():
+        if self._warnings.any():
             said = _warnings[-1] if _warnings else "Nan, Inf or huge value in the state"
             raise SimulationError(f"the simulation became unstable (MuJoCo: "
                                   f"{said.split('. ')[0]}); expected a vehicle, current and "

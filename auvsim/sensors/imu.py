@@ -300,6 +300,14 @@ class _Channel:
         self.gm_state = gm_std * gm_rng.standard_normal(3) if gm_std else np.zeros(3)
         self.exact = not (self.biased or noise_std or gm_std or self.matrix_t is not None
                           or self.g_matrix_t is not None)
+        # The samples' error terms that do not depend on the truth, made ahead in chunks:
+        # the white noise n[k] and the Gauss-Markov bias b[k] of samples at, at + 1, ...
+        # A block of a few samples (an environment step) then costs two slices, not two
+        # draws and a loop. The streams are read forward only, so the chunks' size changes
+        # no draw.
+        self.at = 0
+        self.noise = np.zeros((0, 3))
+        self.gauss_markov = np.zeros((0, 3))
 
     def corrupt(self, truth: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
         out = truth.copy()  # a copy: the caller's truth stays intact
@@ -311,40 +319,63 @@ class _Channel:
             out += specific_force @ self.g_matrix_t
         if self.biased:
             out += self.bias
+        n = len(out)
+        if self.at + n > len(self.noise):
+            self._ahead(n)
+        rows = slice(self.at, self.at + n)
+        self.at += n
         if self.noise_std:
-            noise = self.noise_rng.standard_normal(out.shape)
-            noise *= self.noise_std
-            out += noise
+            out += self.noise[rows]
         if self.gm_std:
-            drive = self.gm_rng.standard_normal(out.shape)
-            _add_gauss_markov(out, drive, self.gm_state, self.phi, self.drive_std)
+            out += self.gauss_markov[rows]
         return out
+
+    def _ahead(self, n: int) -> None:
+        """Make the error terms of at least the next ``n`` samples (and a chunk more)."""
+        rows = max(n, CHUNK)
+        noise, gauss_markov = np.zeros((rows, 3)), np.zeros((rows, 3))
+        if self.noise_std:
+            noise = self.noise_rng.standard_normal((rows, 3))
+            noise *= self.noise_std
+        if self.gm_std:
+            _gauss_markov(gauss_markov, self.gm_rng.standard_normal((rows, 3)),
+                          self.gm_state, self.phi, self.drive_std)
+        left = slice(self.at, None)
+        self.noise = np.concatenate([self.noise[left], noise])
+        self.gauss_markov = np.concatenate([self.gauss_markov[left], gauss_markov])
+        self.at = 0
+
+
+CHUNK = 1024  # samples of error terms made ahead at a time (10 s at 100 Hz)
 
 
 @numba.njit(cache=True)
-def _add_gauss_markov(out, drive, state, phi, drive_std):
-    """Add b[k] to out[k] and advance b[k + 1] = phi b[k] + drive_std w[k], in place.
+def _gauss_markov(out, drive, state, phi, drive_std):
+    """The Gauss-Markov bias b[k] at each row of ``out``, advancing
+    b[k + 1] = phi b[k] + drive_std w[k].
 
     Args:
-        out: (N, 3) array to add the process to.
+        out: (N, 3) array to write b[0], ..., b[N - 1] into.
         drive: (N, 3) standard normal draws w.
         state: (3,) b at the first row on entry, b after the last row on return.
     """
     for k in range(out.shape[0]):
         for j in range(3):
-            out[k, j] += state[j]
+            out[k, j] = state[j]
             state[j] = phi * state[j] + drive_std * drive[k, j]
 
 
 def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) -> np.ndarray:
     """``value`` as a float64 array of ``shape`` (None: any length), or a ValueError."""
     out = np.asarray(value, dtype=np.float64)
-    if out.ndim != len(shape) or any(
-            s not in (None, n) for s, n in zip(shape, out.shape, strict=True)):
-        expected = str(tuple("N" if s is None else s for s in shape)).replace("'", "")
-        raise ValueError(f"{name}: expected an array of shape {expected}, got shape "
-                         f"{out.shape}")
-    return out
+    if out.ndim == len(shape):
+        for s, n in zip(shape, out.shape):  # a loop: this runs every environment step
+            if s is not None and s != n:
+                break
+        else:
+            return out
+    expected = str(tuple("N" if s is None else s for s in shape)).replace("'", "")
+    raise ValueError(f"{name}: expected an array of shape {expected}, got shape {out.shape}")
 
 
 class ImuErrorModel:
