@@ -43,7 +43,8 @@ vectorization_mode="vector_entry_point", workers=..., config=..., ...)``:
                          imports auvsim.env once for all workers) or "spawn"; never
                          "fork" (MuJoCo, numba and threads)
 
-A worker exits when the env is closed, garbage-collected, at interpreter exit, and when
+As with ``AsyncVectorEnv``, the workers import the main script: guard a script that
+makes one with ``if __name__ == "__main__":``. A worker exits when the env is closed, garbage-collected, at interpreter exit, and when
 the parent dies (its end of the pipe closes: the worker reads EOF); the shared memory is
 unlinked by ``close()`` (or by multiprocessing's resource tracker if the parent is
 killed). An exception in a worker (``AuvEnv.step`` refuses a non-finite action with a
@@ -68,7 +69,7 @@ import pickle
 import signal
 import traceback
 import weakref
-from multiprocessing import shared_memory
+from multiprocessing import forkserver, shared_memory
 from typing import Any
 
 import gymnasium as gym
@@ -77,6 +78,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 STEP = b"s"  # the parent's per-step message to a worker
+NOOP = b"n"  # a step message the worker answers without stepping (to time the parent)
 OK = b"k"  # a worker's answer to a command that succeeded
 ALIGN = 64  # bytes: each shared array starts on its own cache line
 
@@ -228,6 +230,8 @@ def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict
             try:
                 if message == STEP:
                     part.step()
+                elif message == NOOP:
+                    pass
                 else:
                     command, *args = pickle.loads(message)
                     if command == "close":
@@ -321,6 +325,12 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                              f"MuJoCo, numba and threads), got {context!r}")
         self.num_envs = num_envs
         self.workers = min(workers, num_envs)
+        self._context = mp.get_context(context)
+        if self.workers and context == "forkserver":
+            # Started now, it imports auvsim.env (once for all workers) while this
+            # process builds its probe env.
+            self._context.set_forkserver_preload(["auvsim.env"])
+            forkserver.ensure_running()
         env_kwargs = dict(config=config, frame_skip=frame_skip,
                           max_episode_seconds=max_episode_seconds)
         # One env here for the spaces and the info layout (and to refuse a bad config
@@ -350,14 +360,14 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                                       fields))
             self._slice = _Slice(self._views, 0, num_envs, env_kwargs)
         else:
-            self._start(fields, env_kwargs, context)
+            self._start(fields, env_kwargs)
         views = self._views
         self._actions = views["actions"]
         # Per step: the results (name, view) to copy out, and info's (key, view).
         self._info_views = [(key, views[f"info/{key}"]) for key in self.info_keys]
         self._autoreset_mode = AutoresetMode.NEXT_STEP
 
-    def _start(self, fields, env_kwargs: dict, context: str) -> None:
+    def _start(self, fields, env_kwargs: dict) -> None:
         """Allocate the shared block and start the workers, each on a contiguous slice
         (sizes differing by at most one); wait until each has built its envs."""
         self._shm = shared_memory.SharedMemory(create=True, size=_views(None, fields)["size"])
@@ -365,9 +375,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         self._finalizer = weakref.finalize(self, _shutdown, self._processes, self._conns,
                                            self._shm, self._views)
         self._views.update(_views(self._shm.buf, fields))
-        ctx = mp.get_context(context)
-        if context == "forkserver":
-            ctx.set_forkserver_preload(["auvsim.env"])  # imported once, not per worker
+        ctx = self._context
         sizes = [self.num_envs // self.workers + (k < self.num_envs % self.workers)
                  for k in range(self.workers)]
         start = 0
@@ -474,6 +482,11 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             ValueError: ``actions`` of the wrong shape; a non-finite action (from the
                 env: the vector env is then closed).
         """
+        return self._step(actions, STEP)
+
+    def _step(self, actions, message: bytes):
+        """``step``, with ``message`` (``STEP``, or ``NOOP`` for benchmarks/env.py's
+        timing of the parent: the workers answer at once) sent to the workers."""
         self._check_open()
         actions = np.asarray(actions)
         if actions.shape != self._actions.shape:
@@ -482,10 +495,11 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                              f"{actions.shape}")
         self._actions[:] = actions
         if self._slice is not None:
-            self._in_process(self._slice.step)
+            if message == STEP:
+                self._in_process(self._slice.step)
         else:
             for conn in self._conns:
-                conn.send_bytes(STEP)
+                conn.send_bytes(message)
             self._wait()
         views = self._views
         return (views["observations"].copy(), views["rewards"].copy(),
