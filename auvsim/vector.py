@@ -363,8 +363,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             self._start(fields, env_kwargs)
         views = self._views
         self._actions = views["actions"]
-        # Per step: the results (name, view) to copy out, and info's (key, view).
-        self._info_views = [(key, views[f"info/{key}"]) for key in self.info_keys]
+        # Per step: info's (key, mask key, shared view), and its masks' values.
+        self._info_views = [(key, f"_{key}", views[f"info/{key}"]) for key in self.info_keys]
+        self._all_true = np.ones((len(self.info_keys), num_envs), dtype=bool)
         self._autoreset_mode = AutoresetMode.NEXT_STEP
 
     def _start(self, fields, env_kwargs: dict) -> None:
@@ -511,13 +512,15 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         a reset's ``mask``: the others' values zero, as ``VectorEnv._add_info`` leaves
         them)."""
         infos = {}
-        for key, view in self._info_views:
+        if mask is None:  # every step: the fast path (masks: rows of one fresh array)
+            for (key, mask_key, view), row in zip(self._info_views, self._all_true.copy()):
+                infos[key] = view.copy()
+                infos[mask_key] = row
+            return infos
+        for key, mask_key, view in self._info_views:
             value = view.copy()
-            if mask is None:
-                infos[key], infos[f"_{key}"] = value, np.ones(self.num_envs, dtype=bool)
-            else:
-                value[~mask] = 0
-                infos[key], infos[f"_{key}"] = value, mask.copy()
+            value[~mask] = 0
+            infos[key], infos[mask_key] = value, mask.copy()
         return infos
 
     def close_extras(self, **kwargs: Any) -> None:

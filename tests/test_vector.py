@@ -125,20 +125,22 @@ def test_bad_actions_are_refused_and_a_worker_error_closes_the_env():
         env.step(np.zeros((2, 3)))
 
 
-def test_a_killed_parent_leaves_no_worker():
+def test_a_killed_parent_leaves_no_worker_and_no_shared_memory():
     script = textwrap.dedent("""
         import os, signal
         from auvsim.vector import AuvVectorEnv
         if __name__ == "__main__":
             env = AuvVectorEnv(num_envs=2, workers=2)
-            print(*env.worker_pids, flush=True)
+            print(env._shm.name, *env.worker_pids, flush=True)
             os.kill(os.getpid(), signal.SIGKILL)
     """)
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                             timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert result.returncode == -9, result.stderr
-    pids = [int(p) for p in result.stdout.split()]
+    name, *pids = result.stdout.split()
+    pids = [int(p) for p in pids]
     assert len(pids) == 2
+    segment = Path("/dev/shm") / name.lstrip("/")
 
     def alive(pid: int) -> bool:
         try:
@@ -152,6 +154,7 @@ def test_a_killed_parent_leaves_no_worker():
             return False
 
     deadline = time.monotonic() + 5.0
-    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+    while (any(alive(p) for p in pids) or segment.exists()) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not any(alive(p) for p in pids)
+    assert not segment.exists()  # unlinked by multiprocessing's resource tracker
