@@ -44,12 +44,13 @@ vectorization_mode="vector_entry_point", workers=..., config=..., ...)``:
                          "fork" (MuJoCo, numba and threads)
 
 As with ``AsyncVectorEnv``, the workers import the main script: guard a script that
-makes one with ``if __name__ == "__main__":``. A worker exits when the env is closed, garbage-collected, at interpreter exit, and when
-the parent dies (its end of the pipe closes: the worker reads EOF); the shared memory is
-unlinked by ``close()`` (or by multiprocessing's resource tracker if the parent is
-killed). An exception in a worker (``AuvEnv.step`` refuses a non-finite action with a
-``ValueError``) closes the env and is re-raised in the parent, same type and message,
-with the worker's traceback as its cause.
+makes one with ``if __name__ == "__main__":``. A worker exits when the env is closed,
+garbage-collected, at interpreter exit, and when the parent dies (its end of the pipe
+closes: the worker reads EOF); the shared memory is unlinked by ``close()`` (or by
+multiprocessing's resource tracker if the parent is killed). An exception in a worker
+(``AuvEnv.step`` refuses a non-finite action with a ``ValueError``) closes the env and
+is re-raised in the parent, same type and message, with the worker's traceback as its
+cause.
 
 ## Performance
 
@@ -77,9 +78,15 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-STEP = b"s"  # the parent's per-step message to a worker
-NOOP = b"n"  # a step message the worker answers without stepping (to time the parent)
-OK = b"k"  # a worker's answer to a command that succeeded
+# The pipe protocol, one raw byte per message and answer on the fast path (no pickling,
+# no framing: one write and one read per worker per step). Parent to worker: STEP, NOOP,
+# or COMMAND followed by a framed pickled (name, *args) (Connection.send_bytes); worker to
+# parent: OK, or ERROR followed by a framed pickled (exception, traceback text).
+STEP = b"s"  # step the slice's envs
+NOOP = b"n"  # answer without stepping (benchmarks/env.py times the parent with it)
+COMMAND = b"c"
+OK = b"k"
+ERROR = b"e"
 ALIGN = 64  # bytes: each shared array starts on its own cache line
 
 
@@ -208,42 +215,52 @@ def _failure(exc: BaseException) -> bytes:
         return pickle.dumps((RuntimeError(f"{type(exc).__name__}: {exc}"), text))
 
 
+def _answer(conn, failure: bytes | None) -> None:
+    """A worker's answer: ``OK``, or ``ERROR`` and the failure."""
+    if failure is None:
+        os.write(conn.fileno(), OK)
+    else:
+        os.write(conn.fileno(), ERROR)
+        conn.send_bytes(failure)
+
+
 def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict) -> None:
-    """A worker process: build the slice's envs, answer ``OK`` (or the failure), then
-    serve commands until ``close`` or EOF (the parent closed or died)."""
+    """A worker process: build the slice's envs, answer (``OK`` or the failure), then
+    serve messages until ``close`` or EOF (the parent closed or died)."""
     # Ctrl-C reaches the whole process group: the parent handles it and closes us.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     shm = shared_memory.SharedMemory(name=shm_name)
+    fd = conn.fileno()
     part = None
     try:
         try:
             part = _Slice(_views(shm.buf, fields), start, stop, env_kwargs)
         except Exception as exc:
-            conn.send_bytes(_failure(exc))
+            _answer(conn, _failure(exc))
             return
-        conn.send_bytes(OK)
+        _answer(conn, None)
         while True:
             try:
-                message = conn.recv_bytes()
-            except (EOFError, OSError):
-                return  # the parent is gone
+                message = os.read(fd, 1)
+            except OSError:
+                return
+            if not message:
+                return  # EOF: the parent is gone
+            failure = None
             try:
                 if message == STEP:
                     part.step()
-                elif message == NOOP:
-                    pass
-                else:
-                    command, *args = pickle.loads(message)
+                elif message == COMMAND:
+                    command, *args = pickle.loads(conn.recv_bytes())
                     if command == "close":
-                        conn.send_bytes(OK)
+                        _answer(conn, None)
                         return
                     part.reset(*args)
-                answer = OK
             except Exception as exc:
-                answer = _failure(exc)
+                failure = _failure(exc)
             try:
-                conn.send_bytes(answer)
-            except (BrokenPipeError, OSError):
+                _answer(conn, failure)
+            except OSError:
                 return  # the parent is gone
     finally:
         if part is not None:
@@ -268,9 +285,10 @@ def _shutdown(processes: list, conns: list, shm, views: dict) -> None:
     reference to the env: it runs at ``close()``, garbage collection or exit."""
     for conn in conns:
         try:
+            os.write(conn.fileno(), COMMAND)
             conn.send_bytes(pickle.dumps(("close",)))
-        except (BrokenPipeError, OSError):
-            pass
+        except OSError:
+            pass  # that worker is gone
     for process in processes:
         process.join(timeout=5.0)
         if process.is_alive():
@@ -350,6 +368,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
 
         self._processes: list = []
         self._conns: list = []
+        self._fds: list[int] = []  # the parent's ends of the pipes, for the fast path
         self._shm = None
         self._views: dict[str, np.ndarray] = {}
         self._slice = None
@@ -389,6 +408,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             child.close()  # the worker's end: only the worker holds it, so EOF reaches it
             self._processes.append(process)
             self._conns.append(parent)
+            self._fds.append(parent.fileno())
             start += size
         self._wait()
 
@@ -403,15 +423,20 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         failure = None
         for k, conn in enumerate(self._conns):
             try:
-                answer = conn.recv_bytes()
+                answer = os.read(self._fds[k], 1)
+                if answer == ERROR:
+                    failure = failure or pickle.loads(conn.recv_bytes())
+                    continue
             except (EOFError, OSError):
+                answer = b""
+            except BaseException:  # Ctrl-C: the answers are out of step with the commands
+                self.close()
+                raise
+            if answer != OK:  # EOF: the worker died
                 self._processes[k].join(timeout=1.0)  # for its exit code
                 failure = failure or (RuntimeError(
                     f"AuvVectorEnv: worker {k} (pid {self._processes[k].pid}) died, exit "
                     f"code {self._processes[k].exitcode}"), None)
-                continue
-            if answer != OK:
-                failure = failure or pickle.loads(answer)
         if failure is not None:
             exc, text = failure
             self.close()
@@ -431,7 +456,8 @@ class AuvVectorEnv(gym.vector.VectorEnv):
     def _command(self, *message) -> None:
         """Send a (rare) command to every worker and wait for their answers."""
         data = pickle.dumps(message)
-        for conn in self._conns:
+        for fd, conn in zip(self._fds, self._conns, strict=True):
+            os.write(fd, COMMAND)
             conn.send_bytes(data)
         self._wait()
 
@@ -499,8 +525,8 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             if message == STEP:
                 self._in_process(self._slice.step)
         else:
-            for conn in self._conns:
-                conn.send_bytes(message)
+            for fd in self._fds:
+                os.write(fd, message)
             self._wait()
         views = self._views
         return (views["observations"].copy(), views["rewards"].copy(),
@@ -513,7 +539,8 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         them)."""
         infos = {}
         if mask is None:  # every step: the fast path (masks: rows of one fresh array)
-            for (key, mask_key, view), row in zip(self._info_views, self._all_true.copy()):
+            rows = self._all_true.copy()
+            for (key, mask_key, view), row in zip(self._info_views, rows, strict=True):
                 infos[key] = view.copy()
                 infos[mask_key] = row
             return infos

@@ -4,6 +4,7 @@ parent."""
 
 import multiprocessing as mp
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -158,3 +159,12 @@ def test_a_killed_parent_leaves_no_worker_and_no_shared_memory():
         time.sleep(0.05)
     assert not any(alive(p) for p in pids)
     assert not segment.exists()  # unlinked by multiprocessing's resource tracker
+
+
+def test_a_dead_worker_is_reported_and_the_env_closed():
+    env = AuvVectorEnv(num_envs=2, workers=2)
+    env.reset(seed=0)
+    os.kill(env.worker_pids[1], signal.SIGKILL)
+    with pytest.raises(RuntimeError, match=r"worker 1 \(pid \d+\) died, exit code -9"):
+        env.step(np.zeros((2, 3)))
+    assert env.closed and not mp.active_children()
