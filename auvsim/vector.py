@@ -123,20 +123,22 @@ def _fields(num_envs: int, observation_space: gym.spaces.Box,
     return fields
 
 
+def _offsets(fields) -> tuple[list[int], int]:
+    """Each field's byte offset in the shared block (on a 64-byte boundary), and the
+    block's size."""
+    offsets, offset = [], 0
+    for _, dtype, shape in fields:
+        offsets.append(offset)
+        nbytes = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+        offset += -(-nbytes // ALIGN) * ALIGN
+    return offsets, max(offset, ALIGN)
+
+
 def _views(buffer, fields) -> dict[str, np.ndarray]:
-    """Numpy arrays over ``buffer`` (a shared-memory block, or None to allocate), laid
-    out as ``fields`` say, each on a 64-byte boundary; with the block's size as
-    ``views["size"]`` when ``buffer`` is None."""
-    views, offset = {}, 0
-    for name, dtype, shape in fields:
-        dtype = np.dtype(dtype)
-        count = int(np.prod(shape, dtype=np.int64))
-        if buffer is not None:
-            views[name] = np.ndarray(shape, dtype, buffer=buffer, offset=offset)
-        offset += -(-count * dtype.itemsize // ALIGN) * ALIGN
-    if buffer is None:
-        return {"size": max(offset, ALIGN)}
-    return views
+    """Numpy arrays over ``buffer`` (the shared block), laid out as ``fields`` say."""
+    offsets, _ = _offsets(fields)
+    return {name: np.ndarray(shape, dtype, buffer=buffer, offset=offset)
+            for (name, dtype, shape), offset in zip(fields, offsets, strict=True)}
 
 
 class _Slice:
@@ -375,8 +377,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         self._finalizer = weakref.finalize(self, _shutdown, self._processes, self._conns,
                                            None, self._views)
         if self.workers == 0:
-            self._views.update(_views(np.zeros(_views(None, fields)["size"], np.uint8),
-                                      fields))
+            self._views.update(_views(np.zeros(_offsets(fields)[1], np.uint8), fields))
             self._slice = _Slice(self._views, 0, num_envs, env_kwargs)
         else:
             self._start(fields, env_kwargs)
@@ -385,12 +386,11 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         # Per step: info's (key, mask key, shared view), and its masks' values.
         self._info_views = [(key, f"_{key}", views[f"info/{key}"]) for key in self.info_keys]
         self._all_true = np.ones((len(self.info_keys), num_envs), dtype=bool)
-        self._autoreset_mode = AutoresetMode.NEXT_STEP
 
     def _start(self, fields, env_kwargs: dict) -> None:
         """Allocate the shared block and start the workers, each on a contiguous slice
         (sizes differing by at most one); wait until each has built its envs."""
-        self._shm = shared_memory.SharedMemory(create=True, size=_views(None, fields)["size"])
+        self._shm = shared_memory.SharedMemory(create=True, size=_offsets(fields)[1])
         self._finalizer.detach()
         self._finalizer = weakref.finalize(self, _shutdown, self._processes, self._conns,
                                            self._shm, self._views)

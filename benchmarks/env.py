@@ -1,5 +1,6 @@
 """Environment speed: ``auvsim/AUV-v0`` steps per second per core, against ``auvsim
-generate`` of the same simulated time, and a 2-env ``AsyncVectorEnv`` against one env.
+generate`` of the same simulated time, and vector envs (gymnasium's ``AsyncVectorEnv``,
+``auvsim.vector.AuvVectorEnv``) against one env.
 
 Runs, side by side and alternating (these machines are noisy), the default environment
 (paper-sim config, frame skip 10: dt = 0.1 s) flying one straight episode at a fixed
@@ -17,8 +18,11 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
 
 For the vector envs, ``parent ms`` is the parent process's CPU time per vector step
 (``time.process_time`` over the episode: pickling, pipes, merging infos; waiting costs
-none), and ``noop ms`` the wall time per step of a native env whose workers answer
-without stepping their envs: the parent's whole cost plus the round trip to the workers.
+none), ``CPU x`` the CPU seconds of the parent and its workers (``/proc/<pid>/stat``)
+per env step over ``env``'s (the overhead, whatever else the machine runs: on idle cores
+``x 1 env`` would reach about workers / ``CPU x``), and ``noop ms`` the wall time per
+step of a native env whose workers answer without stepping their envs: the parent's
+whole cost plus the round trip to the workers.
 
 The first call of each (numba loading its cache, gymnasium's checks) is not timed.
 
@@ -77,11 +81,28 @@ def vector_episode(env: gym.vector.VectorEnv, seconds: float) -> int:
             return steps
 
 
-def wall_and_cpu(fn) -> tuple[float, float]:
-    """Wall-clock and this process's CPU seconds of ``fn()``."""
+def worker_pids(vector: gym.vector.VectorEnv) -> list[int]:
+    """The process ids of a vector env's workers (AsyncVectorEnv's or AuvVectorEnv's)."""
+    if isinstance(vector, AuvVectorEnv):
+        return vector.worker_pids
+    return [process.pid for process in vector.processes]
+
+
+def process_cpu(pid: int) -> float:
+    """User and system CPU seconds of process ``pid`` so far (``/proc/<pid>/stat``)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def wall_and_cpu(fn, pids: list[int]) -> tuple[float, float, float]:
+    """Wall-clock seconds of ``fn()``, this process's CPU seconds, and those of processes
+    ``pids`` (the workers), together."""
+    workers = sum(process_cpu(pid) for pid in pids)
     wall, cpu = time.perf_counter(), time.process_time()
     fn()
-    return time.perf_counter() - wall, time.process_time() - cpu
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return wall, cpu, sum(process_cpu(pid) for pid in pids) - workers
 
 
 def noop_step_seconds(env: AuvVectorEnv, steps: int = 2000) -> float:
@@ -128,6 +149,7 @@ def main() -> None:
         times: dict[str, list[float]] = {"env": [], "generate": [], "1 env": [],
                                          **{name: [] for name in vectors}}
         parent = {name: [] for name in vectors}  # CPU s of this process
+        total = {name: [] for name in vectors}  # CPU s of this process and the workers
         noop = {name: [] for name in vectors if name.startswith("native")}
         counts = {"env": steps, "generate": steps, "1 env": steps,
                   **{name: v.num_envs * steps for name, v in vectors.items()}}
@@ -136,9 +158,11 @@ def main() -> None:
             times["generate"].append(cpu_seconds(full))
             times["1 env"].append(wall_seconds(lambda: episode(env, args.seconds)))
             for name, vector in vectors.items():
-                wall, cpu = wall_and_cpu(lambda v=vector: vector_episode(v, args.seconds))
+                wall, cpu, workers = wall_and_cpu(
+                    lambda v=vector: vector_episode(v, args.seconds), worker_pids(vector))
                 times[name].append(wall)
                 parent[name].append(cpu)
+                total[name].append(cpu + workers)
                 if name in noop:
                     noop[name].append(noop_step_seconds(vector))
     for vector in vectors.values():
@@ -151,20 +175,24 @@ def main() -> None:
           f"steps, frame skip {unwrapped.frame_skip}), median of {args.repeats}; "
           f"{os.cpu_count()} cores, load average {load:.2f} before the run")
     print(f"{'':10s} {'clock':>6s} {'seconds':>8s} {'steps/s':>9s} {'x real time':>12s} "
-          f"{'x 1 env':>8s} {'parent ms':>10s} {'noop ms':>8s}")
+          f"{'x 1 env':>8s} {'parent ms':>10s} {'CPU x':>6s} {'noop ms':>8s}")
     for name, t in med.items():
         clock = "CPU" if name in ("env", "generate") else "wall"
         extra = ""
         if name in vectors:
+            cpu_per_step = statistics.median(total[name]) / counts[name]
             extra = (f" {rate[name] / rate['1 env']:8.2f} "
-                     f"{1e3 * statistics.median(parent[name]) / steps:10.3f}")
+                     f"{1e3 * statistics.median(parent[name]) / steps:10.3f} "
+                     f"{cpu_per_step / (med['env'] / steps):6.2f}")
             if name in noop:
                 extra += f" {1e3 * statistics.median(noop[name]):8.3f}"
         print(f"{name:10s} {clock:>6s} {t:8.3f} {rate[name]:9.0f} "
               f"{counts[name] * unwrapped.dt / t:12.0f}{extra}")
     print("(generate's steps/s: env steps of the same simulated time per CPU second; "
           "x 1 env: total env steps/s, wall, over 1 env's; parent ms: the parent's CPU "
-          "per vector step; noop ms: wall per vector step with the workers not stepping)")
+          "per vector step; CPU x: CPU of the parent and the workers per env step over env's "
+          "(1 = no overhead; x 1 env reaches workers / CPU x on idle cores); noop ms: wall "
+          "per vector step with the workers not stepping)")
     print(f"env / generate CPU per simulated second: {med['env'] / med['generate']:.2f}")
     for name in vectors:
         print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}")
