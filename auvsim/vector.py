@@ -54,12 +54,22 @@ cause.
 
 ## Performance
 
-On 2 cores, ``benchmarks/env.py`` (total env steps/s, wall clock, of the same straight
-episode in each env, over one env's): see the README's environment section for the
-figures; the parent spends about 0.03 ms per vector step of 8 envs on 2 workers
-(``benchmarks/env.py`` prints it, measured with the workers' envs not stepped).
+``benchmarks/env.py`` (a 300 s straight episode in every env, median of 3, each vector
+env against one env in the same run, 2 cores shared with other jobs: load average 1.8
+before, up to 3.4 during the run), total env steps/s (wall) over one env's:
 
-    PYTHONPATH=. .venv/bin/python benchmarks/env.py --seconds 60 --repeats 3
+    async x2 (gymnasium)   0.42   parent 0.41 ms CPU per vector step, CPU x 2.64
+    native 2x1             0.78   parent 0.10 ms,  CPU x 1.45
+    native 8x2             1.01   parent 0.17 ms,  CPU x 1.12
+
+``CPU x`` is the CPU of the parent and its workers per env step over one env's: the
+overhead whatever else the machine runs. With 4 envs per worker it is 12%, so on two
+idle cores we expect about 2 / 1.12 = 1.8x (an estimate, not measured: other jobs held
+about one of the two cores during the run). With the workers not stepping (``NOOP``) a vector
+step of 8 envs costs the parent 0.04 ms wall, pipes included. More envs per worker
+amortise the per-step cost further.
+
+    PYTHONPATH=. .venv/bin/python benchmarks/env.py --repeats 3
 """
 
 from __future__ import annotations
