@@ -192,8 +192,12 @@ class _Slice:
             i = self.start + j
             if mask is not None and not mask[i]:
                 continue
-            self.observations[i], info = env.reset(seed=seeds[i], options=options)
-            self._write_info(i, info)
+            try:
+                self.observations[i], info = env.reset(seed=seeds[i], options=options)
+                self._write_info(i, info)
+            except Exception as exc:
+                exc.add_note(f"in env {i} of the AuvVectorEnv")
+                raise
             self.terminations[i] = self.truncations[i] = False
             self.autoreset[j] = False
 
@@ -202,14 +206,18 @@ class _Slice:
         at the last step (gymnasium's NEXT_STEP autoreset, as SyncVectorEnv does)."""
         for j, env in enumerate(self.envs):
             i = self.start + j
-            if self.autoreset[j]:
-                self.observations[i], info = env.reset()
-                self.rewards[i] = 0.0
-                self.terminations[i] = self.truncations[i] = False
-            else:
-                (self.observations[i], self.rewards[i], self.terminations[i],
-                 self.truncations[i], info) = env.step(self.actions[i].copy())
-            self._write_info(i, info)
+            try:
+                if self.autoreset[j]:
+                    self.observations[i], info = env.reset()
+                    self.rewards[i] = 0.0
+                    self.terminations[i] = self.truncations[i] = False
+                else:
+                    (self.observations[i], self.rewards[i], self.terminations[i],
+                     self.truncations[i], info) = env.step(self.actions[i].copy())
+                self._write_info(i, info)
+            except Exception as exc:
+                exc.add_note(f"in env {i} of the AuvVectorEnv")
+                raise
             self.autoreset[j] = self.terminations[i] or self.truncations[i]
 
     def close(self) -> None:

@@ -118,8 +118,9 @@ def test_bad_actions_are_refused_and_a_worker_error_closes_the_env():
     env.step(np.zeros((2, 3)))  # still usable after the refusal
     bad = np.zeros((2, 3))
     bad[1, 0] = np.nan
-    with pytest.raises(ValueError, match=r"action: expected 3 finite numbers.*nan"):
+    with pytest.raises(ValueError, match=r"action: expected 3 finite numbers.*nan") as caught:
         env.step(bad)
+    assert caught.value.__notes__ == ["in env 1 of the AuvVectorEnv"]
     assert env.closed
     assert not any(p.is_alive() for p in processes) and not mp.active_children()
     with pytest.raises(RuntimeError, match="closed"):
