@@ -2,6 +2,7 @@
 for bit; its workers and shared memory gone after close, a worker's error and a killed
 parent."""
 
+import gc
 import multiprocessing as mp
 import os
 import signal
@@ -85,7 +86,9 @@ def test_workers_fly_the_sync_vector_envs_episodes_and_leave_nothing_after_close
 
 
 def test_in_process_envs_fly_the_same_episodes(sync_rollout):
-    env = AuvVectorEnv(num_envs=3, workers=0, max_episode_seconds=1.0)
+    env = gym.make_vec("auvsim/AUV-v0", num_envs=3, workers=0,  # the default mode
+                       max_episode_seconds=1.0)
+    assert isinstance(env, AuvVectorEnv) and not env.worker_pids
     out = rollout(env)
     env.close()
     for mine, theirs in zip(out, sync_rollout, strict=True):
@@ -169,3 +172,13 @@ def test_a_dead_worker_is_reported_and_the_env_closed():
     with pytest.raises(RuntimeError, match=r"worker 1 \(pid \d+\) died, exit code -9"):
         env.step(np.zeros((2, 3)))
     assert env.closed and not mp.active_children()
+
+
+def test_a_forgotten_env_stops_its_workers_when_collected():
+    env = AuvVectorEnv(num_envs=2, workers=2)
+    processes = list(env._processes)
+    segment = Path("/dev/shm") / env._shm.name.lstrip("/")
+    del env
+    gc.collect()
+    assert not any(p.is_alive() for p in processes) and not mp.active_children()
+    assert not segment.exists()
