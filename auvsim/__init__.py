@@ -24,11 +24,14 @@ __version__ = "0.1.0"
 
 def _register_environment() -> None:
     """Register ``auvsim/AUV-v0`` with gymnasium, by name only: ``auvsim.env`` (MuJoCo,
-    numba) is imported when the environment is made."""
+    numba) is imported when the environment is made. ``gymnasium.make_vec`` makes an
+    ``auvsim.vector.AuvVectorEnv`` (worker processes over shared memory) by default or
+    with ``vectorization_mode="vector_entry_point"``; "sync" and "async" as usual."""
     import gymnasium
 
     if "auvsim/AUV-v0" not in gymnasium.registry:
-        gymnasium.register(id="auvsim/AUV-v0", entry_point="auvsim.env:AuvEnv")
+        gymnasium.register(id="auvsim/AUV-v0", entry_point="auvsim.env:AuvEnv",
+                           vector_entry_point="auvsim.vector:AuvVectorEnv")
 
 
 _register_environment()

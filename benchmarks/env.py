@@ -1,5 +1,6 @@
 """Environment speed: ``auvsim/AUV-v0`` steps per second per core, against ``auvsim
-generate`` of the same simulated time, and a 2-env ``AsyncVectorEnv`` against one env.
+generate`` of the same simulated time, and vector envs (gymnasium's ``AsyncVectorEnv``,
+``auvsim.vector.AuvVectorEnv``) against one env.
 
 Runs, side by side and alternating (these machines are noisy), the default environment
 (paper-sim config, frame skip 10: dt = 0.1 s) flying one straight episode at a fixed
@@ -11,11 +12,23 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
   the same scenario and length, CPU seconds too;
 * ``1 env`` and ``async x2``: wall-clock seconds of the same episode in one env, and in
   each env of ``gymnasium.make_vec(..., num_envs=2, vectorization_mode="async")``; the
-  speed-up is total env steps/s of the two over the one (2 at best on two idle cores).
+  speed-up is total env steps/s of the two over the one (2 at best on two idle cores);
+* ``native 2x1`` and ``native 8x2``: the same in each env of ``auvsim.vector.AuvVectorEnv``
+  (2 envs on 2 workers, one env each; 8 envs on 2 workers, four each).
+
+For the vector envs, ``parent ms`` is the parent process's CPU time per vector step
+(``time.process_time`` over the episode: pickling, pipes, merging infos; waiting costs
+none), ``CPU x`` the CPU seconds of the parent and its workers (``/proc/<pid>/stat``)
+per env step over ``env``'s (the overhead, whatever else the machine runs: on idle cores
+``x 1 env`` would reach about workers / ``CPU x``), and ``noop ms`` the wall time per
+step of a native env whose workers answer without stepping their envs: the parent's
+whole cost plus the round trip to the workers.
 
 The first call of each (numba loading its cache, gymnasium's checks) is not timed.
 
     .venv/bin/python benchmarks/env.py [--seconds 300] [--repeats 3]
+
+(The native envs' workers import this script: hence the ``__main__`` guard.)
 """
 
 from __future__ import annotations
@@ -25,6 +38,7 @@ import dataclasses
 import os
 import statistics
 import tempfile
+import time
 from pathlib import Path
 
 import gymnasium as gym
@@ -37,6 +51,7 @@ from generation import (  # the sibling script (its directory is on sys.path)
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import MissionConfig
 from auvsim.generate import generate
+from auvsim.vector import NOOP, AuvVectorEnv
 
 ACTION = np.array([0.6, 0.0, 0.0], dtype=np.float32)
 TARGET = 5000.0  # env steps/s per core at the default frame skip (issue 12, item 9)
@@ -66,6 +81,40 @@ def vector_episode(env: gym.vector.VectorEnv, seconds: float) -> int:
             return steps
 
 
+def worker_pids(vector: gym.vector.VectorEnv) -> list[int]:
+    """The process ids of a vector env's workers (AsyncVectorEnv's or AuvVectorEnv's)."""
+    if isinstance(vector, AuvVectorEnv):
+        return vector.worker_pids
+    return [process.pid for process in vector.processes]
+
+
+def process_cpu(pid: int) -> float:
+    """User and system CPU seconds of process ``pid`` so far (``/proc/<pid>/stat``)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def wall_and_cpu(fn, pids: list[int]) -> tuple[float, float, float]:
+    """Wall-clock seconds of ``fn()``, this process's CPU seconds, and those of processes
+    ``pids`` (the workers), together."""
+    workers = sum(process_cpu(pid) for pid in pids)
+    wall, cpu = time.perf_counter(), time.process_time()
+    fn()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return wall, cpu, sum(process_cpu(pid) for pid in pids) - workers
+
+
+def noop_step_seconds(env: AuvVectorEnv, steps: int = 2000) -> float:
+    """Wall seconds per vector step of ``env`` with its workers answering at once."""
+    env.reset(seed=0)
+    actions = np.tile(ACTION, (env.num_envs, 1))
+    start = time.perf_counter()
+    for _ in range(steps):
+        env._step(actions, NOOP)
+    return (time.perf_counter() - start) / steps
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=300.0,
@@ -74,8 +123,12 @@ def main() -> None:
     args = parser.parse_args()
 
     env = gym.make("auvsim/AUV-v0", max_episode_seconds=args.seconds)
-    vector = gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="async",
-                          max_episode_seconds=args.seconds)
+    vectors = {
+        "async x2": gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="async",
+                                 max_episode_seconds=args.seconds),
+        "native 2x1": AuvVectorEnv(num_envs=2, workers=2, max_episode_seconds=args.seconds),
+        "native 8x2": AuvVectorEnv(num_envs=8, workers=2, max_episode_seconds=args.seconds),
+    }
     unwrapped = env.unwrapped
     start = unwrapped.start
     config = dataclasses.replace(unwrapped.config, missions=(MissionConfig(
@@ -91,17 +144,29 @@ def main() -> None:
 
         full()  # the first calls load (or compile) every kernel, so that none is timed
         episode(env, args.seconds)
-        vector_episode(vector, args.seconds)
+        for vector in vectors.values():
+            vector_episode(vector, args.seconds)
         times: dict[str, list[float]] = {"env": [], "generate": [], "1 env": [],
-                                         "async x2": []}
-        counts = {"env": steps, "generate": steps, "1 env": steps, "async x2": 2 * steps}
+                                         **{name: [] for name in vectors}}
+        parent = {name: [] for name in vectors}  # CPU s of this process
+        total = {name: [] for name in vectors}  # CPU s of this process and the workers
+        noop = {name: [] for name in vectors if name.startswith("native")}
+        counts = {"env": steps, "generate": steps, "1 env": steps,
+                  **{name: v.num_envs * steps for name, v in vectors.items()}}
         for _ in range(args.repeats):
             times["env"].append(cpu_seconds(lambda: episode(env, args.seconds)))
             times["generate"].append(cpu_seconds(full))
             times["1 env"].append(wall_seconds(lambda: episode(env, args.seconds)))
-            times["async x2"].append(wall_seconds(lambda: vector_episode(vector,
-                                                                         args.seconds)))
-    vector.close()
+            for name, vector in vectors.items():
+                wall, cpu, workers = wall_and_cpu(
+                    lambda v=vector: vector_episode(v, args.seconds), worker_pids(vector))
+                times[name].append(wall)
+                parent[name].append(cpu)
+                total[name].append(cpu + workers)
+                if name in noop:
+                    noop[name].append(noop_step_seconds(vector))
+    for vector in vectors.values():
+        vector.close()
     env.close()
 
     med = {k: statistics.median(v) for k, v in times.items()}
@@ -109,15 +174,28 @@ def main() -> None:
     print(f"straight episode of {args.seconds:g} s at dt {unwrapped.dt:g} s ({steps} env "
           f"steps, frame skip {unwrapped.frame_skip}), median of {args.repeats}; "
           f"{os.cpu_count()} cores, load average {load:.2f} before the run")
-    print(f"{'':10s} {'clock':>6s} {'seconds':>8s} {'steps/s':>9s} {'x real time':>12s}")
+    print(f"{'':10s} {'clock':>6s} {'seconds':>8s} {'steps/s':>9s} {'x real time':>12s} "
+          f"{'x 1 env':>8s} {'parent ms':>10s} {'CPU x':>6s} {'noop ms':>8s}")
     for name, t in med.items():
         clock = "CPU" if name in ("env", "generate") else "wall"
+        extra = ""
+        if name in vectors:
+            cpu_per_step = statistics.median(total[name]) / counts[name]
+            extra = (f" {rate[name] / rate['1 env']:8.2f} "
+                     f"{1e3 * statistics.median(parent[name]) / steps:10.3f} "
+                     f"{cpu_per_step / (med['env'] / steps):6.2f}")
+            if name in noop:
+                extra += f" {1e3 * statistics.median(noop[name]):8.3f}"
         print(f"{name:10s} {clock:>6s} {t:8.3f} {rate[name]:9.0f} "
-              f"{counts[name] * unwrapped.dt / t:12.0f}")
-    print("(generate's steps/s: env steps of the same simulated time per CPU second)")
+              f"{counts[name] * unwrapped.dt / t:12.0f}{extra}")
+    print("(generate's steps/s: env steps of the same simulated time per CPU second; "
+          "x 1 env: total env steps/s, wall, over 1 env's; parent ms: the parent's CPU "
+          "per vector step; CPU x: CPU of the parent and the workers per env step over env's "
+          "(1 = no overhead; x 1 env reaches workers / CPU x on idle cores); noop ms: wall "
+          "per vector step with the workers not stepping)")
     print(f"env / generate CPU per simulated second: {med['env'] / med['generate']:.2f}")
-    print(f"async x2 / 1 env (total env steps/s, wall): "
-          f"{rate['async x2'] / rate['1 env']:.2f}")
+    for name in vectors:
+        print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}")
     print(f"target: env >= {TARGET:.0f} steps/s per core -> "
           f"{'met' if rate['env'] >= TARGET else 'MISSED'} ({rate['env']:.0f})")
 

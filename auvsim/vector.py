@@ -1,0 +1,578 @@
+"""``AuvVectorEnv``: a batch of ``auvsim/AUV-v0`` environments stepped by worker processes
+over shared memory, for policies that want many episodes at once.
+
+## Description
+
+``num_envs`` plain ``AuvEnv`` instances (``auvsim.env``), split into contiguous slices,
+one slice per worker process; each worker steps every env of its slice per vector step.
+Actions, observations, rewards, terminations, truncations and the info arrays live in one
+shared-memory block (``multiprocessing.shared_memory``), so a step costs the parent one
+copy of the actions in, a one-byte message to each worker and a one-byte answer back, and
+copies of the results out. The results are exactly those of ``gymnasium.make_vec(
+"auvsim/AUV-v0", num_envs, vectorization_mode="sync")`` (tests/test_vector.py compares
+them bitwise): env ``i`` is reset with seed ``s + i`` by ``reset(seed=s)``, autoreset
+follows gymnasium's ``AutoresetMode.NEXT_STEP`` (the step after an episode's end resets
+that env and returns its reset observation and info, reward 0, neither flag set), and
+``info[key]`` is batched with its ``info["_key"]`` mask as gymnasium's vector envs do.
+
+## How it differs from ``gymnasium.vector.AsyncVectorEnv``
+
+``AsyncVectorEnv`` runs one process per env and, per step, pickles each env's action and
+its whole result (an 11-key info dict) through a pipe and merges the infos key by key
+(``VectorEnv._add_info``): about 0.4 ms of the parent's time per step, as much as a step
+of the env costs, so two of them on 2 cores gave 0.63x the steps/s of one env (README).
+Here a worker steps several envs per message, nothing is pickled per step, and the info
+arrays are filled in place by the workers: the parent's share stays small however fast
+``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself (no wrappers inside the
+workers, no other env ids), fixed-shape infos (numbers and arrays, with the keys and
+shapes of the reset info of one env: new keys of ``AuvEnv._info`` keep working), and
+only ``AutoresetMode.NEXT_STEP``.
+
+## Arguments
+
+``AuvVectorEnv(num_envs=N, workers=None, config=None, frame_skip=10,
+max_episode_seconds=600.0)``, or ``gymnasium.make_vec("auvsim/AUV-v0", num_envs=N,
+vectorization_mode="vector_entry_point", workers=..., config=..., ...)``:
+
+    num_envs             environments in the batch
+    workers              worker processes (default min(num_envs, os.cpu_count())), at
+                         most num_envs; 0 steps the envs in this process (tests, 1 core)
+    config, frame_skip,  passed to every ``AuvEnv``
+    max_episode_seconds
+    context              multiprocessing start method, "forkserver" (default; it
+                         imports auvsim.env once for all workers) or "spawn"; never
+                         "fork" (MuJoCo, numba and threads)
+
+As with ``AsyncVectorEnv``, the workers import the main script: guard a script that
+makes one with ``if __name__ == "__main__":``. A worker exits when the env is closed,
+garbage-collected, at interpreter exit, and when the parent dies (its end of the pipe
+closes: the worker reads EOF); the shared memory is unlinked by ``close()`` (or by
+multiprocessing's resource tracker if the parent is killed). An exception in a worker
+(``AuvEnv.step`` refuses a non-finite action with a ``ValueError``) closes the env and
+is re-raised in the parent, same type and message, with the worker's traceback as its
+cause.
+
+## Performance
+
+``benchmarks/env.py`` (a 300 s straight episode in every env, median of 3, each vector
+env against one env in the same run, 2 cores shared with other jobs: load average 1.8
+before, up to 3.4 during the run), total env steps/s (wall) over one env's:
+
+    async x2 (gymnasium)   0.42   parent 0.41 ms CPU per vector step, CPU x 2.64
+    native 2x1             0.78   parent 0.10 ms,  CPU x 1.45
+    native 8x2             1.01   parent 0.17 ms,  CPU x 1.12
+
+``CPU x`` is the CPU of the parent and its workers per env step over one env's: the
+overhead whatever else the machine runs. With 4 envs per worker it is 12%, so on two
+idle cores we expect about 2 / 1.12 = 1.8x (an estimate, not measured: other jobs held
+about one of the two cores during the run). With the workers not stepping (``NOOP``) a vector
+step of 8 envs costs the parent 0.04 ms wall, pipes included. More envs per worker
+amortise the per-step cost further.
+
+    PYTHONPATH=. .venv/bin/python benchmarks/env.py --repeats 3
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import pickle
+import signal
+import traceback
+import weakref
+from multiprocessing import forkserver, shared_memory
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+# The pipe protocol, one raw byte per message and answer on the fast path (no pickling,
+# no framing: one write and one read per worker per step). Parent to worker: STEP, NOOP,
+# or COMMAND followed by a framed pickled (name, *args) (Connection.send_bytes); worker to
+# parent: OK, or ERROR followed by a framed pickled (exception, traceback text).
+STEP = b"s"  # step the slice's envs
+NOOP = b"n"  # answer without stepping (benchmarks/env.py times the parent with it)
+COMMAND = b"c"
+OK = b"k"
+ERROR = b"e"
+ALIGN = 64  # bytes: each shared array starts on its own cache line
+
+
+def _info_layout(info: dict) -> dict[str, tuple[np.dtype, tuple[int, ...]]]:
+    """The dtype and shape of each value of one env's ``info``, as gymnasium's
+    ``VectorEnv._add_info`` batches it (Python numbers to their numpy type).
+
+    Raises:
+        TypeError: a value that is neither a number nor a numeric array.
+    """
+    layout = {}
+    for key, value in info.items():
+        if type(value) in (int, float, bool) or isinstance(value, np.number):
+            layout[key] = (np.dtype(type(value)), ())
+        elif isinstance(value, np.ndarray) and value.dtype != object:
+            layout[key] = (value.dtype, value.shape)
+        else:
+            raise TypeError(f"info[{key!r}]: AuvVectorEnv batches numbers and numeric "
+                            f"arrays only, got {type(value).__name__}")
+    return layout
+
+
+def _fields(num_envs: int, observation_space: gym.spaces.Box,
+            action_space: gym.spaces.Box, info: dict) -> list[tuple[str, str, tuple]]:
+    """The shared arrays: (name, dtype string, shape), each with the batch first."""
+    n = num_envs
+    fields = [("actions", "float64", (n, *action_space.shape)),  # exact for any float input
+              ("observations", observation_space.dtype.str, (n, *observation_space.shape)),
+              ("rewards", "float64", (n,)),
+              ("terminations", "bool", (n,)),
+              ("truncations", "bool", (n,))]
+    fields += [(f"info/{key}", dtype.str, (n, *shape))
+               for key, (dtype, shape) in _info_layout(info).items()]
+    return fields
+
+
+def _offsets(fields) -> tuple[list[int], int]:
+    """Each field's byte offset in the shared block (on a 64-byte boundary), and the
+    block's size."""
+    offsets, offset = [], 0
+    for _, dtype, shape in fields:
+        offsets.append(offset)
+        nbytes = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+        offset += -(-nbytes // ALIGN) * ALIGN
+    return offsets, max(offset, ALIGN)
+
+
+def _views(buffer, fields) -> dict[str, np.ndarray]:
+    """Numpy arrays over ``buffer`` (the shared block), laid out as ``fields`` say."""
+    offsets, _ = _offsets(fields)
+    return {name: np.ndarray(shape, dtype, buffer=buffer, offset=offset)
+            for (name, dtype, shape), offset in zip(fields, offsets, strict=True)}
+
+
+class _Slice:
+    """The envs ``start .. stop - 1`` of the batch, reset and stepped in place over the
+    batch's arrays (in a worker, or in the parent when ``workers=0``).
+
+    Args:
+        views: the batch's arrays (``_views``).
+        start, stop: the slice, indices into the batch.
+        env_kwargs: ``AuvEnv``'s arguments.
+    """
+
+    def __init__(self, views: dict[str, np.ndarray], start: int, stop: int,
+                 env_kwargs: dict) -> None:
+        from .env import AuvEnv  # MuJoCo and numba: only where envs run
+
+        self.start, self.stop = start, stop
+        self.envs = [AuvEnv(**env_kwargs) for _ in range(start, stop)]
+        self.actions = views["actions"]
+        self.observations = views["observations"]
+        self.rewards = views["rewards"]
+        self.terminations = views["terminations"]
+        self.truncations = views["truncations"]
+        self.info = [(name[len("info/"):], view) for name, view in views.items()
+                     if name.startswith("info/")]
+        self.keys = {key for key, _ in self.info}
+        # NEXT_STEP autoreset: the envs whose episode ended at the last step.
+        self.autoreset = np.zeros(stop - start, dtype=bool)
+
+    def _write_info(self, i: int, info: dict) -> None:
+        if info.keys() != self.keys:  # the layout came from one env's reset info
+            raise KeyError(f"info keys changed: expected {sorted(self.keys)}, got "
+                           f"{sorted(info)}")
+        for key, view in self.info:
+            view[i] = info[key]
+
+    def reset(self, seeds: list, options: dict | None, mask: np.ndarray | None) -> None:
+        """Reset the slice's envs (those of ``mask``, if given), env ``i`` with
+        ``seeds[i]`` (batch indices)."""
+        for j, env in enumerate(self.envs):
+            i = self.start + j
+            if mask is not None and not mask[i]:
+                continue
+            try:
+                self.observations[i], info = env.reset(seed=seeds[i], options=options)
+                self._write_info(i, info)
+            except Exception as exc:
+                exc.add_note(f"in env {i} of the AuvVectorEnv")
+                raise
+            self.terminations[i] = self.truncations[i] = False
+            self.autoreset[j] = False
+
+    def step(self) -> None:
+        """Step each env with its row of ``actions``, or reset it if its episode ended
+        at the last step (gymnasium's NEXT_STEP autoreset, as SyncVectorEnv does)."""
+        for j, env in enumerate(self.envs):
+            i = self.start + j
+            try:
+                if self.autoreset[j]:
+                    self.observations[i], info = env.reset()
+                    self.rewards[i] = 0.0
+                    self.terminations[i] = self.truncations[i] = False
+                else:
+                    (self.observations[i], self.rewards[i], self.terminations[i],
+                     self.truncations[i], info) = env.step(self.actions[i].copy())
+                self._write_info(i, info)
+            except Exception as exc:
+                exc.add_note(f"in env {i} of the AuvVectorEnv")
+                raise
+            self.autoreset[j] = self.terminations[i] or self.truncations[i]
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def _failure(exc: BaseException) -> bytes:
+    """A worker's answer for ``exc``: the exception itself (or, unpicklable, a
+    RuntimeError of its type and message) and its traceback text."""
+    text = "".join(traceback.format_exception(exc))
+    try:
+        return pickle.dumps((exc, text))
+    except Exception:
+        return pickle.dumps((RuntimeError(f"{type(exc).__name__}: {exc}"), text))
+
+
+def _answer(conn, failure: bytes | None) -> None:
+    """A worker's answer: ``OK``, or ``ERROR`` and the failure."""
+    if failure is None:
+        os.write(conn.fileno(), OK)
+    else:
+        os.write(conn.fileno(), ERROR)
+        conn.send_bytes(failure)
+
+
+def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict) -> None:
+    """A worker process: build the slice's envs, answer (``OK`` or the failure), then
+    serve messages until ``close`` or EOF (the parent closed or died)."""
+    # Ctrl-C reaches the whole process group: the parent handles it and closes us.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    shm = shared_memory.SharedMemory(name=shm_name)
+    fd = conn.fileno()
+    part = None
+    try:
+        try:
+            part = _Slice(_views(shm.buf, fields), start, stop, env_kwargs)
+        except Exception as exc:
+            _answer(conn, _failure(exc))
+            return
+        _answer(conn, None)
+        while True:
+            try:
+                message = os.read(fd, 1)
+            except OSError:
+                return
+            if not message:
+                return  # EOF: the parent is gone
+            failure = None
+            try:
+                if message == STEP:
+                    part.step()
+                elif message == COMMAND:
+                    command, *args = pickle.loads(conn.recv_bytes())
+                    if command == "close":
+                        _answer(conn, None)
+                        return
+                    part.reset(*args)
+            except Exception as exc:
+                failure = _failure(exc)
+            try:
+                _answer(conn, failure)
+            except OSError:
+                return  # the parent is gone
+    finally:
+        if part is not None:
+            part.close()
+        del part
+        try:
+            shm.close()
+        except BufferError:
+            pass  # a view still alive (in a traceback); the process is ending anyway
+        conn.close()
+
+
+class _RemoteTraceback(Exception):
+    """A worker's traceback, attached as the cause of the exception it raised."""
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+def _shutdown(processes: list, conns: list, shm, views: dict) -> None:
+    """Stop the workers (politely, then by force) and free the shared memory. Holds no
+    reference to the env: it runs at ``close()``, garbage collection or exit."""
+    for conn in conns:
+        try:
+            os.write(conn.fileno(), COMMAND)
+            conn.send_bytes(pickle.dumps(("close",)))
+        except OSError:
+            pass  # that worker is gone
+    for process in processes:
+        process.join(timeout=5.0)
+        if process.is_alive():
+            process.terminate()
+            process.join(timeout=2.0)
+        if process.is_alive():
+            process.kill()
+            process.join()
+    for conn in conns:
+        conn.close()
+    views.clear()  # the parent's arrays over the block, so that it can be unmapped
+    if shm is not None:
+        try:
+            shm.close()
+        except BufferError:
+            pass  # an array still in use elsewhere: it is unmapped when that goes
+        shm.unlink()
+
+
+class AuvVectorEnv(gym.vector.VectorEnv):
+    """A batch of ``AuvEnv`` stepped by worker processes over shared memory (see the
+    module docstring).
+
+    Args:
+        num_envs: environments in the batch.
+        workers: worker processes (default ``min(num_envs, os.cpu_count())``; at most
+            ``num_envs``); 0 runs the envs in this process.
+        config: ``AuvEnv``'s config, for every env (default: the paper-sim preset's).
+        frame_skip: physics steps per env step (10: dt = 0.1 s).
+        max_episode_seconds: truncation time of each episode, s.
+        context: multiprocessing start method, "forkserver" or "spawn".
+
+    Raises:
+        ValueError: a bad ``num_envs``, ``workers`` or ``context``.
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, *, num_envs: int, workers: int | None = None, config=None,
+                 frame_skip: int = 10, max_episode_seconds: float = 600.0,
+                 context: str = "forkserver") -> None:
+        from .env import AuvEnv
+
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
+        if workers is None:
+            workers = min(num_envs, os.cpu_count() or 1)
+        if not isinstance(workers, int) or workers < 0:
+            raise ValueError(f"workers: expected a whole number >= 0, got {workers!r}")
+        if context not in ("forkserver", "spawn"):
+            raise ValueError(f"context: expected 'forkserver' or 'spawn' (not 'fork': "
+                             f"MuJoCo, numba and threads), got {context!r}")
+        self.num_envs = num_envs
+        self.workers = min(workers, num_envs)
+        self._context = mp.get_context(context)
+        if self.workers and context == "forkserver":
+            # Started now, it imports auvsim.env (once for all workers) while this
+            # process builds its probe env.
+            self._context.set_forkserver_preload(["auvsim.env"])
+            forkserver.ensure_running()
+        env_kwargs = dict(config=config, frame_skip=frame_skip,
+                          max_episode_seconds=max_episode_seconds)
+        # One env here for the spaces and the info layout (and to refuse a bad config
+        # before any process starts).
+        probe = AuvEnv(**env_kwargs)
+        _, info = probe.reset(seed=0)
+        self.single_observation_space = probe.observation_space
+        self.single_action_space = probe.action_space
+        probe.close()
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.metadata = dict(self.metadata)
+        self.render_mode = None
+        self.info_keys = list(info)
+        fields = _fields(num_envs, self.single_observation_space,
+                         self.single_action_space, info)
+
+        self._processes: list = []
+        self._conns: list = []
+        self._fds: list[int] = []  # the parent's ends of the pipes, for the fast path
+        self._shm = None
+        self._views: dict[str, np.ndarray] = {}
+        self._slice = None
+        self._finalizer = weakref.finalize(self, _shutdown, self._processes, self._conns,
+                                           None, self._views)
+        if self.workers == 0:
+            self._views.update(_views(np.zeros(_offsets(fields)[1], np.uint8), fields))
+            self._slice = _Slice(self._views, 0, num_envs, env_kwargs)
+        else:
+            self._start(fields, env_kwargs)
+        views = self._views
+        self._actions = views["actions"]
+        # Per step: info's (key, mask key, shared view), and its masks' values.
+        self._info_views = [(key, f"_{key}", views[f"info/{key}"]) for key in self.info_keys]
+        self._all_true = np.ones((len(self.info_keys), num_envs), dtype=bool)
+
+    def _start(self, fields, env_kwargs: dict) -> None:
+        """Allocate the shared block and start the workers, each on a contiguous slice
+        (sizes differing by at most one); wait until each has built its envs."""
+        self._shm = shared_memory.SharedMemory(create=True, size=_offsets(fields)[1])
+        self._finalizer.detach()
+        self._finalizer = weakref.finalize(self, _shutdown, self._processes, self._conns,
+                                           self._shm, self._views)
+        self._views.update(_views(self._shm.buf, fields))
+        ctx = self._context
+        sizes = [self.num_envs // self.workers + (k < self.num_envs % self.workers)
+                 for k in range(self.workers)]
+        start = 0
+        for size in sizes:
+            parent, child = ctx.Pipe()
+            process = ctx.Process(target=_worker, daemon=True, name=f"auvsim-vector-{start}",
+                                  args=(child, self._shm.name, fields, start, start + size,
+                                        env_kwargs))
+            process.start()
+            child.close()  # the worker's end: only the worker holds it, so EOF reaches it
+            self._processes.append(process)
+            self._conns.append(parent)
+            self._fds.append(parent.fileno())
+            start += size
+        self._wait()
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """The worker processes' ids (empty with ``workers=0``)."""
+        return [process.pid for process in self._processes]
+
+    def _wait(self) -> None:
+        """Each worker's answer to the last command; on a failure, close the env and
+        raise the worker's exception."""
+        failure = None
+        for k, conn in enumerate(self._conns):
+            try:
+                answer = os.read(self._fds[k], 1)
+                if answer == ERROR:
+                    failure = failure or pickle.loads(conn.recv_bytes())
+                    continue
+            except (EOFError, OSError):
+                answer = b""
+            except BaseException:  # Ctrl-C: the answers are out of step with the commands
+                self.close()
+                raise
+            if answer != OK:  # EOF: the worker died
+                self._processes[k].join(timeout=1.0)  # for its exit code
+                failure = failure or (RuntimeError(
+                    f"AuvVectorEnv: worker {k} (pid {self._processes[k].pid}) died, exit "
+                    f"code {self._processes[k].exitcode}"), None)
+        if failure is not None:
+            exc, text = failure
+            self.close()
+            if text is not None:
+                raise exc from _RemoteTraceback(text)
+            raise exc
+
+    def _in_process(self, method, *args) -> None:
+        """``method(*args)`` of the in-process slice (``workers=0``); on a failure, close
+        the env and re-raise, as for a worker's."""
+        try:
+            method(*args)
+        except Exception:
+            self.close()
+            raise
+
+    def _command(self, *message) -> None:
+        """Send a (rare) command to every worker and wait for their answers."""
+        data = pickle.dumps(message)
+        for fd, conn in zip(self._fds, self._conns, strict=True):
+            os.write(fd, COMMAND)
+            conn.send_bytes(data)
+        self._wait()
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("AuvVectorEnv: the environment is closed")
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every env (or those of ``options["reset_mask"]``, a (num_envs,) bool
+        array, as SyncVectorEnv does), env ``i`` with seed ``seed + i``, or ``seed[i]``
+        from a list.
+
+        Returns:
+            observations (num_envs, 15) float32 and the batched info (module docstring).
+        """
+        self._check_open()
+        n = self.num_envs
+        if seed is None:
+            seed = [None] * n
+        elif isinstance(seed, int):
+            seed = [seed + i for i in range(n)]
+        if len(seed) != n:
+            raise ValueError(f"seed: a list of num_envs={n} seeds expected, got {len(seed)}")
+        mask = None
+        if options is not None and "reset_mask" in options:
+            options = dict(options)
+            mask = options.pop("reset_mask")
+            if not (isinstance(mask, np.ndarray) and mask.shape == (n,)
+                    and mask.dtype == np.bool_ and mask.any()):
+                raise ValueError(f"options['reset_mask']: expected a ({n},) bool numpy "
+                                 f"array with a True value, got {mask!r}")
+        if self._slice is not None:
+            self._in_process(self._slice.reset, seed, options, mask)
+        else:
+            self._command("reset", seed, options, mask)
+        return self._views["observations"].copy(), self._infos(mask)
+
+    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                     dict[str, Any]]:
+        """Step every env with its row of ``actions`` (num_envs, 3), in [-1, 1]; an env
+        whose episode ended at the last step is reset instead (NEXT_STEP autoreset).
+
+        Returns:
+            observations (num_envs, 15) float32, rewards (num_envs,) float64,
+            terminations and truncations (num_envs,) bool, and the batched info.
+
+        Raises:
+            ValueError: ``actions`` of the wrong shape; a non-finite action (from the
+                env: the vector env is then closed).
+        """
+        return self._step(actions, STEP)
+
+    def _step(self, actions, message: bytes):
+        """``step``, with ``message`` (``STEP``, or ``NOOP`` for benchmarks/env.py's
+        timing of the parent: the workers answer at once) sent to the workers."""
+        self._check_open()
+        actions = np.asarray(actions)
+        if actions.shape != self._actions.shape:
+            raise ValueError(f"actions: expected an array of shape {self._actions.shape} "
+                             f"(num_envs, 3: propeller, rudder, stern planes), got shape "
+                             f"{actions.shape}")
+        self._actions[:] = actions
+        if self._slice is not None:
+            if message == STEP:
+                self._in_process(self._slice.step)
+        else:
+            for fd in self._fds:
+                os.write(fd, message)
+            self._wait()
+        views = self._views
+        return (views["observations"].copy(), views["rewards"].copy(),
+                views["terminations"].copy(), views["truncations"].copy(),
+                self._infos(None))
+
+    def _infos(self, mask: np.ndarray | None) -> dict[str, np.ndarray]:
+        """Copies of the info arrays with their ``_key`` masks (every env's, or those of
+        a reset's ``mask``: the others' values zero, as ``VectorEnv._add_info`` leaves
+        them)."""
+        infos = {}
+        if mask is None:  # every step: the fast path (masks: rows of one fresh array)
+            rows = self._all_true.copy()
+            for (key, mask_key, view), row in zip(self._info_views, rows, strict=True):
+                infos[key] = view.copy()
+                infos[mask_key] = row
+            return infos
+        for key, mask_key, view in self._info_views:
+            value = view.copy()
+            value[~mask] = 0
+            infos[key], infos[mask_key] = value, mask.copy()
+        return infos
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop the workers and free the shared memory."""
+        self._actions = None
+        self._info_views = []
+        if self._slice is not None:
+            self._slice.close()
+            self._slice = None
+        self._finalizer()
