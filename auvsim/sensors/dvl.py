@@ -34,11 +34,12 @@ import enum
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from ..config import DvlConfig
 from ..errors import ConfigError
-from ..frames import rotation_matrices, rotation_rpy
+from ..frames import rotation_rpy
 from . import Attr, Field, Sensor, sample_rows, samples_in
 
 
@@ -213,12 +214,14 @@ def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
         lost = u[:, 4:8] < logistic(incidence_deg, c.grazing_loss_angle_deg,
                                     c.grazing_loss_width_deg)
         status[lost] = Status.GRAZING
-    status[in_intervals(time, c.lock_loss_intervals)] = Status.LOCK_LOST
+    if c.lock_loss_intervals:  # (the environment's one ping a step skips what does nothing)
+        status[in_intervals(time, c.lock_loss_intervals)] = Status.LOCK_LOST
     status[ranges < c.min_range] = Status.TOO_NEAR
     status[~np.isfinite(ranges)] = Status.NO_HIT
     for beam, start, end in c.beam_failures:
         status[(time >= start) & (time < end), beam] = Status.BEAM_FAILED
-    status[u[:, 8] < c.ping_dropout_rate] = Status.PING_DROPOUT
+    if c.ping_dropout_rate > 0:  # else no uniform in [0, 1) is below it
+        status[u[:, 8] < c.ping_dropout_rate] = Status.PING_DROPOUT
     return status
 
 
@@ -278,15 +281,23 @@ def least_squares(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
         (M, 3) velocity in the DVL frame, m/s.
     """
     valid = np.isfinite(beams)
+    if valid.all():  # every ping on four beams (most do): the same product, in one go
+        return beams @ _pinv(h, _BEAMS_USED[15]).T
     out = np.full((len(beams), 3), np.nan)
-    pattern = valid @ (1 << np.arange(4))  # which beams are valid, as a 4-bit number
+    pattern = valid @ _BEAM_BITS  # which beams are valid, as a 4-bit number
     for code in np.unique(pattern):
-        use = np.array([(code >> k) & 1 for k in range(4)], dtype=bool)
+        use = _BEAMS_USED[code]
         if use.sum() < 3:
             continue
         rows = pattern == code
         out[rows] = beams[rows][:, use] @ _pinv(h, use).T
     return out
+
+
+_BEAM_BITS = 1 << np.arange(4)
+# The beams each 4-bit pattern uses, (4,) bool by pattern.
+_BEAMS_USED = tuple(np.array([(code >> k) & 1 for k in range(4)], dtype=bool)
+                    for code in range(16))
 
 
 _PINV: dict[tuple, np.ndarray] = {}  # a few entries: (beam matrix, beams used) -> pinv
@@ -317,10 +328,7 @@ class DvlGeometry(NamedTuple):
     def velocity(self, velocity_body: np.ndarray, angular_rate: np.ndarray) -> np.ndarray:
         """(M, 3) velocity over ground of the DVL point in the DVL frame, m/s, from body
         velocities (M, 3) m/s and angular rates (M, 3) rad/s (lever arm included)."""
-        w, r = angular_rate, self.lever_arm  # w x r, as np.cross computes it, without its
-        v_point = velocity_body + np.stack([  # overhead
-            w[:, 1] * r[2] - w[:, 2] * r[1], w[:, 2] * r[0] - w[:, 0] * r[2],
-            w[:, 0] * r[1] - w[:, 1] * r[0]], axis=-1)
+        v_point = _add_cross(velocity_body, angular_rate, self.lever_arm)
         return v_point @ self.mounting  # rows of mounting^T v
 
     def rays(self, position_ned: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -336,7 +344,58 @@ def true_beams(velocity: np.ndarray, h: np.ndarray) -> np.ndarray:
     """(M, 4) ideal beam velocities ``H v`` of (M, 3) DVL-frame velocities, m/s; NaN on a
     ping whose velocity is not finite (a dropout in a recorded stream)."""
     finite = np.isfinite(velocity).all(axis=1)
+    if finite.all():  # a simulated mission's: the same product without the NaN handling
+        return np.ascontiguousarray(velocity) @ h.T  # (a copy, as nan_to_num's was)
     return np.where(finite[:, None], np.nan_to_num(velocity) @ h.T, np.nan)
+
+
+# Compiled elementwise loops for the few-row blocks of the environment, where numpy's
+# per-call overhead dominates: the same operations in the same order as the numpy
+# expressions they replace (no fastmath), so the same bits. Products of matrices stay in
+# numpy, whose rounding may depend on the shapes.
+
+@numba.njit(cache=True)
+def _add_cross(v: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(M, 3) ``v + w x r`` of (M, 3) v and w and a (3,) r, as np.cross computes w x r."""
+    out = np.empty((len(v), 3))
+    for m in range(len(v)):
+        out[m, 0] = v[m, 0] + (w[m, 1] * r[2] - w[m, 2] * r[1])
+        out[m, 1] = v[m, 1] + (w[m, 2] * r[0] - w[m, 0] * r[2])
+        out[m, 2] = v[m, 2] + (w[m, 0] * r[1] - w[m, 1] * r[0])
+    return out
+
+
+@numba.njit(cache=True)
+def _rotation_matrices(q: np.ndarray) -> np.ndarray:
+    """(M, 3, 3) body -> NED rotations of (M, 4) unit quaternions [w, x, y, z]: the
+    formula of ``auvsim.frames.rotation_matrices``, row by row."""
+    out = np.empty((len(q), 3, 3))
+    for m in range(len(q)):
+        w, x, y, z = q[m, 0], q[m, 1], q[m, 2], q[m, 3]
+        out[m, 0, 0] = 1 - 2 * (y * y + z * z)
+        out[m, 0, 1] = 2 * (x * y - w * z)
+        out[m, 0, 2] = 2 * (x * z + w * y)
+        out[m, 1, 0] = 2 * (x * y + w * z)
+        out[m, 1, 1] = 1 - 2 * (x * x + z * z)
+        out[m, 1, 2] = 2 * (y * z - w * x)
+        out[m, 2, 0] = 2 * (x * z - w * y)
+        out[m, 2, 1] = 2 * (y * z + w * x)
+        out[m, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+@numba.njit(cache=True)
+def _longest_horizontal(d: np.ndarray) -> float:
+    """The largest horizontal length ``sqrt(n^2 + e^2)`` of (M, B, 3) vectors, as
+    ``np.linalg.norm(d[..., :2], axis=-1).max()`` computes it (M B > 0)."""
+    longest = -np.inf
+    for m in range(d.shape[0]):
+        for k in range(d.shape[1]):
+            length = math.sqrt(d[m, k, 0] * d[m, k, 0] + d[m, k, 1] * d[m, k, 1])
+            if math.isnan(length):
+                return length  # as max propagates NaN
+            longest = max(longest, length)
+    return longest
 
 
 class Effects(NamedTuple):
@@ -347,7 +406,8 @@ class Effects(NamedTuple):
         sound_speed_ratio: c_true / c_assumed: every measured beam is divided by it.
         extra_noise: (M, 4) m/s, added to the bottom-track beams (the noise beyond
             ``noise_std`` that grows with range and speed), or None.
-        outlier: (M, 4) bool, beam-pings whose bottom-track measurement is an outlier.
+        outlier: (M, 4) bool, beam-pings whose bottom-track measurement is an outlier, or
+            None: none is (``outlier_rate`` 0).
         outlier_error: (M, 4) m/s, the outliers' errors.
         water_velocity: (M, 3) m/s, in the DVL frame, the velocity over ground of the water
             layer the DVL tracks, or None: no water track.
@@ -358,7 +418,7 @@ class Effects(NamedTuple):
     status: np.ndarray
     sound_speed_ratio: float
     extra_noise: np.ndarray | None
-    outlier: np.ndarray
+    outlier: np.ndarray | None
     outlier_error: np.ndarray
     water_velocity: np.ndarray | None
     water_lock: np.ndarray
@@ -405,22 +465,31 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
     noise = noise_std * rng.standard_normal(beams_true.shape)  # as eq. 7 draws it
     if e.extra_noise is not None:
         noise = noise + e.extra_noise
-    mode = np.where(valid.sum(axis=1) >= 3, Mode.BOTTOM_TRACK, Mode.NO_VELOCITY)
+    # Plain ints for the codes: an enum member costs a slow class attribute look-up.
+    mode = np.where(valid.sum(axis=1) >= 3, _BOTTOM_TRACK, _NO_VELOCITY)
     signal = beams_true
     if e.water_velocity is not None:
-        water = (mode != Mode.BOTTOM_TRACK) & ((e.water_lock & finite[:, None]).sum(axis=1) >= 3)
-        mode = np.where(water, Mode.WATER_TRACK, mode)
+        water = (mode != _BOTTOM_TRACK) & ((e.water_lock & finite[:, None]).sum(axis=1) >= 3)
+        mode = np.where(water, _WATER_TRACK, mode)
         valid = np.where(water[:, None], e.water_lock & finite[:, None], valid)
         signal = np.where(water[:, None], true_beams(velocity - e.water_velocity, h), signal)
         noise = np.where(water[:, None], e.water_noise, noise)
     y = (1.0 + errors.scale_factor) * (signal / e.sound_speed_ratio) + errors.bias + noise
-    outlier = e.outlier & lock & (mode != Mode.WATER_TRACK)[:, None]
-    y = np.where(outlier, y + e.outlier_error, y)
+    if e.outlier is None:
+        status = e.status.astype(np.int64)
+    else:
+        outlier = e.outlier & lock & (mode != _WATER_TRACK)[:, None]
+        y = np.where(outlier, y + e.outlier_error, y)
+        status = np.where(outlier, _OUTLIER, e.status).astype(np.int64)
     beams = np.where(valid, y, np.nan)
-    status = np.where(outlier, Status.OUTLIER, e.status).astype(np.int64)
     return dict(velocity=velocity, beam_velocity_true=beams_true, beam_velocity=beams,
                 valid=valid, velocity_ls=least_squares(beams, h), status=status,
                 mode=mode.astype(np.int64), error_velocity=error_velocity(beams, h))
+
+
+_NO_VELOCITY, _BOTTOM_TRACK = int(Mode.NO_VELOCITY), int(Mode.BOTTOM_TRACK)
+_WATER_TRACK = int(Mode.WATER_TRACK)
+_OUTLIER = int(Status.OUTLIER)
 
 
 def config_attrs(config: DvlConfig, errors: DvlErrors) -> dict[str, object]:
@@ -549,9 +618,9 @@ class Dvl(Sensor):
             return _no_pings()
         time = truth.time[rows]
         velocity = self.geometry.velocity(truth.velocity_body[rows], truth.angular_rate[rows])
-        rotation = rotation_matrices(truth.quaternion[rows])
+        rotation = _rotation_matrices(truth.quaternion[rows])
         origins, directions = self.geometry.rays(truth.position_ned[rows], rotation)
-        reach = c.max_range * np.linalg.norm(directions[..., :2], axis=-1).max()
+        reach = c.max_range * _longest_horizontal(directions)
         try:
             seafloor.follow(origins[:, :2], reach=reach)
         except ValueError as e:
@@ -608,7 +677,8 @@ class Dvl(Sensor):
             water_lock = ((~np.isfinite(ranges) | (ranges > layer)) & np.isfinite(layer)
                           & (status != Status.PING_DROPOUT) & (status != Status.BEAM_FAILED))
         return Effects(status=status, sound_speed_ratio=self.calibration.sound_speed_ratio,
-                       extra_noise=extra, outlier=u[:, 13:17] < c.outlier_rate,
+                       extra_noise=extra,
+                       outlier=u[:, 13:17] < c.outlier_rate if c.outlier_rate > 0 else None,
                        outlier_error=c.outlier_std / math.sqrt(3.0) * t,
                        water_velocity=water, water_lock=water_lock,
                        water_noise=c.water_track_noise_std * n[:, 4:8])
