@@ -16,8 +16,14 @@ in subprocesses, alternately with ``PYTHONPATH=TREE`` and with this script's tre
 ``--rounds`` rounds, and prints each round's pair and the medians over rounds: on a shared
 machine only timings taken side by side mean anything.
 
+With ``--bits TREE`` it checks instead that both trees give the same bits on the
+environment's blocks: each measures the first ``BITS_SECONDS`` of a few configs' first
+missions with ``MissionRun.measure`` on 10-step and on 6000-step blocks (every field of
+every block, concatenated), and every array must be byte for byte the same in both.
+
     .venv/bin/python benchmarks/dvl_ping.py [--preset paper-sim] [--passes 5]
     .venv/bin/python benchmarks/dvl_ping.py --old /tmp/dvl-old [--rounds 5]
+    .venv/bin/python benchmarks/dvl_ping.py --bits /tmp/dvl-old
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 SECONDS = 60.0  # of trajectory, s
 FRAME_SKIP = 10  # physics steps per environment step
+BITS_SECONDS = 120.0  # of each mission --bits compares, s
 
 
 def measure_here(preset_name: str, passes: int) -> dict[str, float]:
@@ -107,6 +114,73 @@ def compare(old: Path, preset_name: str, passes: int, rounds: int) -> None:
             f"{statistics.median(x[k] for x in results[name]):>12.1f}" for k in keys))
 
 
+def bits_configs() -> dict:
+    """The configs --bits compares: the environment's default, the navigator, and the
+    navigator with its beam failure and soft bottom moved into the first two minutes."""
+    import dataclasses
+
+    from auvsim.presets import preset
+
+    nav = preset("navigator")
+    moved = dataclasses.replace(nav.dvl, beam_failures=((1, 20.0, 35.0),),
+                                lock_loss_intervals=((50.0, 70.0),))
+    return {"paper-sim": preset("paper-sim"), "navigator": nav,
+            "navigator-early-faults": dataclasses.replace(nav, dvl=moved)}
+
+
+def dump_fields(path: Path) -> None:
+    """Write the fields ``--bits`` compares, by ``config/block_steps/field``, to an .npz."""
+    import numpy as np
+
+    from auvsim.mission import MissionRun
+    from auvsim.vehicle import Trajectory
+
+    arrays = {}
+    for name, config in bits_configs().items():
+        for block_steps in (FRAME_SKIP, 6000):
+            run = MissionRun(config, config.missions[0])
+            vehicle, dt = run.vehicle, run.vehicle.dt
+            vehicle.reset(**run.scenario.initial_state())
+            run.scenario.reset()
+            steps = np.arange(round(BITS_SECONDS / dt))
+            traj = run.scenario.run(vehicle, steps * dt)
+            parts: dict[str, list] = {}
+            for start in range(0, len(steps), block_steps):
+                block = slice(start, start + block_steps)
+                fields = run.measure(steps[block], Trajectory(*(x[block] for x in traj)))
+                for field, value in fields.items():
+                    parts.setdefault(field, []).append(value)
+            for field, values in parts.items():
+                arrays[f"{name}/{block_steps}/{field}"] = np.concatenate(values)
+    np.savez(path, **arrays)
+
+
+def compare_bits(old: Path) -> bool:
+    """Dump the fields under ``old`` and this tree; print and return whether they agree."""
+    import tempfile
+
+    import numpy as np
+
+    dumps = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, tree in (("old", old.resolve()), ("new", REPO)):
+            dumps[name] = Path(tmp) / f"{name}.npz"
+            subprocess.run([sys.executable, __file__, "--dump", str(dumps[name])],
+                           env=dict(os.environ, PYTHONPATH=str(tree)), cwd=tree, check=True)
+        a, b = np.load(dumps["old"]), np.load(dumps["new"])
+        same = sorted(a.files) == sorted(b.files)
+        if not same:
+            print("different fields:", sorted(set(a.files) ^ set(b.files)))
+        for key in sorted(set(a.files) & set(b.files)):
+            x, y = a[key], b[key]
+            if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
+                same = False
+                print(f"DIFFERENT {key}: {x.dtype}{x.shape} vs {y.dtype}{y.shape}")
+        print(f"{len(a.files)} arrays ({', '.join(bits_configs())}; 10- and 6000-step "
+              f"blocks, {BITS_SECONDS:g} s each): " + ("SAME BITS" if same else "DIFFERENT"))
+    return same
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--preset", default="paper-sim")
@@ -115,7 +189,15 @@ def main() -> None:
     parser.add_argument("--old", type=Path, help="a tree of the old code: compare with it")
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--json", action="store_true", help="print one JSON line")
+    parser.add_argument("--bits", type=Path, help="a tree of the old code: check that it "
+                        "gives the same bits")
+    parser.add_argument("--dump", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.dump is not None:
+        dump_fields(args.dump)
+        return
+    if args.bits is not None:
+        sys.exit(0 if compare_bits(args.bits) else 1)
     if args.old is not None:
         compare(args.old, args.preset, args.passes, args.rounds)
         return
