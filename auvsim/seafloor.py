@@ -35,6 +35,7 @@ import math
 from pathlib import Path
 
 import mujoco
+import numba
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
@@ -306,12 +307,9 @@ class Seafloor:
             return np.where(finite, self.config.depth, np.nan)
         x, y = np.broadcast_arrays(np.asarray(north, dtype=float),
                                    -np.asarray(east, dtype=float))
-        inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
-        upper = fu >= fv  # the triangle with vertex (r, c + 1)
-        big, small = np.where(upper, fu, fv), np.where(upper, fv, fu)
-        height = h00 + (side - h00) * big + (h11 - side) * small
-        depth = -(pos[..., 2] + height * self._elevation[a, b])
-        return np.where(inside, depth, np.nan)
+        depth = _depths(np.ascontiguousarray(x).reshape(-1),
+                        np.ascontiguousarray(y).reshape(-1), *self._grid())
+        return depth.reshape(x.shape)
 
     def normal_at(self, north: np.ndarray, east: np.ndarray) -> np.ndarray:
         """Unit normal of the ray-cast surface below NED horizontal positions, pointing up
@@ -328,46 +326,20 @@ class Seafloor:
         if self.kind == "flat":
             up = np.where((np.isfinite(x) & np.isfinite(y))[..., None], 1.0, np.nan)
             return up * np.array([0.0, 0.0, -1.0])
-        inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
-        (rows, cols), (hx, hy) = self._tile_cells, self._half
-        upper = fu >= fv
-        # The triangle's height gradient along the fractional column u and row v (linear
-        # in each triangle), then in metres: u grows northward, v westward.
-        dh_du = np.where(upper, side - h00, h11 - side)
-        dh_dv = np.where(upper, h11 - side, side - h00)
-        elevation = self._elevation[a, b]
-        d_north = -elevation * dh_du * cols / (2.0 * hx)  # d depth / d north
-        d_east = elevation * dh_dv * rows / (2.0 * hy)  # d depth / d east (v runs west)
+        inside, d_north, d_east = _slopes(np.ascontiguousarray(x).reshape(-1),
+                                          np.ascontiguousarray(y).reshape(-1), *self._grid())
+        inside, d_north, d_east = (v.reshape(x.shape) for v in (inside, d_north, d_east))
         # The surface z = depth(n, e): its upward normal is (d_n, d_e, -1), normalised.
         normal = np.stack([d_north, d_east, -np.ones_like(d_north)], axis=-1)
         normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
         return np.where(inside[..., None], normal, np.nan)
 
-    def _triangle(self, x: np.ndarray, y: np.ndarray) -> tuple:
-        """Where MuJoCo's x, y (north, west) fall on the terrain: inside (bool), the tile
-        (a, b) and its position, the fractional position (fu, fv) in the cell, and the
-        three vertex heights of its triangle (h00, the side vertex, h11)."""
-        x_lo, x_hi, y_lo, y_hi = self._cover
-        inside = (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
-        x, y = np.where(inside, x, x_lo), np.where(inside, y, y_lo)
-        (rows, cols), (n_a, n_b), cell = self._tile_cells, self._tiles, self.cell
-        a = np.clip(((y - self._origin[1]) // (rows * cell)).astype(np.intp), 0, n_a - 1)
-        b = np.clip(((x - self._origin[0]) // (cols * cell)).astype(np.intp), 0, n_b - 1)
-        # From here on the same arithmetic as MuJoCo's mj_rayHfield, in the tile's frame.
-        pos = self._tile_pos[a, b]
-        hx, hy = self._half
-        u = (x - pos[..., 0] + hx) / (2.0 * hx / cols)  # fractional column
-        v = (y - pos[..., 1] + hy) / (2.0 * hy / rows)  # fractional row
-        c = np.clip(np.floor(u), 0, cols - 1).astype(np.intp)
-        r = np.clip(np.floor(v), 0, rows - 1).astype(np.intp)
-        fu, fv = u - c, v - r
-        flat = self._heights.ravel()
-        k = ((a * n_b + b) * (rows + 1) + r) * (cols + 1) + c
-        h00, h11 = flat[k].astype(float), flat[k + cols + 2].astype(float)
-        # Two triangles per cell, split along the (r, c) - (r + 1, c + 1) diagonal.
-        upper = fu >= fv  # the triangle with vertex (r, c + 1)
-        side = np.where(upper, flat[k + 1], flat[k + cols + 1]).astype(float)
-        return inside, a, b, pos, fu, fv, h00, side, h11
+    def _grid(self) -> tuple:
+        """The terrain as ``_locate`` takes it: cover, origin, tile and cell counts, tile
+        positions and half sizes, the heights (flat, float32) and the elevation ranges."""
+        (rows, cols), (n_a, n_b), (hx, hy) = self._tile_cells, self._tiles, self._half
+        return (*self._cover, *self._origin, rows, cols, n_a, n_b, self.cell,
+                self._tile_pos, hx, hy, self._heights.reshape(-1), self._elevation)
 
     def cast(self, model: mujoco.MjModel, data: mujoco.MjData, origins_ned: np.ndarray,
              directions_ned: np.ndarray, *, max_range: float, exclude_body: int) -> np.ndarray:
@@ -410,6 +382,79 @@ class Seafloor:
                       & (y > y_lo + EDGE) & (y < y_hi - EDGE)).T
             dist[np.isin(geom, self._geoms) & ~inside] = np.nan
         return dist
+
+
+# The surface queries, compiled: the environment asks for a few points a step, where
+# numpy's per-call overhead would dominate. Elementwise arithmetic in the order of the
+# numpy expressions they replaced (no fastmath), so the same bits.
+
+@numba.njit(cache=True)
+def _locate(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos, hx,
+            hy, heights, elevation):
+    """Where MuJoCo's x, y (north, west) fall on the terrain: inside (bool), the tile's
+    elevation range and its base's z, the fractional position (fu, fv) in the cell, and
+    the three vertex heights of its triangle (h00, the side vertex, h11); outside the
+    terrain, those of its (x_lo, y_lo) corner."""
+    inside = (x >= x_lo) and (x <= x_hi) and (y >= y_lo) and (y <= y_hi)
+    if not inside:
+        x, y = x_lo, y_lo
+    a = min(max(int((y - y0) // (rows * cell)), 0), n_a - 1)
+    b = min(max(int((x - x0) // (cols * cell)), 0), n_b - 1)
+    # From here on the same arithmetic as MuJoCo's mj_rayHfield, in the tile's frame.
+    u = (x - tile_pos[a, b, 0] + hx) / (2.0 * hx / cols)  # fractional column
+    v = (y - tile_pos[a, b, 1] + hy) / (2.0 * hy / rows)  # fractional row
+    c = int(min(max(math.floor(u), 0.0), cols - 1))
+    r = int(min(max(math.floor(v), 0.0), rows - 1))
+    fu, fv = u - c, v - r
+    k = ((a * n_b + b) * (rows + 1) + r) * (cols + 1) + c
+    # float64 before any arithmetic, as numpy's astype(float) (numba's float() keeps float32).
+    h00, h11 = np.float64(heights[k]), np.float64(heights[k + cols + 2])
+    # Two triangles per cell, split along the (r, c) - (r + 1, c + 1) diagonal.
+    if fu >= fv:  # the triangle with vertex (r, c + 1)
+        side = np.float64(heights[k + 1])
+    else:
+        side = np.float64(heights[k + cols + 1])
+    return inside, elevation[a, b], tile_pos[a, b, 2], fu, fv, h00, side, h11
+
+
+@numba.njit(cache=True)
+def _depths(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos, hx,
+            hy, heights, elevation):
+    """(K,) depths, m, of the surface below (K,) MuJoCo x, y; NaN outside the terrain."""
+    out = np.empty(len(x))
+    for i in range(len(x)):
+        inside, elev, z, fu, fv, h00, side, h11 = _locate(
+            x[i], y[i], x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos,
+            hx, hy, heights, elevation)
+        if fu >= fv:  # the triangle with vertex (r, c + 1)
+            big, small = fu, fv
+        else:
+            big, small = fv, fu
+        height = h00 + (side - h00) * big + (h11 - side) * small
+        out[i] = -(z + height * elev) if inside else np.nan
+    return out
+
+
+@numba.njit(cache=True)
+def _slopes(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos, hx,
+            hy, heights, elevation):
+    """(K,) inside, and the surface's d depth / d north and d depth / d east below (K,)
+    MuJoCo x, y (those of the terrain's corner outside it)."""
+    inside = np.empty(len(x), dtype=np.bool_)
+    d_north, d_east = np.empty(len(x)), np.empty(len(x))
+    for i in range(len(x)):
+        inside[i], elev, z, fu, fv, h00, side, h11 = _locate(
+            x[i], y[i], x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos,
+            hx, hy, heights, elevation)
+        # The triangle's height gradient along the fractional column u and row v (linear
+        # in each triangle), then in metres: u grows northward, v westward.
+        if fu >= fv:
+            dh_du, dh_dv = side - h00, h11 - side
+        else:
+            dh_du, dh_dv = h11 - side, side - h00
+        d_north[i] = -elev * dh_du * cols / (2.0 * hx)
+        d_east[i] = elev * dh_dv * rows / (2.0 * hy)  # (v runs west)
+    return inside, d_north, d_east
 
 
 def _tile_view(grid: np.ndarray, tile_cells: tuple[int, int]) -> np.ndarray:
