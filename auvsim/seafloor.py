@@ -67,6 +67,8 @@ MAX_NOISE_CELLS = 2048  # per side: 32 MB of float64 (and the FFT's scratch) at 
 MAX_HEIGHTMAP_VERTICES = 4096 * 4096
 BASE = 1.0  # m, thickness of the solid box MuJoCo puts under an hfield
 EDGE = 1e-6  # m: hits this close to the terrain's edge are on its side walls
+_GROUPS = np.zeros(6, dtype=np.uint8)  # the geom groups a cast sees: GROUP alone
+_GROUPS[GROUP] = 1
 
 
 
@@ -271,16 +273,20 @@ class Seafloor:
         pts = np.asarray(north_east, dtype=float).reshape(-1, 2)
         if pts.size == 0:
             return
-        if not (math.isfinite(reach) and reach >= 0) or not np.isfinite(pts).all():
+        finite, n_min, e_min, n_max, e_max = _extent(pts)
+        if not (math.isfinite(reach) and reach >= 0) or not finite:
             raise ValueError(f"follow: expected finite positions and a reach >= 0 m, got "
                              f"reach {reach!r} and {np.count_nonzero(~np.isfinite(pts))} "
                              "non-finite coordinates")
-        lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
-        centre = np.array(self._centre) * self.cell
+        # In Python floats, the same operations as on numpy arrays: called every step.
+        lo_n, lo_e, hi_n, hi_e = n_min - reach, e_min - reach, n_max + reach, e_max + reach
+        centre_n, centre_e = self._centre[0] * self.cell, self._centre[1] * self.cell
         # Keep a cell clear of the edge, where hits count as side-wall hits.
         inner = (self._m - 1) * self.cell
-        if np.all(lo >= centre - inner) and np.all(hi <= centre + inner):
+        if (lo_n >= centre_n - inner and lo_e >= centre_e - inner
+                and hi_n <= centre_n + inner and hi_e <= centre_e + inner):
             return
+        lo, hi = np.array([lo_n, lo_e]), np.array([hi_n, hi_e])
         if np.any(hi - lo > 2 * inner - self.cell):
             raise ValueError(
                 f"follow: the positions and their {reach:g} m reach span "
@@ -367,10 +373,8 @@ class Seafloor:
         vectors = directions.reshape(k_points, 3 * beams)
         dist = np.empty((k_points, beams))
         geom = np.empty((k_points, beams), dtype=np.int32)
-        group = np.zeros(6, dtype=np.uint8)
-        group[GROUP] = 1
         for k in range(k_points):
-            mujoco.mj_multiRay(model, data, origins[k], vectors[k], group, 1, exclude_body,
+            mujoco.mj_multiRay(model, data, origins[k], vectors[k], _GROUPS, 1, exclude_body,
                                geom[k], dist[k], None, beams, max_range)
         dist[(dist < 0) | (dist > max_range)] = np.nan
         if self.kind != "flat":
@@ -415,6 +419,19 @@ def _locate(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, ti
     else:
         side = np.float64(heights[k + cols + 1])
     return inside, elevation[a, b], tile_pos[a, b, 2], fu, fv, h00, side, h11
+
+
+@numba.njit(cache=True)
+def _extent(points):
+    """Whether (K, 2) points (K > 0) are all finite, and their smallest and largest first
+    and second coordinates (meaningless unless finite)."""
+    lo0, lo1, hi0, hi1 = points[0, 0], points[0, 1], points[0, 0], points[0, 1]
+    finite = True
+    for i in range(len(points)):
+        p0, p1 = points[i, 0], points[i, 1]
+        finite = finite and math.isfinite(p0) and math.isfinite(p1)
+        lo0, lo1, hi0, hi1 = min(lo0, p0), min(lo1, p1), max(hi0, p0), max(hi1, p1)
+    return finite, lo0, lo1, hi0, hi1
 
 
 @numba.njit(cache=True)

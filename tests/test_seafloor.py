@@ -330,3 +330,27 @@ def test_the_compiled_depth_and_normal_are_numpys_bit_for_bit(tmp_path):
         one = floor.depth_at(float(north[0]), float(east[0]))
         assert one.shape == () and one.tobytes() == numpy_surface(
             floor, north[0], east[0])[0].tobytes()
+
+
+def test_follow_recentres_exactly_when_numpy_said_it_must():
+    floor = procedural()
+    rng = np.random.default_rng(6)
+    inner = (floor._m - 1) * floor.cell
+    outcomes = set()
+    for _ in range(400):
+        centre = np.array(floor._centre) * floor.cell
+        # Points whose reach ends within a few 1e-13 m of the window's kept edge.
+        edge = centre + rng.choice([-1, 1], 2) * inner
+        reach = float(rng.choice([0.0, 37.5, 90.0 * math.sin(math.radians(30))]))
+        points = edge - np.sign(edge - centre) * reach + rng.normal(0, 1e-13, (3, 2))
+        lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
+        stays = bool(np.all(lo >= centre - inner) and np.all(hi <= centre + inner))
+        before = floor._centre
+        floor.follow(points, reach=reach)
+        assert (floor._centre == before) == stays
+        outcomes.add(stays)
+    assert outcomes == {False, True}
+    with pytest.raises(ValueError, match="non-finite"):
+        floor.follow(np.array([[0.0, np.nan]]), reach=10.0)
+    with pytest.raises(ValueError, match="reach"):
+        floor.follow(np.zeros((1, 2)), reach=math.inf)
