@@ -380,11 +380,7 @@ class Seafloor:
         if self.kind != "flat":
             # MuJoCo's hfields are solids: a beam can hit the side walls or the base of
             # the terrain's edge tiles, or the padding of a heightmap, none of it seafloor.
-            x, y = (origins[:, None, :2] + dist[..., None] * directions[..., :2]).T
-            x_lo, x_hi, y_lo, y_hi = self._cover
-            inside = ((x > x_lo + EDGE) & (x < x_hi - EDGE)
-                      & (y > y_lo + EDGE) & (y < y_hi - EDGE)).T
-            dist[np.isin(geom, self._geoms) & ~inside] = np.nan
+            _drop_off_terrain(dist, geom, origins, directions, self._geoms, *self._cover)
         return dist
 
 
@@ -432,6 +428,23 @@ def _extent(points):
         finite = finite and math.isfinite(p0) and math.isfinite(p1)
         lo0, lo1, hi0, hi1 = min(lo0, p0), min(lo1, p1), max(hi0, p0), max(hi1, p1)
     return finite, lo0, lo1, hi0, hi1
+
+
+@numba.njit(cache=True)
+def _drop_off_terrain(dist, geom, origins, directions, geoms, x_lo, x_hi, y_lo, y_hi):
+    """Set to NaN, in place, the (K, B) ranges ``dist`` whose hit on one of the hfield
+    ``geoms`` (their ids, ``geom`` (K, B)) lies within ``EDGE`` of the terrain's edge or
+    beyond (side walls, base, padding), from MuJoCo origins (K, 3) and directions
+    (K, B, 3)."""
+    for k in range(dist.shape[0]):
+        for j in range(dist.shape[1]):
+            if geom[k, j] not in geoms:
+                continue
+            x = origins[k, 0] + dist[k, j] * directions[k, j, 0]
+            y = origins[k, 1] + dist[k, j] * directions[k, j, 1]
+            if not (x > x_lo + EDGE and x < x_hi - EDGE and y > y_lo + EDGE
+                    and y < y_hi - EDGE):
+                dist[k, j] = np.nan
 
 
 @numba.njit(cache=True)

@@ -96,6 +96,14 @@ class Mode(enum.IntEnum):
     WATER_TRACK = 1  # bottom lock lost, velocity relative to a water layer (water_track)
 
 
+# The codes as plain ints, for numpy: it takes an IntEnum member by a slow path (a few us
+# per comparison or np.where, on the one ping of an environment step).
+_OK, _DROPOUT, _OUTLIER = int(Status.OK), int(Status.DROPOUT), int(Status.OUTLIER)
+_PING_DROPOUT, _BEAM_FAILED = int(Status.PING_DROPOUT), int(Status.BEAM_FAILED)
+_NO_VELOCITY, _BOTTOM_TRACK = int(Mode.NO_VELOCITY), int(Mode.BOTTOM_TRACK)
+_WATER_TRACK = int(Mode.WATER_TRACK)
+
+
 class DvlCalibration(NamedTuple):
     """The realised calibration errors of one mission (stream ``dvl_calibration``)."""
 
@@ -133,8 +141,30 @@ def beam_noise_std(ranges: np.ndarray, speed: np.ndarray, config: DvlConfig) -> 
         speed: (M,) |v| of the velocity the beams measure, m/s.
         config: the coefficients.
     """
-    return (config.noise_std + config.noise_range_coeff * np.nan_to_num(ranges)
+    return (config.noise_std + config.noise_range_coeff * _nan_to_zero(ranges)
             + config.noise_speed_coeff * speed[:, None])
+
+
+def _nan_to_zero(x: np.ndarray) -> np.ndarray:
+    """``np.nan_to_num(x)`` (NaN -> 0, +-inf -> +-the largest float), compiled for the
+    float64 arrays of ranges, where numpy's overhead on a few values dominates."""
+    if not (isinstance(x, np.ndarray) and x.dtype == np.float64):
+        return np.nan_to_num(x)
+    return _nan_to_zero_loop(x.reshape(-1)).reshape(x.shape)
+
+
+@numba.njit(cache=True)
+def _nan_to_zero_loop(x: np.ndarray) -> np.ndarray:
+    out = np.empty(len(x))
+    big = np.finfo(np.float64).max
+    for i in range(len(x)):
+        v = x[i]
+        if math.isnan(v):
+            v = 0.0
+        elif math.isinf(v):
+            v = big if v > 0 else -big
+        out[i] = v
+    return out
 
 
 def logistic(x: np.ndarray, middle: float, width: float) -> np.ndarray:
@@ -145,7 +175,7 @@ def logistic(x: np.ndarray, middle: float, width: float) -> np.ndarray:
 
 def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
                     burst: float) -> np.ndarray:
-    """Dropout bursts: each beam a two-state Markov chain over pings, vectorised.
+    """Dropout bursts: each beam a two-state Markov chain over pings.
 
     A beam in lock enters a burst with probability ``p = rate / (burst (1 - rate))`` per
     ping and a beam in a burst leaves it with probability ``1 / burst``, so bursts last
@@ -153,11 +183,8 @@ def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
     ``p / (p + 1 / burst) = rate``.
 
     With one uniform u per beam and ping, the next state is ``u < p`` from lock and
-    ``u < 1 - 1/burst`` from a burst. Where both agree the ping sets the state whatever it
-    was; where they differ the ping keeps the state (when ``p < 1 - 1/burst``) or flips
-    it (when ``p > 1 - 1/burst``). So the state at a ping is that of the last setting ping
-    (or ``state``), flipped once per flipping ping since: cumulative maxima and sums, no
-    loop over pings.
+    ``u < 1 - 1/burst`` from a burst: a compiled loop over the pings (the chain's states
+    are booleans, so any way of computing them gives the same ones).
 
     Args:
         u: (M, 4) uniforms in [0, 1), one per ping and beam.
@@ -169,17 +196,21 @@ def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
     """
     if rate == 0:
         return np.zeros(u.shape, dtype=bool)
-    enter = u < rate / (burst * (1.0 - rate))
-    stay = u < 1.0 - 1.0 / burst
-    setting = enter == stay  # both say burst, or both say lock
-    flip = enter & ~stay
-    index = np.arange(len(u))[:, None]
-    last = np.maximum.accumulate(np.where(setting, index, -1), axis=0)  # -1: none yet
-    at = np.maximum(last, 0)
-    flips = np.cumsum(flip, axis=0)
-    value = np.where(last >= 0, np.take_along_axis(enter, at, axis=0), state)
-    since = flips - np.where(last >= 0, np.take_along_axis(flips, at, axis=0), 0)
-    return value ^ (since % 2 == 1)
+    return _dropout_chain(u, np.asarray(state, dtype=bool), rate / (burst * (1.0 - rate)),
+                          1.0 - 1.0 / burst)
+
+
+@numba.njit(cache=True)
+def _dropout_chain(u: np.ndarray, state: np.ndarray, p_enter: float,
+                   p_stay: float) -> np.ndarray:
+    """(M, 4) bool: ``markov_dropouts``'s chain, ping by ping, from (4,) ``state``."""
+    out = np.empty(u.shape, dtype=np.bool_)
+    s = state.copy()
+    for m in range(u.shape[0]):
+        for k in range(u.shape[1]):
+            s[k] = u[m, k] < p_stay if s[k] else u[m, k] < p_enter
+            out[m, k] = s[k]
+    return out
 
 
 def in_intervals(time: np.ndarray, intervals) -> np.ndarray:
@@ -206,7 +237,7 @@ def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
         dropout: (M, 4) bool, inside a dropout burst (``markov_dropouts``).
     """
     c = config
-    status = np.where(dropout, Status.DROPOUT, Status.OK).astype(np.int64)
+    status = np.where(dropout, _DROPOUT, _OK).astype(np.int64)
     if c.echo_loss_range is not None:
         lost = u[:, 0:4] < logistic(ranges, c.echo_loss_range, c.echo_loss_width)
         status[lost] = Status.ECHO_LOST
@@ -243,9 +274,15 @@ def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
         beams: (M, 4) measured beam velocities, m/s.
         h: (4, 3) beam matrix (its beam angle).
     """
-    sin_alpha = float(np.hypot(h[0, 0], h[0, 1]))
-    d = 1.0 / (2.0 * math.sqrt(2.0) * sin_alpha)
+    key = h.tobytes()
+    if key not in _ERROR_SCALE:  # numpy's scalar arithmetic costs more than the rest
+        sin_alpha = float(np.hypot(h[0, 0], h[0, 1]))
+        _ERROR_SCALE[key] = 1.0 / (2.0 * math.sqrt(2.0) * sin_alpha)
+    d = _ERROR_SCALE[key]
     return d * ((beams[:, 0] + beams[:, 2]) - (beams[:, 1] + beams[:, 3]))
+
+
+_ERROR_SCALE: dict[bytes, float] = {}  # a few entries: beam matrix -> error_velocity's d
 
 
 def measure(beam_velocity: np.ndarray, valid: np.ndarray, *, errors: DvlErrors,
@@ -465,7 +502,6 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
     noise = noise_std * rng.standard_normal(beams_true.shape)  # as eq. 7 draws it
     if e.extra_noise is not None:
         noise = noise + e.extra_noise
-    # Plain ints for the codes: an enum member costs a slow class attribute look-up.
     mode = np.where(valid.sum(axis=1) >= 3, _BOTTOM_TRACK, _NO_VELOCITY)
     signal = beams_true
     if e.water_velocity is not None:
@@ -485,11 +521,6 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
     return dict(velocity=velocity, beam_velocity_true=beams_true, beam_velocity=beams,
                 valid=valid, velocity_ls=least_squares(beams, h), status=status,
                 mode=mode.astype(np.int64), error_velocity=error_velocity(beams, h))
-
-
-_NO_VELOCITY, _BOTTOM_TRACK = int(Mode.NO_VELOCITY), int(Mode.BOTTOM_TRACK)
-_WATER_TRACK = int(Mode.WATER_TRACK)
-_OUTLIER = int(Status.OUTLIER)
 
 
 def config_attrs(config: DvlConfig, errors: DvlErrors) -> dict[str, object]:
@@ -631,7 +662,7 @@ class Dvl(Sensor):
         ranges = seafloor.cast(vehicle.model, self.platform.ray_data, origins, directions,
                                max_range=c.max_range, exclude_body=vehicle.body_id)
         effects = self.effects(time, velocity, ranges, origins, directions, rotation)
-        fields = ping(velocity, effects.status == Status.OK, h=self.geometry.h,
+        fields = ping(velocity, effects.status == _OK, h=self.geometry.h,
                       errors=self.errors, noise_std=c.noise_std, rng=rng, effects=effects)
         out = {"dvl/time": time}
         out.update((f"dvl/{k}", v) for k, v in fields.items())
@@ -651,7 +682,7 @@ class Dvl(Sensor):
         t = self.heavy.standard_t(3, (m, 4))
         incidence = None
         if c.grazing_loss_angle_deg is not None:
-            hits = origins[:, None, :] + np.nan_to_num(ranges)[..., None] * directions
+            hits = origins[:, None, :] + _nan_to_zero(ranges)[..., None] * directions
             normal = self.platform.seafloor.normal_at(hits[..., 0], hits[..., 1])
             cos_incidence = np.clip(-np.einsum("mki,mki->mk", directions, normal), -1, 1)
             incidence = np.where(np.isfinite(ranges), np.degrees(np.arccos(cos_incidence)),
@@ -675,7 +706,7 @@ class Dvl(Sensor):
             layer = c.water_track_range / np.where(directions[..., 2] > 0,
                                                    directions[..., 2], np.nan)
             water_lock = ((~np.isfinite(ranges) | (ranges > layer)) & np.isfinite(layer)
-                          & (status != Status.PING_DROPOUT) & (status != Status.BEAM_FAILED))
+                          & (status != _PING_DROPOUT) & (status != _BEAM_FAILED))
         return Effects(status=status, sound_speed_ratio=self.calibration.sound_speed_ratio,
                        extra_noise=extra,
                        outlier=u[:, 13:17] < c.outlier_rate if c.outlier_rate > 0 else None,
