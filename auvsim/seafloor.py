@@ -308,6 +308,10 @@ class Seafloor:
             MuJoCo currently holds (the heightmap, or the procedural window).
         """
         if self.kind == "flat":  # first: the environment asks once a step
+            if (isinstance(north, np.ndarray) and isinstance(east, np.ndarray)
+                    and north.dtype == east.dtype == np.float64 and north.ndim == 1
+                    and north.shape == east.shape):  # the altitude's, compiled
+                return _flat_depths(north, east, float(self.config.depth))
             finite = np.isfinite(np.asarray(north, dtype=float)) & np.isfinite(
                 np.asarray(east, dtype=float))
             return np.where(finite, self.config.depth, np.nan)
@@ -376,7 +380,7 @@ class Seafloor:
         for k in range(k_points):
             mujoco.mj_multiRay(model, data, origins[k], vectors[k], _GROUPS, 1, exclude_body,
                                geom[k], dist[k], None, beams, max_range)
-        dist[(dist < 0) | (dist > max_range)] = np.nan
+        _drop_misses(dist, max_range)
         if self.kind != "flat":
             # MuJoCo's hfields are solids: a beam can hit the side walls or the base of
             # the terrain's edge tiles, or the padding of a heightmap, none of it seafloor.
@@ -415,6 +419,26 @@ def _locate(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, ti
     else:
         side = np.float64(heights[k + cols + 1])
     return inside, elevation[a, b], tile_pos[a, b, 2], fu, fv, h00, side, h11
+
+
+@numba.njit(cache=True)
+def _flat_depths(north, east, depth):
+    """(K,) ``depth`` below (K,) NED positions where both are finite, else NaN."""
+    out = np.empty(len(north))
+    for i in range(len(north)):
+        finite = math.isfinite(north[i]) and math.isfinite(east[i])
+        out[i] = depth if finite else np.nan
+    return out
+
+
+@numba.njit(cache=True)
+def _drop_misses(dist, max_range):
+    """Set to NaN, in place, the (K, B) ranges of MuJoCo's ray casts that missed (-1) or
+    hit beyond ``max_range``."""
+    for k in range(dist.shape[0]):
+        for j in range(dist.shape[1]):
+            if dist[k, j] < 0 or dist[k, j] > max_range:
+                dist[k, j] = np.nan
 
 
 @numba.njit(cache=True)

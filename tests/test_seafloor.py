@@ -354,3 +354,12 @@ def test_follow_recentres_exactly_when_numpy_said_it_must():
         floor.follow(np.array([[0.0, np.nan]]), reach=10.0)
     with pytest.raises(ValueError, match="reach"):
         floor.follow(np.zeros((1, 2)), reach=math.inf)
+
+
+def test_a_flat_floors_compiled_depth_is_numpys():
+    floor = Seafloor(SeafloorConfig(kind="flat", depth=60.0))
+    north = np.array([0.0, np.nan, 1.0, np.inf, -3.0, 5.0])
+    east = np.array([1.0, 2.0, np.nan, 0.0, -np.inf, -0.0])
+    expected = np.where(np.isfinite(north) & np.isfinite(east), 60.0, np.nan)
+    assert floor.depth_at(north, east).tobytes() == expected.tobytes()
+    assert floor.depth_at(north[::2], east[::2]).tobytes() == expected[::2].tobytes()

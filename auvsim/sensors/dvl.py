@@ -667,8 +667,9 @@ class Dvl(Sensor):
         out = {"dvl/time": time}
         out.update((f"dvl/{k}", v) for k, v in fields.items())
         out["dvl/beam_range"] = ranges
-        out["imu/index_of_dvl"] = (truth.first + rows.start
-                                   + self.every_imu * np.arange(len(velocity), dtype=np.int64))
+        first = truth.first + rows.start
+        out["imu/index_of_dvl"] = np.arange(first, first + self.every_imu * len(velocity),
+                                            self.every_imu, dtype=np.int64)
         return out
 
     def effects(self, time: np.ndarray, velocity: np.ndarray, ranges: np.ndarray,
