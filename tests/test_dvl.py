@@ -206,3 +206,33 @@ def test_the_environments_small_blocks_give_generates_60_s_blocks(config):
         seen = set(large["dvl/status"].ravel().tolist())
         assert {Status.OK, Status.DROPOUT, Status.BEAM_FAILED, Status.LOCK_LOST} <= seen
         assert (large["dvl/mode"] == Mode.WATER_TRACK).any()
+
+
+def test_the_compiled_helpers_give_numpys_bits():
+    """The DVL's compiled elementwise loops against the numpy expressions they replaced,
+    on many random inputs (with NaN and infinities where a ping may have them)."""
+    from auvsim.sensors import dvl
+
+    rng = np.random.default_rng(8)
+    for m in (1, 2, 60, 1000):
+        q = rng.normal(size=(m, 4))
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        assert dvl._rotation_matrices(q).tobytes() == rotation_matrices(q).tobytes()
+        v, w, r = rng.normal(size=(m, 3)), rng.normal(size=(m, 3)), rng.normal(size=3)
+        cross = np.stack([w[:, 1] * r[2] - w[:, 2] * r[1], w[:, 2] * r[0] - w[:, 0] * r[2],
+                          w[:, 0] * r[1] - w[:, 1] * r[0]], axis=-1)
+        assert dvl._add_cross(v, w, r).tobytes() == (v + cross).tobytes()
+        d = rng.normal(size=(m, 4, 3))
+        assert dvl._longest_horizontal(d) == np.linalg.norm(d[..., :2], axis=-1).max()
+        signal, noise = rng.normal(size=(m, 4)), rng.normal(0, 0.02, (m, 4))
+        signal[rng.random((m, 4)) < 0.1] = np.nan
+        scale, bias, ratio = rng.normal(0, 0.01, 4), rng.normal(0, 0.001, 4), 1.003
+        y = (1.0 + scale) * (signal / ratio) + bias + noise
+        assert dvl._measured_beams(signal, scale, bias, ratio, noise).tobytes() == y.tobytes()
+        valid = rng.random((m, 4)) < 0.7
+        np.testing.assert_array_equal(dvl._three_or_more(valid), valid.sum(axis=1) >= 3)
+        ranges = rng.uniform(0, 90, (m, 4))
+        ranges[rng.random((m, 4)) < 0.2] = rng.choice([np.nan, np.inf, -np.inf])
+        assert dvl._nan_to_zero(ranges).tobytes() == np.nan_to_num(ranges).tobytes()
+    d[0, 0, 0] = np.nan
+    assert math.isnan(dvl._longest_horizontal(d))

@@ -403,6 +403,30 @@ def _add_cross(v: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _three_or_more(valid: np.ndarray) -> np.ndarray:
+    """(M,) bool: at least 3 of a row's (M, 4) bool beams (``valid.sum(axis=1) >= 3``)."""
+    out = np.empty(valid.shape[0], dtype=np.bool_)
+    for m in range(valid.shape[0]):
+        count = 0
+        for k in range(valid.shape[1]):
+            count += valid[m, k]
+        out[m] = count >= 3
+    return out
+
+
+@numba.njit(cache=True)
+def _measured_beams(signal: np.ndarray, scale: np.ndarray, bias: np.ndarray, ratio: float,
+                    noise: np.ndarray) -> np.ndarray:
+    """(M, 4) ``(1 + scale) (signal / ratio) + bias + noise`` of (M, 4) signal and noise,
+    (4,) scale factors and biases, and the sound-speed ratio, m/s."""
+    out = np.empty(signal.shape)
+    for m in range(signal.shape[0]):
+        for k in range(signal.shape[1]):
+            out[m, k] = (1.0 + scale[k]) * (signal[m, k] / ratio) + bias[k] + noise[m, k]
+    return out
+
+
+@numba.njit(cache=True)
 def _rotation_matrices(q: np.ndarray) -> np.ndarray:
     """(M, 3, 3) body -> NED rotations of (M, 4) unit quaternions [w, x, y, z]: the
     formula of ``auvsim.frames.rotation_matrices``, row by row."""
@@ -502,15 +526,15 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
     noise = noise_std * rng.standard_normal(beams_true.shape)  # as eq. 7 draws it
     if e.extra_noise is not None:
         noise = noise + e.extra_noise
-    mode = np.where(valid.sum(axis=1) >= 3, _BOTTOM_TRACK, _NO_VELOCITY)
+    mode = np.where(_three_or_more(valid), _BOTTOM_TRACK, _NO_VELOCITY)
     signal = beams_true
     if e.water_velocity is not None:
-        water = (mode != _BOTTOM_TRACK) & ((e.water_lock & finite[:, None]).sum(axis=1) >= 3)
+        water = (mode != _BOTTOM_TRACK) & _three_or_more(e.water_lock & finite[:, None])
         mode = np.where(water, _WATER_TRACK, mode)
         valid = np.where(water[:, None], e.water_lock & finite[:, None], valid)
         signal = np.where(water[:, None], true_beams(velocity - e.water_velocity, h), signal)
         noise = np.where(water[:, None], e.water_noise, noise)
-    y = (1.0 + errors.scale_factor) * (signal / e.sound_speed_ratio) + errors.bias + noise
+    y = _measured_beams(signal, errors.scale_factor, errors.bias, e.sound_speed_ratio, noise)
     if e.outlier is None:
         status = e.status.astype(np.int64)
     else:
