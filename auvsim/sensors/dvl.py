@@ -155,6 +155,7 @@ def _nan_to_zero(x: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _nan_to_zero_loop(x: np.ndarray) -> np.ndarray:
+    """``np.nan_to_num`` of a (K,) float64 array."""
     out = np.empty(len(x))
     big = np.finfo(np.float64).max
     for i in range(len(x)):
@@ -245,7 +246,7 @@ def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
         lost = u[:, 4:8] < logistic(incidence_deg, c.grazing_loss_angle_deg,
                                     c.grazing_loss_width_deg)
         status[lost] = Status.GRAZING
-    if c.lock_loss_intervals:  # (the environment's one ping a step skips what does nothing)
+    if c.lock_loss_intervals:  # (none: nothing to mark, and the mask costs a few us)
         status[in_intervals(time, c.lock_loss_intervals)] = Status.LOCK_LOST
     status[ranges < c.min_range] = Status.TOO_NEAR
     status[~np.isfinite(ranges)] = Status.NO_HIT
@@ -382,7 +383,7 @@ def true_beams(velocity: np.ndarray, h: np.ndarray) -> np.ndarray:
     ping whose velocity is not finite (a dropout in a recorded stream)."""
     finite = np.isfinite(velocity).all(axis=1)
     if finite.all():  # a simulated mission's: the same product without the NaN handling
-        return np.ascontiguousarray(velocity) @ h.T  # (a copy, as nan_to_num's was)
+        return np.ascontiguousarray(velocity) @ h.T  # C-ordered, as nan_to_num's copy was
     return np.where(finite[:, None], np.nan_to_num(velocity) @ h.T, np.nan)
 
 
