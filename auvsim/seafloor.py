@@ -35,6 +35,7 @@ import math
 from pathlib import Path
 
 import mujoco
+import numba
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
@@ -66,6 +67,8 @@ MAX_NOISE_CELLS = 2048  # per side: 32 MB of float64 (and the FFT's scratch) at 
 MAX_HEIGHTMAP_VERTICES = 4096 * 4096
 BASE = 1.0  # m, thickness of the solid box MuJoCo puts under an hfield
 EDGE = 1e-6  # m: hits this close to the terrain's edge are on its side walls
+_GROUPS = np.zeros(6, dtype=np.uint8)  # the geom groups a cast sees: GROUP alone
+_GROUPS[GROUP] = 1
 
 
 
@@ -270,16 +273,20 @@ class Seafloor:
         pts = np.asarray(north_east, dtype=float).reshape(-1, 2)
         if pts.size == 0:
             return
-        if not (math.isfinite(reach) and reach >= 0) or not np.isfinite(pts).all():
+        finite, n_min, e_min, n_max, e_max = _extent(pts)
+        if not (math.isfinite(reach) and reach >= 0) or not finite:
             raise ValueError(f"follow: expected finite positions and a reach >= 0 m, got "
                              f"reach {reach!r} and {np.count_nonzero(~np.isfinite(pts))} "
                              "non-finite coordinates")
-        lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
-        centre = np.array(self._centre) * self.cell
+        # In Python floats, the same operations as on numpy arrays: called every step.
+        lo_n, lo_e, hi_n, hi_e = n_min - reach, e_min - reach, n_max + reach, e_max + reach
+        centre_n, centre_e = self._centre[0] * self.cell, self._centre[1] * self.cell
         # Keep a cell clear of the edge, where hits count as side-wall hits.
         inner = (self._m - 1) * self.cell
-        if np.all(lo >= centre - inner) and np.all(hi <= centre + inner):
+        if (lo_n >= centre_n - inner and lo_e >= centre_e - inner
+                and hi_n <= centre_n + inner and hi_e <= centre_e + inner):
             return
+        lo, hi = np.array([lo_n, lo_e]), np.array([hi_n, hi_e])
         if np.any(hi - lo > 2 * inner - self.cell):
             raise ValueError(
                 f"follow: the positions and their {reach:g} m reach span "
@@ -301,17 +308,18 @@ class Seafloor:
             MuJoCo currently holds (the heightmap, or the procedural window).
         """
         if self.kind == "flat":  # first: the environment asks once a step
+            if (isinstance(north, np.ndarray) and isinstance(east, np.ndarray)
+                    and north.dtype == east.dtype == np.float64 and north.ndim == 1
+                    and north.shape == east.shape):  # the altitude's, compiled
+                return _flat_depths(north, east, float(self.config.depth))
             finite = np.isfinite(np.asarray(north, dtype=float)) & np.isfinite(
                 np.asarray(east, dtype=float))
             return np.where(finite, self.config.depth, np.nan)
         x, y = np.broadcast_arrays(np.asarray(north, dtype=float),
                                    -np.asarray(east, dtype=float))
-        inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
-        upper = fu >= fv  # the triangle with vertex (r, c + 1)
-        big, small = np.where(upper, fu, fv), np.where(upper, fv, fu)
-        height = h00 + (side - h00) * big + (h11 - side) * small
-        depth = -(pos[..., 2] + height * self._elevation[a, b])
-        return np.where(inside, depth, np.nan)
+        depth = _depths(np.ascontiguousarray(x).reshape(-1),
+                        np.ascontiguousarray(y).reshape(-1), *self._grid())
+        return depth.reshape(x.shape)
 
     def normal_at(self, north: np.ndarray, east: np.ndarray) -> np.ndarray:
         """Unit normal of the ray-cast surface below NED horizontal positions, pointing up
@@ -328,46 +336,20 @@ class Seafloor:
         if self.kind == "flat":
             up = np.where((np.isfinite(x) & np.isfinite(y))[..., None], 1.0, np.nan)
             return up * np.array([0.0, 0.0, -1.0])
-        inside, a, b, pos, fu, fv, h00, side, h11 = self._triangle(x, y)
-        (rows, cols), (hx, hy) = self._tile_cells, self._half
-        upper = fu >= fv
-        # The triangle's height gradient along the fractional column u and row v (linear
-        # in each triangle), then in metres: u grows northward, v westward.
-        dh_du = np.where(upper, side - h00, h11 - side)
-        dh_dv = np.where(upper, h11 - side, side - h00)
-        elevation = self._elevation[a, b]
-        d_north = -elevation * dh_du * cols / (2.0 * hx)  # d depth / d north
-        d_east = elevation * dh_dv * rows / (2.0 * hy)  # d depth / d east (v runs west)
+        inside, d_north, d_east = _slopes(np.ascontiguousarray(x).reshape(-1),
+                                          np.ascontiguousarray(y).reshape(-1), *self._grid())
+        inside, d_north, d_east = (v.reshape(x.shape) for v in (inside, d_north, d_east))
         # The surface z = depth(n, e): its upward normal is (d_n, d_e, -1), normalised.
         normal = np.stack([d_north, d_east, -np.ones_like(d_north)], axis=-1)
         normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
         return np.where(inside[..., None], normal, np.nan)
 
-    def _triangle(self, x: np.ndarray, y: np.ndarray) -> tuple:
-        """Where MuJoCo's x, y (north, west) fall on the terrain: inside (bool), the tile
-        (a, b) and its position, the fractional position (fu, fv) in the cell, and the
-        three vertex heights of its triangle (h00, the side vertex, h11)."""
-        x_lo, x_hi, y_lo, y_hi = self._cover
-        inside = (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
-        x, y = np.where(inside, x, x_lo), np.where(inside, y, y_lo)
-        (rows, cols), (n_a, n_b), cell = self._tile_cells, self._tiles, self.cell
-        a = np.clip(((y - self._origin[1]) // (rows * cell)).astype(np.intp), 0, n_a - 1)
-        b = np.clip(((x - self._origin[0]) // (cols * cell)).astype(np.intp), 0, n_b - 1)
-        # From here on the same arithmetic as MuJoCo's mj_rayHfield, in the tile's frame.
-        pos = self._tile_pos[a, b]
-        hx, hy = self._half
-        u = (x - pos[..., 0] + hx) / (2.0 * hx / cols)  # fractional column
-        v = (y - pos[..., 1] + hy) / (2.0 * hy / rows)  # fractional row
-        c = np.clip(np.floor(u), 0, cols - 1).astype(np.intp)
-        r = np.clip(np.floor(v), 0, rows - 1).astype(np.intp)
-        fu, fv = u - c, v - r
-        flat = self._heights.ravel()
-        k = ((a * n_b + b) * (rows + 1) + r) * (cols + 1) + c
-        h00, h11 = flat[k].astype(float), flat[k + cols + 2].astype(float)
-        # Two triangles per cell, split along the (r, c) - (r + 1, c + 1) diagonal.
-        upper = fu >= fv  # the triangle with vertex (r, c + 1)
-        side = np.where(upper, flat[k + 1], flat[k + cols + 1]).astype(float)
-        return inside, a, b, pos, fu, fv, h00, side, h11
+    def _grid(self) -> tuple:
+        """The terrain as ``_locate`` takes it: cover, origin, tile and cell counts, tile
+        positions and half sizes, the heights (flat, float32) and the elevation ranges."""
+        (rows, cols), (n_a, n_b), (hx, hy) = self._tile_cells, self._tiles, self._half
+        return (*self._cover, *self._origin, rows, cols, n_a, n_b, self.cell,
+                self._tile_pos, hx, hy, self._heights.reshape(-1), self._elevation)
 
     def cast(self, model: mujoco.MjModel, data: mujoco.MjData, origins_ned: np.ndarray,
              directions_ned: np.ndarray, *, max_range: float, exclude_body: int) -> np.ndarray:
@@ -395,21 +377,138 @@ class Seafloor:
         vectors = directions.reshape(k_points, 3 * beams)
         dist = np.empty((k_points, beams))
         geom = np.empty((k_points, beams), dtype=np.int32)
-        group = np.zeros(6, dtype=np.uint8)
-        group[GROUP] = 1
         for k in range(k_points):
-            mujoco.mj_multiRay(model, data, origins[k], vectors[k], group, 1, exclude_body,
+            mujoco.mj_multiRay(model, data, origins[k], vectors[k], _GROUPS, 1, exclude_body,
                                geom[k], dist[k], None, beams, max_range)
-        dist[(dist < 0) | (dist > max_range)] = np.nan
+        _drop_misses(dist, max_range)
         if self.kind != "flat":
             # MuJoCo's hfields are solids: a beam can hit the side walls or the base of
             # the terrain's edge tiles, or the padding of a heightmap, none of it seafloor.
-            x, y = (origins[:, None, :2] + dist[..., None] * directions[..., :2]).T
-            x_lo, x_hi, y_lo, y_hi = self._cover
-            inside = ((x > x_lo + EDGE) & (x < x_hi - EDGE)
-                      & (y > y_lo + EDGE) & (y < y_hi - EDGE)).T
-            dist[np.isin(geom, self._geoms) & ~inside] = np.nan
+            _drop_off_terrain(dist, geom, origins, directions, self._geoms, *self._cover)
         return dist
+
+
+# The surface queries, compiled: the environment asks for a few points a step, where
+# numpy's per-call overhead would dominate. Elementwise arithmetic in the order of the
+# numpy expressions they replaced (no fastmath), so the same bits.
+
+@numba.njit(cache=True)
+def _locate(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos, hx,
+            hy, heights, elevation):
+    """Where MuJoCo's x, y (north, west) fall on the terrain: inside (bool), the tile's
+    elevation range and its base's z, the fractional position (fu, fv) in the cell, and
+    the three vertex heights of its triangle (h00, the side vertex, h11); outside the
+    terrain, those of its (x_lo, y_lo) corner."""
+    inside = (x >= x_lo) and (x <= x_hi) and (y >= y_lo) and (y <= y_hi)
+    if not inside:
+        x, y = x_lo, y_lo
+    a = min(max(int((y - y0) // (rows * cell)), 0), n_a - 1)
+    b = min(max(int((x - x0) // (cols * cell)), 0), n_b - 1)
+    # From here on the same arithmetic as MuJoCo's mj_rayHfield, in the tile's frame.
+    u = (x - tile_pos[a, b, 0] + hx) / (2.0 * hx / cols)  # fractional column
+    v = (y - tile_pos[a, b, 1] + hy) / (2.0 * hy / rows)  # fractional row
+    c = int(min(max(math.floor(u), 0.0), cols - 1))
+    r = int(min(max(math.floor(v), 0.0), rows - 1))
+    fu, fv = u - c, v - r
+    k = ((a * n_b + b) * (rows + 1) + r) * (cols + 1) + c
+    # float64 before any arithmetic, as numpy's astype(float) (numba's float() keeps float32).
+    h00, h11 = np.float64(heights[k]), np.float64(heights[k + cols + 2])
+    # Two triangles per cell, split along the (r, c) - (r + 1, c + 1) diagonal.
+    if fu >= fv:  # the triangle with vertex (r, c + 1)
+        side = np.float64(heights[k + 1])
+    else:
+        side = np.float64(heights[k + cols + 1])
+    return inside, elevation[a, b], tile_pos[a, b, 2], fu, fv, h00, side, h11
+
+
+@numba.njit(cache=True)
+def _flat_depths(north, east, depth):
+    """(K,) ``depth`` below (K,) NED positions where both are finite, else NaN."""
+    out = np.empty(len(north))
+    for i in range(len(north)):
+        finite = math.isfinite(north[i]) and math.isfinite(east[i])
+        out[i] = depth if finite else np.nan
+    return out
+
+
+@numba.njit(cache=True)
+def _drop_misses(dist, max_range):
+    """Set to NaN, in place, the (K, B) ranges of MuJoCo's ray casts that missed (-1) or
+    hit beyond ``max_range``."""
+    for k in range(dist.shape[0]):
+        for j in range(dist.shape[1]):
+            if dist[k, j] < 0 or dist[k, j] > max_range:
+                dist[k, j] = np.nan
+
+
+@numba.njit(cache=True)
+def _extent(points):
+    """Whether (K, 2) points (K > 0) are all finite, and their smallest and largest first
+    and second coordinates (meaningless unless finite)."""
+    lo0, lo1, hi0, hi1 = points[0, 0], points[0, 1], points[0, 0], points[0, 1]
+    finite = True
+    for i in range(len(points)):
+        p0, p1 = points[i, 0], points[i, 1]
+        finite = finite and math.isfinite(p0) and math.isfinite(p1)
+        lo0, lo1, hi0, hi1 = min(lo0, p0), min(lo1, p1), max(hi0, p0), max(hi1, p1)
+    return finite, lo0, lo1, hi0, hi1
+
+
+@numba.njit(cache=True)
+def _drop_off_terrain(dist, geom, origins, directions, geoms, x_lo, x_hi, y_lo, y_hi):
+    """Set to NaN, in place, the (K, B) ranges ``dist`` whose hit on one of the hfield
+    ``geoms`` (their ids, ``geom`` (K, B)) lies within ``EDGE`` of the terrain's edge or
+    beyond (side walls, base, padding), from MuJoCo origins (K, 3) and directions
+    (K, B, 3)."""
+    for k in range(dist.shape[0]):
+        for j in range(dist.shape[1]):
+            if geom[k, j] not in geoms:
+                continue
+            x = origins[k, 0] + dist[k, j] * directions[k, j, 0]
+            y = origins[k, 1] + dist[k, j] * directions[k, j, 1]
+            if not (x > x_lo + EDGE and x < x_hi - EDGE and y > y_lo + EDGE
+                    and y < y_hi - EDGE):
+                dist[k, j] = np.nan
+
+
+@numba.njit(cache=True)
+def _depths(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos, hx,
+            hy, heights, elevation):
+    """(K,) depths, m, of the surface below (K,) MuJoCo x, y; NaN outside the terrain."""
+    out = np.empty(len(x))
+    for i in range(len(x)):
+        inside, elev, z, fu, fv, h00, side, h11 = _locate(
+            x[i], y[i], x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos,
+            hx, hy, heights, elevation)
+        if fu >= fv:  # the triangle with vertex (r, c + 1)
+            big, small = fu, fv
+        else:
+            big, small = fv, fu
+        height = h00 + (side - h00) * big + (h11 - side) * small
+        out[i] = -(z + height * elev) if inside else np.nan
+    return out
+
+
+@numba.njit(cache=True)
+def _slopes(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos, hx,
+            hy, heights, elevation):
+    """(K,) inside, and the surface's d depth / d north and d depth / d east below (K,)
+    MuJoCo x, y (those of the terrain's corner outside it)."""
+    inside = np.empty(len(x), dtype=np.bool_)
+    d_north, d_east = np.empty(len(x)), np.empty(len(x))
+    for i in range(len(x)):
+        inside[i], elev, z, fu, fv, h00, side, h11 = _locate(
+            x[i], y[i], x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, tile_pos,
+            hx, hy, heights, elevation)
+        # The triangle's height gradient along the fractional column u and row v (linear
+        # in each triangle), then in metres: u grows northward, v westward.
+        if fu >= fv:
+            dh_du, dh_dv = side - h00, h11 - side
+        else:
+            dh_du, dh_dv = h11 - side, side - h00
+        d_north[i] = -elev * dh_du * cols / (2.0 * hx)
+        d_east[i] = elev * dh_dv * rows / (2.0 * hy)  # (v runs west)
+    return inside, d_north, d_east
 
 
 def _tile_view(grid: np.ndarray, tile_cells: tuple[int, int]) -> np.ndarray:

@@ -63,8 +63,8 @@ def test_dropouts_have_the_configured_rate_and_mean_burst_length(rate, burst):
     """Over 200,000 pings per beam, the share in a burst and the mean burst length match
     the config within 3 sigma. For the chain's mean, sigma^2 = r (1 - r) / N (1 + l) /
     (1 - l), l = 1 - p_enter - p_leave its second eigenvalue; a burst's length is
-    geometric with variance b (b - 1). (0.4, 1.0) is the case where the vectorised chain
-    flips instead of keeps."""
+    geometric with variance b (b - 1). (0.4, 1.0) is the case where a ping whose two
+    thresholds disagree flips the state instead of keeping it."""
     n = 200_000
     u = np.random.default_rng(7).random((n, 4))
     bad = markov_dropouts(u, np.zeros(4, dtype=bool), rate=rate, burst=burst)
@@ -76,7 +76,7 @@ def test_dropouts_have_the_configured_rate_and_mean_burst_length(rate, burst):
     assert abs(lengths.mean() - burst) < 3 * math.sqrt(burst * (burst - 1) / len(lengths)) + 1e-12
 
 
-def test_vectorised_dropout_chain_is_the_chain_and_carries_over_blocks():
+def test_the_dropout_chain_is_the_chain_and_carries_over_blocks():
     rng = np.random.default_rng(3)
     for rate, burst in ((0.3, 4.0), (0.45, 1.2)):
         u = rng.random((500, 4))

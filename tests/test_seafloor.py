@@ -260,3 +260,106 @@ def test_bad_heightmap_files_are_config_errors_naming_the_file(tmp_path, content
         Seafloor(SeafloorConfig(kind="heightmap", heightmap=str(path)))
     message = str(err.value)
     assert str(path) in message and found in message and "\n" not in message
+
+
+# -- the compiled queries ----------------------------------------------------------------
+
+def numpy_surface(floor: Seafloor, north: np.ndarray, east: np.ndarray):
+    """``depth_at`` and ``normal_at`` as numpy computed them before they were compiled
+    (auvsim 7b6258e), the reference the compiled loops must match bit for bit."""
+    x, y = np.broadcast_arrays(np.asarray(north, dtype=float), -np.asarray(east, dtype=float))
+    x_lo, x_hi, y_lo, y_hi = floor._cover
+    inside = (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
+    x, y = np.where(inside, x, x_lo), np.where(inside, y, y_lo)
+    (rows, cols), (n_a, n_b), cell = floor._tile_cells, floor._tiles, floor.cell
+    a = np.clip(((y - floor._origin[1]) // (rows * cell)).astype(np.intp), 0, n_a - 1)
+    b = np.clip(((x - floor._origin[0]) // (cols * cell)).astype(np.intp), 0, n_b - 1)
+    pos = floor._tile_pos[a, b]
+    hx, hy = floor._half
+    u = (x - pos[..., 0] + hx) / (2.0 * hx / cols)
+    v = (y - pos[..., 1] + hy) / (2.0 * hy / rows)
+    c = np.clip(np.floor(u), 0, cols - 1).astype(np.intp)
+    r = np.clip(np.floor(v), 0, rows - 1).astype(np.intp)
+    fu, fv = u - c, v - r
+    flat = floor._heights.ravel()
+    k = ((a * n_b + b) * (rows + 1) + r) * (cols + 1) + c
+    h00, h11 = flat[k].astype(float), flat[k + cols + 2].astype(float)
+    upper = fu >= fv
+    side = np.where(upper, flat[k + 1], flat[k + cols + 1]).astype(float)
+    big, small = np.where(upper, fu, fv), np.where(upper, fv, fu)
+    height = h00 + (side - h00) * big + (h11 - side) * small
+    depth = np.where(inside, -(pos[..., 2] + height * floor._elevation[a, b]), np.nan)
+    dh_du = np.where(upper, side - h00, h11 - side)
+    dh_dv = np.where(upper, h11 - side, side - h00)
+    elevation = floor._elevation[a, b]
+    d_north = -elevation * dh_du * cols / (2.0 * hx)
+    d_east = elevation * dh_dv * rows / (2.0 * hy)
+    normal = np.stack([d_north, d_east, -np.ones_like(d_north)], axis=-1)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    return depth, np.where(inside[..., None], normal, np.nan)
+
+
+def test_the_compiled_depth_and_normal_are_numpys_bit_for_bit(tmp_path):
+    path = tmp_path / "map.npy"
+    np.save(path, tilted(303, 203, 2.0) + np.random.default_rng(4).normal(0, 0.3, (303, 203)))
+    floors = [procedural(), procedural(slope_deg=10.0, cell_size=0.5), procedural(seed=3),
+              Seafloor(SeafloorConfig(kind="heightmap", heightmap=str(path), cell_size=2.0))]
+    floors[2].follow(np.array([[3000.0, -2000.0]]), reach=100.0)  # a recentred window
+    rng = np.random.default_rng(5)
+    for floor in floors:
+        x_lo, x_hi, y_lo, y_hi = floor._cover
+        # Random points, inside and outside; the grid's vertices, cell edges and tile
+        # seams themselves, and a hair either side; the cover's edges; NaN and infinity.
+        north = rng.uniform(x_lo - 20, x_hi + 20, 20000)
+        east = -rng.uniform(y_lo - 20, y_hi + 20, 20000)
+        grid_n = x_lo + floor.cell * rng.integers(0, round((x_hi - x_lo) / floor.cell) + 1, 5000)
+        grid_e = -(y_lo + floor.cell * rng.integers(0, round((y_hi - y_lo) / floor.cell) + 1,
+                                                    5000))
+        hair = rng.choice([-1e-9, 0.0, 1e-9], (2, 5000))
+        north = np.r_[north, grid_n + hair[0], grid_n, x_lo, x_hi, x_lo, np.nan, np.inf, 0.0]
+        east = np.r_[east, grid_e + hair[1], -rng.uniform(y_lo, y_hi, 5000), -y_lo, -y_hi,
+                     np.nan, 0.0, 0.0, -np.inf]
+        depth, normal = numpy_surface(floor, north, east)
+        assert floor.depth_at(north, east).tobytes() == depth.tobytes()
+        assert floor.normal_at(north, east).tobytes() == normal.tobytes()
+        assert np.isfinite(depth).sum() > 20000  # mostly inside
+        # Any broadcastable shapes, scalars included, as before.
+        grid = (north[:12].reshape(3, 4), east[:4])
+        assert floor.depth_at(*grid).tobytes() == numpy_surface(floor, *grid)[0].tobytes()
+        assert floor.normal_at(*grid).tobytes() == numpy_surface(floor, *grid)[1].tobytes()
+        one = floor.depth_at(float(north[0]), float(east[0]))
+        assert one.shape == () and one.tobytes() == numpy_surface(
+            floor, north[0], east[0])[0].tobytes()
+
+
+def test_follow_recentres_exactly_when_numpy_said_it_must():
+    floor = procedural()
+    rng = np.random.default_rng(6)
+    inner = (floor._m - 1) * floor.cell
+    outcomes = set()
+    for _ in range(400):
+        centre = np.array(floor._centre) * floor.cell
+        # Points whose reach ends within a few 1e-13 m of the window's kept edge.
+        edge = centre + rng.choice([-1, 1], 2) * inner
+        reach = float(rng.choice([0.0, 37.5, 90.0 * math.sin(math.radians(30))]))
+        points = edge - np.sign(edge - centre) * reach + rng.normal(0, 1e-13, (3, 2))
+        lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
+        stays = bool(np.all(lo >= centre - inner) and np.all(hi <= centre + inner))
+        before = floor._centre
+        floor.follow(points, reach=reach)
+        assert (floor._centre == before) == stays
+        outcomes.add(stays)
+    assert outcomes == {False, True}
+    with pytest.raises(ValueError, match="non-finite"):
+        floor.follow(np.array([[0.0, np.nan]]), reach=10.0)
+    with pytest.raises(ValueError, match="reach"):
+        floor.follow(np.zeros((1, 2)), reach=math.inf)
+
+
+def test_a_flat_floors_compiled_depth_is_numpys():
+    floor = Seafloor(SeafloorConfig(kind="flat", depth=60.0))
+    north = np.array([0.0, np.nan, 1.0, np.inf, -3.0, 5.0])
+    east = np.array([1.0, 2.0, np.nan, 0.0, -np.inf, -0.0])
+    expected = np.where(np.isfinite(north) & np.isfinite(east), 60.0, np.nan)
+    assert floor.depth_at(north, east).tobytes() == expected.tobytes()
+    assert floor.depth_at(north[::2], east[::2]).tobytes() == expected[::2].tobytes()

@@ -34,11 +34,12 @@ import enum
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from ..config import DvlConfig
 from ..errors import ConfigError
-from ..frames import rotation_matrices, rotation_rpy
+from ..frames import rotation_rpy
 from . import Attr, Field, Sensor, sample_rows, samples_in
 
 
@@ -95,6 +96,14 @@ class Mode(enum.IntEnum):
     WATER_TRACK = 1  # bottom lock lost, velocity relative to a water layer (water_track)
 
 
+# The codes as plain ints, for numpy: it takes an IntEnum member by a slow path (a few us
+# per comparison or np.where, on the one ping of an environment step).
+_OK, _DROPOUT, _OUTLIER = int(Status.OK), int(Status.DROPOUT), int(Status.OUTLIER)
+_PING_DROPOUT, _BEAM_FAILED = int(Status.PING_DROPOUT), int(Status.BEAM_FAILED)
+_NO_VELOCITY, _BOTTOM_TRACK = int(Mode.NO_VELOCITY), int(Mode.BOTTOM_TRACK)
+_WATER_TRACK = int(Mode.WATER_TRACK)
+
+
 class DvlCalibration(NamedTuple):
     """The realised calibration errors of one mission (stream ``dvl_calibration``)."""
 
@@ -132,8 +141,31 @@ def beam_noise_std(ranges: np.ndarray, speed: np.ndarray, config: DvlConfig) -> 
         speed: (M,) |v| of the velocity the beams measure, m/s.
         config: the coefficients.
     """
-    return (config.noise_std + config.noise_range_coeff * np.nan_to_num(ranges)
+    return (config.noise_std + config.noise_range_coeff * _nan_to_zero(ranges)
             + config.noise_speed_coeff * speed[:, None])
+
+
+def _nan_to_zero(x: np.ndarray) -> np.ndarray:
+    """``np.nan_to_num(x)`` (NaN -> 0, +-inf -> +-the largest float), compiled for the
+    float64 arrays of ranges, where numpy's overhead on a few values dominates."""
+    if not (isinstance(x, np.ndarray) and x.dtype == np.float64):
+        return np.nan_to_num(x)
+    return _nan_to_zero_loop(x.reshape(-1)).reshape(x.shape)
+
+
+@numba.njit(cache=True)
+def _nan_to_zero_loop(x: np.ndarray) -> np.ndarray:
+    """``np.nan_to_num`` of a (K,) float64 array."""
+    out = np.empty(len(x))
+    big = np.finfo(np.float64).max
+    for i in range(len(x)):
+        v = x[i]
+        if math.isnan(v):
+            v = 0.0
+        elif math.isinf(v):
+            v = big if v > 0 else -big
+        out[i] = v
+    return out
 
 
 def logistic(x: np.ndarray, middle: float, width: float) -> np.ndarray:
@@ -144,7 +176,7 @@ def logistic(x: np.ndarray, middle: float, width: float) -> np.ndarray:
 
 def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
                     burst: float) -> np.ndarray:
-    """Dropout bursts: each beam a two-state Markov chain over pings, vectorised.
+    """Dropout bursts: each beam a two-state Markov chain over pings.
 
     A beam in lock enters a burst with probability ``p = rate / (burst (1 - rate))`` per
     ping and a beam in a burst leaves it with probability ``1 / burst``, so bursts last
@@ -152,11 +184,8 @@ def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
     ``p / (p + 1 / burst) = rate``.
 
     With one uniform u per beam and ping, the next state is ``u < p`` from lock and
-    ``u < 1 - 1/burst`` from a burst. Where both agree the ping sets the state whatever it
-    was; where they differ the ping keeps the state (when ``p < 1 - 1/burst``) or flips
-    it (when ``p > 1 - 1/burst``). So the state at a ping is that of the last setting ping
-    (or ``state``), flipped once per flipping ping since: cumulative maxima and sums, no
-    loop over pings.
+    ``u < 1 - 1/burst`` from a burst: a compiled loop over the pings (the chain's states
+    are booleans, so any way of computing them gives the same ones).
 
     Args:
         u: (M, 4) uniforms in [0, 1), one per ping and beam.
@@ -168,17 +197,21 @@ def markov_dropouts(u: np.ndarray, state: np.ndarray, *, rate: float,
     """
     if rate == 0:
         return np.zeros(u.shape, dtype=bool)
-    enter = u < rate / (burst * (1.0 - rate))
-    stay = u < 1.0 - 1.0 / burst
-    setting = enter == stay  # both say burst, or both say lock
-    flip = enter & ~stay
-    index = np.arange(len(u))[:, None]
-    last = np.maximum.accumulate(np.where(setting, index, -1), axis=0)  # -1: none yet
-    at = np.maximum(last, 0)
-    flips = np.cumsum(flip, axis=0)
-    value = np.where(last >= 0, np.take_along_axis(enter, at, axis=0), state)
-    since = flips - np.where(last >= 0, np.take_along_axis(flips, at, axis=0), 0)
-    return value ^ (since % 2 == 1)
+    return _dropout_chain(u, np.asarray(state, dtype=bool), rate / (burst * (1.0 - rate)),
+                          1.0 - 1.0 / burst)
+
+
+@numba.njit(cache=True)
+def _dropout_chain(u: np.ndarray, state: np.ndarray, p_enter: float,
+                   p_stay: float) -> np.ndarray:
+    """(M, 4) bool: ``markov_dropouts``'s chain, ping by ping, from (4,) ``state``."""
+    out = np.empty(u.shape, dtype=np.bool_)
+    s = state.copy()
+    for m in range(u.shape[0]):
+        for k in range(u.shape[1]):
+            s[k] = u[m, k] < p_stay if s[k] else u[m, k] < p_enter
+            out[m, k] = s[k]
+    return out
 
 
 def in_intervals(time: np.ndarray, intervals) -> np.ndarray:
@@ -205,7 +238,7 @@ def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
         dropout: (M, 4) bool, inside a dropout burst (``markov_dropouts``).
     """
     c = config
-    status = np.where(dropout, Status.DROPOUT, Status.OK).astype(np.int64)
+    status = np.where(dropout, _DROPOUT, _OK).astype(np.int64)
     if c.echo_loss_range is not None:
         lost = u[:, 0:4] < logistic(ranges, c.echo_loss_range, c.echo_loss_width)
         status[lost] = Status.ECHO_LOST
@@ -213,12 +246,14 @@ def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
         lost = u[:, 4:8] < logistic(incidence_deg, c.grazing_loss_angle_deg,
                                     c.grazing_loss_width_deg)
         status[lost] = Status.GRAZING
-    status[in_intervals(time, c.lock_loss_intervals)] = Status.LOCK_LOST
+    if c.lock_loss_intervals:  # (none: nothing to mark, and the mask costs a few us)
+        status[in_intervals(time, c.lock_loss_intervals)] = Status.LOCK_LOST
     status[ranges < c.min_range] = Status.TOO_NEAR
     status[~np.isfinite(ranges)] = Status.NO_HIT
     for beam, start, end in c.beam_failures:
         status[(time >= start) & (time < end), beam] = Status.BEAM_FAILED
-    status[u[:, 8] < c.ping_dropout_rate] = Status.PING_DROPOUT
+    if c.ping_dropout_rate > 0:  # else no uniform in [0, 1) is below it
+        status[u[:, 8] < c.ping_dropout_rate] = Status.PING_DROPOUT
     return status
 
 
@@ -240,9 +275,15 @@ def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
         beams: (M, 4) measured beam velocities, m/s.
         h: (4, 3) beam matrix (its beam angle).
     """
-    sin_alpha = float(np.hypot(h[0, 0], h[0, 1]))
-    d = 1.0 / (2.0 * math.sqrt(2.0) * sin_alpha)
+    key = h.tobytes()
+    if key not in _ERROR_SCALE:  # numpy's scalar arithmetic costs more than the rest
+        sin_alpha = float(np.hypot(h[0, 0], h[0, 1]))
+        _ERROR_SCALE[key] = 1.0 / (2.0 * math.sqrt(2.0) * sin_alpha)
+    d = _ERROR_SCALE[key]
     return d * ((beams[:, 0] + beams[:, 2]) - (beams[:, 1] + beams[:, 3]))
+
+
+_ERROR_SCALE: dict[bytes, float] = {}  # a few entries: beam matrix -> error_velocity's d
 
 
 def measure(beam_velocity: np.ndarray, valid: np.ndarray, *, errors: DvlErrors,
@@ -278,15 +319,23 @@ def least_squares(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
         (M, 3) velocity in the DVL frame, m/s.
     """
     valid = np.isfinite(beams)
+    if valid.all():  # every ping on four beams (most do): the same product, in one go
+        return beams @ _pinv(h, _BEAMS_USED[15]).T
     out = np.full((len(beams), 3), np.nan)
-    pattern = valid @ (1 << np.arange(4))  # which beams are valid, as a 4-bit number
+    pattern = valid @ _BEAM_BITS  # which beams are valid, as a 4-bit number
     for code in np.unique(pattern):
-        use = np.array([(code >> k) & 1 for k in range(4)], dtype=bool)
+        use = _BEAMS_USED[code]
         if use.sum() < 3:
             continue
         rows = pattern == code
         out[rows] = beams[rows][:, use] @ _pinv(h, use).T
     return out
+
+
+_BEAM_BITS = 1 << np.arange(4)
+# The beams each 4-bit pattern uses, (4,) bool by pattern.
+_BEAMS_USED = tuple(np.array([(code >> k) & 1 for k in range(4)], dtype=bool)
+                    for code in range(16))
 
 
 _PINV: dict[tuple, np.ndarray] = {}  # a few entries: (beam matrix, beams used) -> pinv
@@ -317,10 +366,7 @@ class DvlGeometry(NamedTuple):
     def velocity(self, velocity_body: np.ndarray, angular_rate: np.ndarray) -> np.ndarray:
         """(M, 3) velocity over ground of the DVL point in the DVL frame, m/s, from body
         velocities (M, 3) m/s and angular rates (M, 3) rad/s (lever arm included)."""
-        w, r = angular_rate, self.lever_arm  # w x r, as np.cross computes it, without its
-        v_point = velocity_body + np.stack([  # overhead
-            w[:, 1] * r[2] - w[:, 2] * r[1], w[:, 2] * r[0] - w[:, 0] * r[2],
-            w[:, 0] * r[1] - w[:, 1] * r[0]], axis=-1)
+        v_point = _add_cross(velocity_body, angular_rate, self.lever_arm)
         return v_point @ self.mounting  # rows of mounting^T v
 
     def rays(self, position_ned: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -336,7 +382,82 @@ def true_beams(velocity: np.ndarray, h: np.ndarray) -> np.ndarray:
     """(M, 4) ideal beam velocities ``H v`` of (M, 3) DVL-frame velocities, m/s; NaN on a
     ping whose velocity is not finite (a dropout in a recorded stream)."""
     finite = np.isfinite(velocity).all(axis=1)
+    if finite.all():  # a simulated mission's: the same product without the NaN handling
+        return np.ascontiguousarray(velocity) @ h.T  # C-ordered, as nan_to_num's copy was
     return np.where(finite[:, None], np.nan_to_num(velocity) @ h.T, np.nan)
+
+
+# Compiled elementwise loops for the few-row blocks of the environment, where numpy's
+# per-call overhead dominates: the same operations in the same order as the numpy
+# expressions they replace (no fastmath), so the same bits. Products of matrices stay in
+# numpy, whose rounding may depend on the shapes.
+
+@numba.njit(cache=True)
+def _add_cross(v: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(M, 3) ``v + w x r`` of (M, 3) v and w and a (3,) r, as np.cross computes w x r."""
+    out = np.empty((len(v), 3))
+    for m in range(len(v)):
+        out[m, 0] = v[m, 0] + (w[m, 1] * r[2] - w[m, 2] * r[1])
+        out[m, 1] = v[m, 1] + (w[m, 2] * r[0] - w[m, 0] * r[2])
+        out[m, 2] = v[m, 2] + (w[m, 0] * r[1] - w[m, 1] * r[0])
+    return out
+
+
+@numba.njit(cache=True)
+def _three_or_more(valid: np.ndarray) -> np.ndarray:
+    """(M,) bool: at least 3 of a row's (M, 4) bool beams (``valid.sum(axis=1) >= 3``)."""
+    out = np.empty(valid.shape[0], dtype=np.bool_)
+    for m in range(valid.shape[0]):
+        count = 0
+        for k in range(valid.shape[1]):
+            count += valid[m, k]
+        out[m] = count >= 3
+    return out
+
+
+@numba.njit(cache=True)
+def _measured_beams(signal: np.ndarray, scale: np.ndarray, bias: np.ndarray, ratio: float,
+                    noise: np.ndarray) -> np.ndarray:
+    """(M, 4) ``(1 + scale) (signal / ratio) + bias + noise`` of (M, 4) signal and noise,
+    (4,) scale factors and biases, and the sound-speed ratio, m/s."""
+    out = np.empty(signal.shape)
+    for m in range(signal.shape[0]):
+        for k in range(signal.shape[1]):
+            out[m, k] = (1.0 + scale[k]) * (signal[m, k] / ratio) + bias[k] + noise[m, k]
+    return out
+
+
+@numba.njit(cache=True)
+def _rotation_matrices(q: np.ndarray) -> np.ndarray:
+    """(M, 3, 3) body -> NED rotations of (M, 4) unit quaternions [w, x, y, z]: the
+    formula of ``auvsim.frames.rotation_matrices``, row by row."""
+    out = np.empty((len(q), 3, 3))
+    for m in range(len(q)):
+        w, x, y, z = q[m, 0], q[m, 1], q[m, 2], q[m, 3]
+        out[m, 0, 0] = 1 - 2 * (y * y + z * z)
+        out[m, 0, 1] = 2 * (x * y - w * z)
+        out[m, 0, 2] = 2 * (x * z + w * y)
+        out[m, 1, 0] = 2 * (x * y + w * z)
+        out[m, 1, 1] = 1 - 2 * (x * x + z * z)
+        out[m, 1, 2] = 2 * (y * z - w * x)
+        out[m, 2, 0] = 2 * (x * z - w * y)
+        out[m, 2, 1] = 2 * (y * z + w * x)
+        out[m, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+@numba.njit(cache=True)
+def _longest_horizontal(d: np.ndarray) -> float:
+    """The largest horizontal length ``sqrt(n^2 + e^2)`` of (M, B, 3) vectors, as
+    ``np.linalg.norm(d[..., :2], axis=-1).max()`` computes it (M B > 0)."""
+    longest = -np.inf
+    for m in range(d.shape[0]):
+        for k in range(d.shape[1]):
+            length = math.sqrt(d[m, k, 0] * d[m, k, 0] + d[m, k, 1] * d[m, k, 1])
+            if math.isnan(length):
+                return length  # as max propagates NaN
+            longest = max(longest, length)
+    return longest
 
 
 class Effects(NamedTuple):
@@ -347,7 +468,8 @@ class Effects(NamedTuple):
         sound_speed_ratio: c_true / c_assumed: every measured beam is divided by it.
         extra_noise: (M, 4) m/s, added to the bottom-track beams (the noise beyond
             ``noise_std`` that grows with range and speed), or None.
-        outlier: (M, 4) bool, beam-pings whose bottom-track measurement is an outlier.
+        outlier: (M, 4) bool, beam-pings whose bottom-track measurement is an outlier, or
+            None: none is (``outlier_rate`` 0).
         outlier_error: (M, 4) m/s, the outliers' errors.
         water_velocity: (M, 3) m/s, in the DVL frame, the velocity over ground of the water
             layer the DVL tracks, or None: no water track.
@@ -358,7 +480,7 @@ class Effects(NamedTuple):
     status: np.ndarray
     sound_speed_ratio: float
     extra_noise: np.ndarray | None
-    outlier: np.ndarray
+    outlier: np.ndarray | None
     outlier_error: np.ndarray
     water_velocity: np.ndarray | None
     water_lock: np.ndarray
@@ -405,19 +527,22 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
     noise = noise_std * rng.standard_normal(beams_true.shape)  # as eq. 7 draws it
     if e.extra_noise is not None:
         noise = noise + e.extra_noise
-    mode = np.where(valid.sum(axis=1) >= 3, Mode.BOTTOM_TRACK, Mode.NO_VELOCITY)
+    mode = np.where(_three_or_more(valid), _BOTTOM_TRACK, _NO_VELOCITY)
     signal = beams_true
     if e.water_velocity is not None:
-        water = (mode != Mode.BOTTOM_TRACK) & ((e.water_lock & finite[:, None]).sum(axis=1) >= 3)
-        mode = np.where(water, Mode.WATER_TRACK, mode)
+        water = (mode != _BOTTOM_TRACK) & _three_or_more(e.water_lock & finite[:, None])
+        mode = np.where(water, _WATER_TRACK, mode)
         valid = np.where(water[:, None], e.water_lock & finite[:, None], valid)
         signal = np.where(water[:, None], true_beams(velocity - e.water_velocity, h), signal)
         noise = np.where(water[:, None], e.water_noise, noise)
-    y = (1.0 + errors.scale_factor) * (signal / e.sound_speed_ratio) + errors.bias + noise
-    outlier = e.outlier & lock & (mode != Mode.WATER_TRACK)[:, None]
-    y = np.where(outlier, y + e.outlier_error, y)
+    y = _measured_beams(signal, errors.scale_factor, errors.bias, e.sound_speed_ratio, noise)
+    if e.outlier is None:
+        status = e.status.astype(np.int64)
+    else:
+        outlier = e.outlier & lock & (mode != _WATER_TRACK)[:, None]
+        y = np.where(outlier, y + e.outlier_error, y)
+        status = np.where(outlier, _OUTLIER, e.status).astype(np.int64)
     beams = np.where(valid, y, np.nan)
-    status = np.where(outlier, Status.OUTLIER, e.status).astype(np.int64)
     return dict(velocity=velocity, beam_velocity_true=beams_true, beam_velocity=beams,
                 valid=valid, velocity_ls=least_squares(beams, h), status=status,
                 mode=mode.astype(np.int64), error_velocity=error_velocity(beams, h))
@@ -549,9 +674,9 @@ class Dvl(Sensor):
             return _no_pings()
         time = truth.time[rows]
         velocity = self.geometry.velocity(truth.velocity_body[rows], truth.angular_rate[rows])
-        rotation = rotation_matrices(truth.quaternion[rows])
+        rotation = _rotation_matrices(truth.quaternion[rows])
         origins, directions = self.geometry.rays(truth.position_ned[rows], rotation)
-        reach = c.max_range * np.linalg.norm(directions[..., :2], axis=-1).max()
+        reach = c.max_range * _longest_horizontal(directions)
         try:
             seafloor.follow(origins[:, :2], reach=reach)
         except ValueError as e:
@@ -562,13 +687,14 @@ class Dvl(Sensor):
         ranges = seafloor.cast(vehicle.model, self.platform.ray_data, origins, directions,
                                max_range=c.max_range, exclude_body=vehicle.body_id)
         effects = self.effects(time, velocity, ranges, origins, directions, rotation)
-        fields = ping(velocity, effects.status == Status.OK, h=self.geometry.h,
+        fields = ping(velocity, effects.status == _OK, h=self.geometry.h,
                       errors=self.errors, noise_std=c.noise_std, rng=rng, effects=effects)
         out = {"dvl/time": time}
         out.update((f"dvl/{k}", v) for k, v in fields.items())
         out["dvl/beam_range"] = ranges
-        out["imu/index_of_dvl"] = (truth.first + rows.start
-                                   + self.every_imu * np.arange(len(velocity), dtype=np.int64))
+        first = truth.first + rows.start
+        out["imu/index_of_dvl"] = np.arange(first, first + self.every_imu * len(velocity),
+                                            self.every_imu, dtype=np.int64)
         return out
 
     def effects(self, time: np.ndarray, velocity: np.ndarray, ranges: np.ndarray,
@@ -582,7 +708,7 @@ class Dvl(Sensor):
         t = self.heavy.standard_t(3, (m, 4))
         incidence = None
         if c.grazing_loss_angle_deg is not None:
-            hits = origins[:, None, :] + np.nan_to_num(ranges)[..., None] * directions
+            hits = origins[:, None, :] + _nan_to_zero(ranges)[..., None] * directions
             normal = self.platform.seafloor.normal_at(hits[..., 0], hits[..., 1])
             cos_incidence = np.clip(-np.einsum("mki,mki->mk", directions, normal), -1, 1)
             incidence = np.where(np.isfinite(ranges), np.degrees(np.arccos(cos_incidence)),
@@ -606,9 +732,10 @@ class Dvl(Sensor):
             layer = c.water_track_range / np.where(directions[..., 2] > 0,
                                                    directions[..., 2], np.nan)
             water_lock = ((~np.isfinite(ranges) | (ranges > layer)) & np.isfinite(layer)
-                          & (status != Status.PING_DROPOUT) & (status != Status.BEAM_FAILED))
+                          & (status != _PING_DROPOUT) & (status != _BEAM_FAILED))
         return Effects(status=status, sound_speed_ratio=self.calibration.sound_speed_ratio,
-                       extra_noise=extra, outlier=u[:, 13:17] < c.outlier_rate,
+                       extra_noise=extra,
+                       outlier=u[:, 13:17] < c.outlier_rate if c.outlier_rate > 0 else None,
                        outlier_error=c.outlier_std / math.sqrt(3.0) * t,
                        water_velocity=water, water_lock=water_lock,
                        water_noise=c.water_track_noise_std * n[:, 4:8])
