@@ -151,6 +151,7 @@ class AuvEnv(gym.Env):
                               "physics steps per IMU sample")
         h = self.run.vehicle.hydro
         self.limits = np.array([h.rpm_max, h.fin_max, h.fin_max])
+        self._limits = self.limits.tolist()
         # Reused by every step: the commands held over its physics steps, and their indices
         # from the step's first.
         self._commands = np.empty((frame_skip, 3))
@@ -183,11 +184,14 @@ class AuvEnv(gym.Env):
 
     def step(self, action):
         action = np.asarray(action, dtype=float)
-        if action.shape != (3,) or not np.isfinite(action).all():
+        values = action.tolist()
+        if action.shape != (3,) or not all(map(math.isfinite, values)):
             raise ValueError(f"action: expected 3 finite numbers in [-1, 1] (propeller, "
-                             f"rudder, stern planes), got {action.tolist()!r}")
-        # np.clip's arithmetic on finite numbers, without its Python wrapper's cost.
-        self._commands[:] = np.minimum(np.maximum(action, -1.0), 1.0) * self.limits
+                             f"rudder, stern planes), got {values!r}")
+        # np.clip and the product by the limits in Python floats: the same IEEE arithmetic
+        # on three numbers, at a fraction of numpy's cost per call.
+        self._commands[:] = [min(max(a, -1.0), 1.0) * limit
+                             for a, limit in zip(values, self._limits)]
         vehicle = self.run.vehicle
         traj = vehicle.advance(self._commands, OPEN_LOOP)  # checked above
         terminated = False

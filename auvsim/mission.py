@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 
 from .config import Config, MissionConfig
@@ -27,6 +28,16 @@ from .vehicle import Trajectory, Vehicle
 from .water import Disturbance, Water
 
 BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
+
+
+@numba.njit(cache=True)
+def _clear(altitude, position_ned):
+    """Whether every row is above the seafloor and below the surface (altitude > 0,
+    depth >= 0; a NaN is neither): one compiled pass, as the environment asks every step."""
+    for k in range(altitude.shape[0]):
+        if not (altitude[k] > 0 and position_ned[k, 2] >= 0):
+            return False
+    return True
 
 
 class Cancelled(Exception):
@@ -189,8 +200,7 @@ class MissionRun:
                 f"between t = {t[0]:.1f} and {t[-1]:.1f} s ({e}); expected a larger "
                 "seafloor.cell_size") from None
         altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
-        # The usual case (a NaN makes a minimum NaN, and the test false): one reduction each.
-        if altitude.min() > 0 and pos[:, 2].min() >= 0:
+        if _clear(altitude, pos):  # the usual case
             return altitude
         problems = (
             (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "
