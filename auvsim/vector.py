@@ -77,7 +77,9 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import pickle
+import select
 import signal
+import time
 import traceback
 import weakref
 from multiprocessing import forkserver, shared_memory
@@ -98,6 +100,7 @@ COMMAND = b"c"
 OK = b"k"
 ERROR = b"e"
 ALIGN = 64  # bytes: each shared array starts on its own cache line
+SPIN_S = 0.002  # s a process polls for the next message before it blocks (_readable)
 
 
 def _info_layout(info: dict) -> dict[str, tuple[np.dtype, tuple[int, ...]]]:
@@ -244,9 +247,24 @@ def _answer(conn, failure: bytes | None) -> None:
         conn.send_bytes(failure)
 
 
-def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict) -> None:
+def _readable(fd: int, spin: bool) -> None:
+    """Return once ``fd`` has data (or EOF). With ``spin``, poll it for up to ``SPIN_S``
+    first: a process that blocks gives up its core, and getting it back costs more than a
+    step's worth of the time it is away (measured: ``benchmarks/env.py``), while the next
+    message usually comes within a step."""
+    if spin:
+        deadline = time.perf_counter() + SPIN_S
+        while time.perf_counter() < deadline:
+            if select.select([fd], [], [], 0.0)[0]:
+                return
+    select.select([fd], [], [])
+
+
+def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict,
+            spin: bool) -> None:
     """A worker process: build the slice's envs, answer (``OK`` or the failure), then
-    serve messages until ``close`` or EOF (the parent closed or died)."""
+    serve messages until ``close`` or EOF (the parent closed or died); with ``spin``, wait
+    for each by polling a while first (``_readable``)."""
     # Ctrl-C reaches the whole process group: the parent handles it and closes us.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     shm = shared_memory.SharedMemory(name=shm_name)
@@ -261,6 +279,7 @@ def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict
         _answer(conn, None)
         while True:
             try:
+                _readable(fd, spin)
                 message = os.read(fd, 1)
             except OSError:
                 return
@@ -354,8 +373,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
 
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
-        if workers is None:
-            workers = min(num_envs, os.cpu_count() or 1)
+        cores = os.cpu_count() or 1
+        if workers is None:  # this process steps envs too: one process per core
+            workers = min(num_envs, cores) - 1
         if not isinstance(workers, int) or workers < 0:
             raise ValueError(f"workers: expected a whole number >= 0, got {workers!r}")
         if context not in ("forkserver", "spawn"):
@@ -363,6 +383,8 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                              f"MuJoCo, numba and threads), got {context!r}")
         self.num_envs = num_envs
         self.workers = min(workers, num_envs)
+        # Poll while waiting only when every process has a core to itself.
+        self._spin = self.workers + 1 <= cores
         self._context = mp.get_context(context)
         if self.workers and context == "forkserver":
             # Started now, it imports auvsim.env (once for all workers) while this
@@ -399,6 +421,13 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             self._slice = _Slice(self._views, 0, num_envs, env_kwargs)
         else:
             self._start(fields, env_kwargs)
+            # The last slice is this process's own (empty when there are as many
+            # workers as envs): it steps its envs while the workers step theirs.
+            try:
+                self._slice = _Slice(self._views, self._starts[-1], num_envs, env_kwargs)
+            except Exception:
+                self.close()
+                raise
         views = self._views
         self._actions = views["actions"]
         # Per step: info's (key, mask key, shared view), and its masks' values.
@@ -407,27 +436,31 @@ class AuvVectorEnv(gym.vector.VectorEnv):
 
     def _start(self, fields, env_kwargs: dict) -> None:
         """Allocate the shared block and start the workers, each on a contiguous slice
-        (sizes differing by at most one); wait until each has built its envs."""
+        (this process's own, the last, included: sizes differing by at most one); wait
+        until each has built its envs."""
         self._shm = shared_memory.SharedMemory(create=True, size=_offsets(fields)[1])
         self._finalizer.detach()
         self._finalizer = weakref.finalize(self, _shutdown, self._processes, self._conns,
                                            self._shm, self._views)
         self._views.update(_views(self._shm.buf, fields))
         ctx = self._context
-        sizes = [self.num_envs // self.workers + (k < self.num_envs % self.workers)
-                 for k in range(self.workers)]
+        slices = self.workers + 1
+        sizes = [self.num_envs // slices + (k < self.num_envs % slices)
+                 for k in range(slices)]
         start = 0
-        for size in sizes:
+        self._starts = []
+        for size in sizes[:-1]:
             parent, child = ctx.Pipe()
             process = ctx.Process(target=_worker, daemon=True, name=f"auvsim-vector-{start}",
                                   args=(child, self._shm.name, fields, start, start + size,
-                                        env_kwargs))
+                                        env_kwargs, self._spin))
             process.start()
             child.close()  # the worker's end: only the worker holds it, so EOF reaches it
             self._processes.append(process)
             self._conns.append(parent)
             self._fds.append(parent.fileno())
             start += size
+        self._starts.append(start)
         self._wait()
 
     @property
@@ -435,12 +468,13 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         """The worker processes' ids (empty with ``workers=0``)."""
         return [process.pid for process in self._processes]
 
-    def _wait(self) -> None:
-        """Each worker's answer to the last command; on a failure, close the env and
-        raise the worker's exception."""
-        failure = None
+    def _wait(self, own: Exception | None = None) -> None:
+        """Each worker's answer to the last command; on a failure (``own``: this
+        process's slice's, first), close the env and raise it."""
+        failure = None if own is None else (own, None)
         for k, conn in enumerate(self._conns):
             try:
+                _readable(self._fds[k], self._spin)
                 answer = os.read(self._fds[k], 1)
                 if answer == ERROR:
                     failure = failure or pickle.loads(conn.recv_bytes())
@@ -462,22 +496,23 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                 raise exc from _RemoteTraceback(text)
             raise exc
 
-    def _in_process(self, method, *args) -> None:
-        """``method(*args)`` of the in-process slice (``workers=0``); on a failure, close
-        the env and re-raise, as for a worker's."""
-        try:
-            method(*args)
-        except Exception:
-            self.close()
-            raise
-
-    def _command(self, *message) -> None:
-        """Send a (rare) command to every worker and wait for their answers."""
-        data = pickle.dumps(message)
+    def _run(self, message: bytes, method, name: str = "", *args) -> None:
+        """Send ``message`` (``STEP``, ``NOOP``, or ``COMMAND``: then the command ``name``
+        and its ``args``) to every worker, run ``method(*args)`` of this process's slice
+        meanwhile (None: nothing), and wait for the workers' answers; on any failure,
+        close the env and raise."""
+        data = pickle.dumps((name, *args)) if message == COMMAND else None
         for fd, conn in zip(self._fds, self._conns, strict=True):
-            os.write(fd, COMMAND)
-            conn.send_bytes(data)
-        self._wait()
+            os.write(fd, message)
+            if data is not None:
+                conn.send_bytes(data)
+        own = None
+        if method is not None:
+            try:
+                method(*args)
+            except Exception as exc:
+                own = exc
+        self._wait(own)
 
     def _check_open(self) -> None:
         if self.closed:
@@ -508,10 +543,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                     and mask.dtype == np.bool_ and mask.any()):
                 raise ValueError(f"options['reset_mask']: expected a ({n},) bool numpy "
                                  f"array with a True value, got {mask!r}")
-        if self._slice is not None:
-            self._in_process(self._slice.reset, seed, options, mask)
-        else:
-            self._command("reset", seed, options, mask)
+        self._run(COMMAND, self._slice.reset, "reset", seed, options, mask)
         return self._views["observations"].copy(), self._infos(mask)
 
     def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -539,13 +571,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                              f"(num_envs, 3: propeller, rudder, stern planes), got shape "
                              f"{actions.shape}")
         self._actions[:] = actions
-        if self._slice is not None:
-            if message == STEP:
-                self._in_process(self._slice.step)
-        else:
-            for fd in self._fds:
-                os.write(fd, message)
-            self._wait()
+        self._run(message, self._slice.step if message == STEP else None)
         views = self._views
         return (views["observations"].copy(), views["rewards"].copy(),
                 views["terminations"].copy(), views["truncations"].copy(),

@@ -13,16 +13,17 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
 * ``1 env`` and ``async x2``: wall-clock seconds of the same episode in one env, and in
   each env of ``gymnasium.make_vec(..., num_envs=2, vectorization_mode="async")``; the
   speed-up is total env steps/s of the two over the one (2 at best on two idle cores);
-* ``native 2x1`` and ``native 8x2``: the same in each env of ``auvsim.vector.AuvVectorEnv``
-  (2 envs on 2 workers, one env each; 8 envs on 2 workers, four each).
+* ``native 2`` and ``native 8``: the same in each env of ``auvsim.vector.AuvVectorEnv``
+  with its default workers (on 2 cores one worker process beside this one, each
+  stepping half of the envs: one each, four each).
 
 For the vector envs, ``parent ms`` is the parent process's CPU time per vector step
-(``time.process_time`` over the episode: pickling, pipes, merging infos; waiting costs
-none), ``CPU x`` the CPU seconds of the parent and its workers (``/proc/<pid>/stat``)
-per env step over ``env``'s (the overhead, whatever else the machine runs: on idle cores
-``x 1 env`` would reach about workers / ``CPU x``), and ``noop ms`` the wall time per
-step of a native env whose workers answer without stepping their envs: the parent's
-whole cost plus the round trip to the workers.
+(``time.process_time`` over the episode: for async, pickling, pipes and merging infos,
+waiting costs none; for native, its own slice of envs too, and its polling for the
+workers' answers), ``CPU x`` the CPU seconds of the parent and its workers
+(``/proc/<pid>/stat``) per env step over ``env``'s (1 = no overhead; polling counts),
+and ``noop ms`` the wall time per step of a native env whose envs do not step: the
+parent's whole cost plus the round trip to the workers.
 
 The first call of each (numba loading its cache, gymnasium's checks) is not timed.
 
@@ -106,7 +107,8 @@ def wall_and_cpu(fn, pids: list[int]) -> tuple[float, float, float]:
 
 
 def noop_step_seconds(env: AuvVectorEnv, steps: int = 2000) -> float:
-    """Wall seconds per vector step of ``env`` with its workers answering at once."""
+    """Wall seconds per vector step of ``env`` with no env stepping (the workers answer
+    at once)."""
     env.reset(seed=0)
     actions = np.tile(ACTION, (env.num_envs, 1))
     start = time.perf_counter()
@@ -126,8 +128,8 @@ def main() -> None:
     vectors = {
         "async x2": gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="async",
                                  max_episode_seconds=args.seconds),
-        "native 2x1": AuvVectorEnv(num_envs=2, workers=2, max_episode_seconds=args.seconds),
-        "native 8x2": AuvVectorEnv(num_envs=8, workers=2, max_episode_seconds=args.seconds),
+        "native 2": AuvVectorEnv(num_envs=2, max_episode_seconds=args.seconds),
+        "native 8": AuvVectorEnv(num_envs=8, max_episode_seconds=args.seconds),
     }
     unwrapped = env.unwrapped
     start = unwrapped.start
@@ -191,8 +193,7 @@ def main() -> None:
     print("(generate's steps/s: env steps of the same simulated time per CPU second; "
           "x 1 env: total env steps/s, wall, over 1 env's; parent ms: the parent's CPU "
           "per vector step; CPU x: CPU of the parent and the workers per env step over env's "
-          "(1 = no overhead; x 1 env reaches workers / CPU x on idle cores); noop ms: wall "
-          "per vector step with the workers not stepping)")
+          "(1 = no overhead); noop ms: wall per vector step with no env stepping)")
     print(f"env / generate CPU per simulated second: {med['env'] / med['generate']:.2f}")
     for name in vectors:
         print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}")
