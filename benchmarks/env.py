@@ -13,6 +13,8 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
 * ``1 env`` and ``async x2``: wall-clock seconds of the same episode in one env, and in
   each env of ``gymnasium.make_vec(..., num_envs=2, vectorization_mode="async")``; the
   speed-up is total env steps/s of the two over the one (2 at best on two idle cores);
+* ``2 lone``: two processes flying the episode in an env each, at the same time and not
+  synchronised: what two cores of this machine give at most;
 * ``native 2`` and ``native 8``: the same in each env of ``auvsim.vector.AuvVectorEnv``
   with its default workers (on 2 cores one worker process beside this one, each
   stepping half of the envs: one each, four each).
@@ -36,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import multiprocessing
 import os
 import statistics
 import tempfile
@@ -80,6 +83,44 @@ def vector_episode(env: gym.vector.VectorEnv, seconds: float) -> int:
         steps += env.num_envs
         if (terminated | truncated).all():
             return steps
+
+
+def _lone(conn, seconds: float) -> None:
+    """A process flying the episode in an env of its own whenever asked (``TwoLone``)."""
+    env = gym.make("auvsim/AUV-v0", max_episode_seconds=seconds)
+    episode(env, seconds)  # loads every kernel
+    conn.send(None)
+    while conn.recv():
+        conn.send(episode(env, seconds))
+
+
+class TwoLone:
+    """Two processes, each flying the episode in its own env, started together and not
+    synchronised: what two cores of this machine give at most (the ``2 lone`` row)."""
+
+    num_envs = 2
+
+    def __init__(self, seconds: float) -> None:
+        ctx = multiprocessing.get_context("forkserver")
+        self.conns, self.processes = [], []
+        for _ in range(2):
+            parent, child = ctx.Pipe()
+            process = ctx.Process(target=_lone, args=(child, seconds), daemon=True)
+            process.start()
+            self.conns.append(parent)
+            self.processes.append(process)
+        for conn in self.conns:
+            conn.recv()
+
+    def episodes(self) -> int:
+        for conn in self.conns:
+            conn.send(True)
+        return sum(conn.recv() for conn in self.conns)
+
+    def close(self) -> None:
+        for conn, process in zip(self.conns, self.processes, strict=True):
+            conn.send(False)
+            process.join()
 
 
 def worker_pids(vector: gym.vector.VectorEnv) -> list[int]:
@@ -131,6 +172,7 @@ def main() -> None:
         "native 2": AuvVectorEnv(num_envs=2, max_episode_seconds=args.seconds),
         "native 8": AuvVectorEnv(num_envs=8, max_episode_seconds=args.seconds),
     }
+    two = TwoLone(args.seconds)
     unwrapped = env.unwrapped
     start = unwrapped.start
     config = dataclasses.replace(unwrapped.config, missions=(MissionConfig(
@@ -149,16 +191,17 @@ def main() -> None:
         for vector in vectors.values():
             vector_episode(vector, args.seconds)
         times: dict[str, list[float]] = {"env": [], "generate": [], "1 env": [],
-                                         **{name: [] for name in vectors}}
+                                         "2 lone": [], **{name: [] for name in vectors}}
         parent = {name: [] for name in vectors}  # CPU s of this process
         total = {name: [] for name in vectors}  # CPU s of this process and the workers
         noop = {name: [] for name in vectors if name.startswith("native")}
-        counts = {"env": steps, "generate": steps, "1 env": steps,
+        counts = {"env": steps, "generate": steps, "1 env": steps, "2 lone": 2 * steps,
                   **{name: v.num_envs * steps for name, v in vectors.items()}}
         for _ in range(args.repeats):
             times["env"].append(cpu_seconds(lambda: episode(env, args.seconds)))
             times["generate"].append(cpu_seconds(full))
             times["1 env"].append(wall_seconds(lambda: episode(env, args.seconds)))
+            times["2 lone"].append(wall_seconds(two.episodes))
             for name, vector in vectors.items():
                 wall, cpu, workers = wall_and_cpu(
                     lambda v=vector: vector_episode(v, args.seconds), worker_pids(vector))
@@ -169,6 +212,7 @@ def main() -> None:
                     noop[name].append(noop_step_seconds(vector))
     for vector in vectors.values():
         vector.close()
+    two.close()
     env.close()
 
     med = {k: statistics.median(v) for k, v in times.items()}
@@ -180,7 +224,7 @@ def main() -> None:
           f"{'x 1 env':>8s} {'parent ms':>10s} {'CPU x':>6s} {'noop ms':>8s}")
     for name, t in med.items():
         clock = "CPU" if name in ("env", "generate") else "wall"
-        extra = ""
+        extra = f" {rate[name] / rate['1 env']:8.2f}" if name == "2 lone" else ""
         if name in vectors:
             cpu_per_step = statistics.median(total[name]) / counts[name]
             extra = (f" {rate[name] / rate['1 env']:8.2f} "
@@ -195,8 +239,10 @@ def main() -> None:
           "per vector step; CPU x: CPU of the parent and the workers per env step over env's "
           "(1 = no overhead); noop ms: wall per vector step with no env stepping)")
     print(f"env / generate CPU per simulated second: {med['env'] / med['generate']:.2f}")
-    for name in vectors:
-        print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}")
+    for name in ("2 lone", *vectors):
+        print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}"
+              + ("" if name == "2 lone" else
+                 f"; / 2 lone: {rate[name] / rate['2 lone']:.2f}"))
     print(f"target: env >= {TARGET:.0f} steps/s per core -> "
           f"{'met' if rate['env'] >= TARGET else 'MISSED'} ({rate['env']:.0f})")
 
