@@ -191,7 +191,7 @@ class AuvEnv(gym.Env):
         # np.clip and the product by the limits in Python floats: the same IEEE arithmetic
         # on three numbers, at a fraction of numpy's cost per call.
         self._commands[:] = [min(max(a, -1.0), 1.0) * limit
-                             for a, limit in zip(values, self._limits)]
+                             for a, limit in zip(values, self._limits, strict=True)]
         vehicle = self.run.vehicle
         traj = vehicle.advance(self._commands, OPEN_LOOP)  # checked above
         terminated = False

@@ -4,11 +4,14 @@ over shared memory, for policies that want many episodes at once.
 ## Description
 
 ``num_envs`` plain ``AuvEnv`` instances (``auvsim.env``), split into contiguous slices,
-one slice per worker process; each worker steps every env of its slice per vector step.
-Actions, observations, rewards, terminations, truncations and the info arrays live in one
-shared-memory block (``multiprocessing.shared_memory``), so a step costs the parent one
-copy of the actions in, a one-byte message to each worker and a one-byte answer back, and
-copies of the results out. The results are exactly those of ``gymnasium.make_vec(
+one per worker process and the last for this process, which steps its own envs while the
+workers step theirs (by default one process per core). Actions, observations, rewards,
+terminations, truncations and the info arrays live in one shared-memory block
+(``multiprocessing.shared_memory``), so a step costs this process one copy of the actions
+in, a one-byte message to each worker and a one-byte answer back, and copies of the
+results out. A process waiting for a message polls for it for up to ``SPIN_S`` (2 ms)
+before it blocks, when every process has a core of its own: a process that blocks gives
+up its core and gets it back later than the next message comes. The results are exactly those of ``gymnasium.make_vec(
 "auvsim/AUV-v0", num_envs, vectorization_mode="sync")`` (tests/test_vector.py compares
 them bitwise): env ``i`` is reset with seed ``s + i`` by ``reset(seed=s)``, autoreset
 follows gymnasium's ``AutoresetMode.NEXT_STEP`` (the step after an episode's end resets
@@ -21,9 +24,9 @@ that env and returns its reset observation and info, reward 0, neither flag set)
 its whole result (an 11-key info dict) through a pipe and merges the infos key by key
 (``VectorEnv._add_info``): about 0.4 ms of the parent's time per step, as much as a step
 of the env costs, so two of them on 2 cores gave 0.63x the steps/s of one env (README).
-Here a worker steps several envs per message, nothing is pickled per step, and the info
-arrays are filled in place by the workers: the parent's share stays small however fast
-``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself (no wrappers inside the
+Here a process steps several envs per message, nothing is pickled per step, the info
+arrays are filled in place, and the parent steps envs too instead of waiting: its share
+stays small however fast ``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself (no wrappers inside the
 workers, no other env ids), fixed-shape infos (numbers and arrays, with the keys and
 shapes of the reset info of one env: new keys of ``AuvEnv._info`` keep working), and
 only ``AutoresetMode.NEXT_STEP``.
@@ -35,8 +38,9 @@ max_episode_seconds=600.0)``, or ``gymnasium.make_vec("auvsim/AUV-v0", num_envs=
 vectorization_mode="vector_entry_point", workers=..., config=..., ...)``:
 
     num_envs             environments in the batch
-    workers              worker processes (default min(num_envs, os.cpu_count())), at
-                         most num_envs; 0 steps the envs in this process (tests, 1 core)
+    workers              worker processes beside this one (default
+                         min(num_envs, os.cpu_count()) - 1: one process per core), at
+                         most num_envs; 0 steps every env in this process
     config, frame_skip,  passed to every ``AuvEnv``
     max_episode_seconds
     context              multiprocessing start method, "forkserver" (default; it
@@ -156,7 +160,7 @@ def _views(buffer, fields) -> dict[str, np.ndarray]:
 
 class _Slice:
     """The envs ``start .. stop - 1`` of the batch, reset and stepped in place over the
-    batch's arrays (in a worker, or in the parent when ``workers=0``).
+    batch's arrays (in a worker, or in the parent: its own slice).
 
     Args:
         views: the batch's arrays (``_views``).
@@ -353,8 +357,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
 
     Args:
         num_envs: environments in the batch.
-        workers: worker processes (default ``min(num_envs, os.cpu_count())``; at most
-            ``num_envs``); 0 runs the envs in this process.
+        workers: worker processes beside this one, which steps a slice too (default
+            ``min(num_envs, os.cpu_count()) - 1``; at most ``num_envs``); 0 runs every
+            env in this process.
         config: ``AuvEnv``'s config, for every env (default: the paper-sim preset's).
         frame_skip: physics steps per env step (10: dt = 0.1 s).
         max_episode_seconds: truncation time of each episode, s.

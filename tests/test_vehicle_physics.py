@@ -970,3 +970,31 @@ def test_a_propeller_rotation_other_than_plus_or_minus_one_is_refused():
         with pytest.raises(ConfigError, match="propeller_rotation") as caught:
             load_hydro(model)
         assert "\n" not in str(caught.value)
+
+
+def test_the_loop_called_past_numbas_dispatcher_computes_what_the_dispatcher_does():
+    """``Vehicle.advance`` calls the compiled loop's entry point directly once the
+    dispatcher has chosen it; a vehicle sent through the dispatcher on every call (its
+    entry point forgotten) flies bit for bit the same, with water, disturbances and a
+    closed-loop channel on."""
+    from auvsim.presets import NAVIGATOR_WATER as water
+    from auvsim.streams import mission_streams
+    from auvsim.water import Disturbance, Water
+
+    def vehicle():
+        streams = mission_streams(3)
+        return Vehicle(water=Water(water, streams["water"], duration=60.0, water_depth=60.0),
+                       disturbance=Disturbance(water, streams["disturbance"]))
+
+    direct, dispatched = vehicle(), vehicle()
+    references = np.tile([2.0, 0.3, -0.05], (10, 1))
+    flags = np.array([True, False, False])
+    for v in (direct, dispatched):
+        v.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(1.5, 0.0, 0.0))
+    for _ in range(5):
+        dispatched._compiled = None
+        a, b = direct.advance(references, flags), dispatched.advance(references, flags)
+        for x, y in zip(a, b, strict=True):
+            assert x.tobytes() == y.tobytes()
+    assert direct._compiled is not None
+    assert direct.data.qpos.tobytes() == dispatched.data.qpos.tobytes()

@@ -388,7 +388,7 @@ def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) ->
     """``value`` as a float64 array of ``shape`` (None: any length), or a ValueError."""
     out = np.asarray(value, dtype=np.float64)
     if out.ndim == len(shape):
-        for s, n in zip(shape, out.shape):  # a loop: this runs every environment step
+        for s, n in zip(shape, out.shape, strict=True):  # a loop: every environment step
             if s is not None and s != n:
                 break
         else:
