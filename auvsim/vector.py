@@ -58,22 +58,22 @@ cause.
 
 ## Performance
 
-``benchmarks/env.py`` (a 300 s straight episode in every env, median of 3, each vector
-env against one env in the same run, 2 cores shared with other jobs: load average 1.8
-before, up to 3.4 during the run), total env steps/s (wall) over one env's:
+``benchmarks/env.py``, three runs on the shared 2-core machine (a 300 s straight episode
+in every env, median of 3 or 5 per run, all against one env in the same run), total env
+steps/s (wall) over one env's:
 
-    async x2 (gymnasium)   0.42   parent 0.41 ms CPU per vector step, CPU x 2.64
-    native 2x1             0.78   parent 0.10 ms,  CPU x 1.45
-    native 8x2             1.01   parent 0.17 ms,  CPU x 1.12
+    2 lone (two unsynchronised processes, the machine's ceiling)   1.27 to 1.34
+    native 8 (4 envs here, 4 in one worker)                       0.98 to 1.25
+    native 2 (1 and 1)                                            0.87 to 1.06
+    async x2 (gymnasium's AsyncVectorEnv)                         0.23 to 0.37
 
-``CPU x`` is the CPU of the parent and its workers per env step over one env's: the
-overhead whatever else the machine runs. With 4 envs per worker it is 12%, so on two
-idle cores we expect about 2 / 1.12 = 1.8x (an estimate, not measured: other jobs held
-about one of the two cores during the run). With the workers not stepping (``NOOP``) a vector
-step of 8 envs costs the parent 0.04 ms wall, pipes included. More envs per worker
-amortise the per-step cost further.
+So 8 native envs reach 0.77 to 0.93 of what two free processes get on this machine,
+whose second core gave only a third more in these runs (1.71x in a quieter one), while
+gymnasium's async envs lose to one env. Per vector step the parent's own cost, the
+workers not stepping, is 0.02 to 0.03 ms. What is lost against two free processes is
+the lock step: each vector step waits for the slower slice.
 
-    PYTHONPATH=. .venv/bin/python benchmarks/env.py --repeats 3
+    .venv/bin/python benchmarks/env.py --repeats 3
 """
 
 from __future__ import annotations
