@@ -7,29 +7,31 @@ over shared memory, for policies that want many episodes at once.
 one per worker process and the last for this process, which steps its own envs while the
 workers step theirs (by default one process per core). Actions, observations, rewards,
 terminations, truncations and the info arrays live in one shared-memory block
-(``multiprocessing.shared_memory``), so a step costs this process one copy of the actions
-in, a one-byte message to each worker and a one-byte answer back, and copies of the
-results out. A process waiting for a message polls for it for up to ``SPIN_S`` (2 ms)
-before it blocks, when every process has a core of its own: a process that blocks gives
-up its core and gets it back later than the next message comes. The results are exactly those of ``gymnasium.make_vec(
-"auvsim/AUV-v0", num_envs, vectorization_mode="sync")`` (tests/test_vector.py compares
-them bitwise): env ``i`` is reset with seed ``s + i`` by ``reset(seed=s)``, autoreset
-follows gymnasium's ``AutoresetMode.NEXT_STEP`` (the step after an episode's end resets
-that env and returns its reset observation and info, reward 0, neither flag set), and
-``info[key]`` is batched with its ``info["_key"]`` mask as gymnasium's vector envs do.
+(``multiprocessing.shared_memory``), so a step costs this process one copy of the
+actions in, a one-byte message to each worker and a one-byte answer back, and copies of
+the results out. A process waiting for a message polls for it for up to ``SPIN_S``
+(2 ms) before it blocks, when every process has a core of its own: a process that blocks
+gives up its core and gets it back later than the next message comes. The results are
+exactly those of ``gymnasium.make_vec("auvsim/AUV-v0", num_envs,
+vectorization_mode="sync")`` (tests/test_vector.py compares them bitwise): env ``i`` is
+reset with seed ``s + i`` by ``reset(seed=s)``, autoreset follows gymnasium's
+``AutoresetMode.NEXT_STEP`` (the step after an episode's end resets that env and returns
+its reset observation and info, reward 0, neither flag set), and ``info[key]`` is
+batched with its ``info["_key"]`` mask as gymnasium's vector envs do.
 
 ## How it differs from ``gymnasium.vector.AsyncVectorEnv``
 
 ``AsyncVectorEnv`` runs one process per env and, per step, pickles each env's action and
 its whole result (an 11-key info dict) through a pipe and merges the infos key by key
 (``VectorEnv._add_info``): about 0.4 ms of the parent's time per step, as much as a step
-of the env costs, so two of them on 2 cores gave 0.63x the steps/s of one env (README).
+of the env costs, so two of them on 2 cores gave 0.23 to 0.37x the steps/s of one env
+(README).
 Here a process steps several envs per message, nothing is pickled per step, the info
 arrays are filled in place, and the parent steps envs too instead of waiting: its share
-stays small however fast ``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself (no wrappers inside the
-workers, no other env ids), fixed-shape infos (numbers and arrays, with the keys and
-shapes of the reset info of one env: new keys of ``AuvEnv._info`` keep working), and
-only ``AutoresetMode.NEXT_STEP``.
+stays small however fast ``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself
+(no wrappers inside the workers, no other env ids), fixed-shape infos (numbers and
+arrays, with the keys and shapes of the reset info of one env: new keys of
+``AuvEnv._info`` keep working), and only ``AutoresetMode.NEXT_STEP``.
 
 ## Arguments
 
