@@ -56,7 +56,9 @@ closes: the worker reads EOF); the shared memory is unlinked by ``close()`` (or 
 multiprocessing's resource tracker if the parent is killed). An exception in a worker
 (``AuvEnv.step`` refuses a non-finite action with a ``ValueError``) closes the env and
 is re-raised in the parent, same type and message, with the worker's traceback as its
-cause.
+cause; a worker that died, mid-step or idle, is a ``RuntimeError`` naming it and its
+exit code, the env closed; a Ctrl-C closes the env too. Polling counts the cores this
+process may run on (``os.sched_getaffinity``), not the machine's.
 
 ## Performance
 
@@ -258,12 +260,14 @@ def _readable(fd: int, spin: bool) -> None:
     first: a process that blocks gives up its core, and getting it back costs more than a
     step's worth of the time it is away (measured: ``benchmarks/env.py``), while the next
     message usually comes within a step."""
+    poller = select.poll()  # not select.select, which refuses descriptors >= 1024
+    poller.register(fd, select.POLLIN)
     if spin:
         deadline = time.perf_counter() + SPIN_S
         while time.perf_counter() < deadline:
-            if select.select([fd], [], [], 0.0)[0]:
+            if poller.poll(0):
                 return
-    select.select([fd], [], [])
+    poller.poll()
 
 
 def _worker(conn, shm_name: str, fields, start: int, stop: int, env_kwargs: dict,
@@ -380,7 +384,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
 
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
-        cores = os.cpu_count() or 1
+        # The cores this process may run on (fewer than the machine's under taskset).
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
+            else os.cpu_count() or 1
         if workers is None:  # this process steps envs too: one process per core
             workers = min(num_envs, cores) - 1
         if not isinstance(workers, int) or workers < 0:
@@ -509,16 +515,26 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         meanwhile (None: nothing), and wait for the workers' answers; on any failure,
         close the env and raise."""
         data = pickle.dumps((name, *args)) if message == COMMAND else None
-        for fd, conn in zip(self._fds, self._conns, strict=True):
-            os.write(fd, message)
-            if data is not None:
-                conn.send_bytes(data)
-        own = None
-        if method is not None:
-            try:
-                method(*args)
-            except Exception as exc:
-                own = exc
+        try:
+            for k, (fd, conn) in enumerate(zip(self._fds, self._conns, strict=True)):
+                try:
+                    os.write(fd, message)
+                    if data is not None:
+                        conn.send_bytes(data)
+                except OSError:  # its end of the pipe is closed: it died while idle
+                    self._processes[k].join(timeout=1.0)  # for its exit code
+                    raise RuntimeError(
+                        f"AuvVectorEnv: worker {k} (pid {self._processes[k].pid}) died, exit "
+                        f"code {self._processes[k].exitcode}") from None
+            own = None
+            if method is not None:
+                try:
+                    method(*args)
+                except Exception as exc:
+                    own = exc
+        except BaseException:  # Ctrl-C too: the workers' answers would be out of step
+            self.close()
+            raise
         self._wait(own)
 
     def _check_open(self) -> None:

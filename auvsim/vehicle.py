@@ -229,9 +229,11 @@ class Vehicle:
         # The compiled loop for this vehicle's argument types, called without numba's
         # dispatcher: it works out the types of every argument on every call, and those of
         # the two NamedTuples (Hydro, WaterTable: 42 fields) cost 15 to 20 us, as much as
-        # the environment's whole step may. Every argument's type is fixed here: the same
-        # tuples, float64 C arrays (``references`` made so below), ints, a float.
+        # the environment's whole step may. ``_argument_key`` says when it holds: the same
+        # objects in the vehicle's attributes the loop reads (an attribute given a new
+        # object may bring a new type), and the same types of the arrays made per call.
         self._compiled = None
+        self._key: tuple = ()
 
     def check_speed(self, speed: float) -> None:
         """Refuse a surge set point the vehicle cannot hold: below ``MIN_SPEED`` (no depth
@@ -319,14 +321,26 @@ class Vehicle:
                 self.gains, references, closed_loop, self.actuators, self.integrals,
                 self.current_ned, self.water_table, self.disturbance is not None, rows, base,
                 self.step, self.imu_position, self.dt, out)
-        if self._compiled is None:
+        key = self._argument_key(references, closed_loop, rows)
+        if self._compiled is not None and len(key) == len(self._key) and all(
+                [a is b for a, b in zip(key, self._key, strict=True)]):
+            self._compiled(*args)
+        else:
             _run(*args)  # compiles, or loads from the cache, the loop for these types
             self._compiled = _run.overloads[tuple(map(_run.typeof_pyval, args))].entry_point
-        else:
-            self._compiled(*args)
+            self._key = key
         self.step += len(references)
         self._check_stable()
         return out
+
+    def _argument_key(self, references, closed_loop, rows) -> tuple:
+        """What fixes the compiled loop's argument types: the objects the vehicle passes
+        (held, so that no other object can take one's place) and the numba types of the
+        arrays made per call (numba's types are interned: ``is`` compares them)."""
+        typeof = _run.typeof_pyval
+        return (self.hydro, self.gains, self.water_table, self.current_ned, self.actuators,
+                self.integrals, self.imu_position, typeof(references), typeof(closed_loop),
+                typeof(rows))
 
     def _check_stable(self) -> None:
         if self._warnings.any():

@@ -165,10 +165,17 @@ def test_a_killed_parent_leaves_no_worker_and_no_shared_memory():
     assert not segment.exists()  # unlinked by multiprocessing's resource tracker
 
 
-def test_a_dead_worker_is_reported_and_the_env_closed():
+@pytest.mark.parametrize("gone", [False, True], ids=["dying", "gone"])
+def test_a_dead_worker_is_reported_and_the_env_closed(gone):
+    """Killed and stepped at once (the step's message reaches a dying worker), or stepped
+    once it is gone (its end of the pipe closed): one RuntimeError, the env closed."""
     env = AuvVectorEnv(num_envs=2, workers=2)
     env.reset(seed=0)
-    os.kill(env.worker_pids[1], signal.SIGKILL)
+    process = env._processes[1]
+    os.kill(process.pid, signal.SIGKILL)
+    if gone:
+        process.join(timeout=10.0)
+        assert not process.is_alive()
     with pytest.raises(RuntimeError, match=r"worker 1 \(pid \d+\) died, exit code -9"):
         env.step(np.zeros((2, 3)))
     assert env.closed and not mp.active_children()
@@ -182,3 +189,18 @@ def test_a_forgotten_env_stops_its_workers_when_collected():
     gc.collect()
     assert not any(p.is_alive() for p in processes) and not mp.active_children()
     assert not segment.exists()
+
+
+def test_ctrl_c_during_this_processs_own_slice_closes_the_env():
+    """A KeyboardInterrupt while this process steps its own envs (the workers' answers
+    then unread) closes the env rather than leaving its pipes out of step."""
+    env = AuvVectorEnv(num_envs=2, workers=1)
+    env.reset(seed=0)
+
+    def interrupted(action):
+        raise KeyboardInterrupt
+
+    env._slice.envs[0].step = interrupted
+    with pytest.raises(KeyboardInterrupt):
+        env.step(np.zeros((2, 3)))
+    assert env.closed and not mp.active_children()

@@ -998,3 +998,21 @@ def test_the_loop_called_past_numbas_dispatcher_computes_what_the_dispatcher_doe
             assert x.tobytes() == y.tobytes()
     assert direct._compiled is not None
     assert direct.data.qpos.tobytes() == dispatched.data.qpos.tobytes()
+
+
+def test_an_attribute_given_an_array_of_another_type_is_read_as_its_numbers():
+    """The loop's compiled entry point is chosen again when an attribute it reads gets a
+    new object: an integer or a strided current flies as the float64 one does."""
+    references, flags = np.tile([500.0, 0.02, 0.0], (10, 1)), np.zeros(3, dtype=np.bool_)
+
+    def flown(current):
+        vehicle = Vehicle()
+        vehicle.reset(velocity_body=(1.5, 0.0, 0.0))
+        vehicle.advance(references, flags)  # the entry point of the first types, kept
+        vehicle.current_ned = current
+        return [vehicle.advance(references, flags).velocity_water_body for _ in range(3)]
+
+    expected = flown(np.array([1.0, 0.0, 0.0]))
+    for current in (np.array([1, 0, 0]), np.array([1.0, 9.0, 0.0, 9.0, 0.0, 9.0])[::2]):
+        for got, want in zip(flown(current), expected, strict=True):
+            assert got.tobytes() == want.tobytes()

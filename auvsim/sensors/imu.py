@@ -341,7 +341,7 @@ class _Channel:
         self.at = 0
 
 
-CHUNK = 1024  # samples of error terms made ahead at a time (10 s at 100 Hz)
+CHUNK = 1024  # samples of error terms made ahead at a time (about 10 s at 100 Hz)
 _OFF, _OFF_ROWS = np.zeros(0), np.zeros((0, 3))  # a term that is off, for _add_terms
 
 
