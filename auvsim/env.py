@@ -81,13 +81,14 @@ and ``ping_time`` (s).
 ## Performance
 
 A step costs one call of the compiled physics loop (``frame_skip`` MuJoCo steps; called
-past numba's dispatcher, ``Vehicle.advance``) and one ``MissionRun.measure`` of its block:
-the sensors' work on a few rows, compiled where numpy's cost per call was most of it (the
-IMU's error terms are made ahead, 1,024 samples at a time), with the DVL's ping, every
-tenth step at the defaults, the largest part. ``benchmarks/env.py`` measures it against ``generate``
-(figures in the README). ``gymnasium.make_vec("auvsim/AUV-v0", num_envs=N)`` gives
-``auvsim.vector.AuvVectorEnv``, which steps slices of the envs in worker processes and in
-this one over shared memory; gymnasium's ``"sync"`` and ``"async"`` modes work too.
+past numba's dispatcher, ``Vehicle.advance``) and one ``MissionRun.measure`` of its
+block: the sensors' work on a few rows, compiled where numpy's cost per call was most of
+it (the IMU's error terms are made ahead, 1,024 samples at a time), with the DVL's ping,
+every tenth step at the defaults, the largest part. ``benchmarks/env.py`` measures it
+against ``generate`` (figures in the README). ``gymnasium.make_vec("auvsim/AUV-v0",
+num_envs=N)`` gives ``auvsim.vector.AuvVectorEnv``, which steps slices of the envs in
+worker processes and in this one over shared memory; gymnasium's ``"sync"`` and
+``"async"`` modes work too.
 
 ## Version History
 
