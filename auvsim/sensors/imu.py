@@ -302,9 +302,9 @@ class _Channel:
                           or self.g_matrix_t is not None)
         # The samples' error terms that do not depend on the truth, made ahead in chunks:
         # the white noise n[k] and the Gauss-Markov bias b[k] of samples at, at + 1, ...
-        # A block of a few samples (an environment step) then costs two slices, not two
-        # draws and a loop. The streams are read forward only, so the chunks' size changes
-        # no draw.
+        # A block of a few samples (an environment step) then costs one compiled pass over
+        # rows made earlier, not two draws and a loop. The streams are read forward only,
+        # so the chunks' size changes no draw.
         self.at = 0
         self.noise = np.zeros((0, 3))
         self.gauss_markov = np.zeros((0, 3))
