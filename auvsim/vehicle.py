@@ -59,6 +59,14 @@ _UNSTABLE = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS),
                   int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
 
 
+def _array_kind(a: np.ndarray) -> tuple:
+    """What numba's type of an array argument is made of: dtype, dimensions, layout
+    (C, F or any), read-only or not, aligned or not."""
+    flags = a.flags
+    return (a.dtype, a.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable,
+            flags.aligned)
+
+
 class Trajectory(NamedTuple):
     """True state at every physics step, NED/FRD (see the package docstring). Shapes (N, .)."""
 
@@ -231,9 +239,9 @@ class Vehicle:
         # the two NamedTuples (Hydro, WaterTable: 42 fields) cost 15 to 20 us, as much as
         # the environment's whole step may. ``_argument_key`` says when it holds: the same
         # objects in the vehicle's attributes the loop reads (an attribute given a new
-        # object may bring a new type), and the same types of the arrays made per call.
+        # object may bring a new type), and caller's arrays of the same dtype and layout.
         self._compiled = None
-        self._key: tuple = ()
+        self._key: tuple[tuple, tuple] = ((), ())
 
     def check_speed(self, speed: float) -> None:
         """Refuse a surge set point the vehicle cannot hold: below ``MIN_SPEED`` (no depth
@@ -321,9 +329,9 @@ class Vehicle:
                 self.gains, references, closed_loop, self.actuators, self.integrals,
                 self.current_ned, self.water_table, self.disturbance is not None, rows, base,
                 self.step, self.imu_position, self.dt, out)
-        key = self._argument_key(references, closed_loop, rows)
-        if self._compiled is not None and len(key) == len(self._key) and all(
-                [a is b for a, b in zip(key, self._key, strict=True)]):
+        key = self._argument_key(references, closed_loop)
+        if self._compiled is not None and self._key[0] == key[0] and all(
+                [a is b for a, b in zip(key[1], self._key[1], strict=True)]):
             self._compiled(*args)
         else:
             _run(*args)  # compiles, or loads from the cache, the loop for these types
@@ -333,14 +341,15 @@ class Vehicle:
         self._check_stable()
         return out
 
-    def _argument_key(self, references, closed_loop, rows) -> tuple:
-        """What fixes the compiled loop's argument types: the objects the vehicle passes
-        (held, so that no other object can take one's place) and the numba types of the
-        arrays made per call (numba's types are interned: ``is`` compares them)."""
-        typeof = _run.typeof_pyval
-        return (self.hydro, self.gains, self.water_table, self.current_ned, self.actuators,
-                self.integrals, self.imu_position, typeof(references), typeof(closed_loop),
-                typeof(rows))
+    def _argument_key(self, references, closed_loop) -> tuple[tuple, tuple]:
+        """What fixes the compiled loop's argument types: what numba's types of the
+        caller's arrays are made of (``_array_kind``; numba's own ``typeof`` costs 13 us
+        an array), and the objects of the vehicle's attributes the loop reads, by
+        identity (held, so that no other object can take one's place). The disturbance
+        rows are always a new float64 C array (``np.concatenate``), MuJoCo's views fixed."""
+        return ((_array_kind(references), _array_kind(closed_loop)),
+                (self.hydro, self.gains, self.water_table, self.current_ned, self.actuators,
+                 self.integrals, self.imu_position))
 
     def _check_stable(self) -> None:
         if self._warnings.any():
