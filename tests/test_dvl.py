@@ -217,7 +217,13 @@ def test_the_compiled_helpers_give_numpys_bits():
     for m in (1, 2, 60, 1000):
         q = rng.normal(size=(m, 4))
         q /= np.linalg.norm(q, axis=1, keepdims=True)
-        assert dvl._rotation_matrices(q).tobytes() == rotation_matrices(q).tobytes()
+        w_, x, y, z = q.T  # the numpy formula rotation_matrices was before it was compiled
+        stacked = np.stack([
+            1 - 2 * (y * y + z * z), 2 * (x * y - w_ * z), 2 * (x * z + w_ * y),
+            2 * (x * y + w_ * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w_ * x),
+            2 * (x * z - w_ * y), 2 * (y * z + w_ * x), 1 - 2 * (x * x + y * y),
+        ], axis=-1).reshape(-1, 3, 3)
+        assert rotation_matrices(q).tobytes() == stacked.tobytes()
         v, w, r = rng.normal(size=(m, 3)), rng.normal(size=(m, 3)), rng.normal(size=3)
         cross = np.stack([w[:, 1] * r[2] - w[:, 2] * r[1], w[:, 2] * r[0] - w[:, 0] * r[2],
                           w[:, 0] * r[1] - w[:, 1] * r[0]], axis=-1)

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..config import DvlConfig
 from ..errors import ConfigError
-from ..frames import rotation_rpy
+from ..frames import rotation_matrices, rotation_rpy
 from . import Attr, Field, Sensor, sample_rows, samples_in
 
 
@@ -428,25 +428,6 @@ def _measured_beams(signal: np.ndarray, scale: np.ndarray, bias: np.ndarray, rat
 
 
 @numba.njit(cache=True)
-def _rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(M, 3, 3) body -> NED rotations of (M, 4) unit quaternions [w, x, y, z]: the
-    formula of ``auvsim.frames.rotation_matrices``, row by row."""
-    out = np.empty((len(q), 3, 3))
-    for m in range(len(q)):
-        w, x, y, z = q[m, 0], q[m, 1], q[m, 2], q[m, 3]
-        out[m, 0, 0] = 1 - 2 * (y * y + z * z)
-        out[m, 0, 1] = 2 * (x * y - w * z)
-        out[m, 0, 2] = 2 * (x * z + w * y)
-        out[m, 1, 0] = 2 * (x * y + w * z)
-        out[m, 1, 1] = 1 - 2 * (x * x + z * z)
-        out[m, 1, 2] = 2 * (y * z - w * x)
-        out[m, 2, 0] = 2 * (x * z - w * y)
-        out[m, 2, 1] = 2 * (y * z + w * x)
-        out[m, 2, 2] = 1 - 2 * (x * x + y * y)
-    return out
-
-
-@numba.njit(cache=True)
 def _longest_horizontal(d: np.ndarray) -> float:
     """The largest horizontal length ``sqrt(n^2 + e^2)`` of (M, B, 3) vectors, as
     ``np.linalg.norm(d[..., :2], axis=-1).max()`` computes it (M B > 0)."""
@@ -674,7 +655,7 @@ class Dvl(Sensor):
             return _no_pings()
         time = truth.time[rows]
         velocity = self.geometry.velocity(truth.velocity_body[rows], truth.angular_rate[rows])
-        rotation = _rotation_matrices(truth.quaternion[rows])
+        rotation = rotation_matrices(truth.quaternion[rows])
         origins, directions = self.geometry.rays(truth.position_ned[rows], rotation)
         reach = c.max_range * _longest_horizontal(directions)
         try:
