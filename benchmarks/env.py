@@ -30,6 +30,13 @@ parent's whole cost plus the round trip to the workers.
 The first call of each (numba loading its cache, gymnasium's checks) is not timed.
 
     .venv/bin/python benchmarks/env.py [--seconds 300] [--repeats 3]
+    .venv/bin/python benchmarks/env.py --profile   # where one env's step goes
+
+``--profile`` flies the episode in one env with a timer around each part of the step
+(``Vehicle.advance``, ``MissionRun.measure`` and in it each sensor and the altitude, the
+env's ``_info`` and ``_observation``) and prints microseconds per step: the table in
+``docs/ARCHITECTURE.md``. The timers cost a little each, so the parts add up to a bit more
+than a step without them.
 
 (The native envs' workers import this script: hence the ``__main__`` guard.)
 """
@@ -158,12 +165,55 @@ def noop_step_seconds(env: AuvVectorEnv, steps: int = 2000) -> float:
     return (time.perf_counter() - start) / steps
 
 
+def profile(seconds: float) -> None:
+    """Print the microseconds per step of each part of ``AuvEnv.step`` (``--profile``)."""
+    from auvsim.env import AuvEnv
+    from auvsim.mission import MissionRun
+    from auvsim.sensors import registry
+    from auvsim.vehicle import Vehicle
+
+    spent: dict[str, float] = {}
+
+    def timed(owner, name: str, label: str) -> None:
+        inner = getattr(owner, name)
+        spent[label] = 0.0  # printed in this order
+
+        def wrapper(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.perf_counter() - start
+
+        setattr(owner, name, wrapper)
+
+    env = gym.make("auvsim/AUV-v0", max_episode_seconds=seconds)
+    episode(env, seconds)  # loads every kernel
+    timed(AuvEnv, "step", "whole step")
+    timed(Vehicle, "advance", "Vehicle.advance (physics)")
+    timed(MissionRun, "measure", "MissionRun.measure")
+    for name, sensor in registry().items():
+        timed(sensor, "measure", f"  {name}")
+    timed(MissionRun, "_altitude", "  altitude")
+    timed(AuvEnv, "_info", "_info")
+    timed(AuvEnv, "_observation", "_observation")
+    steps = episode(env, seconds)
+    env.close()
+    for label, total in spent.items():
+        print(f"{label:28s} {1e6 * total / steps:7.1f} us per step")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=300.0,
                         help="simulated seconds per episode (and of the generated mission)")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--profile", action="store_true",
+                        help="time each part of one env's step instead")
     args = parser.parse_args()
+    if args.profile:
+        profile(args.seconds)
+        return
 
     env = gym.make("auvsim/AUV-v0", max_episode_seconds=args.seconds)
     vectors = {
