@@ -9,7 +9,7 @@ from conftest import flat, mission
 from auvsim import dataset
 from auvsim.config import Config, DepthConfig
 from auvsim.mission import MissionRun
-from auvsim.sensors import Sensor, registry, sample_rows
+from auvsim.sensors import Sensor, Truth, registry, sample_rows
 from auvsim.streams import STREAMS, imported_streams, mission_streams
 
 
@@ -76,6 +76,32 @@ def test_depth_sensor_noise_bias_and_resolution_have_their_statistics():
 def test_an_ideal_depth_sensor_reads_the_truth():
     _, data = depth_run(30.0)
     np.testing.assert_array_equal(data["depth/depth"], data["truth/position_ned"][::10, 2])
+
+
+def test_depth_noise_drawn_ahead_is_the_noise_drawn_block_by_block():
+    """The sensor draws its noise ahead, a chunk at a time: uneven blocks, across chunk
+    edges, read the numbers one draw per block gives, bit for bit; a new generator starts
+    afresh."""
+    config = flat(mission(duration=10.0, depth=20.0),
+                  depth=DepthConfig(rate_hz=10.0, noise_std=0.05, bias_std=0.3))
+    sensor = registry()["depth"](config, None, np.random.default_rng(1))
+    every = sensor.every_imu
+    true = np.random.default_rng(2).uniform(0.0, 100.0, 30_000)
+    rng, reference = np.random.default_rng(5), np.random.default_rng(5)
+    edges = [0, 1, 1, 7, 9000, 9001, 21_000, 30_000]  # an empty block; 3,000 samples
+    for start, stop in zip(edges[:-1], edges[1:], strict=True):
+        n = stop - start
+        position = np.zeros((n, 3))
+        position[:, 2] = true[start:stop]
+        truth = Truth(start, np.arange(start, stop) * 0.01, position, *[None] * 7)
+        rows = sample_rows(start, n, every)
+        expected = position[rows, 2] + sensor.bias + 0.05 * reference.standard_normal(
+            len(position[rows]))
+        assert sensor.measure(truth, rng)["depth/depth"].tobytes() == expected.tobytes()
+    fresh = np.random.default_rng(9)
+    truth = Truth(0, np.zeros(1), np.zeros((1, 3)), *[None] * 7)
+    expected = sensor.bias + 0.05 * np.random.default_rng(9).standard_normal(1)
+    assert sensor.measure(truth, fresh)["depth/depth"].tobytes() == (0.0 + expected).tobytes()
 
 
 def test_the_depth_sensor_does_not_change_the_other_sensors():

@@ -20,6 +20,8 @@ import numpy as np
 
 from . import Attr, Field, Sensor, sample_rows, samples_in
 
+CHUNK = 1024  # noise samples drawn ahead at a time
+
 
 class PressureDepth(Sensor):
     """The depth sensor plugin (``auvsim.config.DepthConfig``)."""
@@ -43,6 +45,20 @@ class PressureDepth(Sensor):
         self.config = config.depth
         self.every_imu = self.every(config)
         self.bias = self.config.bias_std * float(parameters.standard_normal())
+        self._rng, self._ahead, self._at = None, np.zeros(0), 0
+
+    def _noise(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """The next ``n`` samples of ``noise_std * N(0, 1)`` from ``rng``: drawn ahead,
+        ``CHUNK`` at a time (the environment measures one sample a step, and a draw's cost
+        per call is most of it). A generator reads forward only, so the numbers are the
+        ones drawn a block at a time; a new ``rng`` starts afresh."""
+        if rng is not self._rng:
+            self._rng, self._ahead, self._at = rng, np.zeros(0), 0
+        if self._at + n > len(self._ahead):
+            drawn = self.config.noise_std * rng.standard_normal(max(n, CHUNK))
+            self._ahead, self._at = np.concatenate([self._ahead[self._at:], drawn]), 0
+        self._at += n
+        return self._ahead[self._at - n:self._at]
 
     def rows(self, n_imu):
         return {"depth": samples_in(n_imu, self.every_imu)}
@@ -55,7 +71,7 @@ class PressureDepth(Sensor):
     def measure(self, truth, rng):
         rows = sample_rows(truth.first, len(truth.time), self.every_imu)
         true = truth.position_ned[rows, 2]
-        depth = true + self.bias + self.config.noise_std * rng.standard_normal(len(true))
+        depth = true + self.bias + self._noise(rng, len(true))
         if self.config.resolution > 0:
             depth = self.config.resolution * np.round(depth / self.config.resolution)
         return {"depth/time": truth.time[rows], "depth/depth": depth}
