@@ -14,7 +14,10 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
   each env of ``gymnasium.make_vec(..., num_envs=2, vectorization_mode="async")``; the
   speed-up is total env steps/s of the two over the one (2 at best on two idle cores);
 * ``2 lone``: two processes flying the episode in an env each, at the same time and not
-  synchronised: what two cores of this machine give at most;
+  synchronised: what two cores of this machine give the env at most. The control line
+  after the table does the same with ``small_loop`` (small numpy and Python operations on
+  a few hundred bytes) against one run of it here: what the cores give to work that fits
+  in each core's own caches;
 * ``native 2`` and ``native 8``: the same in each env of ``auvsim.vector.AuvVectorEnv``
   with its default workers (on 2 cores one worker process beside this one, each
   stepping half of the envs: one each, four each).
@@ -92,22 +95,42 @@ def vector_episode(env: gym.vector.VectorEnv, seconds: float) -> int:
             return steps
 
 
-def _lone(conn, seconds: float) -> None:
-    """A process flying the episode in an env of its own whenever asked (``TwoLone``)."""
-    env = gym.make("auvsim/AUV-v0", max_episode_seconds=seconds)
-    episode(env, seconds)  # loads every kernel
+SMALL = 60_000  # iterations of the small loop: about as long as an episode
+
+
+def small_loop(n: int = SMALL) -> int:
+    """``n`` rounds of a few small numpy and Python operations on a few hundred bytes:
+    work that fits in a core's own caches (the ``2 small`` control); returns ``n``."""
+    a, m = np.zeros(3), np.eye(3)
+    rng = np.random.default_rng(0)
+    for _ in range(n):
+        a = m @ (a * 0.5 + 1.0)
+        np.clip(rng.standard_normal(3), -1.0, 1.0)
+    return n
+
+
+def _lone(conn, seconds: float | None) -> None:
+    """A process flying the episode in an env of its own whenever asked (``TwoLone``), or,
+    given no ``seconds``, running ``small_loop``."""
+    if seconds is None:
+        job = small_loop
+    else:
+        env = gym.make("auvsim/AUV-v0", max_episode_seconds=seconds)
+        job = lambda: episode(env, seconds)  # noqa: E731
+    job()  # loads every kernel
     conn.send(None)
     while conn.recv():
-        conn.send(episode(env, seconds))
+        conn.send(job())
 
 
 class TwoLone:
-    """Two processes, each flying the episode in its own env, started together and not
-    synchronised: what two cores of this machine give at most (the ``2 lone`` row)."""
+    """Two processes, each flying the episode in its own env (or, with no ``seconds``,
+    running ``small_loop``), started together and not synchronised: what two cores of this
+    machine give at most (the ``2 lone`` and ``2 small`` rows)."""
 
     num_envs = 2
 
-    def __init__(self, seconds: float) -> None:
+    def __init__(self, seconds: float | None) -> None:
         ctx = multiprocessing.get_context("forkserver")
         self.conns, self.processes = [], []
         for _ in range(2):
@@ -222,7 +245,7 @@ def main() -> None:
         "native 2": AuvVectorEnv(num_envs=2, max_episode_seconds=args.seconds),
         "native 8": AuvVectorEnv(num_envs=8, max_episode_seconds=args.seconds),
     }
-    two = TwoLone(args.seconds)
+    two, two_small = TwoLone(args.seconds), TwoLone(None)
     unwrapped = env.unwrapped
     start = unwrapped.start
     config = dataclasses.replace(unwrapped.config, missions=(MissionConfig(
@@ -240,8 +263,10 @@ def main() -> None:
         episode(env, args.seconds)
         for vector in vectors.values():
             vector_episode(vector, args.seconds)
+        small_loop()
         times: dict[str, list[float]] = {"env": [], "generate": [], "1 env": [],
                                          "2 lone": [], **{name: [] for name in vectors}}
+        small: dict[str, list[float]] = {"1 small": [], "2 small": []}
         parent = {name: [] for name in vectors}  # CPU s of this process
         total = {name: [] for name in vectors}  # CPU s of this process and the workers
         noop = {name: [] for name in vectors if name.startswith("native")}
@@ -252,6 +277,8 @@ def main() -> None:
             times["generate"].append(cpu_seconds(full))
             times["1 env"].append(wall_seconds(lambda: episode(env, args.seconds)))
             times["2 lone"].append(wall_seconds(two.episodes))
+            small["1 small"].append(wall_seconds(small_loop))
+            small["2 small"].append(wall_seconds(two_small.episodes))
             for name, vector in vectors.items():
                 wall, cpu, workers = wall_and_cpu(
                     lambda v=vector: vector_episode(v, args.seconds), worker_pids(vector))
@@ -263,6 +290,7 @@ def main() -> None:
     for vector in vectors.values():
         vector.close()
     two.close()
+    two_small.close()
     env.close()
 
     med = {k: statistics.median(v) for k, v in times.items()}
@@ -293,6 +321,12 @@ def main() -> None:
         print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}"
               + ("" if name == "2 lone" else
                  f"; / 2 lone: {rate[name] / rate['2 lone']:.2f}"))
+    # Each repeat's pair was run back to back: its ratio, and their spread (the noise).
+    pairs = sorted(2 * one / two for one, two in zip(small["1 small"], small["2 small"],
+                                                       strict=True))
+    print(f"control, small_loop (a few hundred bytes of data): 2 processes / 1 (total "
+          f"rounds/s, wall), each repeat's pair: median {statistics.median(pairs):.2f}, "
+          f"from {pairs[0]:.2f} to {pairs[-1]:.2f}")
     print(f"target: env >= {TARGET:.0f} steps/s per core -> "
           f"{'met' if rate['env'] >= TARGET else 'MISSED'} ({rate['env']:.0f})")
 
