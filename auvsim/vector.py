@@ -62,20 +62,22 @@ process may run on (``os.sched_getaffinity``), not the machine's.
 
 ## Performance
 
-``benchmarks/env.py``, five runs on the shared 2-core machine (a 300 s straight episode
+``benchmarks/env.py``, eight runs on the shared 2-core machine (a 300 s straight episode
 in every env, median of 3 or 5 per run, all against one env in the same run), total env
 steps/s (wall) over one env's:
 
-    2 lone (two unsynchronised processes, the machine's ceiling)   1.27 to 1.67
+    small loop in 2 processes (control, the last three runs)      1.65 to 1.78
+    2 lone (two unsynchronised processes, the machine's ceiling)   1.27 to 1.71
     native 8 (4 envs here, 4 in one worker)                       0.98 to 1.41
-    native 2 (1 and 1)                                            0.87 to 1.24
-    async x2 (gymnasium's AsyncVectorEnv)                         0.23 to 0.42
+    native 2 (1 and 1)                                            0.87 to 1.25
+    async x2 (gymnasium's AsyncVectorEnv)                         0.23 to 0.46
 
-So 8 native envs reach 0.77 to 0.93 of what two free processes get on this machine,
-whose second core gave only a third to two thirds more in these runs, while
-gymnasium's async envs lose to one env. Per vector step the parent's own cost, the
-workers not stepping, is 0.02 to 0.03 ms. What is lost against two free processes is
-the lock step: each vector step waits for the slower slice.
+So 8 native envs reach 0.74 to 0.93 of what two free processes get on this machine,
+whose second core gave a third to three quarters more in these runs, even to a loop of
+small numpy operations on a few hundred bytes; gymnasium's async envs lose to one env.
+Per vector step the parent's own cost, the workers not stepping, is 0.02 to 0.04 ms.
+What is lost against two free processes is the lock step: each vector step waits for
+the slower slice.
 
     .venv/bin/python benchmarks/env.py --repeats 3
 """
