@@ -100,7 +100,7 @@ SMALL = 60_000  # iterations of the small loop: about as long as an episode
 
 def small_loop(n: int = SMALL) -> int:
     """``n`` rounds of a few small numpy and Python operations on a few hundred bytes:
-    work that fits in a core's own caches (the ``2 small`` control); returns ``n``."""
+    work that fits in a core's own caches (the control line); returns ``n``."""
     a, m = np.zeros(3), np.eye(3)
     rng = np.random.default_rng(0)
     for _ in range(n):
@@ -126,7 +126,7 @@ def _lone(conn, seconds: float | None) -> None:
 class TwoLone:
     """Two processes, each flying the episode in its own env (or, with no ``seconds``,
     running ``small_loop``), started together and not synchronised: what two cores of this
-    machine give at most (the ``2 lone`` and ``2 small`` rows)."""
+    machine give at most (the ``2 lone`` row and the control line)."""
 
     num_envs = 2
 
