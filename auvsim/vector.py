@@ -24,7 +24,7 @@ batched with its ``info["_key"]`` mask as gymnasium's vector envs do.
 ``AsyncVectorEnv`` runs one process per env and, per step, pickles each env's action and
 its whole result (an 11-key info dict) through a pipe and merges the infos key by key
 (``VectorEnv._add_info``): about 0.4 ms of the parent's time per step, as much as a step
-of the env costs, so two of them on 2 cores gave 0.23 to 0.37x the steps/s of one env
+of the env costs, so two of them on 2 cores gave 0.23 to 0.46x the steps/s of one env
 (README).
 Here a process steps several envs per message, nothing is pickled per step, the info
 arrays are filled in place, and the parent steps envs too instead of waiting: its share
@@ -41,8 +41,9 @@ vectorization_mode="vector_entry_point", workers=..., config=..., ...)``:
 
     num_envs             environments in the batch
     workers              worker processes beside this one (default
-                         min(num_envs, os.cpu_count()) - 1: one process per core), at
-                         most num_envs; 0 steps every env in this process
+                         min(num_envs, cores) - 1, cores those this process may run
+                         on: one process per core), at most num_envs; 0 steps every
+                         env in this process
     config, frame_skip,  passed to every ``AuvEnv``
     max_episode_seconds
     context              multiprocessing start method, "forkserver" (default; it
@@ -366,8 +367,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
     Args:
         num_envs: environments in the batch.
         workers: worker processes beside this one, which steps a slice too (default
-            ``min(num_envs, os.cpu_count()) - 1``; at most ``num_envs``); 0 runs every
-            env in this process.
+            ``min(num_envs, cores) - 1``, cores those this process may run on,
+            ``os.sched_getaffinity``; at most ``num_envs``); 0 runs every env in this
+            process.
         config: ``AuvEnv``'s config, for every env (default: the paper-sim preset's).
         frame_skip: physics steps per env step (10: dt = 0.1 s).
         max_episode_seconds: truncation time of each episode, s.

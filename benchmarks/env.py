@@ -128,8 +128,6 @@ class TwoLone:
     running ``small_loop``), started together and not synchronised: what two cores of this
     machine give at most (the ``2 lone`` row and the control line)."""
 
-    num_envs = 2
-
     def __init__(self, seconds: float | None) -> None:
         ctx = multiprocessing.get_context("forkserver")
         self.conns, self.processes = [], []
