@@ -72,7 +72,15 @@ def autopilot(h, g, reference, closed_loop, integrals, u, depth, depth_rate, pit
         closed_loop: (3,) bool, which channels the autopilot drives.
         integrals: (3,) integrator states, updated in place.
     """
-    cmd = reference.copy()
+    return autopilot_into(h, g, reference, closed_loop, integrals, u, depth, depth_rate,
+                          pitch, yaw, q, r, dt, reference.copy())
+
+
+@numba.njit(cache=True)
+def autopilot_into(h, g, reference, closed_loop, integrals, u, depth, depth_rate, pitch, yaw,
+                   q, r, dt, cmd):
+    """``autopilot`` into ``cmd`` (3,), which holds ``reference`` on entry, and returned:
+    the physics loop's, so that a step allocates nothing."""
     speed = max(abs(u), 0.5)
     t_scale = g.length / speed
     if closed_loop[0]:

@@ -26,14 +26,24 @@ _QUATERNION_FLIP = np.array([1.0, 1.0, -1.0, -1.0])  # the same, on [w, x, y, z]
 @numba.njit(cache=True)
 def quat_to_rot(q):
     """(3, 3) body -> NED rotation of one unit quaternion [w, x, y, z] (compiled)."""
+    return rot_into(q, np.empty((3, 3)))
+
+
+@numba.njit(cache=True)
+def rot_into(q, out):
+    """``quat_to_rot`` written into ``out`` (3, 3) and returned: the physics loop's, so
+    that a step allocates nothing."""
     w, x, y, z = q[0], q[1], q[2], q[3]
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    out[0, 0] = 1 - 2 * (y * y + z * z)
+    out[0, 1] = 2 * (x * y - w * z)
+    out[0, 2] = 2 * (x * z + w * y)
+    out[1, 0] = 2 * (x * y + w * z)
+    out[1, 1] = 1 - 2 * (x * x + z * z)
+    out[1, 2] = 2 * (y * z - w * x)
+    out[2, 0] = 2 * (x * z - w * y)
+    out[2, 1] = 2 * (y * z + w * x)
+    out[2, 2] = 1 - 2 * (x * x + y * y)
+    return out
 
 
 def rotation_matrices(quaternion: np.ndarray) -> np.ndarray:
@@ -43,19 +53,10 @@ def rotation_matrices(quaternion: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _rotation_rows(q: np.ndarray) -> np.ndarray:
-    """``rotation_matrices``, row by row: ``quat_to_rot``'s formula, element by element."""
+    """``rotation_matrices``, row by row: ``quat_to_rot``'s formula (``rot_into``)."""
     out = np.empty((len(q), 3, 3))
     for m in range(len(q)):
-        w, x, y, z = q[m, 0], q[m, 1], q[m, 2], q[m, 3]
-        out[m, 0, 0] = 1 - 2 * (y * y + z * z)
-        out[m, 0, 1] = 2 * (x * y - w * z)
-        out[m, 0, 2] = 2 * (x * z + w * y)
-        out[m, 1, 0] = 2 * (x * y + w * z)
-        out[m, 1, 1] = 1 - 2 * (x * x + z * z)
-        out[m, 1, 2] = 2 * (y * z - w * x)
-        out[m, 2, 0] = 2 * (x * z - w * y)
-        out[m, 2, 1] = 2 * (y * z + w * x)
-        out[m, 2, 2] = 1 - 2 * (x * x + y * y)
+        rot_into(q[m], out[m])
     return out
 
 

@@ -391,10 +391,11 @@ def mat3t_vec(m, a):
 
 
 @numba.njit(cache=True)
-def mat_vec(a, x):
-    """a @ x by loops: numba's @ calls BLAS, whose overhead dwarfs a 6x6 product."""
-    out = np.zeros(a.shape[0])
+def mat_vec(a, x, out):
+    """a @ x by loops, into ``out`` (numba's @ calls BLAS, whose overhead dwarfs a 6x6
+    product), from zero in the order of j."""
     for i in range(a.shape[0]):
+        out[i] = 0.0
         for j in range(x.shape[0]):
             out[i] += a[i, j] * x[j]
     return out
@@ -442,6 +443,17 @@ def water_wrench(h, nu, rot, actuators, current_ned, disturbance=None):
             -M_A nu_dot.
         thrust: propeller thrust, N.
     """
+    nu_dot, applied = np.empty(6), np.empty(6)
+    thrust = water_wrench_into(h, nu, rot, actuators, current_ned, disturbance, np.empty(6),
+                               nu_dot, applied)
+    return nu_dot, applied, thrust
+
+
+@numba.njit(cache=True)
+def water_wrench_into(h, nu, rot, actuators, current_ned, disturbance, tau, nu_dot, applied):
+    """``water_wrench`` into the caller's (6,) arrays ``nu_dot`` and ``applied``, with
+    ``tau`` (6,) for scratch; returns the thrust. The physics loop's: a step allocates
+    nothing (NRT's allocations cost as much as the arithmetic)."""
     v = (nu[0], nu[1], nu[2])
     w = (nu[3], nu[4], nu[5])
     cur = (current_ned[0], current_ned[1], current_ned[2])
@@ -451,7 +463,8 @@ def water_wrench(h, nu, rot, actuators, current_ned, disturbance=None):
     a2 = (h.added_mass[3], h.added_mass[4], h.added_mass[5])
     r_g = (h.r_g[0], h.r_g[1], h.r_g[2])
     r_b = (h.r_b[0], h.r_b[1], h.r_b[2])
-    tau = np.zeros(6)
+    for i in range(6):
+        tau[i] = 0.0
 
     # Restoring: buoyancy here, the weight only in nu_dot (MuJoCo applies it itself).
     down = (rot[2, 0], rot[2, 1], rot[2, 2])  # NED z axis in body axes
@@ -530,10 +543,13 @@ def water_wrench(h, nu, rot, actuators, current_ned, disturbance=None):
     f_rb = sub(f_w, scale(h.mass, add(wv, cross(w, cross(w, r_g)))))
     m_rb = sub(sub(cross(r_g, f_w), scale(h.mass, cross(r_g, wv))),
                cross(w, mat3_vec(h.inertia_o, w)))
-    rhs = tau.copy()
+    rhs = applied  # its scratch until the end
+    for i in range(6):
+        rhs[i] = tau[i]
     for i in range(3):
         rhs[i] += f_rb[i]
         rhs[3 + i] += m_rb[i]
-    nu_dot = mat_vec(h.mass_matrix_inv, rhs)
-    applied = tau - h.added_mass * nu_dot
-    return nu_dot, applied, thrust
+    mat_vec(h.mass_matrix_inv, rhs, nu_dot)
+    for i in range(6):
+        applied[i] = tau[i] - h.added_mass[i] * nu_dot[i]
+    return thrust

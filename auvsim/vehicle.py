@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from numba import types
 
-from .control import Gains, autopilot, feedforward_rpm, max_speed, servo
+from .control import Gains, autopilot_into, feedforward_rpm, max_speed, servo
 from .errors import ConfigError, SimulationError
 from .frames import (
     FLIP,
@@ -28,9 +28,10 @@ from .frames import (
     ned_from_mujoco,
     quat_to_rot,
     quaternion_from_euler,
+    rot_into,
     yaw_of,
 )
-from .hydro import Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, sub, water_wrench
+from .hydro import Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, sub, water_wrench_into
 from .water import CHANNELS, Disturbance, Water, current_at, disturbance_at, still_water
 
 MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
@@ -111,13 +112,16 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
     quat = np.zeros(4)
     reached = np.zeros(3)  # the actuators as the water meets them: with their jitter
     jolt = np.zeros(CHANNELS)  # the disturbance now: wrench (6), then actuator jitter (3)
+    # Each step's arrays, made once: a step allocates nothing.
+    rot, cmd = np.empty((3, 3)), np.empty(3)
+    tau, nu_dot, applied = np.empty(6), np.empty(6), np.empty(6)
     imu = (imu_position[0], imu_position[1], imu_position[2])
     for k in range(references.shape[0]):
         # MuJoCo (NWU world, FLU body) -> NED / FRD.
         quat[0] = qpos[3]
         for i in range(3):
             quat[1 + i] = qpos[4 + i] * flip[i]
-        rot = quat_to_rot(quat)
+        rot_into(quat, rot)
         v_ned = (qvel[0], -qvel[1], -qvel[2])
         v_body = mat3t_vec(rot, v_ned)
         for i in range(3):
@@ -139,11 +143,13 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             reached[0] = min(max(actuators[0] + jolt[6], -h.rpm_max), h.rpm_max)
             for i in (1, 2):
                 reached[i] = min(max(actuators[i] + jolt[6 + i], -h.fin_max), h.fin_max)
-            nu_dot, applied, thrust = water_wrench(h, nu, rot, reached, cur, jolt[:6])
+            thrust = water_wrench_into(h, nu, rot, reached, cur, jolt[:6], tau, nu_dot,
+                                       applied)
         else:
             for i in range(3):
                 reached[i] = actuators[i]
-            nu_dot, applied, thrust = water_wrench(h, nu, rot, actuators, cur)
+            thrust = water_wrench_into(h, nu, rot, actuators, cur, None, tau, nu_dot,
+                                       applied)
         v_water = sub(v_body, mat3t_vec(rot, cur))
 
         # Record the state at the start of the step, with its acceleration.
@@ -169,8 +175,10 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
         # hold over ground would stall them (in still water the two are the same numbers).
         yaw = math.atan2(rot[1, 0], rot[0, 0])
         pitch = -math.asin(min(max(rot[2, 0], -1.0), 1.0))
-        cmd = autopilot(h, g, references[k], closed_loop, integrals, v_water[0], -qpos[2],
-                        v_ned[2], pitch, yaw, w[1], w[2], dt)
+        for i in range(3):
+            cmd[i] = references[k, i]
+        autopilot_into(h, g, references[k], closed_loop, integrals, v_water[0], -qpos[2],
+                       v_ned[2], pitch, yaw, w[1], w[2], dt, cmd)
 
         # The wrench goes to MuJoCo in its own coordinates: world force, body torque.
         f_ned = mat3_vec(rot, (applied[0], applied[1], applied[2]))
