@@ -21,7 +21,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from auvsim.hydro import FLIP, lamb_k_factors, load_hydro, water_wrench
-from auvsim.vehicle import VEHICLES, Vehicle, model_path
+from auvsim.vehicle import _UNUSED, VEHICLES, Vehicle, model_path
 
 DT = 0.01
 OPEN = (False, False, False)
@@ -350,6 +350,26 @@ def test_mujoco_reproduces_the_force_models_acceleration_exactly(name):
     # leaves room for round-off only (a one-step lag of M_A nu_dot would be O(1) off).
     np.testing.assert_allclose(qacc, predicted, rtol=0, atol=1e-9 * np.abs(predicted).max())
     assert np.abs(predicted).max() > 0.1  # the state is far from equilibrium
+
+
+@pytest.mark.parametrize("name", VEHICLES)
+def test_mujocos_passes_switched_off_add_only_zeros(name):
+    """The actuation, spring, damper and Euler-damping passes that ``Vehicle`` switches
+    off change not a bit of a closed-loop manoeuvre in a current: with them back on,
+    MuJoCo computes the same trajectory."""
+    trajectories = []
+    for flags_on in (False, True):
+        vehicle = Vehicle(name, current_ned=(0.3, -0.2, 0.0))
+        assert vehicle.model.opt.disableflags & _UNUSED == _UNUSED
+        if flags_on:
+            vehicle.model.opt.disableflags &= ~_UNUSED
+        vehicle.reset(position_ned=(0.0, 0.0, 20.0), yaw=0.3, velocity_body=(1.5, 0.0, 0.0))
+        references = np.tile([1.5, 1.2, 25.0], (3000, 1))  # a turn and a dive
+        trajectories.append(vehicle.run(references))
+    off, on = trajectories
+    for field in off._fields:
+        assert getattr(off, field).tobytes() == getattr(on, field).tobytes(), field
+    assert off.position_ned[-1, 2] > 21.0  # it dived: the run did more than hold still
 
 
 # ---------------------------------------------------------------------------------------
