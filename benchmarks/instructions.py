@@ -19,8 +19,9 @@ first refill of errors drawn ahead), so start-up cancels:
 
     .venv/bin/python benchmarks/instructions.py [--before REV] [--steps 500]
 
-About 2 minutes a run on an idle core (4 runs a tree; the first run of a tree also compiles
-numba's cache for valgrind's CPU, a few minutes more). Needs valgrind (Debian's package).
+Six runs a tree, two at a time; with ``--before``, about 35 minutes on 2 cores, most of it
+numba compiling each tree's cache for valgrind's CPU on the first runs (a tree's later runs
+take a minute or two). Needs valgrind (Debian's package).
 """
 
 from __future__ import annotations
