@@ -57,8 +57,8 @@ mujoco.set_mju_user_warning(_warnings.append)
 # else (auvsim.hydro): the model's actuators only carry the control ranges (gain 0) and the
 # free body has no springs or dampers, so MuJoCo's passes for them are switched off. They
 # add only zeros (the data stay the same bit for bit) and cost a sixth of a physics step.
-_B = mujoco.mjtDisableBit
-_UNUSED = _B.mjDSBL_ACTUATION | _B.mjDSBL_SPRING | _B.mjDSBL_DAMPER | _B.mjDSBL_EULERDAMP
+_UNUSED = (mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_SPRING
+           | mujoco.mjtDisableBit.mjDSBL_DAMPER | mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
 _NO_ROWS = np.zeros((2, CHANNELS))  # the disturbance table when there is none
 # MuJoCo's warnings of an unstable simulation (BADQPOS, BADQVEL, BADQACC: neighbours in

@@ -88,13 +88,17 @@ def per_step(tree: Path, mode: str, steps: int) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--before", help="a revision to count beside the working tree")
-    parser.add_argument("--steps", type=int, default=500, help="env steps counted "
-                        "(physics steps: 24 times as many)")
+    parser.add_argument("--steps", type=int, default=500, help="env steps counted (at "
+                        "least 250; physics steps: 6,000 per 250 env steps)")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         child(args.child[0], int(args.child[1]))
         return 0
+    if args.steps < ENV_WARMUP:
+        print(f"instructions.py: --steps {args.steps}: expected at least {ENV_WARMUP}",
+              file=sys.stderr)
+        return 2
     if shutil.which("valgrind") is None:
         print("instructions.py: valgrind not found; expected it on PATH (apt-get install "
               "valgrind)", file=sys.stderr)
@@ -105,7 +109,9 @@ def main() -> int:
         if args.before:
             sides.insert(0, (f"before ({args.before})", trees.add("before",
                                                                   resolve(args.before))))
-        jobs = [(tree, mode, args.steps * (24 if mode == "physics" else 1))
+        # Whole 6,000-step calls of physics, which child() runs (steps // PHYSICS_BLOCK).
+        physics = PHYSICS_BLOCK * (args.steps // ENV_WARMUP)
+        jobs = [(tree, mode, physics if mode == "physics" else args.steps)
                 for _, tree in sides for mode in ("env", "physics")]
         with ThreadPoolExecutor(max_workers=2) as pool:  # valgrind runs one core each
             counts = list(pool.map(lambda job: per_step(*job), jobs))
