@@ -29,6 +29,10 @@ import numpy as np
 from .errors import ConfigError
 from .frames import FLIP
 
+# The model's actuators, in the order of the actuator commands (shaft rpm, rudder and
+# stern-plane angles): MuJoCo applies no force of theirs (their gain is 0), they carry the
+# control ranges.
+ACTUATORS = ("propeller", "rudder", "stern_planes")
 N_STRIPS = 20  # cross-flow drag strips along the hull (Fossen uses 20 as well)
 # Hull length over diameter (a / b) where Lamb's factors are computed accurately: at
 # 1 + 1e-7 k' comes out negative, at 1e9 the eccentricity rounds to 1. The A18-D has 11,
@@ -166,10 +170,19 @@ def _finite_array(values) -> bool:
     return bool(np.all(np.isfinite(np.asarray(values, dtype=float))))
 
 
-def _check_model(model: mujoco.MjModel) -> None:
+def control_ranges(model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """Each of the vehicle's actuators' control range (2,), by name (``ACTUATORS``).
+
+    Raises:
+        KeyError: an actuator is missing.
+    """
+    return {name: np.array(model.actuator(name).ctrlrange) for name in ACTUATORS}
+
+
+def _check_model(model: mujoco.MjModel, ranges: dict[str, np.ndarray]) -> None:
     """Refuse a vehicle model the force model cannot use: the named elements missing, or
-    a mass, inertia, hull, coefficient or physics option that is not finite or not in its
-    physical range.
+    a mass, inertia, hull, coefficient, control range (``ranges``) or physics option that
+    is not finite or not in its physical range.
 
     Raises:
         ConfigError: naming the quantity (the caller names the file).
@@ -234,9 +247,8 @@ def _check_model(model: mujoco.MjModel) -> None:
         _require(_finite_array(pos) and bool(np.all(np.abs(pos) <= [a, 2 * b, 2 * b])),
                  f"site {site!r} position", f"a point on the hull, within (+/-{a:g}, "
                  f"+/-{2 * b:g}, +/-{2 * b:g}) m", pos.tolist())
-    for name, most in (("propeller", math.inf), ("rudder", math.pi / 2),
-                       ("stern_planes", math.pi / 2)):
-        limit = np.array(model.actuator(name).ctrlrange)
+    for name, most in zip(ACTUATORS, (math.inf, math.pi / 2, math.pi / 2), strict=True):
+        limit = ranges[name]
         # The force model takes the upper limit as the limit either way.
         _require(_finite_array(limit) and 0 < limit[1] <= most, f"actuator {name!r} ctrlrange",
                  f"a finite range whose upper limit is in (0, {most:g}]", limit.tolist())
@@ -249,18 +261,22 @@ def _check_model(model: mujoco.MjModel) -> None:
              f"0 0 -g with 0 < g <= {MAX_GRAVITY:g} m/s^2", gravity.tolist())
 
 
-def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
+def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0,
+               ranges: dict[str, np.ndarray] | None = None) -> Hydro:
     """Derive the force model's coefficients from a vehicle model.
 
     Args:
         model: a compiled vehicle model (models/auv.xml or one of the same layout).
         net_buoyancy: buoyancy minus weight, N (positive: the vehicle floats up).
+        ranges: the actuators' control ranges (``control_ranges``) of a model compiled
+            without its actuators (``auvsim.vehicle.Vehicle``); None: the model's own.
 
     Raises:
         ConfigError, KeyError: the model is not one the force model can use
             (``_check_model``).
     """
-    _check_model(model)
+    ranges = control_ranges(model) if ranges is None else ranges
+    _check_model(model, ranges)
     num = lambda name: float(_numeric(model, name)[0])  # noqa: E731
     rho = num("water_density")
     g = -float(model.opt.gravity[2])
@@ -310,7 +326,6 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
     strip_drag = 0.5 * rho * num("crossflow_drag_coefficient") * strip_d * np.diff(edges)
 
     kt0, kq0, kt_max, kq_max, ja_max = _numeric(model, "propeller_coefficients")
-    rudder = model.actuator("rudder")
     return Hydro(
         gravity=g,
         mass=m,
@@ -331,7 +346,7 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
         fin_x=float(model.site("rudder").pos[0]),
         fin_lift=0.5 * rho * 2.0 * num("fin_area") * num("fin_lift_slope"),
         fin_stall=num("fin_stall_angle"),
-        fin_max=float(rudder.ctrlrange[1]),
+        fin_max=float(ranges["rudder"][1]),
         fin_tau=num("fin_time_constant"),
         fin_rate=num("fin_rate_limit"),
         prop_d=num("propeller_diameter"),
@@ -342,7 +357,7 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0) -> Hydro:
         thrust_deduction=num("thrust_deduction"),
         wake_fraction=num("wake_fraction"),
         shaft_tau=num("shaft_time_constant"),
-        rpm_max=float(model.actuator("propeller").ctrlrange[1]),
+        rpm_max=float(ranges["propeller"][1]),
     )
 
 

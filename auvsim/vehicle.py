@@ -31,7 +31,17 @@ from .frames import (
     rot_into,
     yaw_of,
 )
-from .hydro import Hydro, add, cross, load_hydro, mat3_vec, mat3t_vec, sub, water_wrench_into
+from .hydro import (
+    ACTUATORS,
+    Hydro,
+    add,
+    cross,
+    load_hydro,
+    mat3_vec,
+    mat3t_vec,
+    sub,
+    water_wrench_into,
+)
 from .water import CHANNELS, Disturbance, Water, current_at, disturbance_at, still_water
 
 MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
@@ -54,9 +64,11 @@ mujoco.set_mju_user_warning(_warnings.append)
 
 
 # MuJoCo integrates the rigid body under its weight and the wrench auvsim applies, nothing
-# else (auvsim.hydro): the model's actuators only carry the control ranges (gain 0) and the
-# free body has no springs or dampers, so MuJoCo's passes for them are switched off. They
-# add only zeros (the data stay the same bit for bit) and cost a sixth of a physics step.
+# else (auvsim.hydro). The model's actuators only carry the control ranges (gain 0): the
+# vehicle reads them and compiles its model without them (``_without_actuators``), and
+# the free body has no springs or dampers, so MuJoCo's passes for those are switched off.
+# They added only zeros (the data stay the same bit for bit); the passes cost a sixth of
+# a physics step, the actuators' transmissions (site Jacobians) a fifth.
 _UNUSED = (mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_SPRING
            | mujoco.mjtDisableBit.mjDSBL_DAMPER | mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
@@ -65,6 +77,22 @@ _NO_ROWS = np.zeros((2, CHANNELS))  # the disturbance table when there is none
 # mjtWarning), as a slice of ``MjData.warning``.
 _UNSTABLE = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS),
                   int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
+
+
+def _without_actuators(spec: mujoco.MjSpec) -> dict[str, np.ndarray]:
+    """Take every actuator out of ``spec``, and return the vehicle's actuators' control
+    ranges (2,), by name (``auvsim.hydro.ACTUATORS``), to check and use in their stead.
+
+    Raises:
+        ValueError: one of the vehicle's actuators is missing.
+    """
+    found = {a.name: np.array(a.ctrlrange, dtype=float) for a in spec.actuators}
+    missing = [name for name in ACTUATORS if name not in found]
+    if missing:
+        raise ValueError(f"no actuator named {missing[0]!r}; expected {', '.join(ACTUATORS)}")
+    for actuator in list(spec.actuators):
+        spec.delete(actuator)
+    return {name: found[name] for name in ACTUATORS}
 
 
 def _array_kind(a: np.ndarray) -> tuple:
@@ -222,11 +250,13 @@ class Vehicle:
             spec = mujoco.MjSpec.from_file(str(path))
             if seafloor is not None:
                 seafloor.attach(spec)
+            ranges = _without_actuators(spec)
             self.model = spec.compile()
             self.model.opt.disableflags |= _UNUSED
             self.data = mujoco.MjData(self.model)
             self.body_id = self.model.body("vehicle").id
-            self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy)
+            self.hydro: Hydro = load_hydro(self.model, net_buoyancy=net_buoyancy,
+                                           ranges=ranges)
         except (ValueError, KeyError) as e:  # MuJoCo's parse errors are ValueErrors
             reason = " ".join(str(e).split())
             raise ConfigError(f"vehicle {str(path)!r}: not a vehicle model of auvsim's layout "

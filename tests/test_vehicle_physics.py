@@ -521,7 +521,7 @@ def fit_circle(x, y):
 def test_turning_circle_at_full_rudder():
     vehicle = Vehicle("auv")
     vehicle.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(2.0, 0.0, 0.0))
-    rudder = float(vehicle.model.actuator("rudder").ctrlrange[1])
+    rudder = vehicle.hydro.fin_max
     traj = vehicle.run(constant((2.0, rudder, 20.0), 30_000), closed_loop=(True, False, True))
     r = traj.angular_rate[:, 2]
     last = r[-10_000:]
