@@ -353,22 +353,32 @@ def test_mujoco_reproduces_the_force_models_acceleration_exactly(name):
 
 
 @pytest.mark.parametrize("name", VEHICLES)
-def test_mujocos_passes_switched_off_add_only_zeros(name):
+def test_mujocos_passes_switched_off_add_only_zeros(name, monkeypatch):
     """The actuation, spring, damper and Euler-damping passes that ``Vehicle`` switches
-    off change not a bit of a closed-loop manoeuvre in a current: with them back on,
-    MuJoCo computes the same trajectory."""
+    off, and the actuators it compiles its model without, change not a bit of a
+    closed-loop manoeuvre in a current: with the passes back on, and then the actuators
+    (gain 0) kept in the model too, MuJoCo computes the same trajectory."""
+    import auvsim.vehicle
+
+    def keep_actuators(spec):  # the ranges, with the actuators left in the model
+        return {a.name: np.array(a.ctrlrange, dtype=float) for a in spec.actuators}
+
     trajectories = []
-    for flags_on in (False, True):
+    for variant in ("as built", "passes on", "actuators kept"):
+        if variant == "actuators kept":
+            monkeypatch.setattr(auvsim.vehicle, "_without_actuators", keep_actuators)
         vehicle = Vehicle(name, current_ned=(0.3, -0.2, 0.0))
         assert vehicle.model.opt.disableflags & _UNUSED == _UNUSED
-        if flags_on:
+        assert vehicle.model.nu == (3 if variant == "actuators kept" else 0)
+        if variant != "as built":
             vehicle.model.opt.disableflags &= ~_UNUSED
         vehicle.reset(position_ned=(0.0, 0.0, 20.0), yaw=0.3, velocity_body=(1.5, 0.0, 0.0))
         references = np.tile([1.5, 1.2, 25.0], (3000, 1))  # a turn and a dive
         trajectories.append(vehicle.run(references))
-    off, on = trajectories
-    for field in off._fields:
-        assert getattr(off, field).tobytes() == getattr(on, field).tobytes(), field
+    off, *others = trajectories
+    for on in others:
+        for field in off._fields:
+            assert getattr(off, field).tobytes() == getattr(on, field).tobytes(), field
     assert off.position_ned[-1, 2] > 21.0  # it dived: the run did more than hold still
 
 
