@@ -109,7 +109,6 @@ from .config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
 from .control import autopilot
 from .dataset import Block, DatasetWriter
 from .errors import ConfigError, SimulationError
-from .frames import euler_angles
 from .maneuvers import Maneuver, make_maneuver
 from .mission import MissionRun, check_reachable
 from .presets import preset
@@ -181,7 +180,7 @@ class AuvEnv(gym.Env):
         self.last_block = None
         self.last_ping = dict(beams=np.zeros(4), valid=np.zeros(4), velocity=np.zeros(3),
                               time=math.nan)
-        state = self.run.vehicle.state()
+        state = self.run.vehicle.state(euler=True)
         return self._observation(None, state), self._info(state)
 
     def step(self, action):
@@ -209,7 +208,7 @@ class AuvEnv(gym.Env):
                                   velocity=block["dvl/velocity"][-1],
                                   time=float(block["dvl/time"][-1]))
         truncated = self.step_index * vehicle.dt >= self.max_episode_seconds - 1e-9
-        state = vehicle.state()
+        state = vehicle.state(euler=True)
         return self._observation(block, state), 0.0, terminated, \
             truncated and not terminated, self._info(state)
 
@@ -230,8 +229,7 @@ class AuvEnv(gym.Env):
         position = state["position_ned"]
         altitude = float(self.run.seafloor.depth_at(position[:1], position[1:2])[0]
                          - position[2])
-        return dict(time=self.step_index * self.run.vehicle.dt, **state,
-                    euler=euler_angles(state["quaternion"]), altitude=altitude,
+        return dict(time=self.step_index * self.run.vehicle.dt, **state, altitude=altitude,
                     dvl_velocity=self.last_ping["velocity"].copy(),
                     ping_time=self.last_ping["time"])
 

@@ -98,15 +98,45 @@ def euler_angles(quaternion: np.ndarray) -> np.ndarray:
     return np.array(angles) if one else np.stack(angles, axis=-1)
 
 
-def ned_from_mujoco(qpos: np.ndarray, qvel: np.ndarray) -> dict[str, np.ndarray]:
+# The fields of ``ned_from_mujoco``'s state, and their slices of ``_state_row``'s row.
+STATE = {"position_ned": slice(0, 3), "velocity_ned": slice(3, 6),
+         "velocity_body": slice(6, 9), "quaternion": slice(9, 13),
+         "angular_rate": slice(13, 16)}
+EULER = slice(16, 19)
+
+
+def ned_from_mujoco(qpos: np.ndarray, qvel: np.ndarray, *,
+                    euler: bool = False) -> dict[str, np.ndarray]:
     """The NED/FRD state of a free body from MuJoCo's NWU/FLU ``qpos`` (7,) and ``qvel``
     (6,): ``position_ned``, ``velocity_ned``, ``velocity_body``, ``quaternion`` and
-    ``angular_rate`` (SI)."""
-    quat = qpos[3:7] * _QUATERNION_FLIP
-    v_ned = qvel[:3] * FLIP
-    return dict(position_ned=qpos[:3] * FLIP, velocity_ned=v_ned,
-                velocity_body=quat_to_rot(quat).T @ v_ned, quaternion=quat,
-                angular_rate=qvel[3:6] * FLIP)
+    ``angular_rate`` (SI), and with ``euler`` its roll, pitch and yaw (``euler``, rad):
+    views of one row computed in one compiled call (the environment's, every step)."""
+    row = _state_row(qpos, qvel)
+    state = {name: row[part] for name, part in STATE.items()}
+    if euler:
+        state["euler"] = row[EULER]
+    return state
+
+
+@numba.njit(cache=True)
+def _state_row(qpos, qvel):
+    """(19,) position, NED velocity, body velocity ``R^T v``, quaternion, angular rate and
+    ZYX Euler angles (``euler_angles``' formula) from MuJoCo's ``qpos`` and ``qvel``."""
+    out = np.empty(19)
+    out[9] = qpos[3]
+    for i in range(3):
+        out[i] = qpos[i] * FLIP[i]
+        out[3 + i] = qvel[i] * FLIP[i]
+        out[10 + i] = qpos[4 + i] * _QUATERNION_FLIP[1 + i]
+        out[13 + i] = qvel[3 + i] * FLIP[i]
+    r = quat_to_rot(out[9:13])
+    for i in range(3):
+        out[6 + i] = r[0, i] * out[3] + r[1, i] * out[4] + r[2, i] * out[5]
+    w, x, y, z = out[9], out[10], out[11], out[12]
+    out[16] = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    out[17] = math.asin(min(max(2 * (w * y - z * x), -1.0), 1.0))
+    out[18] = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return out
 
 
 def mujoco_from_ned(position_ned, quaternion: np.ndarray,

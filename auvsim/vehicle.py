@@ -325,10 +325,11 @@ class Vehicle:
             self.disturbance.reset()
         mujoco.mj_forward(self.model, self.data)  # positions of every geom, for ray casts
 
-    def state(self) -> dict[str, np.ndarray]:
+    def state(self, *, euler: bool = False) -> dict[str, np.ndarray]:
         """The true state now (NED/FRD, SI): ``position_ned``, ``velocity_ned``,
-        ``velocity_body``, ``quaternion`` and ``angular_rate``, as a Trajectory row."""
-        return ned_from_mujoco(self._qpos, self._qvel)
+        ``velocity_body``, ``quaternion`` and ``angular_rate``, as a Trajectory row; with
+        ``euler`` also roll, pitch and yaw (``euler``, rad)."""
+        return ned_from_mujoco(self._qpos, self._qvel, euler=euler)
 
     def yaw(self) -> float:
         """Current heading, rad from north (NED)."""

@@ -13,7 +13,7 @@ import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import ScenarioConfig
 from auvsim.dataset import open_dataset
 from auvsim.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
-from auvsim.frames import euler_angles
+from auvsim.frames import euler_angles, quat_to_rot
 from auvsim.mission import MissionRun
 from auvsim.presets import preset
 from beamsnet.data import load_windows
@@ -88,12 +88,32 @@ def reference_rollout(env, seed, actions):
         if len(block["dvl/time"]):
             ping = np.r_[np.nan_to_num(block["dvl/beam_velocity"][-1]),
                          block["dvl/valid"][-1]]
-        state = vehicle.state()
+        state = vehicle.state(euler=True)
         obs = np.r_[block["imu/specific_force"][-1], block["imu/angular_rate"][-1], ping,
                     state["position_ned"][2]].astype(np.float32)
         out.append((np.clip(obs, env.observation_space.low, env.observation_space.high),
-                    dict(state, euler=euler_angles(state["quaternion"])), block))
+                    state, block))
     return out
+
+
+def test_the_info_state_is_the_next_blocks_first_truth_row_bit_for_bit():
+    # The state at a step's end is where the next step's physics starts: the info and the
+    # truth compute it with the same arithmetic (frames._state_row and the physics loop).
+    env = AuvEnv(preset("navigator"), max_episode_seconds=30.0)
+    _, info = env.reset(seed=2)
+    for k in range(40):
+        *_, next_info = env.step(np.array([0.7, np.sin(k / 5), -0.3], dtype=np.float32))
+        block = env.last_block
+        for key in ("position_ned", "velocity_ned", "velocity_body", "quaternion",
+                    "angular_rate"):
+            assert block[f"truth/{key}"][0].tobytes() == info[key].tobytes(), (k, key)
+        # The Euler angles are euler_angles' to rounding (libm's against numpy's arctan2).
+        np.testing.assert_allclose(info["euler"], euler_angles(info["quaternion"]),
+                                   rtol=0, atol=1e-15)
+        rotation = quat_to_rot(info["quaternion"])
+        np.testing.assert_allclose(info["velocity_body"], rotation.T @ info["velocity_ned"],
+                                   rtol=0, atol=1e-15)
+        info = next_info
 
 
 @pytest.mark.parametrize("config", [None, preset("navigator")], ids=["paper-sim", "navigator"])
