@@ -227,8 +227,7 @@ class AuvEnv(gym.Env):
 
     def _info(self, state: dict[str, np.ndarray]) -> dict:
         position = state["position_ned"]
-        altitude = float(self.run.seafloor.depth_at(position[:1], position[1:2])[0]
-                         - position[2])
+        altitude = float(self.run.seafloor.altitude(position[None])[0])
         return dict(time=self.step_index * self.run.vehicle.dt, **state, altitude=altitude,
                     dvl_velocity=self.last_ping["velocity"].copy(),
                     ping_time=self.last_ping["time"])

@@ -199,7 +199,7 @@ class MissionRun:
                 f"{self.mission.name}: the vehicle outran the procedural terrain window "
                 f"between t = {t[0]:.1f} and {t[-1]:.1f} s ({e}); expected a larger "
                 "seafloor.cell_size") from None
-        altitude = self.seafloor.depth_at(pos[:, 0], pos[:, 1]) - pos[:, 2]
+        altitude = self.seafloor.altitude(pos)
         if _clear(altitude, pos):  # the usual case
             return altitude
         problems = (

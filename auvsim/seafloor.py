@@ -307,11 +307,7 @@ class Seafloor:
             Depth, m, positive down, of the broadcast shape; NaN outside the terrain that
             MuJoCo currently holds (the heightmap, or the procedural window).
         """
-        if self.kind == "flat":  # first: the environment asks once a step
-            if (isinstance(north, np.ndarray) and isinstance(east, np.ndarray)
-                    and north.dtype == east.dtype == np.float64 and north.ndim == 1
-                    and north.shape == east.shape):  # the altitude's, compiled
-                return _flat_depths(north, east, float(self.config.depth))
+        if self.kind == "flat":
             finite = np.isfinite(np.asarray(north, dtype=float)) & np.isfinite(
                 np.asarray(east, dtype=float))
             return np.where(finite, self.config.depth, np.nan)
@@ -320,6 +316,14 @@ class Seafloor:
         depth = _depths(np.ascontiguousarray(x).reshape(-1),
                         np.ascontiguousarray(y).reshape(-1), *self._grid())
         return depth.reshape(x.shape)
+
+    def altitude(self, position_ned: np.ndarray) -> np.ndarray:
+        """(K,) height above the ray-cast surface of (K, 3) float64 NED positions, m:
+        ``depth_at`` minus the depth, NaN outside the terrain MuJoCo holds (one compiled
+        pass on a flat floor: the environment asks twice a step)."""
+        if self.kind == "flat":
+            return _flat_altitude(position_ned, float(self.config.depth))
+        return self.depth_at(position_ned[:, 0], position_ned[:, 1]) - position_ned[:, 2]
 
     def normal_at(self, north: np.ndarray, east: np.ndarray) -> np.ndarray:
         """Unit normal of the ray-cast surface below NED horizontal positions, pointing up
@@ -422,12 +426,13 @@ def _locate(x, y, x_lo, x_hi, y_lo, y_hi, x0, y0, rows, cols, n_a, n_b, cell, ti
 
 
 @numba.njit(cache=True)
-def _flat_depths(north, east, depth):
-    """(K,) ``depth`` below (K,) NED positions where both are finite, else NaN."""
-    out = np.empty(len(north))
-    for i in range(len(north)):
-        finite = math.isfinite(north[i]) and math.isfinite(east[i])
-        out[i] = depth if finite else np.nan
+def _flat_altitude(position_ned, depth):
+    """(K,) ``depth`` (NaN where north or east is not finite) minus the depth of (K, 3)
+    NED positions: ``Seafloor.depth_at``'s flat floor, then the subtraction."""
+    out = np.empty(position_ned.shape[0])
+    for i in range(position_ned.shape[0]):
+        finite = math.isfinite(position_ned[i, 0]) and math.isfinite(position_ned[i, 1])
+        out[i] = (depth if finite else np.nan) - position_ned[i, 2]
     return out
 
 

@@ -68,7 +68,7 @@ mujoco.set_mju_user_warning(_warnings.append)
 # vehicle reads them and compiles its model without them (``_without_actuators``), and
 # the free body has no springs or dampers, so MuJoCo's passes for those are switched off.
 # They added only zeros (the data stay the same bit for bit); the passes cost a sixth of
-# a physics step, the actuators' transmissions (site Jacobians) a fifth.
+# a physics step, the actuators' transmissions (site Jacobians) a tenth.
 _UNUSED = (mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_SPRING
            | mujoco.mjtDisableBit.mjDSBL_DAMPER | mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 

@@ -356,10 +356,13 @@ def test_follow_recentres_exactly_when_numpy_said_it_must():
         floor.follow(np.zeros((1, 2)), reach=math.inf)
 
 
-def test_a_flat_floors_compiled_depth_is_numpys():
+def test_a_flat_floors_compiled_altitude_is_numpys():
     floor = Seafloor(SeafloorConfig(kind="flat", depth=60.0))
     north = np.array([0.0, np.nan, 1.0, np.inf, -3.0, 5.0])
     east = np.array([1.0, 2.0, np.nan, 0.0, -np.inf, -0.0])
-    expected = np.where(np.isfinite(north) & np.isfinite(east), 60.0, np.nan)
-    assert floor.depth_at(north, east).tobytes() == expected.tobytes()
-    assert floor.depth_at(north[::2], east[::2]).tobytes() == expected[::2].tobytes()
+    down = np.array([20.0, 1.0, -0.0, 3.5, np.nan, 61.25])
+    expected = np.where(np.isfinite(north) & np.isfinite(east), 60.0, np.nan) - down
+    assert floor.depth_at(north, east).tobytes() == (expected + down).tobytes()
+    position = np.column_stack([north, east, down])
+    assert floor.altitude(position).tobytes() == expected.tobytes()
+    assert floor.altitude(position[::2]).tobytes() == expected[::2].tobytes()
