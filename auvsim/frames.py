@@ -84,18 +84,11 @@ def quaternion_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
 def euler_angles(quaternion: np.ndarray) -> np.ndarray:
     """Roll, pitch, yaw (rad, ZYX), shape (..., 3), of body -> NED unit quaternions
     [w, x, y, z], shape (..., 4)."""
-    q = np.asarray(quaternion, dtype=float)
-    # One quaternion (the environment's, every step) as Python floats: the same IEEE
-    # arithmetic as numpy's, at a tenth of the cost of operations on 0-d arrays.
-    one = q.shape == (4,)
-    w, x, y, z = q.tolist() if one else np.moveaxis(q, -1, 0)
-    sin_pitch = 2 * (w * y - z * x)
-    # np.clip's arithmetic; on one float, min and max cost a tenth of np.clip's wrapper.
-    sin_pitch = min(max(sin_pitch, -1.0), 1.0) if one else np.clip(sin_pitch, -1.0, 1.0)
-    angles = [np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-              np.arcsin(sin_pitch),
-              np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))]
-    return np.array(angles) if one else np.stack(angles, axis=-1)
+    w, x, y, z = np.moveaxis(np.asarray(quaternion, dtype=float), -1, 0)
+    sin_pitch = np.clip(2 * (w * y - z * x), -1.0, 1.0)
+    return np.stack([np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                     np.arcsin(sin_pitch),
+                     np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))], axis=-1)
 
 
 # The fields of ``ned_from_mujoco``'s state, and their slices of ``_state_row``'s row.
