@@ -109,6 +109,7 @@ from .config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
 from .control import autopilot
 from .dataset import Block, DatasetWriter
 from .errors import ConfigError, SimulationError
+from .frames import EULER, STATE
 from .maneuvers import Maneuver, make_maneuver
 from .mission import MissionRun, check_reachable
 from .presets import preset
@@ -120,6 +121,27 @@ OBSERVATION_LOW = np.array([-16 * G0] * 3 + [-np.radians(2000.0)] * 3 + [-10.0] 
 OBSERVATION_HIGH = np.array([16 * G0] * 3 + [np.radians(2000.0)] * 3 + [10.0] * 4
                             + [1.0] * 4 + [11000.0], dtype=np.float32)
 OPEN_LOOP = np.zeros(3, dtype=np.bool_)  # the action commands every actuator directly
+DEPTH = STATE["position_ned"].start + 2  # the depth's place in a state row
+
+
+def _layout(fields) -> tuple[dict[str, int | slice], int]:
+    """The place of each (name, length) field in one row, a number at an index (length
+    None) or a vector at a slice, and the row's length."""
+    places, at = {}, 0
+    for name, length in fields:
+        places[name] = at if length is None else slice(at, at + length)
+        at += 1 if length is None else length
+    return places, at
+
+
+# The info's fields (module docstring) and their places in one float64 row: the time,
+# the state row (``Vehicle.state_row``: frames.STATE then EULER), the altitude and the
+# latest ping's. The row, ``AuvEnv.info_row``, is what auvsim.vector's workers share.
+INFO, INFO_SIZE = _layout([("time", None),
+                           *((name, part.stop - part.start)
+                             for name, part in {**STATE, "euler": EULER}.items()),
+                           ("altitude", None), ("dvl_velocity", 3), ("ping_time", None)])
+INFO_STATE = slice(INFO["position_ned"].start, INFO["euler"].stop)
 
 
 class AuvEnv(gym.Env):
@@ -163,6 +185,8 @@ class AuvEnv(gym.Env):
         # The arrays (truth, IMU, DVL, control) of the last step, for EpisodeRecorder;
         # None before the first step and at a terminal one.
         self.last_block: dict[str, np.ndarray] | None = None
+        # The last info's values as one row (INFO), for auvsim.vector; None before a reset.
+        self.info_row: np.ndarray | None = None
 
     def _mission(self, seed: int) -> MissionRun:
         # As long as an episode may last, so the water's paths (auvsim.water) cover it.
@@ -180,7 +204,7 @@ class AuvEnv(gym.Env):
         self.last_block = None
         self.last_ping = dict(beams=np.zeros(4), valid=np.zeros(4), velocity=np.zeros(3),
                               time=math.nan)
-        state = self.run.vehicle.state(euler=True)
+        state = self.run.vehicle.state_row()
         return self._observation(None, state), self._info(state)
 
     def step(self, action):
@@ -208,11 +232,11 @@ class AuvEnv(gym.Env):
                                   velocity=block["dvl/velocity"][-1],
                                   time=float(block["dvl/time"][-1]))
         truncated = self.step_index * vehicle.dt >= self.max_episode_seconds - 1e-9
-        state = vehicle.state(euler=True)
+        state = vehicle.state_row()
         return self._observation(block, state), 0.0, terminated, \
             truncated and not terminated, self._info(state)
 
-    def _observation(self, block, state: dict[str, np.ndarray]) -> np.ndarray:
+    def _observation(self, block, state: np.ndarray) -> np.ndarray:
         # Each float64 reading rounded to float32 as it is stored (as astype rounds it).
         observation = np.zeros(15, dtype=np.float32)
         if block is not None:
@@ -220,17 +244,21 @@ class AuvEnv(gym.Env):
             observation[3:6] = block["imu/angular_rate"][-1]
         observation[6:10] = self.last_ping["beams"]
         observation[10:14] = self.last_ping["valid"]
-        observation[14] = state["position_ned"][2]  # now, as info's position
+        observation[14] = state[DEPTH]  # now, as info's position
         # Each reading saturates at its bound: np.clip's arithmetic, without its wrapper.
         np.maximum(observation, OBSERVATION_LOW, out=observation)
         return np.minimum(observation, OBSERVATION_HIGH, out=observation)
 
-    def _info(self, state: dict[str, np.ndarray]) -> dict:
-        position = state["position_ned"]
-        altitude = float(self.run.seafloor.altitude(position[None])[0])
-        return dict(time=self.step_index * self.run.vehicle.dt, **state, altitude=altitude,
-                    dvl_velocity=self.last_ping["velocity"].copy(),
-                    ping_time=self.last_ping["time"])
+    def _info(self, state: np.ndarray) -> dict:
+        """The info of ``state`` (``Vehicle.state_row``) now: views of one new row,
+        ``info_row`` (``INFO``)."""
+        row = self.info_row = np.empty(INFO_SIZE)
+        row[INFO["time"]] = self.step_index * self.run.vehicle.dt
+        row[INFO_STATE] = state
+        row[INFO["altitude"]] = self.run.seafloor.altitude(state[None, STATE["position_ned"]])[0]
+        row[INFO["dvl_velocity"]] = self.last_ping["velocity"]
+        row[INFO["ping_time"]] = self.last_ping["time"]
+        return {key: row[part] for key, part in INFO.items()}
 
 
 class ManeuverPolicy:

@@ -91,7 +91,7 @@ def euler_angles(quaternion: np.ndarray) -> np.ndarray:
                      np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))], axis=-1)
 
 
-# The fields of ``ned_from_mujoco``'s state, and their slices of ``_state_row``'s row.
+# The fields of ``ned_from_mujoco``'s state, and their slices of ``state_row``'s row.
 STATE = {"position_ned": slice(0, 3), "velocity_ned": slice(3, 6),
          "velocity_body": slice(6, 9), "quaternion": slice(9, 13),
          "angular_rate": slice(13, 16)}
@@ -104,7 +104,7 @@ def ned_from_mujoco(qpos: np.ndarray, qvel: np.ndarray, *,
     (6,): ``position_ned``, ``velocity_ned``, ``velocity_body``, ``quaternion`` and
     ``angular_rate`` (SI), and with ``euler`` its roll, pitch and yaw (``euler``, rad):
     views of one row computed in one compiled call (the environment's, every step)."""
-    row = _state_row(qpos, qvel)
+    row = state_row(qpos, qvel)
     state = {name: row[part] for name, part in STATE.items()}
     if euler:
         state["euler"] = row[EULER]
@@ -112,7 +112,7 @@ def ned_from_mujoco(qpos: np.ndarray, qvel: np.ndarray, *,
 
 
 @numba.njit(cache=True)
-def _state_row(qpos, qvel):
+def state_row(qpos, qvel):
     """(19,) position, NED velocity, body velocity ``R^T v``, quaternion, angular rate and
     ZYX Euler angles (``euler_angles``' formula) from MuJoCo's ``qpos`` and ``qvel``."""
     out = np.empty(19)

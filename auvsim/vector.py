@@ -114,37 +114,16 @@ ALIGN = 64  # bytes: each shared array starts on its own cache line
 SPIN_S = 0.002  # s a process polls for the next message before it blocks (_readable)
 
 
-def _info_layout(info: dict) -> dict[str, tuple[np.dtype, tuple[int, ...]]]:
-    """The dtype and shape of each value of one env's ``info``, as gymnasium's
-    ``VectorEnv._add_info`` batches it (Python numbers to their numpy type).
-
-    Raises:
-        TypeError: a value that is neither a number nor a numeric array.
-    """
-    layout = {}
-    for key, value in info.items():
-        if type(value) in (int, float, bool) or isinstance(value, np.number):
-            layout[key] = (np.dtype(type(value)), ())
-        elif isinstance(value, np.ndarray) and value.dtype != object:
-            layout[key] = (value.dtype, value.shape)
-        else:
-            raise TypeError(f"info[{key!r}]: AuvVectorEnv batches numbers and numeric "
-                            f"arrays only, got {type(value).__name__}")
-    return layout
-
-
 def _fields(num_envs: int, observation_space: gym.spaces.Box,
-            action_space: gym.spaces.Box, info: dict) -> list[tuple[str, str, tuple]]:
+            action_space: gym.spaces.Box, info_size: int) -> list[tuple[str, str, tuple]]:
     """The shared arrays: (name, dtype string, shape), each with the batch first."""
     n = num_envs
-    fields = [("actions", "float64", (n, *action_space.shape)),  # exact for any float input
-              ("observations", observation_space.dtype.str, (n, *observation_space.shape)),
-              ("rewards", "float64", (n,)),
-              ("terminations", "bool", (n,)),
-              ("truncations", "bool", (n,))]
-    fields += [(f"info/{key}", dtype.str, (n, *shape))
-               for key, (dtype, shape) in _info_layout(info).items()]
-    return fields
+    return [("actions", "float64", (n, *action_space.shape)),  # exact for any float input
+            ("observations", observation_space.dtype.str, (n, *observation_space.shape)),
+            ("rewards", "float64", (n,)),
+            ("terminations", "bool", (n,)),
+            ("truncations", "bool", (n,)),
+            ("info", "float64", (n, info_size))]  # each env's AuvEnv.info_row
 
 
 def _offsets(fields) -> tuple[list[int], int]:
@@ -186,18 +165,9 @@ class _Slice:
         self.rewards = views["rewards"]
         self.terminations = views["terminations"]
         self.truncations = views["truncations"]
-        self.info = [(name[len("info/"):], view) for name, view in views.items()
-                     if name.startswith("info/")]
-        self.keys = {key for key, _ in self.info}
+        self.info = views["info"]
         # NEXT_STEP autoreset: the envs whose episode ended at the last step.
         self.autoreset = np.zeros(stop - start, dtype=bool)
-
-    def _write_info(self, i: int, info: dict) -> None:
-        if info.keys() != self.keys:  # the layout came from one env's reset info
-            raise KeyError(f"info keys changed: expected {sorted(self.keys)}, got "
-                           f"{sorted(info)}")
-        for key, view in self.info:
-            view[i] = info[key]
 
     def reset(self, seeds: list, options: dict | None, mask: np.ndarray | None) -> None:
         """Reset the slice's envs (those of ``mask``, if given), env ``i`` with
@@ -207,8 +177,8 @@ class _Slice:
             if mask is not None and not mask[i]:
                 continue
             try:
-                self.observations[i], info = env.reset(seed=seeds[i], options=options)
-                self._write_info(i, info)
+                self.observations[i], _ = env.reset(seed=seeds[i], options=options)
+                self.info[i] = env.info_row
             except Exception as exc:
                 exc.add_note(f"in env {i} of the AuvVectorEnv")
                 raise
@@ -222,13 +192,13 @@ class _Slice:
             i = self.start + j
             try:
                 if self.autoreset[j]:
-                    self.observations[i], info = env.reset()
+                    self.observations[i], _ = env.reset()
                     self.rewards[i] = 0.0
                     self.terminations[i] = self.truncations[i] = False
                 else:
                     (self.observations[i], self.rewards[i], self.terminations[i],
-                     self.truncations[i], info) = env.step(self.actions[i].copy())
-                self._write_info(i, info)
+                     self.truncations[i], _) = env.step(self.actions[i].copy())
+                self.info[i] = env.info_row  # the info's values, in one copy
             except Exception as exc:
                 exc.add_note(f"in env {i} of the AuvVectorEnv")
                 raise
@@ -384,7 +354,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
     def __init__(self, *, num_envs: int, workers: int | None = None, config=None,
                  frame_skip: int = 10, max_episode_seconds: float = 600.0,
                  context: str = "forkserver") -> None:
-        from .env import AuvEnv
+        from .env import INFO, INFO_SIZE, AuvEnv
 
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
@@ -410,10 +380,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             forkserver.ensure_running()
         env_kwargs = dict(config=config, frame_skip=frame_skip,
                           max_episode_seconds=max_episode_seconds)
-        # One env here for the spaces and the info layout (and to refuse a bad config
-        # before any process starts).
+        # One env here for the spaces (and to refuse a bad config before any process
+        # starts).
         probe = AuvEnv(**env_kwargs)
-        _, info = probe.reset(seed=0)
         self.single_observation_space = probe.observation_space
         self.single_action_space = probe.action_space
         probe.close()
@@ -421,9 +390,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.metadata = dict(self.metadata)
         self.render_mode = None
-        self.info_keys = list(info)
-        fields = _fields(num_envs, self.single_observation_space,
-                         self.single_action_space, info)
+        self.info_keys = list(INFO)
+        fields = _fields(num_envs, self.single_observation_space, self.single_action_space,
+                         INFO_SIZE)
 
         self._processes: list = []
         self._conns: list = []
@@ -447,8 +416,10 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                 raise
         views = self._views
         self._actions = views["actions"]
-        # Per step: info's (key, mask key, shared view), and its masks' values.
-        self._info_views = [(key, f"_{key}", views[f"info/{key}"]) for key in self.info_keys]
+        # Per step: info's (key, mask key, shared view: a column or columns of the rows),
+        # and its masks' values.
+        self._info_views = [(key, f"_{key}", views["info"][:, place])
+                            for key, place in INFO.items()]
         self._all_true = np.ones((len(self.info_keys), num_envs), dtype=bool)
 
     def _start(self, fields, env_kwargs: dict) -> None:

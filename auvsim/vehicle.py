@@ -29,6 +29,7 @@ from .frames import (
     quat_to_rot,
     quaternion_from_euler,
     rot_into,
+    state_row,
     yaw_of,
 )
 from .hydro import (
@@ -330,6 +331,11 @@ class Vehicle:
         ``velocity_body``, ``quaternion`` and ``angular_rate``, as a Trajectory row; with
         ``euler`` also roll, pitch and yaw (``euler``, rad)."""
         return ned_from_mujoco(self._qpos, self._qvel, euler=euler)
+
+    def state_row(self) -> np.ndarray:
+        """The true state now as one new (19,) row: ``state(euler=True)``'s fields, in
+        the order and at the slices of ``frames.STATE`` and ``frames.EULER``."""
+        return state_row(self._qpos, self._qvel)
 
     def yaw(self) -> float:
         """Current heading, rad from north (NED)."""

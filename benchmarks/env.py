@@ -262,71 +262,91 @@ def main() -> None:
         for vector in vectors.values():
             vector_episode(vector, args.seconds)
         small_loop()
-        times: dict[str, list[float]] = {"env": [], "generate": [], "1 env": [],
-                                         "2 lone": [], **{name: [] for name in vectors}}
-        small: dict[str, list[float]] = {"1 small": [], "2 small": []}
-        parent = {name: [] for name in vectors}  # CPU s of this process
-        total = {name: [] for name in vectors}  # CPU s of this process and the workers
+        # Each job: (clock, what it runs, its count: env steps, or small-loop rounds).
+        jobs = {"env": ("CPU", lambda: episode(env, args.seconds), steps),
+                "generate": ("CPU", full, steps),
+                "1 env": ("wall", lambda: episode(env, args.seconds), steps),
+                "2 lone": ("wall", two.episodes, 2 * steps),
+                **{name: ("wall", lambda v=v: vector_episode(v, args.seconds),
+                          v.num_envs * steps) for name, v in vectors.items()},
+                "1 small": ("wall", small_loop, SMALL),
+                "2 small": ("wall", two_small.episodes, 2 * SMALL)}
+        rates = {name: [] for name in jobs}  # per round: count per second
+        parent = {name: [] for name in vectors}  # per round: CPU s of this process
+        total = {name: [] for name in vectors}  # and of this process and its workers
         noop = {name: [] for name in vectors if name.startswith("native")}
-        counts = {"env": steps, "generate": steps, "1 env": steps, "2 lone": 2 * steps,
-                  **{name: v.num_envs * steps for name, v in vectors.items()}}
-        for _ in range(args.repeats):
-            times["env"].append(cpu_seconds(lambda: episode(env, args.seconds)))
-            times["generate"].append(cpu_seconds(full))
-            times["1 env"].append(wall_seconds(lambda: episode(env, args.seconds)))
-            times["2 lone"].append(wall_seconds(two.episodes))
-            small["1 small"].append(wall_seconds(small_loop))
-            small["2 small"].append(wall_seconds(two_small.episodes))
-            for name, vector in vectors.items():
-                wall, cpu, workers = wall_and_cpu(
-                    lambda v=vector: vector_episode(v, args.seconds), worker_pids(vector))
-                times[name].append(wall)
-                parent[name].append(cpu)
-                total[name].append(cpu + workers)
-                if name in noop:
-                    noop[name].append(noop_step_seconds(vector))
+        names = list(jobs)
+        for r in range(args.repeats):
+            # A round runs every job once, each round starting one job later, so that no
+            # job always follows the same one; ratios are taken within a round.
+            for name in names[r % len(names):] + names[:r % len(names)]:
+                clock, fn, count = jobs[name]
+                if name in vectors:
+                    wall, cpu, workers = wall_and_cpu(fn, worker_pids(vectors[name]))
+                    parent[name].append(cpu)
+                    total[name].append(cpu + workers)
+                    if name in noop:
+                        noop[name].append(noop_step_seconds(vectors[name]))
+                else:
+                    wall = (cpu_seconds if clock == "CPU" else wall_seconds)(fn)
+                rates[name].append(count / wall)
     for vector in vectors.values():
         vector.close()
     two.close()
     two_small.close()
     env.close()
+    report(args, unwrapped, steps, load, jobs, rates, parent, total, noop, vectors)
 
-    med = {k: statistics.median(v) for k, v in times.items()}
-    rate = {k: counts[k] / t for k, t in med.items()}
+
+def spread(values: list[float]) -> str:
+    """The median of per-round values, and their range: "1.73 (1.70-1.76)"."""
+    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
+
+
+def report(args, unwrapped, steps, load, jobs, rates, parent, total, noop, vectors) -> None:
+    """Print the table (medians over the rounds) and the per-round ratios."""
+    med = {name: statistics.median(r) for name, r in rates.items()}
+    per_round = {name: [a / b for a, b in zip(r, rates["1 env"], strict=True)]
+                 for name, r in rates.items()}
     print(f"straight episode of {args.seconds:g} s at dt {unwrapped.dt:g} s ({steps} env "
-          f"steps, frame skip {unwrapped.frame_skip}), median of {args.repeats}; "
+          f"steps, frame skip {unwrapped.frame_skip}), {args.repeats} rounds; "
           f"{os.cpu_count()} cores, load average {load:.2f} before the run")
-    print(f"{'':10s} {'clock':>6s} {'seconds':>8s} {'steps/s':>9s} {'x real time':>12s} "
+    print(f"{'':10s} {'clock':>6s} {'steps/s':>9s} {'x real time':>12s} "
           f"{'x 1 env':>8s} {'parent ms':>10s} {'CPU x':>6s} {'noop ms':>8s}")
-    for name, t in med.items():
-        clock = "CPU" if name in ("env", "generate") else "wall"
-        extra = f" {rate[name] / rate['1 env']:8.2f}" if name == "2 lone" else ""
+    for name, (clock, _, count) in jobs.items():
+        if "small" in name:
+            continue
+        extra = ""
+        if name == "2 lone" or name in vectors:
+            extra = f" {statistics.median(per_round[name]):8.2f}"
         if name in vectors:
-            cpu_per_step = statistics.median(total[name]) / counts[name]
-            extra = (f" {rate[name] / rate['1 env']:8.2f} "
-                     f"{1e3 * statistics.median(parent[name]) / steps:10.3f} "
-                     f"{cpu_per_step / (med['env'] / steps):6.2f}")
+            cpu_x = statistics.median([t / count * rate for t, rate
+                                       in zip(total[name], rates["env"], strict=True)])
+            extra += (f" {1e3 * statistics.median(parent[name]) / steps:10.3f} "
+                      f"{cpu_x:6.2f}")
             if name in noop:
                 extra += f" {1e3 * statistics.median(noop[name]):8.3f}"
-        print(f"{name:10s} {clock:>6s} {t:8.3f} {rate[name]:9.0f} "
-              f"{counts[name] * unwrapped.dt / t:12.0f}{extra}")
-    print("(generate's steps/s: env steps of the same simulated time per CPU second; "
-          "x 1 env: total env steps/s, wall, over 1 env's; parent ms: the parent's CPU "
-          "per vector step; CPU x: CPU of the parent and the workers per env step over env's "
-          "(1 = no overhead); noop ms: wall per vector step with no env stepping)")
-    print(f"env / generate CPU per simulated second: {med['env'] / med['generate']:.2f}")
+        print(f"{name:10s} {clock:>6s} {med[name]:9.0f} {med[name] * unwrapped.dt:12.0f}"
+              f"{extra}")
+    print("(medians over the rounds. generate's steps/s: env steps of the same simulated "
+          "time per CPU second; x 1 env: total env steps/s, wall, over 1 env's in the same "
+          "round; parent ms: the parent's CPU per vector step; CPU x: CPU of the parent and "
+          "the workers per env step over env's (1 = no overhead); noop ms: wall per vector "
+          "step with no env stepping)")
+    print("per round, median (min-max) of the rounds:")
+    print(f"  env / generate CPU per simulated second: "
+          f"{spread([g / e for e, g in zip(rates['env'], rates['generate'], strict=True)])}")
     for name in ("2 lone", *vectors):
-        print(f"{name} / 1 env (total env steps/s, wall): {rate[name] / rate['1 env']:.2f}"
-              + ("" if name == "2 lone" else
-                 f"; / 2 lone: {rate[name] / rate['2 lone']:.2f}"))
-    # Each repeat's pair was run back to back: its ratio, and their spread (the noise).
-    pairs = sorted(2 * one / two for one, two in zip(small["1 small"], small["2 small"],
-                                                       strict=True))
-    print(f"control, small_loop (a few hundred bytes of data): 2 processes / 1 (total "
-          f"rounds/s, wall), each repeat's pair: median {statistics.median(pairs):.2f}, "
-          f"from {pairs[0]:.2f} to {pairs[-1]:.2f}")
+        line = f"  {name} / 1 env (total env steps/s, wall): {spread(per_round[name])}"
+        if name != "2 lone":
+            line += "; / 2 lone: " + spread(
+                [a / b for a, b in zip(rates[name], rates["2 lone"], strict=True)])
+        print(line)
+    print("  control, small_loop (a few hundred bytes of data): 2 processes / 1 (total "
+          "rounds/s, wall): " + spread(
+              [b / a for a, b in zip(rates["1 small"], rates["2 small"], strict=True)]))
     print(f"target: env >= {TARGET:.0f} steps/s per core -> "
-          f"{'met' if rate['env'] >= TARGET else 'MISSED'} ({rate['env']:.0f})")
+          f"{'met' if med['env'] >= TARGET else 'MISSED'} ({med['env']:.0f})")
 
 
 if __name__ == "__main__":

@@ -98,7 +98,7 @@ def reference_rollout(env, seed, actions):
 
 def test_the_info_state_is_the_next_blocks_first_truth_row_bit_for_bit():
     # The state at a step's end is where the next step's physics starts: the info and the
-    # truth compute it with the same arithmetic (frames._state_row and the physics loop).
+    # truth compute it with the same arithmetic (frames.state_row and the physics loop).
     env = AuvEnv(preset("navigator"), max_episode_seconds=30.0)
     _, info = env.reset(seed=2)
     for k in range(40):
