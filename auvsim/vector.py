@@ -22,16 +22,17 @@ batched with its ``info["_key"]`` mask as gymnasium's vector envs do.
 ## How it differs from ``gymnasium.vector.AsyncVectorEnv``
 
 ``AsyncVectorEnv`` runs one process per env and, per step, pickles each env's action and
-its whole result (an 11-key info dict) through a pipe and merges the infos key by key
+its whole result (a 10-key info dict) through a pipe and merges the infos key by key
 (``VectorEnv._add_info``): about 0.4 ms of the parent's time per step, as much as a step
 of the env costs, so two of them on 2 cores gave 0.23 to 0.46x the steps/s of one env
 (README).
 Here a process steps several envs per message, nothing is pickled per step, the info
 arrays are filled in place, and the parent steps envs too instead of waiting: its share
 stays small however fast ``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself
-(no wrappers inside the workers, no other env ids), fixed-shape infos (numbers and
-arrays, with the keys and shapes of the reset info of one env: new keys of
-``AuvEnv._info`` keep working), and only ``AutoresetMode.NEXT_STEP``.
+(no wrappers inside the workers, no other env ids), infos of ``AuvEnv``'s own float64
+fields only (``auvsim.env.INFO``: each env's info is one row, ``AuvEnv.info_row``,
+shared in one copy; a field added there is shared too), and only
+``AutoresetMode.NEXT_STEP``.
 
 ## Arguments
 

@@ -18,9 +18,10 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
   after the table does the same with ``small_loop`` (small numpy and Python operations on
   a few hundred bytes) against one run of it here: what the cores give to work that fits
   in each core's own caches;
-* ``native 2`` and ``native 8``: the same in each env of ``auvsim.vector.AuvVectorEnv``
-  with its default workers (on 2 cores one worker process beside this one, each
-  stepping half of the envs: one each, four each).
+* ``native 2``, ``native 8`` and ``native 32``: the same in each env of
+  ``auvsim.vector.AuvVectorEnv`` with its default workers (on 2 cores one worker process
+  beside this one, each stepping half of the envs: 1, 4 or 16 each; the more envs per
+  vector step, the less its fixed cost and its wait for the slower slice weigh).
 
 For the vector envs, ``parent ms`` is the parent process's CPU time per vector step
 (``time.process_time`` over the episode: for async, pickling, pipes and merging infos,
@@ -242,6 +243,7 @@ def main() -> None:
                                  max_episode_seconds=args.seconds),
         "native 2": AuvVectorEnv(num_envs=2, max_episode_seconds=args.seconds),
         "native 8": AuvVectorEnv(num_envs=8, max_episode_seconds=args.seconds),
+        "native 32": AuvVectorEnv(num_envs=32, max_episode_seconds=args.seconds),
     }
     two, two_small = TwoLone(args.seconds), TwoLone(None)
     unwrapped = env.unwrapped
