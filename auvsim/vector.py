@@ -64,24 +64,23 @@ process may run on (``os.sched_getaffinity``), not the machine's.
 
 ## Performance
 
-``benchmarks/env.py``, eight runs on the shared 2-core machine (a 300 s straight episode
-in every env, median of 3 or 5 per run, all against one env in the same run), total env
-steps/s (wall) over one env's:
+``benchmarks/env.py --repeats 7`` on the shared 2-core machine (a 300 s straight episode
+in every env; 7 rounds, each against one env in the same round), total env steps/s (wall)
+over one env's, median and range over the rounds:
 
-    small loop in 2 processes (control, the last three runs)      1.65 to 1.78
-    2 lone (two unsynchronised processes, the machine's ceiling)   1.27 to 1.71
-    native 8 (4 envs here, 4 in one worker)                       0.98 to 1.41
-    native 2 (1 and 1)                                            0.87 to 1.25
-    async x2 (gymnasium's AsyncVectorEnv)                         0.23 to 0.46
+    small loop in 2 processes (control)                          1.84 (1.77-1.93)
+    2 lone (two unsynchronised processes, the machine's ceiling)  1.88 (1.83-1.93)
+    native 32 (16 envs here, 16 in one worker)                    1.77 (1.68-1.86)
+    native 8 (4 and 4)                                            1.74 (1.61-1.77)
+    native 2 (1 and 1)                                            1.43 (1.37-1.45)
+    async x2 (gymnasium's AsyncVectorEnv)                         0.35 (0.31-0.39)
 
-So 8 native envs reach 0.74 to 0.93 of what two free processes get on this machine,
-whose second core gave a third to three quarters more in these runs, even to a loop of
-small numpy operations on a few hundred bytes; gymnasium's async envs lose to one env.
-Per vector step the parent's own cost, the workers not stepping, is 0.02 to 0.04 ms.
-What is lost against two free processes is the lock step: each vector step waits for
-the slower slice.
+So 8 or more native envs reach 0.91 to 0.94 of what two free processes get. What is lost
+is the lock step (each vector step waits for the slower slice) and the parent's own cost
+per vector step with the round trip to the workers, about 0.012 ms: both weigh less the
+more envs a vector step holds.
 
-    .venv/bin/python benchmarks/env.py --repeats 3
+    .venv/bin/python benchmarks/env.py --repeats 7
 """
 
 from __future__ import annotations
