@@ -23,9 +23,9 @@ batched with its ``info["_key"]`` mask as gymnasium's vector envs do.
 
 ``AsyncVectorEnv`` runs one process per env and, per step, pickles each env's action and
 its whole result (a 10-key info dict) through a pipe and merges the infos key by key
-(``VectorEnv._add_info``): about 0.4 ms of the parent's time per step, as much as a step
-of the env costs, so two of them on 2 cores gave 0.23 to 0.46x the steps/s of one env
-(README).
+(``VectorEnv._add_info``): 0.16 ms of the parent's CPU per step in the README's run
+(0.4 ms on slower days), more than two steps of the env, so two of them on 2 cores gave
+0.31 to 0.39x the steps/s of one env (0.23 to 0.46x over earlier runs).
 Here a process steps several envs per message, nothing is pickled per step, the info
 arrays are filled in place, and the parent steps envs too instead of waiting: its share
 stays small however fast ``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself
@@ -64,21 +64,10 @@ process may run on (``os.sched_getaffinity``), not the machine's.
 
 ## Performance
 
-``benchmarks/env.py --repeats 7`` on the shared 2-core machine (a 300 s straight episode
-in every env; 7 rounds, each against one env in the same round), total env steps/s (wall)
-over one env's, median and range over the rounds:
-
-    small loop in 2 processes (control)                          1.84 (1.77-1.93)
-    2 lone (two unsynchronised processes, the machine's ceiling)  1.88 (1.83-1.93)
-    native 32 (16 envs here, 16 in one worker)                    1.77 (1.68-1.86)
-    native 8 (4 and 4)                                            1.74 (1.61-1.77)
-    native 2 (1 and 1)                                            1.43 (1.37-1.45)
-    async x2 (gymnasium's AsyncVectorEnv)                         0.35 (0.31-0.39)
-
-So 8 or more native envs reach 0.91 to 0.94 of what two free processes get. What is lost
-is the lock step (each vector step waits for the slower slice) and the parent's own cost
-per vector step with the round trip to the workers, about 0.012 ms: both weigh less the
-more envs a vector step holds.
+On 2 cores, 8 or more native envs reach 0.91 to 0.94 of what two free processes get
+(``benchmarks/env.py``; the README has the table). What is lost is the lock step (each
+vector step waits for the slower slice) and the parent's own cost per vector step with
+the round trip to the workers: both weigh less the more envs a vector step holds.
 
     .venv/bin/python benchmarks/env.py --repeats 7
 """
