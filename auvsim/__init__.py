@@ -5,9 +5,9 @@ Conventions (a contract: the HDF5 files and every public function follow them):
 * World frame NED (x north, y east, z down); body frame FRD (x forward, y starboard,
   z down). Inside MuJoCo the world is north-west-up and the body forward-left-up; the two
   differ by a rotation of pi about x, so converting flips the sign of the y and z
-  components (of vectors, and of a quaternion's vector part). ``auvsim.frames`` holds
-  every conversion; only ``auvsim.vehicle``, ``auvsim.hydro`` (reading the model) and
-  ``auvsim.seafloor`` (ray casts) see MuJoCo coordinates.
+  components (of vectors, and of a quaternion's vector part). ``auvsim.physics.frames``
+  holds every conversion; only ``auvsim.physics.vehicle``, ``auvsim.physics.hydro`` (reading
+  the model) and ``auvsim.world.seafloor`` (ray casts) see MuJoCo coordinates.
 * Quaternions ``[w, x, y, z]`` rotate body vectors into NED. Euler angles are roll,
   pitch, yaw (ZYX).
 * SI units: m, s, rad, m/s, m/s^2, rad/s, N, N m. Degrees only in CLI and config inputs
@@ -21,17 +21,44 @@ Conventions (a contract: the HDF5 files and every public function follow them):
 
 __version__ = "0.1.0"
 
+# What users import, from the top level; each is loaded when first asked for, so that
+# ``import auvsim`` stays light (MuJoCo and numba load with the first name that needs them).
+_PUBLIC = {
+    "Config": "auvsim.config", "ScenarioConfig": "auvsim.config",
+    "preset": "auvsim.runs.presets", "generate": "auvsim.runs.generate",
+    "open_dataset": "auvsim.data.dataset",
+    "Vehicle": "auvsim.physics.vehicle", "Seafloor": "auvsim.world.seafloor",
+    "AuvEnv": "auvsim.envs.env", "ManeuverPolicy": "auvsim.envs.env",
+    "EpisodeRecorder": "auvsim.envs.env", "AuvVectorEnv": "auvsim.envs.vector",
+    "AuvsimError": "auvsim.errors",
+}
+__all__ = ["__version__", *_PUBLIC]
+
+
+def __getattr__(name: str):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'auvsim' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_PUBLIC))
+
 
 def _register_environment() -> None:
-    """Register ``auvsim/AUV-v0`` with gymnasium, by name only: ``auvsim.env`` (MuJoCo,
+    """Register ``auvsim/AUV-v0`` with gymnasium, by name only: ``auvsim.envs.env`` (MuJoCo,
     numba) is imported when the environment is made. ``gymnasium.make_vec`` makes an
-    ``auvsim.vector.AuvVectorEnv`` (worker processes over shared memory) by default or
+    ``auvsim.envs.vector.AuvVectorEnv`` (worker processes over shared memory) by default or
     with ``vectorization_mode="vector_entry_point"``; "sync" and "async" as usual."""
     import gymnasium
 
     if "auvsim/AUV-v0" not in gymnasium.registry:
-        gymnasium.register(id="auvsim/AUV-v0", entry_point="auvsim.env:AuvEnv",
-                           vector_entry_point="auvsim.vector:AuvVectorEnv")
+        gymnasium.register(id="auvsim/AUV-v0", entry_point="auvsim.envs.env:AuvEnv",
+                           vector_entry_point="auvsim.envs.vector:AuvVectorEnv")
 
 
 _register_environment()

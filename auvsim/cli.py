@@ -11,8 +11,8 @@ import sys
 import threading
 from pathlib import Path
 
-from .config import SCENARIOS, Config, ScenarioConfig
-from .errors import AuvsimError, ConfigError, OneLineErrorParser
+from auvsim.config import SCENARIOS, Config, ScenarioConfig
+from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
@@ -140,7 +140,7 @@ def _load_toml(path: Path) -> Config:
 
 def build_config(args: argparse.Namespace) -> Config:
     """The config a ``generate`` command line asks for."""
-    from .presets import DEFAULT_PRESET, preset
+    from auvsim.runs.presets import DEFAULT_PRESET, preset
 
     if args.config is not None:
         config = _load_toml(args.config)
@@ -167,10 +167,12 @@ def build_config(args: argparse.Namespace) -> Config:
 
 
 def _generate(args: argparse.Namespace) -> None:
-    from .files import interrupts_held
+    from auvsim.data.files import interrupts_held
 
     with interrupts_held():  # MuJoCo's extension init would swallow a Ctrl-C
-        from .generate import generate  # numba compilation only for the commands that need it
+        from auvsim.runs.generate import (
+            generate,  # numba compilation only for the commands that need it
+        )
 
     config = build_config(args)
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
@@ -184,7 +186,7 @@ def _generate(args: argparse.Namespace) -> None:
 
 
 def _presets(args: argparse.Namespace) -> None:
-    from .presets import DEFAULT_PRESET, PRESETS
+    from auvsim.runs.presets import DEFAULT_PRESET, PRESETS
 
     width = max(map(len, PRESETS)) + 2
     for name, (text, _) in PRESETS.items():
@@ -193,14 +195,14 @@ def _presets(args: argparse.Namespace) -> None:
 
 
 def _inspect(args: argparse.Namespace) -> None:
-    from .dataset import describe
+    from auvsim.data.dataset import describe
 
     print(describe(args.file))
 
 
 def _import_velocity(args: argparse.Namespace) -> None:
-    from .importer import import_velocity
-    from .presets import preset
+    from auvsim.data.importer import import_velocity
+    from auvsim.runs.presets import preset
 
     dvl = dataclasses.replace(preset(args.preset).dvl, rate_hz=args.rate,
                               **({} if args.noise_std is None else
@@ -213,7 +215,7 @@ def _import_velocity(args: argparse.Namespace) -> None:
 
 
 def _plot(args: argparse.Namespace) -> None:
-    from .plot import plot
+    from auvsim.plot import plot
 
     for path in plot(args.file, missions=args.missions, out=args.out):
         print(f"wrote {path}")

@@ -12,9 +12,9 @@ import math
 import reprlib
 from dataclasses import dataclass, field
 
-from .checks import is_finite
-from .errors import ConfigError
-from .maneuvers import MANEUVERS, check_scenario
+from auvsim.checks import is_finite
+from auvsim.errors import ConfigError
+from auvsim.physics.maneuvers import MANEUVERS, check_scenario
 
 SCENARIOS = tuple(MANEUVERS)  # the manoeuvres' registry is the one list of names
 SEAFLOORS = ("flat", "procedural", "heightmap")
@@ -51,13 +51,13 @@ MAX_NET_BUOYANCY = 1000.0  # N
 MAX_DEPTH = 11000.0  # m
 # Grid spacings up to 1 km: global bathymetry grids such as GEBCO's (15 arc-seconds) are
 # about 460 m. Procedural terrain is held in a window of 1024 cells a side around the
-# vehicle (auvsim.seafloor): cells of at least 0.5 m keep it at least 512 m wide, more than
+# vehicle (auvsim.world.seafloor): cells of at least 0.5 m keep it at least 512 m wide, more than
 # a 60 s block's track at the A18-D's top speed in the strongest current and its length
 # (about 400 m); finer cells made a window the track outran.
 MAX_CELL_SIZE = 1000.0  # m
 MIN_PROCEDURAL_CELL_SIZE = 0.5  # m
 # Terrain features up to 1000 cells long: the procedural terrain is a field on a grid of
-# at most 2048 cells a side (auvsim.seafloor), and from about 24,000 cells on the filter
+# at most 2048 cells a side (auvsim.world.seafloor), and from about 24,000 cells on the filter
 # leaves it constant, whose unit std is 0 / 0 (NaN heights).
 MAX_CORRELATION_CELLS = 1000
 # Angles (headings, slope heading, DVL mounting) within a turn either way.
@@ -155,7 +155,7 @@ class ScenarioConfig:
             ``MAX_START_SPEED`` (5 m/s, above the models' top speeds of 3.66 and 2.55 m/s).
             Set points (``speed``) are held to 95 % of the vehicle's own top speed
             (``Vehicle.check_speed``).
-        options: the manoeuvre's own parameters by name (``auvsim.maneuvers``; each class
+        options: the manoeuvre's own parameters by name (``auvsim.physics.maneuvers``; each class
             lists its options and their defaults).
     """
 
@@ -220,7 +220,7 @@ class SeafloorConfig:
         slope_heading_deg: direction in which the plane gets deeper, degrees from north.
         heightmap: path of a ``.npy`` (rows, cols) array of depths in m, positive down; rows
             run north, columns east, centred on the mission start (heightmap). At most
-            4096 x 4096 depths, each within 11 km of the surface (``auvsim.seafloor``).
+            4096 x 4096 depths, each within 11 km of the surface (``auvsim.world.seafloor``).
         cell_size: grid spacing, m: of the heightmap, and of the terrain grid MuJoCo
             ray-casts against (procedural); at most ``MAX_CELL_SIZE`` (1 km), and for
             procedural terrain at least ``MIN_PROCEDURAL_CELL_SIZE`` (0.5 m) and
@@ -590,7 +590,7 @@ class DepthConfig:
 
 
 # The water section. Correlation times must span several grid steps of the paths that
-# carry them (``auvsim.water``: 10 s for the current, 0.1 s for the disturbances), so the
+# carry them (``auvsim.physics.water``: 10 s for the current, 0.1 s for the disturbances), so the
 # interpolated path is the Gauss-Markov process and not the grid's straight lines.
 MIN_CURRENT_TIME = 60.0  # s
 MIN_DISTURBANCE_TIME = 0.5  # s
@@ -606,7 +606,7 @@ MAX_FIN_JITTER_DEG = 5.0  # deg: a third of the shipped fins' 15 deg travel
 
 @dataclass(frozen=True)
 class WaterConfig:
-    """The moving water and the motion disturbances (``auvsim.water`` has the model).
+    """The moving water and the motion disturbances (``auvsim.physics.water`` has the model).
     Every default turns its effect off (still water, no disturbance).
 
     Current: a mission's surface speed is drawn uniformly in [``speed_min``,

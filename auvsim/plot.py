@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Mission, open_dataset
-from .errors import ConfigError, DatasetError
-from .files import check_out_dir, make_out_dir, write_bytes
-from .frames import euler_angles
-from .sensors.dvl import Mode, Status
+from auvsim.data.dataset import Mission, open_dataset
+from auvsim.data.files import check_out_dir, make_out_dir, write_bytes
+from auvsim.errors import ConfigError, DatasetError
+from auvsim.physics.frames import euler_angles
+from auvsim.sensors.dvl import Mode, Status
 
 
 def plot(path: str | os.PathLike, *, missions: list[str] | None = None,

@@ -2,10 +2,35 @@
 
 The networks regress the DVL's velocity (m/s, DVL frame) from its raw beam velocities,
 helped by the IMU samples between pings (V1) or the past pings' beams (V2). The package
-cuts samples from a dataset (``data``), defines the networks (``models``), trains them
-with the paper's protocol (``train``; ``TrainConfig`` and its named ``PROFILES`` hold
-every training default), compares them with least squares, an affine calibration and a
-Kalman filter (``baselines``, ``metrics``, ``evaluate``), and runs the paper's experiments
-and a manoeuvre stress test end to end (``experiment``, ``reproduce``, ``stress``,
-``cli``). Frames, units and names are auvsim's (see ``auvsim``'s docstring).
+cuts samples from a dataset (``data``), holds the estimators (``estimators``: least
+squares and calibrations, the INS/DVL filter, missing-beam regressors, the networks),
+trains the networks with the paper's protocol (``training``; ``TrainConfig`` and its
+named ``PROFILES`` hold every training default), scores them (``metrics``,
+``evaluate``), and runs the paper's experiments, the manoeuvre stress test and the fault
+sweep end to end (``experiments``). Frames, units and names are auvsim's (see
+``auvsim``'s docstring).
 """
+
+# What users import, from the top level; loaded when first asked for (torch is heavy).
+_PUBLIC = {
+    "load_windows": "beamsnet.data", "split": "beamsnet.data",
+    "TrainConfig": "beamsnet.training.train", "PROFILES": "beamsnet.training.train",
+    "train": "beamsnet.training.train", "load": "beamsnet.training.train",
+    "predict": "beamsnet.training.train",
+    "evaluate": "beamsnet.evaluate", "estimate": "beamsnet.evaluate",
+}
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name: str):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'beamsnet' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_PUBLIC))

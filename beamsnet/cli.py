@@ -8,16 +8,15 @@ import sys
 import warnings
 from pathlib import Path
 
-from auvsim.cluster import check_address
 from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
-
-from .evaluate import SensorSetupWarning
-from .faults import FAULT_DURATION, FAULT_MISSIONS
-from .sim2real import DURATION as SIM2REAL_DURATION
-from .sim2real import SEEDS as SIM2REAL_SEEDS
-from .sim2real import SIM_SEEDS
-from .stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
-from .train import PROFILES, TrainConfig
+from auvsim.runs.cluster import check_address
+from beamsnet.evaluate import SensorSetupWarning
+from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
+from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
+from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
+from beamsnet.experiments.sim2real import SIM_SEEDS
+from beamsnet.experiments.stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
+from beamsnet.training.train import PROFILES, TrainConfig
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
@@ -54,7 +53,7 @@ def _per_experiment(field: str, *names: str) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    # Every training default shown and used here is read from beamsnet.train's TrainConfig
+    # Every training default shown and used here is read from beamsnet.training.train's TrainConfig
     # and PROFILES: the command line writes none of its own.
     train = PROFILES["train"]
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
@@ -184,7 +183,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _train(args) -> None:
-    from .train import TITLES, train, train_all, train_best
+    from beamsnet.training.train import TITLES, train, train_all, train_best
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
@@ -208,7 +207,7 @@ def _train(args) -> None:
 
 
 def _evaluate(args) -> None:
-    from .evaluate import evaluate, markdown
+    from beamsnet.evaluate import evaluate, markdown
 
     results = evaluate([args.run, *args.also], args.datasets, args.out,
                        allow_mismatch=args.allow_mismatch)
@@ -218,7 +217,7 @@ def _evaluate(args) -> None:
 
 
 def _estimate(args) -> None:
-    from .evaluate import estimate
+    from beamsnet.evaluate import estimate
 
     summary = estimate(args.estimator, args.dataset, args.out, train=args.train)
     for mission, row in summary["missions"].items():
@@ -232,7 +231,7 @@ def _estimate(args) -> None:
 
 
 def _reproduce(args) -> None:
-    from .reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
+    from beamsnet.experiments.reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
 
     # sim2real tests on sea data: it trains with the paper's sea-data settings.
     profile = PROFILES["snapir" if args.experiment == "sim2real" else args.experiment]
@@ -267,7 +266,7 @@ def _reproduce(args) -> None:
 
 
 def _stress(args) -> None:
-    from .stress import stress
+    from beamsnet.experiments.stress import stress
 
     training, restarts = PROFILES["stress"].resolve(
         epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,

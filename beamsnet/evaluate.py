@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
 from auvsim.errors import ConfigError
-from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
-
-from . import metrics
-from .baselines import (
+from beamsnet import metrics
+from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.estimators.baselines import (
     AffineCalibration,
     BeamCalibration,
     KalmanFilter,
@@ -33,9 +33,8 @@ from .baselines import (
     ScaleOffset,
     availability,
 )
-from .data import DataError, Windows, load_windows, split
-from .missing import MissingBeamRegressor
-from .train import (
+from beamsnet.estimators.missing import MissingBeamRegressor
+from beamsnet.training.train import (
     SENSOR_ERRORS,
     SENSOR_GEOMETRY,
     TITLES,
@@ -78,7 +77,8 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
 def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
                   allow_mismatch: bool = False, setup: dict | None = None) -> None:
     """Compare the sensors of every mission of ``dataset`` with those of the missions
-    ``run`` was trained on (``checkpoint["sensors"]``, see ``beamsnet.train.sensor_setup``).
+    ``run`` was trained on (``checkpoint["sensors"]``, see
+    ``beamsnet.training.train.sensor_setup``).
 
     A value matches when it equals that of any training mission. An attribute either side
     lacks (an imported stream has no IMU rate) is not compared. ``setup`` is
@@ -162,9 +162,8 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
         DataError: with ``strict``, the file has no IMU record (one line saying so);
             without, that filter is left out.
     """
-    from auvsim.dataset import open_dataset
-
-    from .ins import InsDvlFilter, NoImuError
+    from auvsim.data.dataset import open_dataset
+    from beamsnet.estimators.ins import InsDvlFilter, NoImuError
 
     with open_dataset(dataset) as f:
         lacking = [name for name in f.missions if not f.missions[name].has("imu")]
@@ -233,7 +232,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
     """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
 
     Args:
-        runs: run directories (``beamsnet.train``), one table row each.
+        runs: run directories (``beamsnet.training.train``), one table row each.
         datasets: auvsim datasets; the test split of each gets a table.
         out: directory for ``evaluation.md``, ``evaluation.json`` and the plots; made only
             once every run and dataset has been read and checked.
@@ -348,7 +347,11 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         ConfigError: an unknown estimator or the filter on a file without IMU; DataError:
             a file gives no samples.
     """
-    from .stress import _truth_at_pings, dead_reckoning_error, own_position_error
+    from beamsnet.experiments.stress import (
+        _truth_at_pings,
+        dead_reckoning_error,
+        own_position_error,
+    )
 
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset)
@@ -372,7 +375,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
-            from .faults import held
+            from beamsnet.experiments.faults import held
 
             row["dr_error"] = (own_position_error(windows, positions, truth, i)
                                if positions is not None else
@@ -395,7 +398,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
 
 def _has_truth(dataset, missions) -> bool:
     """Whether every one of ``missions`` of ``dataset`` has a truth group (one open)."""
-    from auvsim.dataset import open_dataset
+    from auvsim.data.dataset import open_dataset
 
     with open_dataset(dataset) as f:
         return all(f.missions[name].has("truth") for name in missions)

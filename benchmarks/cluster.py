@@ -28,9 +28,8 @@ from pathlib import Path
 
 from generation import wall_seconds  # the sibling script (its directory is on sys.path)
 
-from auvsim.cluster import THREADS, executor
 from auvsim.config import MissionConfig, ScenarioConfig
-from auvsim.dataset import (
+from auvsim.data.dataset import (
     INDEX,
     SHARDS,
     DatasetWriter,
@@ -40,8 +39,9 @@ from auvsim.dataset import (
     shard_state,
     write_index,
 )
-from auvsim.generate import config_sha256, generate, shard_config, shard_plan
-from auvsim.presets import preset
+from auvsim.runs.cluster import THREADS, executor
+from auvsim.runs.generate import config_sha256, generate, shard_config, shard_plan
+from auvsim.runs.presets import preset
 
 
 def read_all(path: Path) -> None:

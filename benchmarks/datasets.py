@@ -28,9 +28,9 @@ from pathlib import Path
 
 import mujoco
 
-from auvsim.generate import generate
-from auvsim.presets import preset
-from auvsim.vehicle import model_path
+from auvsim.physics.vehicle import model_path
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import preset
 
 
 def timed(fn) -> tuple[float, float]:

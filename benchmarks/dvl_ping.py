@@ -47,8 +47,8 @@ def measure_here(preset_name: str, passes: int) -> dict[str, float]:
     """Timings of the importable auvsim, in us (``block_ms`` in ms)."""
     import numpy as np
 
-    from auvsim.mission import MissionRun
-    from auvsim.presets import preset
+    from auvsim.runs.mission import MissionRun
+    from auvsim.runs.presets import preset
     from auvsim.sensors import Truth
 
     config = preset(preset_name)
@@ -122,7 +122,7 @@ def bits_configs() -> dict:
     navigator with its beam failure and soft bottom moved into the first two minutes."""
     import dataclasses
 
-    from auvsim.presets import preset
+    from auvsim.runs.presets import preset
 
     nav = preset("navigator")
     moved = dataclasses.replace(nav.dvl, beam_failures=((1, 20.0, 35.0),),
@@ -135,8 +135,8 @@ def dump_fields(path: Path) -> None:
     """Write the fields ``--bits`` compares, by ``config/block_steps/field``, to an .npz."""
     import numpy as np
 
-    from auvsim.mission import MissionRun
-    from auvsim.vehicle import Trajectory
+    from auvsim.physics.vehicle import Trajectory
+    from auvsim.runs.mission import MissionRun
 
     arrays = {}
     for name, config in bits_configs().items():

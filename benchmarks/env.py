@@ -1,6 +1,6 @@
 """Environment speed: ``auvsim/AUV-v0`` steps per second per core, against ``auvsim
 generate`` of the same simulated time, and vector envs (gymnasium's ``AsyncVectorEnv``,
-``auvsim.vector.AuvVectorEnv``) against one env.
+``auvsim.envs.vector.AuvVectorEnv``) against one env.
 
 Runs, side by side and alternating (these machines are noisy), the default environment
 (paper-sim config, frame skip 10: dt = 0.1 s) flying one straight episode at a fixed
@@ -19,7 +19,7 @@ action (shaft at 0.6 of its limit, fins centred; it holds its 20 m depth):
   a few hundred bytes) against one run of it here: what the cores give to work that fits
   in each core's own caches;
 * ``native 2``, ``native 8`` and ``native 32``: the same in each env of
-  ``auvsim.vector.AuvVectorEnv`` with its default workers (on 2 cores one worker process
+  ``auvsim.envs.vector.AuvVectorEnv`` with its default workers (on 2 cores one worker process
   beside this one, each stepping half of the envs: 1, 4 or 16 each; the more envs per
   vector step, the less its fixed cost and its wait for the slower slice weigh).
 
@@ -65,8 +65,8 @@ from generation import (  # the sibling script (its directory is on sys.path)
 
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import MissionConfig
-from auvsim.generate import generate
-from auvsim.vector import NOOP, AuvVectorEnv
+from auvsim.envs.vector import NOOP, AuvVectorEnv
+from auvsim.runs.generate import generate
 
 ACTION = np.array([0.6, 0.0, 0.0], dtype=np.float32)
 TARGET = 5000.0  # env steps/s per core at the default frame skip (issue 12, item 9)
@@ -189,10 +189,10 @@ def noop_step_seconds(env: AuvVectorEnv, steps: int = 2000) -> float:
 
 def profile(seconds: float) -> None:
     """Print the microseconds per step of each part of ``AuvEnv.step`` (``--profile``)."""
-    from auvsim.env import AuvEnv
-    from auvsim.mission import MissionRun
+    from auvsim.envs.env import AuvEnv
+    from auvsim.physics.vehicle import Vehicle
+    from auvsim.runs.mission import MissionRun
     from auvsim.sensors import registry
-    from auvsim.vehicle import Vehicle
 
     spent: dict[str, float] = {}
 

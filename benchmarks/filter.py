@@ -5,7 +5,7 @@ Generates one mission (navigation-grade IMU at 100 Hz, the paper's 1 Hz DVL nois
 zigzag), then runs, side by side and alternating (these machines are noisy):
 
 * ``generate``: ``auvsim generate`` of that mission, HDF5 writing included;
-* ``filter``: ``beamsnet.ins.run_mission`` on it, HDF5 reading included (15 states);
+* ``filter``: ``beamsnet.estimators.ins.run_mission`` on it, HDF5 reading included (15 states);
 * ``filter+beams``: the same with the 8 beam states (23 states);
 * ``kernel``: the compiled filter loop alone (15 states), no file reading.
 
@@ -26,10 +26,10 @@ from pathlib import Path
 from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
-from auvsim.dataset import open_dataset
-from auvsim.generate import generate
+from auvsim.data.dataset import open_dataset
+from auvsim.runs.generate import generate
 from auvsim.sensors.imu import IMU_GRADES
-from beamsnet import ins
+from beamsnet.estimators import ins
 
 
 def main() -> None:

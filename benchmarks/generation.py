@@ -24,9 +24,9 @@ from pathlib import Path
 import mujoco
 
 from auvsim.config import Config, MissionConfig, ScenarioConfig, VehicleConfig
-from auvsim.generate import generate
-from auvsim.mission import MissionRun
-from auvsim.vehicle import model_path
+from auvsim.physics.vehicle import model_path
+from auvsim.runs.generate import generate
+from auvsim.runs.mission import MissionRun
 
 
 def cpu_seconds(fn) -> float:

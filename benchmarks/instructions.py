@@ -47,8 +47,8 @@ def child(mode: str, steps: int) -> None:
     import gymnasium as gym
 
     import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
-    from auvsim.mission import MissionRun
-    from auvsim.presets import preset
+    from auvsim.runs.mission import MissionRun
+    from auvsim.runs.presets import preset
 
     if mode == "env":
         env = gym.make("auvsim/AUV-v0")

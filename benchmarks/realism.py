@@ -31,9 +31,9 @@ import mujoco
 from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import Config
-from auvsim.generate import generate
-from auvsim.presets import preset
-from auvsim.vehicle import model_path
+from auvsim.physics.vehicle import model_path
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import preset
 
 # The settings each section had in schema v3 (auvsim before issue 10): ``off`` keeps
 # these from the preset and puts every other field at its default.

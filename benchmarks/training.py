@@ -17,7 +17,7 @@ from pathlib import Path
 
 import torch
 
-from beamsnet.train import TrainConfig, train
+from beamsnet.training.train import TrainConfig, train
 
 
 def main() -> None:

@@ -14,7 +14,7 @@ from auvsim.config import (
     ScenarioConfig,
     SeafloorConfig,
 )
-from auvsim.generate import generate
+from auvsim.runs.generate import generate
 
 
 def mission(name: str = "mission_000", seed: int = 0, **scenario) -> MissionConfig:
@@ -71,7 +71,7 @@ roughness = 3
 
 
 class CountingBar:
-    """Stands in for tqdm (``monkeypatch.setattr("auvsim.generate.tqdm", CountingBar)``):
+    """Stands in for tqdm (``monkeypatch.setattr("auvsim.runs.generate.tqdm", CountingBar)``):
     ``CountingBar.updates`` collects what the run's progress added up to."""
 
     updates: list[int] = []

@@ -1,4 +1,4 @@
-"""beamsnet.baselines: LS, the calibrations and the Kalman filter, on auvsim datasets and
+"""beamsnet.estimators.baselines: LS, the calibrations and the Kalman filter, on auvsim datasets and
 on synthetic samples with a known beam matrix, scale factors and biases."""
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ from conftest import flat, mission, write
 
 from auvsim.config import DvlConfig
 from auvsim.sensors.dvl import beam_matrix, least_squares
-from beamsnet.baselines import (
+from beamsnet.data import Windows, load_windows, select, split
+from beamsnet.estimators.baselines import (
     AffineCalibration,
     BeamCalibration,
     KalmanFilter,
@@ -17,7 +18,6 @@ from beamsnet.baselines import (
     ScaleOffset,
     availability,
 )
-from beamsnet.data import Windows, load_windows, select, split
 from beamsnet.metrics import rmse_vector as rmse
 
 H = beam_matrix(np.radians(20.0))

@@ -15,7 +15,7 @@ from conftest import flat, mission, write
 from auvsim.config import DvlConfig
 from auvsim.errors import CheckpointError
 from beamsnet.cli import main
-from beamsnet.train import CHECKPOINT_FORMAT, TrainConfig, load, train, trained
+from beamsnet.training.train import CHECKPOINT_FORMAT, TrainConfig, load, train, trained
 
 
 @pytest.fixture(scope="module")
@@ -203,9 +203,9 @@ def test_evaluate_refuses_a_file_that_is_not_a_dataset(run, tmp_path, capsys):
 
 def test_train_refuses_a_file_as_out_before_training(dataset, tmp_path, capsys,
                                                      monkeypatch):
-    import beamsnet.train
+    import beamsnet.training.train
 
-    monkeypatch.setattr(beamsnet.train, "load_windows", None)  # never reached
+    monkeypatch.setattr(beamsnet.training.train, "load_windows", None)  # never reached
     out = tmp_path / "run"
     out.write_text("mine\n")
     assert main(["train", str(dataset), "--out", str(out), "--quiet"]) == 2

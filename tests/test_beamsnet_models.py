@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from beamsnet.models import BeamsNetV1, BeamsNetV2, BeamsNetV2M, CorrectionNet, build
+from beamsnet.estimators.networks import BeamsNetV1, BeamsNetV2, BeamsNetV2M, CorrectionNet, build
 
 
 def n_params(model: torch.nn.Module) -> int:

@@ -14,7 +14,7 @@ from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
 from beamsnet.cli import main
 from beamsnet.evaluate import SensorSetupWarning, check_sensors
-from beamsnet.train import TrainConfig, load, sensor_setup, train
+from beamsnet.training.train import TrainConfig, load, sensor_setup, train
 
 
 def line(path, **dvl):

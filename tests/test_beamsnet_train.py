@@ -17,7 +17,7 @@ from auvsim.errors import ConfigError
 from beamsnet.cli import main
 from beamsnet.data import DataError, load_windows, split
 from beamsnet.evaluate import estimates, table
-from beamsnet.train import (
+from beamsnet.training.train import (
     PROFILES,
     DivergedError,
     TrainConfig,
@@ -232,9 +232,9 @@ def test_profiles_resolve_given_values_over_their_own():
 def test_cli_defaults_are_train_configs(monkeypatch, capsys):
     """Every training default of the command line, used or shown, comes from TrainConfig
     and its profiles."""
-    import beamsnet.reproduce
-    import beamsnet.stress
-    import beamsnet.train
+    import beamsnet.experiments.reproduce
+    import beamsnet.experiments.stress
+    import beamsnet.training.train
 
     calls = {}
 
@@ -245,11 +245,11 @@ def test_cli_defaults_are_train_configs(monkeypatch, capsys):
                     "samples_per_second": 1.0, "checkpoint": "c", "plot": "p"}
         return fake
 
-    monkeypatch.setattr(beamsnet.train, "train", record("train"))
-    monkeypatch.setattr(beamsnet.reproduce, "paper_sim", record("paper-sim"))
-    monkeypatch.setattr(beamsnet.reproduce, "snapir", record("snapir"))
-    monkeypatch.setattr(beamsnet.reproduce, "sim2real", record("sim2real"))
-    monkeypatch.setattr(beamsnet.stress, "stress", record("stress"))
+    monkeypatch.setattr(beamsnet.training.train, "train", record("train"))
+    monkeypatch.setattr(beamsnet.experiments.reproduce, "paper_sim", record("paper-sim"))
+    monkeypatch.setattr(beamsnet.experiments.reproduce, "snapir", record("snapir"))
+    monkeypatch.setattr(beamsnet.experiments.reproduce, "sim2real", record("sim2real"))
+    monkeypatch.setattr(beamsnet.experiments.stress, "stress", record("stress"))
     assert main(["train", "data.h5", "--out", "run", "--quiet"]) == 0
     assert calls["train"][0][1] == TrainConfig()
     for command in (["reproduce", "paper-sim"], ["stress"]):
@@ -327,16 +327,16 @@ def test_a_diverging_loss_stops_training_and_writes_nothing(scale_only, tmp_path
 
 
 def test_restarts_drop_a_diverged_seed_and_record_why(scale_only, tmp_path, monkeypatch):
-    import beamsnet.train
+    import beamsnet.training.train
 
-    real = beamsnet.train.train
+    real = beamsnet.training.train.train
 
     def seed_1_diverges(dataset, config, out, *, progress=True):
         if config.seed == 1:
             raise DivergedError("0.01: seed 1 diverged", argument="lr")
         return real(dataset, config, out, progress=progress)
 
-    monkeypatch.setattr(beamsnet.train, "train", seed_1_diverges)
+    monkeypatch.setattr(beamsnet.training.train, "train", seed_1_diverges)
     out = tmp_path / "best"
     summary = train_best(scale_only, TrainConfig(epochs=1), out, restarts=3, workers=1,
                          progress=False)

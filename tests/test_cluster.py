@@ -19,9 +19,9 @@ from test_kill import _running, _tree, _wait_for, as_from_a_terminal
 from test_shards import assert_same_data
 
 from auvsim import cli
-from auvsim.dataset import INDEX, SHARDS
+from auvsim.data.dataset import INDEX, SHARDS
 from auvsim.errors import ConfigError
-from auvsim.generate import generate
+from auvsim.runs.generate import generate
 
 pytest.importorskip("distributed")
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
@@ -73,7 +73,7 @@ def reference(tmp_path_factory):
 def test_local_1_local_2_and_the_pool_give_the_same_data(tmp_path, monkeypatch):
     pool = tmp_path / "pool.h5"
     generate(CONFIG, pool, workers=2, progress=False)
-    monkeypatch.setattr("auvsim.generate.tqdm", CountingBar)
+    monkeypatch.setattr("auvsim.runs.generate.tqdm", CountingBar)
     for name, cluster in (("one", "local:1"), ("two", "local:2")):
         monkeypatch.setattr(CountingBar, "updates", [])
         summary = generate(CONFIG, f"{tmp_path / name}/", cluster=cluster, progress=False)
@@ -191,7 +191,7 @@ def test_a_peer_that_never_answers_is_given_up_on(tmp_path):
     import socket
     import threading
 
-    from auvsim.cluster import executor
+    from auvsim.runs.cluster import executor
 
     server = socket.create_server(("127.0.0.1", 0))
     accepted = []
@@ -205,7 +205,7 @@ def test_a_peer_that_never_answers_is_given_up_on(tmp_path):
 
 
 def test_without_dask_the_cluster_option_says_what_to_install(monkeypatch):
-    from auvsim.cluster import executor
+    from auvsim.runs.cluster import executor
 
     monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
     with pytest.raises(ConfigError, match=r"needs Dask distributed.*auvsim\[cluster\]"):

@@ -12,7 +12,6 @@ import pytest
 from conftest import FAILING_TOML, flat, mission, write
 from h5compare import assert_same_contents
 
-from auvsim import dataset
 from auvsim.cli import main
 from auvsim.config import (
     Config,
@@ -21,8 +20,9 @@ from auvsim.config import (
     ScenarioConfig,
     SeafloorConfig,
 )
-from auvsim.generate import generate
-from auvsim.presets import PRESETS, preset
+from auvsim.data import dataset
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import PRESETS, preset
 from auvsim.sensors.dvl import beam_matrix
 
 IDEAL = flat(mission(seed=5, speed=2.0, heading_deg=30.0, depth=20.0, duration=60.0),
@@ -40,8 +40,8 @@ def rotation(q: np.ndarray) -> np.ndarray:
 
 
 def test_level_on_a_flat_floor_slant_range_is_altitude_over_cos_alpha():
-    from auvsim.seafloor import Seafloor
-    from auvsim.vehicle import Vehicle
+    from auvsim.physics.vehicle import Vehicle
+    from auvsim.world.seafloor import Seafloor
 
     floor = Seafloor(SeafloorConfig(kind="flat", depth=60.0))
     vehicle = Vehicle("auv", seafloor=floor)

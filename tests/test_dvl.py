@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from auvsim.config import Config, DvlConfig
-from auvsim.frames import rotation_matrices, rotation_rpy
-from auvsim.mission import MissionRun
-from auvsim.presets import preset
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
+from auvsim.physics.vehicle import Trajectory
+from auvsim.runs.mission import MissionRun
+from auvsim.runs.presets import preset
 from auvsim.sensors.dvl import (
     DvlErrors,
     DvlGeometry,
@@ -22,7 +23,6 @@ from auvsim.sensors.dvl import (
     least_squares,
     measure,
 )
-from auvsim.vehicle import Trajectory
 
 RNG = np.random.default_rng(12)
 

@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 from conftest import flat, mission
 
-from auvsim import mission as mission_module
 from auvsim.config import DvlConfig, SeafloorConfig
 from auvsim.errors import ConfigError
-from auvsim.frames import rotation_matrices, rotation_rpy
-from auvsim.mission import MissionRun
-from auvsim.seafloor import Seafloor
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
+from auvsim.runs import mission as mission_module
+from auvsim.runs.mission import MissionRun
 from auvsim.sensors.dvl import (
     DvlErrors,
     Effects,
@@ -29,6 +28,7 @@ from auvsim.sensors.dvl import (
     markov_dropouts,
     ping,
 )
+from auvsim.world.seafloor import Seafloor
 
 H30 = beam_matrix(math.radians(30))
 

@@ -11,11 +11,11 @@ from gymnasium.utils.env_checker import check_env
 
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import ScenarioConfig
-from auvsim.dataset import open_dataset
-from auvsim.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
-from auvsim.frames import euler_angles, quat_to_rot
-from auvsim.mission import MissionRun
-from auvsim.presets import preset
+from auvsim.data.dataset import open_dataset
+from auvsim.envs.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
+from auvsim.physics.frames import euler_angles, quat_to_rot
+from auvsim.runs.mission import MissionRun
+from auvsim.runs.presets import preset
 from beamsnet.data import load_windows
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from auvsim.frames import (
+from auvsim.physics.frames import (
     FLIP,
     euler_angles,
     mujoco_from_ned,

@@ -52,8 +52,8 @@ import pytest
 
 from auvsim.cli import _parser, build_config, main
 from auvsim.config import MAX_DURATION, MAX_MISSIONS, MAX_TOTAL_DURATION, Config
-from auvsim.maneuvers import MANEUVERS
-from auvsim.presets import PRESETS, preset
+from auvsim.physics.maneuvers import MANEUVERS
+from auvsim.runs.presets import PRESETS, preset
 
 SEED = int(os.environ.get("AUVSIM_FUZZ_SEED", "20240911"))
 CASES = int(os.environ.get("AUVSIM_FUZZ_CASES", "100"))
@@ -763,7 +763,7 @@ def run_case(index: int, tmp_path: Path, capfd, monkeypatch) -> tuple[str, list[
     out, err = capfd.readouterr()
     if MUJOCO_NAN_WARNING in err:
         # MuJoCo's parser warns of a NaN in a model file on stderr and in MUJOCO_LOG.TXT,
-        # before auvsim refuses the model; silencing MuJoCo's messages is auvsim.vehicle's
+        # before auvsim refuses the model; silencing MuJoCo's messages is auvsim.physics.vehicle's
         # work (in progress elsewhere), so this is a known failure, reported as xfail.
         err = "".join(line for line in err.splitlines(keepends=True)
                       if line.strip() and MUJOCO_NAN_WARNING not in line)

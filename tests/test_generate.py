@@ -13,7 +13,6 @@ import pytest
 from conftest import CountingBar
 from h5compare import assert_same_contents
 
-from auvsim import dataset
 from auvsim.cli import main
 from auvsim.config import (
     Config,
@@ -24,9 +23,10 @@ from auvsim.config import (
     SeafloorConfig,
     VehicleConfig,
 )
+from auvsim.data import dataset
 from auvsim.errors import ConfigError, DatasetError
-from auvsim.generate import generate
-from auvsim.mission import MissionRun
+from auvsim.runs.generate import generate
+from auvsim.runs.mission import MissionRun
 
 TRUTH_SHAPES = {"time": (), "position_ned": (3,), "velocity_ned": (3,), "velocity_body": (3,),
                 "quaternion": (4,), "angular_rate": (3,), "specific_force": (3,),
@@ -139,8 +139,8 @@ def test_depth_and_heading_changes_settle():
     """Set points away from the start: 10 m deeper and 60 deg to starboard."""
     config = straight(speed=2.0, heading_deg=60.0, depth=30.0, duration=300.0)
     scenario = config.missions[0].scenario
-    from auvsim.maneuvers import make_maneuver
-    from auvsim.vehicle import Vehicle
+    from auvsim.physics.maneuvers import make_maneuver
+    from auvsim.physics.vehicle import Vehicle
 
     vehicle = Vehicle("auv")
     vehicle.reset(position_ned=(0, 0, 20.0), velocity_body=(2.0, 0, 0))
@@ -224,7 +224,7 @@ BAD_FILES = [
 @pytest.mark.parametrize("text,files,message", BAD_FILES)
 def test_bad_config_file_gives_one_line_and_exit_2(tmp_path, capfd, monkeypatch, text, files,
                                                     message):
-    from auvsim.vehicle import model_path
+    from auvsim.physics.vehicle import model_path
 
     monkeypatch.chdir(tmp_path)  # where MuJoCo would write a MUJOCO_LOG.TXT
     for name, content in files.items():
@@ -263,7 +263,7 @@ def test_console_script_error_has_no_traceback(tmp_path):
 
 
 def test_failure_midway_leaves_nothing(tmp_path, monkeypatch):
-    import auvsim.generate as gen
+    import auvsim.runs.generate as gen
 
     def failing(config, mission):
         yield from []
@@ -323,7 +323,7 @@ def test_scenario_validation_names_the_field(kwargs):
 
 def test_an_unstable_mission_stops_the_run_naming_mission_and_time(tmp_path, monkeypatch):
     from auvsim.errors import SimulationError
-    from auvsim.vehicle import Vehicle
+    from auvsim.physics.vehicle import Vehicle
 
     calls = {"n": 0}
 
@@ -348,7 +348,7 @@ def test_progress_comes_back_from_any_executor(tmp_path, monkeypatch):
     config = dataclasses.replace(config, missions=(
         config.missions[0], dataclasses.replace(config.missions[0], name="other", seed=4)))
     monkeypatch.setattr(CountingBar, "updates", [])
-    monkeypatch.setattr("auvsim.generate.tqdm", CountingBar)
+    monkeypatch.setattr("auvsim.runs.generate.tqdm", CountingBar)
     with ThreadPoolExecutor(max_workers=2) as pool:
         generate(config, tmp_path / "pool.h5", executor=pool, progress=False)
     updates = CountingBar.updates

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from auvsim import dataset
 from auvsim.cli import main as auvsim_main
 from auvsim.config import DvlConfig
-from auvsim.importer import import_velocity
+from auvsim.data import dataset
+from auvsim.data.importer import import_velocity
 from auvsim.sensors.dvl import beam_matrix
 from beamsnet.cli import main as beamsnet_main
 from beamsnet.data import load_windows

@@ -13,9 +13,10 @@ from conftest import flat, mission, write
 
 from auvsim.cli import main
 from auvsim.config import Config, ImuConfig
-from auvsim.dataset import describe, open_dataset
+from auvsim.data.dataset import describe, open_dataset
+from auvsim.data.streams import STREAMS, mission_streams
 from auvsim.errors import ConfigError
-from auvsim.presets import preset
+from auvsim.runs.presets import preset
 from auvsim.sensors.imu import (
     IMU_GRADES,
     Imu,
@@ -25,7 +26,6 @@ from auvsim.sensors.imu import (
     draw_biases,
     draw_calibration,
 )
-from auvsim.streams import STREAMS, mission_streams
 
 ZERO = ImuBiases(np.zeros(3), np.zeros(3))
 G0 = 9.80665

@@ -1,4 +1,4 @@
-"""The INS/DVL filter (``beamsnet.ins``): known answers on small generated missions."""
+"""The INS/DVL filter (``beamsnet.estimators.ins``): known answers on small generated missions."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ from conftest import flat
 from scipy.stats import chi2
 
 from auvsim.config import DvlConfig, ImuConfig, MissionConfig, ScenarioConfig
-from auvsim.dataset import open_dataset
-from auvsim.frames import euler_angles, rotation_matrices, rotation_rpy
-from auvsim.importer import import_velocity
+from auvsim.data.dataset import open_dataset
+from auvsim.data.importer import import_velocity
+from auvsim.physics.frames import euler_angles, rotation_matrices, rotation_rpy
 from auvsim.sensors.imu import IMU_GRADES
-from beamsnet import ins
 from beamsnet.data import load_windows, split
+from beamsnet.estimators import ins
 
 PAPER_NOISE = 0.042**2  # m/s, the paper-sim preset's beam noise
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from auvsim import files
+from auvsim.data import files
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
                                 reason="follows the process tree in /proc")

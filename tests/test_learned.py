@@ -15,8 +15,13 @@ from auvsim.config import DvlConfig
 from auvsim.errors import CheckpointError
 from auvsim.sensors.dvl import beam_matrix, least_squares
 from beamsnet.data import load_windows, split
-from beamsnet.models import BeamsNetV2, BeamsNetV2M, CorrectionNet, masked_least_squares
-from beamsnet.train import TrainConfig, load, model_inputs, predict, train
+from beamsnet.estimators.networks import (
+    BeamsNetV2,
+    BeamsNetV2M,
+    CorrectionNet,
+    masked_least_squares,
+)
+from beamsnet.training.train import TrainConfig, load, model_inputs, predict, train
 
 H = torch.as_tensor(beam_matrix(math.radians(20.0)), dtype=torch.float32)
 SCALE, BIAS = 0.007, 1e-4  # the published error model's scale factor and bias (m/s)

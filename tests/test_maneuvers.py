@@ -9,10 +9,10 @@ import pytest
 
 from auvsim.cli import main
 from auvsim.config import SCENARIOS, ScenarioConfig
-from auvsim.dataset import open_dataset
+from auvsim.data.dataset import open_dataset
 from auvsim.errors import ConfigError
-from auvsim.maneuvers import MANEUVERS, make_maneuver
-from auvsim.vehicle import Vehicle
+from auvsim.physics.maneuvers import MANEUVERS, make_maneuver
+from auvsim.physics.vehicle import Vehicle
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def test_random_waypoints_refuse_an_unseeded_stream():
 
 
 def test_the_test_library_flies_every_manoeuvre_once_and_the_zigzag_twice():
-    from auvsim.maneuvers import missions
+    from auvsim.physics.maneuvers import missions
 
     flown = [kind for _, kind, _ in missions()]
     assert set(flown) == set(SCENARIOS) == set(MANEUVERS)
@@ -155,7 +155,7 @@ def test_vehicle_state_is_what_reset_set(vehicle):
 
 
 def test_euler_angles_are_those_the_vehicle_was_placed_at(vehicle):
-    from auvsim.frames import euler_angles
+    from auvsim.physics.frames import euler_angles
 
     vehicle.reset(position_ned=(0.0, 0.0, 20.0), roll=0.1, pitch=-0.2, yaw=2.5)
     q = vehicle.state()["quaternion"]

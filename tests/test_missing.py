@@ -1,4 +1,4 @@
-"""beamsnet.missing: missing beams regressed from the other beams and the past pings, on
+"""beamsnet.estimators.missing: missing beams regressed from the other beams and the past pings, on
 synthetic samples with a known beam matrix, scale factors and biases."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import pytest
 from test_beamsnet_baselines import BIAS, SCALE, H, synthetic
 
 from auvsim.sensors.dvl import least_squares
-from beamsnet.baselines import LeastSquares, availability
 from beamsnet.data import select
+from beamsnet.estimators.baselines import LeastSquares, availability
+from beamsnet.estimators.missing import MissingBeamRegressor, _earlier_samples
 from beamsnet.metrics import rmse_vector as rmse
-from beamsnet.missing import MissingBeamRegressor, _earlier_samples
 
 PATTERNS = [tuple(k for k in range(4) if (code >> k) & 1) for code in range(1, 16)]
 

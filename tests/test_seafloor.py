@@ -12,7 +12,7 @@ import pytest
 
 from auvsim.config import SeafloorConfig
 from auvsim.errors import ConfigError
-from auvsim.seafloor import GROUP, Seafloor
+from auvsim.world.seafloor import GROUP, Seafloor
 
 MODEL = Path(__file__).resolve().parent.parent / "models" / "auv.xml"
 DOWN = np.array([0.0, 0.0, 1.0])

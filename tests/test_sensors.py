@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from conftest import flat, mission
 
-from auvsim import dataset
 from auvsim.config import Config, DepthConfig
-from auvsim.mission import MissionRun
+from auvsim.data import dataset
+from auvsim.data.streams import STREAMS, imported_streams, mission_streams
+from auvsim.runs.mission import MissionRun
 from auvsim.sensors import Sensor, Truth, registry, sample_rows
-from auvsim.streams import STREAMS, imported_streams, mission_streams
 
 
 def test_the_registry_finds_every_plugin_with_its_part_of_the_schema():

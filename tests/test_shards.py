@@ -13,10 +13,10 @@ import pytest
 from conftest import flat, mission
 
 from auvsim import cli as auvsim_cli
-from auvsim import dataset
-from auvsim.dataset import INDEX, SHARDS, data_files, open_dataset
+from auvsim.data import dataset
+from auvsim.data.dataset import INDEX, SHARDS, data_files, open_dataset
 from auvsim.errors import DatasetError
-from auvsim.generate import generate
+from auvsim.runs.generate import generate
 from beamsnet import cli as beamsnet_cli
 
 CONFIG = flat(mission("a", 1, duration=40.0), mission("b", 2, duration=30.0, speed=1.5),

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from auvsim.presets import SNAPIR_MOUNTING_YAW_DEG, sim2real
+from auvsim.runs.presets import SNAPIR_MOUNTING_YAW_DEG, sim2real
 from beamsnet.cli import main
-from beamsnet.sim2real import SEEDS
+from beamsnet.experiments.sim2real import SEEDS
 
 
 def stream(n: int, seed: int = 0) -> np.ndarray:

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from auvsim.cli import main as auvsim_main
-from auvsim.presets import MANEUVER_MISSIONS
+from auvsim.runs.presets import MANEUVER_MISSIONS
 from beamsnet.cli import main
 from beamsnet.data import load_windows
 from beamsnet.evaluate import FILTER_NAMES, baselines
-from beamsnet.stress import dead_reckoning_error
+from beamsnet.experiments.stress import dead_reckoning_error
 
 
 @pytest.mark.slow
@@ -50,7 +50,7 @@ def test_dead_reckoning_error_of_a_constant_velocity_bias(tmp_path):
     assert auvsim_main(["generate", "--preset", "paper-sim", "--duration", "104",
                         "--out", str(path), "--quiet"]) == 0
     windows = load_windows(path, missions=["speed_2"])
-    from beamsnet.stress import _truth_at_pings
+    from beamsnet.experiments.stress import _truth_at_pings
 
     truth = _truth_at_pings(path, windows)
     biased = windows.target + np.array([0.01, 0.0, 0.0])
@@ -60,7 +60,7 @@ def test_dead_reckoning_error_of_a_constant_velocity_bias(tmp_path):
     assert dead_reckoning_error(windows, windows.target, truth, 0)[0] == 0.0
     # A position solution is scored over the same span, first ping to last: the true
     # positions plus the biased velocity's drift score what its dead reckoning does.
-    from beamsnet.stress import dead_reckoning_track, own_position_error
+    from beamsnet.experiments.stress import dead_reckoning_track, own_position_error
 
     drifted = truth["position"] + (dead_reckoning_track(windows, biased, truth, 0)
                                    - dead_reckoning_track(windows, windows.target, truth, 0))
@@ -72,8 +72,8 @@ def test_truth_at_pings_rotates_the_dvl_velocity_into_ned(tmp_path):
     """In a turn, attitude x mounting x the true DVL velocity, less the lever arm's
     omega x r, is the vehicle's true NED velocity at each ping: the frames and the rows
     that dead reckoning integrates are the right ones."""
-    from auvsim.dataset import open_dataset
-    from beamsnet.stress import _truth_at_pings
+    from auvsim.data.dataset import open_dataset
+    from beamsnet.experiments.stress import _truth_at_pings
 
     path = tmp_path / "turn.h5"
     assert auvsim_main(["generate", "--preset", "maneuvers", "--scenario", "turning_circle",

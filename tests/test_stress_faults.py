@@ -11,12 +11,12 @@ import pytest
 
 from auvsim.cli import main as auvsim_main
 from auvsim.sensors.dvl import beam_matrix
-from beamsnet.baselines import KalmanFilter
 from beamsnet.cli import main
 from beamsnet.data import Windows, load_windows
+from beamsnet.estimators.baselines import KalmanFilter
+from beamsnet.estimators.networks import BeamsNetV2
 from beamsnet.evaluate import FILTER_NAMES, baselines
-from beamsnet.faults import SWEEPS, _estimates, held, sweeps
-from beamsnet.models import BeamsNetV2
+from beamsnet.experiments.faults import SWEEPS, _estimates, held, sweeps
 
 TINY = ["stress", "--faults", "--train-duration", "60", "--fault-duration", "30",
         "--fault-mission", "straight", "--epochs", "1", "--average-epochs", "1",
@@ -57,7 +57,7 @@ def test_held_fills_a_gap_with_the_last_estimate_and_zero_before_the_first():
 def test_each_estimator_on_pings_with_a_lost_beam():
     """LS solves the three beams left exactly; the affine map gives none; the Kalman filter
     holds its estimate; BeamsNetV2 gives none while the beam is missing from its past."""
-    from beamsnet.baselines import AffineCalibration, LeastSquares
+    from beamsnet.estimators.baselines import AffineCalibration, LeastSquares
 
     train = _windows(200, seed=1, noise=0.002)
     w = _dropped(_windows(40), [10, 11, 25])
@@ -98,8 +98,8 @@ def test_every_ping_windows_keep_lost_beams_as_nan_and_water_track_out_of_traini
     samples; water-track pings keep their beams there and are never samples."""
     import dataclasses
 
-    from auvsim.generate import generate
-    from auvsim.presets import preset
+    from auvsim.runs.generate import generate
+    from auvsim.runs.presets import preset
 
     base = preset("paper-sim").with_duration(40)
     config = dataclasses.replace(
@@ -133,7 +133,7 @@ def test_every_sweep_has_its_settings_in_the_config():
     plan = sweeps(300.0)
     assert list(plan) == list(SWEEPS)
     assert [f.level for f in plan["dropout"]] == [0.0, 0.1, 0.2, 0.3, 0.5]
-    from auvsim.presets import maneuvers
+    from auvsim.runs.presets import maneuvers
 
     base = maneuvers(300.0)
     dead = plan["dead beam"][-1].config(base)

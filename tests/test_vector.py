@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
-from auvsim.vector import AuvVectorEnv
+from auvsim.envs.vector import AuvVectorEnv
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -133,7 +133,7 @@ def test_bad_actions_are_refused_and_a_worker_error_closes_the_env():
 def test_a_killed_parent_leaves_no_worker_and_no_shared_memory():
     script = textwrap.dedent("""
         import os, signal
-        from auvsim.vector import AuvVectorEnv
+        from auvsim.envs.vector import AuvVectorEnv
         if __name__ == "__main__":
             env = AuvVectorEnv(num_envs=2, workers=2)
             print(env._shm.name, *env.worker_pids, flush=True)

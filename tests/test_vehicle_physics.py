@@ -20,8 +20,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from auvsim.hydro import FLIP, lamb_k_factors, load_hydro, water_wrench
-from auvsim.vehicle import _UNUSED, VEHICLES, Vehicle, model_path
+from auvsim.physics.hydro import FLIP, lamb_k_factors, load_hydro, water_wrench
+from auvsim.physics.vehicle import _UNUSED, VEHICLES, Vehicle, model_path
 
 DT = 0.01
 OPEN = (False, False, False)
@@ -358,7 +358,7 @@ def test_mujocos_passes_switched_off_add_only_zeros(name, monkeypatch):
     off, and the actuators it compiles its model without, change not a bit of a
     closed-loop manoeuvre in a current: with the passes back on, and then the actuators
     (gain 0) kept in the model too, MuJoCo computes the same trajectory."""
-    import auvsim.vehicle
+    import auvsim.physics.vehicle
 
     def keep_actuators(spec):  # the ranges, with the actuators left in the model
         return {a.name: np.array(a.ctrlrange, dtype=float) for a in spec.actuators}
@@ -366,7 +366,7 @@ def test_mujocos_passes_switched_off_add_only_zeros(name, monkeypatch):
     trajectories = []
     for variant in ("as built", "passes on", "actuators kept"):
         if variant == "actuators kept":
-            monkeypatch.setattr(auvsim.vehicle, "_without_actuators", keep_actuators)
+            monkeypatch.setattr(auvsim.physics.vehicle, "_without_actuators", keep_actuators)
         vehicle = Vehicle(name, current_ned=(0.3, -0.2, 0.0))
         assert vehicle.model.opt.disableflags & _UNUSED == _UNUSED
         assert vehicle.model.nu == (3 if variant == "actuators kept" else 0)
@@ -736,7 +736,7 @@ def test_shaft_torque_is_thrust_power_over_the_open_water_efficiency(name):
     # Q = T Va / (2 pi n eta_0): the shaft delivers the thrust power divided by the
     # propeller's open-water efficiency; with the B-series fit's eta_0(J) = J KT / (2 pi KQ)
     # the compiled K_Q route is the same number (round-off only).
-    from auvsim.hydro import propeller
+    from auvsim.physics.hydro import propeller
 
     h = Vehicle(name).hydro
     for rpm in (0.3 * h.rpm_max, h.rpm_max):
@@ -756,7 +756,7 @@ def test_shaft_torque_is_thrust_power_over_the_open_water_efficiency(name):
 
 def shaft_power(h, speed):
     """Shaft power (W) at the steady top speed: 2 pi n Q."""
-    from auvsim.hydro import propeller
+    from auvsim.physics.hydro import propeller
 
     _, torque = propeller(h, h.rpm_max, speed)
     return 2 * math.pi * h.rpm_max / 60 * torque
@@ -778,7 +778,7 @@ def test_remus_shaft_power_fits_its_battery_and_the_v3_model_did_not():
 
 def steady_roll(vehicle, traj):
     """The roll (deg) of steady straight flight: the shaft torque against W BG sin(phi)."""
-    from auvsim.hydro import propeller
+    from auvsim.physics.hydro import propeller
 
     h = vehicle.hydro
     _, torque = propeller(h, traj.actuators[-1, 0], traj.velocity_body[-1, 0])
@@ -926,7 +926,7 @@ def test_stern_plane_response_settles_where_the_righting_moment_can_hold_it(name
     # Below MIN_SPEED the planes must not reverse: at 0.5 m/s the dive they cause (u sin
     # theta) still outweighs the heave velocity of their own lift (the reversal speed is
     # 0.33 m/s for the A18-D, 0.36 m/s for the REMUS 100).
-    from auvsim.vehicle import MIN_SPEED
+    from auvsim.physics.vehicle import MIN_SPEED
 
     w, ratio = dive_balance(vehicle, MIN_SPEED, delta)
     theta = math.asin(ratio)
@@ -1007,9 +1007,9 @@ def test_the_loop_called_past_numbas_dispatcher_computes_what_the_dispatcher_doe
     dispatcher has chosen it; a vehicle sent through the dispatcher on every call (its
     entry point forgotten) flies bit for bit the same, with water, disturbances and a
     closed-loop channel on."""
-    from auvsim.presets import NAVIGATOR_WATER as water
-    from auvsim.streams import mission_streams
-    from auvsim.water import Disturbance, Water
+    from auvsim.data.streams import mission_streams
+    from auvsim.physics.water import Disturbance, Water
+    from auvsim.runs.presets import NAVIGATOR_WATER as water
 
     def vehicle():
         streams = mission_streams(3)

@@ -12,13 +12,11 @@ from conftest import flat, mission
 
 from auvsim.cli import main
 from auvsim.config import Config, WaterConfig
+from auvsim.data.streams import STREAMS
 from auvsim.errors import ConfigError
-from auvsim.frames import rotation_matrices
-from auvsim.mission import MissionRun
-from auvsim.presets import NAVIGATOR_WATER, preset
-from auvsim.streams import STREAMS
-from auvsim.vehicle import Vehicle
-from auvsim.water import (
+from auvsim.physics.frames import rotation_matrices
+from auvsim.physics.vehicle import Vehicle
+from auvsim.physics.water import (
     CHANNELS,
     DISTURBANCE_STEP,
     SEGMENT,
@@ -26,6 +24,8 @@ from auvsim.water import (
     Water,
     gauss_markov,
 )
+from auvsim.runs.mission import MissionRun
+from auvsim.runs.presets import NAVIGATOR_WATER, preset
 
 OPEN = (False, False, False)
 

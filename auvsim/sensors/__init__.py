@@ -5,8 +5,8 @@ reads, its rate, the dataset fields and mission attributes it writes (its part o
 schema), the random streams it draws from, and ``measure``, a function of one block of
 truth and the sensor's noise stream. Every module of this package that defines ``SENSOR``
 is a plugin; ``registry`` finds them, so a new sensor is one new file here plus its
-config section (``auvsim.config``) and its tests. ``auvsim.mission`` builds each plugin
-per mission and measures every block with it; ``auvsim.dataset`` reads the plugins'
+config section (``auvsim.config``) and its tests. ``auvsim.runs.mission`` builds each plugin
+per mission and measures every block with it; ``auvsim.data.dataset`` reads the plugins'
 fields to check a file.
 
 Block alignment: a sensor sampling every ``every`` IMU samples measures at the global IMU
@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 import numpy as np
 
 if TYPE_CHECKING:
-    from ..config import Config
+    from auvsim.config import Config
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ class Field:
         doc: what it holds.
         imported: also written for a mission imported from a recorded stream.
         index_of: the values are row indices into this clock's fields.
-        since: the first schema version that holds it (``auvsim.dataset.FORMAT_VERSION``).
+        since: the first schema version that holds it (``auvsim.data.dataset.FORMAT_VERSION``).
     """
 
     path: str
@@ -76,14 +76,14 @@ class Platform(NamedTuple):
 
     ``water.current_ned(time (M,) s, position_ned (M, 3) m) -> (M, 3) m/s`` is the current
     (NED) anywhere at any time of the mission, exactly as the vehicle's physics sees it
-    (``auvsim.water.Water``; the constant ``vehicle.current_ned`` included), e.g. at a DVL's
+    (``auvsim.physics.water.Water``; the constant ``vehicle.current_ned`` included), e.g. at a DVL's
     water-track layer below the vehicle. None only for a platform built without one.
     """
 
-    vehicle: Any  # auvsim.vehicle.Vehicle
-    seafloor: Any  # auvsim.seafloor.Seafloor
+    vehicle: Any  # auvsim.physics.vehicle.Vehicle
+    seafloor: Any  # auvsim.world.seafloor.Seafloor
     ray_data: Any  # mujoco.MjData of the same model, for ray casts only
-    water: Any = None  # auvsim.water.Water
+    water: Any = None  # auvsim.physics.water.Water
 
 
 class Truth(NamedTuple):
@@ -130,7 +130,7 @@ class Sensor:
 
     name: ClassVar[str]  # its group in the file
     section: ClassVar[str]  # its config section
-    # (parameters, noise, *more) stream names (auvsim.streams); more: further parameter
+    # (parameters, noise, *more) stream names (auvsim.data.streams); more: further parameter
     # streams, passed to __init__ after ``parameters`` in order
     streams: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[Field, ...]]
@@ -177,7 +177,7 @@ def samples_in(n_imu: int, every: int) -> int:
 
 def registry() -> dict[str, type[Sensor]]:
     """Every sensor plugin of this package (a module defining ``SENSOR``), by name, in
-    name order: the order ``auvsim.mission`` measures them in."""
+    name order: the order ``auvsim.runs.mission`` measures them in."""
     found = {}
     for info in pkgutil.iter_modules(__path__):
         module = importlib.import_module(f"{__name__}.{info.name}")

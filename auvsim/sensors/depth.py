@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import Attr, Field, Sensor, sample_rows, samples_in
+from auvsim.sensors import Attr, Field, Sensor, sample_rows, samples_in
 
 CHUNK = 1024  # noise samples drawn ahead at a time
 

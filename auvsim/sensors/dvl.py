@@ -37,10 +37,10 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ..config import DvlConfig
-from ..errors import ConfigError
-from ..frames import rotation_matrices, rotation_rpy
-from . import Attr, Field, Sensor, sample_rows, samples_in
+from auvsim.config import DvlConfig
+from auvsim.errors import ConfigError
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
+from auvsim.sensors import Attr, Field, Sensor, sample_rows, samples_in
 
 
 def beam_matrix(beam_angle: float) -> np.ndarray:
@@ -547,7 +547,7 @@ def synthesise(velocity: np.ndarray, config: DvlConfig,
     Args:
         velocity: (N, 3) m/s, one row per ping.
         config: beam angle, rate and error model (ranges and mounting are not used).
-        streams: the ``dvl_parameters`` and ``dvl_noise`` streams (``auvsim.streams``).
+        streams: the ``dvl_parameters`` and ``dvl_noise`` streams (``auvsim.data.streams``).
 
     Returns:
         The ``dvl`` fields by path (pings at ``config.rate_hz`` from t = 0), and the

@@ -33,8 +33,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ..config import ImuConfig
-from . import Attr, Field, Sensor
+from auvsim.config import ImuConfig
+from auvsim.sensors import Attr, Field, Sensor
 
 G0 = 9.80665  # m/s^2, standard gravity: the g of micro-g and mg in datasheets
 DEG = math.pi / 180.0  # rad per degree
@@ -409,7 +409,7 @@ class ImuErrorModel:
 
     Example::
 
-        streams = mission_streams(seed)  # auvsim.streams
+        streams = mission_streams(seed)  # auvsim.data.streams
         model = ImuErrorModel(config.imu, draw_biases(config.imu, streams["imu_biases"]),
                               streams["imu_noise"], calibration=draw_calibration(
                                   config.imu, streams["imu_calibration"]))

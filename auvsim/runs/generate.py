@@ -1,14 +1,14 @@
 """``auvsim generate``: simulate the missions of a config into a dataset: one file, or a
 folder of shards and their index.
 
-Orchestration only: each mission is an ``auvsim.mission.MissionRun`` streamed into a
+Orchestration only: each mission is an ``auvsim.runs.mission.MissionRun`` streamed into a
 file. With one worker the missions run in this process, two at a time on threads,
 straight into the output; with more (or with an executor or a Dask cluster given), each
 runs as a job of a ``concurrent.futures`` executor into a part file of its own, and the
 dataset is then assembled in mission order by copying those missions
-(``auvsim.dataset.copy_mission``). A sharded dataset needs no copy: each job writes its
+(``auvsim.data.dataset.copy_mission``). A sharded dataset needs no copy: each job writes its
 shard into the output folder, sealed with its config's hash and its data's digest, and
-the index is written last (``auvsim.dataset.write_index``); running again keeps the
+the index is written last (``auvsim.data.dataset.write_index``); running again keeps the
 shards that are whole and this config's (resume). So memory stays flat in mission
 length, and the output is the same whatever the number of workers.
 
@@ -20,8 +20,8 @@ This process then waits for them, so nothing is left behind.
 
 A killed parent (``kill -9``) cannot write ``STOP``: each job's process watches it instead
 (``_exit_with``) and ends at once when it has gone, first removing the run's temporaries
-(``auvsim.files.sweep``); the forkserver ends with its last client, a ``local:N``
-cluster's workers with their nannies (``auvsim.cluster``). The default pool's
+(``auvsim.data.files.sweep``); the forkserver ends with its last client, a ``local:N``
+cluster's workers with their nannies (``auvsim.runs.cluster``). The default pool's
 forkserver, and so its workers, ignore SIGINT and SIGTERM, which a terminal or a
 scheduler sends to the whole process group: only this process acts on them, stopping its
 jobs through ``STOP``, and no worker prints a traceback.
@@ -48,10 +48,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from . import __version__
-from .cluster import check_address, lost_worker
-from .config import Config
-from .dataset import (
+from auvsim import __version__
+from auvsim.runs.cluster import check_address, lost_worker
+from auvsim.config import Config
+from auvsim.data.dataset import (
     INDEX,
     SHARDS,
     Block,
@@ -61,8 +61,8 @@ from .dataset import (
     shard_state,
     write_index,
 )
-from .errors import ConfigError, SimulationError
-from .files import (
+from auvsim.errors import ConfigError, SimulationError
+from auvsim.data.files import (
     HOST,
     Claim,
     check_out_dir,
@@ -71,8 +71,8 @@ from .files import (
     make_out_dir,
     sweep,
 )
-from .mission import MissionRun, check_reachable
-from .vehicle import model_path
+from auvsim.runs.mission import MissionRun, check_reachable
+from auvsim.physics.vehicle import model_path
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
 POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
@@ -194,12 +194,12 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
             (``write_mission``, ``write_shard``) instead of the default process pool;
             its workers must see this file system, and those on this host end once this
             process has.
-        cluster: run the jobs on this Dask cluster instead (``auvsim.cluster``):
+        cluster: run the jobs on this Dask cluster instead (``auvsim.runs.cluster``):
             ``local:N`` or a scheduler's address; the output must be on storage that
             every worker reaches.
         shards: missions per shard of a sharded dataset in the folder ``out``: one HDF5
             file per shard in ``out/shards/`` and an index ``out/index.h5`` that reads as
-            one dataset (``auvsim.dataset.write_index``). Default 1 when ``out`` names a
+            one dataset (``auvsim.data.dataset.write_index``). Default 1 when ``out`` names a
             folder; one file otherwise. Running again into the same folder keeps every
             shard that is complete and holds this config's data (its config hash and data
             digest say so) and makes the others.
@@ -262,7 +262,7 @@ def _jobs_executor(executor: cf.Executor | None, cluster: str | None
     if cluster is None:
         yield executor
         return
-    from .cluster import executor as cluster_executor
+    from auvsim.runs.cluster import executor as cluster_executor
 
     with cluster_executor(cluster) as dask_executor:
         yield dask_executor
@@ -477,7 +477,7 @@ def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolE
     process's threads. Each watches this process from its start (``_exit_with``), so an
     idle one also ends with it."""
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["auvsim.generate"])
+    context.set_forkserver_preload(["auvsim.runs.generate"])
     # Ignored signals stay ignored across exec and fork, and Python then installs no
     # KeyboardInterrupt handler: the server and its workers (and the resource tracker it
     # starts) never see the group's Ctrl-C or SIGTERM, even while they import. A signal
@@ -500,7 +500,7 @@ _watched_lock = threading.Lock()
 
 def _exit_with(parent: Parent, folder: Path) -> None:
     """End this process as soon as ``parent`` has ended, first sweeping ``folder`` of
-    the temporaries that run left (``auvsim.files.sweep``): a job is of no use once the
+    the temporaries that run left (``auvsim.data.files.sweep``): a job is of no use once the
     process that submitted it has gone, and a pool's workers would wait for it forever,
     idle ones too (so the watch outlives the job). Not in ``parent`` itself (a thread
     pool), nor on another host, where its pid means nothing."""

@@ -2,8 +2,8 @@
 
 ``Vehicle.run`` advances the simulation by N physics steps. Each step (in ``_run``, compiled
 with numba) reads the state from MuJoCo, runs the autopilot and servos, looks up the current
-at the vehicle and the motion disturbances now (``auvsim.water``), computes the water
-forces (``auvsim.hydro.water_wrench``), records the true state, and calls MuJoCo's own
+at the vehicle and the motion disturbances now (``auvsim.physics.water``), computes the water
+forces (``auvsim.physics.hydro.water_wrench``), records the true state, and calls MuJoCo's own
 ``mj_step`` through its C symbol, so no Python runs inside the loop.
 """
 
@@ -20,9 +20,9 @@ import numba
 import numpy as np
 from numba import types
 
-from .control import Gains, autopilot_into, feedforward_rpm, max_speed, servo
-from .errors import ConfigError, SimulationError
-from .frames import (
+from auvsim.errors import ConfigError, SimulationError
+from auvsim.physics.control import Gains, autopilot_into, feedforward_rpm, max_speed, servo
+from auvsim.physics.frames import (
     FLIP,
     mujoco_from_ned,
     ned_from_mujoco,
@@ -32,7 +32,7 @@ from .frames import (
     state_row,
     yaw_of,
 )
-from .hydro import (
+from auvsim.physics.hydro import (
     ACTUATORS,
     Hydro,
     add,
@@ -43,9 +43,16 @@ from .hydro import (
     sub,
     water_wrench_into,
 )
-from .water import CHANNELS, Disturbance, Water, current_at, disturbance_at, still_water
+from auvsim.physics.water import (
+    CHANNELS,
+    Disturbance,
+    Water,
+    current_at,
+    disturbance_at,
+    still_water,
+)
 
-MODEL_DIR = Path(__file__).resolve().parent.parent / "models"
+MODEL_DIR = Path(__file__).resolve().parents[2] / "models"
 VEHICLES = ("auv", "remus100")
 
 # mj_step is linked by symbol name, which keeps the compiled kernel cacheable on disk.
@@ -65,7 +72,7 @@ mujoco.set_mju_user_warning(_warnings.append)
 
 
 # MuJoCo integrates the rigid body under its weight and the wrench auvsim applies, nothing
-# else (auvsim.hydro). The model's actuators only carry the control ranges (gain 0): the
+# else (auvsim.physics.hydro). The model's actuators only carry the control ranges (gain 0): the
 # vehicle reads them and compiles its model without them (``_without_actuators``), and
 # the free body has no springs or dampers, so MuJoCo's passes for those are switched off.
 # They added only zeros (the data stay the same bit for bit); the passes cost a sixth of
@@ -82,7 +89,7 @@ _UNSTABLE = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS),
 
 def _without_actuators(spec: mujoco.MjSpec) -> dict[str, np.ndarray]:
     """Take every actuator out of ``spec``, and return the vehicle's actuators' control
-    ranges (2,), by name (``auvsim.hydro.ACTUATORS``), to check and use in their stead.
+    ranges (2,), by name (``auvsim.physics.hydro.ACTUATORS``), to check and use in their stead.
 
     Raises:
         ValueError: one of the vehicle's actuators is missing.
@@ -139,7 +146,7 @@ def model_path(vehicle: str) -> Path:
 
 
 # nogil: the sensors of one block are computed while the physics of the next one runs in
-# another thread (auvsim.mission.MissionRun.blocks).
+# another thread (auvsim.runs.mission.MissionRun.blocks).
 @numba.njit(cache=True, nogil=True)
 def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators, integrals,
          current_ned, water, disturbed, rows, base, step0, imu_position, dt, out):
@@ -165,7 +172,7 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             nu[3 + i] = qvel[3 + i] * flip[i]
         w = (nu[3], nu[4], nu[5])
 
-        # The water at the vehicle now (auvsim.water): without a moving water exactly
+        # The water at the vehicle now (auvsim.physics.water): without a moving water exactly
         # the constant current, as before it existed.
         t = (step0 + k) * dt
         if water.active:
@@ -232,11 +239,11 @@ class Vehicle:
         vehicle: a name from ``VEHICLES`` or a path to an MJCF model of the same layout.
         net_buoyancy: buoyancy minus weight, N.
         current_ned: constant ocean current, m/s, NED.
-        water: the mission's moving water (``auvsim.water.Water``), added to
+        water: the mission's moving water (``auvsim.physics.water.Water``), added to
             ``current_ned``; None for none.
-        disturbance: the mission's motion disturbances (``auvsim.water.Disturbance``);
+        disturbance: the mission's motion disturbances (``auvsim.physics.water.Disturbance``);
             None for none.
-        seafloor: terrain to add to the scene (``auvsim.seafloor.Seafloor``), for ray casts;
+        seafloor: terrain to add to the scene (``auvsim.world.seafloor.Seafloor``), for ray casts;
             bind it to a ``MjData`` of its own (``ray_data``), not to ``self.data``, so that
             casts may run while another thread steps the physics.
     """

@@ -72,12 +72,11 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from auvsim.dataset import open_dataset
+from auvsim.data.dataset import open_dataset
 from auvsim.errors import DatasetError
-from auvsim.frames import rotation_matrices, rotation_rpy
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.sensors.dvl import beam_matrix
-
-from .data import DataError, Windows
+from beamsnet.data import DataError, Windows
 
 EARTH_RATE = 7.292115e-5  # rad/s, WGS84 (Groves eq. 2.133)
 N_CORE = 15  # p, v, theta, b_a, b_g
@@ -392,7 +391,7 @@ def _model_gravity(model: str) -> float:
     """Gravity of a vehicle model (its MJCF ``option gravity``), m/s^2."""
     import mujoco
 
-    from auvsim.vehicle import model_path
+    from auvsim.physics.vehicle import model_path
 
     return -float(mujoco.MjModel.from_xml_path(str(model_path(model))).opt.gravity[2])
 
@@ -407,10 +406,10 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     """Run the filter over one mission from its start.
 
     Args:
-        mission: an ``auvsim.dataset`` Mission view of a simulated mission.
+        mission: an ``auvsim.data.dataset`` Mission view of a simulated mission.
         config: the filter's settings.
         beam_correction: per-beam (scale factors s, biases b (m/s)), each (4,), known from
-            a calibration (``beamsnet.baselines.BeamCalibration``): every beam is used as
+            a calibration (``beamsnet.estimators.baselines.BeamCalibration``): every beam is used as
             ``(y - b) / (1 + s)``. None: the beams as measured.
 
     Returns:
@@ -560,7 +559,7 @@ class InsDvlFilter:
         self._tracks: dict[str, FilterTrack] = {}
 
     def fit(self, train: Windows) -> InsDvlFilter:
-        from .baselines import BeamCalibration
+        from beamsnet.estimators.baselines import BeamCalibration
 
         if self.calibrate:
             calibration = BeamCalibration().fit(train)

@@ -26,8 +26,8 @@ import mujoco
 import numba
 import numpy as np
 
-from .errors import ConfigError
-from .frames import FLIP
+from auvsim.errors import ConfigError
+from auvsim.physics.frames import FLIP
 
 # The model's actuators, in the order of the actuator commands (shaft rpm, rudder and
 # stern-plane angles): MuJoCo applies no force of theirs (their gain is 0), they carry the
@@ -269,7 +269,7 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0,
         model: a compiled vehicle model (models/auv.xml or one of the same layout).
         net_buoyancy: buoyancy minus weight, N (positive: the vehicle floats up).
         ranges: the actuators' control ranges (``control_ranges``) of a model compiled
-            without its actuators (``auvsim.vehicle.Vehicle``); None: the model's own.
+            without its actuators (``auvsim.physics.vehicle.Vehicle``); None: the model's own.
 
     Raises:
         ConfigError, KeyError: the model is not one the force model can use
@@ -447,9 +447,9 @@ def water_wrench(h, nu, rot, actuators, current_ned, disturbance=None):
         rot: (3, 3) rotation body -> NED.
         actuators: (3,) propeller rpm, rudder and stern-plane angles (rad).
         current_ned: (3,) ocean current at the vehicle now, m/s, NED (its change over
-            time is neglected: ``auvsim.water``).
+            time is neglected: ``auvsim.physics.water``).
         disturbance: (6,) a turbulent force and moment about the CO, FRD (N, N m), added
-            to the water's (``auvsim.water``); None (the default) for none.
+            to the water's (``auvsim.physics.water``); None (the default) for none.
 
     Returns:
         nu_dot: (6,) body acceleration, d/dt of ``nu``'s components.
@@ -546,7 +546,7 @@ def water_wrench_into(h, nu, rot, actuators, current_ned, disturbance, tau, nu_d
     tau[0] += (1.0 - h.thrust_deduction) * thrust
     tau[3] += h.prop_rotation * torque
 
-    # Motion disturbances (auvsim.water): added only when given, so that without them
+    # Motion disturbances (auvsim.physics.water): added only when given, so that without them
     # the arithmetic is exactly what it was.
     if disturbance is not None:
         for i in range(6):

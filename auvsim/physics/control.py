@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numba
 
-from .hydro import Hydro, propeller
+from auvsim.physics.hydro import Hydro, propeller
 
 
 class Gains(NamedTuple):

@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import ConfigError
+from auvsim.errors import ConfigError
 
 TAG = "auvsim-tmp"
 HOST = socket.gethostname()

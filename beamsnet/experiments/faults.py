@@ -1,7 +1,7 @@
 """``beamsnet stress --faults``: every DVL estimator on the pings a faulty DVL delivers.
 
-The manoeuvre stress test (``beamsnet.stress``) scores the estimators on pings whose four
-beams all have bottom lock. A DVL at sea loses beams (dropouts in bursts, a beam that
+The manoeuvre stress test (``beamsnet.experiments.stress``) scores the estimators on pings
+whose four beams all have bottom lock. A DVL at sea loses beams (dropouts in bursts, a beam that
 fails for a leg, whole stretches without bottom lock), reports spikes, and falls back to
 water track. This module trains nothing of its own: the networks ``stress`` trained once
 on clean straight lines (and the affine calibration and Kalman filter fitted on the same
@@ -48,13 +48,12 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.data.files import make_out_dir, save_figure, write_text
 from auvsim.errors import ConfigError
-from auvsim.files import make_out_dir, save_figure, write_text
-
-from . import metrics
-from .data import Windows, load_windows
-from .evaluate import baselines, filters, trimmed
-from .stress import (
+from beamsnet import metrics
+from beamsnet.data import Windows, load_windows
+from beamsnet.evaluate import baselines, filters, trimmed
+from beamsnet.experiments.stress import (
     _as_published,
     _short,
     _truth_at_pings,
@@ -62,7 +61,7 @@ from .stress import (
     own_position_error,
     why_worse,
 )
-from .train import MASKED, TITLES, predict
+from beamsnet.training.train import MASKED, TITLES, predict
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
 # straight line, a steady turn, a hard zigzag and random waypoints span the stress test's
@@ -191,7 +190,7 @@ def check_options(duration, missions) -> tuple[float, tuple[str, ...]]:
         ConfigError: ``duration`` is not a number >= ``MIN_FAULT_DURATION``; a mission is
             not a manoeuvre of the ``maneuvers`` preset, or is named twice.
     """
-    from auvsim.presets import MANEUVER_MISSIONS
+    from auvsim.runs.presets import MANEUVER_MISSIONS
 
     if (isinstance(duration, bool) or not isinstance(duration, (int, float))
             or not math.isfinite(duration) or duration < MIN_FAULT_DURATION):
@@ -234,7 +233,7 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
     Returns:
         The report's path.
     """
-    from auvsim.presets import maneuvers
+    from auvsim.runs.presets import maneuvers
 
     duration, missions = check_options(duration, missions)
     base = maneuvers(duration) if noise_std is None else maneuvers(duration, noise_std)
@@ -287,7 +286,7 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
 def _dataset(config, fault: Fault, duration: float, datasets: Path, progress: bool) -> Path:
     """The faulted test file of ``config``, generated under ``datasets/faults/`` if
     missing."""
-    from .experiment import ensure_dataset
+    from beamsnet.experiments.runner import ensure_dataset
 
     digest = hashlib.sha256(config.to_json().encode()).hexdigest()[:10]
     slug = "-".join(f"{fault.sweep} {fault.level:g}".split()) if fault.dvl else "clean"
@@ -299,7 +298,7 @@ def _estimates(baselines: list, models: list, windows: Windows) -> dict[str, np.
     """Every estimator's (S, 3) estimates on ``windows``, NaN where it gives none.
 
     The baselines give NaN themselves where a beam they need is NaN, and so do the
-    networks that take validity masks (``beamsnet.train.MASKED``: where fewer than three
+    networks that take validity masks (``beamsnet.training.train.MASKED``: where fewer than three
     current beams are valid); any other network is run only on the pings whose inputs
     are all there, since its output on a NaN input is NaN anyway and it cannot be told
     which beam is missing.
@@ -316,7 +315,7 @@ def _estimates(baselines: list, models: list, windows: Windows) -> dict[str, np.
             ready &= np.isfinite(mine.past_beams).all(axis=(1, 2))
         pred = np.full((len(ready), 3), np.nan)
         if ready.any():
-            from .data import select
+            from beamsnet.data import select
 
             pred[ready] = predict(model, name, select(mine, ready))
         out[f"{TITLES[name]} ({run.name})"] = pred

@@ -39,9 +39,9 @@ import numba
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from .config import MAX_DEPTH, SeafloorConfig
-from .errors import ConfigError
-from .frames import FLIP as _FLIP  # NED <-> MuJoCo's north-west-up, either way
+from auvsim.config import MAX_DEPTH, SeafloorConfig
+from auvsim.errors import ConfigError
+from auvsim.physics.frames import FLIP as _FLIP  # NED <-> MuJoCo's north-west-up, either way
 
 NAME = "seafloor"  # the plane geom; hfield tiles and their geoms are seafloor_<row>_<col>
 GROUP = 3  # geom group of the seafloor alone, so ray casts can select it

@@ -23,8 +23,7 @@ from typing import Protocol
 import numpy as np
 
 from auvsim.sensors.dvl import least_squares
-
-from .data import Windows
+from beamsnet.data import Windows
 
 # q grid of the Kalman filter, m/s per sqrt(s): from "velocity constant to 10 um/s over
 # an hour" to "changes by 1 m/s each second"; half-decade steps are finer than the RMSE's

@@ -6,7 +6,7 @@ synthesised the beams a DVL under test would have measured, with the same error 
 its simulation (paper eq. 7). This module does that with the DVL's own ping pipeline
 (``auvsim.sensors.dvl.synthesise``: ``H v`` with the configured beam angle, then scale
 factor, bias and noise, then least squares), drawing from the imported mission's streams
-(``auvsim.streams.imported_streams``).
+(``auvsim.data.streams.imported_streams``).
 
 Each input file becomes one mission of origin ``imported`` (schema v2): the DVL group only,
 since there is no truth trajectory, IMU or control record. A row that is not finite (a
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import DvlConfig
-from .dataset import DatasetWriter, mission_attrs
-from .errors import ConfigError
-from .sensors.dvl import synthesise
-from .streams import imported_streams
+from auvsim.config import DvlConfig
+from auvsim.data.dataset import DatasetWriter, mission_attrs
+from auvsim.data.streams import imported_streams
+from auvsim.errors import ConfigError
+from auvsim.sensors.dvl import synthesise
 
 
 def read_velocity(path: str | os.PathLike) -> np.ndarray:

@@ -23,7 +23,7 @@ The current (``Water``) is, at time t and NED position p = (x, y, z)::
 
 It is a pure function of time and position once the mission is built: the Gauss-Markov
 paths are drawn in advance on a ``CURRENT_STEP`` grid for the whole mission (held at their
-last value beyond it) and interpolated linearly, so the physics (``auvsim.vehicle``, at
+last value beyond it) and interpolated linearly, so the physics (``auvsim.physics.vehicle``, at
 every step, by table lookup in the compiled loop) and any sensor (the DVL's water track,
 ``Platform.water.current_ned``) see the same water. One compiled function
 (``current_at``) evaluates it for both.

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 STREAMS = (
-    "terrain",  # procedural seafloor (auvsim.seafloor)
+    "terrain",  # procedural seafloor (auvsim.world.seafloor)
     "dvl_parameters",  # per-mission DVL scale factors and biases
     "dvl_noise",  # DVL beam noise, one draw per beam and ping
     "imu_biases",  # IMU turn-on biases

@@ -1,7 +1,7 @@
 """One mission, end to end: vehicle blocks -> truth -> sensors -> dataset fields.
 
 ``MissionRun`` builds a mission's seafloor, vehicle, manoeuvre and sensors from its seed
-(the named streams of ``auvsim.streams``), flies it block by block (``blocks``) and turns
+(the named streams of ``auvsim.data.streams``), flies it block by block (``blocks``) and turns
 each block of physics into the mission's fields (``measure``): the truth and controls at
 the IMU rate, then every sensor plugin of ``auvsim.sensors`` in name order, then the
 altitude over the seafloor. ``auvsim generate`` streams ``blocks`` into a file; the
@@ -17,15 +17,15 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from .config import Config, MissionConfig
-from .dataset import core_block, mission_attrs
-from .errors import ConfigError, SimulationError
-from .maneuvers import check_scenario, make_maneuver
-from .seafloor import Seafloor
-from .sensors import Platform, Truth, registry
-from .streams import mission_streams
-from .vehicle import Trajectory, Vehicle
-from .water import Disturbance, Water
+from auvsim.config import Config, MissionConfig
+from auvsim.data.dataset import core_block, mission_attrs
+from auvsim.errors import ConfigError, SimulationError
+from auvsim.physics.maneuvers import check_scenario, make_maneuver
+from auvsim.world.seafloor import Seafloor
+from auvsim.sensors import Platform, Truth, registry
+from auvsim.data.streams import mission_streams
+from auvsim.physics.vehicle import Trajectory, Vehicle
+from auvsim.physics.water import Disturbance, Water
 
 BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
 
@@ -67,7 +67,7 @@ class MissionRun:
         streams = mission_streams(mission.seed)
         self.seafloor = Seafloor(config.seafloor, rng=streams["terrain"])
         v = config.vehicle
-        # The water is a pure function of time and place from here on (auvsim.water).
+        # The water is a pure function of time and place from here on (auvsim.physics.water).
         self.water = Water(config.water, streams["water"], duration=mission.scenario.duration,
                            constant_ned=v.current_ned, water_depth=config.seafloor.depth)
         self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,
@@ -93,7 +93,7 @@ class MissionRun:
 
     @property
     def attrs(self) -> dict:
-        """The mission's attributes (``auvsim.dataset.mission_attrs``)."""
+        """The mission's attributes (``auvsim.data.dataset.mission_attrs``)."""
         m = self.mission
         sensed = {}
         for sensor in self.sensors:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from .config import (
+from auvsim.config import (
     Config,
     DepthConfig,
     DvlConfig,
@@ -14,9 +14,9 @@ from .config import (
     SeafloorConfig,
     WaterConfig,
 )
-from .errors import ConfigError
-from .maneuvers import missions as maneuver_missions
-from .sensors.imu import IMU_GRADES
+from auvsim.errors import ConfigError
+from auvsim.physics.maneuvers import missions as maneuver_missions
+from auvsim.sensors.imu import IMU_GRADES
 
 # The BeamsNet paper's simulation (sec. 4.1) as its published code ran it: straight lines
 # at 1, 2 and 3 m/s for 7,200 s each, DVL 1 Hz, IMU 100 Hz, one scale factor of 0.7 % and a
@@ -43,7 +43,7 @@ def _paper(noise_std: float) -> Config:
 
 
 # The manoeuvres of the stress test, each 10 minutes at 2 m/s from 20 m depth: every
-# manoeuvre of auvsim.maneuvers and its variants (the straight line first, for reference).
+# manoeuvre of auvsim.physics.maneuvers and its variants (the straight line first, for reference).
 MANEUVER_MISSIONS = tuple(maneuver_missions())
 
 
@@ -61,7 +61,7 @@ def maneuvers(duration: float = 600.0, noise_std: float = PAPER_NOISE_CODE) -> C
 
 
 # The navigator's water: a coastal current, with the turbulence and actuator jitter a
-# vehicle meets in it (auvsim.water has the model, config.WaterConfig the settings).
+# vehicle meets in it (auvsim.physics.water has the model, config.WaterConfig the settings).
 # - Surface speed uniform in [0.1, 1.0] m/s, in any direction: tidal streams are "weak"
 #   below 0.5 m/s and "moderately strong" at 0.5-1.5 m/s (MarLIN's tidal strength scale,
 #   marlin.ac.uk/glossary/waterflowrate); shelf tides run typically at 0.1-1 m/s. With the

@@ -12,10 +12,10 @@
   report every seed on the validation split (its last 25 %) and the separate test
   mission beside the paper's Table 3. V1 needs the IMU record, which was not published,
   so it is skipped.
-* ``sim2real`` (``beamsnet.sim2real``): the same estimators trained only on auvsim data,
+* ``sim2real`` (``beamsnet.experiments.sim2real``): the same estimators trained only on auvsim data,
   tested on the same Snapir streams.
 
-Both take their datasets and trained models from ``beamsnet.experiment``, which reuses
+Both take their datasets and trained models from ``beamsnet.experiments.runner``, which reuses
 what an earlier run already made from the same data.
 """
 
@@ -27,14 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.cluster import check_address
-from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
-
-from . import metrics
-from .data import load_windows, split
-from .evaluate import estimates, markdown, predictions, table, trimmed
-from .experiment import ensure_dataset, train_runs, train_seeds
-from .train import PROFILES, TrainConfig, check_restarts, predict
+from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.runs.cluster import check_address
+from beamsnet import metrics
+from beamsnet.data import load_windows, split
+from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
+from beamsnet.experiments.runner import ensure_dataset, train_runs, train_seeds
+from beamsnet.training.train import PROFILES, TrainConfig, check_restarts, predict
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -46,7 +45,7 @@ PAPER_TABLE_3 = {"LS": 0.009938, "BeamsNetV2": 0.003690, "BeamsNetV1": 0.003503,
                  "improvement_v2": 62.86, "improvement_v1": 64.75}
 PUBLISHED_V2_RERUN = {"validation": (0.00371, 0.00994, 62.7), "test": (0.00419, 0.00911, 54.0)}
 SNAPIR_FILES = ("V.npy", "V_test.npy")  # training + validation stream, test mission
-DEFAULT_SNAPIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir"
+DEFAULT_SNAPIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "snapir"
 
 
 def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
@@ -62,19 +61,19 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
         duration: s per speed of the generated dataset.
         out: the report's directory.
         training: the training settings, model and missions set per run (default: the
-            experiment's profile, ``beamsnet.train.PROFILES``).
+            experiment's profile, ``beamsnet.training.train.PROFILES``).
         restarts: seeds per model, the best on its training split kept (default: the
             profile's); the report lists every seed's result.
         workers: training processes.
         runs: where the models go (``runs/<experiment>/<mission>/v1|v2``).
         progress: progress bars.
         cluster: generate missing datasets and train on this Dask cluster instead
-            (``auvsim.generate``, ``beamsnet.train.train_all``).
+            (``auvsim.runs.generate``, ``beamsnet.training.train.train_all``).
 
     Returns:
         The report's path.
     """
-    from auvsim.presets import preset
+    from auvsim.runs.presets import preset
 
     profile = PROFILES[experiment]
     training = profile.config if training is None else training
@@ -133,14 +132,14 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     """The paper's sea experiment on the Snapir streams in ``data``; the report goes to
     ``out``, the models to ``runs`` (``runs/snapir/<model>/seed_<s>``).
 
-    Every learned estimator of ``beamsnet.sim2real.LEARNED`` (BeamsNetV2 fixed and as
+    Every learned estimator of ``beamsnet.experiments.sim2real.LEARNED`` (BeamsNetV2 fixed and as
     published, CorrectionNet) is trained on the ``train`` mission's training split from
-    ``seeds`` seeds (default ``beamsnet.sim2real.SEEDS``, per model), and every seed is
+    ``seeds`` seeds (default ``beamsnet.experiments.sim2real.SEEDS``, per model), and every seed is
     scored: the seed's spread is part of the result. ``training`` defaults to the ``snapir`` profile
-    (``beamsnet.train.PROFILES``). With ``cluster`` the networks train on that Dask
-    cluster (``beamsnet.train.train_all``).
+    (``beamsnet.training.train.PROFILES``). With ``cluster`` the networks train on that Dask
+    cluster (``beamsnet.training.train.train_all``).
     """
-    from . import sim2real as experiment
+    from beamsnet.experiments import sim2real as experiment
 
     training = PROFILES["snapir"].config if training is None else training
     if seeds is not None:
@@ -195,10 +194,10 @@ def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
     """
     import hashlib
 
-    from auvsim.dataset import open_dataset
+    from auvsim.data.dataset import open_dataset
+    from auvsim.data.importer import import_velocity
     from auvsim.errors import ConfigError
-    from auvsim.importer import import_velocity
-    from auvsim.presets import preset
+    from auvsim.runs.presets import preset
 
     sources = [data / name for name in SNAPIR_FILES]
     missing = [str(p) for p in sources if not p.is_file()]
@@ -218,11 +217,10 @@ def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
 def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | None = None,
              seeds: int | None = None, runs: Path = Path("runs"), workers: int | None = None,
              progress: bool = True, cluster: str | None = None) -> Path:
-    """``beamsnet reproduce sim2real`` (``beamsnet.sim2real``) on the Snapir streams in
+    """``beamsnet reproduce sim2real`` (``beamsnet.experiments.sim2real``) on the Snapir streams in
     ``data``."""
     from auvsim.errors import ConfigError
-
-    from . import sim2real as experiment
+    from beamsnet.experiments import sim2real as experiment
 
     check_out_dir(out)
     if cluster is not None:
@@ -324,7 +322,7 @@ def _averaging(epochs: int) -> str:
 def _noise_floor(data: Path, mission: str) -> float:
     """Forward-speed error (m/s) that the beam noise leaves in least squares: the x row of
     (H^T H)^-1 for a Janus DVL is sigma^2 / (2 sin^2 alpha)."""
-    from auvsim.dataset import open_dataset
+    from auvsim.data.dataset import open_dataset
 
     with open_dataset(data) as f:
         attrs = f.missions[mission].attrs
@@ -385,7 +383,7 @@ def _spread(values: list[float], spec: str = ".1f") -> str:
 
 
 def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimates) -> str:
-    from .sim2real import LEARNED
+    from beamsnet.experiments.sim2real import LEARNED
 
     val, test = results["validation"][1], results["test"][1]
     rerun = PUBLISHED_V2_RERUN
@@ -412,8 +410,8 @@ def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimate
         "entering as their changes to the current beams (`protocol=\"fixed\"`, the default "
         "of `beamsnet train`), and exactly as published (`protocol=\"paper\"`). "
         "CorrectionNet is ours: the LS velocity plus a learned affine correction and a "
-        "bounded nonlinear one (`beamsnet.models`). BeamsNetV1 is not here: it needs the "
-        "IMU record, which was not published.",
+        "bounded nonlinear one (`beamsnet.estimators.networks`). BeamsNetV1 is not here: it "
+        "needs the IMU record, which was not published.",
         "",
         "Improvement over LS of the speed RMSE, %, mean over seeds (range):",
         "",
@@ -506,7 +504,7 @@ def _coverage(train_w, test_w, estimates: dict, learned: list[str]) -> str:
                 "velocities it never saw, with weights nothing trained. Fed the past beams' "
                 "changes instead, the features see no velocity level, and the network stays "
                 "affine in the velocity wherever it is flown (the diagnosis, measured, is in "
-                "`beamsnet.models.BeamsNetV2`'s docstring)."
+                "`beamsnet.estimators.networks.BeamsNetV2`'s docstring)."
                 if rmse("BeamsNetV2 (paper)", outside) > rmse("LS", outside)
                 >= rmse("BeamsNetV2", outside) else ""))
 

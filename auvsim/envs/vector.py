@@ -3,7 +3,7 @@ over shared memory, for policies that want many episodes at once.
 
 ## Description
 
-``num_envs`` plain ``AuvEnv`` instances (``auvsim.env``), split into contiguous slices,
+``num_envs`` plain ``AuvEnv`` instances (``auvsim.envs.env``), split into contiguous slices,
 one per worker process and the last for this process, which steps its own envs while the
 workers step theirs (by default one process per core). Actions, observations, rewards,
 terminations, truncations and the info arrays live in one shared-memory block
@@ -30,7 +30,7 @@ Here a process steps several envs per message, nothing is pickled per step, the 
 arrays are filled in place, and the parent steps envs too instead of waiting: its share
 stays small however fast ``AuvEnv.step`` gets. What it gives up: only ``AuvEnv`` itself
 (no wrappers inside the workers, no other env ids), infos of ``AuvEnv``'s own float64
-fields only (``auvsim.env.INFO``: each env's info is one row, ``AuvEnv.info_row``,
+fields only (``auvsim.envs.env.INFO``: each env's info is one row, ``AuvEnv.info_row``,
 shared in one copy; a field added there is shared too), and only
 ``AutoresetMode.NEXT_STEP``.
 
@@ -48,7 +48,7 @@ vectorization_mode="vector_entry_point", workers=..., config=..., ...)``:
     config, frame_skip,  passed to every ``AuvEnv``
     max_episode_seconds
     context              multiprocessing start method, "forkserver" (default; it
-                         imports auvsim.env once for all workers) or "spawn"; never
+                         imports auvsim.envs.env once for all workers) or "spawn"; never
                          "fork" (MuJoCo, numba and threads)
 
 As with ``AsyncVectorEnv``, the workers import the main script: guard a script that
@@ -145,7 +145,7 @@ class _Slice:
 
     def __init__(self, views: dict[str, np.ndarray], start: int, stop: int,
                  env_kwargs: dict) -> None:
-        from .env import AuvEnv  # MuJoCo and numba: only where envs run
+        from auvsim.envs.env import AuvEnv  # MuJoCo and numba: only where envs run
 
         self.start, self.stop = start, stop
         self.envs = [AuvEnv(**env_kwargs) for _ in range(start, stop)]
@@ -343,7 +343,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
     def __init__(self, *, num_envs: int, workers: int | None = None, config=None,
                  frame_skip: int = 10, max_episode_seconds: float = 600.0,
                  context: str = "forkserver") -> None:
-        from .env import INFO, INFO_SIZE, AuvEnv
+        from auvsim.envs.env import INFO, INFO_SIZE, AuvEnv
 
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
@@ -363,9 +363,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         self._spin = self.workers + 1 <= cores
         self._context = mp.get_context(context)
         if self.workers and context == "forkserver":
-            # Started now, it imports auvsim.env (once for all workers) while this
+            # Started now, it imports auvsim.envs.env (once for all workers) while this
             # process builds its probe env.
-            self._context.set_forkserver_preload(["auvsim.env"])
+            self._context.set_forkserver_preload(["auvsim.envs.env"])
             forkserver.ensure_running()
         env_kwargs = dict(config=config, frame_skip=frame_skip,
                           max_episode_seconds=max_episode_seconds)

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import torch
 
-from .train import (
+from beamsnet.training.train import (
     TrainConfig,
     check_restarts,
     file_identity,
@@ -47,7 +47,7 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
     ``generate`` writes the file whole or not at all, so an interrupted generation leaves
     nothing that a later run would take for a finished file.
     """
-    from auvsim.generate import generate
+    from auvsim.runs.generate import generate
 
     path = Path(path)
     if not path.exists():
@@ -62,7 +62,7 @@ class KeptRun:
     Attributes:
         run: the directory the kept seed was copied into (``runs_dir / name``).
         model: the kept network, in evaluation mode.
-        checkpoint: its checkpoint (``beamsnet.train.load``).
+        checkpoint: its checkpoint (``beamsnet.training.train.load``).
         kept: the seed run that was kept (one of ``seeds``).
         seeds: every seed run, in seed order.
         diverged: the seed runs whose training loss became non-finite (they have no
@@ -108,7 +108,7 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
 
     Raises:
         ConfigError: ``restarts`` < 1; ``DivergedError`` when every seed of a config
-            diverged; and what ``beamsnet.train.train`` raises for bad data.
+            diverged; and what ``beamsnet.training.train.train`` raises for bad data.
     """
     check_restarts(restarts)
     runs_dir = Path(runs_dir)

@@ -19,7 +19,7 @@ Every estimator sees the same pings: every ping of each manoeuvre with its past 
 IMU interval valid (``beamsnet.data``). The whole manoeuvre file is test data.
 
 With ``faults=True`` the same trained models are tested instead on faulted versions of the
-manoeuvres (dropouts, a dead beam, outliers, water track): ``beamsnet.faults``.
+manoeuvres (dropouts, a dead beam, outliers, water track): ``beamsnet.experiments.faults``.
 """
 
 from __future__ import annotations
@@ -31,16 +31,22 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.cluster import check_address
+from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
 from auvsim.errors import ConfigError
-from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
-from auvsim.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
-
-from . import metrics
-from .data import DataError, Windows, load_windows, split
-from .evaluate import FILTER_NAMES, predictions
-from .experiment import ensure_dataset, train_runs
-from .train import PROFILES, SENSOR_GEOMETRY, TITLES, TrainConfig, check_restarts, sensor_setup
+from auvsim.runs.cluster import check_address
+from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
+from beamsnet import metrics
+from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.evaluate import FILTER_NAMES, predictions
+from beamsnet.experiments.runner import ensure_dataset, train_runs
+from beamsnet.training.train import (
+    PROFILES,
+    SENSOR_GEOMETRY,
+    TITLES,
+    TrainConfig,
+    check_restarts,
+    sensor_setup,
+)
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -70,22 +76,22 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             preset with ``maneuver_duration`` s each, generated if missing).
         out: the report's directory.
         training: the training settings, the model set per run (default: the ``stress``
-            profile of ``beamsnet.train.PROFILES``: the paper's settings, Polyak
+            profile of ``beamsnet.training.train.PROFILES``: the paper's settings, Polyak
             averaging over the last epochs).
         restarts: seeds per model, kept by training fit (default: the profile's).
         runs: where the trained models go (``runs/stress/<file stem>/v1|v2``).
-        faults: test on the fault sweep of ``beamsnet.faults`` instead of the manoeuvres
+        faults: test on the fault sweep of ``beamsnet.experiments.faults`` instead of the manoeuvres
             (``out/faults.md``); ``maneuver_data`` must then be None.
         fault_duration: s per manoeuvre of the faulted test data (default
-            ``beamsnet.faults.FAULT_DURATION``).
+            ``beamsnet.experiments.faults.FAULT_DURATION``).
         fault_missions: the manoeuvres of the faulted test data (default
-            ``beamsnet.faults.FAULT_MISSIONS``).
+            ``beamsnet.experiments.faults.FAULT_MISSIONS``).
         noise: the beam noise of the generated training and test data: ``"code"``, the
             paper's code's 0.042^2 m/s (``paper-sim``), or ``"text"``, its text's 0.042
             m/s (``paper-sim-text``, and the manoeuvres flown with it).
         progress: progress bars.
         cluster: generate missing datasets and train on this Dask cluster instead
-            (``auvsim.generate``, ``beamsnet.train.train_all``).
+            (``auvsim.runs.generate``, ``beamsnet.training.train.train_all``).
 
     Returns:
         The report's path.
@@ -93,7 +99,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     Raises:
         ConfigError: a bad setting, before any data is generated or model trained.
     """
-    from auvsim.presets import maneuvers, preset
+    from auvsim.runs.presets import maneuvers, preset
 
     profile = PROFILES["stress"]
     training = profile.config if training is None else training
@@ -107,7 +113,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         raise ConfigError(f"expected one of {', '.join(NOISE)} (the paper's code's or text's "
                           f"beam noise), got {noise!r}", argument="noise")
     if faults:
-        from .faults import FAULT_DURATION, check_options
+        from beamsnet.experiments.faults import FAULT_DURATION, check_options
 
         if maneuver_data is not None:
             raise ConfigError("is not used by the fault sweep, which generates its own "
@@ -145,7 +151,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     models = [k.loaded() for k in kept.values()]
     train_w, _ = split(windows)
     if faults:
-        from .faults import fault_stress
+        from beamsnet.experiments.faults import fault_stress
 
         return fault_stress(models=models, train_w=train_w, train_data=train_data,
                             trained_on=_scenarios(train_data), out=out,
@@ -175,8 +181,8 @@ def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
     """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
     (S, 3, 3), yaw rate (S,), the rate of change of the true DVL-frame velocity since
     the previous ping (S,) and the true position (S, 3, m NED)."""
-    from auvsim.dataset import open_dataset
-    from auvsim.frames import rotation_matrices, rotation_rpy
+    from auvsim.data.dataset import open_dataset
+    from auvsim.physics.frames import rotation_matrices, rotation_rpy
 
     parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
     with open_dataset(path) as f:
@@ -264,7 +270,7 @@ def _table(windows: Windows, estimates: dict[str, np.ndarray],
 def _config(path: Path):
     """The generating config of a dataset, or None (a recording or an import)."""
     from auvsim.config import Config
-    from auvsim.dataset import open_dataset
+    from auvsim.data.dataset import open_dataset
     from auvsim.errors import AuvsimError
 
     with open_dataset(path) as f:
@@ -291,8 +297,8 @@ def _scenarios(path: Path) -> str:
 def _phases(path: Path) -> dict[str, list]:
     """The manoeuvre phases of every mission, rebuilt from the file's config (none for a
     file whose config does not name its missions, such as a recording)."""
-    from auvsim.maneuvers import make_maneuver
-    from auvsim.streams import mission_streams
+    from auvsim.data.streams import mission_streams
+    from auvsim.physics.maneuvers import make_maneuver
 
     config = _config(path)
     if config is None:
@@ -606,7 +612,7 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .faults import held
+    from beamsnet.experiments.faults import held
 
     n = len(windows.names)
     fig, axes = plt.subplots(2, n, figsize=(2.6 * n, 5.4), squeeze=False)

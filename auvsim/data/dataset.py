@@ -31,10 +31,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import __version__
-from .errors import ConfigError, DatasetError
-from .files import Claim
-from .sensors import Attr, Field, Truth, registry
+from auvsim import __version__
+from auvsim.data.files import Claim
+from auvsim.errors import ConfigError, DatasetError
+from auvsim.sensors import Attr, Field, Truth, registry
 
 FORMAT = "auvsim-dataset"
 # Version 2 = version 1 + a mission attribute ``origin``, which lets a mission imported from
@@ -68,7 +68,7 @@ CORE_FIELDS = (
     Field("truth/specific_force", (3,), "f", "imu", "m/s^2", "body, at the IMU"),
     Field("truth/altitude", (), "f", "imu", "m", "body origin above the seafloor below it"),
     Field("truth/current_ned", (3,), "f", "imu", "m/s",
-          "the water's current at the body origin, NED (auvsim.water)", since=4),
+          "the water's current at the body origin, NED (auvsim.physics.water)", since=4),
     Field("truth/velocity_water_body", (3,), "f", "imu", "m/s",
           "body origin's velocity through the water, body FRD", since=4),
     Field("control/propeller_rpm", (), "f", "imu", "rpm", "shaft speed reached"),
@@ -83,7 +83,7 @@ CORE_ATTRS = (
     Attr("duration_s", (), "s", imported=True, low=0, strict=True),
     Attr("vehicle", None, "vehicle name or model path"),
     Attr("water_surface_speed", (), "REALISED surface speed of the mission's current, m/s "
-         "(before its variation in time and space; auvsim.water)", low=0, since=4),
+         "(before its variation in time and space; auvsim.physics.water)", low=0, since=4),
     Attr("water_direction_deg", (), "REALISED direction the surface current flows toward, "
          "deg from north", since=4),
 )
@@ -132,7 +132,7 @@ def schema(origin: str, version: int = FORMAT_VERSION) -> tuple[tuple[Field, ...
 
 def mission_attrs(*, origin: str, **attrs) -> dict[str, object]:
     """A mission's attributes, checked complete for its origin: the one builder, used by
-    every writer (``auvsim.mission``, ``auvsim.importer``, the environment's recorder)."""
+    every writer (``auvsim.runs.mission``, ``auvsim.data.importer``, the environment's recorder)."""
     if origin not in ORIGINS:
         raise ValueError(f"origin: expected one of {', '.join(ORIGINS)}, got {origin!r}")
     out = dict(origin=origin, **attrs)
@@ -853,7 +853,7 @@ def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:
 def _describe_v4(m: Mission, a: dict, fmt) -> list[str]:
     """The lines of what schema v4 added, where the mission has it: the DVL's realised
     calibration, its beams' status codes, modes and error velocity, and the current."""
-    from .sensors.dvl import Mode, Status
+    from auvsim.sensors.dvl import Mode, Status
 
     lines = []
     if "dvl_sound_speed_ratio" in a:

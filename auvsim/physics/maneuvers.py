@@ -48,8 +48,8 @@ from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
-from .checks import is_finite
-from .errors import ConfigError
+from auvsim.checks import is_finite
+from auvsim.errors import ConfigError
 
 # A rudder beyond a fin's limit is held at the limit; beyond a right angle it means nothing.
 MAX_RUDDER_DEG = 90.0
@@ -546,7 +546,7 @@ def make_maneuver(config: Scenario, rng: np.random.Generator | None = None) -> M
 
     Args:
         config: the scenario.
-        rng: the mission's manoeuvre stream (``auvsim.streams.mission_streams``); required
+        rng: the mission's manoeuvre stream (``auvsim.data.streams.mission_streams``); required
             by the manoeuvres that draw something.
     """
     if config.name not in MANEUVERS:

@@ -30,9 +30,8 @@ from __future__ import annotations
 import numpy as np
 
 from auvsim.sensors.dvl import least_squares
-
-from .baselines import _check_fitted
-from .data import Windows
+from beamsnet.data import Windows
+from beamsnet.estimators.baselines import _check_fitted
 
 # Singular values below this fraction of the largest are round-off: a noise-free training
 # set has exact linear dependencies (the four beams of a ping; past and current pings at

@@ -75,12 +75,11 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from auvsim.cluster import check_address, executor, local_workers, lost_worker
+from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
 from auvsim.errors import CheckpointError, ConfigError, SimulationError
-from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
-
-from .data import DataError, Windows, load_windows, split
-from .models import MODELS, build
+from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
+from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.estimators.networks import MODELS, build
 
 # What each model key is called in messages and plots.
 TITLES = {"v1": "BeamsNetV1", "v2": "BeamsNetV2", "v2m": "BeamsNetV2M", "corr": "CorrectionNet"}
@@ -350,7 +349,7 @@ _FIELDS = {"target": "the true DVL velocity", "accel": "the measured specific fo
 def file_identity(path: str | Path) -> dict:
     """Path, SHA-256 and generating config of a dataset: the SHA-256 of its file's bytes,
     or of a sharded dataset's shards' bytes in index order."""
-    from auvsim.dataset import data_files, open_dataset
+    from auvsim.data.dataset import data_files, open_dataset
 
     digest = hashlib.sha256()
     for file in data_files(path):
@@ -367,7 +366,7 @@ def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dic
     rates (``SENSOR_GEOMETRY``) and realised DVL error model (``SENSOR_ERRORS``), as
     floats and lists of floats (what a checkpoint stores). An attribute a mission does
     not have (an imported stream has no IMU rate or mounting) is left out."""
-    from auvsim.dataset import read_attrs
+    from auvsim.data.dataset import read_attrs
 
     _, attrs = read_attrs(path)
     names = list(attrs) if missions is None else missions
@@ -556,7 +555,7 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             any error does; ``"record"``: its summary is ``{"diverged": why,
             "final_train_loss": nan}`` and the others go on (restarts: a seed that
             diverged is dropped, the others are compared).
-        cluster: run the jobs on this Dask cluster (``auvsim.cluster``: ``local:N`` or a
+        cluster: run the jobs on this Dask cluster (``auvsim.runs.cluster``: ``local:N`` or a
             scheduler's address), one at a time per worker process.
 
     Returns:

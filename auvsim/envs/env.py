@@ -2,12 +2,12 @@
 
 ## Description
 
-The environment is thin: the physics is ``auvsim.vehicle`` and the sensors are those of
-``auvsim generate`` (``auvsim.mission.MissionRun.measure``), stepped ``frame_skip``
+The environment is thin: the physics is ``auvsim.physics.vehicle`` and the sensors are those of
+``auvsim generate`` (``auvsim.runs.mission.MissionRun.measure``), stepped ``frame_skip``
 physics steps at a time with the actuator commands the action gives. ``EpisodeRecorder``
 writes the episodes a policy flies to a dataset (the same fields as ``auvsim generate``'s,
 the depth sensor's included), and ``ManeuverPolicy`` flies any scripted manoeuvre of
-``auvsim.maneuvers`` through the autopilots, so a scripted or a learned policy yields
+``auvsim.physics.maneuvers`` through the autopilots, so a scripted or a learned policy yields
 training data for BeamsNet.
 
 ## Action Space
@@ -86,7 +86,7 @@ block: the sensors' work on a few rows, compiled where numpy's cost per call was
 it (the IMU's error terms are made ahead, 1,024 samples at a time), with the DVL's ping,
 every tenth step at the defaults, the largest part. ``benchmarks/env.py`` measures it
 against ``generate`` (figures in the README). ``gymnasium.make_vec("auvsim/AUV-v0",
-num_envs=N)`` gives ``auvsim.vector.AuvVectorEnv``, which steps slices of the envs in
+num_envs=N)`` gives ``auvsim.envs.vector.AuvVectorEnv``, which steps slices of the envs in
 worker processes and in this one over shared memory; gymnasium's ``"sync"`` and
 ``"async"`` modes work too.
 
@@ -105,14 +105,14 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from .config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
-from .control import autopilot
-from .dataset import Block, DatasetWriter
-from .errors import ConfigError, SimulationError
-from .frames import EULER, STATE
-from .maneuvers import Maneuver, make_maneuver
-from .mission import MissionRun, check_reachable
-from .presets import preset
+from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
+from auvsim.data.dataset import Block, DatasetWriter
+from auvsim.errors import ConfigError, SimulationError
+from auvsim.physics.control import autopilot
+from auvsim.physics.frames import EULER, STATE
+from auvsim.physics.maneuvers import Maneuver, make_maneuver
+from auvsim.runs.mission import MissionRun, check_reachable
+from auvsim.runs.presets import preset
 
 G0 = 9.80665  # m/s^2
 # Observation bounds (module docstring): specific force, angular rate, beams, lock, depth.
@@ -136,7 +136,7 @@ def _layout(fields) -> tuple[dict[str, int | slice], int]:
 
 # The info's fields (module docstring) and their places in one float64 row: the time,
 # the state row (``Vehicle.state_row``: frames.STATE then EULER), the altitude and the
-# latest ping's. The row, ``AuvEnv.info_row``, is what auvsim.vector's workers share.
+# latest ping's. The row, ``AuvEnv.info_row``, is what auvsim.envs.vector's workers share.
 INFO, INFO_SIZE = _layout([("time", None),
                            *((name, part.stop - part.start)
                              for name, part in {**STATE, "euler": EULER}.items()),
@@ -185,11 +185,11 @@ class AuvEnv(gym.Env):
         # The arrays (truth, IMU, DVL, control) of the last step, for EpisodeRecorder;
         # None before the first step and at a terminal one.
         self.last_block: dict[str, np.ndarray] | None = None
-        # The last info's values as one row (INFO), for auvsim.vector; None before a reset.
+        # The last info's values as one row (INFO), for auvsim.envs.vector; None before a reset.
         self.info_row: np.ndarray | None = None
 
     def _mission(self, seed: int) -> MissionRun:
-        # As long as an episode may last, so the water's paths (auvsim.water) cover it.
+        # As long as an episode may last, so the water's paths (auvsim.physics.water) cover it.
         duration = max(self.start.duration, min(self.max_episode_seconds, MAX_DURATION))
         mission = MissionConfig(name="episode", seed=seed,
                                 scenario=dataclasses.replace(self.start, name="straight",

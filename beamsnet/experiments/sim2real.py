@@ -7,7 +7,7 @@ does (``auvsim import-velocity`` with the paper's error model):
 * the training data is the ``sim2real`` preset: the realistic manoeuvres (two speeds, each
   mission in its own current) flown with the same DVL error model;
 * the frames are matched by flying the training data with the Snapir's DVL mounting, the
-  DVL yawed 45 deg from the body (``auvsim.presets.SNAPIR_MOUNTING_YAW_DEG``), so that
+  DVL yawed 45 deg from the body (``auvsim.runs.presets.SNAPIR_MOUNTING_YAW_DEG``), so that
   the DVL-frame velocities the estimators learn from are those the Snapir's DVL frame
   sees. The same manoeuvres flown with the DVL along the body are a second training set,
   which shows what the frame costs;
@@ -29,15 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.cluster import check_address
-from auvsim.files import check_out_dir, make_out_dir, save_figure, write_text
-
-from . import metrics
-from .baselines import availability
-from .data import load_windows, split
-from .evaluate import baselines, trimmed
-from .experiment import ensure_dataset, train_seeds
-from .train import PROFILES, TrainConfig, predict
+from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.runs.cluster import check_address
+from beamsnet import metrics
+from beamsnet.data import load_windows, split
+from beamsnet.estimators.baselines import availability
+from beamsnet.evaluate import baselines, trimmed
+from beamsnet.experiments.runner import ensure_dataset, train_seeds
+from beamsnet.training.train import PROFILES, TrainConfig, predict
 
 # Seeds per network. Each costs minutes of a core (10,000 pings x 50 epochs at batch 4),
 # so: on the sea data (``reproduce snapir``, whose runs the V.npy column reuses) 5 for
@@ -51,7 +50,7 @@ DURATION = 300.0  # s per manoeuvre of the generated training sets: 4,500 traini
 # The learned estimators, each trained from SEEDS seeds: table name -> (run directory,
 # what it changes from the profile's config). None takes the IMU: the Snapir streams have
 # none. BeamsNetV2 is trained with the fixed input (its past beams as changes,
-# ``beamsnet.train``) and as published.
+# ``beamsnet.training.train``) and as published.
 LEARNED = {"BeamsNetV2": ("v2", dict(model="v2")),
            "BeamsNetV2 (paper)": ("v2-paper", dict(model="v2", protocol="paper")),
            "CorrectionNet": ("corr", dict(model="corr"))}
@@ -68,27 +67,27 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
 
     Args:
         snapir_h5: the imported Snapir streams (missions ``train`` and ``test``, made by
-            ``beamsnet.reproduce.snapir_dataset``).
+            ``beamsnet.experiments.reproduce.snapir_dataset``).
         out: the report's directory.
         duration: s per manoeuvre of the generated auvsim training sets.
         seeds: seeds per learned estimator on the set flown with the Snapir's mounting,
             every one scored; the set with the DVL along the body gets ``BODY_SEEDS``,
             V.npy ``SEEDS`` (those of ``reproduce snapir``).
         training: the training settings, the model and seed set per run (default: the
-            ``snapir`` profile of ``beamsnet.train.PROFILES``: the paper's sea-data
+            ``snapir`` profile of ``beamsnet.training.train.PROFILES``: the paper's sea-data
             settings, since the test is sea data).
         runs: where the networks go (``runs/sim2real/<training file stem>/<model>/seed_<s>``).
         datasets: where the generated training sets go.
         workers: training processes.
         progress: progress bars.
         cluster: generate missing datasets and train on this Dask cluster instead
-            (``auvsim.generate``, ``beamsnet.train.train_all``).
+            (``auvsim.runs.generate``, ``beamsnet.training.train.train_all``).
 
     Returns:
         The report's path.
     """
-    from auvsim.presets import SNAPIR_MOUNTING_YAW_DEG
-    from auvsim.presets import sim2real as sim2real_preset
+    from auvsim.runs.presets import SNAPIR_MOUNTING_YAW_DEG
+    from auvsim.runs.presets import sim2real as sim2real_preset
 
     training = PROFILES["snapir"].config if training is None else training
     check_out_dir(out)

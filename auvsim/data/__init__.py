@@ -1,0 +1,1 @@
+"""Files: the HDF5 schema, its reader and writer, shards, and imported logs."""

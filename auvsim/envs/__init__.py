@@ -1,0 +1,1 @@
+"""The gymnasium environment and its vectorised form."""

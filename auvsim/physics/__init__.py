@@ -1,0 +1,1 @@
+"""The vehicle and the water: frames, hydrodynamics, actuators, autopilot, manoeuvres."""

@@ -1,0 +1,1 @@
+"""What the vehicle moves over: the seafloor and its ray casts."""

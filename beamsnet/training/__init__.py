@@ -1,0 +1,1 @@
+"""Training the networks: the loop, checkpoints and runs of many seeds."""
