@@ -6,13 +6,12 @@ import argparse
 import dataclasses
 import errno
 import os
-import signal
 import sys
-import threading
 from pathlib import Path
 
+from auvsim.cli_support import run_command
 from auvsim.config import SCENARIOS, Config, ScenarioConfig
-from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
+from auvsim.errors import ConfigError, OneLineErrorParser
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
@@ -221,27 +220,14 @@ def _plot(args: argparse.Namespace) -> None:
         print(f"wrote {path}")
 
 
-def _stop(signum, frame) -> None:
-    raise KeyboardInterrupt
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run a command line; returns the exit status: 0, 2 on an error, 130 on Ctrl-C or
-    SIGTERM alike (after the workers have stopped and the temporary files have gone)."""
+    SIGTERM alike (after the workers have stopped and the temporary files have gone),
+    141 when the reader of its output has gone (``auvsim.cli_support``)."""
     args = _parser().parse_args(argv)
-    if threading.current_thread() is threading.main_thread():
-        # A scheduler's SIGTERM unwinds like Ctrl-C: workers stop, temporary files go.
-        signal.signal(signal.SIGTERM, _stop)
-    try:
-        {"generate": _generate, "presets": _presets, "inspect": _inspect,
-         "import-velocity": _import_velocity, "plot": _plot}[args.command](args)
-    except AuvsimError as e:
-        print(f"auvsim: error: {e.for_cli(FLAGS)}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("auvsim: interrupted; nothing was written", file=sys.stderr)
-        return 130
-    return 0
+    command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
+               "import-velocity": _import_velocity, "plot": _plot}[args.command]
+    return run_command("auvsim", lambda: command(args), FLAGS)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.dataset import Mission, open_dataset
-from auvsim.data.files import check_out_dir, make_out_dir, write_bytes
+from auvsim.data.files import all_or_nothing, check_out_dir, make_out_dir, write_bytes
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.frames import euler_angles
 from auvsim.sensors.dvl import Mode, Status
@@ -44,6 +44,7 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
         DatasetError: the file is not a readable, consistent auvsim dataset, has no
             missions, or a mission's values cannot be drawn.
         ConfigError: a mission name is not in the file; ``out`` is not a directory.
+        OutputError: a figure cannot be written (none is left then).
     """
     path = Path(path)
     out = check_out_dir(path.parent if out is None else out)
@@ -58,9 +59,10 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
             raise DatasetError(f"{path}: no missions to draw")
         pngs = {out / f"{path.stem}_{name}.png": _render(group[name], path)
                 for name in names}
-    make_out_dir(out)  # only now: every input has been checked
-    for target, png in pngs.items():
-        write_bytes(target, png)
+    with all_or_nothing():  # a full disk at the third figure leaves none
+        make_out_dir(out)  # only now: every input has been checked
+        for target, png in pngs.items():
+            write_bytes(target, png)
     return list(pngs)
 
 

@@ -49,7 +49,6 @@ from pathlib import Path
 from tqdm import tqdm
 
 from auvsim import __version__
-from auvsim.runs.cluster import check_address, lost_worker
 from auvsim.config import Config
 from auvsim.data.dataset import (
     INDEX,
@@ -61,18 +60,21 @@ from auvsim.data.dataset import (
     shard_state,
     write_index,
 )
-from auvsim.errors import ConfigError, SimulationError
 from auvsim.data.files import (
     HOST,
     Claim,
     check_out_dir,
+    commit,
     interrupt_handler,
     interrupts_held,
     make_out_dir,
     sweep,
+    writing,
 )
-from auvsim.runs.mission import MissionRun, check_reachable
+from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
+from auvsim.runs.cluster import check_address, lost_worker
+from auvsim.runs.mission import MissionRun, check_reachable
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
 POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
@@ -277,9 +279,17 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
     stopped before the run's folder goes, so no worker writes into it as it does."""
     folder = check_out_dir(folder)
     plan = shard_plan(config, per_shard)
-    fresh = not folder.exists()
-    make_out_dir(folder / SHARDS)
     index = folder / INDEX
+    for path, what in ((index, "the index file"), (folder / SHARDS, "the shards' folder")):
+        if path.exists() and path.is_dir() != (path.name == SHARDS):
+            kind = "a folder" if path.is_dir() else "a file"
+            raise ConfigError(f"{str(path)!r} is {kind}: expected {what} of a sharded "
+                              "dataset there (or nothing); move it aside", argument="out")
+    fresh = not folder.exists()
+    make_out_dir(folder / SHARDS, whole=False)  # each shard is whole on its own
+    # The temporaries of runs that were killed (kill -9, a lost node) go before any work.
+    for place in (folder, folder / SHARDS):
+        sweep(place)
     try:
         with _only_writer(folder), _claimed(index) as claim:
             shards: list[Shard | None] = []
@@ -310,8 +320,9 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
                         if given is None:
                             pool.shutdown(wait=True)
                 sweep(folder / SHARDS)  # the temporaries of workers that were killed
-            write_index(claim.file, shards, config_json=config.to_json())
-            os.replace(claim.file, index)
+            with writing(index):
+                write_index(claim.file, shards, config_json=config.to_json())
+                commit(claim.file, index)
     except BaseException:
         if fresh:  # a run refused or stopped before its first shard leaves no folder
             for made in (folder / SHARDS, folder):
