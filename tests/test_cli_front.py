@@ -252,3 +252,95 @@ def test_an_error_on_a_pipe_that_is_not_stdout_is_an_error(tmp_path, capsys, mon
     monkeypatch.setattr(cli, "_presets", broken)
     assert cli.main(["presets"]) == 2
     _one_line(capsys, "auvsim: error: Broken pipe")
+
+
+def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
+    """The first run (numba's cache empty) says it compiled and for how long; a run that
+    compiles nothing says nothing of it."""
+    from numba.core import event
+
+    import auvsim.runs.generate as gen
+
+    real = gen.check_reachable
+
+    def compiling(config):  # as numba does when its cache does not have the physics
+        with event.trigger_event("numba:compile"):
+            real(config)
+
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "a.h5")]) == 0
+    assert "compiling the physics" not in capsys.readouterr().out
+    monkeypatch.setattr(gen, "check_reachable", compiling)
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "b.h5")]) == 0
+    first, wrote = capsys.readouterr().out.splitlines()
+    assert first.startswith("compiling the physics once (first run): ")
+    assert first.endswith(" s; later runs skip it") and wrote.startswith("wrote ")
+
+
+@pytest.mark.parametrize("command", ["", "generate", "presets", "inspect",
+                                     "import-velocity", "plot"])
+def test_help_is_for_users(command, capsys):
+    from auvsim.runs.presets import DEFAULT_PRESET
+
+    with pytest.raises(SystemExit) as done:
+        cli.main([*command.split(), "--help"])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    assert "``" not in text and "library" not in text and "thin shell" not in text
+    assert "{" not in text.replace("{lzf,gzip}", "").replace(
+        "{generate,presets,inspect,import-velocity,plot}", "")  # no Python values
+    if command in ("generate", "import-velocity"):
+        options = [line.split()[0] for line in text.splitlines()
+                   if line.startswith("  --") and "--out" not in line
+                   and "--quiet" not in line and "--help" not in line]
+        described = text.split("options:")[1]
+        for option in options:  # each option with a value says what it is by default
+            entry = described.split(option, 1)[1].split("\n  -", 1)[0]
+            assert "default" in entry or option in ("--config", "--cluster"), option
+    if command == "generate":
+        assert f"default: {DEFAULT_PRESET})" in " ".join(text.split())
+
+
+def test_inspect_never_prints_a_negative_zero(small, capsys, monkeypatch):
+    from auvsim.data import dataset as ds
+
+    real = ds.describe
+    monkeypatch.setattr(ds, "describe", lambda path: real(path) + "\n  bias [-0.,  0.01] "
+                        "m/s, offset -0 m, -0.000, -0.e+00, -0.0012, v1-0")
+    assert cli.main(["inspect", str(small)]) == 0
+    text = capsys.readouterr().out
+    assert "-0." not in text.replace("-0.0012", "") and " -0 " not in text
+    assert text.rstrip().endswith("bias [0.,  0.01] m/s, offset 0 m, 0.000, 0.e+00, -0.0012, "
+                                  "v1-0")
+
+
+def test_the_mission_plot_says_what_it_plots(small):
+    """Speed over ground and through the water; the current's direction toward, 0 to
+    360 deg as inspect says it; every legend beside its panel, outside the data."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from auvsim import plot
+
+    with dataset.open_dataset(small) as f:
+        m = f.missions["a"]
+        fig, axes = plt.subplots(4, 2, figsize=(15, 12.8), layout="constrained")
+        plot._draw(m, axes)
+        current = m.truth.current_ned
+        inspected = np.degrees(np.arctan2(*current.mean(axis=0)[[1, 0]])) % 360
+    speed = axes[1, 0]
+    assert speed.get_title() == "speed over ground and through the water"
+    labels = speed.get_legend_handles_labels()[1]
+    assert "over ground" in labels and "through the water" in labels
+    direction = fig.axes[-1]  # the current panel's twin
+    assert "toward" in direction.get_ylabel() and direction.get_ylim() == (0, 360)
+    toward = direction.get_lines()[0].get_ydata()
+    assert toward.min() >= 0 and toward.max() < 360
+    assert abs(np.mean(toward) - inspected) < 5
+    fig.canvas.draw()
+    for ax in axes.ravel():
+        legend = ax.get_legend()
+        if legend is not None:  # entirely to the right of the panel's data area
+            assert legend.get_window_extent().x0 >= ax.get_window_extent().x1 - 1
+    plt.close(fig)

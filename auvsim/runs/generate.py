@@ -208,9 +208,32 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
         progress: show a progress bar on a terminal.
 
     Returns:
-        A summary: number of missions, simulated seconds, wall seconds; for a sharded
-        dataset also its shards and how many were kept from an earlier run.
+        A summary: number of missions, simulated seconds, wall seconds, the seconds this
+        process spent compiling the physics (``compile_s``: a first run's, 0 once numba's
+        cache has it); for a sharded dataset also its shards and how many were kept from
+        an earlier run.
     """
+    with _compile_clock() as compiling:
+        summary = _generate(config, out, workers=workers, executor=executor,
+                            cluster=cluster, shards=shards, progress=progress)
+    return dict(summary, compile_s=compiling())
+
+
+@contextmanager
+def _compile_clock() -> Iterator[Callable[[], float]]:
+    """Seconds numba spends compiling in this process while the block runs (loading what
+    its cache holds is not compiling): what a first run costs and later runs do not. The
+    missions of worker processes compile there, unseen here."""
+    from numba.core import event
+
+    listener = event.TimingListener()  # nested compilations counted once
+    with event.install_listener("numba:compile", listener):
+        yield lambda: listener.duration if listener.done else 0.0
+
+
+def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
+              executor: cf.Executor | None, cluster: str | None, shards: int | None,
+              progress: bool) -> dict:
     with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
         check_reachable(config)
     for name, value in (("workers", workers), ("shards", shards)):
