@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import DataError, Windows, load_windows, split
@@ -105,7 +105,7 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
         raise ConfigError(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} "
                           f"was trained on: {geometry}; expected the training data's beam "
                           "geometry and DVL and IMU rates (allow_mismatch evaluates "
-                          "anyway)", argument="datasets")
+                          "anyway)", argument="datasets", mentions=("allow_mismatch",))
     if geometry:
         warnings.warn(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} was "
                       f"trained on: {geometry}; evaluated anyway, as allowed",
@@ -261,11 +261,12 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
         sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
         figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
-    make_out_dir(out)  # only now: every input has been checked
-    for windows, predictions, per_mission, name in figures:
-        _plot(windows, predictions, per_mission, out / name)
-    write_text(out / "evaluation.md", "\n\n".join(sections) + "\n")
-    write_text(out / "evaluation.json", json.dumps(results, indent=1))
+    # Only now, every input checked, is ``out`` made: whole, or not at all.
+    with staged_dir(out) as stage:
+        for windows, predictions, per_mission, name in figures:
+            _plot(windows, predictions, per_mission, stage / name)
+        write_text(stage / "evaluation.md", "\n\n".join(sections) + "\n")
+        write_text(stage / "evaluation.json", json.dumps(results, indent=1))
     return results
 
 
@@ -390,9 +391,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     lines = [",".join(columns)] + [
         ",".join(v if isinstance(v, str) else f"{v:.9g}" for v in row)
         for row in zip(*table, strict=True)]
-    make_out_dir(out)
-    write_text(out / "estimates.csv", "\n".join(lines) + "\n")
-    write_text(out / "summary.json", json.dumps(summary, indent=1))
+    with staged_dir(out) as stage:  # both files or neither
+        write_text(stage / "estimates.csv", "\n".join(lines) + "\n")
+        write_text(stage / "summary.json", json.dumps(summary, indent=1))
     return summary
 
 

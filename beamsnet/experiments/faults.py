@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import make_out_dir, save_figure, write_text
+from auvsim.data.files import save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import Windows, load_windows
@@ -62,6 +62,7 @@ from beamsnet.experiments.stress import (
     why_worse,
 )
 from beamsnet.training.train import MASKED, TITLES, predict
+from beamsnet.words import count
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
 # straight line, a steady turn, a hard zigzag and random waypoints span the stress test's
@@ -272,15 +273,14 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 dvl=_jsonable(dict(fault.dvl)), current_ned=fault.current_ned,
                 estimators=scored[str(path)]))
 
-    make_out_dir(out)
-    _plot(results, out / "faults.png")
     summary = dict(train_data=str(train_data), trained_on=trained_on,
                    models=[_trained(c) for _, _, c in models], missions=list(missions),
                    duration_s=duration, sweeps=results)
-    write_text(out / "faults.json", json.dumps(summary, indent=1))
-    report = out / "faults.md"
-    write_text(report, _report(summary))
-    return report
+    with staged_dir(out) as stage:  # all three files or none
+        _plot(results, stage / "faults.png")
+        write_text(stage / "faults.json", json.dumps(summary, indent=1))
+        write_text(stage / "faults.md", _report(summary))
+    return Path(out) / "faults.md"
 
 
 def _dataset(config, fault: Fault, duration: float, datasets: Path, progress: bool) -> Path:
@@ -393,7 +393,8 @@ def _report(summary: dict) -> str:
     sweeps_ = summary["sweeps"]
     names = list(next(iter(sweeps_.values()))[0]["estimators"])
     trained = ", ".join(f"{TITLES[m['model']]}{m['as_published']} ({m['pings']} pings, "
-                        f"lr {m['lr']:g}, {m['epochs']} epochs, weights averaged over the last "
+                        f"lr {m['lr']:g}, {count(m['epochs'], 'epoch')}, weights averaged "
+                        "over the last "
                         f"{m['average_epochs']})" for m in summary["models"])
     lines = [
         "# Fault stress test: every DVL estimator on the pings a faulty DVL delivers",

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from auvsim.runs.cluster import check_address
 from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
@@ -47,6 +47,7 @@ from beamsnet.training.train import (
     check_restarts,
     sensor_setup,
 )
+from beamsnet.words import count
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -166,15 +167,15 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     truth = _truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth, positions)
 
-    make_out_dir(out)
     binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
-    _plot_intensity(binned, out / "stress_intensity.png")
-    _plot_time(test_w, estimates, phases, out / "stress_time.png")
-    plot_tracks(test_w, estimates, truth, positions, out / "stress_tracks.png")
-    write_text(out / "stress.json", json.dumps(rows, indent=1))
-    report = out / "stress.md"
-    write_text(report, _report(train_data, trained_on, maneuver_data, models, binned, rows))
-    return report
+    with staged_dir(out) as stage:  # the report and every figure, or none of them
+        _plot_intensity(binned, stage / "stress_intensity.png")
+        _plot_time(test_w, estimates, phases, stage / "stress_time.png")
+        plot_tracks(test_w, estimates, truth, positions, stage / "stress_tracks.png")
+        write_text(stage / "stress.json", json.dumps(rows, indent=1))
+        write_text(stage / "stress.md",
+                   _report(train_data, trained_on, maneuver_data, models, binned, rows))
+    return Path(out) / "stress.md"
 
 
 def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
@@ -395,7 +396,7 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
     trained = ", ".join(
         f"{TITLES[c['model']]}{_as_published(c['train_config'])} "
         f"({c['samples']['train']} pings, lr "
-        f"{c['train_config']['lr']:g}, {c['train_config']['epochs']} epochs)"
+        f"{c['train_config']['lr']:g}, {count(c['train_config']['epochs'], 'epoch')})"
         for _, _, c in models)
     lines = [
         "# Manoeuvre stress test: where each DVL estimator holds and where it breaks",
