@@ -12,7 +12,7 @@ from pathlib import Path
 
 from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
-from beamsnet.evaluate import SensorSetupWarning
+from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
@@ -30,7 +30,8 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "seeds": "--seeds", "duration": "--duration", "noise": "--noise",
          "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
          "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster",
-         "refresh_reports": "--refresh-reports"}
+         "refresh_reports": "--refresh-reports", "train_duration": "--train-duration",
+         "maneuver_duration": "--maneuver-duration"}
 DEFAULT_SNAPIR_TEXT = "shared/data/snapir beside the repository's folder"
 CLUSTER_HELP = ("run the training jobs on a Dask cluster: local:N or a scheduler's address "
                 "(needs auvsim[cluster])")
@@ -350,6 +351,7 @@ def main(argv: list[str] | None = None) -> int:
         warnings.showwarning = _warn
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
+        warnings.simplefilter("always", UnseenMissionWarning)
         try:
             if getattr(args, "cluster", None) is not None:
                 check_address(args.cluster)  # before any data is read or made

@@ -24,7 +24,7 @@ import numpy as np
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
-from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.data import DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators.baselines import (
     AffineCalibration,
     BeamCalibration,
@@ -53,6 +53,32 @@ class SensorSetupWarning(UserWarning):
     tell."""
 
 
+class UnseenMissionWarning(UserWarning):
+    """A run trained on some missions of its file is scored on others it never saw."""
+
+
+def check_missions(run: str | Path, checkpoint: dict, dataset: str | Path,
+                   missions: list[str]) -> None:
+    """Warn when ``run`` was trained on a subset of its file's missions (``--mission``) and
+    ``missions`` of ``dataset`` include others: its row then mixes what it learned with
+    what it never saw (a network trained at 2 m/s, scored at 1, 2 and 3 m/s), which the
+    table alone does not tell.
+
+    Warns:
+        UnseenMissionWarning: naming the missions it trained on and those it did not.
+    """
+    trained_on = checkpoint.get("train_config", {}).get("missions")
+    if not trained_on:
+        return  # every mission of its file
+    unseen = [m for m in missions if m not in trained_on]
+    if unseen:
+        warnings.warn(f"run {str(run)!r} was trained on mission {', '.join(trained_on)} only; "
+                      f"{str(dataset)!r} scores it on {', '.join(missions)}, and "
+                      f"{', '.join(unseen)} {'is' if len(unseen) == 1 else 'are'} new to it "
+                      "(evaluate on its training missions to compare like with like)",
+                      UnseenMissionWarning, stacklevel=2)
+
+
 def estimates(runs: list[str | Path], dataset: str | Path,
               missions: list[str] | None = None) -> tuple[Windows, dict]:
     """Test-split windows of ``dataset`` (its ``missions``, default all) and every
@@ -67,6 +93,7 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
     windows = load_windows(dataset, n_past=n_past, missions=missions)
+    check_truth(windows, dataset)
     try:
         train_w, test_w = split(windows, fraction)
     except ValueError as e:
@@ -252,6 +279,8 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         for run, _, checkpoint in models:
             check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
         windows, predictions = _estimates(models, dataset)
+        for run, _, checkpoint in models:
+            check_missions(run, checkpoint, dataset, list(windows.names))
         rows = table(windows, predictions)
         per_mission = {
             name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
@@ -357,7 +386,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset)
     windows = load_windows(dataset, every_ping=True)
+    check_truth(windows, dataset)
     train_windows = load_windows(dataset if train is None else train)
+    _check_same_beams(train, train_windows, dataset, windows)
     try:
         train_w = split(train_windows)[0]
     except ValueError as e:
@@ -395,6 +426,24 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         write_text(stage / "estimates.csv", "\n".join(lines) + "\n")
         write_text(stage / "summary.json", json.dumps(summary, indent=1))
     return summary
+
+
+def _check_same_beams(train, train_windows: Windows, dataset, windows: Windows) -> None:
+    """Refuse a training file whose beam geometry is not that of ``dataset``: an estimator
+    fitted on one beam matrix cannot turn another's beams into velocities.
+
+    Raises:
+        ConfigError: naming both files' beam angles, against ``train``.
+    """
+    if train is None or np.allclose(train_windows.h, windows.h):
+        return
+
+    def angle(h: np.ndarray) -> str:  # every beam's angle from the vertical, equal
+        return f"{np.degrees(np.arccos(abs(h[0, 2]))):.4g} deg"
+
+    raise ConfigError(f"{str(train)!r}: its DVL's beams ({angle(train_windows.h)} from the "
+                      f"vertical) are not those of {str(dataset)!r} ({angle(windows.h)}); "
+                      "expected training data of the same DVL", argument="train")
 
 
 def _has_truth(dataset, missions) -> bool:

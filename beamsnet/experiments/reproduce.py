@@ -30,7 +30,7 @@ import numpy as np
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
-from beamsnet.data import load_windows, split
+from beamsnet.data import check_dataset, load_windows, split
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_runs, train_seeds
 from beamsnet.training.train import PROFILES, TrainConfig, check_restarts, predict
@@ -85,6 +85,8 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     if cluster is not None:
         check_address(cluster)
     config = preset(experiment).with_duration(duration)
+    if data is not None:  # refused now, not after minutes of work
+        check_dataset(data, argument="data", missions=[m.name for m in config.missions])
     if data is None:
         data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
                               progress=progress, cluster=cluster)

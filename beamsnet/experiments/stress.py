@@ -36,7 +36,7 @@ from auvsim.errors import ConfigError
 from auvsim.runs.cluster import check_address
 from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
 from beamsnet import metrics
-from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.data import DataError, Windows, check_dataset, load_windows, split
 from beamsnet.evaluate import FILTER_NAMES, predictions
 from beamsnet.experiments.runner import ensure_dataset, train_runs
 from beamsnet.training.train import (
@@ -128,15 +128,29 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             if value is not None:
                 raise ConfigError("is a setting of the fault sweep; expected it only "
                                   "together with faults", argument=name)
+    # The given files too: a wrong one is refused before any other is generated.
+    if train_data is not None:
+        check_dataset(train_data, argument="train_data")
+    if maneuver_data is not None:
+        check_dataset(maneuver_data, argument="maneuver_data", truth=True)
+        if train_data is not None:
+            _check_geometry(train_data, maneuver_data)
     train_preset, noise_std, suffix = NOISE[noise]
+    # Both configs (their durations checked) before either file is generated.
+    train_config = maneuver_config = None
     if train_data is None:
-        train_data = ensure_dataset(preset(train_preset).with_duration(train_duration),
+        _check_duration(train_duration, "train_duration")
+        train_config = preset(train_preset).with_duration(train_duration)
+    if maneuver_data is None and not faults:
+        _check_duration(maneuver_duration, "maneuver_duration")
+        maneuver_config = maneuvers(maneuver_duration, noise_std=noise_std)
+    if train_config is not None:
+        train_data = ensure_dataset(train_config,
                                     Path("datasets") / f"{train_preset}_{train_duration:g}s.h5",
                                     progress=progress, cluster=cluster)
-    if maneuver_data is None and not faults:
+    if maneuver_config is not None:
         maneuver_data = ensure_dataset(
-            maneuvers(maneuver_duration, noise_std=noise_std),
-            Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
+            maneuver_config, Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
             progress=progress, cluster=cluster)
 
     if maneuver_data is not None:
@@ -176,6 +190,15 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         write_text(stage / "stress.md",
                    _report(train_data, trained_on, maneuver_data, models, binned, rows))
     return Path(out) / "stress.md"
+
+
+def _check_duration(value, argument: str) -> None:
+    """Raises ConfigError naming ``argument`` unless ``value`` is a positive number of
+    seconds (the preset would say ``duration``, which is not this command's option)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
+        raise ConfigError(f": expected a positive number of seconds, got {value!r}",
+                          argument=argument)
 
 
 def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
