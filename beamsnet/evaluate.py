@@ -34,6 +34,7 @@ from beamsnet.estimators.baselines import (
     availability,
 )
 from beamsnet.estimators.missing import MissingBeamRegressor
+from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.train import (
     SENSOR_ERRORS,
     SENSOR_GEOMETRY,
@@ -305,25 +306,26 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(12, 4.5),
+    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(14, 4.5), layout="constrained",
                                      gridspec_kw=dict(width_ratios=(2, 1)))
+    look = styles(predictions)
     speed = np.linalg.norm(windows.target, axis=1)
     for name, pred in predictions.items():
-        ax_t.plot(windows.time, np.linalg.norm(pred, axis=1) - speed, ".", ms=2, label=name)
+        ax_t.plot(windows.time, np.linalg.norm(pred, axis=1) - speed, ms=2,
+                  label=name, **look[name].points())
     ax_t.set_xlabel("mission time, s")
     ax_t.set_ylabel("speed error, m/s")
     ax_t.set_title("error over the test split")
-    ax_t.legend(markerscale=5, fontsize=8)
     names = list(per_mission)
     missions = list(next(iter(per_mission.values())))
     width = 0.8 / len(names)
     for i, name in enumerate(names):
         ax_m.bar(np.arange(len(missions)) + i * width,
-                 [per_mission[name][m] for m in missions], width, label=name)
+                 [per_mission[name][m] for m in missions], width, **look[name].bar())
     ax_m.set_xticks(np.arange(len(missions)) + 0.4 - width / 2, missions)
     ax_m.set_ylabel("speed RMSE, m/s")
     ax_m.set_title("per mission")
-    fig.tight_layout()
+    figure_legend(fig, ax_t, markerscale=3, fontsize=8)
     save_figure(fig, path, dpi=110)
 
 

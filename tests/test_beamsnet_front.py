@@ -307,3 +307,59 @@ def test_counts_in_report_prose_agree_in_number():
     assert count(1, "epoch") == "1 epoch"
     assert count(30, "epoch") == "30 epochs"
     assert count(0, "seed") == "0 seeds"
+
+
+# ---- figures ---------------------------------------------------------------------------
+
+
+def test_every_estimator_has_a_look_of_its_own_and_keeps_it():
+    from beamsnet.plotstyle import KNOWN, styles
+
+    names = [*KNOWN, "Robust LS", "BeamsNetV2 (seed_1)", "BeamsNetV2 (seed_2)"]
+    look = styles(names)
+    pairs = [(s.color, s.linestyle) for s in look.values()]
+    assert len(set(pairs)) == len(names) > 10
+    # LS and BeamsNetV2M share blue, Affine and CorrectionNet orange: not their style.
+    assert look["LS"].color == look["BeamsNetV2M"].color
+    assert look["LS"].linestyle != look["BeamsNetV2M"].linestyle
+    assert look["Affine"].linestyle != look["CorrectionNet"].linestyle
+    # The same estimator looks the same in another figure, among other estimators.
+    again = styles(["CorrectionNet (corr)", "Robust LS", "LS"])
+    assert again["CorrectionNet (corr)"] == look["CorrectionNet"]
+    assert again["Robust LS"] == look["Robust LS"] and again["LS"] == look["LS"]
+
+
+def test_legends_sit_outside_the_data_and_epochs_are_whole(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from beamsnet.plotstyle import figure_legend, styles
+
+    def overlaps(a, b) -> bool:
+        return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+    fig, axes = plt.subplots(2, 5, figsize=(15, 5), layout="constrained")
+    look = styles([f"estimator {i}" for i in range(13)])
+    for ax in axes.flat:
+        for name, style in look.items():
+            ax.plot([0, 1], [0, 1], label=name, **style.line())
+    figure_legend(fig, axes[0, 0], fontsize=9)
+    fig.canvas.draw()
+    legend = fig.legends[0].get_window_extent()
+    assert not any(overlaps(legend, ax.get_window_extent()) for ax in axes.flat)
+    plt.close(fig)
+
+    figures = []
+    monkeypatch.setattr(beamsnet.training.train, "save_figure",
+                        lambda fig, path, dpi: figures.append(fig))
+    history = {"train": [1.0, 0.5, 0.3], "test": [1.1, 0.6, 0.4]}
+    beamsnet.training.train._plot_losses(history, tmp_path / "losses.png", TrainConfig())
+    fig = figures[0]
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    ticks = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    assert not overlaps(ax.get_legend().get_window_extent(), ax.get_window_extent())
+    plt.close(fig)

@@ -61,6 +61,7 @@ from beamsnet.experiments.stress import (
     own_position_error,
     why_worse,
 )
+from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.train import MASKED, TITLES, predict
 from beamsnet.words import count
 
@@ -546,16 +547,18 @@ def _plot(results: dict, path: Path) -> None:
     rows = (("rmse_vector", "vector RMSE, m/s", True), ("availability", "availability, %",
                                                          False),
             ("dr_error", "dead-reckoning error, m", True))
-    fig, axes = plt.subplots(len(rows), len(results), figsize=(3.4 * len(results), 8.5),
-                             squeeze=False)
+    fig, axes = plt.subplots(len(rows), len(results), figsize=(3.4 * len(results) + 2, 8.5),
+                             squeeze=False, layout="constrained")
     for j, (sweep, settings) in enumerate(results.items()):
         levels = [s["level"] for s in settings]
         for i, (key, label, log) in enumerate(rows):
             ax = axes[i, j]
+            look = styles(settings[0]["estimators"])
             for name in settings[0]["estimators"]:
                 values = np.array([s["estimators"][name][key] for s in settings], float)
-                ax.plot(levels, 100 * values if key == "availability" else values, "o-",
-                        ms=3, lw=1, label=_short(name))
+                ax.plot(levels, 100 * values if key == "availability" else values,
+                        marker=look[name].marker, ms=3, lw=1, label=_short(name),
+                        **look[name].line())
             if log:
                 ax.set_yscale("log")
                 # Labelled ticks at 1, 2, 5 x 10^k, as a panel often spans less than a
@@ -576,7 +579,6 @@ def _plot(results: dict, path: Path) -> None:
                 ax.set_ylabel(label, fontsize=8)
         axes[0, j].set_title(sweep, fontsize=9)
         axes[-1, j].set_xlabel(SWEEPS[sweep], fontsize=7)
-    axes[0, 0].legend(fontsize=7)
+    figure_legend(fig, axes[0, 0], fontsize=8)
     fig.suptitle("Every estimator against DVL fault rate (trained on clean data)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=100)

@@ -33,6 +33,7 @@ from beamsnet import metrics
 from beamsnet.data import check_dataset, load_windows, split
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_runs, train_seeds
+from beamsnet.plotstyle import legend_outside
 from beamsnet.training.train import PROFILES, TrainConfig, check_restarts, predict
 from beamsnet.words import count
 
@@ -359,16 +360,15 @@ def _figure(summary, path: Path) -> None:
         "affine": [r["Affine"]["improvement"] for _, r in summary],
         "Kalman": [r["KF"]["improvement"] for _, r in summary],
     }
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4), layout="constrained")
     width = 0.8 / len(series)
     for i, (name, values) in enumerate(series.items()):
         ax.bar(np.arange(len(speeds)) + i * width, values, width, label=name)
     ax.set_xticks(np.arange(len(speeds)) + 0.4 - width / 2, [f"{s} m/s" for s in speeds])
     ax.set_ylabel("RMSE improvement over LS, %")
-    ax.set_ylim(0, 125)  # room for the legend above the bars
-    ax.legend(ncol=6, fontsize=8, loc="upper center")
+    ax.set_ylim(0, 100)
+    legend_outside(ax, fontsize=8)
     ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
 

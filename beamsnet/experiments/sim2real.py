@@ -36,6 +36,7 @@ from beamsnet.data import load_windows, split
 from beamsnet.estimators.baselines import availability
 from beamsnet.evaluate import baselines, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
+from beamsnet.plotstyle import figure_legend
 from beamsnet.training.train import PROFILES, TrainConfig, predict
 from beamsnet.words import count
 
@@ -268,7 +269,8 @@ def _figure(results: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     tests = list(next(iter(results.values())))
-    fig, axes = plt.subplots(1, len(tests), figsize=(12, 4.5), sharey=True)
+    fig, axes = plt.subplots(1, len(tests), figsize=(14, 4.5), sharey=True,
+                             layout="constrained")
     for ax, test in zip(axes, tests, strict=True):
         names = [n for n in next(iter(results.values()))[test] if n != "LS"]
         width = 0.8 / len(results)
@@ -285,6 +287,5 @@ def _figure(results: dict, path: Path) -> None:
         ax.set_title(test)
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylabel("speed RMSE improvement over LS, %")
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
+    figure_legend(fig, axes[0], fontsize=8)
     save_figure(fig, path, dpi=110)

@@ -39,6 +39,7 @@ from beamsnet import metrics
 from beamsnet.data import DataError, Windows, check_dataset, load_windows, split
 from beamsnet.evaluate import FILTER_NAMES, predictions
 from beamsnet.experiments.runner import ensure_dataset, train_runs
+from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.train import (
     PROFILES,
     SENSOR_GEOMETRY,
@@ -577,19 +578,20 @@ def _plot_intensity(binned: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4), layout="constrained")
     for ax, (key, label) in zip(axes, INTENSITY.items(), strict=True):
         edges, rmse = binned[key]
         centres = 0.5 * (edges[1:] + edges[:-1])
+        look = styles(rmse)
         for name, values in rmse.items():
-            ax.plot(centres, values, "o-", label=_short(name))
+            ax.plot(centres, values, marker=look[name].marker, label=_short(name),
+                    **look[name].line())
         ax.set_yscale("log")
         ax.set_xlabel(label)
         ax.set_ylabel("vector RMSE, m/s")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
+    figure_legend(fig, axes[0], fontsize=8)
     fig.suptitle("Error against manoeuvre intensity (pings binned by sixths)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
 
@@ -601,8 +603,9 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
 
     n = len(windows.names)
     cols = 2
-    fig, axes = plt.subplots(-(-n // cols), cols, figsize=(12, 2.2 * -(-n // cols)),
-                             squeeze=False)
+    fig, axes = plt.subplots(-(-n // cols), cols, figsize=(14, 2.2 * -(-n // cols)),
+                             squeeze=False, layout="constrained")
+    look = styles(estimates)
     for i, name in enumerate(windows.names):
         ax = axes.flat[i]
         mine = windows.mission == i
@@ -611,17 +614,17 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
                 ax.axvspan(phase.start, phase.end, color="0.9", lw=0)
         for est, pred in estimates.items():
             err = np.linalg.norm(pred[mine] - windows.target[mine], axis=1)
-            ax.semilogy(windows.time[mine], err, lw=0.7, label=_short(est))
+            ax.semilogy(windows.time[mine], err, lw=0.7, label=_short(est),
+                        **look[est].line())
         ax.set_title(name, fontsize=9)
         ax.set_ylabel("|error|, m/s", fontsize=8)
         ax.tick_params(labelsize=7)
     for ax in axes.flat[n:]:
         ax.axis("off")
-    axes.flat[0].legend(fontsize=7, ncol=3)
+    figure_legend(fig, axes.flat[0], fontsize=8)
     for ax in axes[-1]:
         ax.set_xlabel("time, s")
     fig.suptitle("Velocity error over each manoeuvre (grey: alternate phases)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=100)
 
 
@@ -639,7 +642,9 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
     from beamsnet.experiments.faults import held
 
     n = len(windows.names)
-    fig, axes = plt.subplots(2, n, figsize=(2.6 * n, 5.4), squeeze=False)
+    fig, axes = plt.subplots(2, n, figsize=(2.6 * n + 2.2, 5.4), squeeze=False,
+                             layout="constrained")
+    look = styles(estimates)
     for i, name in enumerate(windows.names):
         mine = windows.mission == i
         t = windows.time[mine]
@@ -658,13 +663,12 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
             else:
                 err = dead_reckoning_track(windows, held(windows, pred), truth, i) - reference
             ax_e.semilogy(t, np.maximum(np.linalg.norm(err[:, :2], axis=1), 1e-4), lw=0.8,
-                          label=_short(est))
+                          label=_short(est), **look[est].line())
         ax_e.set_xlabel("time, s", fontsize=7)
         ax_e.tick_params(labelsize=6)
     axes[0, 0].set_ylabel("north, m (east across)", fontsize=7)
     axes[1, 0].set_ylabel("horizontal position error, m", fontsize=7)
-    axes[1, 0].legend(fontsize=6)
+    figure_legend(fig, axes[1, 0], fontsize=9)
     fig.suptitle("True track of each mission (top) and each estimator's position error "
                  "over it (bottom)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=100)

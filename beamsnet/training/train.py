@@ -80,6 +80,7 @@ from auvsim.errors import CheckpointError, ConfigError, SimulationError
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
 from beamsnet.data import DataError, Windows, load_windows, split
 from beamsnet.estimators.networks import MODELS, build
+from beamsnet.plotstyle import legend_outside
 
 # What each model key is called in messages and plots.
 TITLES = {"v1": "BeamsNetV1", "v2": "BeamsNetV2", "v2m": "BeamsNetV2M", "corr": "CorrectionNet"}
@@ -855,16 +856,17 @@ def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(7.5, 4), layout="constrained")
     epochs = np.arange(1, len(history["train"]) + 1)
     ax.semilogy(epochs, history["train"], label="training")
     ax.semilogy(epochs, history["test"], label="test split")
     ax.set_xlabel("epoch")
     ax.set_ylabel("MSE loss, (m/s)^2")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # epochs are whole
     ax.set_title(f"{TITLES[config.model]}, lr {config.lr:g}, batch {config.batch_size}")
-    ax.legend()
+    legend_outside(ax)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
     save_figure(fig, path, dpi=120)
     return path
