@@ -109,10 +109,12 @@ def test_a_beam_out_of_range_loses_lock_for_the_whole_mission(tmp_path):
     config = flat(mission("near", 1, duration=30.0, depth=30.0),
                   mission("deep", 2, duration=30.0, depth=5.0), dvl=DvlConfig(max_range=50.0))
     write(config, tmp_path / "lost.h5")
-    w = load_windows(tmp_path / "lost.h5")
-    assert w.names == ("deep", "near")  # file order: by name
-    assert np.all(w.mission == 1) and len(w.target) == 27
-    with pytest.raises(DataError, match="no ping of deep has all 4 beam epochs valid"):
+    # A mission that gives no sample is refused, not left out without a word.
+    with pytest.raises(DataError, match="mission deep: every beam velocity is NaN"):
+        load_windows(tmp_path / "lost.h5")
+    w = load_windows(tmp_path / "lost.h5", missions=["near"])
+    assert w.names == ("near",) and len(w.target) == 27
+    with pytest.raises(DataError, match="mission deep: every beam velocity is NaN"):
         load_windows(tmp_path / "lost.h5", missions=["deep"])
 
 

@@ -14,10 +14,16 @@ claim) removes those, and leaves anything else alone.
 
 Output folders are checked before any work (``check_out_dir``) and made only once every
 input has been (``make_out_dir``), so a refused command leaves no empty folder. A command
+<<<<<<< HEAD
 whose outputs are several files (a run folder, a report, figures) runs in
 ``all_or_nothing``: if it fails (a full disk, Ctrl-C) the folders it made go, and so do the
 files it wrote into its output folders, so nothing of it is left half done. An ``OSError``
 while writing becomes an ``OutputError`` naming the output (``writing``).
+=======
+that writes several files into a folder builds them in a temporary sibling
+(``staged_dir``) and moves them in at the end, so one that fails half-way (a full disk)
+leaves neither some of its files nor an empty folder.
+>>>>>>> bnfront
 
 Some steps must not be cut in half by Ctrl-C or SIGTERM either: ``interrupts_held``
 delivers them after the step.
@@ -381,3 +387,48 @@ def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
         plt.close(fig)
         tmp.unlink(missing_ok=True)
     return path
+
+
+@contextmanager
+def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
+    """A temporary folder to write the files of the folder ``out`` into, moved into place
+    when the block ends without an error, removed (with any folder above ``out`` that it
+    made) when it ends with one.
+
+    The folder is a ``Claim``'s parts folder beside ``out``, so a killed run's is swept by
+    the next claim there. ``out`` that does not exist yet is the folder renamed, in one
+    step; one that exists gets each file moved in (replacing a namesake), its other files
+    left as they are.
+
+    Raises:
+        ConfigError: ``out`` cannot be a directory.
+    """
+    out = check_out_dir(out)
+    made = [p for p in (out.parent, *out.parent.parents) if not p.exists()]  # deepest first
+    make_out_dir(out.parent)
+    try:
+        with Claim(out) as claim:
+            claim.folder.mkdir()
+            yield claim.folder
+            _move_into(claim.folder, out)
+    except BaseException:
+        for folder in made:
+            try:
+                folder.rmdir()
+            except OSError:  # not empty: someone else's files are in it now
+                break
+        raise
+
+
+def _move_into(source: Path, out: Path) -> None:
+    """Move the folder ``source`` to ``out``: renamed if ``out`` does not exist, else entry
+    by entry (folders merged the same way)."""
+    if not out.exists():
+        source.rename(out)
+        return
+    for entry in sorted(source.iterdir()):
+        target = out / entry.name
+        if entry.is_dir() and target.is_dir():
+            _move_into(entry, target)
+        else:
+            entry.replace(target)

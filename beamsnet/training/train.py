@@ -75,11 +75,12 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import CheckpointError, ConfigError, SimulationError
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
 from beamsnet.data import DataError, Windows, load_windows, split
 from beamsnet.estimators.networks import MODELS, build
+from beamsnet.plotstyle import legend_outside
 
 # What each model key is called in messages and plots.
 TITLES = {"v1": "BeamsNetV1", "v2": "BeamsNetV2", "v2m": "BeamsNetV2M", "corr": "CorrectionNet"}
@@ -494,19 +495,18 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     if not math.isfinite(final_train_loss):  # the last step's update overflowed
         raise _diverged(config, final_train_loss, "after the last step")
 
-    make_out_dir(out)
     checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
                       model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
                       train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
                       sensors=sensor_setup(dataset, windows.names),
                       history=history, samples=dict(train=n, test=len(y_test)),
                       final_train_loss=final_train_loss, final_test_loss=final_test_loss)
-    tmp = out / ".model.pt.tmp"
-    torch.save(checkpoint, tmp)
-    tmp.replace(out / "model.pt")
-    write_text(out / "history.json", json.dumps(history, indent=1))
-    plot = _plot_losses(history, out / "losses.png", config)
-    return dict(checkpoint=str(out / "model.pt"), plot=str(plot), history=history,
+    with staged_dir(out) as stage:  # the whole run or nothing (a full disk, Ctrl-C)
+        torch.save(checkpoint, stage / "model.pt")
+        write_text(stage / "history.json", json.dumps(history, indent=1))
+        _plot_losses(history, stage / "losses.png", config)
+    return dict(checkpoint=str(out / "model.pt"), plot=str(out / "losses.png"),
+                history=history,
                 seconds=seconds, samples_per_second=config.epochs * n / seconds,
                 final_train_loss=final_train_loss, final_test_loss=final_test_loss)
 
@@ -656,15 +656,14 @@ def keep_best(runs: list[str | Path], out: str | Path, *,
                             "smaller learning rate", argument="lr")
     kept = Path(min(finite, key=finite.get))
     out = Path(out)
-    make_out_dir(out)
-    for name in ("model.pt", "history.json", "losses.png"):
-        if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
-            continue
-        shutil.copyfile(kept / name, out / f".{name}.tmp")
-        (out / f".{name}.tmp").replace(out / name)
     record = dict(kept=str(kept), losses=losses, diverged=diverged,
                   rule="lowest final MSE on the training split (evaluation mode)")
-    write_text(out / "restarts.json", json.dumps(record, indent=1))
+    with staged_dir(out) as stage:  # every file of the kept run, or none
+        for name in ("model.pt", "history.json", "losses.png"):
+            if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
+                continue
+            shutil.copyfile(kept / name, stage / name)
+        write_text(stage / "restarts.json", json.dumps(record, indent=1))
     return record
 
 
@@ -699,12 +698,18 @@ def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     """
     check_out_dir(out)
     pairs = seed_runs(config, out, restarts)
-    summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
-                          progress=progress, diverged="record", cluster=cluster)
-    runs = [r for _, r in pairs]
-    record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
-                                            zip(runs, summaries, strict=True)
-                                            if "diverged" in s})
+    fresh = not Path(out).exists()
+    try:
+        summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
+                              progress=progress, diverged="record", cluster=cluster)
+        runs = [r for _, r in pairs]
+        record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
+                                                zip(runs, summaries, strict=True)
+                                                if "diverged" in s})
+    except BaseException:
+        if fresh:  # the seeds that did train are no run without the kept copy: none left
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     return {**record, **summaries[[str(r) for r in runs].index(record["kept"])],
             "checkpoint": str(Path(out) / "model.pt"), "plot": str(Path(out) / "losses.png")}
 
@@ -851,16 +856,17 @@ def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(7.5, 4), layout="constrained")
     epochs = np.arange(1, len(history["train"]) + 1)
     ax.semilogy(epochs, history["train"], label="training")
     ax.semilogy(epochs, history["test"], label="test split")
     ax.set_xlabel("epoch")
     ax.set_ylabel("MSE loss, (m/s)^2")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # epochs are whole
     ax.set_title(f"{TITLES[config.model]}, lr {config.lr:g}, batch {config.batch_size}")
-    ax.legend()
+    legend_outside(ax)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
     save_figure(fig, path, dpi=120)
     return path
