@@ -252,8 +252,10 @@ class Outputs:
 
     @property
     def kept(self) -> list[Path]:
-        """The files written and not removed, each once."""
-        return list(dict.fromkeys(p for p in self.written if p not in self.removed))
+        """The files written and still there, each once (a file written into a
+        ``staged_dir`` that was then thrown away is not)."""
+        return list(dict.fromkeys(p for p in self.written
+                                  if p not in self.removed and p.exists()))
 
 
 _scopes: list[Outputs] = []  # the open ``all_or_nothing`` blocks, outermost first
