@@ -195,7 +195,7 @@ def _presets(args: argparse.Namespace) -> None:
 
 
 def _inspect(args: argparse.Namespace) -> None:
-    from auvsim.data.dataset import describe
+    from auvsim.data.describe import describe
 
     print(describe(args.file))
 

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.dataset import Mission, open_dataset
 from auvsim.data.files import check_out_dir, make_out_dir, write_bytes
+from auvsim.data.reader import Mission, open_dataset
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.frames import euler_angles
 from auvsim.sensors.dvl import Mode, Status

@@ -162,7 +162,7 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
         DataError: with ``strict``, the file has no IMU record (one line saying so);
             without, that filter is left out.
     """
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
     from beamsnet.estimators.ins import InsDvlFilter, NoImuError
 
     with open_dataset(dataset) as f:
@@ -398,7 +398,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
 
 def _has_truth(dataset, missions) -> bool:
     """Whether every one of ``missions`` of ``dataset`` has a truth group (one open)."""
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
         return all(f.missions[name].has("truth") for name in missions)

@@ -23,7 +23,7 @@ from conftest import flat, mission, write
 
 from auvsim.cli import main
 from auvsim.config import DvlConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -74,7 +74,7 @@ def flip_chunk_byte(path: Path, key: str) -> None:
 
 def zero_rows(f: h5py.File, clock: str) -> None:
     """Every field of a clock of mission m0 emptied (kept its row shape and dtype)."""
-    from auvsim.data.dataset import schema
+    from auvsim.data.schema import schema
 
     for field in schema("simulated")[0]:
         if field.clock == clock:

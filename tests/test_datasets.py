@@ -20,7 +20,9 @@ from auvsim.config import (
     ScenarioConfig,
     SeafloorConfig,
 )
-from auvsim.data import dataset
+from auvsim.data.reader import open_dataset
+from auvsim.data.schema import schema
+from auvsim.errors import DatasetError
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import PRESETS, preset
 from auvsim.sensors.dvl import beam_matrix
@@ -64,10 +66,10 @@ def ideal_file(tmp_path_factory):
 
 
 def test_every_schema_field_is_written(ideal_file):
-    with dataset.open_dataset(ideal_file) as f:
+    with open_dataset(ideal_file) as f:
         m = f.missions["mission_000"]
         n, pings = 6000, 60
-        fields, attrs = dataset.schema("simulated")
+        fields, attrs = schema("simulated")
         rows = {"imu": n, "dvl": pings, "depth": n // 10}
         for field in fields:
             assert m.read(field.path).shape == (rows[field.clock], *field.shape), field.path
@@ -85,7 +87,7 @@ def test_ideal_sensors_read_the_truth(ideal_file):
     """No errors configured: beams equal H v, LS equals the true DVL velocity, the IMU equals
     the truth (bitwise), and on a flat floor with the vehicle level the slant ranges are the
     DVL's altitude over cos(beam angle)."""
-    with dataset.open_dataset(ideal_file) as f:
+    with open_dataset(ideal_file) as f:
         m = f.missions["mission_000"]
         np.testing.assert_array_equal(m.dvl.beam_velocity, m.dvl.beam_velocity_true)
         np.testing.assert_allclose(m.dvl.velocity_ls, m.dvl.velocity, atol=1e-12)
@@ -110,7 +112,7 @@ def test_beams_beyond_max_range_are_invalid(tmp_path):
     deep = dataclasses.replace(IDEAL, seafloor=SeafloorConfig(kind="flat", depth=200.0))
     out = tmp_path / "deep.h5"
     write(deep, out)
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["mission_000"]
         assert not m.dvl.valid.any()
         assert np.isnan(m.dvl.beam_velocity).all()
@@ -138,7 +140,7 @@ def test_paper_sim_preset_is_the_papers_setup(tmp_path, capsys):
     out = tmp_path / "paper.h5"
     assert main(["generate", "--preset", "paper-sim", "--duration", "20", "--workers", "1",
                  "--out", str(out), "--quiet"]) == 0
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         assert list(f.missions) == ["speed_1", "speed_2", "speed_3"]
         for speed, name in zip((1, 2, 3), ("speed_1", "speed_2", "speed_3"), strict=True):
             a = f.missions[name].attrs
@@ -174,7 +176,7 @@ def test_long_run_beam_noise_has_the_configured_std(tmp_path):
         missions=(MissionConfig(scenario=ScenarioConfig(speed=2.0, duration=1500.0), seed=9),))
     out = tmp_path / "noise.h5"
     write(config, out)
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["mission_000"]
         s, b = m.attrs["dvl_scale_factor"], m.attrs["dvl_bias"]
         residual = m.dvl.beam_velocity - m.dvl.beam_velocity_true * (1 + s) - b
@@ -214,7 +216,7 @@ gyro_noise_density = 1e-5
     out = tmp_path / "toml.h5"
     assert main(["generate", "--config", str(toml), "--out", str(out), "--workers", "1",
                  "--quiet"]) == 0
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         config = Config.from_json(f.attrs["config_json"])
         assert config.vehicle.model == "remus100"
         assert config.dvl.scale_factor == (0.001, 0.002, 0.003, 0.004)
@@ -238,8 +240,8 @@ def test_reader_refuses_a_mission_missing_a_field(tmp_path, ideal_file):
     broken.write_bytes(ideal_file.read_bytes())
     with h5py.File(broken, "r+") as f:
         del f["missions/mission_000/dvl/velocity"]
-    with pytest.raises(dataset.DatasetError, match="lacks dvl/velocity"):
-        dataset.open_dataset(broken)
+    with pytest.raises(DatasetError, match="lacks dvl/velocity"):
+        open_dataset(broken)
     assert main(["inspect", str(broken)]) == 2
 
 
@@ -311,7 +313,7 @@ cell_size = 2.0
     out = tmp_path / "map.h5"
     assert main(["generate", "--config", str(tmp_path / "map.toml"), "--out", str(out),
                  "--workers", "1", "--quiet"]) == 0
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["mission_000"]
         pos = m.truth.position_ned
         np.testing.assert_allclose(m.truth.altitude, 50.0 + 0.1 * pos[:, 1] - pos[:, 2],

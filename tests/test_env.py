@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import ScenarioConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.envs.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
 from auvsim.physics.frames import euler_angles, quat_to_rot
 from auvsim.runs.mission import MissionRun

@@ -7,7 +7,7 @@ import pytest
 from conftest import flat, mission
 
 from auvsim.config import Config, DepthConfig
-from auvsim.data import dataset
+from auvsim.data.schema import schema
 from auvsim.data.streams import STREAMS, imported_streams, mission_streams
 from auvsim.runs.mission import MissionRun
 from auvsim.sensors import Sensor, Truth, registry, sample_rows
@@ -22,12 +22,12 @@ def test_the_registry_finds_every_plugin_with_its_part_of_the_schema():
         assert set(sensor.streams) <= set(STREAMS)
         assert all(f.path.split("/")[0] in (name, "imu") for f in sensor.fields)
     # The file's schema is the core plus every plugin's fields and attributes.
-    fields, attrs = dataset.schema("simulated")
+    fields, attrs = schema("simulated")
     paths = {f.path for f in fields}
     assert {"depth/depth", "dvl/beam_velocity", "imu/specific_force", "truth/time"} <= paths
     assert {"depth_bias", "dvl_scale_factor", "imu_gyro_turn_on_bias"} <= {a.name for a in attrs}
     # Version-2 files have no depth group and still read.
-    assert "depth/depth" not in {f.path for f in dataset.schema("simulated", 2)[0]}
+    assert "depth/depth" not in {f.path for f in schema("simulated", 2)[0]}
 
 
 def test_streams_keep_their_positions_as_the_layout_grows():

@@ -13,8 +13,9 @@ import pytest
 from conftest import flat, mission
 
 from auvsim import cli as auvsim_cli
-from auvsim.data import dataset
-from auvsim.data.dataset import INDEX, SHARDS, data_files, open_dataset
+from auvsim.data.reader import dataset_paths, open_dataset
+from auvsim.data.schema import INDEX, SHARDS
+from auvsim.data.shards import data_files
 from auvsim.errors import DatasetError
 from auvsim.runs.generate import generate
 from beamsnet import cli as beamsnet_cli
@@ -30,7 +31,7 @@ def arrays(path) -> dict:
         for name, m in f.missions.items():
             out[name, "attrs"] = json.dumps({k: np.asarray(v).tolist()
                                              for k, v in sorted(m.attrs.items())})
-            for key in dataset._dataset_paths(m._group):
+            for key in dataset_paths(m._group):
                 out[name, key] = m.read(key)
     return out
 

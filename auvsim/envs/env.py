@@ -106,7 +106,8 @@ import gymnasium as gym
 import numpy as np
 
 from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
-from auvsim.data.dataset import Block, DatasetWriter
+from auvsim.data.reader import Block
+from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.control import autopilot
 from auvsim.physics.frames import EULER, STATE

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from auvsim.config import Config, MissionConfig
-from auvsim.data.dataset import core_block, mission_attrs
+from auvsim.data.schema import core_block, mission_attrs
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.maneuvers import check_scenario, make_maneuver
 from auvsim.world.seafloor import Seafloor
@@ -93,7 +93,7 @@ class MissionRun:
 
     @property
     def attrs(self) -> dict:
-        """The mission's attributes (``auvsim.data.dataset.mission_attrs``)."""
+        """The mission's attributes (``auvsim.data.schema.mission_attrs``)."""
         m = self.mission
         sensed = {}
         for sensor in self.sensors:

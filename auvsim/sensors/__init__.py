@@ -6,7 +6,7 @@ schema), the random streams it draws from, and ``measure``, a function of one bl
 truth and the sensor's noise stream. Every module of this package that defines ``SENSOR``
 is a plugin; ``registry`` finds them, so a new sensor is one new file here plus its
 config section (``auvsim.config``) and its tests. ``auvsim.runs.mission`` builds each plugin
-per mission and measures every block with it; ``auvsim.data.dataset`` reads the plugins'
+per mission and measures every block with it; ``auvsim.data.reader`` reads the plugins'
 fields to check a file.
 
 Block alignment: a sensor sampling every ``every`` IMU samples measures at the global IMU
@@ -40,7 +40,7 @@ class Field:
         doc: what it holds.
         imported: also written for a mission imported from a recorded stream.
         index_of: the values are row indices into this clock's fields.
-        since: the first schema version that holds it (``auvsim.data.dataset.FORMAT_VERSION``).
+        since: the first schema version that holds it (``auvsim.data.schema.FORMAT_VERSION``).
     """
 
     path: str
