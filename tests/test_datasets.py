@@ -369,3 +369,80 @@ def test_out_may_not_be_a_directory(tmp_path, capsys):
     assert main(["generate", "--duration", "5", "--out", str(tmp_path)]) == 2
     assert "is a directory" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+# -- schema v6: facts of the simulator stored in the file -------------------------------
+
+FACTS = flat(MissionConfig("zigzag", ScenarioConfig("zigzag", duration=60.0), 3),
+             MissionConfig("waypoints", ScenarioConfig("random_waypoints", duration=60.0,
+                                                          options={"radius_m": 60.0}), 4),
+             mission("straight", seed=5, duration=30.0))
+
+
+def _rebuilt(config: Config) -> tuple[dict[str, list], float]:
+    """The phases and gravity as beamsnet derived them before v6: the manoeuvre made
+    again from each mission's seed stream, the model's MJCF loaded."""
+    import mujoco
+
+    from auvsim.data.streams import mission_streams
+    from auvsim.physics.maneuvers import make_maneuver
+    from auvsim.physics.vehicle import model_path
+
+    phases = {m.name: make_maneuver(m.scenario, rng=mission_streams(m.seed)["maneuver"]).phases()
+              for m in config.missions}
+    gravity = -float(mujoco.MjModel.from_xml_path(str(model_path("auv"))).opt.gravity[2])
+    return phases, gravity
+
+
+@pytest.fixture(scope="module")
+def facts_file(dataset_of):
+    return dataset_of(FACTS, "facts")
+
+
+def test_missions_store_their_gravity_and_phases(facts_file):
+    phases, gravity = _rebuilt(FACTS)
+    with open_dataset(facts_file) as f:
+        assert f.version == 6
+        for name, m in f.missions.items():
+            assert m.gravity == gravity == 9.81
+            assert m.phases == phases[name] and m.phases
+            assert all(type(p) is tuple and len(p) == 3 for p in m.phases)
+        assert [p[2] for p in f.missions["zigzag"].phases] == ["straight", "zigzag"]
+        assert f.missions["straight"].phases == [(0.0, 30.0, "straight")]
+
+
+def test_a_version_5_file_derives_the_same_gravity_and_phases(facts_file, tmp_path):
+    old = tmp_path / "v5.h5"
+    old.write_bytes(facts_file.read_bytes())
+    with h5py.File(old, "r+") as f:
+        f.attrs["format_version"] = 5
+        for name in f["missions"]:
+            del f[f"missions/{name}"].attrs["gravity"], f[f"missions/{name}"].attrs["phases"]
+    with open_dataset(facts_file) as new, open_dataset(old) as f:
+        assert f.version == 5
+        for name, m in f.missions.items():
+            assert "phases" not in m.attrs
+            assert (m.gravity, m.phases) == (new.missions[name].gravity,
+                                              new.missions[name].phases)
+
+
+def test_a_version_5_file_whose_config_does_not_name_its_missions_has_no_phases(
+        facts_file, tmp_path):
+    old = tmp_path / "v5.h5"
+    old.write_bytes(facts_file.read_bytes())
+    with h5py.File(old, "r+") as f:
+        f.attrs["format_version"] = 5
+        f.attrs["config_json"] = ""
+        del f["missions/zigzag"].attrs["phases"], f["missions/zigzag"].attrs["gravity"]
+    with open_dataset(old) as f:
+        m = f.missions["zigzag"]
+        assert m.phases == [] and m.gravity == 9.81  # the default model's
+
+
+def test_a_version_6_file_without_gravity_is_refused(facts_file, tmp_path):
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(facts_file.read_bytes())
+    with h5py.File(bad, "r+") as f:
+        del f["missions/zigzag"].attrs["gravity"]
+    with pytest.raises(DatasetError, match="zigzag .*lacks attribute gravity"):
+        open_dataset(bad)

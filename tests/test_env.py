@@ -168,6 +168,7 @@ def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_pat
         assert m.truth.time.shape == (12000,) and m.dvl.time.shape == (120,)
         np.testing.assert_array_equal(m.imu.index_of_dvl, np.arange(120) * 100)
         assert m.attrs["duration_s"] == pytest.approx(120.0)
+        assert m.phases == [] and m.gravity == 9.81  # a policy flew it: no scripted phases
     windows = load_windows(path)  # BeamsNet reads what a policy flew
     assert len(windows.target) == 2 * (120 - 3)
     assert windows.accel.shape[1:] == (100, 3)

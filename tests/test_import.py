@@ -102,6 +102,8 @@ def test_cli_imports_several_files_as_missions_with_the_presets_dvl(npy, tmp_pat
         a = f.missions["V_test"].attrs
         assert a["seed"] == 5 and a["beam_angle_deg"] == 20.0  # paper-sim's DVL
         assert a["dvl_noise_std"] == pytest.approx(0.042**2)
+        # a recording of a DVL alone cannot know the gravity, and flew no scripted phases
+        assert f.missions["V_test"].gravity is None and f.missions["V_test"].phases == []
     assert auvsim_main(["inspect", str(out)]) == 0
     assert "imported from" in capsys.readouterr().out
 

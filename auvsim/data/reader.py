@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterator, Mapping
+from functools import lru_cache
 from pathlib import Path
 
 import h5py
@@ -21,7 +22,10 @@ from auvsim.data.schema import (
     ORIGINS,
     READABLE_VERSIONS,
     SHARDS,
+    Phases,
     Shard,
+    data_digest,
+    parse_phases,
     schema,
 )
 from auvsim.errors import DatasetError
@@ -102,6 +106,32 @@ class Mission:
         """Whether the mission holds this group (an imported one has only ``dvl``)."""
         return isinstance(self._group.get(group), h5py.Group)
 
+    @property
+    def gravity(self) -> float | None:
+        """The magnitude of gravity in the vehicle model that flew it, m/s^2: the
+        ``gravity`` attribute (schema v6), or for an older file the gravity of the model
+        its config names (the default ``auv`` if it names none), as it was read before v6.
+        None for an imported mission: a recording of a DVL alone cannot know it."""
+        if "gravity" in self.attrs:
+            return float(self.attrs["gravity"])
+        if self.origin == "imported":
+            return None
+        config = json.loads(self.dataset.config_json) if self.dataset.config_json else {}
+        return _model_gravity(config.get("vehicle", {}).get("model", "auv"))
+
+    @property
+    def phases(self) -> Phases:
+        """Its manoeuvre's phases, (start s, end s, label) each, in time order: the
+        ``phases`` attribute (schema v6), or for an older file the phases of the manoeuvre
+        made again from its config and seed, as they were before v6. Empty for a mission
+        without scripted phases: imported, flown by a policy (an environment's episode), or
+        from an older file whose config does not name exactly its missions."""
+        if "phases" in self.attrs:
+            return parse_phases(self.attrs["phases"])
+        if self.origin == "imported":
+            return []
+        return list(self.dataset._derived_phases().get(self.name, []))
+
     def __getattr__(self, group: str) -> Group:
         if group.startswith("_") or not self.has(group):
             raise AttributeError(f"mission {self.name} has no group {group!r}")
@@ -109,7 +139,10 @@ class Mission:
 
     def read(self, path: str) -> np.ndarray:
         """One field, whole; a field that fails its checksum or cannot be decoded is
-        refused with ``DatasetError`` naming the file, the mission and the field."""
+        refused with ``DatasetError`` naming the file, the mission and the field, and so
+        is any field of a shard whose data differ from its seal (``Dataset.check_seal``,
+        at the first read from each shard)."""
+        self.dataset.check_seal(self._group.file)
         return _read(self._where, path, self._dataset(path))
 
     def _dataset(self, path: str) -> h5py.Dataset:
@@ -143,14 +176,60 @@ class Dataset:
         self.missions: dict[str, Mission] = {}
         self.shards: list[Path] = []
         self._shard_files: dict[Path, h5py.File] = {}
+        self._phases: dict[str, Phases] | None = None
+        self._sealed_ok: set[str] = set()  # files whose data match their seal
 
     @property
     def config_json(self) -> str:
         return str(self.attrs.get("config_json", ""))
 
+    def _derived_phases(self) -> dict[str, Phases]:
+        """Every mission's phases rebuilt from the config (files before schema v6): its
+        manoeuvre made again from the mission's seed stream, as ``auvsim.runs.mission``
+        made it; none unless the config names exactly the file's missions."""
+        if self._phases is None:
+            self._phases = _rebuilt_phases(self.config_json, set(self.missions))
+        return self._phases
+
+    def digest(self) -> str:
+        """The digest of its missions' data (``auvsim.data.schema.data_digest``), every
+        field read: what a shard is sealed with."""
+        return data_digest(self._file)
+
+    def check_seal(self, file: h5py.File) -> None:
+        """Refuse a shard (a file sealed with ``data_sha256``) whose data no longer match
+        its seal: HDF5 recomputes a field's own checksum when a value is edited through
+        it, so only the digest of the whole shard tells. Each file is checked once, at the
+        first read from it (about 80 ms for a 600 s mission of the default sensors, the
+        cost of reading every field once more); opening stays cheap, whatever the number
+        of shards. Files without a seal (a single-file dataset) pass.
+
+        Raises:
+            DatasetError: the data differ from the seal, or a field is corrupt.
+        """
+        name = file.filename
+        if name in self._sealed_ok:
+            return
+        sealed = file.attrs.get("data_sha256")
+        if sealed is not None:
+            where = Path(name)
+
+            def read(key: str, ds: h5py.Dataset) -> np.ndarray:
+                mission, _, field = key.lstrip("/").partition("/")
+                origin = file["missions"][mission].attrs.get("origin", "simulated")
+                return _read(_where(where, mission, origin), field, ds)
+
+            if not isinstance(sealed, str) or data_digest(file, read) != sealed:
+                raise DatasetError(
+                    f"{where}: its data differ from the digest it was sealed with "
+                    "(data_sha256): the file was changed after auvsim wrote it; expected the "
+                    "data auvsim generate wrote (running it again makes the shard anew)")
+        self._sealed_ok.add(name)
+
     def verify(self) -> None:
         """Read every dataset of every mission (extra ones too), so each checksum is
-        verified; the first that fails is refused (``DatasetError``)."""
+        verified, and each shard's seal (``check_seal``); the first that fails is refused
+        (``DatasetError``)."""
         for mission in self.missions.values():
             for key in dataset_paths(mission._group):
                 mission.read(key)
@@ -319,8 +398,9 @@ def _shard_group(path: Path, f: h5py.File, name: str, records: dict[str, Shard],
     if shard not in dataset._shard_files:
         dataset.shards.append(shard)
         dataset._shard_files[shard] = file  # closed with the dataset
-    if file.attrs.get("format") != FORMAT or file.attrs.get("config_sha256") != \
-            records[name].config_sha256:
+    if (file.attrs.get("format") != FORMAT
+            or file.attrs.get("config_sha256") != records[name].config_sha256
+            or file.attrs.get("data_sha256") != records[name].data_sha256):
         raise DatasetError(f"{shard}: not the shard the index {path} lists (another config "
                            "or run wrote it since); expected the shards of one auvsim "
                            "generate run (running it again makes them agree)")
@@ -357,6 +437,13 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
         if not ok:
             raise DatasetError(f"{where}: attribute {a.name} is {_show(value)}; expected "
                                f"{expected}")
+    if "phases" in group.attrs and isinstance(group.attrs["phases"], str):
+        try:
+            parse_phases(group.attrs["phases"])
+        except ValueError as e:
+            raise DatasetError(f"{where}: attribute phases is {_show(group.attrs['phases'])}; "
+                               f"expected a JSON list of [start s, end s, label] ({_reason(e)})"
+                               ) from None
     rows: dict[str, tuple[int, str]] = {}
     for fl in fields:
         ds = group[fl.path]
@@ -404,6 +491,36 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
                     f"{where}: field {fl.path} row {k} is {index[k]}, the sample of "
                     f"{other_path} at {other[index[k]]:.9g} s, but {own_path} is "
                     f"{own[k]:.9g} s there; expected the index of the sample at that time")
+
+
+def _rebuilt_phases(config_json: str, names: set[str]) -> dict[str, Phases]:
+    # Imported here: only files before schema v6 need the simulator's config and
+    # manoeuvres, and reading a file should not load them.
+    from auvsim.config import Config
+    from auvsim.data.streams import mission_streams
+    from auvsim.errors import AuvsimError
+    from auvsim.physics.maneuvers import make_maneuver
+
+    try:
+        config = Config.from_json(config_json)
+    except (AuvsimError, ValueError, TypeError):
+        return {}
+    if {m.name for m in config.missions} != names:
+        return {}
+    return {m.name: [tuple(p) for p in make_maneuver(
+        m.scenario, rng=mission_streams(m.seed)["maneuver"]).phases()]
+        for m in config.missions}
+
+
+@lru_cache(maxsize=8)
+def _model_gravity(model: str) -> float:
+    """Gravity of a vehicle model (its MJCF ``option gravity``), m/s^2, for files before
+    schema v6. MuJoCo is imported here: only those files need it."""
+    import mujoco
+
+    from auvsim.physics.vehicle import model_path
+
+    return -float(mujoco.MjModel.from_xml_path(str(model_path(model))).opt.gravity[2])
 
 
 def _check_times(where: str, path: str, t: np.ndarray) -> None:

@@ -23,6 +23,9 @@ layout in ``auvsim.data.shards`` and ``auvsim inspect``'s summary in
 from __future__ import annotations
 
 import hashlib
+import json
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
 
@@ -39,9 +42,15 @@ FORMAT = "auvsim-dataset"
 # error velocity and mode, and the new realised sensor parameters (each ``Field`` and
 # ``Attr`` says ``since=4``). Version 5 = version 4 + sharded datasets: shard files carry
 # the root attributes ``config_sha256`` and ``data_sha256`` (``data_digest``), and an index
-# file (root attribute ``layout = "index"``) links their missions. Older files are read.
-FORMAT_VERSION = 5
-READABLE_VERSIONS = (1, 2, 3, 4, 5)
+# file (root attribute ``layout = "index"``) links their missions. Version 6 = version 5 +
+# two attributes of every simulated mission, facts a reader would otherwise re-derive from
+# the simulator: ``gravity`` (m/s^2, the magnitude of the vehicle model's gravity, from
+# its compiled MJCF) and ``phases`` (its manoeuvre's phases, ``phases_json``). Older files
+# are read; ``auvsim.data.reader.Mission`` derives both for them as before (``gravity``
+# from the model file named by the config, ``phases`` by making the manoeuvre again from
+# the mission's seed).
+FORMAT_VERSION = 6
+READABLE_VERSIONS = (1, 2, 3, 4, 5, 6)
 INDEX = "index.h5"  # a sharded dataset's index, in its folder
 SHARDS = "shards"  # the folder of its shards, beside the index
 ORIGINS = ("simulated", "imported")
@@ -75,6 +84,11 @@ CORE_ATTRS = (
          "(before its variation in time and space; auvsim.physics.water)", low=0, since=4),
     Attr("water_direction_deg", (), "REALISED direction the surface current flows toward, "
          "deg from north", since=4),
+    Attr("gravity", (), "m/s^2, magnitude of the vehicle model's gravity (its compiled MJCF's "
+         "opt.gravity, pointing down)", low=0, strict=True, since=6),
+    Attr("phases", None, "the manoeuvre's phases, a JSON list of [start s, end s, label] "
+         "(auvsim.physics.maneuvers.Maneuver.phases; [] for a mission flown by a policy, "
+         "such as an environment's episode)", since=6),
 )
 IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
                 Attr("source_sha256", None, "its SHA-256"))
@@ -101,6 +115,36 @@ def core_block(truth: Truth, *, propeller_rpm: np.ndarray, thrust: np.ndarray,
         "control/rudder": rudder,
         "control/stern_planes": stern_planes,
     }
+
+
+Phases = list[tuple[float, float, str]]
+
+
+def phases_json(phases: Sequence[tuple[float, float, str]]) -> str:
+    """A mission's ``phases`` attribute: (start s, end s, label) each, as a JSON list of
+    lists (floats written exactly: ``parse_phases`` gives them back bit for bit)."""
+    return json.dumps([[float(start), float(end), str(label)] for start, end, label in phases])
+
+
+def parse_phases(text: str) -> Phases:
+    """The phases a ``phases`` attribute holds (``phases_json``).
+
+    Raises:
+        ValueError: the text is not a JSON list of [start, end, label], finite numbers
+            with start <= end and a string.
+    """
+    items = json.loads(text)
+    if not isinstance(items, list):
+        raise ValueError(f"expected a list of phases, got {type(items).__name__}")
+    out = []
+    for item in items:
+        if not (isinstance(item, list) and len(item) == 3
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                        and math.isfinite(v) for v in item[:2])
+                and item[0] <= item[1] and isinstance(item[2], str)):
+            raise ValueError(f"expected [start s, end s, label], got {item!r}")
+        out.append((float(item[0]), float(item[1]), item[2]))
+    return out
 
 
 @cache
@@ -149,10 +193,18 @@ class Shard:
     data_sha256: str
 
 
-def data_digest(file: h5py.File) -> str:
+def data_digest(file: h5py.File,
+                read: Callable[[str, h5py.Dataset], np.ndarray] | None = None) -> str:
     """SHA-256 of a dataset file's missions: every mission's attributes and the values of
     every field (dtype, shape and bytes, by path in name order). The same data give the
-    same digest however, whenever and wherever they were written."""
+    same digest however, whenever and wherever they were written.
+
+    Args:
+        file: the open file.
+        read: reads a field whole, given its path under ``missions`` (``/<mission>/<group>
+            /<field>``) and its dataset (a reader's, to refuse a corrupt one in its words);
+            default ``dataset[()]``.
+    """
     digest = hashlib.sha256()
 
     def add(group: h5py.Group, prefix: str) -> None:
@@ -166,7 +218,8 @@ def data_digest(file: h5py.File) -> str:
             if isinstance(item, h5py.Group):
                 add(item, f"{prefix}/{key}")
             else:
-                values = np.ascontiguousarray(item[()])
+                values = np.ascontiguousarray(item[()] if read is None
+                                              else read(f"{prefix}/{key}", item))
                 digest.update(f"{prefix}/{key}:{values.dtype.str}{values.shape}".encode())
                 digest.update(values.tobytes())
 

@@ -19,7 +19,7 @@ import h5py
 
 from auvsim import __version__
 from auvsim.data.reader import open_dataset
-from auvsim.data.schema import FORMAT, FORMAT_VERSION, SHARDS, Shard, data_digest
+from auvsim.data.schema import FORMAT, FORMAT_VERSION, SHARDS, Shard
 from auvsim.errors import DatasetError
 
 
@@ -33,10 +33,12 @@ def shard_state(path: str | os.PathLike, config_sha256: str) -> Shard | None:
         return None
     try:
         with open_dataset(path) as f:
-            attrs, file = f.attrs, f._file
-            if attrs.get("config_sha256") != config_sha256 or "data_sha256" not in attrs:
+            attrs = f.attrs
+            # An older auvsim's shard lacks what this version's index promises its readers.
+            if (attrs.get("config_sha256") != config_sha256 or "data_sha256" not in attrs
+                    or f.version != FORMAT_VERSION):
                 return None
-            if data_digest(file) != attrs["data_sha256"]:
+            if f.digest() != attrs["data_sha256"]:
                 return None
             return Shard(path.name, tuple(f.missions), config_sha256, attrs["data_sha256"])
     except (DatasetError, OSError, KeyError, ValueError, TypeError, RuntimeError):
