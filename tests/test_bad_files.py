@@ -23,7 +23,7 @@ from conftest import flat, mission, write
 
 from auvsim.cli import main
 from auvsim.config import DvlConfig
-from auvsim.data.reader import open_dataset
+from auvsim.data.reader import open_dataset, require_usable_beams
 from auvsim.errors import DatasetError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -435,14 +435,18 @@ def test_a_v1_file_without_origin_still_opens(good, tmp_path, capsys):
 
 
 def test_valid_but_unusual_data_is_not_refused(good, tmp_path, capsys):
-    """All-NaN DVL velocity (no bottom lock anywhere), extra fields, groups and
-    attributes, unsigned indices: valid, so inspected and drawn."""
+    """NaN DVL velocity on all but the last ping (no bottom lock), extra fields, groups
+    and attributes, unsigned indices: valid, so inspected and drawn."""
     def odd(f):
         n = rows(f, f"{M}/dvl/time")
         for key in ("dvl/velocity", "dvl/velocity_ls", "dvl/beam_velocity",
                     "dvl/beam_velocity_true", "dvl/beam_range"):
-            replace(f, f"{M}/{key}", np.full(f[f"{M}/{key}"].shape, np.nan))
-        replace(f, f"{M}/dvl/valid", np.zeros((n, 4), dtype=bool))
+            values = f[f"{M}/{key}"][()]
+            values[:-1] = np.nan
+            replace(f, f"{M}/{key}", values)
+        valid = np.zeros((n, 4), dtype=bool)
+        valid[-1] = True
+        replace(f, f"{M}/dvl/valid", valid)
         replace(f, f"{M}/imu/index_of_dvl", f[f"{M}/imu/index_of_dvl"][()].astype(np.uint32))
         f[f"{M}/notes"] = np.arange(3)  # a dataset beside the groups
         f[f"{M}/extra/thing"] = np.zeros(2)  # a group of someone's own
@@ -453,6 +457,61 @@ def test_valid_but_unusual_data_is_not_refused(good, tmp_path, capsys):
     path = edited(good, tmp_path, odd)
     pngs = inspect_and_plot(path, tmp_path, capsys)
     assert [p.name for p in pngs] == ["edited_m0.png"]
+
+
+@pytest.mark.parametrize("flagged", [True, False])
+def test_a_mission_without_one_usable_beam_is_described_so_and_not_drawn(
+        good, tmp_path, capsys, flagged):
+    """Every beam velocity NaN, flagged valid (an edited file, a recording) or not: no
+    beam counts as valid, and a consumer that needs beams refuses the mission."""
+    def no_beams(f):
+        replace(f, f"{M}/dvl/beam_velocity", np.full(f[f"{M}/dvl/beam_velocity"].shape, np.nan))
+        replace(f, f"{M}/dvl/valid", np.full(f[f"{M}/dvl/valid"].shape, flagged))
+
+    path = edited(good, tmp_path, no_beams)
+    assert main(["inspect", str(path)]) == 0
+    assert "0.0 % of beams valid, 0.0 % of pings solvable" in capsys.readouterr().out
+    with open_dataset(path) as f, pytest.raises(DatasetError, match=(
+            r"mission m0 \(simulated\): no usable beam in its 6 pings \(every beam is "
+            r"flagged invalid or its velocity is NaN\)")):
+        require_usable_beams(f.missions["m0"])
+    out = tmp_path / "png"
+    assert main(["plot", str(path), "--out", str(out)]) == 2
+    assert "no usable beam" in one_error_line(capsys, path)
+    assert not out.exists()
+
+
+def test_inspect_sweeps_what_ended_runs_left_and_names_the_rest(good, tmp_path, capsys):
+    """After kill -9 a run's temporaries stay beside its output: readers ignore them,
+    inspect removes those of ended runs (their lock is free) and names the others in one
+    line with the command that removes them."""
+    from auvsim.data import files
+
+    folder = tmp_path / "out"
+    folder.mkdir()
+    path = folder / "good.h5"
+    shutil.copy(good, path)
+    dead = folder / f".good.h5.{files.TAG}.{files.HOST}.999999999"
+    for made in (dead, dead.with_name(dead.name + ".lock")):
+        made.write_bytes(b"half a file")  # nobody holds its lock: its run ended
+    dead.with_name(dead.name + ".parts").mkdir()
+    elsewhere = folder / f".good.h5.{files.TAG}.another-host.7"
+    elsewhere.write_bytes(b"")
+    other_output = folder / f".other.h5.{files.TAG}.another-host.7"
+    other_output.write_bytes(b"")
+    with open_dataset(path) as f:
+        assert list(f.missions) == ["m0"]
+    with files.Claim(path) as live:  # a run writing there now
+        assert main(["inspect", str(path)]) == 0
+        text = capsys.readouterr().out
+        assert sorted(folder.iterdir()) == sorted(
+            [path, elsewhere, other_output, live.file.with_name(live.file.name + ".lock")])
+        note = text.splitlines()[-1]
+        assert note.startswith("note: 2 temporary file(s) of another auvsim run")
+        assert note.endswith(f"rm -rf {folder}/.*.{files.TAG}.*")
+    elsewhere.unlink()
+    assert main(["inspect", str(path)]) == 0
+    assert "note:" not in capsys.readouterr().out
 
 
 def test_a_one_ping_mission_draws(good, tmp_path, capsys):

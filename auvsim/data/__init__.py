@@ -2,12 +2,15 @@
 sharded datasets (``shards``), ``auvsim inspect``'s summary (``describe``), the random
 streams (``streams``), atomic outputs (``files``) and imported logs (``importer``).
 
-``open_dataset`` is importable from here (and from ``auvsim``); it is loaded when first
-asked for, so that importing ``auvsim.data.files`` stays light.
+``open_dataset`` is importable from here (and from ``auvsim``), with
+``require_usable_beams``, which refuses a mission with no usable DVL beam in one line;
+they are loaded when first asked for, so that importing ``auvsim.data.files`` stays
+light.
 """
 
 _PUBLIC = {"open_dataset": "auvsim.data.reader", "Dataset": "auvsim.data.reader",
-           "Mission": "auvsim.data.reader", "describe": "auvsim.data.describe"}
+           "Mission": "auvsim.data.reader", "require_usable_beams": "auvsim.data.reader",
+           "describe": "auvsim.data.describe"}
 __all__ = list(_PUBLIC)
 
 

@@ -29,6 +29,7 @@ from auvsim.data.schema import (
     schema,
 )
 from auvsim.errors import DatasetError
+from auvsim.sensors.dvl import usable_beams
 
 
 class Block:
@@ -599,6 +600,22 @@ def _reason(e: BaseException) -> str:
 
 def _plain(attrs) -> dict:
     return {k: v.item() if isinstance(v, np.generic) else v for k, v in attrs.items()}
+
+
+def require_usable_beams(mission: Mission) -> np.ndarray:
+    """(M, 4) bool: the mission's usable beams (flagged valid, with a finite velocity;
+    ``auvsim.sensors.dvl.usable_beams``), for a consumer that needs some to work on (a
+    plot, training, an evaluation).
+
+    Raises:
+        DatasetError: not one beam of the mission is usable, in one line naming it.
+    """
+    usable = usable_beams(mission.dvl.valid, mission.dvl.beam_velocity)
+    if not usable.any():
+        raise DatasetError(f"{mission._where}: no usable beam in its {len(usable)} pings "
+                           "(every beam is flagged invalid or its velocity is NaN); expected "
+                           "at least one valid, finite beam velocity")
+    return usable
 
 
 def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:

@@ -32,7 +32,7 @@ from functools import cache
 import h5py
 import numpy as np
 
-from auvsim.sensors import Attr, Field, Truth, registry
+from auvsim.sensors import Attr, Field, Sensor, Truth, registry
 
 FORMAT = "auvsim-dataset"
 # Version 2 = version 1 + a mission attribute ``origin``, which lets a mission imported from
@@ -147,12 +147,17 @@ def parse_phases(text: str) -> Phases:
     return out
 
 
-@cache
 def schema(origin: str, version: int = FORMAT_VERSION) -> tuple[tuple[Field, ...],
                                                                  tuple[Attr, ...]]:
     """The fields and attributes every mission of this origin holds in a file of this
-    format version (extra ones are allowed)."""
-    sensors = [s for s in registry().values() if s.since_version <= version]
+    format version (extra ones are allowed): the core's and the sensor plugins'."""
+    return _schema(origin, version, tuple(registry().values()))
+
+
+@cache
+def _schema(origin: str, version: int, plugins: tuple[type[Sensor], ...]
+            ) -> tuple[tuple[Field, ...], tuple[Attr, ...]]:
+    sensors = [s for s in plugins if s.since_version <= version]
     fields = tuple(f for f in CORE_FIELDS + tuple(f for s in sensors for f in s.fields)
                    if f.since <= version)
     attrs = tuple(a for a in CORE_ATTRS + tuple(a for s in sensors for a in s.attributes)
