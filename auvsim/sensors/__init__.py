@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import threading
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
@@ -215,6 +216,7 @@ def shown(values: Any, precision: int = 6) -> str:
 
 
 _found: dict[str, type[Sensor]] = {}  # the package's plugins, once imported
+_finding = threading.Lock()
 _added: dict[str, type[Sensor]] = {}  # plugins registered from elsewhere
 
 
@@ -223,11 +225,14 @@ def registry() -> dict[str, type[Sensor]]:
     given to ``register``, by name, in name order: the order ``auvsim.runs.mission``
     measures them in."""
     if not _found:
-        for info in pkgutil.iter_modules(__path__):
-            module = importlib.import_module(f"{__name__}.{info.name}")
-            sensor = getattr(module, "SENSOR", None)
-            if sensor is not None:
-                _found[sensor.name] = sensor
+        with _finding:  # threads of a worker ask at once: none may see a partial list
+            found = {}
+            for info in pkgutil.iter_modules(__path__):
+                module = importlib.import_module(f"{__name__}.{info.name}")
+                sensor = getattr(module, "SENSOR", None)
+                if sensor is not None:
+                    found[sensor.name] = sensor
+            _found.update(found)
     return dict(sorted({**_found, **_added}.items()))
 
 
