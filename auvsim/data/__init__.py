@@ -9,8 +9,7 @@ light.
 """
 
 _PUBLIC = {"open_dataset": "auvsim.data.reader", "Dataset": "auvsim.data.reader",
-           "Mission": "auvsim.data.reader", "require_usable_beams": "auvsim.data.reader",
-           "describe": "auvsim.data.describe"}
+           "Mission": "auvsim.data.reader", "require_usable_beams": "auvsim.data.reader"}
 __all__ = list(_PUBLIC)
 
 
