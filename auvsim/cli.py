@@ -235,7 +235,7 @@ def _presets(args: argparse.Namespace) -> None:
 
 
 def _inspect(args: argparse.Namespace) -> None:
-    from auvsim.data.dataset import describe
+    from auvsim.data.describe import describe
 
     print(without_negative_zero(describe(args.file)))
 

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.dataset import Mission, open_dataset
 from auvsim.data.files import all_or_nothing, check_out_dir, make_out_dir, write_bytes
+from auvsim.data.reader import Mission, open_dataset, require_usable_beams
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.frames import euler_angles
 from auvsim.sensors.dvl import Mode, Status
@@ -59,6 +59,8 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
                               f"{', '.join(group) or 'no missions'}", argument="missions")
         if not names:
             raise DatasetError(f"{path}: no missions to draw")
+        for name in names:
+            require_usable_beams(group[name])
         pngs = {out / f"{path.stem}_{name}.png": _render(group[name], path)
                 for name in names}
     with all_or_nothing():  # a full disk at the third figure leaves none
@@ -191,15 +193,30 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
         _draw_water(m, axes[3, 0], axes[3, 1])
 
 
+# The colours of the first status codes (``Status``), chosen to read: ok green, the
+# geometry's greys, faults warm.
+STATUS_COLOURS = ("tab:green", "lightgrey", "dimgrey", "tab:orange", "tab:brown", "tab:red",
+                  "black", "tab:purple", "tab:blue", "gold")
+
+
+def status_colours(n: int) -> list:
+    """A colour for each of ``n`` status codes (``len(Status)``): ``STATUS_COLOURS`` first,
+    then hues spread by the golden ratio, distinct for any number of codes."""
+    from matplotlib.colors import hsv_to_rgb
+
+    extra = [tuple(hsv_to_rgb(((k * 0.618033988749895) % 1.0, 0.65, 0.85)))
+             for k in range(max(0, n - len(STATUS_COLOURS)))]
+    return [*STATUS_COLOURS[:n], *extra]
+
+
 def _draw_status(ax, status: np.ndarray, extent) -> None:
     """The beams' reason codes (``Status``) over time, one colour per code, with a legend
     of the codes that occur and their shares."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    colours = ("tab:green", "lightgrey", "dimgrey", "tab:orange", "tab:brown", "tab:red",
-               "black", "tab:purple", "tab:blue", "gold")
-    cmap = ListedColormap(colours[:len(Status)])
+    colours = status_colours(len(Status))
+    cmap = ListedColormap(colours)
     ax.imshow(status.T, aspect="auto", interpolation="nearest", cmap=cmap, vmin=-0.5,
               vmax=len(Status) - 0.5, extent=extent)
     counts = np.bincount(status.ravel().clip(0, len(Status) - 1), minlength=len(Status))

@@ -23,7 +23,7 @@ instead: every ping with its IMU interval, beams without bottom lock as NaN, and
 water-track beams as the instrument reports them, so that it can score what an estimator
 makes of a ping it cannot fully use.
 
-The file is read only through ``auvsim.data.dataset.open_dataset``, the one module that knows
+The file is read only through ``auvsim.data.open_dataset``, the one reader that knows
 the file format and checks it; its ``Mission`` views give the arrays by name.
 """
 
@@ -37,7 +37,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 from auvsim.sensors.dvl import beam_matrix
 
@@ -219,7 +219,7 @@ def check_truth(windows: Windows, dataset: str | os.PathLike) -> None:
 
 def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
                      every_ping: bool = False) -> dict:
-    """The samples of one mission (an ``auvsim.data.dataset.Mission``), as a dict of Windows
+    """The samples of one mission (an ``auvsim.data.reader.Mission``), as a dict of Windows
     fields."""
     beams = m.dvl.beam_velocity
     n_pings = len(beams)

@@ -190,7 +190,7 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
         DataError: with ``strict``, the file has no IMU record (one line saying so);
             without, that filter is left out.
     """
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
     from beamsnet.estimators.ins import InsDvlFilter, NoImuError
 
     with open_dataset(dataset) as f:
@@ -450,7 +450,7 @@ def _check_same_beams(train, train_windows: Windows, dataset, windows: Windows) 
 
 def _has_truth(dataset, missions) -> bool:
     """Whether every one of ``missions`` of ``dataset`` has a truth group (one open)."""
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
         return all(f.missions[name].has("truth") for name in missions)

@@ -29,16 +29,10 @@ from pathlib import Path
 from generation import wall_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import MissionConfig, ScenarioConfig
-from auvsim.data.dataset import (
-    INDEX,
-    SHARDS,
-    DatasetWriter,
-    _dataset_paths,
-    copy_mission,
-    open_dataset,
-    shard_state,
-    write_index,
-)
+from auvsim.data.reader import dataset_paths, open_dataset
+from auvsim.data.schema import INDEX, SHARDS
+from auvsim.data.shards import shard_state, write_index
+from auvsim.data.writer import DatasetWriter, copy_mission
 from auvsim.runs.cluster import THREADS, executor
 from auvsim.runs.generate import config_sha256, generate, shard_config, shard_plan
 from auvsim.runs.presets import preset
@@ -47,7 +41,7 @@ from auvsim.runs.presets import preset
 def read_all(path: Path) -> None:
     with open_dataset(path) as f:
         for m in f.missions.values():
-            for key in _dataset_paths(m._group):
+            for key in dataset_paths(m._group):
                 m.read(key)
 
 

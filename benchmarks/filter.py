@@ -26,7 +26,7 @@ from pathlib import Path
 from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.runs.generate import generate
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.estimators import ins

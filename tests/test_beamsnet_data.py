@@ -10,7 +10,7 @@ import pytest
 from conftest import flat, mission, write
 
 from auvsim.config import DvlConfig, ImuConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from beamsnet.data import DataError, Windows, load_windows, select, split
 
 CONFIG = flat(mission("a", 1, speed=2.0, duration=120.0), mission("b", 2, speed=1.0, duration=80.0),

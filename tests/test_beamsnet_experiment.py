@@ -11,7 +11,7 @@ from conftest import flat, mission
 
 import beamsnet.training.train
 from auvsim.config import DvlConfig
-from auvsim.data.dataset import read_attrs
+from auvsim.data.reader import read_attrs
 from beamsnet.experiments.runner import ensure_dataset, train_runs
 from beamsnet.training.train import DivergedError, TrainConfig, load
 

@@ -17,7 +17,8 @@ import pytest
 from conftest import flat, mission
 
 from auvsim import cli
-from auvsim.data import dataset, files
+from auvsim.data import files, shards, writer
+from auvsim.data.reader import open_dataset
 from beamsnet import cli as bcli
 
 FULL = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
@@ -37,7 +38,7 @@ def _disk_fills_as_data_is_written(monkeypatch) -> None:
     def full(self, key, rows):
         raise OSError(errno.ENOSPC, "Can't write data (file write failed: errno = 28)")
 
-    monkeypatch.setattr(dataset.MissionWriter, "_write", full)
+    monkeypatch.setattr(writer.MissionWriter, "_write", full)
 
 
 def _one_line(capsys, *needles: str) -> str:
@@ -61,7 +62,7 @@ def test_full_disk_as_the_file_is_made(tmp_path, capsys, monkeypatch):
     def full(*args, **kwargs):
         raise FULL
 
-    monkeypatch.setattr(dataset.h5py, "File", full)
+    monkeypatch.setattr(writer.h5py, "File", full)
     assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.h5")]) == 2
     _one_line(capsys, "No space left on device")
     assert list(tmp_path.iterdir()) == []
@@ -76,7 +77,7 @@ def test_full_disk_generate_sharded(tmp_path, capsys, monkeypatch):
 
 
 def test_full_disk_as_the_index_is_written(tmp_path, capsys, monkeypatch):
-    real = dataset.write_index
+    real = shards.write_index
 
     def full(path, *args, **kwargs):
         real(path, *args, **kwargs)
@@ -191,7 +192,7 @@ def test_ctrl_c_as_the_output_is_renamed(tmp_path, capsys, monkeypatch):
     err = _one_line(capsys, "auvsim: interrupted")
     assert os.listdir(tmp_path) == ["x.h5"]  # no temporary, no lock
     assert f"{out} had been written whole" in err
-    with dataset.open_dataset(out, verify=True) as f:  # and it is whole
+    with open_dataset(out, verify=True) as f:  # and it is whole
         assert list(f.missions) == ["mission_000"]
 
 
@@ -202,7 +203,7 @@ def test_ctrl_c_before_the_rename_leaves_nothing(tmp_path, capsys, monkeypatch):
         real(self)
         raise KeyboardInterrupt  # as the file is closed, before the rename
 
-    monkeypatch.setattr(dataset.h5py.File, "close", close)
+    monkeypatch.setattr(writer.h5py.File, "close", close)
     assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.h5")]) == 130
     monkeypatch.undo()
     assert capsys.readouterr().err == "auvsim: interrupted; nothing was written\n"
@@ -301,7 +302,7 @@ def test_help_is_for_users(command, capsys):
 
 
 def test_inspect_never_prints_a_negative_zero(small, capsys, monkeypatch):
-    from auvsim.data import dataset as ds
+    from auvsim.data import describe as ds
 
     real = ds.describe
     monkeypatch.setattr(ds, "describe", lambda path: real(path) + "\n  bias [-0.,  0.01] "
@@ -323,7 +324,7 @@ def test_the_mission_plot_says_what_it_plots(small):
 
     from auvsim import plot
 
-    with dataset.open_dataset(small) as f:
+    with open_dataset(small) as f:
         m = f.missions["a"]
         fig, axes = plt.subplots(4, 2, figsize=(15, 12.8), layout="constrained")
         plot._draw(m, axes)

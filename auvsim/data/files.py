@@ -35,11 +35,12 @@ import errno
 import fcntl
 import os
 import re
+import shlex
 import shutil
 import signal
 import socket
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -142,6 +143,38 @@ def sweep(folder: str | os.PathLike) -> None:
             pass
         finally:
             os.close(fd)
+
+
+def leftovers(folder: str | os.PathLike, *, name: str | None = None,
+              swept: bool = True) -> list[Path]:
+    """The temporaries of auvsim runs in ``folder`` (of the output ``name`` only, if
+    given): the files and folders named ``.<output>.auvsim-tmp.*``, which readers ignore.
+    With ``swept``, those of this host's ended runs are removed first (``sweep``: only
+    claims whose lock nobody holds), so what is left belongs to a run still writing, or
+    to one that ended on another host.
+
+    Returns:
+        Their paths, in name order.
+    """
+    folder = Path(folder)
+    if swept:
+        sweep(folder)
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return []
+    prefix = "." if name is None else f".{name}."
+    return [folder / n for n in names if n.startswith(prefix) and f".{TAG}." in n]
+
+
+def leftovers_note(found: Sequence[Path]) -> str:
+    """One line on temporaries that ``leftovers`` found: what they are, and the command
+    that removes them."""
+    folders = sorted({str(p.parent) for p in found})
+    globs = " ".join(f"{shlex.quote(f)}/.*.{TAG}.*" for f in folders)
+    return (f"note: {len(found)} temporary file(s) of another auvsim run beside the data "
+            "(still writing, or ended on another host), which readers ignore; once no run "
+            f"writes there, remove them: rm -rf {globs}")
 
 
 def _lock(file: Path) -> Path:

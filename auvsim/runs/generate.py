@@ -6,9 +6,9 @@ file. With one worker the missions run in this process, two at a time on threads
 straight into the output; with more (or with an executor or a Dask cluster given), each
 runs as a job of a ``concurrent.futures`` executor into a part file of its own, and the
 dataset is then assembled in mission order by copying those missions
-(``auvsim.data.dataset.copy_mission``). A sharded dataset needs no copy: each job writes its
+(``auvsim.data.writer.copy_mission``). A sharded dataset needs no copy: each job writes its
 shard into the output folder, sealed with its config's hash and its data's digest, and
-the index is written last (``auvsim.data.dataset.write_index``); running again keeps the
+the index is written last (``auvsim.data.shards.write_index``); running again keeps the
 shards that are whole and this config's (resume). So memory stays flat in mission
 length, and the output is the same whatever the number of workers.
 
@@ -50,16 +50,6 @@ from tqdm import tqdm
 
 from auvsim import __version__
 from auvsim.config import Config
-from auvsim.data.dataset import (
-    INDEX,
-    SHARDS,
-    Block,
-    DatasetWriter,
-    Shard,
-    copy_mission,
-    shard_state,
-    write_index,
-)
 from auvsim.data.files import (
     HOST,
     Claim,
@@ -71,6 +61,10 @@ from auvsim.data.files import (
     sweep,
     writing,
 )
+from auvsim.data.reader import Block
+from auvsim.data.schema import INDEX, SHARDS, Shard
+from auvsim.data.shards import shard_state, write_index
+from auvsim.data.writer import DatasetWriter, copy_mission
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
 from auvsim.runs.cluster import check_address, lost_worker
@@ -201,7 +195,7 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
             every worker reaches.
         shards: missions per shard of a sharded dataset in the folder ``out``: one HDF5
             file per shard in ``out/shards/`` and an index ``out/index.h5`` that reads as
-            one dataset (``auvsim.data.dataset.write_index``). Default 1 when ``out`` names a
+            one dataset (``auvsim.data.shards.write_index``). Default 1 when ``out`` names a
             folder; one file otherwise. Running again into the same folder keeps every
             shard that is complete and holds this config's data (its config hash and data
             digest say so) and makes the others.

@@ -196,8 +196,8 @@ def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
     """
     import hashlib
 
-    from auvsim.data.dataset import open_dataset
     from auvsim.data.importer import import_velocity
+    from auvsim.data.reader import open_dataset
     from auvsim.errors import ConfigError
     from auvsim.runs.presets import preset
 
@@ -325,7 +325,7 @@ def _averaging(epochs: int) -> str:
 def _noise_floor(data: Path, mission: str) -> float:
     """Forward-speed error (m/s) that the beam noise leaves in least squares: the x row of
     (H^T H)^-1 for a Janus DVL is sigma^2 / (2 sin^2 alpha)."""
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
 
     with open_dataset(data) as f:
         attrs = f.missions[mission].attrs

@@ -206,7 +206,7 @@ def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
     """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
     (S, 3, 3), yaw rate (S,), the rate of change of the true DVL-frame velocity since
     the previous ping (S,) and the true position (S, 3, m NED)."""
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
     from auvsim.physics.frames import rotation_matrices, rotation_rpy
 
     parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
@@ -295,7 +295,7 @@ def _table(windows: Windows, estimates: dict[str, np.ndarray],
 def _config(path: Path):
     """The generating config of a dataset, or None (a recording or an import)."""
     from auvsim.config import Config
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
     from auvsim.errors import AuvsimError
 
     with open_dataset(path) as f:
