@@ -155,6 +155,7 @@ def run_block(block: Block, folder: Path) -> None:
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     env["MPLBACKEND"] = "Agg"
+    env["REPO"] = str(ROOT)  # for a replace rule that runs a script of the repository
     if block.lang == "sh":
         argv = ["bash", "-e", "-o", "pipefail", "-c", code]
     else:
@@ -252,3 +253,23 @@ def test_directives_are_parsed() -> None:
         found[2].options()
     with pytest.raises(ValueError, match="not in the block"):
         found[3].source()
+
+
+def test_benchmark_pages_name_their_command() -> None:
+    """A benchmark's page starts with the command that made it (without --write) and the
+    date, and holds its output verbatim."""
+    import datetime
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import perf_page
+    finally:
+        sys.path.pop(0)
+    argv = [str(ROOT / "benchmarks" / "generation.py"), "--duration", "5", "--write",
+            "out.md", "--repeats", "1"]
+    text = perf_page.page("line 1\nline 2\n", argv, datetime.date(2026, 12, 3))
+    assert text.startswith("Made by `.venv/bin/python benchmarks/generation.py --duration 5 "
+                           "--repeats 1` on 2026-12-03")
+    assert "```text\nline 1\nline 2\n```" in text
+    for path in sorted((ROOT / "docs" / "performance" / "results").glob("*.md")):
+        assert path.read_text().startswith("Made by `.venv/bin/python benchmarks/"), path
