@@ -50,6 +50,10 @@ class CheckpointError(AuvsimError):
     """A run directory or checkpoint is missing, corrupt, or not a beamsnet checkpoint."""
 
 
+class OutputError(AuvsimError):
+    """An output cannot be written: a full disk, a quota, a read-only or vanished folder."""
+
+
 class SimulationError(AuvsimError):
     """A mission cannot go on as configured (for example the vehicle reached the seafloor)."""
 

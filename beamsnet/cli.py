@@ -8,7 +8,8 @@ import sys
 import warnings
 from pathlib import Path
 
-from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
+from auvsim.cli_support import run_command
+from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.evaluate import SensorSetupWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
@@ -288,21 +289,21 @@ def _warn(message, category, filename, lineno, file=None, line=None) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run a command line; returns the exit status: 0, 2 on an error, 130 on Ctrl-C or
+    SIGTERM, 141 when the reader of its output has gone (``auvsim.cli_support``)."""
     args = _parser().parse_args(argv)
+
+    def command() -> None:
+        if getattr(args, "cluster", None) is not None:
+            check_address(args.cluster)  # before any data is read or made
+        {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
+         "reproduce": _reproduce, "stress": _stress}[args.command](args)
+
     with warnings.catch_warnings():
         warnings.showwarning = _warn
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
-        try:
-            if getattr(args, "cluster", None) is not None:
-                check_address(args.cluster)  # before any data is read or made
-            {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
-             "reproduce": _reproduce,
-             "stress": _stress}[args.command](args)
-        except AuvsimError as e:
-            print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
-            return 2
-    return 0
+        return run_command("beamsnet", command, FLAGS)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ import h5py
 import numpy as np
 
 from auvsim import __version__
-from auvsim.data.files import Claim
+from auvsim.data.files import Claim, commit, interrupts_held, is_write_error, output_error, writing
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.sensors import Attr, Field, Truth, registry
 
@@ -171,7 +171,8 @@ class DatasetWriter:
         try:
             # No chunk cache: whole chunks are written at once, so caching them would only
             # defer their compression to the close, outside the physics/sensors overlap.
-            self.file = h5py.File(self.tmp, "w", rdcc_nbytes=0)
+            with writing(self.path):
+                self.file = h5py.File(self.tmp, "w", rdcc_nbytes=0)
         except BaseException:
             self.claim.release()
             raise
@@ -216,12 +217,19 @@ class DatasetWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        try:
-            self.file.close()
-            if exc_type is None:
-                os.replace(self.tmp, self.path)
-        finally:
-            self.claim.release()  # the temporary file if still there, parts, lock
+        # Closing, renaming and releasing are one step for Ctrl-C: it comes after them, so
+        # the output is either there whole (and ``commit`` recorded it) or not at all, and
+        # no lock is left.
+        with interrupts_held():
+            try:
+                with writing(self.path):
+                    self.file.close()
+                    if exc_type is None:
+                        commit(self.tmp, self.path)
+            finally:
+                self.claim.release()  # the temporary file if still there, parts, lock
+        if is_write_error(exc):  # a full disk as the data was written, say
+            raise output_error(self.path, exc) from exc
 
 
 class MissionWriter:
