@@ -142,7 +142,8 @@ PAGES = site_pages()
 def _params():
     for path in PAGES:
         text = path.read_text()
-        if not any(b.lang in RUN or b.options()["file"] for b in blocks(text, page_id(path))):
+        if not any(b.options()["skip"] is None and (b.lang in RUN or b.options()["file"])
+                   for b in blocks(text, page_id(path))):
             continue
         marks = [pytest.mark.slow] if "<!-- test-page: slow -->" in text else []
         yield pytest.param(path, id=page_id(path), marks=marks)
