@@ -22,10 +22,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
+import perf_page
 from generation import wall_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import MissionConfig, ScenarioConfig
@@ -53,6 +55,7 @@ def main() -> None:
     parser.add_argument("--tiny", type=int, default=40, help="missions of the overhead runs")
     parser.add_argument("--threads", type=int, default=THREADS,
                         help="threads per worker of the local:N clusters")
+    perf_page.add_write_option(parser, "cluster")
     args = parser.parse_args()
 
     config = preset("maneuvers").with_duration(args.duration)
@@ -152,4 +155,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))
