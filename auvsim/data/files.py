@@ -14,16 +14,13 @@ claim) removes those, and leaves anything else alone.
 
 Output folders are checked before any work (``check_out_dir``) and made only once every
 input has been (``make_out_dir``), so a refused command leaves no empty folder. A command
-<<<<<<< HEAD
-whose outputs are several files (a run folder, a report, figures) runs in
-``all_or_nothing``: if it fails (a full disk, Ctrl-C) the folders it made go, and so do the
-files it wrote into its output folders, so nothing of it is left half done. An ``OSError``
-while writing becomes an ``OutputError`` naming the output (``writing``).
-=======
 that writes several files into a folder builds them in a temporary sibling
 (``staged_dir``) and moves them in at the end, so one that fails half-way (a full disk)
-leaves neither some of its files nor an empty folder.
->>>>>>> bnfront
+leaves neither some of its files nor an empty folder. Each command line runs its command in
+``all_or_nothing``, the same promise for what is written outside a ``staged_dir`` (the
+figures of ``auvsim plot``, a report's folder): if it fails (a full disk, Ctrl-C) the
+folders it made go, and so do the files it wrote into its output folders. An ``OSError``
+while writing becomes an ``OutputError`` naming the output (``writing``).
 
 Some steps must not be cut in half by Ctrl-C or SIGTERM either: ``interrupts_held``
 delivers them after the step.
