@@ -1,0 +1,1 @@
+"""Runs: named presets, one mission, generation on one machine or a Dask cluster."""
