@@ -46,10 +46,6 @@ class DatasetError(AuvsimError):
     """A file is not an auvsim dataset, is corrupt, or has another format version."""
 
 
-class CheckpointError(AuvsimError):
-    """A run directory or checkpoint is missing, corrupt, or not a beamsnet checkpoint."""
-
-
 class SimulationError(AuvsimError):
     """A mission cannot go on as configured (for example the vehicle reached the seafloor)."""
 

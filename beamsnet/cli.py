@@ -10,13 +10,14 @@ from pathlib import Path
 
 from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
+from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import SensorSetupWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
 from beamsnet.experiments.sim2real import SIM_SEEDS
 from beamsnet.experiments.stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
-from beamsnet.training.train import PROFILES, TrainConfig
+from beamsnet.training.config import PROFILES, TrainConfig
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
@@ -59,12 +60,12 @@ def _parser() -> argparse.ArgumentParser:
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True,
                                 parser_class=OneLineErrorParser)
-    tr = sub.add_parser("train", help="train BeamsNetV1, V2, V2M or CorrectionNet on a dataset",
-                        formatter_class=_Defaults)
+    networks = specs("network")
+    tr = sub.add_parser("train", help=f"train {', '.join(s.short for s in networks)} on a "
+                        "dataset", formatter_class=_Defaults)
     tr.add_argument("dataset", type=Path)
-    tr.add_argument("--model", choices=("v1", "v2", "v2m", "corr"), default=train.config.model,
-                    help="BeamsNetV1 (beams + IMU), V2 (beams + past beams), V2M (V2 with "
-                    "validity masks) or corr (LS plus a learned, bounded correction)")
+    tr.add_argument("--model", choices=network_names(), default=train.config.model,
+                    help="; ".join(f"{s.name}: {s.title}" for s in networks))
     tr.add_argument("--protocol", choices=("paper", "fixed"), default=train.config.protocol,
                     help="V2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
                     "their changes to the current beams, so it stays affine outside the training "
@@ -102,14 +103,14 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
+    runnable = [s for s in specs() if s.kind != "network"]
     es = sub.add_parser(
-        "estimate", help="run one model-based estimator (LS, a calibration, a Kalman "
-        "filter, the missing-beam regressor, the INS/DVL filter) over every ping of a "
+        "estimate", help="run one model-based estimator or filter over every ping of a "
         "dataset", formatter_class=_Defaults)
     es.add_argument("dataset", type=Path)
     es.add_argument("--estimator", required=True,
-                    help="its name in the tables (case, spaces and dashes do not matter), "
-                    "e.g. LS, Affine, beam-calibration, KF, missing-beam-LS, INS/DVL")
+                    help="its name in the tables (case, spaces and dashes do not matter): "
+                    + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train",
                     help="fit on this file's training split (default: the dataset's own)")
     es.add_argument("--out", type=Path, default=Path("reports/estimate"),
@@ -183,7 +184,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _train(args) -> None:
-    from beamsnet.training.train import TITLES, train, train_all, train_best
+    from beamsnet.training.runs import train_all, train_best
+    from beamsnet.training.train import train
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
@@ -200,7 +202,7 @@ def _train(args) -> None:
                              progress=not args.quiet, cluster=args.cluster)
         print(f"kept {summary['kept']} of {args.restarts} seeds (lowest final training loss; "
               f"all in {args.out / 'restarts.json'})")
-    print(f"trained {TITLES[args.model]}: final loss "
+    print(f"trained {spec(args.model).short}: final loss "
           f"{summary['final_train_loss']:.3g} (training), {summary['final_test_loss']:.3g} "
           f"(test split), {summary['samples_per_second']:.0f} samples/s; wrote "
           f"{summary['checkpoint']} and {summary['plot']}")

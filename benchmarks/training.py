@@ -17,7 +17,8 @@ from pathlib import Path
 
 import torch
 
-from beamsnet.training.train import TrainConfig, train
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import train
 
 
 def main() -> None:

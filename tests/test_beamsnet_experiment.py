@@ -9,11 +9,13 @@ import json
 import pytest
 from conftest import flat, mission
 
-import beamsnet.training.train
+import beamsnet.training.runs
 from auvsim.config import DvlConfig
 from auvsim.data.dataset import read_attrs
 from beamsnet.experiments.runner import ensure_dataset, train_runs
-from beamsnet.training.train import DivergedError, TrainConfig, load
+from beamsnet.training.checkpoints import load
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import DivergedError
 
 TWO_LINES = flat(mission("a", 1, speed=2.0, duration=90.0, start_speed=0.0),
                  mission("b", 2, speed=1.0, duration=90.0, start_speed=0.0),
@@ -28,7 +30,7 @@ def data(tmp_path_factory):
 
 def _diverging(seeds):
     """``train``, except that the seeds in ``seeds`` diverge."""
-    real = beamsnet.training.train.train
+    real = beamsnet.training.runs.train
 
     def train(dataset, config, out, *, progress=True):
         if config.seed in seeds:
@@ -78,7 +80,7 @@ def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data,
 
 
 def test_a_diverged_seed_is_dropped_and_recorded(data, tmp_path, monkeypatch):
-    monkeypatch.setattr(beamsnet.training.train, "train", _diverging({0}))
+    monkeypatch.setattr(beamsnet.training.runs, "train", _diverging({0}))
     k = train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path, 2, workers=1,
                    progress=False)["v2"]
     seed_0, seed_1 = tmp_path / "v2" / "seed_0", tmp_path / "v2" / "seed_1"
@@ -89,7 +91,7 @@ def test_a_diverged_seed_is_dropped_and_recorded(data, tmp_path, monkeypatch):
 
 
 def test_every_seed_diverging_is_an_error_and_writes_nothing(data, tmp_path, monkeypatch):
-    monkeypatch.setattr(beamsnet.training.train, "train", _diverging({0, 1}))
+    monkeypatch.setattr(beamsnet.training.runs, "train", _diverging({0, 1}))
     with pytest.raises(DivergedError, match="every run diverged") as refused:
         train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path / "runs", 2, workers=1,
                    progress=False)
@@ -101,7 +103,7 @@ def test_the_paper_sim_report_lists_a_diverged_seed(tmp_path, monkeypatch):
     from beamsnet.experiments.reproduce import paper_sim
 
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(beamsnet.training.train, "train", _diverging({1}))
+    monkeypatch.setattr(beamsnet.training.runs, "train", _diverging({1}))
     report = paper_sim("paper-sim", data=None, duration=60.0, out=tmp_path / "reports",
                        training=TrainConfig(epochs=1), restarts=2, workers=1,
                        progress=False).read_text()

@@ -154,7 +154,7 @@ def test_the_mechanisation_agrees_with_pyins_as_an_independent_integrator(ideal,
         monkeypatch.setattr(earth, name, value)
     with open_dataset(ideal) as f:
         m = f.missions["zz"]
-        monkeypatch.setattr(earth, "GE", ins._model_gravity("auv"))
+        monkeypatch.setattr(earth, "GE", m.gravity)
         dt = 1.0 / m.attrs["imu_rate_hz"]
         r = np.asarray(m.attrs["imu_position_body"])
         c = rotation_matrices(m.truth.quaternion)

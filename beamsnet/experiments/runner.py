@@ -26,16 +26,9 @@ from pathlib import Path
 
 import torch
 
-from beamsnet.training.train import (
-    TrainConfig,
-    check_restarts,
-    file_identity,
-    keep_best,
-    load,
-    seed_runs,
-    train_all,
-    trained,
-)
+from beamsnet.training.checkpoints import file_identity, load, trained
+from beamsnet.training.config import TrainConfig, check_restarts
+from beamsnet.training.runs import keep_best, seed_runs, train_all
 
 
 def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
