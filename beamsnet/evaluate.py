@@ -181,7 +181,7 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
             positions[baseline.name] = baseline.positions(test_w)
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
-        out[name] = predict(model, checkpoint["model"], trimmed(test_w, checkpoint))
+        out[name] = predict(model, trimmed(test_w, checkpoint))
     return out
 
 

@@ -12,7 +12,7 @@ from conftest import flat, mission
 import beamsnet.training.runs
 from auvsim.config import DvlConfig
 from auvsim.data.dataset import read_attrs
-from beamsnet.experiments.runner import ensure_dataset, train_runs
+from beamsnet.experiments.runner import StaleDatasetWarning, ensure_dataset, train_runs
 from beamsnet.training.checkpoints import load
 from beamsnet.training.config import TrainConfig
 from beamsnet.training.train import DivergedError
@@ -45,6 +45,31 @@ def test_ensure_dataset_generates_only_a_missing_file(data):
     stamp = data.stat().st_mtime_ns
     assert ensure_dataset(TWO_LINES, data, progress=False) == data
     assert data.stat().st_mtime_ns == stamp
+
+
+def test_ensure_dataset_regenerates_a_file_made_from_another_config(tmp_path):
+    path = tmp_path / "one.h5"
+    before = flat(mission("a", 1, speed=1.0, duration=20.0, start_speed=0.0))
+    ensure_dataset(before, path, progress=False)
+    # The preset changed: another speed, and one more mission.
+    after = flat(mission("a", 1, speed=1.5, duration=20.0, start_speed=0.0),
+                 mission("b", 2, speed=1.0, duration=20.0, start_speed=0.0))
+    with pytest.warns(StaleDatasetWarning) as said:
+        assert ensure_dataset(after, path, progress=False) == path
+    assert [str(w.message) for w in said] == [
+        f"{path}: it was made from another config (missions a, added b); generating it "
+        "again"]
+    root, missions = read_attrs(path)
+    assert root["config_json"] == after.to_json() and sorted(missions) == ["a", "b"]
+    # Another DVL: the section is named.
+    dvl = dataclasses.replace(after, dvl=DvlConfig(scale_factor=0.01))
+    with pytest.warns(StaleDatasetWarning, match=r"another config \(dvl\); generating"):
+        ensure_dataset(dvl, path, progress=False)
+    # A file that is not a dataset is replaced too, saying so.
+    path.write_text("not HDF5")
+    with pytest.warns(StaleDatasetWarning, match="it is not a readable dataset"):
+        ensure_dataset(dvl, path, progress=False)
+    assert read_attrs(path)[0]["config_json"] == dvl.to_json()
 
 
 def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data, tmp_path):

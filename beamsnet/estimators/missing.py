@@ -8,7 +8,7 @@ available current beams and the past pings' four beams, fitted on the complete p
 the training split with each pattern masked synthetically.
 
 A Janus DVL's four beams are linearly dependent (``H`` has rank 3; for the x-configuration
-of ``auvsim.sensors.dvl.beam_matrix`` ``h_1 + h_3 = h_2 + h_4``), so one missing beam is
+of ``auvsim.data.beams.beam_matrix`` ``h_1 + h_3 = h_2 + h_4``), so one missing beam is
 fixed by the other three: ``y_m = h_m . v_3``, v_3 their LS velocity, exact on noise-free
 data without scale factors and biases, and LS on the four filled beams is then LS on the
 three. Two or more missing beams leave v underdetermined by the current ping; the past

@@ -23,11 +23,11 @@ table gives:
 * the vector RMSE against the true velocity over ground, on the pings the estimator
   gives an estimate for;
 * the availability: the share of pings it gives an estimate for. LS solves three beams
-  exactly (``auvsim.sensors.dvl.least_squares``): the baseline. The affine calibration,
+  exactly (``auvsim.data.beams.least_squares``): the baseline. The affine calibration,
   BeamsNetV1 and the Kalman filter's calibrated measurement need all four beams of the
   ping, BeamsNetV2 all four of the ping and its three past pings; the Kalman filter
   predicts through a ping without a measurement;
-* the dead-reckoning error at the end of a mission (``stress.dead_reckoning_error``),
+* the dead-reckoning error at the end of a mission (``beamsnet.navigation.dead_reckoning_error``),
   where an estimator without an estimate holds its last one (zero before its first, as a
   navigator with no velocity would), so a gap costs what it costs at sea.
 
