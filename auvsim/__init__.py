@@ -26,7 +26,7 @@ __version__ = "0.1.0"
 _PUBLIC = {
     "Config": "auvsim.config", "ScenarioConfig": "auvsim.config",
     "preset": "auvsim.runs.presets", "generate": "auvsim.runs.generate",
-    "open_dataset": "auvsim.data.dataset",
+    "open_dataset": "auvsim.data.reader",
     "Vehicle": "auvsim.physics.vehicle", "Seafloor": "auvsim.world.seafloor",
     "AuvEnv": "auvsim.envs.env", "ManeuverPolicy": "auvsim.envs.env",
     "EpisodeRecorder": "auvsim.envs.env", "AuvVectorEnv": "auvsim.envs.vector",

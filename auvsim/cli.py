@@ -6,13 +6,23 @@ import argparse
 import dataclasses
 import errno
 import os
-import signal
+import re
 import sys
-import threading
 from pathlib import Path
 
+from auvsim.cli_support import run_command
 from auvsim.config import SCENARIOS, Config, ScenarioConfig
-from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
+from auvsim.errors import ConfigError, OneLineErrorParser
+
+DESCRIPTION = """Simulate a torpedo-shaped AUV with MuJoCo and write what its DVL, IMU and
+depth sensor measure, beside the true motion, as HDF5 datasets."""
+EXAMPLES = """examples:
+  auvsim generate --duration 600 --seed 1 --out demo/straight.h5
+  auvsim generate --preset maneuvers --out datasets/maneuvers.h5
+  auvsim inspect demo/straight.h5
+  auvsim plot demo/straight.h5
+
+Each command has its own --help."""
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
@@ -28,7 +38,8 @@ _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = OneLineErrorParser(prog="auvsim", description=__doc__)
+    parser = OneLineErrorParser(prog="auvsim", description=DESCRIPTION, epilog=EXAMPLES,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True,
                                 parser_class=OneLineErrorParser)
     gen = sub.add_parser(
@@ -37,21 +48,28 @@ def _parser() -> argparse.ArgumentParser:
         "--config, one mission with the 'navigator' preset's sensors. Scenario options "
         "given with a preset or config override every mission's.")
     source = gen.add_mutually_exclusive_group()
-    source.add_argument("--preset", help="a named config (auvsim presets lists them)")
-    source.add_argument("--config", type=Path, help="a TOML file with the full config")
+    source.add_argument("--preset", metavar="NAME",
+                        help="a named config ('auvsim presets' lists them; default: "
+                        "navigator)")
+    source.add_argument("--config", type=Path, metavar="FILE",
+                        help="a TOML file with the full config")
     defaults = ScenarioConfig()
     for flag, (name, text) in _SCENARIO_FLAGS.items():
         kind = str if flag == "scenario" else float
+        default = getattr(defaults, name)
         gen.add_argument(f"--{flag.replace('_', '-')}", dest=flag, type=kind,
-                         help=f"{text} (default: {getattr(defaults, name)})")
-    gen.add_argument("--seed", type=int, help="seed of the first mission; the others follow "
-                     "(default: the preset's, 0 otherwise)")
-    gen.add_argument("--vehicle", help="auv (A18-D class, default), remus100, or an MJCF path")
-    gen.add_argument("--workers", type=int,
+                         metavar="NAME" if flag == "scenario" else "X",
+                         help=f"{text} (default: {default if kind is str else f'{default:g}'})")
+    gen.add_argument("--seed", type=int, metavar="N",
+                     help="seed of the first mission; the others follow (default: the "
+                     "preset's, 0 otherwise)")
+    gen.add_argument("--vehicle", metavar="NAME",
+                     help="auv (A18-D class), remus100, or a MuJoCo model file (default: auv)")
+    gen.add_argument("--workers", type=int, metavar="N",
                      help="worker processes, each running two missions at a time "
                      "(default: one per two cores)")
     gen.add_argument("--compression", choices=("lzf", "gzip"),
-                     help="lzf (default) is fast; gzip is read by every HDF5 tool")
+                     help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
     gen.add_argument("--cluster", metavar="ADDRESS",
                      help="run the missions on a Dask cluster: local:N (N worker processes "
                      "here) or a scheduler's address, host:port (needs auvsim[cluster]; "
@@ -60,35 +78,54 @@ def _parser() -> argparse.ArgumentParser:
                      help="write a sharded dataset into the folder --out, N missions per "
                      "shard file, with an index that reads as one dataset (default 1 when "
                      "--out ends in /); running again finishes or checks it")
-    gen.add_argument("--out", required=True, type=_nameable,
+    gen.add_argument("--out", required=True, type=_nameable, metavar="PATH",
                      help="HDF5 file to write, or a folder ending in / for a sharded dataset")
     gen.add_argument("--quiet", action="store_true", help="no progress bar")
-    sub.add_parser("presets", help="list the named configs")
-    inspect = sub.add_parser("inspect", help="describe a dataset file")
-    inspect.add_argument("file", type=Path)
+    sub.add_parser("presets", help="list the named configs",
+                   description="List the named configs that generate --preset takes, with "
+                   "what each simulates.")
+    inspect = sub.add_parser(
+        "inspect", help="describe a dataset file",
+        description="Describe a dataset: its missions, their sensors and realised errors, "
+        "and the fields it holds. Every value is read and checked, so a damaged file is "
+        "refused.")
+    inspect.add_argument("file", type=Path,
+                         help="a dataset: an .h5 file, or a sharded dataset's index.h5")
     imp = sub.add_parser(
         "import-velocity", help="make a dataset from recorded DVL velocities",
         description="Take recorded DVL velocities as the truth and synthesise the beams a "
-        "DVL under test would measure, with a preset's DVL error model (paper eq. 7), as "
-        "the BeamsNet paper's sea experiment did. Each file becomes one mission (named by "
-        "its stem) with no IMU, so only models without IMU input can use it.")
-    imp.add_argument("files", type=Path, nargs="+",
-                     help=".npy of shape (3, N) or .csv of N rows vx,vy,vz, m/s, DVL frame")
-    imp.add_argument("--rate", type=float, default=1.0, help="ping rate of the files, Hz")
-    imp.add_argument("--preset", default="paper-sim",
-                     help="whose DVL (beam angle, scale factor, bias, noise) to apply")
-    imp.add_argument("--noise-std", type=float, help="beam noise std, m/s (default: the "
-                     "preset's)")
-    imp.add_argument("--seed", type=int, default=0, help="seed of the first file's errors "
-                     "and noise; the others follow")
-    imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf")
-    imp.add_argument("--out", type=Path, required=True, help="HDF5 file to write")
-    plot = sub.add_parser("plot", help="draw each mission of a dataset to PNG: track, depth "
-                          "over the seafloor, speed, attitude, DVL velocity, bottom lock")
-    plot.add_argument("file", type=Path)
-    plot.add_argument("--mission", action="append", dest="missions",
+        "DVL under test would measure, with a preset's DVL error model, as the BeamsNet "
+        "paper's sea experiment did. Each file becomes one mission (named by the file) "
+        "with no IMU, so only estimators that do without an IMU can use it.")
+    imp.add_argument("files", type=Path, nargs="+", metavar="FILE",
+                     help=".npy of shape (3, N), or .csv of N rows vx,vy,vz; m/s in the DVL's "
+                     "frame")
+    imp.add_argument("--rate", type=float, default=1.0, metavar="HZ",
+                     help="ping rate of the files, Hz (default: 1)")
+    imp.add_argument("--preset", default="paper-sim", metavar="NAME",
+                     help="whose DVL (beam angle, scale factor, bias, noise) to apply "
+                     "(default: paper-sim)")
+    imp.add_argument("--noise-std", type=float, metavar="X",
+                     help="beam noise std, m/s (default: the preset's)")
+    imp.add_argument("--seed", type=int, default=0, metavar="N",
+                     help="seed of the first file's errors and noise; the others follow "
+                     "(default: 0)")
+    imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
+                     help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
+    imp.add_argument("--out", type=Path, required=True, metavar="FILE",
+                     help="HDF5 file to write")
+    plot = sub.add_parser(
+        "plot", help="draw each mission of a dataset to PNG",
+        description="Draw each mission of a dataset to a PNG: track, depth over the "
+        "seafloor, speed over ground and through the water, attitude, DVL velocity, the "
+        "beams' status and, where the file has them, the current and the DVL's error "
+        "velocity.")
+    plot.add_argument("file", type=Path,
+                      help="a dataset: an .h5 file, or a sharded dataset's index.h5")
+    plot.add_argument("--mission", action="append", dest="missions", metavar="NAME",
                       help="draw this mission only (repeatable; default: all)")
-    plot.add_argument("--out", type=Path, help="directory for the PNGs (default: beside the "
+    plot.add_argument("--out", type=Path, metavar="DIR",
+                      help="folder for the PNGs, <file>_<mission>.png (default: beside the "
                       "file)")
     return parser
 
@@ -177,6 +214,9 @@ def _generate(args: argparse.Namespace) -> None:
     config = build_config(args)
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
                        shards=args.shards, progress=not args.quiet)
+    if summary["compile_s"] > 0:  # numba's cache did not have it: said on the first run only
+        print(f"compiling the physics once (first run): {summary['compile_s']:.0f} s; later "
+              "runs skip it")
     sharded = "" if "shards" not in summary else (
         f" in {summary['shards']} shard(s), {summary['kept']} kept from an earlier run "
         f"(index {summary['out']})")
@@ -195,9 +235,20 @@ def _presets(args: argparse.Namespace) -> None:
 
 
 def _inspect(args: argparse.Namespace) -> None:
-    from auvsim.data.dataset import describe
+    from auvsim.data.describe import describe
 
-    print(describe(args.file))
+    print(without_negative_zero(describe(args.file)))
+
+
+# A zero with a minus sign ("-0", "-0.", "-0.000", "-0.e+00"), not part of a word or of a
+# longer number.
+_NEGATIVE_ZERO = re.compile(r"(?<![\w.])-(0(?:\.0*)?(?:e[+-]0+)?)(?![\d.eE])")
+
+
+def without_negative_zero(text: str) -> str:
+    """``text`` with every negative zero (numpy's ``-0.``, a ``-0`` of ``:g``) written
+    as zero: a sign on nothing reads as a value."""
+    return _NEGATIVE_ZERO.sub(r"\1", text)
 
 
 def _import_velocity(args: argparse.Namespace) -> None:
@@ -221,27 +272,14 @@ def _plot(args: argparse.Namespace) -> None:
         print(f"wrote {path}")
 
 
-def _stop(signum, frame) -> None:
-    raise KeyboardInterrupt
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run a command line; returns the exit status: 0, 2 on an error, 130 on Ctrl-C or
-    SIGTERM alike (after the workers have stopped and the temporary files have gone)."""
+    SIGTERM alike (after the workers have stopped and the temporary files have gone),
+    141 when the reader of its output has gone (``auvsim.cli_support``)."""
     args = _parser().parse_args(argv)
-    if threading.current_thread() is threading.main_thread():
-        # A scheduler's SIGTERM unwinds like Ctrl-C: workers stop, temporary files go.
-        signal.signal(signal.SIGTERM, _stop)
-    try:
-        {"generate": _generate, "presets": _presets, "inspect": _inspect,
-         "import-velocity": _import_velocity, "plot": _plot}[args.command](args)
-    except AuvsimError as e:
-        print(f"auvsim: error: {e.for_cli(FLAGS)}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("auvsim: interrupted; nothing was written", file=sys.stderr)
-        return 130
-    return 0
+    command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
+               "import-velocity": _import_velocity, "plot": _plot}[args.command]
+    return run_command("auvsim", lambda: command(args), FLAGS)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from auvsim.checks import is_finite
 from auvsim.errors import ConfigError
 from auvsim.physics.maneuvers import MANEUVERS, check_scenario
+from auvsim.sensors import registry
 
 SCENARIOS = tuple(MANEUVERS)  # the manoeuvres' registry is the one list of names
 SEAFLOORS = ("flat", "procedural", "heightmap")
@@ -757,11 +758,8 @@ class Config:
         _check(len(set(names)) == len(names), "missions", "distinct mission names", names)
         _check(self.compression in ("lzf", "gzip"), "compression", "lzf or gzip",
                self.compression)
-        for name, rate in (("dvl.rate_hz", self.dvl.rate_hz),
-                           ("depth.rate_hz", self.depth.rate_hz)):
-            ratio = self.imu.rate_hz / rate
-            _check(abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1, name,
-                   f"a whole divisor of the {self.imu.rate_hz:g} Hz IMU rate", rate)
+        for sensor in registry().values():  # each plugin's checks against the others
+            sensor.check(self)
         if self.seafloor.kind != "heightmap":
             for m in self.missions:
                 _check(m.scenario.depth < self.seafloor.depth, "depth",
@@ -801,15 +799,11 @@ class Config:
         return cls.from_dict(json.loads(text))
 
 
-_NESTED = {
-    (Config, "vehicle"): VehicleConfig,
-    (Config, "seafloor"): SeafloorConfig,
-    (Config, "dvl"): DvlConfig,
-    (Config, "imu"): ImuConfig,
-    (Config, "depth"): DepthConfig,
-    (Config, "water"): WaterConfig,
-    (MissionConfig, "scenario"): ScenarioConfig,
-}
+# The sections of each config class, from its fields' types (a new sensor's section is a
+# dataclass here and a field of Config, nothing more).
+_NESTED = {(cls, f.name): globals()[f.type]
+           for cls in (Config, MissionConfig) for f in dataclasses.fields(cls)
+           if dataclasses.is_dataclass(globals().get(f.type))}
 
 
 def _from_dict(cls, d, path: str):

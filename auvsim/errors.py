@@ -18,19 +18,28 @@ class AuvsimError(Exception):
         message: what was wrong and what is expected, in one line.
         argument: the function argument the error is about, if one is; ``str(error)``
             then starts with it (``out 'x.h5': ...``).
+        mentions: other arguments the message names (``allow_mismatch`` in "... allow_mismatch
+            evaluates anyway"), which ``for_cli`` renders as their flags too.
     """
 
-    def __init__(self, message: str, *, argument: str | None = None) -> None:
+    def __init__(self, message: str, *, argument: str | None = None,
+                 mentions: tuple[str, ...] = ()) -> None:
         super().__init__(message)
         self.message = message
         self.argument = argument
+        self.mentions = mentions
 
     def __str__(self) -> str:
         return self._named(self.argument)
 
     def for_cli(self, flags: Mapping[str, str]) -> str:
-        """The message with the argument named by its command-line flag (``--out``)."""
-        return self._named(flags.get(self.argument, self.argument))
+        """The message with the argument, and the arguments it mentions, named by their
+        command-line flags (``--out``)."""
+        text = self._named(flags.get(self.argument, self.argument))
+        for name in self.mentions:
+            if name in flags:
+                text = text.replace(name, flags[name])
+        return text
 
     def _named(self, name: str | None) -> str:
         if name is None:
@@ -44,6 +53,10 @@ class ConfigError(AuvsimError, ValueError):
 
 class DatasetError(AuvsimError):
     """A file is not an auvsim dataset, is corrupt, or has another format version."""
+
+
+class OutputError(AuvsimError):
+    """An output cannot be written: a full disk, a quota, a read-only or vanished folder."""
 
 
 class SimulationError(AuvsimError):

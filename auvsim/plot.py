@@ -1,11 +1,13 @@
 """``auvsim plot``: a mission at a glance, as a PNG per mission.
 
 A simulated mission gets six panels: the track in plan view, the depth profile over the
-seafloor, speed, attitude, the DVL velocity (true and least squares, water-track segments
-shaded) and the beams' bottom lock, with the reason each beam lost it where the file says
-(``dvl/status``, schema v4). A v4 mission adds two more: the current at the vehicle
-(speed and direction) and the DVL's error velocity. An imported mission (a recorded DVL
-stream, no trajectory) gets the DVL panels only.
+seafloor, speed (over ground, and through the water where the file has it), attitude, the
+DVL velocity (true and least squares, water-track segments shaded) and the beams' bottom
+lock, with the reason each beam lost it where the file says (``dvl/status``, schema v4). A
+v4 mission adds two more: the current at the vehicle (speed, and the direction it flows
+toward, 0 to 360 deg from north, as ``auvsim inspect`` says it) and the DVL's error
+velocity. An imported mission (a recorded DVL stream, no trajectory) gets the DVL panels
+only. Legends sit beside their panels, outside the data.
 """
 
 from __future__ import annotations
@@ -17,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.dataset import Mission, open_dataset
-from auvsim.data.files import check_out_dir, make_out_dir, write_bytes
+from auvsim.data.files import all_or_nothing, check_out_dir, make_out_dir, write_bytes
+from auvsim.data.reader import Mission, open_dataset, require_usable_beams
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.frames import euler_angles
 from auvsim.sensors.dvl import Mode, Status
@@ -44,6 +46,7 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
         DatasetError: the file is not a readable, consistent auvsim dataset, has no
             missions, or a mission's values cannot be drawn.
         ConfigError: a mission name is not in the file; ``out`` is not a directory.
+        OutputError: a figure cannot be written (none is left then).
     """
     path = Path(path)
     out = check_out_dir(path.parent if out is None else out)
@@ -56,11 +59,14 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
                               f"{', '.join(group) or 'no missions'}", argument="missions")
         if not names:
             raise DatasetError(f"{path}: no missions to draw")
+        for name in names:
+            require_usable_beams(group[name])
         pngs = {out / f"{path.stem}_{name}.png": _render(group[name], path)
                 for name in names}
-    make_out_dir(out)  # only now: every input has been checked
-    for target, png in pngs.items():
-        write_bytes(target, png)
+    with all_or_nothing():  # a full disk at the third figure leaves none
+        make_out_dir(out)  # only now: every input has been checked
+        for target, png in pngs.items():
+            write_bytes(target, png)
     return list(pngs)
 
 
@@ -73,7 +79,7 @@ def _render(m: Mission, path: Path) -> bytes:
     import matplotlib.pyplot as plt
 
     rows = (4 if "current_ned" in m.truth else 3) if m.has("truth") else 1
-    fig, axes = plt.subplots(rows, 2, figsize=(12, 3.2 * rows), squeeze=False,
+    fig, axes = plt.subplots(rows, 2, figsize=(15, 3.2 * rows), squeeze=False,
                              layout="constrained")
     buffer = io.BytesIO()
     try:
@@ -110,7 +116,7 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
         ax.set_ylabel("north, m")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_title("track, plan view")
-        ax.legend(fontsize=8)
+        _legend_beside(ax)
 
         ax = axes[0, 1]
         floor = pos[:, 2] + truth.altitude
@@ -120,17 +126,22 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
         ax.set_xlabel("time, s")
         ax.set_ylabel("depth, m")
         ax.set_title("depth profile")
-        ax.legend(fontsize=8)
+        _legend_beside(ax)
 
         ax = axes[1, 0]
         v = truth.velocity_body
-        ax.plot(t, np.linalg.norm(v, axis=1), label="speed")
-        ax.plot(t, v[:, 0], "--", lw=0.8, label="surge u")
+        ax.plot(t, np.linalg.norm(v, axis=1), label="over ground")
+        ax.plot(t, v[:, 0], "--", lw=0.8, label="surge u, over ground")
+        title = "speed over ground"
+        if "velocity_water_body" in truth:  # what the speed set point holds, in a current
+            water = truth.velocity_water_body
+            ax.plot(t, np.linalg.norm(water, axis=1), lw=1, label="through the water")
+            title += " and through the water"
         ax.set_xlabel("time, s")
         ax.set_ylabel("m/s")
-        ax.set_title("speed")
+        ax.set_title(title)
         ax.ticklabel_format(axis="y", useOffset=False)
-        ax.legend(fontsize=8)
+        _legend_beside(ax)
 
         ax = axes[1, 1]
         roll, pitch, yaw = euler_angles(truth.quaternion).T
@@ -144,8 +155,7 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
         twin.ticklabel_format(axis="y", useOffset=False)
         ax.set_xlabel("time, s")
         ax.set_title("attitude")
-        ax.legend(fontsize=8, loc="upper left")
-        twin.legend(fontsize=8, loc="upper right")
+        _legend_beside(ax, twin)
 
     dvl_row = 2 if simulated else 0
     ax = axes[dvl_row, 0]
@@ -163,7 +173,7 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
     ax.set_xlabel("time, s")
     ax.set_ylabel("m/s, DVL frame")
     ax.set_title(title)
-    ax.legend(fontsize=7, ncol=3)
+    _legend_beside(ax)
 
     ax = axes[dvl_row, 1]
     valid = m.dvl.valid
@@ -183,40 +193,73 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
         _draw_water(m, axes[3, 0], axes[3, 1])
 
 
+# The colours of the first status codes (``Status``), chosen to read: ok green, the
+# geometry's greys, faults warm.
+STATUS_COLOURS = ("tab:green", "lightgrey", "dimgrey", "tab:orange", "tab:brown", "tab:red",
+                  "black", "tab:purple", "tab:blue", "gold")
+
+
+def status_colours(n: int) -> list:
+    """A colour for each of ``n`` status codes (``len(Status)``): ``STATUS_COLOURS`` first,
+    then hues spread by the golden ratio, distinct for any number of codes."""
+    from matplotlib.colors import hsv_to_rgb
+
+    extra = [tuple(hsv_to_rgb(((k * 0.618033988749895) % 1.0, 0.65, 0.85)))
+             for k in range(max(0, n - len(STATUS_COLOURS)))]
+    return [*STATUS_COLOURS[:n], *extra]
+
+
 def _draw_status(ax, status: np.ndarray, extent) -> None:
     """The beams' reason codes (``Status``) over time, one colour per code, with a legend
     of the codes that occur and their shares."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    colours = ("tab:green", "lightgrey", "dimgrey", "tab:orange", "tab:brown", "tab:red",
-               "black", "tab:purple", "tab:blue", "gold")
-    cmap = ListedColormap(colours[:len(Status)])
+    colours = status_colours(len(Status))
+    cmap = ListedColormap(colours)
     ax.imshow(status.T, aspect="auto", interpolation="nearest", cmap=cmap, vmin=-0.5,
               vmax=len(Status) - 0.5, extent=extent)
     counts = np.bincount(status.ravel().clip(0, len(Status) - 1), minlength=len(Status))
     handles = [Patch(color=colours[code], label=f"{Status(code).name.lower()} "
                      f"{100 * n / status.size:.1f} %")
                for code, n in enumerate(counts) if n]
-    ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.8)
+    _legend_beside(ax, handles=handles)
     ax.set_title(f"beam status (dvl/status): ok in {100 * counts[Status.OK] / status.size:.1f}"
                  " % of beam pings")
+
+
+def toward_deg(current_ned: np.ndarray) -> np.ndarray:
+    """(N,) the direction a current flows toward, deg from north in [0, 360), as
+    ``auvsim inspect`` gives it, of its (N, 3) NED velocity, m/s."""
+    return np.degrees(np.arctan2(current_ned[:, 1], current_ned[:, 0])) % 360
+
+
+def _legend_beside(ax, *more, handles=None) -> None:
+    """The legend of ``ax`` (and of its twin axes ``more``) to the right of the panel,
+    where it hides no data."""
+    if handles is None:
+        handles = [h for a in (ax, *more) for h in a.get_legend_handles_labels()[0]]
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0),
+              borderaxespad=0.0, frameon=False)
+    if more:  # beside the twin's tick labels, not over them
+        ax.get_legend().set_bbox_to_anchor((1.12, 1.0))
 
 
 def _draw_water(m: Mission, ax_current, ax_error) -> None:
     """The current at the vehicle (horizontal speed and the direction it flows toward)
     and the DVL's error velocity."""
     t, current = m.truth.time, m.truth.current_ned
-    ax_current.plot(t, np.hypot(current[:, 0], current[:, 1]), label="speed")
+    ax_current.plot(t, np.hypot(current[:, 0], current[:, 1]), label="horizontal speed")
     ax_current.plot(t, current[:, 2], lw=0.8, label="down")
     ax_current.set_xlabel("time, s")
     ax_current.set_ylabel("m/s")
     twin = ax_current.twinx()
-    twin.plot(t, np.degrees(np.arctan2(current[:, 1], current[:, 0])), "k", lw=0.6,
-              label="toward, deg")
-    twin.set_ylabel("direction toward, deg from north")
+    twin.plot(t, toward_deg(current), "k.", ms=1, label="toward (right axis)")
+    twin.set_ylim(0, 360)
+    twin.set_yticks([0, 90, 180, 270, 360])
+    twin.set_ylabel("flowing toward, deg from north")
     ax_current.set_title("current at the vehicle (truth/current_ned)")
-    ax_current.legend(fontsize=8, loc="upper left")
+    _legend_beside(ax_current, twin)
 
     t_dvl = m.dvl.time
     if "error_velocity" in m.dvl:

@@ -1,17 +1,20 @@
-"""``beamsnet`` command line: train, evaluate, reproduce the paper's tables, stress-test
-under manoeuvres."""
+"""The beamsnet command line: train the networks, evaluate them beside the model-based
+estimators, reproduce the paper's tables, stress-test every estimator under manoeuvres and
+faults."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 import warnings
 from pathlib import Path
 
-from auvsim.errors import AuvsimError, ConfigError, OneLineErrorParser
+from auvsim.cli_support import run_command
+from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
-from beamsnet.evaluate import SensorSetupWarning
+from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
@@ -28,20 +31,30 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "fault_duration": "--fault-duration", "fault_missions": "--fault-mission",
          "seeds": "--seeds", "duration": "--duration", "noise": "--noise",
          "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
-         "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster"}
-DEFAULT_SNAPIR_TEXT = "../shared/data/snapir beside the repository"
+         "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster",
+         "refresh_reports": "--refresh-reports", "train_duration": "--train-duration",
+         "maneuver_duration": "--maneuver-duration"}
+DEFAULT_SNAPIR_TEXT = "shared/data/snapir beside the repository's folder"
 CLUSTER_HELP = ("run the training jobs on a Dask cluster: local:N or a scheduler's address "
                 "(needs auvsim[cluster])")
+QUIET_HELP = "no progress bars"
+# The committed reports of a source checkout: written only with --refresh-reports.
+REPORTS = Path(__file__).resolve().parents[1] / "reports"
 
 
-class _Defaults(argparse.ArgumentDefaultsHelpFormatter):
-    """Shows each option's default, except where it is None: there the default depends
-    on other options, and the help says what it is."""
+class _Defaults(argparse.HelpFormatter):
+    """Shows each option's default as a user reads it (``1800``, not ``1800.0``), except
+    where it says nothing: None (the default depends on other options, and the help says
+    what it is), a switch's False, an empty list."""
 
     def _get_help_string(self, action: argparse.Action) -> str:
-        if action.default is None:
-            return action.help or ""
-        return super()._get_help_string(action)
+        text = action.help or ""
+        default = action.default
+        if (default is None or default is argparse.SUPPRESS or isinstance(default, bool)
+                or default == [] or not action.option_strings or "default" in text):
+            return text
+        shown = f"{default:g}" if isinstance(default, float) else str(default)
+        return f"{text} (default: {shown})"
 
 
 def _per_experiment(field: str, *names: str) -> str:
@@ -54,52 +67,55 @@ def _per_experiment(field: str, *names: str) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    # Every training default shown and used here is read from beamsnet.training.train's TrainConfig
-    # and PROFILES: the command line writes none of its own.
+    # Every training default shown and used here is read from beamsnet.training.train's
+    # TrainConfig and PROFILES: the command line writes none of its own.
     train = PROFILES["train"]
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True,
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=OneLineErrorParser)
     networks = specs("network")
     tr = sub.add_parser("train", help=f"train {', '.join(s.short for s in networks)} on a "
                         "dataset", formatter_class=_Defaults)
-    tr.add_argument("dataset", type=Path)
+    tr.add_argument("dataset", type=Path, help="auvsim dataset (.h5 file or sharded folder)")
     tr.add_argument("--model", choices=network_names(), default=train.config.model,
                     help="; ".join(f"{s.name}: {s.title}" for s in networks))
     tr.add_argument("--protocol", choices=("paper", "fixed"), default=train.config.protocol,
-                    help="V2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
+                    help="v2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
                     "their changes to the current beams, so it stays affine outside the training "
                     "velocities")
     tr.add_argument("--mask-rate", type=float, default=None,
                     help="v2m, corr: rate of beams dropped in training (default "
                     f"{TrainConfig(model='corr').drop_rate:g} for them, 0 for v1, v2)")
     tr.add_argument("--imu", action="store_true", help="corr: take the IMU window too")
-    tr.add_argument("--out", type=Path, required=True, help="run directory to write")
+    tr.add_argument("--out", type=Path, required=True, metavar="FOLDER",
+                    help="run folder to write (model.pt, history.json, losses.png)")
     tr.add_argument("--epochs", type=int, default=train.config.epochs, help="epochs")
     tr.add_argument("--lr", type=float, default=train.config.lr,
-                    help=f"{PROFILES['snapir'].config.lr:g} for sea data in the paper")
+                    help=f"learning rate ({PROFILES['snapir'].config.lr:g} for sea data in "
+                    "the paper)")
     tr.add_argument("--batch-size", type=int, default=train.config.batch_size,
                     help="samples per step")
     tr.add_argument("--seed", type=int, default=train.config.seed,
                     help="seeds the weights and the batch order")
     tr.add_argument("--average-epochs", type=int, default=train.config.average_epochs,
-                    help="average the weights over the last N epochs (0: the last weights, "
-                    "as the paper)")
-    tr.add_argument("--restarts", type=int, default=train.restarts,
+                    metavar="N", help="average the weights over the last N epochs (0: the "
+                    "last weights, as the paper)")
+    tr.add_argument("--restarts", type=int, default=train.restarts, metavar="N",
                     help="train seeds SEED .. SEED+N-1 in parallel and keep the one that fits "
                     "the training split best")
-    tr.add_argument("--mission", action="append", dest="missions",
+    tr.add_argument("--mission", action="append", dest="missions", metavar="NAME",
                     help="train on this mission only (repeatable; default: all)")
     tr.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
-    tr.add_argument("--quiet", action="store_true")
-    ev = sub.add_parser("evaluate", help="compare a trained run with the baselines",
-                        formatter_class=_Defaults)
-    ev.add_argument("run", type=Path, help="run directory written by beamsnet train")
-    ev.add_argument("datasets", type=Path, nargs="+", help="datasets (.h5) to evaluate on")
-    ev.add_argument("--also", type=Path, action="append", default=[],
+    tr.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    ev = sub.add_parser("evaluate", help="compare trained runs with the model-based "
+                        "estimators on the test split of datasets", formatter_class=_Defaults)
+    ev.add_argument("run", type=Path, help="run folder written by beamsnet train")
+    ev.add_argument("datasets", type=Path, nargs="+", metavar="dataset",
+                    help="auvsim datasets to evaluate on")
+    ev.add_argument("--also", type=Path, action="append", default=[], metavar="RUN",
                     help="another run to put in the same tables (repeatable)")
-    ev.add_argument("--out", type=Path, default=Path("reports/evaluation"),
-                    help="report directory, made once every input has been checked")
+    ev.add_argument("--out", type=Path, default=Path("reports/evaluation"), metavar="FOLDER",
+                    help="report folder (evaluation.md, evaluation.json, plots)")
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
@@ -107,80 +123,120 @@ def _parser() -> argparse.ArgumentParser:
     es = sub.add_parser(
         "estimate", help="run one model-based estimator or filter over every ping of a "
         "dataset", formatter_class=_Defaults)
-    es.add_argument("dataset", type=Path)
-    es.add_argument("--estimator", required=True,
+    es.add_argument("dataset", type=Path, help="auvsim dataset to estimate on")
+    es.add_argument("--estimator", required=True, metavar="NAME",
                     help="its name in the tables (case, spaces and dashes do not matter): "
                     + ", ".join(s.name for s in runnable))
-    es.add_argument("--train", type=Path, dest="train",
+    es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
                     help="fit on this file's training split (default: the dataset's own)")
-    es.add_argument("--out", type=Path, default=Path("reports/estimate"),
-                    help="directory for estimates.csv and summary.json")
+    es.add_argument("--out", type=Path, default=Path("reports/estimate"), metavar="FOLDER",
+                    help="folder for estimates.csv and summary.json")
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
     rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real"),
-                    help="sim2real: train every estimator on auvsim data only, test on the "
+                    metavar="EXPERIMENT",
+                    help="paper-sim: the paper's simulation (Table 1); paper-sim-text: the "
+                    "same with its text's beam noise; snapir: the Snapir sea data (Table 3); "
+                    "sim2real: train every estimator on auvsim data only, test on the "
                     "Snapir streams")
-    rp.add_argument("--data", type=Path,
+    rp.add_argument("--data", type=Path, metavar="PATH",
                     help="paper-sim: use this dataset instead of generating one; snapir, "
-                    "sim2real: the directory with V.npy and V_test.npy (default "
+                    "sim2real: the folder with V.npy and V_test.npy (default "
                     f"{DEFAULT_SNAPIR_TEXT})")
-    rp.add_argument("--duration", type=float,
+    rp.add_argument("--duration", type=float, metavar="SECONDS",
                     help="s per speed of paper-sim (default 7200), s per manoeuvre of "
                     f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
-    rp.add_argument("--seeds", type=int,
-                    help=f"snapir, sim2real: seeds per network, every one scored (default "
-                    f"{SIM2REAL_SEEDS} for snapir, {SIM_SEEDS} for sim2real)")
+    rp.add_argument("--seeds", type=int, metavar="N",
+                    help="snapir, sim2real: seeds per network, every one scored (default "
+                    + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
+                    + f" in snapir; {SIM_SEEDS} in sim2real)")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,
                     help="default: the paper's, " + _per_experiment("lr", "paper-sim", "snapir"))
-    rp.add_argument("--average-epochs", type=int,
+    rp.add_argument("--average-epochs", type=int, metavar="N",
                     help="average the weights over the last N epochs (0: the paper's last "
                     "weights; default " + _per_experiment("average_epochs", "paper-sim",
                                                           "snapir") + ", at most the epochs)")
-    rp.add_argument("--restarts", type=int,
+    rp.add_argument("--restarts", type=int, metavar="N",
                     help="paper-sim: seeds per model; the best on the training split is kept "
                     "(default " + _per_experiment("restarts", "paper-sim") + ")")
-    rp.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
+    _report_options(rp, "a new runs/EXPERIMENT-YYYYmmdd-HHMMSS")
     rp.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
-    rp.add_argument("--quiet", action="store_true")
+    rp.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     stress = PROFILES["stress"]
     st = sub.add_parser(
         "stress", help="train on straight lines, test every estimator on manoeuvres",
         formatter_class=_Defaults)
-    st.add_argument("--train", type=Path, dest="train_data",
+    st.add_argument("--train", type=Path, dest="train_data", metavar="DATASET",
                     help="dataset to train on (default: paper-sim, generated)")
-    st.add_argument("--maneuvers", type=Path, dest="maneuver_data",
+    st.add_argument("--maneuvers", type=Path, dest="maneuver_data", metavar="DATASET",
                     help="dataset of manoeuvres to test on (default: the maneuvers preset, "
                     "generated)")
-    st.add_argument("--train-duration", type=float, default=TRAIN_DURATION,
+    st.add_argument("--train-duration", type=float, default=TRAIN_DURATION, metavar="SECONDS",
                     help="s per speed of the generated paper-sim training data")
     st.add_argument("--maneuver-duration", type=float, default=MANEUVER_DURATION,
-                    help="s per manoeuvre of the generated test data")
+                    metavar="SECONDS", help="s per manoeuvre of the generated test data")
     st.add_argument("--epochs", type=int, default=stress.config.epochs, help="epochs")
     st.add_argument("--lr", type=float, default=stress.config.lr, help="learning rate")
-    st.add_argument("--average-epochs", type=int,
+    st.add_argument("--average-epochs", type=int, metavar="N",
                     help="average the weights over the last N epochs (default "
                     f"{stress.config.average_epochs}, at most the epochs)")
-    st.add_argument("--restarts", type=int, default=stress.restarts, help="seeds per model")
+    st.add_argument("--restarts", type=int, default=stress.restarts, metavar="N",
+                    help="seeds per model")
     st.add_argument("--faults", action="store_true",
                     help="test the same trained models on faulted manoeuvres instead "
                     "(dropouts, a dead beam, outliers, water track): writes faults.md, "
                     "faults.json and faults.png")
-    st.add_argument("--fault-duration", type=float,
+    st.add_argument("--fault-duration", type=float, metavar="SECONDS",
                     help=f"s per manoeuvre of the faulted test data (with --faults; default "
                     f"{FAULT_DURATION:g})")
     st.add_argument("--fault-mission", action="append", dest="fault_missions", metavar="NAME",
                     help="a manoeuvre of the faulted test data (repeatable; with --faults; "
                     f"default {', '.join(FAULT_MISSIONS)})")
     st.add_argument("--noise", choices=tuple(NOISE), default="code",
-                    help="beam noise of the generated data: the paper's code's 0.042^2 m/s "
-                    "(paper-sim) or its text's 0.042 m/s (paper-sim-text)")
-    st.add_argument("--out", type=Path, default=Path("reports"), help="report directory")
+                    help="beam noise of the generated data: code, the paper's code's "
+                    "0.042^2 m/s (paper-sim); text, its text's 0.042 m/s (paper-sim-text)")
+    _report_options(st, "a new runs/stress-YYYYmmdd-HHMMSS (runs/faults-... with --faults)")
     st.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
-    st.add_argument("--quiet", action="store_true")
+    st.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     return parser
+
+
+def _report_options(parser: argparse.ArgumentParser, default: str) -> None:
+    """--out and --refresh-reports: a report is written to a new folder unless asked."""
+    parser.add_argument("--out", type=Path, metavar="FOLDER",
+                        help=f"report folder (default: {default})")
+    parser.add_argument("--refresh-reports", action="store_true",
+                        help="write into the repository's reports/ folder (or --out inside "
+                        "it), replacing the committed reports")
+
+
+def report_dir(out: Path | None, refresh: bool, name: str, *,
+               reports: Path = REPORTS) -> Path:
+    """Where a report of ``name`` goes: ``out``; with ``refresh`` and no ``out``, the
+    committed ``reports`` folder; by default a new ``runs/<name>-<local time>`` folder,
+    so that no run overwrites a committed report unless asked to.
+
+    Raises:
+        ConfigError: ``out`` is in the committed ``reports`` folder without ``refresh``.
+    """
+    if out is None:
+        if refresh:
+            return reports if reports.is_dir() else Path("reports")
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        out, n = Path("runs") / f"{name}-{stamp}", 1
+        while out.exists():  # two runs in the same second
+            n += 1
+            out = Path("runs") / f"{name}-{stamp}-{n}"
+        return out
+    inside = out.resolve()
+    if not refresh and reports.is_dir() and (inside == reports or reports in inside.parents):
+        raise ConfigError(f"{str(out)!r}: is the repository's committed reports folder; "
+                          "expected another folder, or --refresh-reports to replace them",
+                          argument="out")
+    return out
 
 
 def _train(args) -> None:
@@ -250,6 +306,7 @@ def _reproduce(args) -> None:
     if not seeded and args.seeds is not None:
         raise ConfigError(f"is not used by {args.experiment}, which keeps the best of "
                           "its seeds; expected --restarts N", argument="seeds")
+    args.out = report_dir(args.out, args.refresh_reports, args.experiment)
     if args.experiment == "sim2real":
         report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                           duration=SIM2REAL_DURATION if args.duration is None
@@ -273,6 +330,7 @@ def _stress(args) -> None:
     training, restarts = PROFILES["stress"].resolve(
         epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
         restarts=args.restarts)
+    args.out = report_dir(args.out, args.refresh_reports, "faults" if args.faults else "stress")
     report = stress(train_data=args.train_data, maneuver_data=args.maneuver_data,
                     out=args.out, training=training, restarts=restarts,
                     train_duration=args.train_duration,
@@ -290,21 +348,22 @@ def _warn(message, category, filename, lineno, file=None, line=None) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run a command line; returns the exit status: 0, 2 on an error, 130 on Ctrl-C or
+    SIGTERM, 141 when the reader of its output has gone (``auvsim.cli_support``)."""
     args = _parser().parse_args(argv)
+
+    def command() -> None:
+        if getattr(args, "cluster", None) is not None:
+            check_address(args.cluster)  # before any data is read or made
+        {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
+         "reproduce": _reproduce, "stress": _stress}[args.command](args)
+
     with warnings.catch_warnings():
         warnings.showwarning = _warn
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
-        try:
-            if getattr(args, "cluster", None) is not None:
-                check_address(args.cluster)  # before any data is read or made
-            {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
-             "reproduce": _reproduce,
-             "stress": _stress}[args.command](args)
-        except AuvsimError as e:
-            print(f"beamsnet: error: {e.for_cli(FLAGS)}", file=sys.stderr)
-            return 2
-    return 0
+        warnings.simplefilter("always", UnseenMissionWarning)
+        return run_command("beamsnet", command, FLAGS)
 
 
 if __name__ == "__main__":

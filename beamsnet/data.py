@@ -23,7 +23,7 @@ instead: every ping with its IMU interval, beams without bottom lock as NaN, and
 water-track beams as the instrument reports them, so that it can score what an estimator
 makes of a ping it cannot fully use.
 
-The file is read only through ``auvsim.data.dataset.open_dataset``, the one module that knows
+The file is read only through ``auvsim.data.open_dataset``, the one reader that knows
 the file format and checks it; its ``Mission`` views give the arrays by name.
 """
 
@@ -32,12 +32,13 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from auvsim.data.beams import beam_matrix
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 
 
@@ -136,6 +137,8 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
         with_imu = all(group[n].has("imu") for n in names)
         parts = [_mission_windows(group[n], n, i, n_past, with_imu, every_ping)
                  for i, n in enumerate(names)]
+        if not every_ping:
+            _check_each_has_samples(path, group, names, parts, n_past)
 
     widths = {p["accel"].shape[1] for p in parts if p["accel"] is not None}
     if len(widths) > 1:
@@ -150,9 +153,73 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
                    h=beam_matrix(math.radians(next(iter(angles.values())))))
 
 
+def _check_each_has_samples(path, group, names: Sequence[str], parts: list[dict],
+                            n_past: int) -> None:
+    """Refuse a mission that gives no sample: trained or scored on the others alone, a
+    run would say nothing of it and exit as if all were well.
+
+    Raises:
+        DataError: naming the first such mission and why (no beam velocity at all, or no
+            ping with all its beam epochs valid).
+    """
+    for name, part in zip(names, parts, strict=True):
+        if len(part["target"]):
+            continue
+        beams = group[name].dvl.beam_velocity
+        why = ("every beam velocity is NaN (not one ping has a valid beam)"
+               if not np.isfinite(beams).any() else
+               f"no ping has all {n_past + 1} beam epochs valid (bottom lock)")
+        raise DataError(f"{path}: mission {name}: {why}, so it gives no samples; expected "
+                        "DVL data to use (pass missions= without it)")
+
+
+def check_dataset(path: str | os.PathLike, *, argument: str,
+                  missions: Sequence[str] = (), truth: bool = False) -> Path:
+    """Refuse ``path`` unless it is an auvsim dataset with ``missions`` (and, with
+    ``truth``, a truth group in every mission): a check before any data is generated or
+    model trained, so that a wrong file costs nothing.
+
+    Raises:
+        DataError: naming ``argument``, the file and what it lacks.
+    """
+    try:
+        f = open_dataset(path)
+    except DatasetError as e:
+        raise DataError(f"{e}", argument=argument) from None
+    with f:
+        have = list(f.missions)
+        lacking = [n for n in missions if n not in f.missions]
+        if lacking:
+            raise DataError(f"{str(path)!r}: has no mission {', '.join(lacking)} (it has "
+                            f"{', '.join(have) or 'none'}); expected "
+                            f"{', '.join(missions)}", argument=argument)
+        imported = [n for n in have if truth and not f.missions[n].has("truth")]
+        if imported:
+            raise DataError(f"{str(path)!r}: mission {imported[0]} has no truth group (an "
+                            "imported stream); expected a simulated dataset", argument=argument)
+    return Path(path)
+
+
+def check_truth(windows: Windows, dataset: str | os.PathLike) -> None:
+    """Refuse samples whose true DVL velocity holds NaN or inf: no estimator can be scored
+    against it.
+
+    Raises:
+        DataError: naming the dataset and where the first such sample is.
+    """
+    bad = ~np.isfinite(windows.target).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{dataset}: the true DVL velocity holds NaN or inf in "
+                        f"{int(bad.sum())} of {len(bad)} samples (the first in mission "
+                        f"{windows.names[windows.mission[first]]} at "
+                        f"{windows.time[first]:g} s); expected finite true velocities to "
+                        "score the estimators against")
+
+
 def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
                      every_ping: bool = False) -> dict:
-    """The samples of one mission (an ``auvsim.data.dataset.Mission``), as a dict of Windows
+    """The samples of one mission (an ``auvsim.data.reader.Mission``), as a dict of Windows
     fields."""
     beams = m.dvl.beam_velocity
     n_pings = len(beams)

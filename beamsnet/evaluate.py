@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
-from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.data import DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
 from beamsnet.navigation import (
@@ -33,6 +33,7 @@ from beamsnet.navigation import (
     own_position_error,
     truth_at_pings,
 )
+from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
 from beamsnet.training.train import predict
 
@@ -44,6 +45,32 @@ class SensorSetupWarning(UserWarning):
     """The evaluation data's sensors differ from the training data's: the DVL error model
     (a robustness test), a geometry or rate the caller allowed, or a run too old to
     tell."""
+
+
+class UnseenMissionWarning(UserWarning):
+    """A run trained on some missions of its file is scored on others it never saw."""
+
+
+def check_missions(run: str | Path, checkpoint: dict, dataset: str | Path,
+                   missions: list[str]) -> None:
+    """Warn when ``run`` was trained on a subset of its file's missions (``--mission``) and
+    ``missions`` of ``dataset`` include others: its row then mixes what it learned with
+    what it never saw (a network trained at 2 m/s, scored at 1, 2 and 3 m/s), which the
+    table alone does not tell.
+
+    Warns:
+        UnseenMissionWarning: naming the missions it trained on and those it did not.
+    """
+    trained_on = checkpoint.get("train_config", {}).get("missions")
+    if not trained_on:
+        return  # every mission of its file
+    unseen = [m for m in missions if m not in trained_on]
+    if unseen:
+        warnings.warn(f"run {str(run)!r} was trained on mission {', '.join(trained_on)} only; "
+                      f"{str(dataset)!r} scores it on {', '.join(missions)}, and "
+                      f"{', '.join(unseen)} {'is' if len(unseen) == 1 else 'are'} new to it "
+                      "(evaluate on its training missions to compare like with like)",
+                      UnseenMissionWarning, stacklevel=2)
 
 
 def estimates(runs: list[str | Path], dataset: str | Path,
@@ -60,6 +87,7 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
     windows = load_windows(dataset, n_past=n_past, missions=missions)
+    check_truth(windows, dataset)
     try:
         train_w, test_w = split(windows, fraction)
     except ValueError as e:
@@ -98,7 +126,7 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
         raise ConfigError(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} "
                           f"was trained on: {geometry}; expected the training data's beam "
                           "geometry and DVL and IMU rates (allow_mismatch evaluates "
-                          "anyway)", argument="datasets")
+                          "anyway)", argument="datasets", mentions=("allow_mismatch",))
     if geometry:
         warnings.warn(f"{str(dataset)!r}: its sensors differ from those run {str(run)!r} was "
                       f"trained on: {geometry}; evaluated anyway, as allowed",
@@ -150,7 +178,7 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
         DataError: with ``strict``, a filter needs the IMU record and the file has none
             (one line saying so); without, that filter is left out.
     """
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
         lacking = [name for name in f.missions if not f.missions[name].has("imu")]
@@ -243,6 +271,8 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         for run, _, checkpoint in models:
             check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
         windows, predictions = _estimates(models, dataset)
+        for run, _, checkpoint in models:
+            check_missions(run, checkpoint, dataset, list(windows.names))
         rows = table(windows, predictions)
         per_mission = {
             name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
@@ -252,11 +282,12 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
         sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
         figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
-    make_out_dir(out)  # only now: every input has been checked
-    for windows, predictions, per_mission, name in figures:
-        _plot(windows, predictions, per_mission, out / name)
-    write_text(out / "evaluation.md", "\n\n".join(sections) + "\n")
-    write_text(out / "evaluation.json", json.dumps(results, indent=1))
+    # Only now, every input checked, is ``out`` made: whole, or not at all.
+    with staged_dir(out) as stage:
+        for windows, predictions, per_mission, name in figures:
+            _plot(windows, predictions, per_mission, stage / name)
+        write_text(stage / "evaluation.md", "\n\n".join(sections) + "\n")
+        write_text(stage / "evaluation.json", json.dumps(results, indent=1))
     return results
 
 
@@ -266,25 +297,26 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(12, 4.5),
+    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(14, 4.5), layout="constrained",
                                      gridspec_kw=dict(width_ratios=(2, 1)))
+    look = styles(predictions)
     speed = np.linalg.norm(windows.target, axis=1)
     for name, pred in predictions.items():
-        ax_t.plot(windows.time, np.linalg.norm(pred, axis=1) - speed, ".", ms=2, label=name)
+        ax_t.plot(windows.time, np.linalg.norm(pred, axis=1) - speed, ms=2,
+                  label=name, **look[name].points())
     ax_t.set_xlabel("mission time, s")
     ax_t.set_ylabel("speed error, m/s")
     ax_t.set_title("error over the test split")
-    ax_t.legend(markerscale=5, fontsize=8)
     names = list(per_mission)
     missions = list(next(iter(per_mission.values())))
     width = 0.8 / len(names)
     for i, name in enumerate(names):
         ax_m.bar(np.arange(len(missions)) + i * width,
-                 [per_mission[name][m] for m in missions], width, label=name)
+                 [per_mission[name][m] for m in missions], width, **look[name].bar())
     ax_m.set_xticks(np.arange(len(missions)) + 0.4 - width / 2, missions)
     ax_m.set_ylabel("speed RMSE, m/s")
     ax_m.set_title("per mission")
-    fig.tight_layout()
+    figure_legend(fig, ax_t, markerscale=3, fontsize=8)
     save_figure(fig, path, dpi=110)
 
 
@@ -338,7 +370,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset)
     windows = load_windows(dataset, every_ping=True)
+    check_truth(windows, dataset)
     train_windows = load_windows(dataset if train is None else train)
+    _check_same_beams(train, train_windows, dataset, windows)
     try:
         train_w = split(train_windows)[0]
     except ValueError as e:
@@ -370,15 +404,33 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     lines = [",".join(columns)] + [
         ",".join(v if isinstance(v, str) else f"{v:.9g}" for v in row)
         for row in zip(*table, strict=True)]
-    make_out_dir(out)
-    write_text(out / "estimates.csv", "\n".join(lines) + "\n")
-    write_text(out / "summary.json", json.dumps(summary, indent=1))
+    with staged_dir(out) as stage:  # both files or neither
+        write_text(stage / "estimates.csv", "\n".join(lines) + "\n")
+        write_text(stage / "summary.json", json.dumps(summary, indent=1))
     return summary
+
+
+def _check_same_beams(train, train_windows: Windows, dataset, windows: Windows) -> None:
+    """Refuse a training file whose beam geometry is not that of ``dataset``: an estimator
+    fitted on one beam matrix cannot turn another's beams into velocities.
+
+    Raises:
+        ConfigError: naming both files' beam angles, against ``train``.
+    """
+    if train is None or np.allclose(train_windows.h, windows.h):
+        return
+
+    def angle(h: np.ndarray) -> str:  # every beam's angle from the vertical, equal
+        return f"{np.degrees(np.arccos(abs(h[0, 2]))):.4g} deg"
+
+    raise ConfigError(f"{str(train)!r}: its DVL's beams ({angle(train_windows.h)} from the "
+                      f"vertical) are not those of {str(dataset)!r} ({angle(windows.h)}); "
+                      "expected training data of the same DVL", argument="train")
 
 
 def _has_truth(dataset, missions) -> bool:
     """Whether every one of ``missions`` of ``dataset`` has a truth group (one open)."""
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
         return all(f.missions[name].has("truth") for name in missions)

@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.data import DataError, Windows
 

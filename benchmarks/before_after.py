@@ -34,6 +34,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import perf_page
+
 REPO = Path(__file__).resolve().parent.parent
 WORSE = 0.10
 GENERATION_ARGS = ""
@@ -127,6 +129,7 @@ def main() -> int:
     parser.add_argument("--datasets-args", default=DATASETS_ARGS,
                         help=f"arguments of datasets.py (default: {DATASETS_ARGS!r})")
     parser.add_argument("--log", type=Path, help="write every run's output to DIR")
+    perf_page.add_write_option(parser, "before_after")
     args = parser.parse_args()
     datasets_args = shlex.split(args.datasets_args)
     if args.memory:
@@ -231,4 +234,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(perf_page.run(main))

@@ -22,23 +22,19 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
+import perf_page
 from generation import wall_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import MissionConfig, ScenarioConfig
-from auvsim.data.dataset import (
-    INDEX,
-    SHARDS,
-    DatasetWriter,
-    _dataset_paths,
-    copy_mission,
-    open_dataset,
-    shard_state,
-    write_index,
-)
+from auvsim.data.reader import dataset_paths, open_dataset
+from auvsim.data.schema import INDEX, SHARDS
+from auvsim.data.shards import shard_state, write_index
+from auvsim.data.writer import DatasetWriter, copy_mission
 from auvsim.runs.cluster import THREADS, executor
 from auvsim.runs.generate import config_sha256, generate, shard_config, shard_plan
 from auvsim.runs.presets import preset
@@ -47,7 +43,7 @@ from auvsim.runs.presets import preset
 def read_all(path: Path) -> None:
     with open_dataset(path) as f:
         for m in f.missions.values():
-            for key in _dataset_paths(m._group):
+            for key in dataset_paths(m._group):
                 m.read(key)
 
 
@@ -59,6 +55,7 @@ def main() -> None:
     parser.add_argument("--tiny", type=int, default=40, help="missions of the overhead runs")
     parser.add_argument("--threads", type=int, default=THREADS,
                         help="threads per worker of the local:N clusters")
+    perf_page.add_write_option(parser, "cluster")
     args = parser.parse_args()
 
     config = preset("maneuvers").with_duration(args.duration)
@@ -158,4 +155,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

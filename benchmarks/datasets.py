@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import mujoco
+import perf_page
 
 from auvsim.physics.vehicle import model_path
 from auvsim.runs.generate import generate
@@ -59,6 +60,7 @@ def main() -> None:
                         help="length of each paper-sim mission, s")
     parser.add_argument("--repeats", type=int, default=3, help="alternating runs; medians")
     parser.add_argument("--skip-memory", action="store_true")
+    perf_page.add_write_option(parser, "datasets")
     args = parser.parse_args()
 
     config = preset("paper-sim").with_duration(args.duration)
@@ -120,4 +122,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

@@ -37,6 +37,8 @@ import sys
 import time
 from pathlib import Path
 
+import perf_page
+
 REPO = Path(__file__).resolve().parent.parent
 SECONDS = 60.0  # of trajectory, s
 FRAME_SKIP = 10  # physics steps per environment step
@@ -195,6 +197,7 @@ def main() -> None:
     parser.add_argument("--bits", type=Path, help="a tree of the old code: check that it "
                         "gives the same bits")
     parser.add_argument("--dump", type=Path, help=argparse.SUPPRESS)
+    perf_page.add_write_option(parser, "dvl_ping")
     args = parser.parse_args()
     if args.dump is not None:
         dump_fields(args.dump)
@@ -213,4 +216,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

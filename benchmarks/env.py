@@ -52,12 +52,14 @@ import dataclasses
 import multiprocessing
 import os
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import perf_page
 from generation import (  # the sibling script (its directory is on sys.path)
     cpu_seconds,
     wall_seconds,
@@ -232,6 +234,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--profile", action="store_true",
                         help="time each part of one env's step instead")
+    perf_page.add_write_option(parser, "env")
     args = parser.parse_args()
     if args.profile:
         profile(args.seconds)
@@ -352,4 +355,4 @@ def report(args, unwrapped, steps, load, jobs, rates, parent, total, noop, vecto
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

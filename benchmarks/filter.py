@@ -19,14 +19,16 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
+import perf_page
 from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.runs.generate import generate
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.estimators import ins
@@ -36,6 +38,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=600.0, help="mission length, s")
     parser.add_argument("--repeats", type=int, default=3)
+    perf_page.add_write_option(parser, "filter")
     args = parser.parse_args()
 
     config = Config(missions=(MissionConfig(name="zz", scenario=ScenarioConfig(
@@ -92,4 +95,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

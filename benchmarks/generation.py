@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import mujoco
+import perf_page
 
 from auvsim.config import Config, MissionConfig, ScenarioConfig, VehicleConfig
 from auvsim.physics.vehicle import model_path
@@ -46,6 +48,7 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=3600.0, help="mission length, s")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--vehicle", default="auv")
+    perf_page.add_write_option(parser, "generation")
     args = parser.parse_args()
 
     config = Config(vehicle=VehicleConfig(model=args.vehicle),
@@ -94,4 +97,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

@@ -35,6 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import perf_page
 from same_data import RunError, Trees, resolve  # the sibling script
 
 REPO = Path(__file__).resolve().parent.parent
@@ -91,6 +92,7 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=500, help="env steps counted (at "
                         "least 250; physics steps: 6,000 per 250 env steps)")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    perf_page.add_write_option(parser, "instructions")
     args = parser.parse_args()
     if args.child:
         child(args.child[0], int(args.child[1]))
@@ -129,4 +131,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(perf_page.run(main))

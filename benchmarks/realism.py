@@ -24,10 +24,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import statistics
+import sys
 import tempfile
 from pathlib import Path
 
 import mujoco
+import perf_page
 from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
 from auvsim.config import Config
@@ -67,6 +69,7 @@ def main() -> None:
     parser.add_argument("--preset", default="navigator")
     parser.add_argument("--duration", type=float, default=1800.0, help="s per mission")
     parser.add_argument("--repeats", type=int, default=3, help="alternating runs; medians")
+    perf_page.add_write_option(parser, "realism")
     args = parser.parse_args()
 
     on = preset(args.preset).with_duration(args.duration)
@@ -107,4 +110,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

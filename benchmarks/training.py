@@ -15,6 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import perf_page
 import torch
 
 from beamsnet.training.config import TrainConfig
@@ -28,6 +29,7 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=1)
     parser.add_argument("--reproduce", action="store_true",
                         help="also time beamsnet reproduce paper-sim on --data")
+    perf_page.add_write_option(parser, "training")
     args = parser.parse_args()
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads")
     with tempfile.TemporaryDirectory() as tmp:
@@ -51,4 +53,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(perf_page.run(main))

@@ -23,7 +23,7 @@ from conftest import flat, mission, write
 
 from auvsim.cli import main
 from auvsim.config import DvlConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset, require_usable_beams
 from auvsim.errors import DatasetError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -74,7 +74,7 @@ def flip_chunk_byte(path: Path, key: str) -> None:
 
 def zero_rows(f: h5py.File, clock: str) -> None:
     """Every field of a clock of mission m0 emptied (kept its row shape and dtype)."""
-    from auvsim.data.dataset import schema
+    from auvsim.data.schema import schema
 
     for field in schema("simulated")[0]:
         if field.clock == clock:
@@ -190,10 +190,21 @@ H5_EDITS = {
     "missing_field": ("good", lambda f: f.__delitem__(f"{M}/dvl/beam_velocity"),
                       "lacks dvl/beam_velocity"),
     "missing_group": ("good", lambda f: f.__delitem__(f"{M}/truth"), "lacks truth/time"),
-    "missing_depth_in_v5": ("good", lambda f: f.__delitem__(f"{M}/depth"),
-                            "lacks depth/time, depth/depth (schema v5)"),
+    "missing_depth_in_v6": ("good", lambda f: f.__delitem__(f"{M}/depth"),
+                            "lacks depth/time, depth/depth (schema v6)"),
     "missing_attribute": ("good", lambda f: f[M].attrs.__delitem__("imu_rate_hz"),
                           "lacks attribute imu_rate_hz"),
+    "missing_gravity_in_v6": ("good", lambda f: f[M].attrs.__delitem__("gravity"),
+                              "lacks attribute gravity (schema v6)"),
+    "negative_gravity": ("good", lambda f: f[M].attrs.__setitem__("gravity", -9.81),
+                         "attribute gravity is -9.81; expected a number above 0"),
+    "phases_not_json": ("good", lambda f: f[M].attrs.__setitem__("phases", "[[0.0, 5"),
+                        "attribute phases is '[[0.0, 5'; expected a JSON list of [start s, "
+                        "end s, label]"),
+    "phases_backwards": ("good", lambda f: f[M].attrs.__setitem__(
+        "phases", '[[5.0, 1.0, "straight"]]'), "attribute phases is"),
+    "phases_a_number": ("good", lambda f: f[M].attrs.__setitem__("phases", "7"),
+                        "expected a JSON list of [start s, end s, label] (expected a list"),
     "missions_missing": ("good", lambda f: f.__delitem__("missions"), "no missions group"),
     "missions_a_dataset": ("good", lambda f: (f.__delitem__("missions"),
                                               f.create_dataset("missions", data=[1, 2])),
@@ -213,7 +224,7 @@ H5_EDITS = {
     "format_array": ("good", lambda f: f.attrs.__setitem__("format", np.arange(2)),
                      "not an auvsim dataset (format attribute is [0 1]"),
     "version_future": ("good", lambda f: f.attrs.__setitem__("format_version", 99),
-                       "format_version 99; this auvsim reads versions 1, 2, 3, 4, 5"),
+                       "format_version 99; this auvsim reads versions 1, 2, 3, 4, 5, 6"),
     "version_string": ("good", lambda f: f.attrs.__setitem__("format_version", "3"),
                        "format_version '3'"),
     "version_float": ("good", lambda f: f.attrs.__setitem__("format_version", 3.0),
@@ -424,14 +435,18 @@ def test_a_v1_file_without_origin_still_opens(good, tmp_path, capsys):
 
 
 def test_valid_but_unusual_data_is_not_refused(good, tmp_path, capsys):
-    """All-NaN DVL velocity (no bottom lock anywhere), extra fields, groups and
-    attributes, unsigned indices: valid, so inspected and drawn."""
+    """NaN DVL velocity on all but the last ping (no bottom lock), extra fields, groups
+    and attributes, unsigned indices: valid, so inspected and drawn."""
     def odd(f):
         n = rows(f, f"{M}/dvl/time")
         for key in ("dvl/velocity", "dvl/velocity_ls", "dvl/beam_velocity",
                     "dvl/beam_velocity_true", "dvl/beam_range"):
-            replace(f, f"{M}/{key}", np.full(f[f"{M}/{key}"].shape, np.nan))
-        replace(f, f"{M}/dvl/valid", np.zeros((n, 4), dtype=bool))
+            values = f[f"{M}/{key}"][()]
+            values[:-1] = np.nan
+            replace(f, f"{M}/{key}", values)
+        valid = np.zeros((n, 4), dtype=bool)
+        valid[-1] = True
+        replace(f, f"{M}/dvl/valid", valid)
         replace(f, f"{M}/imu/index_of_dvl", f[f"{M}/imu/index_of_dvl"][()].astype(np.uint32))
         f[f"{M}/notes"] = np.arange(3)  # a dataset beside the groups
         f[f"{M}/extra/thing"] = np.zeros(2)  # a group of someone's own
@@ -444,6 +459,61 @@ def test_valid_but_unusual_data_is_not_refused(good, tmp_path, capsys):
     assert [p.name for p in pngs] == ["edited_m0.png"]
 
 
+@pytest.mark.parametrize("flagged", [True, False])
+def test_a_mission_without_one_usable_beam_is_described_so_and_not_drawn(
+        good, tmp_path, capsys, flagged):
+    """Every beam velocity NaN, flagged valid (an edited file, a recording) or not: no
+    beam counts as valid, and a consumer that needs beams refuses the mission."""
+    def no_beams(f):
+        replace(f, f"{M}/dvl/beam_velocity", np.full(f[f"{M}/dvl/beam_velocity"].shape, np.nan))
+        replace(f, f"{M}/dvl/valid", np.full(f[f"{M}/dvl/valid"].shape, flagged))
+
+    path = edited(good, tmp_path, no_beams)
+    assert main(["inspect", str(path)]) == 0
+    assert "0.0 % of beams valid, 0.0 % of pings solvable" in capsys.readouterr().out
+    with open_dataset(path) as f, pytest.raises(DatasetError, match=(
+            r"mission m0 \(simulated\): no usable beam in its 6 pings \(every beam is "
+            r"flagged invalid or its velocity is NaN\)")):
+        require_usable_beams(f.missions["m0"])
+    out = tmp_path / "png"
+    assert main(["plot", str(path), "--out", str(out)]) == 2
+    assert "no usable beam" in one_error_line(capsys, path)
+    assert not out.exists()
+
+
+def test_inspect_sweeps_what_ended_runs_left_and_names_the_rest(good, tmp_path, capsys):
+    """After kill -9 a run's temporaries stay beside its output: readers ignore them,
+    inspect removes those of ended runs (their lock is free) and names the others in one
+    line with the command that removes them."""
+    from auvsim.data import files
+
+    folder = tmp_path / "out"
+    folder.mkdir()
+    path = folder / "good.h5"
+    shutil.copy(good, path)
+    dead = folder / f".good.h5.{files.TAG}.{files.HOST}.999999999"
+    for made in (dead, dead.with_name(dead.name + ".lock")):
+        made.write_bytes(b"half a file")  # nobody holds its lock: its run ended
+    dead.with_name(dead.name + ".parts").mkdir()
+    elsewhere = folder / f".good.h5.{files.TAG}.another-host.7"
+    elsewhere.write_bytes(b"")
+    other_output = folder / f".other.h5.{files.TAG}.another-host.7"
+    other_output.write_bytes(b"")
+    with open_dataset(path) as f:
+        assert list(f.missions) == ["m0"]
+    with files.Claim(path) as live:  # a run writing there now
+        assert main(["inspect", str(path)]) == 0
+        text = capsys.readouterr().out
+        assert sorted(folder.iterdir()) == sorted(
+            [path, elsewhere, other_output, live.file.with_name(live.file.name + ".lock")])
+        note = text.splitlines()[-1]
+        assert note.startswith("note: 2 temporary file(s) of another auvsim run")
+        assert note.endswith(f"rm -rf {folder}/.*.{files.TAG}.*")
+    elsewhere.unlink()
+    assert main(["inspect", str(path)]) == 0
+    assert "note:" not in capsys.readouterr().out
+
+
 def test_a_one_ping_mission_draws(good, tmp_path, capsys):
     def one(f):
         for key in list(f[f"{M}/dvl"]):
@@ -453,16 +523,17 @@ def test_a_one_ping_mission_draws(good, tmp_path, capsys):
     inspect_and_plot(edited(good, tmp_path, one), tmp_path, capsys)
 
 
-def test_values_beyond_what_can_be_drawn_are_refused_by_plot_only(good, tmp_path, capsys):
+def test_values_near_the_float_limit_are_valid_data_and_drawn(good, tmp_path, capsys):
+    """1e308 m/s is finite: inspect accepts it, and plot draws it on its own axis scale
+    (the speed over ground overflows to inf and is left out), with nothing on stderr."""
     path = edited(good, tmp_path, lambda f: replace(
         f, f"{M}/truth/velocity_body", np.full(f[f"{M}/truth/velocity_body"].shape, 1e308)))
     assert main(["inspect", str(path)]) == 0  # finite values: valid data
     capsys.readouterr()
     out = tmp_path / "png"
-    assert main(["plot", str(path), "--out", str(out)]) == 2
-    line = one_error_line(capsys, path)
-    assert "mission m0 (simulated): cannot be drawn" in line
-    assert not out.exists()
+    assert main(["plot", str(path), "--out", str(out)]) == 0
+    assert capsys.readouterr().err == ""
+    assert [p.name for p in out.iterdir()] == ["edited_m0.png"]
 
 
 def test_plot_of_a_file_without_missions_says_so(good, tmp_path, capsys):

@@ -10,7 +10,7 @@ import pytest
 from conftest import flat, mission, write
 
 from auvsim.config import DvlConfig, ImuConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from beamsnet.data import DataError, Windows, load_windows, select, split
 
 CONFIG = flat(mission("a", 1, speed=2.0, duration=120.0), mission("b", 2, speed=1.0, duration=80.0),
@@ -109,10 +109,12 @@ def test_a_beam_out_of_range_loses_lock_for_the_whole_mission(tmp_path):
     config = flat(mission("near", 1, duration=30.0, depth=30.0),
                   mission("deep", 2, duration=30.0, depth=5.0), dvl=DvlConfig(max_range=50.0))
     write(config, tmp_path / "lost.h5")
-    w = load_windows(tmp_path / "lost.h5")
-    assert w.names == ("deep", "near")  # file order: by name
-    assert np.all(w.mission == 1) and len(w.target) == 27
-    with pytest.raises(DataError, match="no ping of deep has all 4 beam epochs valid"):
+    # A mission that gives no sample is refused, not left out without a word.
+    with pytest.raises(DataError, match="mission deep: every beam velocity is NaN"):
+        load_windows(tmp_path / "lost.h5")
+    w = load_windows(tmp_path / "lost.h5", missions=["near"])
+    assert w.names == ("near",) and len(w.target) == 27
+    with pytest.raises(DataError, match="mission deep: every beam velocity is NaN"):
         load_windows(tmp_path / "lost.h5", missions=["deep"])
 
 

@@ -11,7 +11,7 @@ from conftest import flat, mission
 
 import beamsnet.training.runs
 from auvsim.config import DvlConfig
-from auvsim.data.dataset import read_attrs
+from auvsim.data.reader import read_attrs
 from beamsnet.experiments.runner import StaleDatasetWarning, ensure_dataset, train_runs
 from beamsnet.training.checkpoints import load
 from beamsnet.training.config import TrainConfig

@@ -19,7 +19,7 @@ from test_kill import _running, _tree, _wait_for, as_from_a_terminal
 from test_shards import assert_same_data
 
 from auvsim import cli
-from auvsim.data.dataset import INDEX, SHARDS
+from auvsim.data.schema import INDEX, SHARDS
 from auvsim.errors import ConfigError
 from auvsim.runs.generate import generate
 

@@ -20,7 +20,9 @@ from auvsim.config import (
     ScenarioConfig,
     SeafloorConfig,
 )
-from auvsim.data import dataset
+from auvsim.data.reader import open_dataset
+from auvsim.data.schema import schema
+from auvsim.errors import DatasetError
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import PRESETS, preset
 from auvsim.sensors.dvl import beam_matrix
@@ -64,10 +66,10 @@ def ideal_file(tmp_path_factory):
 
 
 def test_every_schema_field_is_written(ideal_file):
-    with dataset.open_dataset(ideal_file) as f:
+    with open_dataset(ideal_file) as f:
         m = f.missions["mission_000"]
         n, pings = 6000, 60
-        fields, attrs = dataset.schema("simulated")
+        fields, attrs = schema("simulated")
         rows = {"imu": n, "dvl": pings, "depth": n // 10}
         for field in fields:
             assert m.read(field.path).shape == (rows[field.clock], *field.shape), field.path
@@ -85,7 +87,7 @@ def test_ideal_sensors_read_the_truth(ideal_file):
     """No errors configured: beams equal H v, LS equals the true DVL velocity, the IMU equals
     the truth (bitwise), and on a flat floor with the vehicle level the slant ranges are the
     DVL's altitude over cos(beam angle)."""
-    with dataset.open_dataset(ideal_file) as f:
+    with open_dataset(ideal_file) as f:
         m = f.missions["mission_000"]
         np.testing.assert_array_equal(m.dvl.beam_velocity, m.dvl.beam_velocity_true)
         np.testing.assert_allclose(m.dvl.velocity_ls, m.dvl.velocity, atol=1e-12)
@@ -110,7 +112,7 @@ def test_beams_beyond_max_range_are_invalid(tmp_path):
     deep = dataclasses.replace(IDEAL, seafloor=SeafloorConfig(kind="flat", depth=200.0))
     out = tmp_path / "deep.h5"
     write(deep, out)
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["mission_000"]
         assert not m.dvl.valid.any()
         assert np.isnan(m.dvl.beam_velocity).all()
@@ -138,7 +140,7 @@ def test_paper_sim_preset_is_the_papers_setup(tmp_path, capsys):
     out = tmp_path / "paper.h5"
     assert main(["generate", "--preset", "paper-sim", "--duration", "20", "--workers", "1",
                  "--out", str(out), "--quiet"]) == 0
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         assert list(f.missions) == ["speed_1", "speed_2", "speed_3"]
         for speed, name in zip((1, 2, 3), ("speed_1", "speed_2", "speed_3"), strict=True):
             a = f.missions[name].attrs
@@ -174,7 +176,7 @@ def test_long_run_beam_noise_has_the_configured_std(tmp_path):
         missions=(MissionConfig(scenario=ScenarioConfig(speed=2.0, duration=1500.0), seed=9),))
     out = tmp_path / "noise.h5"
     write(config, out)
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["mission_000"]
         s, b = m.attrs["dvl_scale_factor"], m.attrs["dvl_bias"]
         residual = m.dvl.beam_velocity - m.dvl.beam_velocity_true * (1 + s) - b
@@ -214,7 +216,7 @@ gyro_noise_density = 1e-5
     out = tmp_path / "toml.h5"
     assert main(["generate", "--config", str(toml), "--out", str(out), "--workers", "1",
                  "--quiet"]) == 0
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         config = Config.from_json(f.attrs["config_json"])
         assert config.vehicle.model == "remus100"
         assert config.dvl.scale_factor == (0.001, 0.002, 0.003, 0.004)
@@ -238,8 +240,8 @@ def test_reader_refuses_a_mission_missing_a_field(tmp_path, ideal_file):
     broken.write_bytes(ideal_file.read_bytes())
     with h5py.File(broken, "r+") as f:
         del f["missions/mission_000/dvl/velocity"]
-    with pytest.raises(dataset.DatasetError, match="lacks dvl/velocity"):
-        dataset.open_dataset(broken)
+    with pytest.raises(DatasetError, match="lacks dvl/velocity"):
+        open_dataset(broken)
     assert main(["inspect", str(broken)]) == 2
 
 
@@ -311,7 +313,7 @@ cell_size = 2.0
     out = tmp_path / "map.h5"
     assert main(["generate", "--config", str(tmp_path / "map.toml"), "--out", str(out),
                  "--workers", "1", "--quiet"]) == 0
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["mission_000"]
         pos = m.truth.position_ned
         np.testing.assert_allclose(m.truth.altitude, 50.0 + 0.1 * pos[:, 1] - pos[:, 2],
@@ -367,3 +369,80 @@ def test_out_may_not_be_a_directory(tmp_path, capsys):
     assert main(["generate", "--duration", "5", "--out", str(tmp_path)]) == 2
     assert "is a directory" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+# -- schema v6: facts of the simulator stored in the file -------------------------------
+
+FACTS = flat(MissionConfig("zigzag", ScenarioConfig("zigzag", duration=60.0), 3),
+             MissionConfig("waypoints", ScenarioConfig("random_waypoints", duration=60.0,
+                                                          options={"radius_m": 60.0}), 4),
+             mission("straight", seed=5, duration=30.0))
+
+
+def _rebuilt(config: Config) -> tuple[dict[str, list], float]:
+    """The phases and gravity as beamsnet derived them before v6: the manoeuvre made
+    again from each mission's seed stream, the model's MJCF loaded."""
+    import mujoco
+
+    from auvsim.data.streams import mission_streams
+    from auvsim.physics.maneuvers import make_maneuver
+    from auvsim.physics.vehicle import model_path
+
+    phases = {m.name: make_maneuver(m.scenario, rng=mission_streams(m.seed)["maneuver"]).phases()
+              for m in config.missions}
+    gravity = -float(mujoco.MjModel.from_xml_path(str(model_path("auv"))).opt.gravity[2])
+    return phases, gravity
+
+
+@pytest.fixture(scope="module")
+def facts_file(dataset_of):
+    return dataset_of(FACTS, "facts")
+
+
+def test_missions_store_their_gravity_and_phases(facts_file):
+    phases, gravity = _rebuilt(FACTS)
+    with open_dataset(facts_file) as f:
+        assert f.version == 6
+        for name, m in f.missions.items():
+            assert m.gravity == gravity == 9.81
+            assert m.phases == phases[name] and m.phases
+            assert all(type(p) is tuple and len(p) == 3 for p in m.phases)
+        assert [p[2] for p in f.missions["zigzag"].phases] == ["straight", "zigzag"]
+        assert f.missions["straight"].phases == [(0.0, 30.0, "straight")]
+
+
+def test_a_version_5_file_derives_the_same_gravity_and_phases(facts_file, tmp_path):
+    old = tmp_path / "v5.h5"
+    old.write_bytes(facts_file.read_bytes())
+    with h5py.File(old, "r+") as f:
+        f.attrs["format_version"] = 5
+        for name in f["missions"]:
+            del f[f"missions/{name}"].attrs["gravity"], f[f"missions/{name}"].attrs["phases"]
+    with open_dataset(facts_file) as new, open_dataset(old) as f:
+        assert f.version == 5
+        for name, m in f.missions.items():
+            assert "phases" not in m.attrs
+            assert (m.gravity, m.phases) == (new.missions[name].gravity,
+                                              new.missions[name].phases)
+
+
+def test_a_version_5_file_whose_config_does_not_name_its_missions_has_no_phases(
+        facts_file, tmp_path):
+    old = tmp_path / "v5.h5"
+    old.write_bytes(facts_file.read_bytes())
+    with h5py.File(old, "r+") as f:
+        f.attrs["format_version"] = 5
+        f.attrs["config_json"] = ""
+        del f["missions/zigzag"].attrs["phases"], f["missions/zigzag"].attrs["gravity"]
+    with open_dataset(old) as f:
+        m = f.missions["zigzag"]
+        assert m.phases == [] and m.gravity == 9.81  # the default model's
+
+
+def test_a_version_6_file_without_gravity_is_refused(facts_file, tmp_path):
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(facts_file.read_bytes())
+    with h5py.File(bad, "r+") as f:
+        del f["missions/zigzag"].attrs["gravity"]
+    with pytest.raises(DatasetError, match="zigzag .*lacks attribute gravity"):
+        open_dataset(bad)

@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import ScenarioConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.envs.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
 from auvsim.physics.frames import euler_angles, quat_to_rot
 from auvsim.runs.mission import MissionRun
@@ -168,6 +168,7 @@ def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_pat
         assert m.truth.time.shape == (12000,) and m.dvl.time.shape == (120,)
         np.testing.assert_array_equal(m.imu.index_of_dvl, np.arange(120) * 100)
         assert m.attrs["duration_s"] == pytest.approx(120.0)
+        assert m.phases == [] and m.gravity == 9.81  # a policy flew it: no scripted phases
     windows = load_windows(path)  # BeamsNet reads what a policy flew
     assert len(windows.target) == 2 * (120 - 3)
     assert windows.accel.shape[1:] == (100, 3)

@@ -23,7 +23,8 @@ from auvsim.config import (
     SeafloorConfig,
     VehicleConfig,
 )
-from auvsim.data import dataset
+from auvsim.data.reader import open_dataset
+from auvsim.data.schema import FORMAT_VERSION
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.runs.generate import generate
 from auvsim.runs.mission import MissionRun
@@ -57,9 +58,9 @@ def demo_file(tmp_path_factory):
 
 
 def test_generate_writes_the_schema_truth(demo_file):
-    with dataset.open_dataset(demo_file) as f:
+    with open_dataset(demo_file) as f:
         assert f.attrs["format"] == "auvsim-dataset"
-        assert f.attrs["format_version"] == dataset.FORMAT_VERSION == 5
+        assert f.attrs["format_version"] == FORMAT_VERSION == 6
         assert {"auvsim_version", "created_utc", "config_json"} <= set(f.attrs)
         config = Config.from_json(f.attrs["config_json"])
         assert config.missions[0].scenario.heading_deg == 30.0
@@ -277,23 +278,24 @@ def test_failure_midway_leaves_nothing(tmp_path, monkeypatch):
 
 def test_reader_refuses_foreign_corrupt_and_other_versions(tmp_path, demo_file):
     with pytest.raises(DatasetError, match="no such file"):
-        dataset.open_dataset(tmp_path / "missing.h5")
+        open_dataset(tmp_path / "missing.h5")
     junk = tmp_path / "junk.h5"
     junk.write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(200))
     with pytest.raises(DatasetError, match="not an HDF5 file"):
-        dataset.open_dataset(junk)
+        open_dataset(junk)
     foreign = tmp_path / "foreign.h5"
     with h5py.File(foreign, "w") as f:
         f["x"] = [1, 2, 3]
     with pytest.raises(DatasetError, match="not an auvsim dataset"):
-        dataset.open_dataset(foreign)
+        open_dataset(foreign)
     newer = tmp_path / "newer.h5"
     newer.write_bytes(demo_file.read_bytes())
     with h5py.File(newer, "r+") as f:
-        f.attrs["format_version"] = 6
+        f.attrs["format_version"] = 7
     with pytest.raises(DatasetError,
-                       match="format_version 6; this auvsim reads versions 1, 2, 3, 4, 5"):
-        dataset.open_dataset(newer)
+                       match="format_version 7; this auvsim reads versions 1, 2, 3, 4, 5, 6 "
+                       r"\(the file is from a newer auvsim\)"):
+        open_dataset(newer)
 
 
 def test_version_1_files_still_read_as_simulated(demo_file, tmp_path):
@@ -304,12 +306,12 @@ def test_version_1_files_still_read_as_simulated(demo_file, tmp_path):
         f.attrs["format_version"] = 1
         for m in f["missions"].values():
             del m.attrs["origin"]
-    with dataset.open_dataset(old) as f:
+    with open_dataset(old) as f:
         assert len(f.missions) == 1
     with h5py.File(old, "r+") as f:  # the same file claiming v2 lacks the attribute
         f.attrs["format_version"] = 2
     with pytest.raises(DatasetError, match="has no origin attribute"):
-        dataset.open_dataset(old)
+        open_dataset(old)
 
 
 @pytest.mark.parametrize("kwargs", [dict(speed=float("nan")), dict(duration=float("inf")),

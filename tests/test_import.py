@@ -10,8 +10,9 @@ import pytest
 
 from auvsim.cli import main as auvsim_main
 from auvsim.config import DvlConfig
-from auvsim.data import dataset
 from auvsim.data.importer import import_velocity
+from auvsim.data.reader import open_dataset
+from auvsim.data.schema import schema
 from auvsim.sensors.dvl import beam_matrix
 from beamsnet.cli import main as beamsnet_main
 from beamsnet.data import load_windows
@@ -38,7 +39,7 @@ def test_noise_free_beams_equal_h_v_and_ls_the_velocity(npy, tmp_path):
     out = tmp_path / "ideal.h5"
     import_velocity([npy], out, dvl=DvlConfig(beam_angle_deg=20.0))
     h = beam_matrix(math.radians(20.0))
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         m = f.missions["V"]
         assert m.attrs["origin"] == "imported" and m.groups == ["dvl"]
         v = np.load(npy).T
@@ -53,7 +54,7 @@ def test_error_model_is_eq_7_with_the_configured_noise(tmp_path):
     np.save(path, stream(40_000))
     dvl = DvlConfig(beam_angle_deg=20.0, scale_factor=0.007, bias=0.0001, noise_std=0.042)
     import_velocity([path], tmp_path / "noisy.h5", dvl=dvl, seed=3)
-    with dataset.open_dataset(tmp_path / "noisy.h5") as f:
+    with open_dataset(tmp_path / "noisy.h5") as f:
         m = f.missions["long"]
         s, b = m.attrs["dvl_scale_factor"], m.attrs["dvl_bias"]
         np.testing.assert_array_equal(s, 0.007)
@@ -69,9 +70,9 @@ def test_csv_with_header_gives_the_same_dataset_as_npy(npy, tmp_path):
     dvl = DvlConfig(beam_angle_deg=20.0, noise_std=0.01)
     import_velocity([npy], tmp_path / "a.h5", dvl=dvl)
     import_velocity([csv], tmp_path / "b.h5", dvl=dvl)
-    with dataset.open_dataset(tmp_path / "a.h5") as a, \
-            dataset.open_dataset(tmp_path / "b.h5") as b:
-        for field in dataset.schema("imported")[0]:
+    with open_dataset(tmp_path / "a.h5") as a, \
+            open_dataset(tmp_path / "b.h5") as b:
+        for field in schema("imported")[0]:
             np.testing.assert_array_equal(a.missions["V"].read(field.path),
                                           b.missions["V"].read(field.path))
 
@@ -81,7 +82,7 @@ def test_a_dropout_row_is_a_ping_without_bottom_lock(tmp_path):
     v[:, 7] = np.nan
     np.save(tmp_path / "gap.npy", v)
     import_velocity([tmp_path / "gap.npy"], tmp_path / "gap.h5", dvl=DvlConfig())
-    with dataset.open_dataset(tmp_path / "gap.h5") as f:
+    with open_dataset(tmp_path / "gap.h5") as f:
         m = f.missions["gap"]
         assert not m.dvl.valid[7].any() and m.dvl.valid.sum() == 49 * 4
         assert np.isnan(m.dvl.velocity_ls[7]).all()
@@ -96,11 +97,13 @@ def test_cli_imports_several_files_as_missions_with_the_presets_dvl(npy, tmp_pat
     assert auvsim_main(["import-velocity", str(npy), str(tmp_path / "V_test.npy"),
                         "--out", str(out), "--seed", "4"]) == 0
     assert "V (500 pings), V_test (200 pings)" in capsys.readouterr().out
-    with dataset.open_dataset(out) as f:
+    with open_dataset(out) as f:
         assert list(f.missions) == ["V", "V_test"]
         a = f.missions["V_test"].attrs
         assert a["seed"] == 5 and a["beam_angle_deg"] == 20.0  # paper-sim's DVL
         assert a["dvl_noise_std"] == pytest.approx(0.042**2)
+        # a recording of a DVL alone cannot know the gravity, and flew no scripted phases
+        assert f.missions["V_test"].gravity is None and f.missions["V_test"].phases == []
     assert auvsim_main(["inspect", str(out)]) == 0
     assert "imported from" in capsys.readouterr().out
 

@@ -13,7 +13,8 @@ from conftest import flat, mission, write
 
 from auvsim.cli import main
 from auvsim.config import Config, ImuConfig
-from auvsim.data.dataset import describe, open_dataset
+from auvsim.data.describe import describe
+from auvsim.data.reader import open_dataset
 from auvsim.data.streams import STREAMS, mission_streams
 from auvsim.errors import ConfigError
 from auvsim.runs.presets import preset

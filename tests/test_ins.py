@@ -10,8 +10,8 @@ from conftest import flat
 from scipy.stats import chi2
 
 from auvsim.config import DvlConfig, ImuConfig, MissionConfig, ScenarioConfig
-from auvsim.data.dataset import open_dataset
 from auvsim.data.importer import import_velocity
+from auvsim.data.reader import open_dataset
 from auvsim.physics.frames import euler_angles, rotation_matrices, rotation_rpy
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.data import load_windows, split

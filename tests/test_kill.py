@@ -25,7 +25,7 @@ LONG = ["--preset", "maneuvers", "--duration", "3000", "--workers", "2", "--quie
 INTERRUPTED = "auvsim: interrupted; nothing was written"
 
 
-def _generate(out: Path, *args: str) -> subprocess.Popen:
+def _generate(out: Path | str, *args: str) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "auvsim.cli", "generate", *args, "--out", str(out)],
         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -89,7 +89,7 @@ def _simulating(proc: subprocess.Popen, folder: Path) -> set[tuple[int, bytes]]:
 
 
 @contextlib.contextmanager
-def _started(out: Path, *args: str):
+def _started(out: Path | str, *args: str):
     proc = _generate(out, *args)
     try:
         yield proc
@@ -159,3 +159,37 @@ def test_sweep_removes_the_temporaries_of_dead_claims_only(tmp_path):
         assert not left & {*dead, *straggler}
         assert left >= {*elsewhere, *others, live.file, live.folder}
     assert not live.file.exists() and not live.folder.exists()
+
+
+def _claimed(proc: subprocess.Popen, folder: Path) -> None:
+    """Wait until the run has claimed its output (its temporary file's lock is there)."""
+    def claimed() -> bool:
+        assert proc.poll() is None, proc.communicate()
+        return any(folder.glob(f".*.{files.TAG}.*.lock"))
+
+    _wait_for(claimed, "the run's claim", timeout=120)
+
+
+def _hidden(folder: Path) -> list[str]:
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob(".*"))
+
+
+@pytest.mark.parametrize("sharded", [False, True], ids=["one-file", "sharded"])
+def test_kill_9_of_a_run_in_one_process_is_swept_by_the_next(tmp_path, sharded):
+    """One worker (a two-core machine's default): the missions run on threads of the
+    killed process itself, so nobody is left to clean up; its claims are named with its
+    host and pid, and the next run into the folder sweeps them before any work."""
+    out = f"{tmp_path / 'rm'}/" if sharded else str(tmp_path / "x.h5")
+    single = ["--preset", "maneuvers", "--workers", "1", "--quiet"]
+    with _started(out, *single, "--duration", "3000") as proc:
+        _claimed(proc, tmp_path / "rm" / "shards" if sharded else tmp_path)
+        time.sleep(1.0)  # into the simulation
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    left = _hidden(tmp_path)
+    pid = f".{files.HOST}.{proc.pid}"
+    assert left and all(pid in name for name in left), left  # recognisably the dead run's
+    with _started(out, *single, "--duration", "5") as proc:
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, err
+    assert _hidden(tmp_path) == []

@@ -9,7 +9,7 @@ import pytest
 
 from auvsim.cli import main
 from auvsim.config import SCENARIOS, ScenarioConfig
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.errors import ConfigError
 from auvsim.physics.maneuvers import MANEUVERS, make_maneuver
 from auvsim.physics.vehicle import Vehicle

@@ -7,10 +7,21 @@ import pytest
 from conftest import flat, mission
 
 from auvsim.config import Config, DepthConfig
-from auvsim.data import dataset
+from auvsim.data.schema import schema
 from auvsim.data.streams import STREAMS, imported_streams, mission_streams
+from auvsim.errors import ConfigError
 from auvsim.runs.mission import MissionRun
-from auvsim.sensors import Sensor, Truth, registry, sample_rows
+from auvsim.sensors import (
+    Attr,
+    Field,
+    Sensor,
+    Truth,
+    register,
+    registry,
+    sample_rows,
+    samples_in,
+    unregister,
+)
 
 
 def test_the_registry_finds_every_plugin_with_its_part_of_the_schema():
@@ -22,12 +33,12 @@ def test_the_registry_finds_every_plugin_with_its_part_of_the_schema():
         assert set(sensor.streams) <= set(STREAMS)
         assert all(f.path.split("/")[0] in (name, "imu") for f in sensor.fields)
     # The file's schema is the core plus every plugin's fields and attributes.
-    fields, attrs = dataset.schema("simulated")
+    fields, attrs = schema("simulated")
     paths = {f.path for f in fields}
     assert {"depth/depth", "dvl/beam_velocity", "imu/specific_force", "truth/time"} <= paths
     assert {"depth_bias", "dvl_scale_factor", "imu_gyro_turn_on_bias"} <= {a.name for a in attrs}
     # Version-2 files have no depth group and still read.
-    assert "depth/depth" not in {f.path for f in dataset.schema("simulated", 2)[0]}
+    assert "depth/depth" not in {f.path for f in schema("simulated", 2)[0]}
 
 
 def test_streams_keep_their_positions_as_the_layout_grows():
@@ -110,3 +121,112 @@ def test_the_depth_sensor_does_not_change_the_other_sensors():
     _, b = depth_run(30.0, noise_std=1.0, bias_std=1.0, rate_hz=50.0)
     for key in ("dvl/beam_velocity", "imu/specific_force", "truth/position_ned"):
         np.testing.assert_array_equal(a[key], b[key])
+
+
+# -- a new sensor is one plugin: its schema, checks and inspect lines ----------------------
+
+class Thermometer(Sensor):
+    """A toy sensor defined here, as a user's would be: the water temperature from the
+    depth, a linear thermocline, at ``RATE`` Hz (a real one would read its config
+    section; this toy has none, so it states its rate itself)."""
+
+    RATE = 10.0
+    name = "thermometer"
+    section = "thermometer"
+    streams = ("depth_parameters", "depth_noise")  # it draws nothing from them
+    fields = (Field("thermometer/time", (), "f", "thermometer", "s", "sample times"),
+              Field("thermometer/temperature", (), "f", "thermometer", "degC", "water"))
+    attributes = (Attr("thermometer_rate_hz", (), "Hz", low=0, strict=True, since=6),)
+    since_version = 6
+
+    def __init__(self, config, platform, parameters):
+        self.every_imu = self.every(config)
+
+    @classmethod
+    def rate_hz(cls, config):
+        return cls.RATE
+
+    @classmethod
+    def describe(cls, mission):
+        t = mission.thermometer.temperature
+        return [f"    thermometer {mission.attrs['thermometer_rate_hz']:g} Hz ({len(t)} "
+                f"samples): {t.min():.2f} to {t.max():.2f} degC"]
+
+    def rows(self, n_imu):
+        return {"thermometer": samples_in(n_imu, self.every_imu)}
+
+    def attrs(self):
+        return {"thermometer_rate_hz": self.RATE}
+
+    def measure(self, truth, rng):
+        rows = sample_rows(truth.first, len(truth.time), self.every_imu)
+        return {"thermometer/time": truth.time[rows],
+                "thermometer/temperature": 15.0 - 0.1 * truth.position_ned[rows, 2]}
+
+
+@pytest.fixture
+def thermometer():
+    register(Thermometer)
+    yield Thermometer
+    unregister(Thermometer.name)
+    Thermometer.RATE = 10.0
+
+
+def test_a_sensor_registered_from_outside_joins_the_schema_checks_and_inspect(
+        thermometer, tmp_path, capsys):
+    from auvsim.cli import main
+    from auvsim.runs.generate import generate
+
+    assert "thermometer" in registry()
+    assert "thermometer/temperature" in {f.path for f in schema("simulated")[0]}
+    assert "thermometer/temperature" not in {f.path for f in schema("simulated", 5)[0]}
+    thermometer.RATE = 33.0  # not a whole divisor of the IMU's 100 Hz: its check refuses
+    with pytest.raises(ConfigError, match=r"^thermometer.rate_hz: expected a whole divisor "
+                       r"of the 100 Hz IMU rate, got 33.0$"):
+        flat(mission(duration=5.0))
+    thermometer.RATE = 10.0
+    path = tmp_path / "t.h5"
+    generate(flat(mission(duration=5.0, depth=20.0)), path, workers=1, progress=False)
+    assert main(["inspect", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert "    thermometer 10 Hz (50 samples): 13.00 to 13.00 degC" in text
+    assert "    thermometer: temperature, time" in text
+    with pytest.raises(ValueError, match="registered already"):
+        register(Thermometer)
+
+
+def test_every_plugin_describes_its_part_of_a_mission(tmp_path):
+    from auvsim.data.describe import describe
+    from auvsim.runs.generate import generate
+
+    path = tmp_path / "d.h5"
+    generate(flat(mission(duration=5.0)), path, workers=1, progress=False)
+    text = describe(path)
+    for first in ("    depth sensor 10 Hz (50 samples)", "    DVL 1 Hz (5 pings)",
+                  "    DVL errors: scale factor [0., 0., 0., 0.]", "    IMU 100 Hz (500 samples)"):
+        assert first in text
+    assert "-0." not in text  # negative zeros print as zeros
+
+
+def test_status_colours_come_from_the_enumeration_for_any_number_of_codes(monkeypatch):
+    """An 11th status code once gave IndexError: ten colours were listed by hand."""
+    import enum
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_rgb
+
+    from auvsim import plot
+
+    Status = enum.IntEnum("Status", {f"CODE_{k}": k for k in range(14)} | {"OK": 0})
+    monkeypatch.setattr(plot, "Status", Status)
+    colours = plot.status_colours(len(Status))
+    assert len(colours) == 14 and colours[:10] == list(plot.STATUS_COLOURS)
+    assert len({to_rgb(c) for c in colours}) == 14  # each code its own colour
+    fig, ax = plt.subplots()
+    status = np.arange(14 * 4).reshape(14, 4) % 14  # every code, the 11th to 14th too
+    plot._draw_status(ax, status, (0, 13, 3.5, -0.5))
+    assert len(ax.get_legend().get_patches()) == 14
+    plt.close(fig)

@@ -13,8 +13,9 @@ import pytest
 from conftest import flat, mission
 
 from auvsim import cli as auvsim_cli
-from auvsim.data import dataset
-from auvsim.data.dataset import INDEX, SHARDS, data_files, open_dataset
+from auvsim.data.reader import dataset_paths, open_dataset
+from auvsim.data.schema import INDEX, SHARDS
+from auvsim.data.shards import data_files
 from auvsim.errors import DatasetError
 from auvsim.runs.generate import generate
 from beamsnet import cli as beamsnet_cli
@@ -30,7 +31,7 @@ def arrays(path) -> dict:
         for name, m in f.missions.items():
             out[name, "attrs"] = json.dumps({k: np.asarray(v).tolist()
                                              for k, v in sorted(m.attrs.items())})
-            for key in dataset._dataset_paths(m._group):
+            for key in dataset_paths(m._group):
                 out[name, key] = m.read(key)
     return out
 
@@ -110,6 +111,36 @@ def test_a_shard_not_sealed_by_this_config_is_refused_by_the_index(sharded):
     shard = sharded / SHARDS / "part-00001.h5"
     with h5py.File(shard, "r+") as f:
         f.attrs["config_sha256"] = "0" * 64
+    with pytest.raises(DatasetError, match="part-00001.h5: not the shard the index"):
+        open_dataset(sharded)
+
+
+def test_values_edited_through_hdf5_are_refused_not_read_as_data(sharded, capsys, tmp_path):
+    """HDF5 recomputes a field's Fletcher-32 when a value is edited through it: the shard's
+    seal (its data digest) is what tells, at the first read from that shard."""
+    with h5py.File(sharded / SHARDS / "part-00001.h5", "r+") as f:
+        ds = f["missions/b/dvl/beam_velocity"]
+        ds[3, 0] = ds[3, 0] + 0.5
+    with open_dataset(sharded) as f:  # opening stays cheap: no shard is read whole
+        assert f.missions["a"].dvl.beam_velocity.shape == (40, 4)  # another shard reads
+        with pytest.raises(DatasetError, match="part-00001.h5: its data differ from the "
+                           "digest it was sealed with"):
+            f.missions["b"].read("truth/time")  # any field of the edited shard is refused
+    assert auvsim_cli.main(["inspect", str(sharded)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "its data differ from the digest" in err
+    assert auvsim_cli.main(["plot", str(sharded), "--mission", "b", "--out",
+                            str(tmp_path / "png")]) == 2
+    assert not (tmp_path / "png").exists()
+
+
+def test_a_shard_resealed_after_an_edit_is_refused_by_the_index(sharded):
+    from auvsim.data.schema import data_digest
+
+    with h5py.File(sharded / SHARDS / "part-00001.h5", "r+") as f:
+        ds = f["missions/b/dvl/beam_velocity"]
+        ds[3, 0] = ds[3, 0] + 0.5
+        f.attrs["data_sha256"] = data_digest(f)
     with pytest.raises(DatasetError, match="part-00001.h5: not the shard the index"):
         open_dataset(sharded)
 

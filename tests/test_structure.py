@@ -1,6 +1,7 @@
 """The packages' import structure, read from the source with ``ast``: no import circle
-(imports inside functions count), no private name imported from another module, and
-beamsnet reads the simulator's facts from the dataset API, not from the simulator."""
+(imports inside functions count; those under ``if TYPE_CHECKING:`` never run and do
+not), no private name imported from another module, and beamsnet reads the simulator's
+facts from the dataset API, not from the simulator."""
 
 from __future__ import annotations
 
@@ -10,10 +11,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("auvsim", "beamsnet")
 # What beamsnet may import of auvsim: the dataset API (beam geometry included), frames,
-# the error vocabulary, and, for the experiment runner, the presets, generation and the
-# cluster helpers its Dask options share with auvsim.
+# the error vocabulary and the command-line boundary both CLIs share, and, for the
+# experiment runner, the presets, generation and the cluster helpers its Dask options
+# share with auvsim.
 BEAMSNET_MAY_IMPORT = ("auvsim.data", "auvsim.physics.frames", "auvsim.errors",
-                       "auvsim.runs.presets", "auvsim.runs.generate", "auvsim.runs.cluster")
+                       "auvsim.cli_support", "auvsim.runs.presets", "auvsim.runs.generate",
+                       "auvsim.runs.cluster")
 
 
 def _modules() -> dict[str, Path]:
@@ -38,8 +41,13 @@ def _imports(name: str) -> list[tuple[str, list[str]]]:
     path = MODULES[name]
     tree = ast.parse(path.read_text(), filename=str(path))
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                   and _is_type_checking(block.test) for stmt in block.body
+                   for n in ast.walk(stmt)}
     found = []
     for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
         if isinstance(node, ast.Import):
             found += [(alias.name, []) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -49,6 +57,12 @@ def _imports(name: str) -> list[tuple[str, list[str]]]:
                 base = ".".join(anchor + ([base] if base else []))
             found.append((base, [alias.name for alias in node.names]))
     return found
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    """``TYPE_CHECKING`` or ``typing.TYPE_CHECKING``."""
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
 def _target(module: str, names: list[str]) -> list[str]:

@@ -13,7 +13,17 @@ temporaries dead even if the pid has been reused since; ``sweep`` (run by every 
 claim) removes those, and leaves anything else alone.
 
 Output folders are checked before any work (``check_out_dir``) and made only once every
-input has been (``make_out_dir``), so a refused command leaves no empty folder.
+input has been (``make_out_dir``), so a refused command leaves no empty folder. A command
+<<<<<<< HEAD
+whose outputs are several files (a run folder, a report, figures) runs in
+``all_or_nothing``: if it fails (a full disk, Ctrl-C) the folders it made go, and so do the
+files it wrote into its output folders, so nothing of it is left half done. An ``OSError``
+while writing becomes an ``OutputError`` naming the output (``writing``).
+=======
+that writes several files into a folder builds them in a temporary sibling
+(``staged_dir``) and moves them in at the end, so one that fails half-way (a full disk)
+leaves neither some of its files nor an empty folder.
+>>>>>>> bnfront
 
 Some steps must not be cut in half by Ctrl-C or SIGTERM either: ``interrupts_held``
 delivers them after the step.
@@ -21,18 +31,21 @@ delivers them after the step.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 import re
+import shlex
 import shutil
 import signal
 import socket
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from auvsim.errors import ConfigError
+from auvsim.errors import ConfigError, OutputError
 
 TAG = "auvsim-tmp"
 HOST = socket.gethostname()
@@ -79,15 +92,17 @@ class Claim:
         _held.add(self._lock)
 
     def release(self) -> None:
-        """Remove the temporaries (the lock last: see ``sweep``) and let the name go."""
+        """Remove the temporaries (the lock last: see ``sweep``) and let the name go; a
+        Ctrl-C waits until it is done, so no lock is left behind."""
         if self._fd is None:
             return
-        self.file.unlink(missing_ok=True)
-        shutil.rmtree(self.folder, ignore_errors=True)
-        self._lock.unlink(missing_ok=True)
-        os.close(self._fd)
-        self._fd = None
-        _held.discard(self._lock)
+        with interrupts_held():
+            self.file.unlink(missing_ok=True)
+            shutil.rmtree(self.folder, ignore_errors=True)
+            self._lock.unlink(missing_ok=True)
+            os.close(self._fd)
+            self._fd = None
+            _held.discard(self._lock)
 
     def __enter__(self) -> Claim:
         return self
@@ -128,6 +143,38 @@ def sweep(folder: str | os.PathLike) -> None:
             pass
         finally:
             os.close(fd)
+
+
+def leftovers(folder: str | os.PathLike, *, name: str | None = None,
+              swept: bool = True) -> list[Path]:
+    """The temporaries of auvsim runs in ``folder`` (of the output ``name`` only, if
+    given): the files and folders named ``.<output>.auvsim-tmp.*``, which readers ignore.
+    With ``swept``, those of this host's ended runs are removed first (``sweep``: only
+    claims whose lock nobody holds), so what is left belongs to a run still writing, or
+    to one that ended on another host.
+
+    Returns:
+        Their paths, in name order.
+    """
+    folder = Path(folder)
+    if swept:
+        sweep(folder)
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return []
+    prefix = "." if name is None else f".{name}."
+    return [folder / n for n in names if n.startswith(prefix) and f".{TAG}." in n]
+
+
+def leftovers_note(found: Sequence[Path]) -> str:
+    """One line on temporaries that ``leftovers`` found: what they are, and the command
+    that removes them."""
+    folders = sorted({str(p.parent) for p in found})
+    globs = " ".join(f"{shlex.quote(f)}/.*.{TAG}.*" for f in folders)
+    return (f"note: {len(found)} temporary file(s) of another auvsim run beside the data "
+            "(still writing, or ended on another host), which readers ignore; once no run "
+            f"writes there, remove them: rm -rf {globs}")
 
 
 def _lock(file: Path) -> Path:
@@ -194,22 +241,159 @@ def check_out_dir(out: str | os.PathLike) -> Path:
     return out
 
 
-def make_out_dir(out: Path) -> None:
-    """Make the directory ``out`` (and its parents), or raise ConfigError naming it."""
+def make_out_dir(out: Path, *, whole: bool = True) -> None:
+    """Make the directory ``out`` (and its parents), or raise ConfigError naming it.
+
+    Args:
+        out: the directory.
+        whole: its outputs make one whole: inside ``all_or_nothing``, a failure removes
+            the files written into it (and it, if made here). False for a folder whose
+            files are each whole on their own (a sharded dataset's shards).
+    """
+    top = None  # the outermost folder made here
+    for path in (out, *out.parents):
+        if path.exists():
+            break
+        top = path
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise ConfigError(f"{str(out)!r}: cannot be made a directory ({e.strerror}); expected "
                           "a directory to write into", argument="out") from None
+    if whole:
+        for scope in _scopes:
+            scope.folders.append(out)
+            if top is not None:
+                scope.made.append(top)
+
+
+@dataclass(eq=False)  # each block's record is itself, however alike
+class Outputs:
+    """What a block of ``all_or_nothing`` wrote.
+
+    Attributes:
+        folders: the output folders it made or wrote into (``make_out_dir``).
+        made: the outermost folders it made.
+        written: the files it wrote whole (``commit``), in order.
+        removed: those it removed again on failure.
+    """
+
+    folders: list[Path] = field(default_factory=list)
+    made: list[Path] = field(default_factory=list)
+    written: list[Path] = field(default_factory=list)
+    removed: list[Path] = field(default_factory=list)
+
+    @property
+    def kept(self) -> list[Path]:
+        """The files written and still there, each once (a file written into a
+        ``staged_dir`` that was then thrown away is not)."""
+        return list(dict.fromkeys(p for p in self.written
+                                  if p not in self.removed and p.exists()))
+
+
+_scopes: list[Outputs] = []  # the open ``all_or_nothing`` blocks, outermost first
+
+
+@contextmanager
+def all_or_nothing() -> Iterator[Outputs]:
+    """Keep what the block writes only if it ends without an exception.
+
+    On one (an error, Ctrl-C; not a closed pipe, which ends a command whose outputs are
+    written), the folders that ``make_out_dir`` made in the block are removed with all
+    that is in them, and the files ``commit`` wrote into the folders given to
+    ``make_out_dir`` (the whole of a run folder or a report) are removed. Other files
+    written whole stay (a generated dataset, cached for the next run): ``Outputs.kept``
+    lists them. Blocks nest; each rolls back its own.
+    """
+    scope = Outputs()
+    _scopes.append(scope)
+    try:
+        yield scope
+    except BrokenPipeError:
+        raise
+    except BaseException:
+        _roll_back(scope)
+        raise
+    finally:
+        _scopes.remove(scope)
+
+
+def _roll_back(scope: Outputs) -> None:
+    with interrupts_held():
+        for path in reversed(scope.written):
+            if any(folder == path.parent for folder in scope.folders):
+                path.unlink(missing_ok=True)
+                scope.removed.append(path)
+        for folder in reversed(scope.made):
+            scope.removed += [p for p in scope.written if folder in p.parents]
+            shutil.rmtree(folder, ignore_errors=True)
+        for outer in _scopes:
+            if outer is not scope:
+                outer.removed += scope.removed
+
+
+def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Rename the complete temporary ``tmp`` to ``path``, recorded for ``all_or_nothing``;
+    a Ctrl-C waits until both are done, so what a command says it wrote is what it did."""
+    with interrupts_held():
+        os.replace(tmp, path)
+        for scope in _scopes:
+            scope.written.append(Path(path))
+
+
+# Whose errno says the output could not be written (not a lost connection, say).
+_WRITE_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO,
+                 errno.EACCES, errno.EPERM, errno.ENOENT, errno.EISDIR, errno.ENOTDIR}
+
+
+def output_error(path: str | os.PathLike, error: OSError) -> OutputError:
+    """``error``, raised while writing ``path``, as one line that names the output."""
+    if error.errno is not None and error.errno in (errno.ENOSPC, errno.EDQUOT):
+        expected = "expected room for it there: free some space, or write elsewhere"
+    else:
+        expected = "expected a path in a folder that can be written"
+    return OutputError(f"{str(path)!r}: cannot be written ({reason(error)}); {expected}")
+
+
+def reason(error: OSError) -> str:
+    """What went wrong, in a few words: the errno's text, or the error's first 200 characters
+    (h5py's HDF5 errors may come without an errno)."""
+    if error.errno:
+        return os.strerror(error.errno)
+    return " ".join(str(error).split())[:200] or type(error).__name__
+
+
+@contextmanager
+def writing(path: str | os.PathLike) -> Iterator[None]:
+    """Turn an ``OSError`` raised in the block, while ``path`` is written, into an
+    ``OutputError`` naming it (a connection's error is left as it is)."""
+    try:
+        yield
+    except OSError as e:
+        if not is_write_error(e):
+            raise
+        raise output_error(path, e) from e
+
+
+def is_write_error(error: BaseException) -> bool:
+    """Whether ``error`` may come from writing a file (a full disk, a read-only folder, an
+    HDF5 error without an errno), as opposed to a lost connection or worker, say."""
+    return (isinstance(error, OSError) and not isinstance(error, ConnectionError)
+            and (error.errno is None or error.errno in _WRITE_ERRORS))
 
 
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically."""
+    """Write ``data`` to ``path`` atomically.
+
+    Raises:
+        OutputError: it cannot be written (nothing of it is left then).
+    """
     path = Path(path)
     tmp = temporary(path, suffix=path.suffix)
     try:
-        tmp.write_bytes(data)
-        tmp.replace(path)
+        with writing(path):
+            tmp.write_bytes(data)
+            commit(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
@@ -221,15 +405,65 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
 
 
 def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
-    """Save a matplotlib figure to ``path`` atomically and close it."""
+    """Save a matplotlib figure to ``path`` atomically and close it.
+
+    Raises:
+        OutputError: it cannot be written (nothing of it is left then).
+    """
     import matplotlib.pyplot as plt
 
     path = Path(path)
     tmp = temporary(path, suffix=path.suffix)
     try:
-        fig.savefig(tmp, dpi=dpi)
-        tmp.replace(path)
+        with writing(path):
+            fig.savefig(tmp, dpi=dpi)
+            commit(tmp, path)
     finally:
         plt.close(fig)
         tmp.unlink(missing_ok=True)
     return path
+
+
+@contextmanager
+def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
+    """A temporary folder to write the files of the folder ``out`` into, moved into place
+    when the block ends without an error, removed (with any folder above ``out`` that it
+    made) when it ends with one.
+
+    The folder is a ``Claim``'s parts folder beside ``out``, so a killed run's is swept by
+    the next claim there. ``out`` that does not exist yet is the folder renamed, in one
+    step; one that exists gets each file moved in (replacing a namesake), its other files
+    left as they are.
+
+    Raises:
+        ConfigError: ``out`` cannot be a directory.
+    """
+    out = check_out_dir(out)
+    made = [p for p in (out.parent, *out.parent.parents) if not p.exists()]  # deepest first
+    make_out_dir(out.parent)
+    try:
+        with Claim(out) as claim:
+            claim.folder.mkdir()
+            yield claim.folder
+            _move_into(claim.folder, out)
+    except BaseException:
+        for folder in made:
+            try:
+                folder.rmdir()
+            except OSError:  # not empty: someone else's files are in it now
+                break
+        raise
+
+
+def _move_into(source: Path, out: Path) -> None:
+    """Move the folder ``source`` to ``out``: renamed if ``out`` does not exist, else entry
+    by entry (folders merged the same way)."""
+    if not out.exists():
+        source.rename(out)
+        return
+    for entry in sorted(source.iterdir()):
+        target = out / entry.name
+        if entry.is_dir() and target.is_dir():
+            _move_into(entry, target)
+        else:
+            entry.replace(target)

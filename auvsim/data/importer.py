@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.config import DvlConfig
-from auvsim.data.dataset import DatasetWriter, mission_attrs
+from auvsim.data.schema import mission_attrs
 from auvsim.data.streams import imported_streams
+from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError
 from auvsim.sensors.dvl import synthesise
 

@@ -106,7 +106,9 @@ import gymnasium as gym
 import numpy as np
 
 from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
-from auvsim.data.dataset import Block, DatasetWriter
+from auvsim.data.reader import Block
+from auvsim.data.schema import phases_json
+from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.control import autopilot
 from auvsim.physics.frames import EULER, STATE
@@ -336,8 +338,9 @@ class EpisodeRecorder(gym.Wrapper):
         if self.blocks:
             env = self.env.unwrapped
             samples = sum(len(Block(b).truth.time) for b in self.blocks)
+            # A policy flew it, not the scenario's script: no manoeuvre phases to state.
             attrs = dict(env.run.attrs, scenario="environment",
-                         duration_s=samples / env.config.imu.rate_hz)
+                         duration_s=samples / env.config.imu.rate_hz, phases=phases_json([]))
             self.episodes.append((attrs, self.blocks))
             self.blocks = []
 

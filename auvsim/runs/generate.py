@@ -6,9 +6,9 @@ file. With one worker the missions run in this process, two at a time on threads
 straight into the output; with more (or with an executor or a Dask cluster given), each
 runs as a job of a ``concurrent.futures`` executor into a part file of its own, and the
 dataset is then assembled in mission order by copying those missions
-(``auvsim.data.dataset.copy_mission``). A sharded dataset needs no copy: each job writes its
+(``auvsim.data.writer.copy_mission``). A sharded dataset needs no copy: each job writes its
 shard into the output folder, sealed with its config's hash and its data's digest, and
-the index is written last (``auvsim.data.dataset.write_index``); running again keeps the
+the index is written last (``auvsim.data.shards.write_index``); running again keeps the
 shards that are whole and this config's (resume). So memory stays flat in mission
 length, and the output is the same whatever the number of workers.
 
@@ -49,30 +49,26 @@ from pathlib import Path
 from tqdm import tqdm
 
 from auvsim import __version__
-from auvsim.runs.cluster import check_address, lost_worker
 from auvsim.config import Config
-from auvsim.data.dataset import (
-    INDEX,
-    SHARDS,
-    Block,
-    DatasetWriter,
-    Shard,
-    copy_mission,
-    shard_state,
-    write_index,
-)
-from auvsim.errors import ConfigError, SimulationError
 from auvsim.data.files import (
     HOST,
     Claim,
     check_out_dir,
+    commit,
     interrupt_handler,
     interrupts_held,
     make_out_dir,
     sweep,
+    writing,
 )
-from auvsim.runs.mission import MissionRun, check_reachable
+from auvsim.data.reader import Block
+from auvsim.data.schema import INDEX, SHARDS, Shard
+from auvsim.data.shards import shard_state, write_index
+from auvsim.data.writer import DatasetWriter, copy_mission
+from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
+from auvsim.runs.cluster import check_address, lost_worker
+from auvsim.runs.mission import MissionRun, check_reachable
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
 POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
@@ -199,16 +195,39 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
             every worker reaches.
         shards: missions per shard of a sharded dataset in the folder ``out``: one HDF5
             file per shard in ``out/shards/`` and an index ``out/index.h5`` that reads as
-            one dataset (``auvsim.data.dataset.write_index``). Default 1 when ``out`` names a
+            one dataset (``auvsim.data.shards.write_index``). Default 1 when ``out`` names a
             folder; one file otherwise. Running again into the same folder keeps every
             shard that is complete and holds this config's data (its config hash and data
             digest say so) and makes the others.
         progress: show a progress bar on a terminal.
 
     Returns:
-        A summary: number of missions, simulated seconds, wall seconds; for a sharded
-        dataset also its shards and how many were kept from an earlier run.
+        A summary: number of missions, simulated seconds, wall seconds, the seconds this
+        process spent compiling the physics (``compile_s``: a first run's, 0 once numba's
+        cache has it); for a sharded dataset also its shards and how many were kept from
+        an earlier run.
     """
+    with _compile_clock() as compiling:
+        summary = _generate(config, out, workers=workers, executor=executor,
+                            cluster=cluster, shards=shards, progress=progress)
+    return dict(summary, compile_s=compiling())
+
+
+@contextmanager
+def _compile_clock() -> Iterator[Callable[[], float]]:
+    """Seconds numba spends compiling in this process while the block runs (loading what
+    its cache holds is not compiling): what a first run costs and later runs do not. The
+    missions of worker processes compile there, unseen here."""
+    from numba.core import event
+
+    listener = event.TimingListener()  # nested compilations counted once
+    with event.install_listener("numba:compile", listener):
+        yield lambda: listener.duration if listener.done else 0.0
+
+
+def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
+              executor: cf.Executor | None, cluster: str | None, shards: int | None,
+              progress: bool) -> dict:
     with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
         check_reachable(config)
     for name, value in (("workers", workers), ("shards", shards)):
@@ -277,9 +296,17 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
     stopped before the run's folder goes, so no worker writes into it as it does."""
     folder = check_out_dir(folder)
     plan = shard_plan(config, per_shard)
-    fresh = not folder.exists()
-    make_out_dir(folder / SHARDS)
     index = folder / INDEX
+    for path, what in ((index, "the index file"), (folder / SHARDS, "the shards' folder")):
+        if path.exists() and path.is_dir() != (path.name == SHARDS):
+            kind = "a folder" if path.is_dir() else "a file"
+            raise ConfigError(f"{str(path)!r} is {kind}: expected {what} of a sharded "
+                              "dataset there (or nothing); move it aside", argument="out")
+    fresh = not folder.exists()
+    make_out_dir(folder / SHARDS, whole=False)  # each shard is whole on its own
+    # The temporaries of runs that were killed (kill -9, a lost node) go before any work.
+    for place in (folder, folder / SHARDS):
+        sweep(place)
     try:
         with _only_writer(folder), _claimed(index) as claim:
             shards: list[Shard | None] = []
@@ -310,8 +337,9 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
                         if given is None:
                             pool.shutdown(wait=True)
                 sweep(folder / SHARDS)  # the temporaries of workers that were killed
-            write_index(claim.file, shards, config_json=config.to_json())
-            os.replace(claim.file, index)
+            with writing(index):
+                write_index(claim.file, shards, config_json=config.to_json())
+                commit(claim.file, index)
     except BaseException:
         if fresh:  # a run refused or stopped before its first shard leaves no folder
             for made in (folder / SHARDS, folder):

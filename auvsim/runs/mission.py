@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from auvsim.config import Config, MissionConfig
-from auvsim.data.dataset import core_block, mission_attrs
+from auvsim.data.schema import core_block, mission_attrs, phases_json
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.maneuvers import check_scenario, make_maneuver
 from auvsim.world.seafloor import Seafloor
@@ -93,15 +93,18 @@ class MissionRun:
 
     @property
     def attrs(self) -> dict:
-        """The mission's attributes (``auvsim.data.dataset.mission_attrs``)."""
+        """The mission's attributes (``auvsim.data.schema.mission_attrs``)."""
         m = self.mission
         sensed = {}
         for sensor in self.sensors:
             sensed.update(sensor.attrs())
+        # Gravity points down in every model auvsim loads (auvsim.physics.hydro checks it).
         return mission_attrs(origin="simulated", scenario=m.scenario.name, seed=m.seed,
                              duration_s=m.scenario.duration, vehicle=self.config.vehicle.model,
                              water_surface_speed=self.water.surface_speed,
-                             water_direction_deg=self.water.direction_deg, **sensed)
+                             water_direction_deg=self.water.direction_deg,
+                             gravity=-float(self.vehicle.model.opt.gravity[2]),
+                             phases=phases_json(self.scenario.phases()), **sensed)
 
     @property
     def samples(self) -> int:

@@ -4,10 +4,16 @@ A sensor is a class with a small interface (``Sensor``): its name, the config se
 reads, its rate, the dataset fields and mission attributes it writes (its part of the
 schema), the random streams it draws from, and ``measure``, a function of one block of
 truth and the sensor's noise stream. Every module of this package that defines ``SENSOR``
-is a plugin; ``registry`` finds them, so a new sensor is one new file here plus its
-config section (``auvsim.config``) and its tests. ``auvsim.runs.mission`` builds each plugin
-per mission and measures every block with it; ``auvsim.data.dataset`` reads the plugins'
-fields to check a file.
+is a plugin; ``registry`` finds them (``register`` adds one defined elsewhere), so a new
+sensor is one new file here plus its config section (a dataclass and a field of
+``auvsim.config.Config``) and its tests. A plugin owns, beside its measurements:
+
+* its checks against the rest of the config (``Sensor.check``: by default, that its rate
+  is a whole divisor of the IMU's), which ``Config`` runs for every plugin;
+* what ``auvsim inspect`` says of it (``Sensor.describe``, lines from a mission's file).
+
+``auvsim.runs.mission`` builds each plugin per mission and measures every block with it;
+``auvsim.data.reader`` reads the plugins' fields to check a file.
 
 Block alignment: a sensor sampling every ``every`` IMU samples measures at the global IMU
 sample indices ``0, every, 2 every, ...``, wherever a block starts (``sample_rows``), so
@@ -18,10 +24,13 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import threading
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
+
+from auvsim.errors import ConfigError
 
 if TYPE_CHECKING:
     from auvsim.config import Config
@@ -40,7 +49,7 @@ class Field:
         doc: what it holds.
         imported: also written for a mission imported from a recorded stream.
         index_of: the values are row indices into this clock's fields.
-        since: the first schema version that holds it (``auvsim.data.dataset.FORMAT_VERSION``).
+        since: the first schema version that holds it (``auvsim.data.schema.FORMAT_VERSION``).
     """
 
     path: str
@@ -151,6 +160,30 @@ class Sensor:
         """IMU samples per sample of this sensor."""
         return round(config.imu.rate_hz / cls.rate_hz(config))
 
+    @classmethod
+    def check(cls, config: Config) -> None:
+        """Refuse settings of this sensor that are wrong only beside the rest of the config
+        (its own section checks its ranges alone): by default its rate, which must be a
+        whole divisor of the IMU's, so its samples fall on IMU samples. A plugin with more
+        to check extends this.
+
+        Raises:
+            ConfigError: naming the setting, what was expected and what was given.
+        """
+        rate = cls.rate_hz(config)
+        ratio = config.imu.rate_hz / rate
+        if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
+            raise ConfigError(f"{cls.section}.rate_hz: expected a whole divisor of the "
+                              f"{config.imu.rate_hz:g} Hz IMU rate, got {rate!r}")
+
+    @classmethod
+    def describe(cls, mission: Any) -> list[str]:
+        """What ``auvsim inspect`` prints for this sensor in a mission that holds its group
+        (an ``auvsim.data.reader.Mission``): lines indented four spaces, its rate, its
+        realised parameters, how much of its data is usable."""
+        return [f"    {cls.name} {mission.attrs.get(f'{cls.section}_rate_hz', '?')} Hz "
+                f"({getattr(mission, cls.name).rows} samples)"]
+
     def rows(self, n_imu: int) -> dict[str, int]:
         """Rows of each of its fields' clocks in a mission of ``n_imu`` IMU samples."""
         raise NotImplementedError
@@ -175,13 +208,45 @@ def samples_in(n_imu: int, every: int) -> int:
     return -(-n_imu // every)
 
 
+def shown(values: Any, precision: int = 6) -> str:
+    """Numbers as ``auvsim inspect`` prints them: numpy's layout, no ``-0.`` (adding 0.0
+    turns a negative zero into zero and leaves every other number as it is)."""
+    return np.array2string(np.asarray(values, dtype=float) + 0.0, precision=precision,
+                           separator=", ")
+
+
+_found: dict[str, type[Sensor]] = {}  # the package's plugins, once imported
+_finding = threading.Lock()
+_added: dict[str, type[Sensor]] = {}  # plugins registered from elsewhere
+
+
 def registry() -> dict[str, type[Sensor]]:
-    """Every sensor plugin of this package (a module defining ``SENSOR``), by name, in
-    name order: the order ``auvsim.runs.mission`` measures them in."""
-    found = {}
-    for info in pkgutil.iter_modules(__path__):
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        sensor = getattr(module, "SENSOR", None)
-        if sensor is not None:
-            found[sensor.name] = sensor
-    return dict(sorted(found.items()))
+    """Every sensor plugin: each module of this package defining ``SENSOR``, and those
+    given to ``register``, by name, in name order: the order ``auvsim.runs.mission``
+    measures them in."""
+    if not _found:
+        with _finding:  # threads of a worker ask at once: none may see a partial list
+            found = {}
+            for info in pkgutil.iter_modules(__path__):
+                module = importlib.import_module(f"{__name__}.{info.name}")
+                sensor = getattr(module, "SENSOR", None)
+                if sensor is not None:
+                    found[sensor.name] = sensor
+            _found.update(found)
+    return dict(sorted({**_found, **_added}.items()))
+
+
+def register(sensor: type[Sensor]) -> type[Sensor]:
+    """Add a sensor plugin defined outside this package (a class decorator); its name
+    must be new. Its ``section`` must be a section of ``auvsim.config.Config``, or it
+    overrides ``rate_hz``."""
+    if sensor.name in registry():
+        raise ValueError(f"sensor {sensor.name!r}: a plugin of that name is registered "
+                         "already; expected a new name")
+    _added[sensor.name] = sensor
+    return sensor
+
+
+def unregister(name: str) -> None:
+    """Remove a plugin that ``register`` added."""
+    _added.pop(name, None)

@@ -60,6 +60,13 @@ class PressureDepth(Sensor):
         self._at += n
         return self._ahead[self._at - n:self._at]
 
+    @classmethod
+    def describe(cls, mission):
+        a = mission.attrs
+        return [f"    depth sensor {a['depth_rate_hz']:g} Hz ({mission.depth.rows} samples): "
+                f"offset {a['depth_bias']:.4g} m, noise std {a['depth_noise_std']:g} m, "
+                f"resolution {a['depth_resolution']:g} m"]
+
     def rows(self, n_imu):
         return {"depth": samples_in(n_imu, self.every_imu)}
 

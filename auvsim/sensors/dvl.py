@@ -40,7 +40,7 @@ import numpy as np
 from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
-from auvsim.sensors import Attr, Field, Sensor, sample_rows, samples_in
+from auvsim.sensors import Attr, Field, Sensor, sample_rows, samples_in, shown
 
 
 def beam_matrix(beam_angle: float) -> np.ndarray:
@@ -640,6 +640,10 @@ class Dvl(Sensor):
     def rows(self, n_imu):
         return {"dvl": samples_in(n_imu, self.every_imu)}
 
+    @classmethod
+    def describe(cls, mission):
+        return describe_mission(mission)
+
     def attrs(self):
         c = self.config
         return dict(config_attrs(c, self.errors), dvl_min_range=c.min_range,
@@ -742,6 +746,46 @@ def _empty(field: Field) -> np.ndarray:
 
 # Made once: most environment steps fall between pings.
 _NO_PINGS = {f.path: _empty(f) for f in Dvl.fields}
+
+
+def usable_beams(valid: np.ndarray, beam_velocity: np.ndarray) -> np.ndarray:
+    """(M, 4) bool: the beams that measured, flagged ``valid`` (M, 4) with a finite
+    ``beam_velocity`` (M, 4, m/s). A file may flag NaN beams valid (an edited one, or a
+    recording): they are not velocities."""
+    return np.asarray(valid, dtype=bool) & np.isfinite(beam_velocity)
+
+
+def describe_mission(mission) -> list[str]:
+    """What ``auvsim inspect`` prints of a mission's DVL (``Dvl.describe``)."""
+    a, dvl = mission.attrs, mission.dvl
+    usable = usable_beams(dvl.valid, dvl.beam_velocity)
+    share = 100 * usable.mean() if usable.size else 0.0
+    solvable = 100 * (usable.sum(axis=1) >= 3).mean() if len(usable) else 0.0
+    lines = [f"    DVL {a['dvl_rate_hz']:g} Hz ({len(usable)} pings), beams at "
+             f"{a['beam_angle_deg']:g} deg, {share:.1f} % of beams valid, {solvable:.1f} % of "
+             "pings solvable",
+             f"    DVL errors: scale factor {shown(a['dvl_scale_factor'])}, bias "
+             f"{shown(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s"]
+    if "dvl_sound_speed_ratio" in a:
+        lines.append(f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
+                     f"misalignment {shown(a['dvl_misalignment_rpy_deg'])} deg (roll, pitch, "
+                     "yaw)")
+    if "status" in dvl:
+        status = dvl.status
+        counts = np.bincount(status.ravel().clip(0, len(Status) - 1), minlength=len(Status))
+        shares = ", ".join(f"{Status(code).name.lower()} {100 * n / status.size:.1f} %"
+                           for code, n in enumerate(counts) if n)
+        lines.append(f"    DVL beam status: {shares}")
+    if "mode" in dvl:
+        mode = dvl.mode
+        shares = ", ".join(f"{x.name.lower().replace('_', ' ')} "
+                           f"{100 * np.mean(mode == x):.1f} %" for x in Mode)
+        error = dvl.error_velocity
+        finite = error[np.isfinite(error)]
+        rms = f"{np.sqrt(np.mean(finite**2)):.3g} m/s" if finite.size else "none"
+        lines.append(f"    DVL modes: {shares}; error velocity rms {rms} over "
+                     f"{finite.size} four-beam pings")
+    return lines
 
 
 def _no_pings() -> dict[str, np.ndarray]:

@@ -34,7 +34,7 @@ import numba
 import numpy as np
 
 from auvsim.config import ImuConfig
-from auvsim.sensors import Attr, Field, Sensor
+from auvsim.sensors import Attr, Field, Sensor, shown
 
 G0 = 9.80665  # m/s^2, standard gravity: the g of micro-g and mg in datasheets
 DEG = math.pi / 180.0  # rad per degree
@@ -521,6 +521,10 @@ class Imu(Sensor):
     def rows(self, n_imu):
         return {"imu": n_imu}
 
+    @classmethod
+    def describe(cls, mission):
+        return describe_mission(mission)
+
     def attrs(self):
         c, cal = self.config, self.calibration
         return dict(imu_rate_hz=c.rate_hz, imu_position_body=self.position,
@@ -545,6 +549,29 @@ class Imu(Sensor):
                                        calibration=self.calibration)
         force, rate = self.model.corrupt(truth.specific_force, truth.angular_rate)
         return {"imu/time": truth.time, "imu/specific_force": force, "imu/angular_rate": rate}
+
+
+def describe_mission(mission) -> list[str]:
+    """What ``auvsim inspect`` prints of a mission's IMU (``Imu.describe``)."""
+    a = mission.attrs
+    lines = [f"    IMU {a['imu_rate_hz']:g} Hz ({mission.imu.rows} samples)"]
+    if "imu_accel_turn_on_bias" in a:
+        lines.append(
+            f"    IMU errors: accel turn-on bias {shown(a['imu_accel_turn_on_bias'])} "
+            f"m/s^2, gyro {shown(a['imu_gyro_turn_on_bias'])} rad/s; noise densities "
+            f"{a['imu_accel_noise_density']:.3g} m/s^2/rtHz, "
+            f"{a['imu_gyro_noise_density']:.3g} rad/s/rtHz")
+    if "imu_accel_scale_factor" in a:  # v4
+        largest = {k: f"{np.max(np.abs(a[f'imu_{k}'])):.3g}" for k in (
+            "accel_misalignment", "gyro_misalignment", "gyro_g_sensitivity")}
+        lines.append(
+            f"    IMU calibration: scale factors accel {shown(a['imu_accel_scale_factor'])}, "
+            f"gyro {shown(a['imu_gyro_scale_factor'])}; largest misalignment accel "
+            f"{largest['accel_misalignment']}, gyro {largest['gyro_misalignment']} rad; "
+            f"largest g-sensitivity {largest['gyro_g_sensitivity']} rad/s per m/s^2; bias "
+            f"correlation times accel {a['imu_accel_bias_correlation_time']:g} s, gyro "
+            f"{a['imu_gyro_bias_correlation_time']:g} s")
+    return lines
 
 
 SENSOR = Imu

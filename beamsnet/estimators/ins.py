@@ -72,7 +72,7 @@ import numba
 import numpy as np
 
 from auvsim.data.beams import beam_matrix
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.data import DataError, Windows
@@ -397,7 +397,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     """Run the filter over one mission from its start.
 
     Args:
-        mission: an ``auvsim.data.dataset`` Mission view of a simulated mission.
+        mission: an ``auvsim.data.reader.Mission`` view of a simulated mission.
         config: the filter's settings.
         beam_correction: per-beam (scale factors s, biases b (m/s)), each (4,), known from
             a calibration (``beamsnet.estimators.baselines.BeamCalibration``): every beam is used as

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import make_out_dir, save_figure, write_text
+from auvsim.data.files import save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import Windows, load_windows, select
@@ -57,7 +57,9 @@ from beamsnet.evaluate import baselines, filters, trimmed
 from beamsnet.experiments.runner import ensure_dataset
 from beamsnet.experiments.wording import as_published, why_worse
 from beamsnet.navigation import dead_reckoning_error, held, own_position_error, truth_at_pings
+from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.train import predict
+from beamsnet.words import count
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
 # straight line, a steady turn, a hard zigzag and random waypoints span the stress test's
@@ -260,15 +262,14 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 dvl=_jsonable(dict(fault.dvl)), current_ned=fault.current_ned,
                 estimators=scored[str(path)]))
 
-    make_out_dir(out)
-    _plot(results, out / "faults.png")
     summary = dict(train_data=str(train_data), trained_on=trained_on,
                    models=[_trained(c) for _, _, c in models], missions=list(missions),
                    duration_s=duration, sweeps=results)
-    write_text(out / "faults.json", json.dumps(summary, indent=1))
-    report = out / "faults.md"
-    write_text(report, _report(summary))
-    return report
+    with staged_dir(out) as stage:  # all three files or none
+        _plot(results, stage / "faults.png")
+        write_text(stage / "faults.json", json.dumps(summary, indent=1))
+        write_text(stage / "faults.md", _report(summary))
+    return Path(out) / "faults.md"
 
 
 def _dataset(config, fault: Fault, duration: float, datasets: Path, progress: bool) -> Path:
@@ -374,7 +375,8 @@ def _report(summary: dict) -> str:
     sweeps_ = summary["sweeps"]
     names = list(next(iter(sweeps_.values()))[0]["estimators"])
     trained = ", ".join(f"{spec(m['model']).short}{m['as_published']} ({m['pings']} pings, "
-                        f"lr {m['lr']:g}, {m['epochs']} epochs, weights averaged over the last "
+                        f"lr {m['lr']:g}, {count(m['epochs'], 'epoch')}, weights averaged "
+                        "over the last "
                         f"{m['average_epochs']})" for m in summary["models"])
     lines = [
         "# Fault stress test: every DVL estimator on the pings a faulty DVL delivers",
@@ -526,16 +528,18 @@ def _plot(results: dict, path: Path) -> None:
     rows = (("rmse_vector", "vector RMSE, m/s", True), ("availability", "availability, %",
                                                          False),
             ("dr_error", "dead-reckoning error, m", True))
-    fig, axes = plt.subplots(len(rows), len(results), figsize=(3.4 * len(results), 8.5),
-                             squeeze=False)
+    fig, axes = plt.subplots(len(rows), len(results), figsize=(3.4 * len(results) + 2, 8.5),
+                             squeeze=False, layout="constrained")
     for j, (sweep, settings) in enumerate(results.items()):
         levels = [s["level"] for s in settings]
         for i, (key, label, log) in enumerate(rows):
             ax = axes[i, j]
+            look = styles(settings[0]["estimators"])
             for name in settings[0]["estimators"]:
                 values = np.array([s["estimators"][name][key] for s in settings], float)
-                ax.plot(levels, 100 * values if key == "availability" else values, "o-",
-                        ms=3, lw=1, label=short_name(name))
+                ax.plot(levels, 100 * values if key == "availability" else values,
+                        marker=look[name].marker, ms=3, lw=1, label=short_name(name),
+                        **look[name].line())
             if log:
                 ax.set_yscale("log")
                 # Labelled ticks at 1, 2, 5 x 10^k, as a panel often spans less than a
@@ -556,7 +560,6 @@ def _plot(results: dict, path: Path) -> None:
                 ax.set_ylabel(label, fontsize=8)
         axes[0, j].set_title(sweep, fontsize=9)
         axes[-1, j].set_xlabel(SWEEPS[sweep], fontsize=7)
-    axes[0, 0].legend(fontsize=7)
+    figure_legend(fig, axes[0, 0], fontsize=8)
     fig.suptitle("Every estimator against DVL fault rate (trained on clean data)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=100)

@@ -27,15 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
-from beamsnet.data import load_windows, split
+from beamsnet.data import check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_runs, train_seeds
+from beamsnet.plotstyle import legend_outside
 from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
 from beamsnet.training.train import predict
+from beamsnet.words import count
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).
@@ -86,6 +88,8 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     if cluster is not None:
         check_address(cluster)
     config = preset(experiment).with_duration(duration)
+    if data is not None:  # refused now, not after minutes of work
+        check_dataset(data, argument="data", missions=[m.name for m in config.missions])
     if data is None:
         data = ensure_dataset(config, Path("datasets") / f"{experiment}_{duration:g}s.h5",
                               progress=progress, cluster=cluster)
@@ -121,12 +125,11 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
             for model, k in ours.items()}
         by_model["floor"] = _noise_floor(data, mission.name)
         summary.append((speed, by_model))
-    report = out / f"{experiment}.md"
-    make_out_dir(out)
-    write_text(report, _report(experiment, data, duration, training, restarts, summary,
-                               sections))
-    _figure(summary, out / f"{experiment}.png")
-    return report
+    with staged_dir(out) as stage:  # the report and its figure, or neither
+        write_text(stage / f"{experiment}.md", _report(experiment, data, duration, training,
+                                                       restarts, summary, sections))
+        _figure(summary, stage / f"{experiment}.png")
+    return Path(out) / f"{experiment}.md"
 
 
 def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
@@ -171,12 +174,11 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
                 estimates[part][f"{name} ({run.name})"] = predict(
                     model, trimmed(windows, checkpoint))
         results[part] = (windows, table(windows, estimates[part]))
-    report = out / "snapir.md"
-    make_out_dir(out)
-    write_text(report, _snapir_report(data, dataset, training, counts, train_w, results,
-                                     estimates["test"]))
-    _snapir_figure(results, out / "snapir.png")
-    return report
+    with staged_dir(out) as stage:  # the report and its figure, or neither
+        write_text(stage / "snapir.md", _snapir_report(data, dataset, training, counts,
+                                                       train_w, results, estimates["test"]))
+        _snapir_figure(results, stage / "snapir.png")
+    return Path(out) / "snapir.md"
 
 
 def _check_seeds(seeds) -> None:
@@ -197,8 +199,8 @@ def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
     """
     import hashlib
 
-    from auvsim.data.dataset import open_dataset
     from auvsim.data.importer import import_velocity
+    from auvsim.data.reader import open_dataset
     from auvsim.errors import ConfigError
     from auvsim.runs.presets import preset
 
@@ -258,9 +260,10 @@ def _report(experiment, data, duration, training: TrainConfig, restarts, summary
         "",
         f"Made by `beamsnet reproduce {experiment}` (dataset `{data}`, {duration:g} s per "
         f"speed; RMSprop, batch {training.batch_size}, lr {training.lr:g} decaying "
-        f"x{training.lr_gamma:g} every {training.lr_step} epochs, {training.epochs} epochs, "
+        f"x{training.lr_gamma:g} every {training.lr_step} epochs, "
+        f"{count(training.epochs, 'epoch')}, "
         f"as the paper; {_averaging(training.average_epochs)}; each model trained from "
-        f"{restarts} seeds, the one that fits its training split best kept). RMSE "
+        f"{count(restarts, 'seed')}, the one that fits its training split best kept). RMSE "
         "improvement over least squares on the speed, %, on each mission's test split "
         "(last 25 %); "
         "\"within 5\" says whether ours is at most 5 percentage points below the paper's "
@@ -317,7 +320,7 @@ def _report(experiment, data, duration, training: TrainConfig, restarts, summary
 def _averaging(epochs: int) -> str:
     if not epochs:
         return "the last weights, as the paper"
-    return (f"the weights averaged over the steps of the last {epochs} epochs (Polyak "
+    return (f"the weights averaged over the steps of the last {count(epochs, 'epoch')} (Polyak "
             "averaging, which the paper does not do: at batch 4 the last weights jitter "
             "about the minimum, and on straight lines that jitter is most of the error)")
 
@@ -325,7 +328,7 @@ def _averaging(epochs: int) -> str:
 def _noise_floor(data: Path, mission: str) -> float:
     """Forward-speed error (m/s) that the beam noise leaves in least squares: the x row of
     (H^T H)^-1 for a Janus DVL is sigma^2 / (2 sin^2 alpha)."""
-    from auvsim.data.dataset import open_dataset
+    from auvsim.data.reader import open_dataset
 
     with open_dataset(data) as f:
         attrs = f.missions[mission].attrs
@@ -360,16 +363,15 @@ def _figure(summary, path: Path) -> None:
         "affine": [r["Affine"]["improvement"] for _, r in summary],
         "Kalman": [r["KF"]["improvement"] for _, r in summary],
     }
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4), layout="constrained")
     width = 0.8 / len(series)
     for i, (name, values) in enumerate(series.items()):
         ax.bar(np.arange(len(speeds)) + i * width, values, width, label=name)
     ax.set_xticks(np.arange(len(speeds)) + 0.4 - width / 2, [f"{s} m/s" for s in speeds])
     ax.set_ylabel("RMSE improvement over LS, %")
-    ax.set_ylim(0, 125)  # room for the legend above the bars
-    ax.legend(ncol=6, fontsize=8, loc="upper center")
+    ax.set_ylim(0, 100)
+    legend_outside(ax, fontsize=8)
     ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
 
@@ -405,7 +407,8 @@ def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimate
         "as its code applied it (20 deg beams, scale factor 0.7 %, bias 0.0001 m/s, noise "
         f"0.042^2 m/s), into `{dataset}`. Every network trained on the first 75 % of "
         f"`V.npy` ({len(train_w.target)} pings), lr {config.lr:g} decaying "
-        f"x{config.lr_gamma:g} every {config.lr_step} epochs, {config.epochs} epochs, batch "
+        f"x{config.lr_gamma:g} every {config.lr_step} epochs, "
+        f"{count(config.epochs, 'epoch')}, batch "
         f"{config.batch_size}, {_averaging(config.average_epochs)}, from seeds 0 upwards ("
         + ", ".join(f"{n} for {name}" for name, (key, _) in LEARNED.items()
                     for n in [seeds[key]])

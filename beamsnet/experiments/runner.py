@@ -30,7 +30,7 @@ from pathlib import Path
 
 import torch
 
-from auvsim.data.dataset import open_dataset
+from auvsim.data.reader import open_dataset
 from auvsim.errors import AuvsimError
 from beamsnet.training.checkpoints import file_identity, load, trained
 from beamsnet.training.config import TrainConfig, check_restarts

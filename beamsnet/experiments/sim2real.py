@@ -29,15 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows, split
 from beamsnet.estimators.baselines import availability
 from beamsnet.evaluate import baselines, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
+from beamsnet.plotstyle import figure_legend
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
+from beamsnet.words import count
 
 # Seeds per network. Each costs minutes of a core (10,000 pings x 50 epochs at batch 4),
 # so: on the sea data (``reproduce snapir``, whose runs the V.npy column reuses) 5 for
@@ -139,12 +141,12 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
                 for row in seeds_:
                     row["improvement"] = metrics.improvement(row["rmse"], ls)
             results[source][test] = rows
-    make_out_dir(out)
-    write_text(out / "sim2real.json", json.dumps(results, indent=1))
-    _figure(results, out / "sim2real.png")
-    report = out / "sim2real.md"
-    write_text(report, _report(results, sources, training, seeds, duration, tests))
-    return report
+    with staged_dir(out) as stage:  # all three files or none
+        write_text(stage / "sim2real.json", json.dumps(results, indent=1))
+        _figure(results, stage / "sim2real.png")
+        write_text(stage / "sim2real.md",
+                   _report(results, sources, training, seeds, duration, tests))
+    return Path(out) / "sim2real.md"
 
 
 def _score(pred: np.ndarray, windows) -> dict:
@@ -181,8 +183,9 @@ def _report(results, sources, training, seeds, duration, tests) -> str:
         "the Snapir's mounting**) and again with the DVL along the body, to show what the "
         "frame costs; beside them, the first 75 % of `V.npy`, the real vehicle's own "
         f"data. Networks: lr {training.lr:g} decaying x{training.lr_gamma:g} every "
-        f"{training.lr_step} epochs, {training.epochs} epochs, batch {training.batch_size}, "
-        f"each from {seeds} seeds ({BODY_SEEDS} on the set along the body; on V.npy those "
+        f"{training.lr_step} epochs, {count(training.epochs, 'epoch')}, batch "
+        f"{training.batch_size}, each from {count(seeds, 'seed')} ({BODY_SEEDS} on the set "
+        "along the body; on V.npy those "
         "of `reproduce snapir`: "
         + ", ".join(f"{SEEDS[key]} for {name}" for name, (key, _) in LEARNED.items())
         + "), every seed scored: a cell gives the mean over seeds and, in brackets, the "
@@ -267,7 +270,8 @@ def _figure(results: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     tests = list(next(iter(results.values())))
-    fig, axes = plt.subplots(1, len(tests), figsize=(12, 4.5), sharey=True)
+    fig, axes = plt.subplots(1, len(tests), figsize=(14, 4.5), sharey=True,
+                             layout="constrained")
     for ax, test in zip(axes, tests, strict=True):
         names = [n for n in next(iter(results.values()))[test] if n != "LS"]
         width = 0.8 / len(results)
@@ -284,6 +288,5 @@ def _figure(results: dict, path: Path) -> None:
         ax.set_title(test)
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylabel("speed RMSE improvement over LS, %")
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
+    figure_legend(fig, axes[0], fontsize=8)
     save_figure(fig, path, dpi=110)

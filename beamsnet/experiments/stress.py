@@ -31,13 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.dataset import open_dataset
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.data.reader import open_dataset
 from auvsim.errors import ConfigError
 from auvsim.runs.cluster import check_address
 from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
 from beamsnet import metrics
-from beamsnet.data import Windows, load_windows, split
+from beamsnet.data import Windows, check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import predictions
 from beamsnet.experiments.faults import FAULT_DURATION, check_options, fault_stress
@@ -50,8 +50,10 @@ from beamsnet.navigation import (
     own_position_error,
     truth_at_pings,
 )
+from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_GEOMETRY, sensor_setup
 from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
+from beamsnet.words import count
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
@@ -130,15 +132,29 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             if value is not None:
                 raise ConfigError("is a setting of the fault sweep; expected it only "
                                   "together with faults", argument=name)
+    # The given files too: a wrong one is refused before any other is generated.
+    if train_data is not None:
+        check_dataset(train_data, argument="train_data")
+    if maneuver_data is not None:
+        check_dataset(maneuver_data, argument="maneuver_data", truth=True)
+        if train_data is not None:
+            _check_geometry(train_data, maneuver_data)
     train_preset, noise_std, suffix = NOISE[noise]
+    # Both configs (their durations checked) before either file is generated.
+    train_config = maneuver_config = None
     if train_data is None:
-        train_data = ensure_dataset(preset(train_preset).with_duration(train_duration),
+        _check_duration(train_duration, "train_duration")
+        train_config = preset(train_preset).with_duration(train_duration)
+    if maneuver_data is None and not faults:
+        _check_duration(maneuver_duration, "maneuver_duration")
+        maneuver_config = maneuvers(maneuver_duration, noise_std=noise_std)
+    if train_config is not None:
+        train_data = ensure_dataset(train_config,
                                     Path("datasets") / f"{train_preset}_{train_duration:g}s.h5",
                                     progress=progress, cluster=cluster)
-    if maneuver_data is None and not faults:
+    if maneuver_config is not None:
         maneuver_data = ensure_dataset(
-            maneuvers(maneuver_duration, noise_std=noise_std),
-            Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
+            maneuver_config, Path("datasets") / f"maneuvers{suffix}_{maneuver_duration:g}s.h5",
             progress=progress, cluster=cluster)
 
     if maneuver_data is not None:
@@ -168,15 +184,24 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     truth = truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth, positions)
 
-    make_out_dir(out)
     binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
-    _plot_intensity(binned, out / "stress_intensity.png")
-    _plot_time(test_w, estimates, phases, out / "stress_time.png")
-    plot_tracks(test_w, estimates, truth, positions, out / "stress_tracks.png")
-    write_text(out / "stress.json", json.dumps(rows, indent=1))
-    report = out / "stress.md"
-    write_text(report, _report(train_data, trained_on, maneuver_data, models, binned, rows))
-    return report
+    with staged_dir(out) as stage:  # the report and every figure, or none of them
+        _plot_intensity(binned, stage / "stress_intensity.png")
+        _plot_time(test_w, estimates, phases, stage / "stress_time.png")
+        plot_tracks(test_w, estimates, truth, positions, stage / "stress_tracks.png")
+        write_text(stage / "stress.json", json.dumps(rows, indent=1))
+        write_text(stage / "stress.md",
+                   _report(train_data, trained_on, maneuver_data, models, binned, rows))
+    return Path(out) / "stress.md"
+
+
+def _check_duration(value, argument: str) -> None:
+    """Raises ConfigError naming ``argument`` unless ``value`` is a positive number of
+    seconds (the preset would say ``duration``, which is not this command's option)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
+        raise ConfigError(f": expected a positive number of seconds, got {value!r}",
+                          argument=argument)
 
 
 def _table(windows: Windows, estimates: dict[str, np.ndarray],
@@ -272,7 +297,7 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
     trained = ", ".join(
         f"{spec(c['model']).short}{as_published(c['train_config'])} "
         f"({c['samples']['train']} pings, lr "
-        f"{c['train_config']['lr']:g}, {c['train_config']['epochs']} epochs)"
+        f"{c['train_config']['lr']:g}, {count(c['train_config']['epochs'], 'epoch')})"
         for _, _, c in models)
     lines = [
         "# Manoeuvre stress test: where each DVL estimator holds and where it breaks",
@@ -431,19 +456,20 @@ def _plot_intensity(binned: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4), layout="constrained")
     for ax, (key, label) in zip(axes, INTENSITY.items(), strict=True):
         edges, rmse = binned[key]
         centres = 0.5 * (edges[1:] + edges[:-1])
+        look = styles(rmse)
         for name, values in rmse.items():
-            ax.plot(centres, values, "o-", label=short_name(name))
+            ax.plot(centres, values, marker=look[name].marker, label=short_name(name),
+                    **look[name].line())
         ax.set_yscale("log")
         ax.set_xlabel(label)
         ax.set_ylabel("vector RMSE, m/s")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
+    figure_legend(fig, axes[0], fontsize=8)
     fig.suptitle("Error against manoeuvre intensity (pings binned by sixths)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
 
@@ -455,8 +481,9 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
 
     n = len(windows.names)
     cols = 2
-    fig, axes = plt.subplots(-(-n // cols), cols, figsize=(12, 2.2 * -(-n // cols)),
-                             squeeze=False)
+    fig, axes = plt.subplots(-(-n // cols), cols, figsize=(14, 2.2 * -(-n // cols)),
+                             squeeze=False, layout="constrained")
+    look = styles(estimates)
     for i, name in enumerate(windows.names):
         ax = axes.flat[i]
         mine = windows.mission == i
@@ -465,17 +492,17 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
                 ax.axvspan(start, end, color="0.9", lw=0)
         for est, pred in estimates.items():
             err = np.linalg.norm(pred[mine] - windows.target[mine], axis=1)
-            ax.semilogy(windows.time[mine], err, lw=0.7, label=short_name(est))
+            ax.semilogy(windows.time[mine], err, lw=0.7, label=short_name(est),
+                        **look[est].line())
         ax.set_title(name, fontsize=9)
         ax.set_ylabel("|error|, m/s", fontsize=8)
         ax.tick_params(labelsize=7)
     for ax in axes.flat[n:]:
         ax.axis("off")
-    axes.flat[0].legend(fontsize=7, ncol=3)
+    figure_legend(fig, axes.flat[0], fontsize=8)
     for ax in axes[-1]:
         ax.set_xlabel("time, s")
     fig.suptitle("Velocity error over each manoeuvre (grey: alternate phases)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=100)
 
 
@@ -491,7 +518,9 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
     import matplotlib.pyplot as plt
 
     n = len(windows.names)
-    fig, axes = plt.subplots(2, n, figsize=(2.6 * n, 5.4), squeeze=False)
+    fig, axes = plt.subplots(2, n, figsize=(2.6 * n + 2.2, 5.4), squeeze=False,
+                             layout="constrained")
+    look = styles(estimates)
     for i, name in enumerate(windows.names):
         mine = windows.mission == i
         t = windows.time[mine]
@@ -510,13 +539,12 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
             else:
                 err = dead_reckoning_track(windows, held(windows, pred), truth, i) - reference
             ax_e.semilogy(t, np.maximum(np.linalg.norm(err[:, :2], axis=1), 1e-4), lw=0.8,
-                          label=short_name(est))
+                          label=short_name(est), **look[est].line())
         ax_e.set_xlabel("time, s", fontsize=7)
         ax_e.tick_params(labelsize=6)
     axes[0, 0].set_ylabel("north, m (east across)", fontsize=7)
     axes[1, 0].set_ylabel("horizontal position error, m", fontsize=7)
-    axes[1, 0].legend(fontsize=6)
+    figure_legend(fig, axes[1, 0], fontsize=9)
     fig.suptitle("True track of each mission (top) and each estimator's position error "
                  "over it (bottom)")
-    fig.tight_layout()
     save_figure(fig, path, dpi=100)

@@ -48,7 +48,8 @@ SENSOR_ERRORS = ("dvl_scale_factor", "dvl_bias", "dvl_noise_std")
 def file_identity(path: str | Path) -> dict:
     """Path, SHA-256 and generating config of a dataset: the SHA-256 of its file's bytes,
     or of a sharded dataset's shards' bytes in index order."""
-    from auvsim.data.dataset import data_files, open_dataset
+    from auvsim.data.reader import open_dataset
+    from auvsim.data.shards import data_files
 
     digest = hashlib.sha256()
     for file in data_files(path):
@@ -65,7 +66,7 @@ def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dic
     rates (``SENSOR_GEOMETRY``) and realised DVL error model (``SENSOR_ERRORS``), as
     floats and lists of floats (what a checkpoint stores). An attribute a mission does
     not have (an imported stream has no IMU rate or mounting) is left out."""
-    from auvsim.data.dataset import read_attrs
+    from auvsim.data.reader import read_attrs
 
     _, attrs = read_attrs(path)
     names = list(attrs) if missions is None else missions

@@ -21,7 +21,7 @@ from pathlib import Path
 import torch
 from tqdm import tqdm
 
-from auvsim.data.files import check_out_dir, make_out_dir, write_text
+from auvsim.data.files import check_out_dir, staged_dir, write_text
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
 from beamsnet.training.checkpoints import load
@@ -152,15 +152,14 @@ def keep_best(runs: list[str | Path], out: str | Path, *,
                             "smaller learning rate", argument="lr")
     kept = Path(min(finite, key=finite.get))
     out = Path(out)
-    make_out_dir(out)
-    for name in ("model.pt", "history.json", "losses.png"):
-        if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
-            continue
-        shutil.copyfile(kept / name, out / f".{name}.tmp")
-        (out / f".{name}.tmp").replace(out / name)
     record = dict(kept=str(kept), losses=losses, diverged=diverged,
                   rule="lowest final MSE on the training split (evaluation mode)")
-    write_text(out / "restarts.json", json.dumps(record, indent=1))
+    with staged_dir(out) as stage:  # every file of the kept run, or none
+        for name in ("model.pt", "history.json", "losses.png"):
+            if (out / name).is_file() and filecmp.cmp(kept / name, out / name, shallow=False):
+                continue
+            shutil.copyfile(kept / name, stage / name)
+        write_text(stage / "restarts.json", json.dumps(record, indent=1))
     return record
 
 
@@ -190,12 +189,18 @@ def train_best(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     """
     check_out_dir(out)
     pairs = seed_runs(config, out, restarts)
-    summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
-                          progress=progress, diverged="record", cluster=cluster)
-    runs = [r for _, r in pairs]
-    record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
-                                            zip(runs, summaries, strict=True)
-                                            if "diverged" in s})
+    fresh = not Path(out).exists()
+    try:
+        summaries = train_all([(dataset, c, r) for c, r in pairs], workers=workers,
+                              progress=progress, diverged="record", cluster=cluster)
+        runs = [r for _, r in pairs]
+        record = keep_best(runs, out, diverged={r: s["diverged"] for r, s in
+                                                zip(runs, summaries, strict=True)
+                                                if "diverged" in s})
+    except BaseException:
+        if fresh:  # the seeds that did train are no run without the kept copy: none left
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     return {**record, **summaries[[str(r) for r in runs].index(record["kept"])],
             "checkpoint": str(Path(out) / "model.pt"), "plot": str(Path(out) / "losses.png")}
 

@@ -68,11 +68,12 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from auvsim.data.files import check_out_dir, make_out_dir, save_figure, write_text
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet.data import DataError, Windows, load_windows, split
 from beamsnet.estimators import spec
 from beamsnet.estimators.networks import build
+from beamsnet.plotstyle import legend_outside
 from beamsnet.training.checkpoints import (
     CHECKPOINT_FORMAT,
     CHECKPOINT_VERSION,
@@ -236,19 +237,18 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     if not math.isfinite(final_train_loss):  # the last step's update overflowed
         raise _diverged(config, final_train_loss, "after the last step")
 
-    make_out_dir(out)
     checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
                       model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
                       train_config=dataclasses.asdict(config), dataset=file_identity(dataset),
                       sensors=sensor_setup(dataset, windows.names),
                       history=history, samples=dict(train=n, test=len(y_test)),
                       final_train_loss=final_train_loss, final_test_loss=final_test_loss)
-    tmp = out / ".model.pt.tmp"
-    torch.save(checkpoint, tmp)
-    tmp.replace(out / "model.pt")
-    write_text(out / "history.json", json.dumps(history, indent=1))
-    plot = _plot_losses(history, out / "losses.png", config)
-    return dict(checkpoint=str(out / "model.pt"), plot=str(plot), history=history,
+    with staged_dir(out) as stage:  # the whole run or nothing (a full disk, Ctrl-C)
+        torch.save(checkpoint, stage / "model.pt")
+        write_text(stage / "history.json", json.dumps(history, indent=1))
+        _plot_losses(history, stage / "losses.png", config)
+    return dict(checkpoint=str(out / "model.pt"), plot=str(out / "losses.png"),
+                history=history,
                 seconds=seconds, samples_per_second=config.epochs * n / seconds,
                 final_train_loss=final_train_loss, final_test_loss=final_test_loss)
 
@@ -265,17 +265,18 @@ def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(7.5, 4), layout="constrained")
     epochs = np.arange(1, len(history["train"]) + 1)
     ax.semilogy(epochs, history["train"], label="training")
     ax.semilogy(epochs, history["test"], label="test split")
     ax.set_xlabel("epoch")
     ax.set_ylabel("MSE loss, (m/s)^2")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # epochs are whole
     ax.set_title(f"{spec(config.model).short}, lr {config.lr:g}, batch {config.batch_size}")
-    ax.legend()
+    legend_outside(ax)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
     save_figure(fig, path, dpi=120)
     return path
 

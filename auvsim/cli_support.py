@@ -1,0 +1,110 @@
+"""What both command lines (``auvsim``, ``beamsnet``) do at their boundary.
+
+A command ends in one of four ways, each said on at most one line of stderr:
+
+- it succeeds: exit 0;
+- an error the libraries raise on purpose (``AuvsimError``) or the operating system's
+  (``OSError``: a full disk, a folder that cannot be written): one line, exit 2;
+- Ctrl-C, or SIGTERM from a scheduler: one line, exit 130;
+- the reader of its output has gone (``auvsim inspect X.h5 | head -1``): nothing, and the
+  exit status a shell reports for a process that SIGPIPE ended, 141.
+
+A command runs in ``auvsim.data.files.all_or_nothing``: an error or Ctrl-C removes the
+run folders, reports and figures it had begun, so the line can say nothing was written;
+a file that was whole before it (a dataset) stays, and the line names it.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+
+from auvsim.data.files import all_or_nothing, reason
+from auvsim.errors import AuvsimError
+
+INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a Ctrl-C
+PIPE_CLOSED = 128 + signal.SIGPIPE  # 141
+ERROR = 2
+
+
+def run_command(prog: str, command: Callable[[], object],
+                flags: Mapping[str, str]) -> int:
+    """Run ``command`` as the body of the command line ``prog``; returns its exit status.
+
+    Args:
+        prog: the command's name, which starts each line it prints to stderr.
+        command: the work (parsed arguments already bound); what it returns is ignored.
+        flags: the flag each library argument is given on this command line, so errors
+            name ``--out`` rather than ``out`` (``AuvsimError.for_cli``).
+    """
+    with _sigterm_as_interrupt():
+        try:
+            with all_or_nothing() as outputs:
+                command()
+                sys.stdout.flush()  # a closed pipe is found here, not at exit
+        except AuvsimError as e:
+            return _say(prog, f"error: {e.for_cli(flags)}", ERROR)
+        except BrokenPipeError as e:
+            if not _stdout_closed():
+                return _say(prog, f"error: {_os_error(e)}", ERROR)
+            # The interpreter flushes stdout again as it exits: that must find no pipe.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+            return PIPE_CLOSED
+        except OSError as e:
+            return _say(prog, f"error: {_os_error(e)}", ERROR)
+        except KeyboardInterrupt:
+            kept = outputs.kept
+            if not kept:
+                return _say(prog, "interrupted; nothing was written", INTERRUPTED)
+            named = ", ".join(str(p) for p in kept[:3])
+            more = f" and {len(kept) - 3} more" if len(kept) > 3 else ""
+            return _say(prog, f"interrupted; {named}{more} had been written whole before "
+                        "it, nothing else was", INTERRUPTED)
+    return 0
+
+
+def _say(prog: str, line: str, status: int) -> int:
+    print(f"{prog}: {line}", file=sys.stderr)
+    return status
+
+
+def _os_error(error: OSError) -> str:
+    """An operating system's error as what was wrong and what is expected."""
+    where = f"{os.fsdecode(error.filename)!r}: " if error.filename is not None else ""
+    return f"{where}{reason(error)}; expected a path that can be read or written"
+
+
+def _stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader has gone (poll says so with POLLERR)."""
+    try:
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), 0)
+        return any(events & select.POLLERR for _, events in poll.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll, or no stdout to ask
+        return False
+
+
+def _stop(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """A scheduler's SIGTERM unwinds like Ctrl-C while the block runs: workers stop,
+    temporary files go (main thread only, where Python runs signal handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _stop)
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

@@ -1,0 +1,87 @@
+"""What ``auvsim inspect`` prints: a dataset summarised in words and numbers.
+
+Each mission gets its own lines (scenario, seed, gravity, manoeuvre phases), each sensor
+plugin's (``auvsim.sensors.Sensor.describe``, for the sensors whose group it holds) and
+the water's; then the fields of the first mission.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from auvsim.data.files import leftovers, leftovers_note
+from auvsim.data.reader import Group, Mission, open_dataset
+from auvsim.data.schema import SHARDS
+from auvsim.sensors import registry
+
+MAX_PHASES = 6  # phases listed per mission; a lawnmower's legs would fill the screen
+
+
+def describe(path: str | os.PathLike) -> str:
+    """A human-readable summary of a dataset: missions, durations, each sensor's rate,
+    usable data and realised error parameters, the current, and the fields. Every field
+    is read (and every shard's seal checked), so a corrupt one is refused here
+    (``DatasetError``). Temporaries that ended runs left beside the data are removed
+    (``auvsim.data.files.leftovers``); any others are named in a last line, with the
+    command that removes them."""
+    with open_dataset(path, verify=True) as f:
+        sharded = f" in {len(f.shards)} shard(s) of {f.path.parent / SHARDS}" if f.shards \
+            else ""
+        lines = [f"{path}: auvsim dataset v{f.version} "
+                 f"(auvsim {f.attrs.get('auvsim_version', '?')}, created "
+                 f"{f.attrs.get('created_utc', '?')}), {len(f.missions)} mission(s)"
+                 + sharded]
+        for name, m in f.missions.items():
+            lines += _mission(name, m)
+            for sensor in registry().values():
+                if m.has(sensor.name):
+                    lines += sensor.describe(m)
+            lines += _water(m)
+        first = next(iter(f.missions.values()), None)
+        if first is not None:
+            lines.append("  fields of each mission:")
+            for group in first.groups:
+                lines.append(f"    {group}: " + ", ".join(sorted(Group(first, group))))
+        if f.shards:
+            left = leftovers(f.path.parent) + leftovers(f.path.parent / SHARDS)
+        else:
+            left = leftovers(f.path.parent, name=f.path.name)
+        if left:
+            lines.append(leftovers_note(left))
+        return "\n".join(lines)
+
+
+def _mission(name: str, m: Mission) -> list[str]:
+    a = m.attrs
+    if m.origin == "imported":
+        return [f"  {name}: imported from {a['source_file']} (sha256 "
+                f"{a['source_sha256'][:12]}...), seed {a['seed']}, {a['duration_s']:g} s; no "
+                "truth, IMU or controls"]
+    gravity = m.gravity
+    lines = [f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, vehicle "
+             f"{a['vehicle']}" + (f", gravity {gravity:g} m/s^2" if gravity else "")]
+    phases = m.phases
+    if phases:
+        listed = ", ".join(f"{label} {start:g}-{end:g} s"
+                           for start, end, label in phases[:MAX_PHASES])
+        more = f" (and {len(phases) - MAX_PHASES} more)" if len(phases) > MAX_PHASES else ""
+        lines.append(f"    phases: {listed}{more}")
+    return lines
+
+
+def _water(m: Mission) -> list[str]:
+    """The current the mission was drawn (schema v4) and met at the vehicle."""
+    a, lines = m.attrs, []
+    if "water_surface_speed" in a:
+        lines.append(f"    water: surface current {a['water_surface_speed']:.3f} m/s toward "
+                     f"{a['water_direction_deg'] % 360:.0f} deg (drawn for the mission)")
+    if m.has("truth") and "current_ned" in m.truth:
+        current = m.truth.current_ned
+        speed = np.hypot(current[:, 0], current[:, 1])
+        mean = current.mean(axis=0)
+        toward = np.degrees(np.arctan2(mean[1], mean[0])) % 360
+        lines.append(f"    current at the vehicle: {speed.min():.3f} to {speed.max():.3f} m/s "
+                     f"(mean {np.hypot(mean[0], mean[1]):.3f} m/s toward {toward:.0f} deg)")
+    return lines

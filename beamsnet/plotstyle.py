@@ -1,0 +1,92 @@
+"""One look per estimator, the same in every beamsnet figure.
+
+A figure holds twelve estimators and more, and matplotlib's colour cycle has ten: by
+order alone, LS and BeamsNetV2M would both be blue. Each estimator gets a pair of its
+own instead, a colour and a line style (with a marker and a bar hatch that go with the
+style, for points and bars), chosen by its name: no two series of a figure look alike,
+and an estimator looks the same in every figure. Legends go outside the axes, where
+they cover no data.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+# matplotlib's tab10, in its order.
+COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+           "#7f7f7f", "#bcbd22", "#17becf")
+# A style per round of the colours: the 11th estimator is the 1st colour, dashed.
+LINESTYLES = ("-", "--", "-.", ":")
+MARKERS = ("o", "s", "^", "D")
+HATCHES = ("", "//", "..", "xx")
+PAIRS = len(COLOURS) * len(LINESTYLES)
+# The estimators in the order of their pairs: the model-based ones, the filter, the
+# networks. Names not here (a new estimator) take a free pair after these, by a hash of
+# the name, so that they keep it from figure to figure too.
+KNOWN = ("LS", "Affine", "Beam calibration", "LS scale+offset", "KF", "KF (beam calibration)",
+         "Missing-beam LS", "INS/DVL", "BeamsNetV1", "BeamsNetV2", "BeamsNetV2M",
+         "CorrectionNet")
+
+
+@dataclass(frozen=True)
+class Style:
+    """An estimator's look: a colour and a line style, with the marker and the bar hatch
+    that go with the style."""
+
+    color: str
+    linestyle: str
+    marker: str
+    hatch: str
+
+    def line(self) -> dict:
+        """Keywords of ``Axes.plot`` for a line."""
+        return dict(color=self.color, linestyle=self.linestyle)
+
+    def points(self) -> dict:
+        """Keywords of ``Axes.plot`` for points without a line."""
+        return dict(color=self.color, marker=self.marker, linestyle="none")
+
+    def bar(self) -> dict:
+        """Keywords of ``Axes.bar`` (edges in the colour, so the hatch shows)."""
+        return dict(color=self.color, hatch=self.hatch, edgecolor="white")
+
+
+def styles(names: Iterable[str]) -> dict[str, Style]:
+    """A distinct ``Style`` for each of ``names``, by name.
+
+    A name is known by itself or by what precedes its run in brackets ("BeamsNetV2 (v2)"
+    is BeamsNetV2's); a second run of the same estimator, like an unknown name, takes the
+    first free pair from one fixed by its name's hash. Up to ``PAIRS`` names are distinct.
+    """
+    taken: set[int] = set()
+    out = {}
+    for name in names:
+        key = name if name in KNOWN else name.split(" (")[0]
+        if key in KNOWN and KNOWN.index(key) not in taken:
+            slot = KNOWN.index(key)
+        else:
+            digest = int(hashlib.sha256(name.encode()).hexdigest(), 16)
+            slot = len(KNOWN) + digest % (PAIRS - len(KNOWN))
+            for _ in range(PAIRS):
+                if slot not in taken:
+                    break
+                slot = (slot + 1) % PAIRS
+        taken.add(slot)
+        round_ = slot // len(COLOURS) % len(LINESTYLES)
+        out[name] = Style(COLOURS[slot % len(COLOURS)], LINESTYLES[round_], MARKERS[round_],
+                          HATCHES[round_])
+    return out
+
+
+def legend_outside(ax, **kwargs) -> None:
+    """The legend of ``ax`` to the right of it, outside the data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)
+
+
+def figure_legend(fig, ax, **kwargs) -> None:
+    """One legend for every panel of ``fig`` (the series of ``ax``), outside them all on
+    the right: the figure needs ``layout="constrained"`` to make room for it."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", **kwargs)

@@ -1,0 +1,366 @@
+"""beamsnet's front door: where reports go by default, inputs checked before any data is
+generated, refusals in one line, warnings that say what a table hides, writers that leave
+nothing behind when they fail, and --help for users."""
+
+from __future__ import annotations
+
+import dataclasses
+import errno
+import os
+import re
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import flat, mission
+
+import beamsnet.evaluate
+import beamsnet.experiments.reproduce
+import beamsnet.experiments.stress
+import beamsnet.training.train
+from auvsim.config import DvlConfig
+from auvsim.data.files import staged_dir
+from auvsim.errors import ConfigError
+from beamsnet.cli import REPORTS, main, report_dir
+from beamsnet.evaluate import estimate, evaluate
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import train
+from beamsnet.words import count
+
+
+def _config(angle: float = 20.0):
+    return flat(mission("a", 1, speed=2.0, duration=60.0),
+                mission("b", 2, speed=1.0, duration=60.0),
+                dvl=DvlConfig(beam_angle_deg=angle, scale_factor=0.02))
+
+
+@pytest.fixture(scope="module")
+def data(dataset_of):
+    return dataset_of(_config(), "front")
+
+
+@pytest.fixture(scope="module")
+def wide(dataset_of):
+    """The same missions seen by a DVL with 30 deg beams."""
+    return dataset_of(_config(30.0), "front_wide")
+
+
+@pytest.fixture(scope="module")
+def run_on_a(data, tmp_path_factory):
+    """A V2 trained on mission a of ``data`` only."""
+    out = tmp_path_factory.mktemp("runs") / "v2_a"
+    train(data, TrainConfig(model="v2", epochs=1, missions=("a",)), out, progress=False)
+    return out
+
+
+def _damaged(path: Path, tmp_path: Path, field: str, rows=slice(None)) -> Path:
+    """A copy of ``path`` with ``missions/b/dvl/<field>[rows]`` set to NaN."""
+    bad = tmp_path / f"bad_{field}.h5"
+    shutil.copyfile(path, bad)
+    with h5py.File(bad, "r+") as f:
+        f[f"missions/b/dvl/{field}"][rows] = np.nan
+    return bad
+
+
+def _listing(folder: Path) -> set[str]:
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+def _no_space(*args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+# ---- where reports go ------------------------------------------------------------------
+
+
+def test_a_report_goes_to_a_new_folder_unless_asked_to_refresh(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    committed = tmp_path / "reports"
+    committed.mkdir()
+    first = report_dir(None, False, "stress", reports=committed)
+    assert re.fullmatch(r"runs/stress-\d{8}-\d{6}", str(first))
+    first.mkdir(parents=True)
+    second = report_dir(None, False, "stress", reports=committed)
+    assert second != first and not second.exists()
+    assert report_dir(None, True, "stress", reports=committed) == committed
+    for inside in (Path("reports"), Path("reports/stress-rm"), committed / "x"):
+        with pytest.raises(ConfigError, match="--refresh-reports to replace them"):
+            report_dir(inside, False, "stress", reports=committed)
+        assert report_dir(inside, True, "stress", reports=committed) == inside
+    assert report_dir(Path("mine"), False, "stress", reports=committed) == Path("mine")
+
+
+def test_stress_and_reproduce_never_default_to_the_committed_reports(tmp_path, monkeypatch,
+                                                                    capsys):
+    calls = {}
+
+    def record(name):
+        def fake(*args, **kwargs):
+            calls[name] = kwargs
+            return Path("report.md")
+        return fake
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(beamsnet.experiments.stress, "stress", record("stress"))
+    monkeypatch.setattr(beamsnet.experiments.reproduce, "paper_sim", record("paper-sim"))
+    assert main(["stress", "--quiet"]) == 0
+    assert re.fullmatch(r"runs/stress-\d{8}-\d{6}", str(calls["stress"]["out"]))
+    assert main(["stress", "--faults", "--quiet"]) == 0
+    assert re.fullmatch(r"runs/faults-\d{8}-\d{6}", str(calls["stress"]["out"]))
+    assert main(["reproduce", "paper-sim", "--quiet"]) == 0
+    assert re.fullmatch(r"runs/paper-sim-\d{8}-\d{6}", str(calls["paper-sim"]["out"]))
+    if REPORTS.is_dir():  # a source checkout, with its committed reports
+        assert main(["stress", "--refresh-reports", "--quiet"]) == 0
+        assert calls["stress"]["out"] == REPORTS
+        calls.clear()
+        capsys.readouterr()
+        assert main(["stress", "--out", str(REPORTS / "stress-rm"), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("beamsnet: error: --out ")
+        assert "--refresh-reports" in err and not calls
+
+
+# ---- inputs checked before any generation ----------------------------------------------
+
+
+@pytest.fixture
+def no_generation(monkeypatch):
+    """Generating a dataset fails the test."""
+    def generate(*args, **kwargs):
+        raise AssertionError("a dataset was generated before the inputs were checked")
+
+    monkeypatch.setattr("auvsim.runs.generate.generate", generate)
+    monkeypatch.setattr(beamsnet.experiments.stress, "ensure_dataset", generate)
+    monkeypatch.setattr(beamsnet.experiments.reproduce, "ensure_dataset", generate)
+
+
+@pytest.mark.parametrize("args, said", [
+    (["stress", "--train", "notes.txt"], "--train notes.txt: not an HDF5 file"),
+    (["stress", "--train", "missing.h5"], "--train missing.h5: no such file"),
+    (["stress", "--maneuvers", "notes.txt"], "--maneuvers notes.txt: not an HDF5 file"),
+    (["stress", "--train", "{data}", "--maneuvers", "notes.txt"],
+     "--maneuvers notes.txt: not an HDF5 file"),
+    (["stress", "--maneuver-duration", "-1"], "--maneuver-duration: expected a positive"),
+    (["stress", "--train-duration", "0"], "--train-duration: expected a positive"),
+    (["stress", "--faults", "--fault-duration", "-3"], "--fault-duration"),
+    (["reproduce", "paper-sim", "--data", "notes.txt"], "--data notes.txt: not an HDF5"),
+    (["reproduce", "paper-sim", "--data", "{data}"],
+     "has no mission speed_1, speed_2, speed_3 (it has a, b)"),
+])
+def test_bad_inputs_are_refused_before_any_data_is_generated(args, said, data, tmp_path,
+                                                             monkeypatch, capsys,
+                                                             no_generation):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "notes.txt").write_text("not a dataset\n")
+    args = [a.replace("{data}", str(data)) for a in args]
+    assert main([*args, "--out", "out", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert said in err
+    assert _listing(tmp_path) == {"notes.txt"}
+
+
+def test_manoeuvres_need_a_truth_to_score_against(data, tmp_path, monkeypatch, capsys,
+                                                  no_generation):
+    """An imported DVL stream has no truth: refused as manoeuvres, before any training."""
+    from auvsim.data.importer import import_velocity
+
+    velocity = np.tile([[1.5], [0.0], [0.1]], 200)  # 3 x N, the Snapir files' layout
+    np.save(tmp_path / "v.npy", velocity)
+    import_velocity([tmp_path / "v.npy"], tmp_path / "imported.h5", dvl=DvlConfig())
+    monkeypatch.chdir(tmp_path)
+    assert main(["stress", "--train", str(data), "--maneuvers", "imported.h5", "--out", "out",
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert ("--maneuvers 'imported.h5': mission v has no truth group (an imported stream); "
+            "expected a simulated dataset") in err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "runs").exists()
+
+
+# ---- warnings and refusals -------------------------------------------------------------
+
+
+def test_evaluate_warns_when_a_run_is_scored_on_missions_it_never_saw(run_on_a, data,
+                                                                      tmp_path, capsys):
+    assert main(["evaluate", str(run_on_a), str(data), "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("beamsnet: warning: ")
+    assert f"run '{run_on_a}' was trained on mission a only" in err
+    assert "scores it on a, b, and b is new to it" in err
+
+
+def test_a_run_trained_on_every_mission_evaluates_without_a_word(data, tmp_path, capsys):
+    run = tmp_path / "all"
+    train(data, TrainConfig(model="v2", epochs=1), run, progress=False)
+    assert main(["evaluate", str(run), str(data), "--out", str(tmp_path / "r")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_estimate_refuses_training_data_of_other_beams_in_one_line(data, wide, tmp_path,
+                                                                   capsys):
+    out = tmp_path / "est"
+    assert main(["estimate", str(data), "--estimator", "Affine", "--train", str(wide),
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"beamsnet: error: --train '{wide}': its DVL's beams (30 deg from "
+                          f"the vertical) are not those of '{data}' (20 deg)")
+    assert not out.exists()
+
+
+def test_evaluate_refuses_nan_true_velocities_in_one_line(run_on_a, data, tmp_path, capsys):
+    bad = _damaged(data, tmp_path, "velocity", slice(40, 50))
+    out = tmp_path / "r"
+    assert main(["evaluate", str(run_on_a), str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"{bad}: the true DVL velocity holds NaN or inf in " in err and "mission b" in err
+    assert not out.exists()
+    assert main(["estimate", str(bad), "--estimator", "LS", "--out", str(out)]) == 2
+    assert "the true DVL velocity holds NaN" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_mission_without_beam_velocities_is_refused_in_one_line(run_on_a, data, tmp_path,
+                                                                  capsys):
+    bad = _damaged(data, tmp_path, "beam_velocity")
+    for args in (["train", str(bad), "--epochs", "1", "--quiet"],
+                 ["evaluate", str(run_on_a), str(bad)]):
+        out = tmp_path / args[0]
+        assert main([*args, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err
+        assert (f"{bad}: mission b: every beam velocity is NaN (not one ping has a "
+                "valid beam)") in err
+        assert not out.exists()
+
+
+# ---- writers that fail leave nothing ---------------------------------------------------
+
+
+def test_a_full_disk_in_train_leaves_no_partial_run(data, tmp_path, monkeypatch):
+    config = TrainConfig(model="v2", epochs=1, missions=("a",))
+    monkeypatch.setattr(beamsnet.training.train, "write_text", _no_space)
+    with pytest.raises(OSError, match="No space left"):
+        train(data, config, tmp_path / "runs" / "new", progress=False)
+    assert _listing(tmp_path) == set()
+    # A run that exists keeps its files as they were.
+    monkeypatch.undo()
+    old = tmp_path / "old"
+    train(data, config, old, progress=False)
+    before = {p.name: p.read_bytes() for p in old.iterdir()}
+    monkeypatch.setattr(beamsnet.training.train, "write_text", _no_space)
+    with pytest.raises(OSError):
+        train(data, dataclasses.replace(config, seed=1), old, progress=False)
+    assert {p.name: p.read_bytes() for p in old.iterdir()} == before
+    assert _listing(tmp_path) == {"old", *(f"old/{n}" for n in before)}
+
+
+@pytest.mark.filterwarnings("ignore::beamsnet.evaluate.UnseenMissionWarning")
+def test_a_full_disk_in_evaluate_or_estimate_leaves_no_folder(run_on_a, data, tmp_path,
+                                                              monkeypatch):
+    monkeypatch.setattr(beamsnet.evaluate, "write_text", _no_space)
+    with pytest.raises(OSError, match="No space left"):
+        evaluate([run_on_a], [data], tmp_path / "reports" / "evaluation")
+    with pytest.raises(OSError, match="No space left"):
+        estimate("LS", data, tmp_path / "estimate")
+    assert _listing(tmp_path) == set()
+
+
+def test_a_staged_folder_is_moved_in_whole_or_not_at_all(tmp_path):
+    out = tmp_path / "a" / "b"
+    with pytest.raises(OSError), staged_dir(out) as stage:
+        (stage / "one.txt").write_text("1")
+        _no_space()
+    assert _listing(tmp_path) == set()  # nor the folders above it that it made
+    with staged_dir(out) as stage:
+        (stage / "one.txt").write_text("1")
+        assert not out.exists()
+    assert _listing(out) == {"one.txt"}
+    (out / "mine.txt").write_text("kept")
+    with staged_dir(out) as stage:
+        (stage / "one.txt").write_text("2")
+    assert (out / "one.txt").read_text() == "2" and (out / "mine.txt").read_text() == "kept"
+    assert _listing(tmp_path) == {"a", "a/b", "a/b/one.txt", "a/b/mine.txt"}
+
+
+# ---- words for users -------------------------------------------------------------------
+
+
+def test_help_is_for_users(capsys):
+    for command in ([], ["train"], ["evaluate"], ["estimate"], ["reproduce"], ["stress"]):
+        with pytest.raises(SystemExit):
+            main([*command, "--help"])
+        text = capsys.readouterr().out
+        assert "``" not in text and "{'" not in text, command
+        assert "(default: False)" not in text and "(default: [])" not in text, command
+        assert not re.search(r"default: \d+\.0\)", text), command
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "default 5 for v2, 3 for v2-paper, 3 for corr in snapir" in text
+
+
+def test_counts_in_report_prose_agree_in_number():
+    assert count(1, "epoch") == "1 epoch"
+    assert count(30, "epoch") == "30 epochs"
+    assert count(0, "seed") == "0 seeds"
+
+
+# ---- figures ---------------------------------------------------------------------------
+
+
+def test_every_estimator_has_a_look_of_its_own_and_keeps_it():
+    from beamsnet.plotstyle import KNOWN, styles
+
+    names = [*KNOWN, "Robust LS", "BeamsNetV2 (seed_1)", "BeamsNetV2 (seed_2)"]
+    look = styles(names)
+    pairs = [(s.color, s.linestyle) for s in look.values()]
+    assert len(set(pairs)) == len(names) > 10
+    # LS and BeamsNetV2M share blue, Affine and CorrectionNet orange: not their style.
+    assert look["LS"].color == look["BeamsNetV2M"].color
+    assert look["LS"].linestyle != look["BeamsNetV2M"].linestyle
+    assert look["Affine"].linestyle != look["CorrectionNet"].linestyle
+    # The same estimator looks the same in another figure, among other estimators.
+    again = styles(["CorrectionNet (corr)", "Robust LS", "LS"])
+    assert again["CorrectionNet (corr)"] == look["CorrectionNet"]
+    assert again["Robust LS"] == look["Robust LS"] and again["LS"] == look["LS"]
+
+
+def test_legends_sit_outside_the_data_and_epochs_are_whole(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from beamsnet.plotstyle import figure_legend, styles
+
+    def overlaps(a, b) -> bool:
+        return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+    fig, axes = plt.subplots(2, 5, figsize=(15, 5), layout="constrained")
+    look = styles([f"estimator {i}" for i in range(13)])
+    for ax in axes.flat:
+        for name, style in look.items():
+            ax.plot([0, 1], [0, 1], label=name, **style.line())
+    figure_legend(fig, axes[0, 0], fontsize=9)
+    fig.canvas.draw()
+    legend = fig.legends[0].get_window_extent()
+    assert not any(overlaps(legend, ax.get_window_extent()) for ax in axes.flat)
+    plt.close(fig)
+
+    figures = []
+    monkeypatch.setattr(beamsnet.training.train, "save_figure",
+                        lambda fig, path, dpi: figures.append(fig))
+    history = {"train": [1.0, 0.5, 0.3], "test": [1.1, 0.6, 0.4]}
+    beamsnet.training.train._plot_losses(history, tmp_path / "losses.png", TrainConfig())
+    fig = figures[0]
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    ticks = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    assert not overlaps(ax.get_legend().get_window_extent(), ax.get_window_extent())
+    plt.close(fig)

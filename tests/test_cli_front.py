@@ -1,0 +1,348 @@
+"""The front door of both command lines as a hostile user meets it: a full disk under
+every writer, Ctrl-C at the worst moment, a closed pipe, a folder where a file belongs.
+Each ends in one line (or none), its exit status, and nothing half-written."""
+
+from __future__ import annotations
+
+import errno
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import flat, mission
+
+from auvsim import cli
+from auvsim.data import files, shards, writer
+from auvsim.data.reader import open_dataset
+from beamsnet import cli as bcli
+
+FULL = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+SHORT = ["--duration", "10", "--workers", "1", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def small(dataset_of):
+    """Two short straight missions, enough for a plot, a training and an evaluation."""
+    return dataset_of(flat(mission("a", 1, speed=2.0, duration=60.0),
+                           mission("b", 2, speed=1.0, duration=60.0)), "small")
+
+
+def _disk_fills_as_data_is_written(monkeypatch) -> None:
+    """The disk is full at the first chunk an auvsim dataset writes (a real ENOSPC comes
+    from HDF5 as an OSError with that errno)."""
+    def full(self, key, rows):
+        raise OSError(errno.ENOSPC, "Can't write data (file write failed: errno = 28)")
+
+    monkeypatch.setattr(writer.MissionWriter, "_write", full)
+
+
+def _one_line(capsys, *needles: str) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err
+    return err
+
+
+def test_full_disk_generate_one_file(tmp_path, capsys, monkeypatch):
+    _disk_fills_as_data_is_written(monkeypatch)
+    out = tmp_path / "out" / "x.h5"
+    assert cli.main(["generate", *SHORT, "--out", str(out)]) == 2
+    _one_line(capsys, "auvsim: error: ", str(out), "No space left on device",
+              "free some space")
+    assert [p.name for p in (tmp_path / "out").iterdir()] == []
+
+
+def test_full_disk_as_the_file_is_made(tmp_path, capsys, monkeypatch):
+    def full(*args, **kwargs):
+        raise FULL
+
+    monkeypatch.setattr(writer.h5py, "File", full)
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.h5")]) == 2
+    _one_line(capsys, "No space left on device")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_full_disk_generate_sharded(tmp_path, capsys, monkeypatch):
+    _disk_fills_as_data_is_written(monkeypatch)
+    out = tmp_path / "rm"
+    assert cli.main(["generate", *SHORT, "--out", f"{out}/"]) == 2
+    _one_line(capsys, "No space left on device", "part-00000.h5")
+    assert list(tmp_path.iterdir()) == []  # a fresh folder goes with its run
+
+
+def test_full_disk_as_the_index_is_written(tmp_path, capsys, monkeypatch):
+    real = shards.write_index
+
+    def full(path, *args, **kwargs):
+        real(path, *args, **kwargs)
+        raise FULL
+
+    monkeypatch.setattr("auvsim.runs.generate.write_index", full)
+    out = tmp_path / "rm"
+    assert cli.main(["generate", *SHORT, "--out", f"{out}/"]) == 2
+    _one_line(capsys, "index.h5", "No space left on device")
+    # The shard was whole and sealed: it stays, as for any stopped sharded run, and the
+    # next run takes it as it is. Nothing else is left.
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
+        "shards", "shards/part-00000.h5"]
+    monkeypatch.undo()
+    assert cli.main(["generate", *SHORT, "--out", f"{out}/"]) == 0
+    assert "1 kept from an earlier run" in capsys.readouterr().out
+
+
+def test_full_disk_import_velocity(tmp_path, capsys, monkeypatch):
+    source = tmp_path / "log.npy"
+    np.save(source, np.ones((3, 50)))
+    _disk_fills_as_data_is_written(monkeypatch)
+    assert cli.main(["import-velocity", str(source), "--out", str(tmp_path / "x.h5")]) == 2
+    _one_line(capsys, "x.h5", "No space left on device")
+    assert [p.name for p in tmp_path.iterdir()] == ["log.npy"]
+
+
+def test_full_disk_plot_leaves_no_figure_and_no_folder(small, tmp_path, capsys, monkeypatch):
+    real = Path.write_bytes
+    written = []
+
+    def fills_up(self, data):
+        if written:  # the second figure finds the disk full, half of it written
+            real(self, data[:100])
+            raise FULL
+        written.append(self)
+        return real(self, data)
+
+    monkeypatch.setattr(Path, "write_bytes", fills_up)
+    out = tmp_path / "figures" / "new"
+    assert cli.main(["plot", str(small), "--out", str(out)]) == 2
+    _one_line(capsys, "small_b.png", "No space left on device")
+    assert written  # the first was written whole, then removed with its folder
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_full_disk_beamsnet_train_leaves_no_run_folder(small, tmp_path, capsys, monkeypatch):
+    import beamsnet.training.train as train
+
+    real = train.torch.save
+
+    def full(obj, path, *args, **kwargs):
+        real(obj, path, *args, **kwargs)  # the checkpoint whole, then the disk is full
+        raise FULL
+
+    monkeypatch.setattr(train.torch, "save", full)
+    run = tmp_path / "runs" / "v2"
+    assert bcli.main(["train", str(small), "--model", "v2", "--epochs", "1", "--out", str(run),
+                      "--quiet"]) == 2
+    _one_line(capsys, "beamsnet: error: ", "No space left on device")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def run_dir(small, tmp_path_factory):
+    from beamsnet.training.config import TrainConfig
+    from beamsnet.training.train import train
+
+    out = tmp_path_factory.mktemp("run") / "v2"
+    train(small, TrainConfig(model="v2", epochs=1, seed=0), out, progress=False)
+    return out
+
+
+@pytest.mark.parametrize("command", ["evaluate", "estimate"])
+def test_full_disk_beamsnet_reports_leave_nothing(small, run_dir, tmp_path, capsys,
+                                                  monkeypatch, command):
+    real = Path.write_bytes
+    calls = []
+
+    def fills_up(self, data):
+        calls.append(self)
+        if len(calls) > 1:  # the report's second file finds the disk full
+            raise FULL
+        return real(self, data)
+
+    monkeypatch.setattr(Path, "write_bytes", fills_up)
+    out = tmp_path / "reports" / command
+    args = (["evaluate", str(run_dir), str(small)] if command == "evaluate" else
+            ["estimate", str(small), "--estimator", "LS"])
+    assert bcli.main([*args, "--out", str(out)]) == 2
+    _one_line(capsys, "beamsnet: error: ", "No space left on device")
+    assert len(calls) > 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_as_the_output_is_renamed(tmp_path, capsys, monkeypatch):
+    """SIGINT at the very moment of the rename: the run either completes and says what it
+    wrote, or leaves nothing; never "nothing was written" beside a new file, and never a
+    lock."""
+    real = os.replace
+    renamed = []
+
+    def replace(src, dst, **kwargs):
+        if Path(dst).name == "x.h5":
+            signal.raise_signal(signal.SIGINT)  # as the rename happens
+            renamed.append(dst)
+        return real(src, dst, **kwargs)
+
+    monkeypatch.setattr(files.os, "replace", replace)
+    out = tmp_path / "x.h5"
+    assert cli.main(["generate", *SHORT, "--out", str(out)]) == 130
+    assert renamed
+    err = _one_line(capsys, "auvsim: interrupted")
+    assert os.listdir(tmp_path) == ["x.h5"]  # no temporary, no lock
+    assert f"{out} had been written whole" in err
+    with open_dataset(out, verify=True) as f:  # and it is whole
+        assert list(f.missions) == ["mission_000"]
+
+
+def test_ctrl_c_before_the_rename_leaves_nothing(tmp_path, capsys, monkeypatch):
+    real = h5py.File.close
+
+    def close(self):
+        real(self)
+        raise KeyboardInterrupt  # as the file is closed, before the rename
+
+    monkeypatch.setattr(writer.h5py.File, "close", close)
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.h5")]) == 130
+    monkeypatch.undo()
+    assert capsys.readouterr().err == "auvsim: interrupted; nothing was written\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_in_beamsnet_is_one_line(small, tmp_path, capsys, monkeypatch):
+    import beamsnet.training.train as train
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train, "_plot_losses", interrupted)  # after model.pt was written
+    run = tmp_path / "v2"
+    assert bcli.main(["train", str(small), "--model", "v2", "--epochs", "1", "--out", str(run),
+                      "--quiet"]) == 130
+    assert capsys.readouterr().err == "beamsnet: interrupted; nothing was written\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sharded_index_that_is_a_folder_is_refused_first(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "rm"
+    (out / "index.h5").mkdir(parents=True)
+    monkeypatch.setattr("auvsim.runs.generate._run_jobs", pytest.fail)  # before any work
+    assert cli.main(["generate", *SHORT, "--out", f"{out}/"]) == 2
+    _one_line(capsys, "index.h5' is a folder", "expected the index file")
+    assert [p.name for p in out.iterdir()] == ["index.h5"]
+
+
+def test_a_closed_pipe_ends_quietly(small):
+    """``auvsim inspect X.h5 | head -1``, with the reader gone before the first line."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        done = subprocess.run([sys.executable, "-m", "auvsim", "inspect", str(small)],
+                              stdout=write, stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write)
+    assert done.stderr == ""
+    assert done.returncode == 141  # as a shell reports a process that SIGPIPE ended
+
+
+def test_an_error_on_a_pipe_that_is_not_stdout_is_an_error(tmp_path, capsys, monkeypatch):
+    def broken(args):
+        raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+    monkeypatch.setattr(cli, "_presets", broken)
+    assert cli.main(["presets"]) == 2
+    _one_line(capsys, "auvsim: error: Broken pipe")
+
+
+def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
+    """The first run (numba's cache empty) says it compiled and for how long; a run that
+    compiles nothing says nothing of it."""
+    from numba.core import event
+
+    import auvsim.runs.generate as gen
+
+    real = gen.check_reachable
+
+    def compiling(config):  # as numba does when its cache does not have the physics
+        with event.trigger_event("numba:compile"):
+            real(config)
+
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "a.h5")]) == 0
+    assert "compiling the physics" not in capsys.readouterr().out
+    monkeypatch.setattr(gen, "check_reachable", compiling)
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "b.h5")]) == 0
+    first, wrote = capsys.readouterr().out.splitlines()
+    assert first.startswith("compiling the physics once (first run): ")
+    assert first.endswith(" s; later runs skip it") and wrote.startswith("wrote ")
+
+
+@pytest.mark.parametrize("command", ["", "generate", "presets", "inspect",
+                                     "import-velocity", "plot"])
+def test_help_is_for_users(command, capsys):
+    from auvsim.runs.presets import DEFAULT_PRESET
+
+    with pytest.raises(SystemExit) as done:
+        cli.main([*command.split(), "--help"])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    assert "``" not in text and "library" not in text and "thin shell" not in text
+    assert "{" not in text.replace("{lzf,gzip}", "").replace(
+        "{generate,presets,inspect,import-velocity,plot}", "")  # no Python values
+    if command in ("generate", "import-velocity"):
+        options = [line.split()[0] for line in text.splitlines()
+                   if line.startswith("  --") and "--out" not in line
+                   and "--quiet" not in line and "--help" not in line]
+        described = text.split("options:")[1]
+        for option in options:  # each option with a value says what it is by default
+            entry = described.split(option, 1)[1].split("\n  -", 1)[0]
+            assert "default" in entry or option in ("--config", "--cluster"), option
+    if command == "generate":
+        assert f"default: {DEFAULT_PRESET})" in " ".join(text.split())
+
+
+def test_inspect_never_prints_a_negative_zero(small, capsys, monkeypatch):
+    from auvsim.data import describe as ds
+
+    real = ds.describe
+    monkeypatch.setattr(ds, "describe", lambda path: real(path) + "\n  bias [-0.,  0.01] "
+                        "m/s, offset -0 m, -0.000, -0.e+00, -0.0012, v1-0")
+    assert cli.main(["inspect", str(small)]) == 0
+    text = capsys.readouterr().out
+    assert "-0." not in text.replace("-0.0012", "") and " -0 " not in text
+    assert text.rstrip().endswith("bias [0.,  0.01] m/s, offset 0 m, 0.000, 0.e+00, -0.0012, "
+                                  "v1-0")
+
+
+def test_the_mission_plot_says_what_it_plots(small):
+    """Speed over ground and through the water; the current's direction toward, 0 to
+    360 deg as inspect says it; every legend beside its panel, outside the data."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from auvsim import plot
+
+    with open_dataset(small) as f:
+        m = f.missions["a"]
+        fig, axes = plt.subplots(4, 2, figsize=(15, 12.8), layout="constrained")
+        plot._draw(m, axes)
+        current = m.truth.current_ned
+        inspected = np.degrees(np.arctan2(*current.mean(axis=0)[[1, 0]])) % 360
+    speed = axes[1, 0]
+    assert speed.get_title() == "speed over ground and through the water"
+    labels = speed.get_legend_handles_labels()[1]
+    assert "over ground" in labels and "through the water" in labels
+    direction = fig.axes[-1]  # the current panel's twin
+    assert "toward" in direction.get_ylabel() and direction.get_ylim() == (0, 360)
+    toward = direction.get_lines()[0].get_ydata()
+    assert toward.min() >= 0 and toward.max() < 360
+    assert abs(np.mean(toward) - inspected) < 5
+    fig.canvas.draw()
+    for ax in axes.ravel():
+        legend = ax.get_legend()
+        if legend is not None:  # entirely to the right of the panel's data area
+            assert legend.get_window_extent().x0 >= ax.get_window_extent().x1 - 1
+    plt.close(fig)
