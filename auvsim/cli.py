@@ -214,7 +214,8 @@ def _generate(args: argparse.Namespace) -> None:
     config = build_config(args)
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
                        shards=args.shards, progress=not args.quiet)
-    if summary["compile_s"] > 0:  # numba's cache did not have it: said on the first run only
+    # numba's cache did not have it: said on the first run only, and not under --quiet
+    if summary["compile_s"] > 0 and not args.quiet:
         print(f"compiling the physics once (first run): {summary['compile_s']:.0f} s; later "
               "runs skip it")
     sharded = "" if "shards" not in summary else (

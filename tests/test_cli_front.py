@@ -269,13 +269,16 @@ def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
         with event.trigger_event("numba:compile"):
             real(config)
 
-    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "a.h5")]) == 0
+    loud = [a for a in SHORT if a != "--quiet"]
+    assert cli.main(["generate", *loud, "--out", str(tmp_path / "a.h5")]) == 0
     assert "compiling the physics" not in capsys.readouterr().out
     monkeypatch.setattr(gen, "check_reachable", compiling)
-    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "b.h5")]) == 0
+    assert cli.main(["generate", *loud, "--out", str(tmp_path / "b.h5")]) == 0
     first, wrote = capsys.readouterr().out.splitlines()
     assert first.startswith("compiling the physics once (first run): ")
     assert first.endswith(" s; later runs skip it") and wrote.startswith("wrote ")
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "c.h5")]) == 0
+    assert capsys.readouterr().out.startswith("wrote ")  # --quiet: the one line only
 
 
 @pytest.mark.parametrize("command", ["", "generate", "presets", "inspect",
