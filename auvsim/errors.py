@@ -55,10 +55,6 @@ class DatasetError(AuvsimError):
     """A file is not an auvsim dataset, is corrupt, or has another format version."""
 
 
-class CheckpointError(AuvsimError):
-    """A run directory or checkpoint is missing, corrupt, or not a beamsnet checkpoint."""
-
-
 class OutputError(AuvsimError):
     """An output cannot be written: a full disk, a quota, a read-only or vanished folder."""
 

@@ -14,8 +14,8 @@ sweep end to end (``experiments``). Frames, units and names are auvsim's (see
 # What users import, from the top level; loaded when first asked for (torch is heavy).
 _PUBLIC = {
     "load_windows": "beamsnet.data", "split": "beamsnet.data",
-    "TrainConfig": "beamsnet.training.train", "PROFILES": "beamsnet.training.train",
-    "train": "beamsnet.training.train", "load": "beamsnet.training.train",
+    "TrainConfig": "beamsnet.training.config", "PROFILES": "beamsnet.training.config",
+    "train": "beamsnet.training.train", "load": "beamsnet.training.checkpoints",
     "predict": "beamsnet.training.train",
     "evaluate": "beamsnet.evaluate", "estimate": "beamsnet.evaluate",
 }

@@ -13,13 +13,14 @@ from pathlib import Path
 from auvsim.cli_support import run_command
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
+from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
 from beamsnet.experiments.sim2real import SIM_SEEDS
 from beamsnet.experiments.stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
-from beamsnet.training.train import PROFILES, TrainConfig
+from beamsnet.training.config import PROFILES, TrainConfig
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
@@ -72,13 +73,12 @@ def _parser() -> argparse.ArgumentParser:
     parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=OneLineErrorParser)
-    tr = sub.add_parser("train", help="train BeamsNetV1, V2, V2M or CorrectionNet on a dataset",
-                        formatter_class=_Defaults)
+    networks = specs("network")
+    tr = sub.add_parser("train", help=f"train {', '.join(s.short for s in networks)} on a "
+                        "dataset", formatter_class=_Defaults)
     tr.add_argument("dataset", type=Path, help="auvsim dataset (.h5 file or sharded folder)")
-    tr.add_argument("--model", choices=("v1", "v2", "v2m", "corr"), default=train.config.model,
-                    help="v1: BeamsNetV1 (beams + IMU); v2: BeamsNetV2 (beams + past beams); "
-                    "v2m: V2 with validity masks; corr: CorrectionNet (LS plus a learned, "
-                    "bounded correction)")
+    tr.add_argument("--model", choices=network_names(), default=train.config.model,
+                    help="; ".join(f"{s.name}: {s.title}" for s in networks))
     tr.add_argument("--protocol", choices=("paper", "fixed"), default=train.config.protocol,
                     help="v2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
                     "their changes to the current beams, so it stays affine outside the training "
@@ -119,14 +119,14 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
+    runnable = [s for s in specs() if s.kind != "network"]
     es = sub.add_parser(
-        "estimate", help="run one model-based estimator (LS, a calibration, a Kalman "
-        "filter, the missing-beam regressor, the INS/DVL filter) over every ping of a "
+        "estimate", help="run one model-based estimator or filter over every ping of a "
         "dataset", formatter_class=_Defaults)
     es.add_argument("dataset", type=Path, help="auvsim dataset to estimate on")
     es.add_argument("--estimator", required=True, metavar="NAME",
-                    help="its name in the tables (case, spaces and dashes do not matter), "
-                    "e.g. LS, Affine, beam-calibration, KF, missing-beam-LS, INS/DVL")
+                    help="its name in the tables (case, spaces and dashes do not matter): "
+                    + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
                     help="fit on this file's training split (default: the dataset's own)")
     es.add_argument("--out", type=Path, default=Path("reports/estimate"), metavar="FOLDER",
@@ -240,7 +240,8 @@ def report_dir(out: Path | None, refresh: bool, name: str, *,
 
 
 def _train(args) -> None:
-    from beamsnet.training.train import TITLES, train, train_all, train_best
+    from beamsnet.training.runs import train_all, train_best
+    from beamsnet.training.train import train
 
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
@@ -257,7 +258,7 @@ def _train(args) -> None:
                              progress=not args.quiet, cluster=args.cluster)
         print(f"kept {summary['kept']} of {args.restarts} seeds (lowest final training loss; "
               f"all in {args.out / 'restarts.json'})")
-    print(f"trained {TITLES[args.model]}: final loss "
+    print(f"trained {spec(args.model).short}: final loss "
           f"{summary['final_train_loss']:.3g} (training), {summary['final_test_loss']:.3g} "
           f"(test split), {summary['samples_per_second']:.0f} samples/s; wrote "
           f"{summary['checkpoint']} and {summary['plot']}")

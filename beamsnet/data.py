@@ -37,9 +37,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from auvsim.data.beams import beam_matrix
 from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
-from auvsim.sensors.dvl import beam_matrix
 
 
 class DataError(DatasetError, ValueError):

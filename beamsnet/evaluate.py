@@ -25,24 +25,17 @@ from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import DataError, Windows, check_truth, load_windows, split
-from beamsnet.estimators.baselines import (
-    AffineCalibration,
-    BeamCalibration,
-    KalmanFilter,
-    LeastSquares,
-    ScaleOffset,
-    availability,
+from beamsnet.estimators import spec, specs
+from beamsnet.estimators.baselines import availability
+from beamsnet.navigation import (
+    dead_reckoning_error,
+    held,
+    own_position_error,
+    truth_at_pings,
 )
-from beamsnet.estimators.missing import MissingBeamRegressor
 from beamsnet.plotstyle import figure_legend, styles
-from beamsnet.training.train import (
-    SENSOR_ERRORS,
-    SENSOR_GEOMETRY,
-    TITLES,
-    load,
-    predict,
-    sensor_setup,
-)
+from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
+from beamsnet.training.train import predict
 
 COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",
            "rmse_z")
@@ -171,36 +164,34 @@ def _value(value) -> str:
 
 
 def baselines() -> list:
-    """Every model-based estimator that works on the windows alone, unfitted, LS first
-    (every table's reference row)."""
-    return [LeastSquares(), AffineCalibration(), BeamCalibration(), ScaleOffset(),
-            KalmanFilter(), KalmanFilter(calibrate="beam"), MissingBeamRegressor()]
-
-
-# The estimators ``filters`` gives, by name.
-FILTER_NAMES = ("INS/DVL",)
+    """Every model-based estimator of the registry (``beamsnet.estimators``), unfitted,
+    in its table order: LS first (every table's reference row)."""
+    return [s.make() for s in specs("model-based")]
 
 
 def filters(dataset: str | Path, *, strict: bool = False) -> list:
-    """The estimators that run on the file itself (``dataset``, the one the test windows
-    come from), unfitted: the INS/DVL filter, when the file has an IMU record (it
-    integrates the IMU between pings, which a window holds only in part).
+    """The registry's filters, which run on the file itself (``dataset``, the one the test
+    windows come from), unfitted: the INS/DVL filter integrates the IMU between pings,
+    which a window holds only in part.
 
     Raises:
-        DataError: with ``strict``, the file has no IMU record (one line saying so);
-            without, that filter is left out.
+        DataError: with ``strict``, a filter needs the IMU record and the file has none
+            (one line saying so); without, that filter is left out.
     """
     from auvsim.data.reader import open_dataset
-    from beamsnet.estimators.ins import InsDvlFilter, NoImuError
 
     with open_dataset(dataset) as f:
         lacking = [name for name in f.missions if not f.missions[name].has("imu")]
-    if lacking:
-        if strict:
-            raise NoImuError(f"{dataset}: mission {lacking[0]} has no IMU record; the "
-                             "INS/DVL filter integrates the IMU, so it cannot run on it")
-        return []
-    return [InsDvlFilter(dataset)]
+    out = []
+    for s in specs("filter"):
+        if s.needs.imu and lacking:
+            if strict:
+                raise DataError(f"{dataset}: mission {lacking[0]} has no IMU record; the "
+                                f"{s.name} filter integrates the IMU, so it cannot run on "
+                                "it")
+            continue
+        out.append(s.make(dataset))
+    return out
 
 
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
@@ -217,8 +208,8 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
         if positions is not None and hasattr(baseline, "positions"):
             positions[baseline.name] = baseline.positions(test_w)
     for run, model, checkpoint in models:
-        name = f"{TITLES[checkpoint['model']]} ({run.name})"
-        out[name] = predict(model, checkpoint["model"], trimmed(test_w, checkpoint))
+        name = f"{spec(checkpoint['model']).short} ({run.name})"
+        out[name] = predict(model, trimmed(test_w, checkpoint))
     return out
 
 
@@ -231,7 +222,7 @@ def trimmed(windows: Windows, checkpoint: dict) -> Windows:
 def table(windows: Windows, predictions: dict[str, np.ndarray]) -> dict[str, dict]:
     """Metrics of every estimator on ``windows``, with the improvement over LS."""
     rows = {name: metrics.report(pred, windows.target) for name, pred in predictions.items()}
-    ls = rows[LeastSquares.name]["rmse"]
+    ls = rows[specs()[0].short]["rmse"]
     for row in rows.values():
         row["improvement"] = metrics.improvement(row["rmse"], ls)
     return rows
@@ -340,19 +331,16 @@ def find_estimator(name: str, dataset: str | Path) -> object:
     def key(text: str) -> str:
         return text.lower().replace("-", " ").replace("_", " ")
 
-    for estimator in baselines():
-        if key(estimator.name) == key(name):
-            return estimator
-    try:
-        found = filters(dataset, strict=True)
-    except DataError as e:
-        if key(name) in map(key, FILTER_NAMES):
+    for s in specs():
+        if s.kind == "network" or key(s.name) != key(name):
+            continue
+        if s.kind == "model-based":
+            return s.make()
+        try:
+            return next(f for f in filters(dataset, strict=True) if f.name == s.name)
+        except DataError as e:
             raise ConfigError(str(e), argument="estimator") from None
-        found = []
-    for estimator in found:
-        if key(estimator.name) == key(name):
-            return estimator
-    known = [e.name for e in baselines()] + list(FILTER_NAMES)
+    known = [s.name for s in specs() if s.kind != "network"]
     raise ConfigError(f": no estimator is called {name!r}; expected one of "
                       f"{', '.join(map(repr, known))}", argument="estimator")
 
@@ -379,12 +367,6 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         ConfigError: an unknown estimator or the filter on a file without IMU; DataError:
             a file gives no samples.
     """
-    from beamsnet.experiments.stress import (
-        _truth_at_pings,
-        dead_reckoning_error,
-        own_position_error,
-    )
-
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset)
     windows = load_windows(dataset, every_ping=True)
@@ -401,7 +383,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred),
                    availability=availability(pred), missions={})
-    truth = _truth_at_pings(dataset, windows) if has_truth else None
+    truth = truth_at_pings(dataset, windows) if has_truth else None
     for i, mission in enumerate(windows.names):
         mine = windows.mission == i
         have = mine & np.isfinite(pred).all(axis=1)
@@ -409,8 +391,6 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
-            from beamsnet.experiments.faults import held
-
             row["dr_error"] = (own_position_error(windows, positions, truth, i)
                                if positions is not None else
                                dead_reckoning_error(windows, held(windows, pred), truth, i)[0])

@@ -18,7 +18,8 @@ from pathlib import Path
 import perf_page
 import torch
 
-from beamsnet.training.train import TrainConfig, train
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import train
 
 
 def main() -> None:

@@ -13,9 +13,10 @@ import torch
 from conftest import flat, mission, write
 
 from auvsim.config import DvlConfig
-from auvsim.errors import CheckpointError
 from beamsnet.cli import main
-from beamsnet.training.train import CHECKPOINT_FORMAT, TrainConfig, load, train, trained
+from beamsnet.training.checkpoints import CHECKPOINT_FORMAT, CheckpointError, load, trained
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import train
 
 
 @pytest.fixture(scope="module")

@@ -14,12 +14,14 @@ import pytest
 import torch
 from conftest import flat, mission, write
 
-import beamsnet.training.train
+import beamsnet.training.runs
 from auvsim.config import DvlConfig
 from auvsim.errors import SimulationError
 from auvsim.runs.presets import preset
 from beamsnet.cli import main
-from beamsnet.training.train import TrainConfig, load, train_all
+from beamsnet.training.checkpoints import load
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.runs import train_all
 
 # The parts of a summary that say where and how fast, not what was trained.
 WHERE = ("checkpoint", "plot", "seconds", "samples_per_second")
@@ -108,7 +110,7 @@ def _thread_pool(address, *, threads):
 def test_cli_train_runs_its_jobs_on_the_cluster(data, tmp_path, monkeypatch, capsys,
                                                 restarts):
     """``beamsnet train --cluster``: with one seed too, the job goes to the cluster."""
-    monkeypatch.setattr(beamsnet.training.train, "executor", _thread_pool)
+    monkeypatch.setattr(beamsnet.training.runs, "executor", _thread_pool)
     ADDRESSES.clear()
     run = tmp_path / "run"
     assert main(["train", str(data), "--out", str(run), "--epochs", "1", "--restarts",
@@ -129,8 +131,8 @@ def test_on_a_cluster_each_job_gets_the_threads_it_would_get_here(monkeypatch):
         seen.append(threads)
         return {}
 
-    monkeypatch.setattr(beamsnet.training.train, "executor", _thread_pool)
-    monkeypatch.setattr(beamsnet.training.train, "_job", job)
+    monkeypatch.setattr(beamsnet.training.runs, "executor", _thread_pool)
+    monkeypatch.setattr(beamsnet.training.runs, "_job", job)
     cores, own = os.cpu_count() or 1, torch.get_num_threads()
     for workers, jobs, threads in ((None, 1, own), (1, 3, own), (2, 2, max(1, cores // 2)),
                                    (None, 64, 1)):
@@ -149,8 +151,8 @@ def test_a_lost_worker_is_one_line_and_stops_the_other_jobs(monkeypatch):
         ran.append(out)
         raise KilledWorker("train-0", None, 3)
 
-    monkeypatch.setattr(beamsnet.training.train, "executor", _thread_pool)
-    monkeypatch.setattr(beamsnet.training.train, "_job", job)
+    monkeypatch.setattr(beamsnet.training.runs, "executor", _thread_pool)
+    monkeypatch.setattr(beamsnet.training.runs, "_job", job)
     with pytest.raises(SimulationError, match="ended abruptly on every try") as lost:
         train_all([("d.h5", TrainConfig(), f"run_{i}") for i in range(4)], progress=False,
                   cluster="local:2")

@@ -9,11 +9,13 @@ import json
 import pytest
 from conftest import flat, mission
 
-import beamsnet.training.train
+import beamsnet.training.runs
 from auvsim.config import DvlConfig
 from auvsim.data.reader import read_attrs
-from beamsnet.experiments.runner import ensure_dataset, train_runs
-from beamsnet.training.train import DivergedError, TrainConfig, load
+from beamsnet.experiments.runner import StaleDatasetWarning, ensure_dataset, train_runs
+from beamsnet.training.checkpoints import load
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import DivergedError
 
 TWO_LINES = flat(mission("a", 1, speed=2.0, duration=90.0, start_speed=0.0),
                  mission("b", 2, speed=1.0, duration=90.0, start_speed=0.0),
@@ -28,7 +30,7 @@ def data(tmp_path_factory):
 
 def _diverging(seeds):
     """``train``, except that the seeds in ``seeds`` diverge."""
-    real = beamsnet.training.train.train
+    real = beamsnet.training.runs.train
 
     def train(dataset, config, out, *, progress=True):
         if config.seed in seeds:
@@ -43,6 +45,31 @@ def test_ensure_dataset_generates_only_a_missing_file(data):
     stamp = data.stat().st_mtime_ns
     assert ensure_dataset(TWO_LINES, data, progress=False) == data
     assert data.stat().st_mtime_ns == stamp
+
+
+def test_ensure_dataset_regenerates_a_file_made_from_another_config(tmp_path):
+    path = tmp_path / "one.h5"
+    before = flat(mission("a", 1, speed=1.0, duration=20.0, start_speed=0.0))
+    ensure_dataset(before, path, progress=False)
+    # The preset changed: another speed, and one more mission.
+    after = flat(mission("a", 1, speed=1.5, duration=20.0, start_speed=0.0),
+                 mission("b", 2, speed=1.0, duration=20.0, start_speed=0.0))
+    with pytest.warns(StaleDatasetWarning) as said:
+        assert ensure_dataset(after, path, progress=False) == path
+    assert [str(w.message) for w in said] == [
+        f"{path}: it was made from another config (missions a, added b); generating it "
+        "again"]
+    root, missions = read_attrs(path)
+    assert root["config_json"] == after.to_json() and sorted(missions) == ["a", "b"]
+    # Another DVL: the section is named.
+    dvl = dataclasses.replace(after, dvl=DvlConfig(scale_factor=0.01))
+    with pytest.warns(StaleDatasetWarning, match=r"another config \(dvl\); generating"):
+        ensure_dataset(dvl, path, progress=False)
+    # A file that is not a dataset is replaced too, saying so.
+    path.write_text("not HDF5")
+    with pytest.warns(StaleDatasetWarning, match="it is not a readable dataset"):
+        ensure_dataset(dvl, path, progress=False)
+    assert read_attrs(path)[0]["config_json"] == dvl.to_json()
 
 
 def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data, tmp_path):
@@ -78,7 +105,7 @@ def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data,
 
 
 def test_a_diverged_seed_is_dropped_and_recorded(data, tmp_path, monkeypatch):
-    monkeypatch.setattr(beamsnet.training.train, "train", _diverging({0}))
+    monkeypatch.setattr(beamsnet.training.runs, "train", _diverging({0}))
     k = train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path, 2, workers=1,
                    progress=False)["v2"]
     seed_0, seed_1 = tmp_path / "v2" / "seed_0", tmp_path / "v2" / "seed_1"
@@ -89,7 +116,7 @@ def test_a_diverged_seed_is_dropped_and_recorded(data, tmp_path, monkeypatch):
 
 
 def test_every_seed_diverging_is_an_error_and_writes_nothing(data, tmp_path, monkeypatch):
-    monkeypatch.setattr(beamsnet.training.train, "train", _diverging({0, 1}))
+    monkeypatch.setattr(beamsnet.training.runs, "train", _diverging({0, 1}))
     with pytest.raises(DivergedError, match="every run diverged") as refused:
         train_runs(data, {"v2": TrainConfig(epochs=1)}, tmp_path / "runs", 2, workers=1,
                    progress=False)
@@ -101,7 +128,7 @@ def test_the_paper_sim_report_lists_a_diverged_seed(tmp_path, monkeypatch):
     from beamsnet.experiments.reproduce import paper_sim
 
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(beamsnet.training.train, "train", _diverging({1}))
+    monkeypatch.setattr(beamsnet.training.runs, "train", _diverging({1}))
     report = paper_sim("paper-sim", data=None, duration=60.0, out=tmp_path / "reports",
                        training=TrainConfig(epochs=1), restarts=2, workers=1,
                        progress=False).read_text()

@@ -25,7 +25,8 @@ from auvsim.data.files import staged_dir
 from auvsim.errors import ConfigError
 from beamsnet.cli import REPORTS, main, report_dir
 from beamsnet.evaluate import estimate, evaluate
-from beamsnet.training.train import TrainConfig, train
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import train
 from beamsnet.words import count
 
 

@@ -14,7 +14,9 @@ from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
 from beamsnet.cli import main
 from beamsnet.evaluate import SensorSetupWarning, check_sensors
-from beamsnet.training.train import TrainConfig, load, sensor_setup, train
+from beamsnet.training.checkpoints import load, sensor_setup
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import train
 
 
 def line(path, **dvl):

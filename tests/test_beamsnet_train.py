@@ -17,16 +17,10 @@ from auvsim.errors import ConfigError
 from beamsnet.cli import main
 from beamsnet.data import DataError, load_windows, split
 from beamsnet.evaluate import estimates, table
-from beamsnet.training.train import (
-    PROFILES,
-    DivergedError,
-    TrainConfig,
-    load,
-    predict,
-    train,
-    train_all,
-    train_best,
-)
+from beamsnet.training.checkpoints import load
+from beamsnet.training.config import PROFILES, TrainConfig
+from beamsnet.training.runs import train_all, train_best
+from beamsnet.training.train import DivergedError, predict, train
 
 
 def tiny(path, *, scale=0.05, noise=0.0, duration=400.0):
@@ -69,7 +63,7 @@ def test_checkpoint_reloads_with_identical_predictions(scale_only, v2_run):
     model, checkpoint = load(out)
     again, _ = load(out / "model.pt")
     _, test = split(load_windows(scale_only, n_past=3))
-    np.testing.assert_array_equal(predict(model, "v2", test), predict(again, "v2", test))
+    np.testing.assert_array_equal(predict(model, test), predict(again, test))
     assert checkpoint["model"] == "v2"
     assert checkpoint["kwargs"] == {"n_past": 3, "past_input": "changes"}
     assert len(checkpoint["dataset"]["sha256"]) == 64
@@ -100,8 +94,8 @@ def test_restarts_keep_the_seed_that_fits_the_training_split_best(scale_only, tm
     assert checkpoint["train_config"]["seed"] == int(best.rsplit("_", 1)[1])
     assert checkpoint["final_train_loss"] == losses[best]
     _, test = split(load_windows(scale_only))
-    np.testing.assert_array_equal(predict(kept, "v2", test),
-                                  predict(load(best)[0], "v2", test))
+    np.testing.assert_array_equal(predict(kept, test),
+                                  predict(load(best)[0], test))
 
 
 def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, tmp_path):
@@ -118,7 +112,7 @@ def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, 
     assert set(a) == set(b) and any(not torch.equal(a[k], b[k]) for k in a)
     model, checkpoint = load(tmp_path / "mean")
     train_w, _ = split(load_windows(scale_only))
-    mse = np.mean((predict(model, "v2", train_w) - train_w.target) ** 2)
+    mse = np.mean((predict(model, train_w) - train_w.target) ** 2)
     assert checkpoint["final_train_loss"] == pytest.approx(mse, rel=1e-4)
     assert checkpoint["final_train_loss"] != last["final_train_loss"]
     with pytest.raises(ConfigError, match="average_epochs") as refused:
@@ -327,16 +321,16 @@ def test_a_diverging_loss_stops_training_and_writes_nothing(scale_only, tmp_path
 
 
 def test_restarts_drop_a_diverged_seed_and_record_why(scale_only, tmp_path, monkeypatch):
-    import beamsnet.training.train
+    import beamsnet.training.runs
 
-    real = beamsnet.training.train.train
+    real = beamsnet.training.runs.train
 
     def seed_1_diverges(dataset, config, out, *, progress=True):
         if config.seed == 1:
             raise DivergedError("0.01: seed 1 diverged", argument="lr")
         return real(dataset, config, out, progress=progress)
 
-    monkeypatch.setattr(beamsnet.training.train, "train", seed_1_diverges)
+    monkeypatch.setattr(beamsnet.training.runs, "train", seed_1_diverges)
     out = tmp_path / "best"
     summary = train_best(scale_only, TrainConfig(epochs=1), out, restarts=3, workers=1,
                          progress=False)

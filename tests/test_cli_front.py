@@ -143,7 +143,8 @@ def test_full_disk_beamsnet_train_leaves_no_run_folder(small, tmp_path, capsys, 
 
 @pytest.fixture(scope="module")
 def run_dir(small, tmp_path_factory):
-    from beamsnet.training.train import TrainConfig, train
+    from beamsnet.training.config import TrainConfig
+    from beamsnet.training.train import train
 
     out = tmp_path_factory.mktemp("run") / "v2"
     train(small, TrainConfig(model="v2", epochs=1, seed=0), out, progress=False)

@@ -118,7 +118,8 @@ def test_earth_rate_compensation_undoes_an_earth_rate_put_into_noise_free_data(i
             + np.einsum("nji,nj->ni", c, 2.0 * np.cross(omega, v_imu)),
             index_of_dvl=m.imu.index_of_dvl)
         rotating = SimpleNamespace(name=m.name, attrs=m.attrs, dataset=m.dataset, imu=imu,
-                                   truth=m.truth, dvl=m.dvl, has=m.has)
+                                   truth=m.truth, dvl=m.dvl, has=m.has,
+                                   gravity=m.gravity)
         config = ins.FilterConfig(dvl_updates=False, earth_rate=True, latitude_deg=45.0)
         compensated = ins.run_mission(rotating, config)
         plain = ins.run_mission(m, ins.FilterConfig(dvl_updates=False))
@@ -154,7 +155,7 @@ def test_the_mechanisation_agrees_with_pyins_as_an_independent_integrator(ideal,
         monkeypatch.setattr(earth, name, value)
     with open_dataset(ideal) as f:
         m = f.missions["zz"]
-        monkeypatch.setattr(earth, "GE", ins._model_gravity("auv"))
+        monkeypatch.setattr(earth, "GE", m.gravity)
         dt = 1.0 / m.attrs["imu_rate_hz"]
         r = np.asarray(m.attrs["imu_position_body"])
         c = rotation_matrices(m.truth.quaternion)

@@ -12,7 +12,6 @@ import torch
 from conftest import flat, mission, write
 
 from auvsim.config import DvlConfig
-from auvsim.errors import CheckpointError
 from auvsim.sensors.dvl import beam_matrix, least_squares
 from beamsnet.data import load_windows, split
 from beamsnet.estimators.networks import (
@@ -21,7 +20,9 @@ from beamsnet.estimators.networks import (
     CorrectionNet,
     masked_least_squares,
 )
-from beamsnet.training.train import TrainConfig, load, model_inputs, predict, train
+from beamsnet.training.checkpoints import CheckpointError, load
+from beamsnet.training.config import TrainConfig
+from beamsnet.training.train import predict, train
 
 H = torch.as_tensor(beam_matrix(math.radians(20.0)), dtype=torch.float32)
 SCALE, BIAS = 0.007, 1e-4  # the published error model's scale factor and bias (m/s)
@@ -199,13 +200,13 @@ def test_checkpoint_round_trip_and_corrupt_files_are_refused(model, dataset, tmp
     again, _ = load(tmp_path / "run" / "model.pt")
     assert TrainConfig(**checkpoint["train_config"]).drop_rate == 0.1
     _, test = split(load_windows(dataset, n_past=3))
-    np.testing.assert_array_equal(predict(net, model, test), predict(again, model, test))
+    np.testing.assert_array_equal(predict(net, test), predict(again, test))
     assert torch.equal(net.h, torch.as_tensor(test.h, dtype=torch.float32))
     # A ping that lost a beam still has an estimate; one that lost two has none.
     holes = test._replace(beams=test.beams.copy())
     holes.beams[0, 1] = np.nan
     holes.beams[1, :2] = np.nan
-    out = predict(net, model, holes)
+    out = predict(net, holes)
     assert np.isfinite(out[0]).all() and np.isnan(out[1]).all() and np.isfinite(out[2:]).all()
     data = (tmp_path / "run" / "model.pt").read_bytes()
     (tmp_path / "run" / "model.pt").write_bytes(data[:len(data) // 2])
@@ -228,9 +229,9 @@ def test_v2_protocol_is_recorded_and_the_paper_one_is_unchanged(dataset, tmp_pat
     windows = load_windows(dataset, n_past=3)
     old = BeamsNetV2(n_past=3)
     old.load_state_dict(paper.state_dict())
-    np.testing.assert_array_equal(predict(old, "v2", windows), predict(paper, "v2", windows))
+    np.testing.assert_array_equal(predict(old, windows), predict(paper, windows))
     # The fixed V2 is the same network on the past beams' changes to the current ones.
-    past, beams = model_inputs("v2", windows)
+    past, beams = old.inputs(windows)
     changes = BeamsNetV2(n_past=3, past_input="changes")
     changes.load_state_dict(paper.state_dict())
     with torch.no_grad():
@@ -244,7 +245,7 @@ def test_v1_and_v2_give_nan_rows_where_an_input_beam_is_nan(dataset, tmp_path):
     windows = load_windows(dataset, n_past=3)
     holes = windows._replace(past_beams=windows.past_beams.copy())
     holes.past_beams[0, 1, 2] = np.nan
-    out = predict(net, "v2", holes)
+    out = predict(net, holes)
     assert np.isnan(out[0]).all() and np.isfinite(out[1:]).all()
 
 

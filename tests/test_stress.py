@@ -11,8 +11,9 @@ from auvsim.cli import main as auvsim_main
 from auvsim.runs.presets import MANEUVER_MISSIONS
 from beamsnet.cli import main
 from beamsnet.data import load_windows
-from beamsnet.evaluate import FILTER_NAMES, baselines
-from beamsnet.experiments.stress import dead_reckoning_error
+from beamsnet.estimators import specs
+from beamsnet.evaluate import baselines
+from beamsnet.navigation import dead_reckoning_error
 
 
 @pytest.mark.slow
@@ -25,7 +26,7 @@ def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monk
     rows = json.loads((tmp_path / "reports" / "stress.json").read_text())
     assert list(rows) == [name for name, _, _ in MANEUVER_MISSIONS]
     for name, row in rows.items():
-        assert set(row) == {b.name for b in baselines()} | set(FILTER_NAMES) | {
+        assert set(row) == {b.name for b in baselines()} | {s.name for s in specs("filter")} | {
             "BeamsNetV1 (v1)", "BeamsNetV2 (v2)", "BeamsNetV2M (v2m)", "CorrectionNet (corr)"}
         assert all(np.isfinite(c["rmse_vector"]) and np.isfinite(c["dr_error"])
                    for c in row.values())
@@ -50,9 +51,9 @@ def test_dead_reckoning_error_of_a_constant_velocity_bias(tmp_path):
     assert auvsim_main(["generate", "--preset", "paper-sim", "--duration", "104",
                         "--out", str(path), "--quiet"]) == 0
     windows = load_windows(path, missions=["speed_2"])
-    from beamsnet.experiments.stress import _truth_at_pings
+    from beamsnet.navigation import truth_at_pings
 
-    truth = _truth_at_pings(path, windows)
+    truth = truth_at_pings(path, windows)
     biased = windows.target + np.array([0.01, 0.0, 0.0])
     drift, travelled = dead_reckoning_error(windows, biased, truth, 0)
     assert drift == pytest.approx(0.01 * (len(windows.target) - 1), rel=2e-3)
@@ -60,7 +61,7 @@ def test_dead_reckoning_error_of_a_constant_velocity_bias(tmp_path):
     assert dead_reckoning_error(windows, windows.target, truth, 0)[0] == 0.0
     # A position solution is scored over the same span, first ping to last: the true
     # positions plus the biased velocity's drift score what its dead reckoning does.
-    from beamsnet.experiments.stress import dead_reckoning_track, own_position_error
+    from beamsnet.navigation import dead_reckoning_track, own_position_error
 
     drifted = truth["position"] + (dead_reckoning_track(windows, biased, truth, 0)
                                    - dead_reckoning_track(windows, windows.target, truth, 0))
@@ -73,13 +74,13 @@ def test_truth_at_pings_rotates_the_dvl_velocity_into_ned(tmp_path):
     omega x r, is the vehicle's true NED velocity at each ping: the frames and the rows
     that dead reckoning integrates are the right ones."""
     from auvsim.data.reader import open_dataset
-    from beamsnet.experiments.stress import _truth_at_pings
+    from beamsnet.navigation import truth_at_pings
 
     path = tmp_path / "turn.h5"
     assert auvsim_main(["generate", "--preset", "maneuvers", "--scenario", "turning_circle",
                         "--duration", "90", "--out", str(path), "--quiet"]) == 0
     windows = load_windows(path, missions=["turning_circle"])
-    truth = _truth_at_pings(path, windows)
+    truth = truth_at_pings(path, windows)
     with open_dataset(path) as f:
         m = f.missions["turning_circle"]
         rows = m.imu.index_of_dvl[np.searchsorted(m.dvl.time, windows.time)]

@@ -13,10 +13,12 @@ from auvsim.cli import main as auvsim_main
 from auvsim.sensors.dvl import beam_matrix
 from beamsnet.cli import main
 from beamsnet.data import Windows, load_windows
+from beamsnet.estimators import specs
 from beamsnet.estimators.baselines import KalmanFilter
 from beamsnet.estimators.networks import BeamsNetV2
-from beamsnet.evaluate import FILTER_NAMES, baselines
-from beamsnet.experiments.faults import SWEEPS, _estimates, held, sweeps
+from beamsnet.evaluate import baselines
+from beamsnet.experiments.faults import SWEEPS, _estimates, sweeps
+from beamsnet.navigation import held
 
 TINY = ["stress", "--faults", "--train-duration", "60", "--fault-duration", "30",
         "--fault-mission", "straight", "--epochs", "1", "--average-epochs", "1",
@@ -173,7 +175,7 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
     assert summary["missions"] == ["straight"]
     assert "paper-sim_60s" in summary["train_data"]
     report = (out / "faults.md").read_text()
-    names = {b.name for b in baselines()} | set(FILTER_NAMES) | {
+    names = {b.name for b in baselines()} | {s.name for s in specs("filter")} | {
             "BeamsNetV1 (v1)", "BeamsNetV2 (v2)", "BeamsNetV2M (v2m)", "CorrectionNet (corr)"}
     for sweep, rows in summary["sweeps"].items():
         assert len(rows) == len(sweeps(30.0)[sweep])

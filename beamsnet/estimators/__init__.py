@@ -1,2 +1,15 @@
-"""Estimators: least squares and calibrations, the INS/DVL filter, missing-beam
-regressors and the networks."""
+"""Estimators: least squares and calibrations, robust least squares, the INS/DVL filter,
+missing-beam regressors and the networks, each declared in the registry by its own
+module (``registry``: ``specs()``, ``spec(name)``)."""
+
+from beamsnet.estimators.registry import (
+    Needs,
+    Spec,
+    models,
+    network_names,
+    short_name,
+    spec,
+    specs,
+)
+
+__all__ = ["Needs", "Spec", "models", "network_names", "short_name", "spec", "specs"]

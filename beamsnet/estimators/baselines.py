@@ -18,12 +18,14 @@
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Protocol
 
 import numpy as np
 
-from auvsim.sensors.dvl import least_squares
+from auvsim.data.beams import least_squares
 from beamsnet.data import Windows
+from beamsnet.estimators.registry import Needs, Spec
 
 # q grid of the Kalman filter, m/s per sqrt(s): from "velocity constant to 10 um/s over
 # an hour" to "changes by 1 m/s each second"; half-decade steps are finer than the RMSE's
@@ -97,7 +99,7 @@ class AffineCalibration:
         return self
 
     def predict(self, windows: Windows) -> np.ndarray:
-        _check_fitted(self, windows)
+        check_fitted(self, windows)
         return windows.beams @ self.a.T + self.c
 
 
@@ -153,7 +155,7 @@ class BeamCalibration:
         return self
 
     def predict(self, windows: Windows) -> np.ndarray:
-        _check_fitted(self, windows)
+        check_fitted(self, windows)
         return least_squares((windows.beams - self.bias) / (1.0 + self.scale), windows.h)
 
 
@@ -193,7 +195,7 @@ class ScaleOffset:
         return self
 
     def predict(self, windows: Windows) -> np.ndarray:
-        _check_fitted(self, windows)
+        check_fitted(self, windows)
         return self.k * least_squares(windows.beams, windows.h) + self.c
 
 
@@ -290,7 +292,7 @@ class KalmanFilter:
         return self
 
     def predict(self, windows: Windows) -> np.ndarray:
-        _check_fitted(self, windows)
+        check_fitted(self, windows)
         z, cov = self._measurement(windows)
         return _filter(z, cov, windows.mission, windows.time, np.array([self.q]),
                        gate=self.gate)
@@ -408,9 +410,41 @@ def _filter(z: np.ndarray, cov: np.ndarray, mission: np.ndarray, time: np.ndarra
     return estimate
 
 
-def _check_fitted(estimator, windows: Windows) -> None:
+def check_fitted(estimator, windows: Windows) -> None:
+    """Refuse ``predict`` before ``fit``, or on windows of another beam geometry than the
+    training split's.
+
+    Raises:
+        RuntimeError: not fitted; ValueError: another beam geometry.
+    """
     if estimator.h is None:
         raise RuntimeError(f"{type(estimator).__name__}: call fit(train) before predict")
     if not np.allclose(estimator.h, windows.h):
         raise ValueError(f"{type(estimator).__name__}: fitted on another beam geometry than "
                          "the windows to predict (beam angle differs)")
+
+
+FOUR_BEAMS = Needs(beams=4, text="needs 4 beams")
+ESTIMATORS = (
+    Spec("LS", "least squares on the current beams (paper eq. 9), nothing fitted",
+         "model-based", make=LeastSquares, needs=Needs(training=False),
+         why="it is the reference", order=10),
+    Spec("Affine", "affine calibration v = A y + c", "model-based", make=AffineCalibration,
+         needs=FOUR_BEAMS, order=20,
+         why="its 15 parameters were fitted on the training data; cross-axis terms that "
+             "straight lines never constrain are exercised by every sway, heave and current"),
+    Spec("Beam calibration", "a scale factor and a bias per beam, then LS", "model-based",
+         make=BeamCalibration, needs=Needs(), order=30,
+         why="its 8 per-beam parameters were fitted on the training data's sensor errors"),
+    Spec("LS scale+offset", "v = k v_LS + c", "model-based", make=ScaleOffset,
+         needs=Needs(), order=40,
+         why="its scale and offset were fitted on the training data's sensor errors"),
+    Spec("KF", "random-walk Kalman filter on the affine calibration", "model-based",
+         make=KalmanFilter, needs=FOUR_BEAMS, order=50,
+         why="it filters the affine calibration's velocity (and inherits its cross-axis "
+             "errors), holding its estimate through pings without four beams"),
+    Spec("KF (beam calibration)", "random-walk Kalman filter on the beam calibration",
+         "model-based", make=partial(KalmanFilter, calibrate="beam"), needs=Needs(),
+         order=60, why="a random walk lags a velocity that keeps changing, and holds "
+                       "through gaps"),
+)

@@ -66,17 +66,18 @@ import json
 import math
 import statistics
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import NamedTuple
 
 import numba
 import numpy as np
 
+from auvsim.data.beams import beam_matrix
 from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
-from auvsim.sensors.dvl import beam_matrix
 from beamsnet.data import DataError, Windows
+from beamsnet.estimators.baselines import BeamCalibration
+from beamsnet.estimators.registry import Needs, Spec
 
 EARTH_RATE = 7.292115e-5  # rad/s, WGS84 (Groves eq. 2.133)
 N_CORE = 15  # p, v, theta, b_a, b_g
@@ -108,7 +109,7 @@ class FilterConfig:
         earth_rate: compensate the Earth's rotation at ``latitude_deg`` (the simulator's
             world does not rotate: keep it off for auvsim data).
         latitude_deg: deg, used only with ``earth_rate``.
-        gravity: m/s^2 (down); None: the dataset's vehicle model's gravity.
+        gravity: m/s^2 (down); None: the mission's, as its dataset stores it (``gravity``).
         beam_states: estimate each beam's scale factor and bias (8 more states).
         beam_scale_std: initial std of each beam's scale factor, - (``beam_states``).
         beam_bias_std: initial std of each beam's bias, m/s (``beam_states``).
@@ -386,16 +387,6 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
     return out_v, out_cov, out_p, out_pstd, out_b, used, rejected
 
 
-@lru_cache(maxsize=8)
-def _model_gravity(model: str) -> float:
-    """Gravity of a vehicle model (its MJCF ``option gravity``), m/s^2."""
-    import mujoco
-
-    from auvsim.physics.vehicle import model_path
-
-    return -float(mujoco.MjModel.from_xml_path(str(model_path(model))).opt.gravity[2])
-
-
 def _dataset_config(mission) -> dict:
     text = mission.dataset.config_json
     return json.loads(text) if text else {}
@@ -432,8 +423,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     r_dvl = np.asarray(a["dvl_position_body"], dtype=float)
     mounting = rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"]))
     h = beam_matrix(math.radians(float(a["beam_angle_deg"])))
-    gravity = cfg.gravity if cfg.gravity is not None else _model_gravity(
-        dataset_config.get("vehicle", {}).get("model", "auv"))
+    gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
 
     # Initial state: the truth at sample 0, moved to the IMU point.
     c0 = rotation_matrices(truth.quaternion[:1])[0]
@@ -559,8 +549,6 @@ class InsDvlFilter:
         self._tracks: dict[str, FilterTrack] = {}
 
     def fit(self, train: Windows) -> InsDvlFilter:
-        from beamsnet.estimators.baselines import BeamCalibration
-
         if self.calibrate:
             calibration = BeamCalibration().fit(train)
             self.correction = (calibration.scale, calibration.bias)
@@ -600,3 +588,11 @@ class InsDvlFilter:
                 1.0, np.abs(windows.time[rows]))
             out[rows[hit]] = getattr(track, field)[k[hit]]
         return out
+
+
+ESTIMATORS = (
+    Spec("INS/DVL", "INS/DVL filter: the IMU integrated, updated by each locked beam",
+         "filter", make=InsDvlFilter, order=10,
+         needs=Needs(beams=0, imu=True, text="needs the IMU record"),
+         why="its noise model is the file's, and it gates beams it finds inconsistent"),
+)

@@ -8,7 +8,7 @@ available current beams and the past pings' four beams, fitted on the complete p
 the training split with each pattern masked synthetically.
 
 A Janus DVL's four beams are linearly dependent (``H`` has rank 3; for the x-configuration
-of ``auvsim.sensors.dvl.beam_matrix`` ``h_1 + h_3 = h_2 + h_4``), so one missing beam is
+of ``auvsim.data.beams.beam_matrix`` ``h_1 + h_3 = h_2 + h_4``), so one missing beam is
 fixed by the other three: ``y_m = h_m . v_3``, v_3 their LS velocity, exact on noise-free
 data without scale factors and biases, and LS on the four filled beams is then LS on the
 three. Two or more missing beams leave v underdetermined by the current ping; the past
@@ -29,9 +29,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from auvsim.sensors.dvl import least_squares
+from auvsim.data.beams import least_squares
 from beamsnet.data import Windows
-from beamsnet.estimators.baselines import _check_fitted
+from beamsnet.estimators.baselines import check_fitted
+from beamsnet.estimators.registry import Needs, Spec
 
 # Singular values below this fraction of the largest are round-off: a noise-free training
 # set has exact linear dependencies (the four beams of a ping; past and current pings at
@@ -116,7 +117,7 @@ class MissingBeamRegressor:
             missing: (S, 4) bool, the beams to treat as missing (default: the NaN ones);
                 what a masked beam holds is never read.
         """
-        _check_fitted(self, windows)
+        check_fitted(self, windows)
         n, s = self.n_past, len(windows.beams)
         if windows.past_beams.shape[1] < n:
             raise ValueError(f"{type(self).__name__}: fitted with {n} past pings, the windows "
@@ -168,3 +169,11 @@ def _earlier_samples(mission: np.ndarray, time: np.ndarray, n: int) -> np.ndarra
             hit = np.abs(t[j] - (t - d * period)) < 0.1 * period
             out[rows[hit], d - 1] = rows[j[hit]]
     return out
+
+
+ESTIMATORS = (
+    Spec("Missing-beam LS", "missing beams regressed from the others and the past pings, "
+         "then LS", "model-based", make=MissingBeamRegressor,
+         needs=Needs(beams=0, history=1, text="needs past pings"), order=70,
+         why="its regressed beams are noisier than LS's exact solution on three"),
+)

@@ -37,10 +37,16 @@ weight act on the beams, so published weights only load into the published order
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import torch
 from torch import nn
+
+from auvsim.errors import ConfigError
+from beamsnet.estimators.registry import Needs, Spec
+
+if TYPE_CHECKING:
+    from beamsnet.data import Windows
 
 N_BEAMS = 4  # Janus DVL
 N_AXES = 3  # x, y, z of an accelerometer or gyroscope triad, and of the velocity
@@ -77,6 +83,47 @@ def _check_shape(name: str, x: torch.Tensor, expected: tuple[int, ...]) -> None:
         raise ValueError(f"{name} must have shape {expected}, got {tuple(x.shape)}")
 
 
+def _beams(windows: Windows) -> torch.Tensor:
+    """(S, 4) current beams, float32."""
+    return torch.as_tensor(windows.beams, dtype=torch.float32)
+
+
+def _past(windows: Windows, n_past: int | None = None) -> torch.Tensor:
+    """(S, n, 4) the last ``n_past`` (default: all) past pings' beams, float32."""
+    n = windows.past_beams.shape[1] if n_past is None else n_past
+    return torch.as_tensor(windows.past_beams[:, windows.past_beams.shape[1] - n:],
+                           dtype=torch.float32)
+
+
+def _imu(windows: Windows) -> list[torch.Tensor]:
+    """[accel, gyro], each (S, 3, W) float32: the axes are the conv's channels, time runs
+    along W."""
+    if windows.accel is None:
+        raise ConfigError("v2 is needed: the windows have no IMU data, which "
+                          "BeamsNetV1 takes", argument="model")
+    return [torch.as_tensor(x, dtype=torch.float32).transpose(1, 2).contiguous()
+            for x in (windows.accel, windows.gyro)]
+
+
+def _drop_beams(x: list[torch.Tensor], beams_at: int, past_at: int, rate: float,
+                generator: torch.Generator) -> list[torch.Tensor]:
+    """A batch of a masked model's inputs ``x`` with beams dropped (NaN) at random: with
+    probability ``rate`` one current beam of a sample (``x[beams_at]``; so 3 stay: LS
+    still has an estimate), and each past beam value (``x[past_at]``) with probability
+    ``rate``."""
+    beams, past = x[beams_at], x[past_at]
+    b = len(beams)
+    which = torch.randint(0, beams.shape[1], (b,), generator=generator)
+    hit = torch.rand(b, generator=generator) < rate
+    drop = torch.zeros_like(beams, dtype=torch.bool)
+    drop[torch.arange(b)[hit], which[hit]] = True
+    nan = torch.tensor(float("nan"))
+    out = list(x)
+    out[beams_at] = torch.where(drop, nan, beams)
+    out[past_at] = torch.where(torch.rand(past.shape, generator=generator) < rate, nan, past)
+    return out
+
+
 class BeamsNetV1(nn.Module):
     """IMU + DVL BeamsNet: current beams and the IMU window that ends at this DVL epoch.
 
@@ -94,6 +141,22 @@ class BeamsNetV1(nn.Module):
     """
 
     name: ClassVar[str] = "v1"
+    masked: ClassVar[bool] = False  # trains with beams dropped, runs on missing beams
+    imu_option: ClassVar[bool] = False  # takes the IMU or not as its config says
+
+    @classmethod
+    def options(cls, config, windows: Windows) -> dict:
+        """Constructor arguments from a ``TrainConfig`` and the training windows."""
+        return dict(imu_window=windows.accel.shape[1], dropout=config.dropout,
+                    shared_imu_conv=config.shared_imu_conv)
+
+    def inputs(self, windows: Windows) -> list[torch.Tensor]:
+        """What ``forward`` takes, float32, for every sample of ``windows``.
+
+        Raises:
+            ConfigError: the windows have no IMU data.
+        """
+        return [*_imu(windows), _beams(windows)]
 
     def __init__(self, *, imu_window: int = 100, dropout: float = 0.2,
                  shared_imu_conv: bool = False) -> None:
@@ -180,6 +243,20 @@ class BeamsNetV2(nn.Module):
     """
 
     name: ClassVar[str] = "v2"
+    masked: ClassVar[bool] = False
+    imu_option: ClassVar[bool] = False
+
+    @classmethod
+    def options(cls, config, windows: Windows) -> dict:
+        """Constructor arguments from a ``TrainConfig`` (its protocol: the published raw
+        past beams, or their changes) and the training windows."""
+        return dict(n_past=config.n_past,
+                    past_input="beams" if config.protocol == "paper" else "changes")
+
+    def inputs(self, windows: Windows) -> list[torch.Tensor]:
+        """What ``forward`` takes, float32: every past ping of the windows (the caller
+        trims them to ``n_past``, ``beamsnet.evaluate.trimmed``) and the current beams."""
+        return [_past(windows), _beams(windows)]
 
     def __init__(self, *, n_past: int = 3, past_input: str = "beams") -> None:
         super().__init__()
@@ -273,6 +350,22 @@ class BeamsNetV2M(nn.Module):
     """
 
     name: ClassVar[str] = "v2m"
+    masked: ClassVar[bool] = True
+    imu_option: ClassVar[bool] = False
+
+    @classmethod
+    def options(cls, config, windows: Windows) -> dict:
+        """Constructor arguments from a ``TrainConfig``."""
+        return dict(n_past=config.n_past)
+
+    def inputs(self, windows: Windows) -> list[torch.Tensor]:
+        """What ``forward`` takes, float32: its ``n_past`` past pings, the current beams."""
+        return [_past(windows, self.n_past), _beams(windows)]
+
+    def drop_beams(self, batch: list[torch.Tensor], rate: float,
+                   generator: torch.Generator) -> list[torch.Tensor]:
+        """``batch`` (``inputs``) with beams dropped at random (``_drop_beams``)."""
+        return _drop_beams(batch, 1, 0, rate, generator)
 
     def __init__(self, *, n_past: int = 3) -> None:
         super().__init__()
@@ -360,6 +453,24 @@ class CorrectionNet(nn.Module):
     """
 
     name: ClassVar[str] = "corr"
+    masked: ClassVar[bool] = True
+    imu_option: ClassVar[bool] = True
+
+    @classmethod
+    def options(cls, config, windows: Windows) -> dict:
+        """Constructor arguments from a ``TrainConfig`` (``imu``: take the IMU window)."""
+        return dict(n_past=config.n_past, imu=config.imu)
+
+    def inputs(self, windows: Windows) -> list[torch.Tensor]:
+        """What ``forward`` takes, float32: the current beams, its ``n_past`` past pings,
+        and with ``imu`` the IMU windows."""
+        return [_beams(windows), _past(windows, self.n_past)] + (
+            _imu(windows) if self.imu else [])
+
+    def drop_beams(self, batch: list[torch.Tensor], rate: float,
+                   generator: torch.Generator) -> list[torch.Tensor]:
+        """``batch`` (``inputs``) with beams dropped at random (``_drop_beams``)."""
+        return _drop_beams(batch, 0, 1, rate, generator)
 
     def __init__(self, *, n_past: int = 3, imu: bool = False, hidden: int = 32) -> None:
         super().__init__()
@@ -463,21 +574,39 @@ class CorrectionNet(nn.Module):
         return ls + self.linear(ls) + correction
 
 
-MODELS: dict[str, type[nn.Module]] = {"v1": BeamsNetV1, "v2": BeamsNetV2, "v2m": BeamsNetV2M,
-                                      "corr": CorrectionNet}
+# Why any network can be worse than LS on data unlike its training data.
+NETWORK_WHY = ("a network fitted on the training data meets motions (sway, heave, turns, "
+               "currents) its training data never showed")
+ESTIMATORS = (
+    Spec("v1", "BeamsNetV1 (beams + IMU)", "network", model=BeamsNetV1, short="BeamsNetV1",
+         needs=Needs(beams=4, imu=True, text="needs 4 beams"), why=NETWORK_WHY, order=10),
+    Spec("v2", "BeamsNetV2 (beams + past beams)", "network", model=BeamsNetV2,
+         short="BeamsNetV2", needs=Needs(beams=4, history=3, all_past=True,
+                                         text="needs 4 beams on 4 pings"),
+         why=NETWORK_WHY, order=20),
+    Spec("v2m", "BeamsNetV2M (V2 with validity masks)", "network", model=BeamsNetV2M,
+         short="BeamsNetV2M", needs=Needs(history=3), why=NETWORK_WHY, order=30),
+    Spec("corr", "CorrectionNet (LS plus a learned, bounded correction)", "network",
+         model=CorrectionNet, short="CorrectionNet", needs=Needs(history=3), why=NETWORK_WHY,
+         order=40),
+)
 
 
 def build(name: str, **kwargs) -> nn.Module:
-    """Build a model by name, e.g. ``build(m.name, **m.kwargs)`` from a checkpoint.
+    """Build a registered network by name, e.g. ``build(m.name, **m.kwargs)`` from a
+    checkpoint.
 
     Args:
-        name: "v1" (BeamsNetV1), "v2" (BeamsNetV2), "v2m" (BeamsNetV2M) or "corr"
-            (CorrectionNet).
+        name: a network's name in the registry (``beamsnet.estimators.registry``): "v1"
+            (BeamsNetV1), "v2" (BeamsNetV2), "v2m" (BeamsNetV2M), "corr" (CorrectionNet).
         **kwargs: keyword arguments of that model's constructor.
 
     Raises:
         ValueError: ``name`` is not a known model.
     """
-    if name not in MODELS:
-        raise ValueError(f"name must be one of {sorted(MODELS)}, got {name!r}")
-    return MODELS[name](**kwargs)
+    from beamsnet.estimators.registry import models
+
+    known = models()
+    if name not in known:
+        raise ValueError(f"name must be one of {sorted(known)}, got {name!r}")
+    return known[name](**kwargs)

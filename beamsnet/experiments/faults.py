@@ -23,11 +23,11 @@ table gives:
 * the vector RMSE against the true velocity over ground, on the pings the estimator
   gives an estimate for;
 * the availability: the share of pings it gives an estimate for. LS solves three beams
-  exactly (``auvsim.sensors.dvl.least_squares``): the baseline. The affine calibration,
+  exactly (``auvsim.data.beams.least_squares``): the baseline. The affine calibration,
   BeamsNetV1 and the Kalman filter's calibrated measurement need all four beams of the
   ping, BeamsNetV2 all four of the ping and its three past pings; the Kalman filter
   predicts through a ping without a measurement;
-* the dead-reckoning error at the end of a mission (``stress.dead_reckoning_error``),
+* the dead-reckoning error at the end of a mission (``beamsnet.navigation.dead_reckoning_error``),
   where an estimator without an estimate holds its last one (zero before its first, as a
   navigator with no velocity would), so a gap costs what it costs at sea.
 
@@ -51,18 +51,14 @@ import numpy as np
 from auvsim.data.files import save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
-from beamsnet.data import Windows, load_windows
+from beamsnet.data import Windows, load_windows, select
+from beamsnet.estimators import short_name, spec
 from beamsnet.evaluate import baselines, filters, trimmed
-from beamsnet.experiments.stress import (
-    _as_published,
-    _short,
-    _truth_at_pings,
-    dead_reckoning_error,
-    own_position_error,
-    why_worse,
-)
+from beamsnet.experiments.runner import ensure_dataset
+from beamsnet.experiments.wording import as_published, why_worse
+from beamsnet.navigation import dead_reckoning_error, held, own_position_error, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
-from beamsnet.training.train import MASKED, TITLES, predict
+from beamsnet.training.train import predict
 from beamsnet.words import count
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
@@ -99,14 +95,6 @@ SWEEPS = {
     "dropout + dead beam": "share of each mission with beam 0 dead, and 20 % of every "
                            "beam's pings dropped (bursts of 5 pings)",
 }
-# What an estimator needs of a ping to give an estimate, for the table's n/a.
-NEEDS = {"LS": "needs 3 beams", "Affine": "needs 4 beams", "KF": "needs 4 beams",
-         "Beam calibration": "needs 3 beams", "LS scale+offset": "needs 3 beams",
-         "KF (beam calibration)": "needs 3 beams", "Missing-beam LS": "needs past pings",
-         "BeamsNetV1": "needs 4 beams", "BeamsNetV2": "needs 4 beams on 4 pings",
-         "BeamsNetV2M": "needs 3 beams", "CorrectionNet": "needs 3 beams"}
-
-
 @dataclass(frozen=True)
 class Fault:
     """One setting of a sweep.
@@ -262,7 +250,7 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
             if str(path) not in scored:
                 windows = load_windows(path, n_past=n_past, missions=list(missions),
                                        every_ping=True)
-                truth = _truth_at_pings(path, windows)
+                truth = truth_at_pings(path, windows)
                 own = [f.fit(train_w) for f in filters(path)]
                 estimates = _estimates(fitted + own, models, windows)
                 positions = {f.name: f.positions(windows) for f in own}
@@ -287,8 +275,6 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
 def _dataset(config, fault: Fault, duration: float, datasets: Path, progress: bool) -> Path:
     """The faulted test file of ``config``, generated under ``datasets/faults/`` if
     missing."""
-    from beamsnet.experiments.runner import ensure_dataset
-
     digest = hashlib.sha256(config.to_json().encode()).hexdigest()[:10]
     slug = "-".join(f"{fault.sweep} {fault.level:g}".split()) if fault.dvl else "clean"
     return ensure_dataset(config, datasets / "faults" / f"maneuvers_{duration:g}s_{slug}_"
@@ -299,40 +285,35 @@ def _estimates(baselines: list, models: list, windows: Windows) -> dict[str, np.
     """Every estimator's (S, 3) estimates on ``windows``, NaN where it gives none.
 
     The baselines give NaN themselves where a beam they need is NaN, and so do the
-    networks that take validity masks (``beamsnet.training.train.MASKED``: where fewer than three
+    networks that take validity masks (their class's ``masked``: where fewer than three
     current beams are valid); any other network is run only on the pings whose inputs
-    are all there, since its output on a NaN input is NaN anyway and it cannot be told
-    which beam is missing.
+    are all there (its spec's ``needs``), since its output on a NaN input is NaN anyway
+    and it cannot be told which beam is missing.
     """
     out = {b.name: b.predict(windows) for b in baselines}
     for run, model, checkpoint in models:
-        name = checkpoint["model"]
+        network = spec(checkpoint["model"])
         mine = trimmed(windows, checkpoint)
-        if name in MASKED:
-            out[f"{TITLES[name]} ({run.name})"] = predict(model, name, mine)
+        row = f"{network.short} ({run.name})"
+        if network.model.masked:
+            out[row] = predict(model, mine)
             continue
         ready = np.isfinite(mine.beams).all(axis=1)
-        if name == "v2":
+        if network.needs.all_past:
             ready &= np.isfinite(mine.past_beams).all(axis=(1, 2))
         pred = np.full((len(ready), 3), np.nan)
         if ready.any():
-            from beamsnet.data import select
-
-            pred[ready] = predict(model, name, select(mine, ready))
-        out[f"{TITLES[name]} ({run.name})"] = pred
+            pred[ready] = predict(model, select(mine, ready))
+        out[row] = pred
     return out
 
 
-def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
-    """``pred`` (S, 3) with each NaN row replaced by the mission's last estimate before
-    it, and by zero before its first (a navigator without a velocity stands still)."""
-    out = np.zeros_like(pred)
-    have = np.isfinite(pred).all(axis=1)
-    for m in np.unique(windows.mission):
-        rows = np.flatnonzero(windows.mission == m)  # in time order (``load_windows``)
-        last = np.maximum.accumulate(np.where(have[rows], np.arange(len(rows)), -1))
-        out[rows] = np.where((last >= 0)[:, None], pred[rows][np.maximum(last, 0)], 0.0)
-    return out
+def _needs(row: str) -> str:
+    """What the estimator of a table row needs of a ping, for its n/a."""
+    try:
+        return spec(row).needs.text
+    except KeyError:
+        return "no estimate"
 
 
 def _score(windows: Windows, pred: np.ndarray, truth: dict,
@@ -373,7 +354,7 @@ def _jsonable(value):
 def _trained(checkpoint: dict) -> dict:
     """What a network was trained with, for the summary."""
     c = checkpoint["train_config"]
-    return dict(model=checkpoint["model"], as_published=_as_published(c),
+    return dict(model=checkpoint["model"], as_published=as_published(c),
                 pings=checkpoint["samples"]["train"],
                 lr=c["lr"], epochs=c["epochs"], average_epochs=c["average_epochs"],
                 seed=c["seed"])
@@ -386,14 +367,14 @@ def _percent(share: float) -> str:
 
 def _cell(name: str, c: dict) -> str:
     if c["availability"] == 0:
-        return "n/a: " + NEEDS.get(_short(name), "no estimate")
+        return "n/a: " + _needs(name)
     return f"{c['rmse_vector']:.4f} / {_percent(c['availability'])} / {c['dr_error']:.2f} m"
 
 
 def _report(summary: dict) -> str:
     sweeps_ = summary["sweeps"]
     names = list(next(iter(sweeps_.values()))[0]["estimators"])
-    trained = ", ".join(f"{TITLES[m['model']]}{m['as_published']} ({m['pings']} pings, "
+    trained = ", ".join(f"{spec(m['model']).short}{m['as_published']} ({m['pings']} pings, "
                         f"lr {m['lr']:g}, {count(m['epochs'], 'epoch')}, weights averaged "
                         "over the last "
                         f"{m['average_epochs']})" for m in summary["models"])
@@ -435,7 +416,7 @@ def _report(summary: dict) -> str:
         "the same current with bottom lock throughout.",
         "",
     ]
-    head = "| setting | pings | " + " | ".join(_short(n) for n in names) + " |"
+    head = "| setting | pings | " + " | ".join(short_name(n) for n in names) + " |"
     rule = "|---|---|" + "---|" * len(names)
     for sweep, rows in sweeps_.items():
         lines += [f"## {sweep.capitalize()}: {SWEEPS[sweep]}", "", head, rule]
@@ -465,7 +446,7 @@ def _per_mission(rows: list[dict], names: list[str]) -> list[str]:
                   "Horizontal position error after each mission, m (and against LS, "
                   "%; an estimator with its own position solution, the INS/DVL filter, is "
                   "scored by it):", "",
-                  "| mission | " + " | ".join(_short(n) for n in names) + " |",
+                  "| mission | " + " | ".join(short_name(n) for n in names) + " |",
                   "|---|" + "---|" * len(names)]
         for m in missions:
             ls = est["LS"]["dr_missions"][m]
@@ -493,12 +474,12 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
         for n in names:
             a, b = first[n], last[n]
             if b["availability"] == 0:
-                said.append(f"{_short(n)} no estimate ({NEEDS.get(_short(n), '')})")
+                said.append(f"{short_name(n)} no estimate ({_needs(n)})")
                 continue
             was = ("no estimate" if a["availability"] == 0 else
                    f"{_percent(a['availability'])}, {a['rmse_vector']:.4f} m/s, "
                    f"{a['dr_error']:.1f} m")
-            said.append(f"{_short(n)} {_percent(b['availability'])} available, "
+            said.append(f"{short_name(n)} {_percent(b['availability'])} available, "
                         f"{b['rmse_vector']:.4f} m/s, {b['dr_error']:.1f} m (from {was})")
         lines.append(f"- {sweep.capitalize()}, from {start['label']} to "
                      f"{rows[-1]['label']}: " + "; ".join(said) + ".")
@@ -510,7 +491,7 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
                 if math.isfinite(e[n]["dr_error"]) and math.isfinite(e["LS"]["dr_error"])]
         worse = sum(e[n]["dr_error"] > e["LS"]["dr_error"] for e in both)
         missing = len(settings) - len(both)
-        counts.append(f"{_short(n)} in {worse} of {len(both)}"
+        counts.append(f"{short_name(n)} in {worse} of {len(both)}"
                       + (f" (and no estimate in {missing})" if missing else ""))
     lines.append(f"- Against the baseline, 3-beam LS, over the {len(settings)} settings of "
                  "the sweeps: a larger dead-reckoning error for " + ", ".join(counts) + ".")
@@ -519,7 +500,7 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
         last = rows[-1]["estimators"]
         have = [n for n in names if math.isfinite(last[n]["dr_error"])]
         n = min(have, key=lambda n: last[n]["dr_error"])
-        best.append(f"{sweep} ({rows[-1]['label']}): {_short(n)}, "
+        best.append(f"{sweep} ({rows[-1]['label']}): {short_name(n)}, "
                     f"{last[n]['dr_error']:.1f} m")
     lines.append("- Smallest dead-reckoning error at each sweep's strongest setting: "
                  + "; ".join(best) + ". A ping without an estimate holds the last one, "
@@ -531,7 +512,7 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
         lines.append(
             "- The current alone (water track's 0 % row against the still-water clean "
             "setting) moves the vector RMSE: " + ", ".join(
-                f"{_short(n)} {clean[n]['rmse_vector']:.4f} to "
+                f"{short_name(n)} {clean[n]['rmse_vector']:.4f} to "
                 f"{water[0]['estimators'][n]['rmse_vector']:.4f} m/s" for n in names)
             + "; water track then adds what the rows below it add.")
     return lines
@@ -557,7 +538,7 @@ def _plot(results: dict, path: Path) -> None:
             for name in settings[0]["estimators"]:
                 values = np.array([s["estimators"][name][key] for s in settings], float)
                 ax.plot(levels, 100 * values if key == "availability" else values,
-                        marker=look[name].marker, ms=3, lw=1, label=_short(name),
+                        marker=look[name].marker, ms=3, lw=1, label=short_name(name),
                         **look[name].line())
             if log:
                 ax.set_yscale("log")

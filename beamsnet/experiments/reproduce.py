@@ -31,10 +31,12 @@ from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import check_dataset, load_windows, split
+from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_runs, train_seeds
 from beamsnet.plotstyle import legend_outside
-from beamsnet.training.train import PROFILES, TrainConfig, check_restarts, predict
+from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
+from beamsnet.training.train import predict
 from beamsnet.words import count
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
@@ -98,6 +100,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
                       cluster=cluster)
 
     sections, summary = [], []
+    networks = {s.short for s in specs("network")}
     for mission in config.missions:
         speed = round(mission.scenario.speed)
         ours = {model: kept[f"{mission.name}/{model}"] for model in ("v1", "v2")}
@@ -105,19 +108,19 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
                                          data, missions=[mission.name])
         per_seed = table(windows, predictions)
         # The kept models are copies of seed runs: their rows are those seeds' rows.
-        rows = {name: row for name, row in per_seed.items() if not name.startswith("BeamsNet")}
+        rows = {name: row for name, row in per_seed.items()
+                if short_name(name) not in networks}
         for model, k in ours.items():
-            rows[f"BeamsNet{model.upper()} ({model})"] = \
-                per_seed[f"BeamsNet{model.upper()} ({k.kept.name})"]
+            rows[f"{spec(model).short} ({model})"] = \
+                per_seed[f"{spec(model).short} ({k.kept.name})"]
         sections.append(markdown(rows, f"{speed} m/s ({mission.name}), test split: "
                                        f"{len(windows.target)} pings"))
         # "BeamsNetV1 (v1)" -> "BeamsNetV1"; every other row by its whole name.
-        by_model = {name.split(" (")[0] if name.startswith("BeamsNet") else name: row
-                    for name, row in rows.items()}
+        by_model = {short_name(name): row for name, row in rows.items()}
         # (seed, improvement over LS or None if it diverged, kept) per seed of each model.
         by_model["seeds"] = {
             model: [(r.name, None if r in k.diverged else
-                     per_seed[f"BeamsNet{model.upper()} ({r.name})"]["improvement"],
+                     per_seed[f"{spec(model).short} ({r.name})"]["improvement"],
                      r == k.kept) for r in k.seeds]
             for model, k in ours.items()}
         by_model["floor"] = _noise_floor(data, mission.name)
@@ -169,7 +172,7 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
         for name, (key, _) in experiment.LEARNED.items():
             for run, model, checkpoint in nets[key]:
                 estimates[part][f"{name} ({run.name})"] = predict(
-                    model, checkpoint["model"], trimmed(windows, checkpoint))
+                    model, trimmed(windows, checkpoint))
         results[part] = (windows, table(windows, estimates[part]))
     with staged_dir(out) as stage:  # the report and its figure, or neither
         write_text(stage / "snapir.md", _snapir_report(data, dataset, training, counts,
@@ -272,7 +275,7 @@ def _report(experiment, data, duration, training: TrainConfig, restarts, summary
     ]
     for speed, rows in summary:
         paper = PAPER_TABLE_1.get(speed, {})
-        ours = {m: rows[f"BeamsNet{m.upper()}"]["improvement"] for m in ("v1", "v2")}
+        ours = {m: rows[spec(m).short]["improvement"] for m in ("v1", "v2")}
         within = "yes" if all(ours[m] >= paper.get(m, float("inf")) - 5 for m in ours) else (
             "no" if paper else "n/a")
         lines.append(

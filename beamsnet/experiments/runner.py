@@ -3,8 +3,9 @@
 ``beamsnet reproduce`` (paper-sim, snapir) and ``beamsnet stress`` need the same steps
 before they can evaluate anything, and this module is the one place that does them:
 
-* ``ensure_dataset``: a preset's dataset under ``datasets/``, generated if it is missing.
-  Data generation never runs inside training: the file exists before any model reads it.
+* ``ensure_dataset``: a preset's dataset under ``datasets/``, generated if it is missing
+  or was made from another config (its stored config says so, not its name). Data
+  generation never runs inside training: the file exists before any model reads it.
 * ``train_runs``: every model of the experiment trained from a few seeds (``seed_runs``),
   in parallel processes (``train_all``), the seed that fits its training split best kept
   (``keep_best``), and the kept models loaded. A seed run that already holds the same
@@ -19,40 +20,102 @@ Both train in parallel processes here, or with ``cluster`` as tasks on a Dask cl
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
 
-from beamsnet.training.train import (
-    TrainConfig,
-    check_restarts,
-    file_identity,
-    keep_best,
-    load,
-    seed_runs,
-    train_all,
-    trained,
-)
+from auvsim.data.reader import open_dataset
+from auvsim.errors import AuvsimError
+from beamsnet.training.checkpoints import file_identity, load, trained
+from beamsnet.training.config import TrainConfig, check_restarts
+from beamsnet.training.runs import keep_best, seed_runs, train_all
+
+
+class StaleDatasetWarning(UserWarning):
+    """An experiment's dataset was there but made from another config (or unreadable),
+    and is generated again."""
 
 
 def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
                    cluster: str | None = None) -> Path:
-    """``path``, generated from ``config`` (an ``auvsim.config.Config``) if it is not there,
-    on the Dask cluster ``cluster`` if one is given (the same data either way).
+    """``path``, generated from ``config`` (an ``auvsim.config.Config``) unless it holds
+    exactly what ``config`` makes, on the Dask cluster ``cluster`` if one is given (the
+    same data either way).
 
-    An existing file is taken as it is: its name says which preset and duration made it.
-    ``generate`` writes the file whole or not at all, so an interrupted generation leaves
-    nothing that a later run would take for a finished file.
+    An existing file is reused only when its stored config hash equals the one
+    generating ``config`` would write (``auvsim.runs.generate.config_sha256``, where the
+    file stores one; else the SHA-256 of its stored config against that of
+    ``config.to_json()``): a changed preset or an added manoeuvre regenerates it, and a
+    ``StaleDatasetWarning`` says why in one line. ``generate`` writes the file whole or
+    not at all, so an interrupted generation leaves nothing that a later run would take
+    for a finished file.
     """
     from auvsim.runs.generate import generate
 
     path = Path(path)
-    if not path.exists():
-        generate(config, path, progress=progress, cluster=cluster)
+    if path.exists():
+        why = stale(path, config)
+        if why is None:
+            return path
+        warnings.warn(f"{path}: {why}; generating it again", StaleDatasetWarning,
+                      stacklevel=2)
+    generate(config, path, progress=progress, cluster=cluster)
     return path
+
+
+def stale(path: str | os.PathLike, config) -> str | None:
+    """Why the dataset at ``path`` is not what ``config`` makes, in words; None when it
+    is (its stored config hash equals the one ``config`` gives, see ``ensure_dataset``)."""
+    from auvsim.runs.generate import config_sha256
+
+    try:
+        with open_dataset(path) as f:
+            stored, stored_sha = f.config_json, f.attrs.get("config_sha256")
+    except (AuvsimError, OSError) as e:
+        lines = str(e).strip().splitlines() or [type(e).__name__]
+        return f"it is not a readable dataset ({lines[0]})"
+    wanted = config.to_json()
+    if stored_sha is not None:
+        if stored_sha == config_sha256(config):
+            return None
+    elif _sha256(stored) == _sha256(wanted):
+        return None
+    differ = _differences(stored, wanted)
+    return ("it was made from another config" + (f" ({differ})" if differ else
+                                                  " (another auvsim or vehicle model)"))
+
+
+def _sha256(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _differences(stored: str, wanted: str) -> str:
+    """The config sections (and missions, by name) in which two config JSON texts
+    differ: ``dvl; missions zigzag_20_20, added spiral``."""
+    try:
+        old, new = json.loads(stored), json.loads(wanted)
+    except ValueError:
+        return "no config stored" if not stored else ""
+    if not isinstance(old, dict):
+        return ""
+    said = [k for k in sorted(set(old) | set(new))
+            if k != "missions" and old.get(k) != new.get(k)]
+    before = {m.get("name"): m for m in old.get("missions", []) if isinstance(m, dict)}
+    after = {m.get("name"): m for m in new.get("missions", []) if isinstance(m, dict)}
+    changed = [str(n) for n in after if n in before and before[n] != after[n]]
+    changed += [f"added {n}" for n in after if n not in before]
+    changed += [f"without {n}" for n in before if n not in after]
+    if not changed and list(before) != list(after):
+        changed.append("their order")
+    if changed:
+        said.append("missions " + ", ".join(changed))
+    return "; ".join(said)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,8 @@ from beamsnet.estimators.baselines import availability
 from beamsnet.evaluate import baselines, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
 from beamsnet.plotstyle import figure_legend
-from beamsnet.training.train import PROFILES, TrainConfig, predict
+from beamsnet.training.config import PROFILES, TrainConfig
+from beamsnet.training.train import predict
 from beamsnet.words import count
 
 # Seeds per network. Each costs minutes of a core (10,000 pings x 50 epochs at batch 4),
@@ -133,7 +134,7 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
         for test, windows in tests.items():
             rows = {b.name: [_score(b.predict(windows), windows)] for b in fitted}
             for name, (key, _) in LEARNED.items():
-                rows[name] = [_score(predict(m, c["model"], trimmed(windows, c)), windows)
+                rows[name] = [_score(predict(m, trimmed(windows, c)), windows)
                               for _, m, c in nets[source][key]]
             ls = rows["LS"][0]["rmse"]
             for seeds_ in rows.values():

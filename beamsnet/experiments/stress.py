@@ -32,22 +32,27 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.data.reader import open_dataset
 from auvsim.errors import ConfigError
 from auvsim.runs.cluster import check_address
 from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
 from beamsnet import metrics
-from beamsnet.data import DataError, Windows, check_dataset, load_windows, split
-from beamsnet.evaluate import FILTER_NAMES, predictions
+from beamsnet.data import Windows, check_dataset, load_windows, split
+from beamsnet.estimators import short_name, spec, specs
+from beamsnet.evaluate import predictions
+from beamsnet.experiments.faults import FAULT_DURATION, check_options, fault_stress
 from beamsnet.experiments.runner import ensure_dataset, train_runs
-from beamsnet.plotstyle import figure_legend, styles
-from beamsnet.training.train import (
-    PROFILES,
-    SENSOR_GEOMETRY,
-    TITLES,
-    TrainConfig,
-    check_restarts,
-    sensor_setup,
+from beamsnet.experiments.wording import as_published, why_worse
+from beamsnet.navigation import (
+    dead_reckoning_error,
+    dead_reckoning_track,
+    held,
+    own_position_error,
+    truth_at_pings,
 )
+from beamsnet.plotstyle import figure_legend, styles
+from beamsnet.training.checkpoints import SENSOR_GEOMETRY, sensor_setup
+from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
 from beamsnet.words import count
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
@@ -115,8 +120,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         raise ConfigError(f"expected one of {', '.join(NOISE)} (the paper's code's or text's "
                           f"beam noise), got {noise!r}", argument="noise")
     if faults:
-        from beamsnet.experiments.faults import FAULT_DURATION, check_options
-
         if maneuver_data is not None:
             raise ConfigError("is not used by the fault sweep, which generates its own "
                               "faulted manoeuvres; expected no manoeuvre file with faults",
@@ -157,9 +160,10 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     if maneuver_data is not None:
         _check_geometry(train_data, maneuver_data)
     windows = load_windows(train_data)  # the models' own (default) n_past
-    # V1 when the file has IMU data (an imported stream has none), and V2; every mission.
-    # V2M and CorrectionNet take validity masks: the fault sweep's missing beams.
-    names = (["v1"] if windows.accel is not None else []) + ["v2", "v2m", "corr"]
+    # Every network of the registry that the file can feed (V1 needs IMU data, which an
+    # imported stream has none of); every mission. The masked ones (V2M, CorrectionNet)
+    # run on the fault sweep's missing beams.
+    names = [s.name for s in specs("network") if windows.accel is not None or not s.needs.imu]
     kept = train_runs(train_data, {name: dataclasses.replace(training, model=name)
                                    for name in names},
                       runs / "stress" / Path(train_data).stem, restarts, progress=progress,
@@ -167,8 +171,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     models = [k.loaded() for k in kept.values()]
     train_w, _ = split(windows)
     if faults:
-        from beamsnet.experiments.faults import fault_stress
-
         return fault_stress(models=models, train_w=train_w, train_data=train_data,
                             trained_on=_scenarios(train_data), out=out,
                             duration=fault_duration, missions=fault_missions,
@@ -179,7 +181,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     positions: dict[str, np.ndarray] = {}
     estimates = predictions(models, train_w, test_w, dataset=maneuver_data,
                             positions=positions)
-    truth = _truth_at_pings(maneuver_data, test_w)
+    truth = truth_at_pings(maneuver_data, test_w)
     rows = _table(test_w, estimates, truth, positions)
 
     binned = {key: _binned(test_w, estimates, truth[key]) for key in INTENSITY}
@@ -200,73 +202,6 @@ def _check_duration(value, argument: str) -> None:
             math.isfinite(value) and value > 0):
         raise ConfigError(f": expected a positive number of seconds, got {value!r}",
                           argument=argument)
-
-
-def _truth_at_pings(path: Path, windows: Windows) -> dict[str, np.ndarray]:
-    """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
-    (S, 3, 3), yaw rate (S,), the rate of change of the true DVL-frame velocity since
-    the previous ping (S,) and the true position (S, 3, m NED)."""
-    from auvsim.data.reader import open_dataset
-    from auvsim.physics.frames import rotation_matrices, rotation_rpy
-
-    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
-    with open_dataset(path) as f:
-        for i, name in enumerate(windows.names):
-            m = f.missions[name]
-            if not m.has("truth"):
-                raise DataError(f"{path}: mission {name} has no truth group (an imported "
-                                "stream); the stress test needs simulated manoeuvres")
-            mine = windows.mission == i
-            ping = np.searchsorted(m.dvl.time, windows.time[mine])
-            rows = m.imu.index_of_dvl[ping]
-            rate = float(m.attrs["dvl_rate_hz"])
-            v_dvl = m.dvl.velocity
-            parts["rotation"].append(rotation_matrices(m.truth.quaternion[rows]))
-            mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
-            parts["mounting"].append(np.broadcast_to(mounting, (len(rows), 3, 3)))
-            parts["yaw_rate"].append(np.abs(np.degrees(m.truth.angular_rate[rows, 2])))
-            parts["position"].append(m.truth.position_ned[rows])
-            parts["acceleration"].append(
-                np.linalg.norm(v_dvl[ping] - v_dvl[np.maximum(ping - 1, 0)], axis=1) * rate)
-    return {k: np.concatenate(v) for k, v in parts.items()}
-
-
-def dead_reckoning_track(windows: Windows, velocity: np.ndarray,
-                         truth: dict[str, np.ndarray], mission: int) -> np.ndarray:
-    """(S_m, 3) NED displacement from the mission's first sample to each of its pings, m,
-    from integrating ``velocity`` (S, 3, DVL frame) with the true attitude; each velocity
-    holds until the next ping (so the first row is zero, and the span is that of a
-    position solution's from the first ping to the last)."""
-    mine = windows.mission == mission
-    dt = np.diff(windows.time[mine])[:, None]
-    to_ned = truth["rotation"][mine] @ truth["mounting"][mine]  # DVL -> NED
-    steps = np.einsum("sij,sj->si", to_ned[:-1], velocity[mine][:-1]) * dt
-    return np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
-
-
-def dead_reckoning_error(windows: Windows, velocity: np.ndarray,
-                         truth: dict[str, np.ndarray], mission: int) -> tuple[float, float]:
-    """Horizontal position error (m) at the end of a mission from integrating
-    ``velocity`` (S, 3, DVL frame) instead of the true DVL velocity, with the true attitude,
-    over the pings of ``windows``; and the distance travelled over them (m)."""
-    mine = windows.mission == mission
-    error = (dead_reckoning_track(windows, velocity, truth, mission)
-             - dead_reckoning_track(windows, windows.target, truth, mission))[-1]
-    travelled = np.linalg.norm(windows.target[mine][:-1], axis=1) @ np.diff(
-        windows.time[mine])
-    return float(np.linalg.norm(error[:2])), float(travelled)
-
-
-def own_position_error(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],
-                       mission: int) -> float:
-    """Horizontal error (m) of an estimator's own position solution (``position``, (S, 3)
-    m NED at each sample's ping, such as the INS/DVL filter's) after the mission: its
-    displacement from the mission's first sample to its last against the truth's."""
-    mine = np.flatnonzero(windows.mission == mission)
-    first, last = mine[0], mine[-1]
-    error = (position[last] - position[first]) - (truth["position"][last]
-                                                  - truth["position"][first])
-    return float(np.linalg.norm(error[:2]))
 
 
 def _table(windows: Windows, estimates: dict[str, np.ndarray],
@@ -292,100 +227,42 @@ def _table(windows: Windows, estimates: dict[str, np.ndarray],
     return rows
 
 
-def _config(path: Path):
-    """The generating config of a dataset, or None (a recording or an import)."""
-    from auvsim.config import Config
-    from auvsim.data.reader import open_dataset
-    from auvsim.errors import AuvsimError
-
+def _generated_missions(path: Path) -> list[dict] | None:
+    """The missions of a dataset's generating config (its stored JSON), in the config's
+    order; None for a file whose config does not name its missions (a recording or an
+    import)."""
     with open_dataset(path) as f:
         text = f.config_json
         names = set(f.missions)
     try:
-        config = Config.from_json(text)
-    except (AuvsimError, ValueError, TypeError):
+        missions = json.loads(text)["missions"]
+        listed = {m["name"] for m in missions}
+        named = all(isinstance(m["scenario"]["name"], str) for m in missions)
+    except (ValueError, TypeError, KeyError):
         return None
-    return config if {m.name for m in config.missions} == names else None
+    return missions if named and listed == names else None
 
 
 def _scenarios(path: Path) -> str:
     """What the training file's missions fly, in words for the report."""
-    config = _config(path)
-    if config is None:
+    missions = _generated_missions(path)
+    if missions is None:
         return "the missions of that file"
-    kinds = sorted({m.scenario.name for m in config.missions})
+    kinds = sorted({m["scenario"]["name"] for m in missions})
     if kinds == ["straight"]:
         return "straight lines, as in the paper"
     return "missions flying " + ", ".join(kinds)
 
 
-def _phases(path: Path) -> dict[str, list]:
-    """The manoeuvre phases of every mission, rebuilt from the file's config (none for a
-    file whose config does not name its missions, such as a recording)."""
-    from auvsim.data.streams import mission_streams
-    from auvsim.physics.maneuvers import make_maneuver
-
-    config = _config(path)
-    if config is None:
+def _phases(path: Path) -> dict[str, list[tuple[float, float, str]]]:
+    """The manoeuvre phases of every mission, (start s, end s, label) each, as the file
+    stores them, by mission in the config's order (empty for a file whose config does not
+    name its missions, such as a recording)."""
+    missions = _generated_missions(path)
+    if missions is None:
         return {}
-    return {m.name: make_maneuver(m.scenario, rng=mission_streams(m.seed)["maneuver"]).phases()
-            for m in config.missions}
-
-
-# Why an estimator can be worse than LS on data unlike its training data, by its kind.
-WHY = {
-    "Affine": "its 15 parameters were fitted on the training data; cross-axis terms that "
-              "straight lines never constrain are exercised by every sway, heave and current",
-    "KF": "it filters the affine calibration's velocity (and inherits its cross-axis "
-          "errors), holding its estimate through pings without four beams",
-    "KF (beam calibration)": "a random walk lags a velocity that keeps changing, and holds "
-                             "through gaps",
-    "Beam calibration": "its 8 per-beam parameters were fitted on the training data's "
-                        "sensor errors",
-    "LS scale+offset": "its scale and offset were fitted on the training data's sensor "
-                       "errors",
-    "Missing-beam LS": "its regressed beams are noisier than LS's exact solution on three",
-    "INS/DVL": "its noise model is the file's, and it gates beams it finds inconsistent",
-}
-NETWORK_WHY = ("a network fitted on the training data meets motions (sway, heave, turns, "
-               "currents) its training data never showed")
-
-
-def why_worse(rows: dict[str, dict], key: str, *, availability: bool = False) -> list[str]:
-    """One line per estimator worse than LS by ``key`` (e.g. ``rmse_vector``) in some of
-    ``rows`` (setting or mission -> estimator -> scores), saying where and why: fewer pings
-    with an estimate than LS (gaps held through), or what the estimator is."""
-    names = [n for n in next(iter(rows.values())) if n != "LS"]
-    lines = []
-    for n in names:
-        worse = [m for m, r in rows.items()
-                 if math.isfinite(r[n][key]) and r[n][key] > r["LS"][key]]
-        if not worse:
-            continue
-        reasons = [NETWORK_WHY if n.startswith(("BeamsNet", "CorrectionNet"))
-                   else WHY.get(n, "its model differs from LS's")]
-        if availability and any(rows[m][n]["availability"] < rows[m]["LS"]["availability"]
-                                for m in worse):
-            reasons.insert(0, "it gives no estimate on pings where LS does, and a gap holds "
-                           "its last estimate")
-        lines.append(f"- {_short(n)}, worse than LS on {len(worse)} of {len(rows)} ("
-                     f"{', '.join(worse[:4])}{', ...' if len(worse) > 4 else ''}): "
-                     + "; ".join(reasons) + ".")
-    return lines or ["- None."]
-
-
-def _as_published(train_config: dict) -> str:
-    """`` as published`` for a BeamsNetV2 trained with the paper's protocol (its raw past
-    beams), else nothing."""
-    if train_config.get("model") == "v2" and train_config.get("protocol") == "paper":
-        return " as published"
-    return ""
-
-
-def _short(name: str) -> str:
-    """A network's row without its run: ``BeamsNetV2 (v2)`` -> ``BeamsNetV2``; other
-    names as they are (``KF (beam calibration)``)."""
-    return name.split(" (")[0] if name.startswith(("BeamsNet", "CorrectionNet")) else name
+    with open_dataset(path) as f:
+        return {m["name"]: list(f.missions[m["name"]].phases) for m in missions}
 
 
 def _check_geometry(train_data: Path, maneuver_data: Path) -> None:
@@ -409,7 +286,7 @@ def _check_geometry(train_data: Path, maneuver_data: Path) -> None:
 
 def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
     names = list(next(iter(rows.values())))
-    head = "| manoeuvre | pings | " + " | ".join(_short(n) for n in names) + " |"
+    head = "| manoeuvre | pings | " + " | ".join(short_name(n) for n in names) + " |"
     rule = "|---|---|" + "---|" * len(names)
 
     def table(cell) -> list[str]:
@@ -418,7 +295,7 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
             + " | ".join(cell(r[n]) for n in names) + " |" for m, r in rows.items()]
 
     trained = ", ".join(
-        f"{TITLES[c['model']]}{_as_published(c['train_config'])} "
+        f"{spec(c['model']).short}{as_published(c['train_config'])} "
         f"({c['samples']['train']} pings, lr "
         f"{c['train_config']['lr']:g}, {count(c['train_config']['epochs'], 'epoch')})"
         for _, _, c in models)
@@ -439,7 +316,7 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
         "",
         "| manoeuvre | best | vector RMSE (m/s) | LS (m/s) | below LS |",
         "|---|---|---|---|---|",
-        *[f"| {m} | {_short(b)} | {r[b]['rmse_vector']:.4f} | {r['LS']['rmse_vector']:.4f} | "
+        *[f"| {m} | {short_name(b)} | {r[b]['rmse_vector']:.4f} | {r['LS']['rmse_vector']:.4f} | "
           f"{100 * (1 - r[b]['rmse_vector'] / r['LS']['rmse_vector']):.1f} % |"
           for m, r in rows.items()
           for b in [min(r, key=lambda n, r=r: r[n]["rmse_vector"])]],
@@ -492,12 +369,12 @@ def _findings(binned: dict, rows: dict) -> list[str]:
     """Plain sentences computed from the results: ``binned`` holds each intensity's
     ``_binned``, ``rows`` the ``_table``."""
     names = list(next(iter(rows.values())))
-    v2 = next((n for n in names if n.startswith("BeamsNetV2")), None)
+    v2 = next((n for n in names if short_name(n) == spec("v2").short), None)
     lines = []
     calm = rows.get("straight")
     for key, label in INTENSITY.items():
         edges, rmse = binned[key]
-        ratios = ", ".join(f"{_short(n)} {rmse[n][-1] / rmse[n][0]:.1f}x" for n in names)
+        ratios = ", ".join(f"{short_name(n)} {rmse[n][-1] / rmse[n][0]:.1f}x" for n in names)
         lines.append(f"- From the calmest to the most intense sixth of the pings by {label} "
                      f"({edges[0]:.3g} to {edges[1]:.3g} against {edges[-2]:.3g} to "
                      f"{edges[-1]:.3g}), the vector RMSE grows: {ratios}.")
@@ -516,7 +393,7 @@ def _findings(binned: dict, rows: dict) -> list[str]:
                 f" its largest, on {worst}, is {rows[worst][v2]['rmse_vector']:.4f} m/s "
                 f"against LS {rows[worst]['LS']['rmse_vector']:.4f}.")
         lines.append("- Best estimator (vector RMSE) per manoeuvre: "
-                     + ", ".join(f"{m}: {_short(b)}" for m, b in best.items()) + ".")
+                     + ", ".join(f"{m}: {short_name(b)}" for m, b in best.items()) + ".")
         lines += _verdict(binned, rows, v2)
     return lines
 
@@ -530,14 +407,15 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
     growth = {n: max(rmse[n][-1] / rmse[n][0] for _, rmse in binned.values()) for n in names}
     lines = []
     # Estimators fitted to the training data; the filter integrates the IMU instead.
-    grows = [n for n in names if n not in ("LS", *FILTER_NAMES)
+    filters = {s.name for s in specs("filter")}
+    grows = [n for n in names if n != "LS" and n not in filters
              and growth[n] > 2 * growth["LS"]]
     if grows:
         lines.append(
             "- Wherever the vehicle turns or changes depth or speed, the estimators fitted "
             "to data lose accuracy and least squares, fitted to nothing, does not: from the "
             "calmest to the most intense pings the error grows "
-            + ", ".join(f"{growth[n]:.1f}x ({_short(n)})" for n in grows)
+            + ", ".join(f"{growth[n]:.1f}x ({short_name(n)})" for n in grows)
             + f" against {growth['LS']:.1f}x (LS). Much of it is extrapolation: training data "
             "of straight lines never show a sway or heave velocity, so what an estimator "
             "learns for them is a constant, which a turn contradicts even when it is steady.")
@@ -562,11 +440,11 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
             "stress --train FILE`) separates the two.")
     worst = {n: max(rows, key=lambda m, n=n: rows[m][n]["rmse_vector"]) for n in names}
     lines.append("- Worst manoeuvre per estimator (vector RMSE): " + "; ".join(
-        f"{_short(n)}: {m} ({rows[m][n]['rmse_vector']:.4f} m/s)" for n, m in worst.items())
+        f"{short_name(n)}: {m} ({rows[m][n]['rmse_vector']:.4f} m/s)" for n, m in worst.items())
         + ".")
     best_dr = {m: min(r, key=lambda n, r=r: r[n]["dr_error"]) for m, r in rows.items()}
     lines.append("- Smallest dead-reckoning error per manoeuvre: " + ", ".join(
-        f"{m}: {_short(n)}" for m, n in best_dr.items()) + ". Dead reckoning integrates "
+        f"{m}: {short_name(n)}" for m, n in best_dr.items()) + ". Dead reckoning integrates "
         "the error, so a small bias (LS's scale factor) costs more there than a large "
         "error that changes sign (a zigzag's).")
     return lines
@@ -584,7 +462,7 @@ def _plot_intensity(binned: dict, path: Path) -> None:
         centres = 0.5 * (edges[1:] + edges[:-1])
         look = styles(rmse)
         for name, values in rmse.items():
-            ax.plot(centres, values, marker=look[name].marker, label=_short(name),
+            ax.plot(centres, values, marker=look[name].marker, label=short_name(name),
                     **look[name].line())
         ax.set_yscale("log")
         ax.set_xlabel(label)
@@ -609,12 +487,12 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
     for i, name in enumerate(windows.names):
         ax = axes.flat[i]
         mine = windows.mission == i
-        for k, phase in enumerate(phases.get(name, [])):
+        for k, (start, end, _) in enumerate(phases.get(name, [])):
             if k % 2:
-                ax.axvspan(phase.start, phase.end, color="0.9", lw=0)
+                ax.axvspan(start, end, color="0.9", lw=0)
         for est, pred in estimates.items():
             err = np.linalg.norm(pred[mine] - windows.target[mine], axis=1)
-            ax.semilogy(windows.time[mine], err, lw=0.7, label=_short(est),
+            ax.semilogy(windows.time[mine], err, lw=0.7, label=short_name(est),
                         **look[est].line())
         ax.set_title(name, fontsize=9)
         ax.set_ylabel("|error|, m/s", fontsize=8)
@@ -639,8 +517,6 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from beamsnet.experiments.faults import held
-
     n = len(windows.names)
     fig, axes = plt.subplots(2, n, figsize=(2.6 * n + 2.2, 5.4), squeeze=False,
                              layout="constrained")
@@ -663,7 +539,7 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
             else:
                 err = dead_reckoning_track(windows, held(windows, pred), truth, i) - reference
             ax_e.semilogy(t, np.maximum(np.linalg.norm(err[:, :2], axis=1), 1e-4), lw=0.8,
-                          label=_short(est), **look[est].line())
+                          label=short_name(est), **look[est].line())
         ax_e.set_xlabel("time, s", fontsize=7)
         ax_e.tick_params(labelsize=6)
     axes[0, 0].set_ylabel("north, m (east across)", fontsize=7)

@@ -1,0 +1,94 @@
+"""Navigation from velocity estimates: the truth at each ping, dead reckoning, position
+errors, and holding an estimate through the pings an estimator gives none for.
+
+The lowest floor of beamsnet's scoring: ``evaluate``, ``estimate`` and the experiments
+score dead reckoning with these, and they depend on nothing of beamsnet's but its
+windows (``beamsnet.data``). Positions are m NED, velocities m/s in the DVL frame, times
+s; a mission is an index into ``windows.names``.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from auvsim.data.reader import open_dataset
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
+from beamsnet.data import DataError, Windows
+
+
+def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.ndarray]:
+    """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
+    (S, 3, 3), yaw rate (S,), the rate of change of the true DVL-frame velocity since
+    the previous ping (S,) and the true position (S, 3, m NED)."""
+    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
+    with open_dataset(path) as f:
+        for i, name in enumerate(windows.names):
+            m = f.missions[name]
+            if not m.has("truth"):
+                raise DataError(f"{path}: mission {name} has no truth group (an imported "
+                                "stream); dead reckoning is scored against a simulated truth")
+            mine = windows.mission == i
+            ping = np.searchsorted(m.dvl.time, windows.time[mine])
+            rows = m.imu.index_of_dvl[ping]
+            rate = float(m.attrs["dvl_rate_hz"])
+            v_dvl = m.dvl.velocity
+            parts["rotation"].append(rotation_matrices(m.truth.quaternion[rows]))
+            mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
+            parts["mounting"].append(np.broadcast_to(mounting, (len(rows), 3, 3)))
+            parts["yaw_rate"].append(np.abs(np.degrees(m.truth.angular_rate[rows, 2])))
+            parts["position"].append(m.truth.position_ned[rows])
+            parts["acceleration"].append(
+                np.linalg.norm(v_dvl[ping] - v_dvl[np.maximum(ping - 1, 0)], axis=1) * rate)
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def dead_reckoning_track(windows: Windows, velocity: np.ndarray,
+                         truth: dict[str, np.ndarray], mission: int) -> np.ndarray:
+    """(S_m, 3) NED displacement from the mission's first sample to each of its pings, m,
+    from integrating ``velocity`` (S, 3, DVL frame) with the true attitude; each velocity
+    holds until the next ping (so the first row is zero, and the span is that of a
+    position solution's from the first ping to the last)."""
+    mine = windows.mission == mission
+    dt = np.diff(windows.time[mine])[:, None]
+    to_ned = truth["rotation"][mine] @ truth["mounting"][mine]  # DVL -> NED
+    steps = np.einsum("sij,sj->si", to_ned[:-1], velocity[mine][:-1]) * dt
+    return np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
+
+
+def dead_reckoning_error(windows: Windows, velocity: np.ndarray,
+                         truth: dict[str, np.ndarray], mission: int) -> tuple[float, float]:
+    """Horizontal position error (m) at the end of a mission from integrating
+    ``velocity`` (S, 3, DVL frame) instead of the true DVL velocity, with the true attitude,
+    over the pings of ``windows``; and the distance travelled over them (m)."""
+    mine = windows.mission == mission
+    error = (dead_reckoning_track(windows, velocity, truth, mission)
+             - dead_reckoning_track(windows, windows.target, truth, mission))[-1]
+    travelled = np.linalg.norm(windows.target[mine][:-1], axis=1) @ np.diff(
+        windows.time[mine])
+    return float(np.linalg.norm(error[:2])), float(travelled)
+
+
+def own_position_error(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],
+                       mission: int) -> float:
+    """Horizontal error (m) of an estimator's own position solution (``position``, (S, 3)
+    m NED at each sample's ping, such as the INS/DVL filter's) after the mission: its
+    displacement from the mission's first sample to its last against the truth's."""
+    mine = np.flatnonzero(windows.mission == mission)
+    first, last = mine[0], mine[-1]
+    error = (position[last] - position[first]) - (truth["position"][last]
+                                                  - truth["position"][first])
+    return float(np.linalg.norm(error[:2]))
+
+
+def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
+    """``pred`` (S, 3) with each NaN row replaced by the mission's last estimate before
+    it, and by zero before its first (a navigator without a velocity stands still)."""
+    out = np.zeros_like(pred)
+    have = np.isfinite(pred).all(axis=1)
+    for m in np.unique(windows.mission):
+        rows = np.flatnonzero(windows.mission == m)  # in time order (``load_windows``)
+        last = np.maximum.accumulate(np.where(have[rows], np.arange(len(rows)), -1))
+        out[rows] = np.where((last >= 0)[:, None], pred[rows][np.maximum(last, 0)], 0.0)
+    return out

@@ -1,0 +1,156 @@
+"""The packages' import structure, read from the source with ``ast``: no import circle
+(imports inside functions count; those under ``if TYPE_CHECKING:`` never run and do
+not), no private name imported from another module, and beamsnet reads the simulator's
+facts from the dataset API, not from the simulator."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("auvsim", "beamsnet")
+# What beamsnet may import of auvsim: the dataset API (beam geometry included), frames,
+# the error vocabulary and the command-line boundary both CLIs share, and, for the
+# experiment runner, the presets, generation and the cluster helpers its Dask options
+# share with auvsim.
+BEAMSNET_MAY_IMPORT = ("auvsim.data", "auvsim.physics.frames", "auvsim.errors",
+                       "auvsim.cli_support", "auvsim.runs.presets", "auvsim.runs.generate",
+                       "auvsim.runs.cluster")
+
+
+def _modules() -> dict[str, Path]:
+    """Module name -> file, for every module of both packages (a package by its
+    ``__init__``)."""
+    out = {}
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts.pop()
+            out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(name: str) -> list[tuple[str, list[str]]]:
+    """(module imported, names taken from it) for every import of module ``name``, at any
+    depth (inside functions too), relative imports resolved."""
+    path = MODULES[name]
+    tree = ast.parse(path.read_text(), filename=str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                   and _is_type_checking(block.test) for stmt in block.body
+                   for n in ast.walk(stmt)}
+    found = []
+    for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
+        if isinstance(node, ast.Import):
+            found += [(alias.name, []) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            found.append((base, [alias.name for alias in node.names]))
+    return found
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    """``TYPE_CHECKING`` or ``typing.TYPE_CHECKING``."""
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def _target(module: str, names: list[str]) -> list[str]:
+    """The modules of ours an import reaches: ``from a.b import c`` is ``a.b.c`` when that
+    is a module, else ``a.b``."""
+    if module not in MODULES and not module.startswith(PACKAGES):
+        return []
+    out = [f"{module}.{n}" for n in names if f"{module}.{n}" in MODULES]
+    if len(out) < len(names) or not names:
+        out.append(module)
+    return [m for m in out if m in MODULES]
+
+
+def _graph() -> dict[str, set[str]]:
+    graph = {}
+    for name in MODULES:
+        graph[name] = {t for module, names in _imports(name) for t in _target(module, names)
+                       if t != name}
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                out.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _parents(name: str) -> set[str]:
+    """A module's packages (importing ``a.b.c`` runs ``a`` and ``a.b`` first), which an
+    import of it does not make a circle with."""
+    parts = name.split(".")
+    return {".".join(parts[:k]) for k in range(1, len(parts))}
+
+
+def test_the_module_graph_has_no_circle():
+    graph = _graph()
+    # A package's ``__init__`` re-exporting its own modules is not a circle: Python runs
+    # the package first whatever is imported from it.
+    graph = {v: {w for w in ws if v not in _parents(w)} for v, ws in graph.items()}
+    assert "beamsnet.evaluate" in graph and graph["beamsnet.experiments.stress"]
+    assert _cycles(graph) == []
+
+
+def test_the_circle_finder_finds_one():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_no_private_name_is_imported_from_another_module():
+    private = [f"{name}: from {module} import {n}" for name in MODULES
+               for module, names in _imports(name) if module.startswith(PACKAGES)
+               for n in names if n.startswith("_") and not n.startswith("__")]
+    assert private == []
+
+
+def test_beamsnet_imports_only_the_dataset_api_and_the_runners_of_auvsim():
+    taken = sorted({f"{name} -> {module}" for name in MODULES if name.startswith("beamsnet")
+                    for module, _ in _imports(name)
+                    if module.split(".")[0] == "auvsim" and not any(
+                        module == allowed or module.startswith(f"{allowed}.")
+                        for allowed in BEAMSNET_MAY_IMPORT)})
+    assert taken == []
+
+
+def test_auvsim_never_imports_beamsnet():
+    assert not [name for name in MODULES if name.startswith("auvsim")
+                for module, _ in _imports(name) if module.split(".")[0] == "beamsnet"]
