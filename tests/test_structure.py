@@ -1,7 +1,7 @@
 """The packages' import structure, read from the source with ``ast``: no import circle
-(imports inside functions count; those under ``if TYPE_CHECKING:`` never run and do
-not), no private name imported from another module, and beamsnet reads the simulator's
-facts from the dataset API, not from the simulator."""
+(imports inside functions and under ``if TYPE_CHECKING:`` count too), no private name
+imported from another module, and beamsnet reads the simulator's facts from the dataset
+API, not from the simulator."""
 
 from __future__ import annotations
 
@@ -41,13 +41,8 @@ def _imports(name: str) -> list[tuple[str, list[str]]]:
     path = MODULES[name]
     tree = ast.parse(path.read_text(), filename=str(path))
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
-                   and _is_type_checking(block.test) for stmt in block.body
-                   for n in ast.walk(stmt)}
     found = []
     for node in ast.walk(tree):
-        if id(node) in typing_only:
-            continue
         if isinstance(node, ast.Import):
             found += [(alias.name, []) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -57,12 +52,6 @@ def _imports(name: str) -> list[tuple[str, list[str]]]:
                 base = ".".join(anchor + ([base] if base else []))
             found.append((base, [alias.name for alias in node.names]))
     return found
-
-
-def _is_type_checking(test: ast.expr) -> bool:
-    """``TYPE_CHECKING`` or ``typing.TYPE_CHECKING``."""
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
 def _target(module: str, names: list[str]) -> list[str]:

@@ -2,8 +2,8 @@
 
 Dask distributed is the engine (optional: ``pip install 'auvsim[cluster]'``). Its
 ``Client.get_executor`` is a ``concurrent.futures`` executor, so the code that runs jobs
-(``auvsim.runs.generate``, ``beamsnet.training.train.train_all``) is the same for the built-in process
-pool and for a cluster; this module only opens and closes the cluster.
+(``auvsim.runs.generate``, ``beamsnet.training.runs.train_all``) is the same for the
+built-in process pool and for a cluster; this module only opens and closes the cluster.
 
 ``local:N`` starts a ``LocalCluster`` of N worker processes (nannied, so a killed worker is
 restarted and its task run again) with ``THREADS`` threads each, and stops it at the end;
@@ -24,8 +24,8 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from auvsim.errors import ConfigError, SimulationError
 from auvsim.data.files import interrupt_handler
+from auvsim.errors import ConfigError, SimulationError
 
 CONNECT_TIMEOUT_S = 10.0
 HANDSHAKE_S = 5.0  # beyond the connect timeout, for a peer that connects but never answers

@@ -19,13 +19,13 @@ import numpy as np
 
 from auvsim.config import Config, MissionConfig
 from auvsim.data.schema import core_block, mission_attrs, phases_json
+from auvsim.data.streams import mission_streams
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.maneuvers import check_scenario, make_maneuver
-from auvsim.world.seafloor import Seafloor
-from auvsim.sensors import Platform, Truth, registry
-from auvsim.data.streams import mission_streams
 from auvsim.physics.vehicle import Trajectory, Vehicle
 from auvsim.physics.water import Disturbance, Water
+from auvsim.sensors import Platform, Truth, registry
+from auvsim.world.seafloor import Seafloor
 
 BLOCK_SECONDS = 60.0  # simulated per call into the compiled loop, and per HDF5 append
 

@@ -26,14 +26,15 @@ import importlib
 import pkgutil
 import threading
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
+import auvsim
 from auvsim.errors import ConfigError
 
-if TYPE_CHECKING:
-    from auvsim.config import Config
+# ``auvsim.config`` runs every plugin's checks, so this module names its ``Config`` in
+# annotations only (``auvsim.config.Config``, never evaluated at import): no import circle.
 
 
 @dataclass(frozen=True)
@@ -147,21 +148,22 @@ class Sensor:
     links: ClassVar[dict[str, str]] = {}  # field -> truth field it is a hard link to
     since_version: ClassVar[int] = 1  # first schema version that holds it
 
-    def __init__(self, config: Config, platform: Platform, parameters: np.random.Generator,
+    def __init__(self, config: auvsim.config.Config, platform: Platform,
+                 parameters: np.random.Generator,
                  *more: np.random.Generator) -> None:
         raise NotImplementedError
 
     @classmethod
-    def rate_hz(cls, config: Config) -> float:
+    def rate_hz(cls, config: auvsim.config.Config) -> float:
         return float(getattr(config, cls.section).rate_hz)
 
     @classmethod
-    def every(cls, config: Config) -> int:
+    def every(cls, config: auvsim.config.Config) -> int:
         """IMU samples per sample of this sensor."""
         return round(config.imu.rate_hz / cls.rate_hz(config))
 
     @classmethod
-    def check(cls, config: Config) -> None:
+    def check(cls, config: auvsim.config.Config) -> None:
         """Refuse settings of this sensor that are wrong only beside the rest of the config
         (its own section checks its ranges alone): by default its rate, which must be a
         whole divisor of the IMU's, so its samples fall on IMU samples. A plugin with more
