@@ -26,7 +26,8 @@ test: $(STAMP)
 	$(BIN)/ruff check auvsim beamsnet tests benchmarks
 	# The site first: a broken link, include or API reference fails here (site/ is ignored).
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir site
-	$(BIN)/pytest -q
+	# Two workers, one a core of the 2-core CI machine; the ten slowest tests named at the end.
+	$(BIN)/pytest -q -n 2 --dist worksteal --durations=10
 
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve

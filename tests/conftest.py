@@ -87,3 +87,9 @@ class CountingBar:
 
     def update(self, n):
         CountingBar.updates.append(n)
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """The slow end-to-end tests first, so that the two workers of ``make test`` finish
+    together (the longest jobs first) rather than one alone on a long test at the end."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
