@@ -25,7 +25,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check auvsim beamsnet tests benchmarks
 	# The site first: a broken link, include or API reference fails here (site/ is ignored).
-	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir site
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 	# Two workers, one a core of the 2-core CI machine; the ten slowest tests named at the end.
 	$(BIN)/pytest -q -n 2 --dist worksteal --durations=10
 
