@@ -379,6 +379,23 @@ def is_write_error(error: BaseException) -> bool:
             and (error.errno is None or error.errno in _WRITE_ERRORS))
 
 
+@contextmanager
+def written_whole(path: Path) -> Iterator[Path]:
+    """A temporary beside ``path`` for the block to write; renamed to ``path`` when the
+    block ends, removed whatever happens (nothing of it is left on an error).
+
+    Raises:
+        OutputError: it cannot be written.
+    """
+    tmp = temporary(path, suffix=path.suffix)
+    try:
+        with writing(path):
+            yield tmp
+            commit(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically.
 
@@ -386,13 +403,8 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
         OutputError: it cannot be written (nothing of it is left then).
     """
     path = Path(path)
-    tmp = temporary(path, suffix=path.suffix)
-    try:
-        with writing(path):
-            tmp.write_bytes(data)
-            commit(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with written_whole(path) as tmp:
+        tmp.write_bytes(data)
     return path
 
 
@@ -410,14 +422,11 @@ def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
     import matplotlib.pyplot as plt
 
     path = Path(path)
-    tmp = temporary(path, suffix=path.suffix)
     try:
-        with writing(path):
+        with written_whole(path) as tmp:
             fig.savefig(tmp, dpi=dpi)
-            commit(tmp, path)
     finally:
         plt.close(fig)
-        tmp.unlink(missing_ok=True)
     return path
 
 

@@ -33,9 +33,9 @@ from beamsnet import metrics
 from beamsnet.data import check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
-from beamsnet.experiments.runner import ensure_dataset, train_runs, train_seeds
+from beamsnet.experiments.runner import ensure_dataset, settings, train_runs, train_seeds
 from beamsnet.plotstyle import legend_outside
-from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
+from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
 from beamsnet.words import count
 
@@ -79,14 +79,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     """
     from auvsim.runs.presets import preset
 
-    profile = PROFILES[experiment]
-    training = profile.config if training is None else training
-    restarts = profile.restarts if restarts is None else restarts
-    # Every setting is checked before minutes go into generating the data.
-    check_restarts(restarts)
-    check_out_dir(out)
-    if cluster is not None:
-        check_address(cluster)
+    training, restarts = settings(experiment, training, restarts, out=out, cluster=cluster)
     config = preset(experiment).with_duration(duration)
     if data is not None:  # refused now, not after minutes of work
         check_dataset(data, argument="data", missions=[m.name for m in config.missions])

@@ -30,16 +30,37 @@ from pathlib import Path
 
 import torch
 
+from auvsim.data.files import check_out_dir
 from auvsim.data.reader import open_dataset
 from auvsim.errors import AuvsimError
+from auvsim.runs.cluster import check_address
 from beamsnet.training.checkpoints import file_identity, load, trained
-from beamsnet.training.config import TrainConfig, check_restarts
+from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
 from beamsnet.training.runs import keep_best, seed_runs, train_all
 
 
 class StaleDatasetWarning(UserWarning):
     """An experiment's dataset was there but made from another config (or unreadable),
     and is generated again."""
+
+
+def settings(profile: str, training: TrainConfig | None, restarts: int | None, *,
+             out: str | os.PathLike, cluster: str | None) -> tuple[TrainConfig, int]:
+    """An experiment's training config and restarts (its ``PROFILES`` entry's where not
+    given), with those, ``out`` and ``cluster`` checked before minutes go into generating
+    the data.
+
+    Raises:
+        ConfigError: a bad setting.
+    """
+    chosen = PROFILES[profile]
+    training = chosen.config if training is None else training
+    restarts = chosen.restarts if restarts is None else restarts
+    check_restarts(restarts)
+    check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
+    return training, restarts
 
 
 def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,

@@ -31,17 +31,16 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.data.files import save_figure, staged_dir, write_text
 from auvsim.data.reader import open_dataset
 from auvsim.errors import ConfigError
-from auvsim.runs.cluster import check_address
 from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
 from beamsnet import metrics
 from beamsnet.data import Windows, check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import predictions
 from beamsnet.experiments.faults import FAULT_DURATION, check_options, fault_stress
-from beamsnet.experiments.runner import ensure_dataset, train_runs
+from beamsnet.experiments.runner import ensure_dataset, settings, train_runs
 from beamsnet.experiments.wording import as_published, why_worse
 from beamsnet.navigation import (
     dead_reckoning_error,
@@ -52,7 +51,7 @@ from beamsnet.navigation import (
 )
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_GEOMETRY, sensor_setup
-from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
+from beamsnet.training.config import TrainConfig
 from beamsnet.words import count
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
@@ -108,14 +107,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     """
     from auvsim.runs.presets import maneuvers, preset
 
-    profile = PROFILES["stress"]
-    training = profile.config if training is None else training
-    restarts = profile.restarts if restarts is None else restarts
-    # Every setting is checked before minutes go into generating the data.
-    check_restarts(restarts)
-    check_out_dir(out)
-    if cluster is not None:
-        check_address(cluster)
+    training, restarts = settings("stress", training, restarts, out=out, cluster=cluster)
     if noise not in NOISE:
         raise ConfigError(f"expected one of {', '.join(NOISE)} (the paper's code's or text's "
                           f"beam noise), got {noise!r}", argument="noise")
