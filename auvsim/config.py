@@ -148,7 +148,7 @@ class ScenarioConfig:
         heading_deg: heading to hold, degrees from north, in [-360, 360].
         depth: depth to hold, m, at most ``MAX_DEPTH`` (11 km, the deepest ocean).
         duration: mission length, s, at most ``MAX_DURATION``: 72 h, three times the
-            A18-D's 24 h endurance (../shared/reference/vehicles.md), which keeps every
+            A18-D's 24 h endurance (the model card's vehicle figures), which keeps every
             accepted run finite (a dataset also holds at most ``MAX_MISSIONS``, 1000, and
             ``MAX_TOTAL_DURATION``, 30 days, in all).
         start_speed: initial surge speed, m/s; ``None`` starts at ``speed`` (on the set

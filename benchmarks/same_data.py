@@ -19,9 +19,11 @@ minutes each, with torch) and compares the Markdown tables of the reports and st
 text for text; differences in the prose around the tables are printed but do not fail.
 
     .venv/bin/python benchmarks/same_data.py --before REV [--after REV] [--reports]
-        [--keep DIR] [--snapir DIR]
+        [--keep DIR] [--snapir DIR] [--new-estimator NAME ...]
     .venv/bin/python benchmarks/same_data.py --before-dir DIR [--after REV] [--reports]
 
+--new-estimator NAME sets aside an estimator added since BEFORE (its table rows and
+columns, its keys in stress.json): the rest of every table must still be equal.
 --keep DIR keeps the runs in DIR/before and DIR/after (HDF5 files, reports, logs, and a
 manifest.json). --before-dir DIR compares against such a kept DIR/before instead of running
 --before again. Exit code: 0 same data, 1 different, 2 could not run.
@@ -312,11 +314,45 @@ def compare_h5(before: Path, after: Path) -> tuple[str, list[str]]:
 # ---- reports ---------------------------------------------------------------------------
 
 
-def compare_text(before: Path, after: Path) -> tuple[list[str], list[str]]:
-    """(differing table lines, differing prose lines) of two reports; .json: all lines."""
+def without(lines: list[str], new: tuple[str, ...]) -> list[str]:
+    """Report lines with the rows and columns of the estimators ``new`` (added since BEFORE)
+    taken out of every Markdown table."""
+    out, drop = [], set()
+    for line in lines:
+        if not line.lstrip().startswith("|"):
+            out.append(line)
+            drop = set()
+            continue
+        cells = line.strip().strip("|").split("|")
+        if not drop and any(c.strip() in new for c in cells[1:]):  # a header naming them
+            drop = {i for i, c in enumerate(cells) if c.strip() in new}
+        if cells[0].strip() in new:
+            continue
+        out.append("|" + "|".join(c for i, c in enumerate(cells) if i not in drop) + "|")
+    return out
+
+
+def without_keys(value: object, new: tuple[str, ...]) -> object:
+    """JSON ``value`` with every key in ``new`` taken out, at any depth."""
+    if isinstance(value, dict):
+        return {k: without_keys(v, new) for k, v in value.items() if k not in new}
+    if isinstance(value, list):
+        return [without_keys(v, new) for v in value]
+    return value
+
+
+def compare_text(before: Path, after: Path, new: tuple[str, ...] = ()
+                 ) -> tuple[list[str], list[str]]:
+    """(differing table lines, differing prose lines) of two reports; .json: all lines.
+    The estimators ``new`` (added since BEFORE) are set aside in AFTER's tables and JSON."""
     if not after.exists():
         return [f"{after.name} missing"], []
     a, b = before.read_text().splitlines(), after.read_text().splitlines()
+    if new and after.suffix == ".json":
+        b = json.dumps(without_keys(json.loads(after.read_text()), new), indent=1).splitlines()
+        a = json.dumps(json.loads(before.read_text()), indent=1).splitlines()
+    elif new:
+        b = without(b, new)
 
     def delta(x: list[str], y: list[str]) -> list[str]:
         return [d for d in difflib.unified_diff(x, y, "before", "after", n=0, lineterm="")
@@ -376,6 +412,10 @@ def main() -> int:
     parser.add_argument("--reports", action="store_true",
                         help="also compare beamsnet reproduce paper-sim / stress reports")
     parser.add_argument("--keep", type=Path, help="keep the runs in DIR/before, DIR/after")
+    parser.add_argument("--new-estimator", action="append", default=[], metavar="NAME",
+                        help="an estimator added since BEFORE: its rows and columns of the "
+                        "reports' tables (and its keys in stress.json) are set aside, the "
+                        "rest must be equal (repeatable)")
     parser.add_argument("--snapir", type=Path, default=REPO.parent / "shared/data/snapir",
                         help="directory with V.npy and V_test.npy (default: %(default)s)")
     args = parser.parse_args()
@@ -428,7 +468,8 @@ def main() -> int:
             if took is None:
                 continue
             for file in files:
-                tables, prose = compare_text(kept / run / file, after.out / run / file)
+                tables, prose = compare_text(kept / run / file, after.out / run / file,
+                                             tuple(args.new_estimator))
                 what = "tables" if file.endswith(".md") else "text"
                 print(f"{Path(file).name}: {what} {'DIFFER' if tables else 'equal'}"
                       f"{f', {len(prose)} prose lines differ (not checked)' if prose else ''}"

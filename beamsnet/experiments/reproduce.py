@@ -430,7 +430,7 @@ def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimate
         f"{test['Beam calibration']['improvement']:.1f} | {test['KF']['improvement']:.1f} |",
         "",
         "The paper's figures: Table 3 and the published V2 weights re-run with the "
-        "published pipeline (`../shared/reference/beamsnet-reference.md`).",
+        "published pipeline (the BeamsNet paper's public repository).",
         "",
         "Every seed's improvement over LS, %:",
         "",
