@@ -108,7 +108,8 @@ def navigator() -> Config:
     Janus beams; bottom track about 0.7 to 90 m; long-term accuracy about 0.2 % of speed
     +/- 1 mm/s (taken here as the per-mission spread of the scale factor and bias); beam
     noise 0.02 m/s (what the Snapir's DVL is given in the BeamsNet lab's later datasets).
-    1 Hz as in the paper's data. The terrain (1 m roughness, 25 m features, 60 m deep) is our choice.
+    1 Hz as in the paper's data. The terrain (1 m roughness, 25 m features, 60 m deep) is
+    our choice.
 
     The DVL loses lock and errs as an instrument does (``DvlConfig``):
 
