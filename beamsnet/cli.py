@@ -16,6 +16,7 @@ from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
+from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
 from beamsnet.experiments.sim2real import SIM_SEEDS
@@ -34,7 +35,6 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster",
          "refresh_reports": "--refresh-reports", "train_duration": "--train-duration",
          "maneuver_duration": "--maneuver-duration"}
-DEFAULT_SNAPIR_TEXT = "shared/data/snapir beside the repository's folder"
 CLUSTER_HELP = ("run the training jobs on a Dask cluster: local:N or a scheduler's address "
                 "(needs auvsim[cluster])")
 QUIET_HELP = "no progress bars"
@@ -114,8 +114,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="auvsim datasets to evaluate on")
     ev.add_argument("--also", type=Path, action="append", default=[], metavar="RUN",
                     help="another run to put in the same tables (repeatable)")
-    ev.add_argument("--out", type=Path, default=Path("reports/evaluation"), metavar="FOLDER",
-                    help="report folder (evaluation.md, evaluation.json, plots)")
+    ev.add_argument("--out", type=Path, metavar="FOLDER",
+                    help="report folder (evaluation.md, evaluation.json, plots; default: a "
+                    "new runs/evaluation-DATE-TIME)")
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
@@ -129,8 +130,9 @@ def _parser() -> argparse.ArgumentParser:
                     + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
                     help="fit on this file's training split (default: the dataset's own)")
-    es.add_argument("--out", type=Path, default=Path("reports/estimate"), metavar="FOLDER",
-                    help="folder for estimates.csv and summary.json")
+    es.add_argument("--out", type=Path, metavar="FOLDER",
+                    help="folder for estimates.csv and summary.json (default: a new "
+                    "runs/estimate-DATE-TIME)")
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
@@ -143,7 +145,7 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--data", type=Path, metavar="PATH",
                     help="paper-sim: use this dataset instead of generating one; snapir, "
                     "sim2real: the folder with V.npy and V_test.npy (default "
-                    f"{DEFAULT_SNAPIR_TEXT})")
+                    f"{DEFAULT_SNAPIR})")
     rp.add_argument("--duration", type=float, metavar="SECONDS",
                     help="s per speed of paper-sim (default 7200), s per manoeuvre of "
                     f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
@@ -267,6 +269,7 @@ def _train(args) -> None:
 def _evaluate(args) -> None:
     from beamsnet.evaluate import evaluate, markdown
 
+    args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
                        allow_mismatch=args.allow_mismatch)
     for dataset, result in results.items():
@@ -277,6 +280,7 @@ def _evaluate(args) -> None:
 def _estimate(args) -> None:
     from beamsnet.evaluate import estimate
 
+    args.out = report_dir(args.out, False, "estimate")
     summary = estimate(args.estimator, args.dataset, args.out, train=args.train)
     for mission, row in summary["missions"].items():
         said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"]

@@ -122,6 +122,21 @@ def test_stress_and_reproduce_never_default_to_the_committed_reports(tmp_path, m
         assert "--refresh-reports" in err and not calls
 
 
+def test_evaluate_and_estimate_default_to_a_new_runs_folder(data, run_on_a, tmp_path,
+                                                            monkeypatch, capsys):
+    """Neither writes into reports/ unless told: a new runs/<name>-DATE-TIME each time."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["evaluate", str(run_on_a), str(data)]) == 0
+    assert main(["estimate", str(data), "--estimator", "LS"]) == 0
+    made = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "runs").iterdir())
+    assert len(made) == 2, made
+    assert re.fullmatch(r"runs/estimate-\d{8}-\d{6}", made[0])
+    assert re.fullmatch(r"runs/evaluation-\d{8}-\d{6}", made[1])
+    assert (tmp_path / made[1] / "evaluation.md").is_file()
+    assert (tmp_path / made[0] / "estimates.csv").is_file()
+    assert not (tmp_path / "reports").exists()
+
+
 # ---- inputs checked before any generation ----------------------------------------------
 
 
