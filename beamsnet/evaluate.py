@@ -99,7 +99,7 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
                   allow_mismatch: bool = False, setup: dict | None = None) -> None:
     """Compare the sensors of every mission of ``dataset`` with those of the missions
     ``run`` was trained on (``checkpoint["sensors"]``, see
-    ``beamsnet.training.train.sensor_setup``).
+    ``beamsnet.training.checkpoints.sensor_setup``).
 
     A value matches when it equals that of any training mission. An attribute either side
     lacks (an imported stream has no IMU rate) is not compared. ``setup`` is

@@ -65,14 +65,14 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
         duration: s per speed of the generated dataset.
         out: the report's directory.
         training: the training settings, model and missions set per run (default: the
-            experiment's profile, ``beamsnet.training.train.PROFILES``).
+            experiment's profile, ``beamsnet.training.config.PROFILES``).
         restarts: seeds per model, the best on its training split kept (default: the
             profile's); the report lists every seed's result.
         workers: training processes.
         runs: where the models go (``runs/<experiment>/<mission>/v1|v2``).
         progress: progress bars.
         cluster: generate missing datasets and train on this Dask cluster instead
-            (``auvsim.runs.generate``, ``beamsnet.training.train.train_all``).
+            (``auvsim.runs.generate``, ``beamsnet.training.runs.train_all``).
 
     Returns:
         The report's path.
@@ -135,8 +135,8 @@ def snapir(data: Path, *, out: Path, training: TrainConfig | None = None,
     published, CorrectionNet) is trained on the ``train`` mission's training split from
     ``seeds`` seeds (default ``beamsnet.experiments.sim2real.SEEDS``, per model), and every seed is
     scored: the seed's spread is part of the result. ``training`` defaults to the ``snapir`` profile
-    (``beamsnet.training.train.PROFILES``). With ``cluster`` the networks train on that Dask
-    cluster (``beamsnet.training.train.train_all``).
+    (``beamsnet.training.config.PROFILES``). With ``cluster`` the networks train on that Dask
+    cluster (``beamsnet.training.runs.train_all``).
     """
     from beamsnet.experiments import sim2real as experiment
 

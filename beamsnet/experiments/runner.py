@@ -146,7 +146,7 @@ class KeptRun:
     Attributes:
         run: the directory the kept seed was copied into (``runs_dir / name``).
         model: the kept network, in evaluation mode.
-        checkpoint: its checkpoint (``beamsnet.training.train.load``).
+        checkpoint: its checkpoint (``beamsnet.training.checkpoints.load``).
         kept: the seed run that was kept (one of ``seeds``).
         seeds: every seed run, in seed order.
         diverged: the seed runs whose training loss became non-finite (they have no

@@ -77,14 +77,14 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
             every one scored; the set with the DVL along the body gets ``BODY_SEEDS``,
             V.npy ``SEEDS`` (those of ``reproduce snapir``).
         training: the training settings, the model and seed set per run (default: the
-            ``snapir`` profile of ``beamsnet.training.train.PROFILES``: the paper's sea-data
+            ``snapir`` profile of ``beamsnet.training.config.PROFILES``: the paper's sea-data
             settings, since the test is sea data).
         runs: where the networks go (``runs/sim2real/<training file stem>/<model>/seed_<s>``).
         datasets: where the generated training sets go.
         workers: training processes.
         progress: progress bars.
         cluster: generate missing datasets and train on this Dask cluster instead
-            (``auvsim.runs.generate``, ``beamsnet.training.train.train_all``).
+            (``auvsim.runs.generate``, ``beamsnet.training.runs.train_all``).
 
     Returns:
         The report's path.

@@ -82,7 +82,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             preset with ``maneuver_duration`` s each, generated if missing).
         out: the report's directory.
         training: the training settings, the model set per run (default: the ``stress``
-            profile of ``beamsnet.training.train.PROFILES``: the paper's settings, Polyak
+            profile of ``beamsnet.training.config.PROFILES``: the paper's settings, Polyak
             averaging over the last epochs).
         restarts: seeds per model, kept by training fit (default: the profile's).
         runs: where the trained models go (``runs/stress/<file stem>/v1|v2``).
@@ -97,7 +97,7 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
             m/s (``paper-sim-text``, and the manoeuvres flown with it).
         progress: progress bars.
         cluster: generate missing datasets and train on this Dask cluster instead
-            (``auvsim.runs.generate``, ``beamsnet.training.train.train_all``).
+            (``auvsim.runs.generate``, ``beamsnet.training.runs.train_all``).
 
     Returns:
         The report's path.
