@@ -8,7 +8,7 @@ from conftest import flat, mission
 
 from auvsim.config import Config, DepthConfig
 from auvsim.data.schema import schema
-from auvsim.data.streams import STREAMS, imported_streams, mission_streams
+from auvsim.data.streams import STREAMS, imported_streams, mission_streams, stream_names
 from auvsim.errors import ConfigError
 from auvsim.runs.mission import MissionRun
 from auvsim.sensors import (
@@ -133,7 +133,7 @@ class Thermometer(Sensor):
     RATE = 10.0
     name = "thermometer"
     section = "thermometer"
-    streams = ("depth_parameters", "depth_noise")  # it draws nothing from them
+    streams = ("thermometer_parameters", "thermometer_noise")  # its own, new ones
     fields = (Field("thermometer/time", (), "f", "thermometer", "s", "sample times"),
               Field("thermometer/temperature", (), "f", "thermometer", "degC", "water"))
     attributes = (Attr("thermometer_rate_hz", (), "Hz", low=0, strict=True, since=6),)
@@ -170,6 +170,18 @@ def thermometer():
     yield Thermometer
     unregister(Thermometer.name)
     Thermometer.RATE = 10.0
+
+
+def test_a_new_sensors_streams_follow_every_earlier_one(thermometer):
+    """Declared in its plugin alone, they are spawned after the closed layout, whose
+    generators draw what they drew before."""
+    assert stream_names() == (*STREAMS, "thermometer_parameters", "thermometer_noise")
+    streams = mission_streams(7)
+    before = np.random.default_rng(7).spawn(len(STREAMS))
+    for name, old in zip(STREAMS, before, strict=True):
+        np.testing.assert_array_equal(streams[name].standard_normal(3), old.standard_normal(3))
+    assert streams["thermometer_noise"].standard_normal() != streams[
+        "thermometer_parameters"].standard_normal()
 
 
 def test_a_sensor_registered_from_outside_joins_the_schema_checks_and_inspect(

@@ -1,8 +1,9 @@
 """The per-mission random streams, declared once.
 
-A simulated mission's seed spawns one child generator per entry of ``STREAMS``, by
-position. Children of a ``SeedSequence`` depend only on their position, so a stream added
-at the end leaves every earlier one, and every dataset made before it, unchanged: append,
+A simulated mission's seed spawns one child generator per stream, by position
+(``stream_names``): the streams of ``STREAMS``, then those that sensor plugins added since
+declare. Children of a ``SeedSequence`` depend only on their position, so a stream added at
+the end leaves every earlier one, and every dataset made before it, unchanged: append,
 never reorder. Each consumer draws from its own streams only, so one setting never shifts
 another's numbers.
 
@@ -15,6 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from auvsim.sensors import registry
+
+# The layout up to schema version 6, in spawn order. Closed: a sensor added later names
+# its streams in its plugin (``Sensor.streams``), and they follow these.
 STREAMS = (
     "terrain",  # procedural seafloor (auvsim.world.seafloor)
     "dvl_parameters",  # per-mission DVL scale factors and biases
@@ -32,9 +37,21 @@ STREAMS = (
 )
 
 
+def stream_names() -> tuple[str, ...]:
+    """Every stream of a simulated mission, in spawn order: ``STREAMS``, then the streams of
+    each sensor plugin that are not among them, the plugins in the order of the schema
+    version that added them (``Sensor.since_version``), then of their names. A new sensor
+    comes with a new schema version, so its streams follow every earlier one."""
+    names = list(STREAMS)
+    for sensor in sorted(registry().values(), key=lambda s: (s.since_version, s.name)):
+        names += [name for name in sensor.streams if name not in names]
+    return tuple(names)
+
+
 def mission_streams(seed: int) -> dict[str, np.random.Generator]:
-    """A simulated mission's independent streams, by name (``STREAMS``)."""
-    return dict(zip(STREAMS, np.random.default_rng(seed).spawn(len(STREAMS)), strict=True))
+    """A simulated mission's independent streams, by name (``stream_names``)."""
+    names = stream_names()
+    return dict(zip(names, np.random.default_rng(seed).spawn(len(names)), strict=True))
 
 
 def imported_streams(seed: int) -> dict[str, np.random.Generator]:

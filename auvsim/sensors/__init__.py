@@ -140,8 +140,9 @@ class Sensor:
 
     name: ClassVar[str]  # its group in the file
     section: ClassVar[str]  # its config section
-    # (parameters, noise, *more) stream names (auvsim.data.streams); more: further parameter
-    # streams, passed to __init__ after ``parameters`` in order
+    # (parameters, noise, *more) stream names; more: further parameter streams, passed to
+    # __init__ after ``parameters`` in order. Names that ``auvsim.data.streams.STREAMS``
+    # does not hold are new streams, spawned after every earlier one (``stream_names``).
     streams: ClassVar[tuple[str, ...]]
     fields: ClassVar[tuple[Field, ...]]
     attributes: ClassVar[tuple[Attr, ...]]
