@@ -19,6 +19,8 @@ Conventions (a contract: the HDF5 files and every public function follow them):
   (body, at the IMU site). Time is the first axis of every array.
 """
 
+from auvsim.lazy import exports
+
 __version__ = "0.1.0"
 
 # What users import, from the top level; each is loaded when first asked for, so that
@@ -34,19 +36,7 @@ _PUBLIC = {
 }
 __all__ = ["__version__", *_PUBLIC]
 
-
-def __getattr__(name: str):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module 'auvsim' has no attribute {name!r}")
-    import importlib
-
-    value = getattr(importlib.import_module(_PUBLIC[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = exports(__name__, _PUBLIC, globals())
 
 
 def _register_environment() -> None:

@@ -11,6 +11,8 @@ sweep end to end (``experiments``). Frames, units and names are auvsim's (see
 ``auvsim``'s docstring).
 """
 
+from auvsim.lazy import exports
+
 # What users import, from the top level; loaded when first asked for (torch is heavy).
 _PUBLIC = {
     "load_windows": "beamsnet.data", "split": "beamsnet.data",
@@ -21,16 +23,4 @@ _PUBLIC = {
 }
 __all__ = list(_PUBLIC)
 
-
-def __getattr__(name: str):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module 'beamsnet' has no attribute {name!r}")
-    import importlib
-
-    value = getattr(importlib.import_module(_PUBLIC[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = exports(__name__, _PUBLIC, globals())

@@ -8,20 +8,10 @@ they are loaded when first asked for, so that importing ``auvsim.data.files`` st
 light.
 """
 
+from auvsim.lazy import exports
+
 _PUBLIC = {"open_dataset": "auvsim.data.reader", "Dataset": "auvsim.data.reader",
            "Mission": "auvsim.data.reader", "require_usable_beams": "auvsim.data.reader"}
 __all__ = list(_PUBLIC)
 
-
-def __getattr__(name: str):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module 'auvsim.data' has no attribute {name!r}")
-    import importlib
-
-    value = getattr(importlib.import_module(_PUBLIC[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = exports(__name__, _PUBLIC, globals())
