@@ -349,3 +349,38 @@ def test_the_mission_plot_says_what_it_plots(small):
         if legend is not None:  # entirely to the right of the panel's data area
             assert legend.get_window_extent().x0 >= ax.get_window_extent().x1 - 1
     plt.close(fig)
+
+
+def test_sigterm_mid_training_ends_every_worker_at_once(small, tmp_path):
+    """A scheduler's SIGTERM reaches the parent alone: it ends the pool's workers, whose
+    jobs are of no use now, instead of waiting for them, and leaves no run folder."""
+    import time
+
+    import psutil
+
+    out = tmp_path / "v2"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "beamsnet.cli", "train", str(small), "--model", "v2",
+         "--epochs", "100000", "--restarts", "2", "--out", str(out), "--quiet"],
+        stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        family: list[psutil.Process] = []
+        while len([p for p in family if "forkserver" in " ".join(p.cmdline())]) < 3:
+            assert proc.poll() is None and time.monotonic() < deadline, "no workers started"
+            time.sleep(0.2)
+            try:
+                family = psutil.Process(proc.pid).children(recursive=True)
+            except psutil.NoSuchProcess:
+                family = []
+        time.sleep(1.0)  # the two seeds are training
+        proc.send_signal(signal.SIGTERM)  # to the parent only, as a batch scheduler does
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130
+    assert err == "beamsnet: interrupted; nothing was written\n", err
+    gone, alive = psutil.wait_procs(family, timeout=10)
+    assert alive == [], [p.cmdline() for p in alive]
+    assert list(tmp_path.iterdir()) == []

@@ -393,7 +393,8 @@ def _snapir_report(data, dataset, config, seeds, train_w, results, test_estimate
     lines = [
         "# snapir: the BeamsNet paper's sea experiment, reproduced",
         "",
-        f"Made by `beamsnet reproduce snapir --data {data}`. The Snapir AUV's recorded DVL "
+        "Made by `beamsnet reproduce snapir --data DIR` (DIR: the Snapir data folder, with "
+        "`V.npy` and `V_test.npy`). The Snapir AUV's recorded DVL "
         "velocities (`V.npy`, nine missions back to back, and `V_test.npy`, a separate "
         "mission on another date) are taken as the truth; `auvsim import-velocity` "
         "synthesised the beams of a DVL under test from them with the paper's error model "

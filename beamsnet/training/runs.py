@@ -94,6 +94,8 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         except BaseException as e:
             for future in futures:
                 future.cancel()  # the jobs not started yet; the running ones finish
+            if isinstance(e, KeyboardInterrupt) and cluster is None:
+                _stop_workers(pool)  # Ctrl-C or SIGTERM: no job of the run is wanted now
             lost = lost_worker(e)
             if lost is not None:  # Dask's KilledWorker: its traceback would say no more
                 raise lost from None
@@ -103,6 +105,20 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
                                       "every job") from None
             raise
         return [f.result() for f in futures]
+
+
+def _stop_workers(pool: cf.ProcessPoolExecutor) -> None:
+    """End a local pool's workers now. A SIGTERM reaches this process alone (Ctrl-C reaches
+    the whole process group), and the pool would otherwise wait minutes for its running
+    jobs before this process could exit."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14+
+    if terminate is not None:
+        terminate()
+        return
+    workers = getattr(pool, "_processes", None) or {}  # before 3.14: the pool's own record
+    for process in list(workers.values()):
+        process.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress: bool,
