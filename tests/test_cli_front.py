@@ -4,6 +4,7 @@ Each ends in one line (or none), its exit status, and nothing half-written."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import signal
@@ -351,29 +352,39 @@ def test_the_mission_plot_says_what_it_plots(small):
     plt.close(fig)
 
 
-def test_sigterm_mid_training_ends_every_worker_at_once(small, tmp_path):
-    """A scheduler's SIGTERM reaches the parent alone: it ends the pool's workers, whose
-    jobs are of no use now, instead of waiting for them, and leaves no run folder."""
+def _training_with_two_workers(small, out: Path):
+    """``beamsnet train --restarts 2`` in a session of its own, once both seeds are
+    training; returns the process and its descendants."""
     import time
 
     import psutil
 
-    out = tmp_path / "v2"
     proc = subprocess.Popen(
         [sys.executable, "-m", "beamsnet.cli", "train", str(small), "--model", "v2",
          "--epochs", "100000", "--restarts", "2", "--out", str(out), "--quiet"],
         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    family: list[psutil.Process] = []
+    while len([p for p in family if "forkserver" in " ".join(p.cmdline())]) < 3:
+        if proc.poll() is not None or time.monotonic() > deadline:
+            os.killpg(proc.pid, signal.SIGKILL)
+            pytest.fail("the training's workers never started")
+        time.sleep(0.2)
+        try:
+            family = psutil.Process(proc.pid).children(recursive=True)
+        except psutil.NoSuchProcess:
+            family = []
+    time.sleep(1.0)  # the two seeds are training
+    return proc, family
+
+
+def test_sigterm_mid_training_ends_every_worker_at_once(small, tmp_path):
+    """A scheduler's SIGTERM reaches the parent alone: it ends the pool's workers, whose
+    jobs are of no use now, instead of waiting for them, and leaves no run folder."""
+    import psutil
+
+    proc, family = _training_with_two_workers(small, tmp_path / "v2")
     try:
-        deadline = time.monotonic() + 120
-        family: list[psutil.Process] = []
-        while len([p for p in family if "forkserver" in " ".join(p.cmdline())]) < 3:
-            assert proc.poll() is None and time.monotonic() < deadline, "no workers started"
-            time.sleep(0.2)
-            try:
-                family = psutil.Process(proc.pid).children(recursive=True)
-            except psutil.NoSuchProcess:
-                family = []
-        time.sleep(1.0)  # the two seeds are training
         proc.send_signal(signal.SIGTERM)  # to the parent only, as a batch scheduler does
         _, err = proc.communicate(timeout=30)
     finally:
@@ -384,3 +395,19 @@ def test_sigterm_mid_training_ends_every_worker_at_once(small, tmp_path):
     gone, alive = psutil.wait_procs(family, timeout=10)
     assert alive == [], [p.cmdline() for p in alive]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_kill_9_mid_training_leaves_no_worker_training_on(small, tmp_path):
+    """Killed outright, the parent can clean nothing up: its workers see it gone and end
+    within seconds, not after their jobs."""
+    import psutil
+
+    proc, family = _training_with_two_workers(small, tmp_path / "v2")
+    try:
+        proc.kill()
+        proc.communicate(timeout=30)
+        gone, alive = psutil.wait_procs(family, timeout=10)
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # none is left, as it should be
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert alive == [], [p.cmdline() for p in alive]

@@ -19,7 +19,7 @@ folder holds ``STOP`` (the first error, Ctrl-C or SIGTERM in this process) or ha
 This process then waits for them, so nothing is left behind.
 
 A killed parent (``kill -9``) cannot write ``STOP``: each job's process watches it instead
-(``_exit_with``) and ends at once when it has gone, first removing the run's temporaries
+(``exit_with``) and ends at once when it has gone, first removing the run's temporaries
 (``auvsim.data.files.sweep``); the forkserver ends with its last client, a ``local:N``
 cluster's workers with their nannies (``auvsim.runs.cluster``). The default pool's
 forkserver, and so its workers, ignore SIGINT and SIGTERM, which a terminal or a
@@ -99,7 +99,7 @@ def write_mission(config: Config, index: int, path: str, parent: Parent | None =
     part = Path(path)
     _check_run_folder(part.parent)
     if parent is not None:
-        _exit_with(parent, part.parent.parent)
+        exit_with(parent, part.parent.parent)
     report = _reporter(part.with_name(part.name + ".progress"))
     with DatasetWriter(part, config_json="", compression=config.compression) as writer:
         _stream_mission(config, index, writer, report=report,
@@ -119,7 +119,7 @@ def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
     part, run = Path(path), Path(folder)
     _check_run_folder(run)
     if parent is not None:
-        _exit_with(parent, part.parent)
+        exit_with(parent, part.parent)
     sub = shard_config(config, indices)
     report = _reporter(run / f"{part.stem}.progress")
     with DatasetWriter(part, config_json=sub.to_json(), compression=config.compression) as w:
@@ -502,7 +502,7 @@ def _reporter(progress: Path) -> Callable[[float], None]:
 def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolExecutor:
     """The default pool: forkserver workers, which fork from a server that has imported
     auvsim (numba, MuJoCo) once, so they start in milliseconds, without inheriting this
-    process's threads. Each watches this process from its start (``_exit_with``), so an
+    process's threads. Each watches this process from its start (``exit_with``), so an
     idle one also ends with it."""
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(["auvsim.runs.generate"])
@@ -513,7 +513,7 @@ def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolE
     with interrupt_handler(signal.SIG_IGN):
         multiprocessing.forkserver.ensure_running()
     return cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                  initializer=_exit_with, initargs=(parent, folder))
+                                  initializer=exit_with, initargs=(parent, folder))
 
 
 def this_process() -> Parent:
@@ -526,12 +526,13 @@ _watched: dict[Parent, set[Path]] = {}  # parent -> the folders of its temporari
 _watched_lock = threading.Lock()
 
 
-def _exit_with(parent: Parent, folder: Path) -> None:
-    """End this process as soon as ``parent`` has ended, first sweeping ``folder`` of
-    the temporaries that run left (``auvsim.data.files.sweep``): a job is of no use once the
-    process that submitted it has gone, and a pool's workers would wait for it forever,
-    idle ones too (so the watch outlives the job). Not in ``parent`` itself (a thread
-    pool), nor on another host, where its pid means nothing."""
+def exit_with(parent: Parent, folder: Path | None = None) -> None:
+    """End this process as soon as ``parent`` has ended, first sweeping ``folder`` (if
+    given) of the temporaries that run left (``auvsim.data.files.sweep``): a job is of no
+    use once the process that submitted it has gone, and a pool's workers would wait for
+    it forever, idle ones too (so the watch outlives the job). Not in ``parent`` itself (a
+    thread pool), nor on another host, where its pid means nothing. A pool's initializer
+    (beamsnet's training pools use it too)."""
     host, pid, _ = parent
     if host != HOST or pid == os.getpid():
         return
@@ -540,7 +541,8 @@ def _exit_with(parent: Parent, folder: Path) -> None:
             _watched[parent] = set()
             threading.Thread(target=_watch, args=(parent, _watched[parent]), daemon=True,
                              name="auvsim-parent-watch").start()
-        _watched[parent].add(Path(folder))
+        if folder is not None:
+            _watched[parent].add(Path(folder))
 
 
 def _watch(parent: Parent, folders: set[Path]) -> None:

@@ -24,6 +24,7 @@ from tqdm import tqdm
 from auvsim.data.files import check_out_dir, staged_dir, write_text
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
+from auvsim.runs.generate import exit_with, this_process
 from beamsnet.training.checkpoints import load
 from beamsnet.training.config import TrainConfig, check_restarts
 from beamsnet.training.train import DivergedError, train
@@ -77,8 +78,9 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
     if workers == 1 and cluster is None:
         return [job(d, c, o, progress=progress, threads=threads) for d, c, o in jobs]
     if cluster is None:
+        # Each worker ends with this process, even one killed with -9 (``exit_with``).
         runner = cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(
-            "forkserver"))
+            "forkserver"), initializer=exit_with, initargs=(this_process(),))
     else:
         runner = executor(cluster, threads=1)
         if local_workers(cluster) is None:  # a scheduler's workers have their own cwd
