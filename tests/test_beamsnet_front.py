@@ -25,9 +25,9 @@ from auvsim.data.files import staged_dir
 from auvsim.errors import ConfigError
 from beamsnet.cli import REPORTS, main, report_dir
 from beamsnet.evaluate import estimate, evaluate
+from beamsnet.experiments.wording import count
 from beamsnet.training.config import TrainConfig
 from beamsnet.training.train import train
-from beamsnet.words import count
 
 
 def _config(angle: float = 20.0):

@@ -55,11 +55,10 @@ from beamsnet.data import Windows, load_windows, select
 from beamsnet.estimators import short_name, spec
 from beamsnet.evaluate import baselines, filters, trimmed
 from beamsnet.experiments.runner import ensure_dataset
-from beamsnet.experiments.wording import as_published, why_worse
+from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import dead_reckoning_error, held, own_position_error, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.train import predict
-from beamsnet.words import count
 
 # The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
 # straight line, a steady turn, a hard zigzag and random waypoints span the stress test's

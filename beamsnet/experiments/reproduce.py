@@ -34,10 +34,10 @@ from beamsnet.data import check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
 from beamsnet.experiments.runner import ensure_dataset, settings, train_runs, train_seeds
+from beamsnet.experiments.wording import count
 from beamsnet.plotstyle import legend_outside
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
-from beamsnet.words import count
 
 # The paper's Table 1: RMSE improvement over LS, %, per speed
 # (../shared/reference/beamsnet-reference.md).

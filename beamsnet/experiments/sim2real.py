@@ -36,10 +36,10 @@ from beamsnet.data import load_windows, split
 from beamsnet.estimators.baselines import availability
 from beamsnet.evaluate import baselines, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
+from beamsnet.experiments.wording import count
 from beamsnet.plotstyle import figure_legend
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
-from beamsnet.words import count
 
 # Seeds per network. Each costs minutes of a core (10,000 pings x 50 epochs at batch 4),
 # so: on the sea data (``reproduce snapir``, whose runs the V.npy column reuses) 5 for

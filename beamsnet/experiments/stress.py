@@ -41,7 +41,7 @@ from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import predictions
 from beamsnet.experiments.faults import FAULT_DURATION, check_options, fault_stress
 from beamsnet.experiments.runner import ensure_dataset, settings, train_runs
-from beamsnet.experiments.wording import as_published, why_worse
+from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import (
     dead_reckoning_error,
     dead_reckoning_track,
@@ -52,7 +52,6 @@ from beamsnet.navigation import (
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_GEOMETRY, sensor_setup
 from beamsnet.training.config import TrainConfig
-from beamsnet.words import count
 
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "

@@ -1,6 +1,6 @@
 """What the experiments' reports say about their rows: which estimators are worse than
 least squares and why (each estimator's ``why`` in the registry), and how a network was
-trained, in words.
+trained, in words, with the counts in their prose (``count``).
 
 Rows are named as the tables name them (``LS``, ``BeamsNetV2 (v2)``); the registry
 (``beamsnet.estimators``) tells a trained network's row from another estimator's by the
@@ -54,3 +54,9 @@ def as_published(train_config: dict) -> str:
     if train_config.get("model") == "v2" and train_config.get("protocol") == "paper":
         return " as published"
     return ""
+
+
+def count(n: int | float, noun: str, plural: str | None = None) -> str:
+    """``n`` and ``noun``, plural (``plural``, default ``noun + "s"``) unless ``n`` is 1:
+    ``count(1, "epoch")`` is "1 epoch", ``count(30, "epoch")`` "30 epochs"."""
+    return f"{n:g} {noun if n == 1 else plural or noun + 's'}"
