@@ -85,10 +85,17 @@ CORE_ATTRS = (
     Attr("water_direction_deg", (), "REALISED direction the surface current flows toward, "
          "deg from north", since=4),
     Attr("gravity", (), "m/s^2, magnitude of the vehicle model's gravity (its compiled MJCF's "
-         "opt.gravity, pointing down)", low=0, strict=True, since=6),
+         "opt.gravity, pointing down); with a geographic origin (v7), the WGS-84 normal "
+         "gravity at it on the surface", low=0, strict=True, since=6),
     Attr("phases", None, "the manoeuvre's phases, a JSON list of [start s, end s, label] "
          "(auvsim.physics.maneuvers.Maneuver.phases; [] for a mission flown by a policy, "
          "such as an environment's episode)", since=6),
+    # A simulated mission flown at a geographic origin (auvsim.config.LocationConfig).
+    Attr("latitude_deg", (), "geodetic latitude of the mission origin, deg (only with a "
+         "geographic origin: its IMU measures the Earth's rate and normal gravity there)",
+         since=7, optional=True),
+    Attr("longitude_deg", (), "longitude of the mission origin, deg (with latitude_deg)",
+         since=7, optional=True),
 )
 IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
                 Attr("source_sha256", None, "its SHA-256"))
@@ -174,7 +181,7 @@ def mission_attrs(*, origin: str, **attrs) -> dict[str, object]:
     if origin not in ORIGINS:
         raise ValueError(f"origin: expected one of {', '.join(ORIGINS)}, got {origin!r}")
     out = dict(origin=origin, **attrs)
-    missing = [a.name for a in schema(origin)[1] if a.name not in out]
+    missing = [a.name for a in schema(origin)[1] if a.name not in out and not a.optional]
     if missing:
         raise ValueError(f"mission attributes: {origin} missions need {', '.join(missing)}")
     return out
