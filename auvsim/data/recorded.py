@@ -86,9 +86,10 @@ FIELDS = {
 IMU_NOISE = ("accel_noise_density", "gyro_noise_density", "accel_bias_instability",
              "gyro_bias_instability", "bias_correlation_time")
 # Bounds that no recording of an underwater vehicle reaches, so a value beyond one means a
-# unit other than the declared one. A full turn per second: ten times the fastest rate in
-# the Snapir logs (a 33 deg/s roll oscillation), and under 2 pi deg/s... so rad/s logged as
-# deg/s is not caught when slow (a quiet log in deg/s stays under it): the check says so.
+# unit other than the declared one. A full turn per second is ten times the fastest rate in
+# the Snapir logs (a 33 deg/s roll oscillation). Gyros in deg/s declared rad/s are caught
+# once the vehicle turns faster than 360 deg/s / 57.3 = 6.3 deg/s, which every log with a
+# turn does; a log of a straight line alone may pass.
 MAX_RATE = 2 * math.pi  # rad/s
 MAX_SPEED = 15.0  # m/s: five times an AUV's top speed (the A18-D's 3 m/s, vehicles.md)
 TRACK_RATIO = 2.0  # positions and integrated velocities may disagree by at most this factor
