@@ -15,7 +15,8 @@ files hold (``parse_description``; ``docs/guides/recorded-logs.md`` shows one wh
   ``axis_map`` (the log's axis on each body axis, ``["x", "-y", "-z"]``), and for the
   reference ``frame`` NED or ENU and ``body`` FRD or FLU (its attitude's body frame);
 * where the sensors sit: ``position_body`` (m, FRD, from the reference point) for the IMU
-  and the DVL, the DVL's ``mounting_rpy_deg`` and ``beam_angle_deg``;
+  and the DVL, the DVL's ``mounting_rpy_deg`` and ``beam_angle_deg``; the DVL's
+  ``invalid``, its no-data value as logged (NaN in the dataset: no bottom lock);
 * the instruments' specifications, which estimators read from the file: ``[imu.noise]``
   (``accel_noise_density``, ``gyro_noise_density``, ``accel_bias_instability``,
   ``gyro_bias_instability``, ``bias_correlation_time``, SI units) and the DVL's
@@ -432,6 +433,11 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     column = {i: array[:, k] for k, i in enumerate(use)}
     out = {key: np.stack([column[header.index(c)] for c in cols], axis=1)
            for key, cols in stream.columns.items()}
+    marker = stream.settings.get("invalid")
+    if marker is not None:  # the instrument's no-data value, as logged: NaN from here on
+        marker = _number("log description", f"{stream.group}.invalid", marker)
+        for v in out.values():
+            v[v == marker] = np.nan
     out = {key: (v[:, 0] if v.shape[1] == 1 else v) * stream.units[key]
            for key, v in out.items()}
     t = column[header.index(stream.time)] * stream.scale
@@ -583,16 +589,7 @@ def _vector(s: Stream, key: str) -> np.ndarray:
 
 
 def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
-    invalid = s.settings.get("invalid")
-    out = {}
-    for key, values in table.items():
-        if key == "time":
-            continue
-        values = values.astype(float)
-        if invalid is not None:  # the instrument's no-data marker, in the log's unit
-            values[np.isclose(values, _number("log description", "dvl.invalid", invalid)
-                              * s.units[key])] = np.nan
-        out[key] = values
+    out = {key: values for key, values in table.items() if key != "time"}
     velocity = out.pop("velocity") @ s.axes.T
     fields = {"dvl/velocity_ls": velocity,
               "dvl/mode": np.where(np.isfinite(velocity).all(axis=1), 0, -1)}
