@@ -439,3 +439,29 @@ def test_the_six_shared_segments(tmp_path):
             flown = np.sum((v[1:] + v[:-1]) / 2 * np.diff(t)[:, None], axis=0)
             assert np.linalg.norm(flown[:2] - pos[-1, :2]) < 0.02 * np.abs(
                 np.diff(pos[:, :2], axis=0)).sum()
+
+
+def test_every_group_is_optional(tmp_path, capsys):
+    """A log of a DVL alone, its origin given by the description: imported, inspected
+    and drawn."""
+    folder = tmp_path / "dvl_only"
+    _csv_log(folder)
+    dvl = DESCRIPTION[DESCRIPTION.index("[dvl]"):DESCRIPTION.index("[depth]")]
+    text = ('[log]\nname = "dvl_only"\norigin = [32.85, 34.89, -20.0]\n\n' + dvl)
+    (folder / "only.toml").write_text(text)
+    out = tmp_path / "only.h5"
+    assert run(["import", str(folder), "--format", "csv", "--description",
+                str(folder / "only.toml"), "--out", str(out)]) == (0, "")
+    with open_dataset(out) as f:
+        m = f.missions["dvl_only"]
+        assert m.groups == ["dvl"] and json.loads(m.attrs["groups"]) == ["dvl"]
+        assert m.attrs["gravity"] == normal_gravity(32.85, -20.0)
+        np.testing.assert_allclose(m.dvl.time, np.arange(4) * 0.5)  # its own first stamp: 0
+        with pytest.raises(DatasetError, match="has no reference group"):
+            m.reference  # noqa: B018
+        with pytest.raises(DatasetError, match="neither a reference nor a truth"):
+            require_attitude(m)
+    assert main(["inspect", str(out)]) == 0
+    assert "dvl: 4 samples at 2 Hz" in capsys.readouterr().out
+    assert main(["plot", str(out), "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "only_dvl_only.png").is_file()
