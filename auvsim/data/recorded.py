@@ -248,11 +248,11 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
 
 
 _STREAM_KEYS = {"file", "time", "time_unit", "time_offset_s", "columns", "units", "ignore",
-                "delimiter", "frame", "axis_map", "body"}
-_GROUP_KEYS = {"imu": {"position_body", "noise"},
-               "dvl": {"position_body", "mounting_rpy_deg", "beam_angle_deg", "noise_std",
-                       "velocity_accuracy", "invalid"},
-               "depth": set(), "reference": set()}
+                "delimiter", "frame"}
+_GROUP_KEYS = {"imu": {"axis_map", "position_body", "noise"},
+               "dvl": {"axis_map", "position_body", "mounting_rpy_deg", "beam_angle_deg",
+                       "noise_std", "velocity_accuracy", "invalid"},
+               "depth": set(), "reference": {"body"}}
 
 
 def _stream(where: str, group: str, table: object) -> Stream:
