@@ -531,7 +531,7 @@ def fit_circle(x, y):
 def test_turning_circle_at_full_rudder():
     vehicle = Vehicle("auv")
     vehicle.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(2.0, 0.0, 0.0))
-    rudder = vehicle.hydro.fin_max
+    rudder = vehicle.hydro.rudder_max
     traj = vehicle.run(constant((2.0, rudder, 20.0), 30_000), closed_loop=(True, False, True))
     r = traj.angular_rate[:, 2]
     last = r[-10_000:]
@@ -848,7 +848,7 @@ def full_rudder_turn(name, side, *, depth_held=False, torque=True):
     if not torque:
         vehicle.hydro = vehicle.hydro._replace(prop_rotation=0.0)
     vehicle.reset(position_ned=(0.0, 0.0, 200.0), velocity_body=(vehicle.max_speed, 0.0, 0.0))
-    command = (vehicle.hydro.rpm_max, side * vehicle.hydro.fin_max, 200.0 if depth_held else 0.0)
+    command = (vehicle.hydro.rpm_max, side * vehicle.hydro.rudder_max, 200.0 if depth_held else 0.0)
     return vehicle.run(constant(command, 12_000), closed_loop=(False, False, depth_held))
 
 
@@ -957,11 +957,11 @@ def test_a18d_full_rudder_turn_at_2_m_s_is_bounded_by_the_rudder_angle():
     vehicle = Vehicle("auv")
     vehicle.reset(position_ned=(0.0, 0.0, 50.0), velocity_body=(2.0, 0.0, 0.0))
     rpm = vehicle.actuators[0]
-    traj = vehicle.run(constant((rpm, vehicle.hydro.fin_max, 50.0), 6000),
+    traj = vehicle.run(constant((rpm, vehicle.hydro.rudder_max, 50.0), 6000),
                        closed_loop=(False, False, True))
     r = traj.angular_rate[-1000:, 2].mean()
     speed = np.linalg.norm(traj.velocity_body[-1000:], axis=1).mean()
-    bound = math.tan(vehicle.hydro.fin_max) * vehicle.length / abs(vehicle.hydro.fin_x)
+    bound = math.tan(vehicle.hydro.rudder_max) * vehicle.length / abs(vehicle.hydro.fin_x)
     print(f"\nA18-D full rudder at 2 m/s ({rpm:.0f} rpm, depth held): yaw rate "
           f"{math.degrees(r):.2f} deg/s, speed {speed:.3f} m/s (loss "
           f"{100 * (1 - speed / 2):.1f} %), r L / U = {r * vehicle.length / speed:.3f} "
