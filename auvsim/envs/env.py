@@ -17,7 +17,7 @@ ranges); a non-finite or wrongly shaped action is refused (``ValueError``):
 
     index  actuator                     -1 .. 1 maps to
     0      propeller shaft speed        -rpm_max .. rpm_max (900 rpm on the A18-D)
-    1      rudder angle (+ = starboard)  -rudder_max .. rudder_max (15 deg)
+    1      rudder angle (+ = starboard)  -rudder_max .. rudder_max (38 deg on the A18-D)
     2      stern-plane angle             -planes_max .. planes_max (15 deg; + = trailing edge down,
                                                            pitches the nose up)
 
