@@ -39,7 +39,7 @@ import h5py
 import numpy as np
 import perf_page
 
-from auvsim.physics.frames import euler_angles, rotation_matrices, rotation_rpy
+from auvsim.physics.frames import euler_angles, rotation_rpy
 from auvsim.physics.vehicle import Vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,6 +50,7 @@ AFTER = 15.0  # s past the peak in which the lowest speed is sought
 STEP_S = 60.0  # s of the model's full-rudder step
 STEADY_S = 10.0  # s at its end that make the steady yaw rate
 HARD = 12.0  # deg/s: a hard turn's peak, the lower end of the issue's 12-18 deg/s
+STRAIGHT, STRAIGHT_S = 1.5, 5.0  # deg/s, s: straight flight, |r| below this so long
 
 
 def read_segment(folder: Path) -> dict[str, np.ndarray]:
@@ -104,34 +105,129 @@ def real_turns(seg: dict[str, np.ndarray], fin_lever: float, min_peak: float) ->
             "fin_flow": math.degrees(math.atan(math.radians(abs(r[peak])) * fin_lever
                                                / u_peak)),
             "fin_flow_slip": math.degrees(fin_flow_slip), "slip": slip,
+            # Roll toward the turn's inside (starboard in a starboard turn) at the peak, and
+            # its largest either way from the start to AFTER s past the peak.
+            "roll_peak": sign * math.degrees(0.5 * (gt[peak, 7] + gt[peak + 1, 7])),
+            "roll_in": float(np.degrees(sign * gt[window, 7]).max()),
+            "roll_out": float(np.degrees(-sign * gt[window, 7]).max()),
             "heading_change": float(np.sum(r[start:end + 1] * np.diff(t)[start:end + 1])),
         })
         i = end + 1
     return turns
 
 
+def straight(seg: dict[str, np.ndarray]) -> np.ndarray:
+    """(N,) bool: the reference's samples with |yaw rate| < ``STRAIGHT`` deg/s for
+    ``STRAIGHT_S`` s either side."""
+    gt = seg["gt"]
+    r = np.abs(np.degrees(np.gradient(np.unwrap(gt[:, 9]), gt[:, 0])))
+    half = round(STRAIGHT_S / np.median(np.diff(gt[:, 0])))
+    return np.array([r[max(0, i - half):i + half + 1].max() < STRAIGHT for i in range(len(r))])
+
+
 def real_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
-    """Per-segment std of the body sway (DVL Y; the reference's C^T v) and mean roll."""
+    """Per-segment std of the body sway (DVL Y; the reference's C^T v over the ground, and
+    through the water) and mean roll, and the current.
+
+    The current is fitted on the straight stretches, where a hull flies without sideslip and
+    its sway over the ground is the current's cross component: sway = -sin(psi) c_N +
+    cos(psi) c_E + U sin(e), with e a yaw misalignment of the reference (least squares over
+    the segment's headings; the turns between the legs make it well posed)."""
     gt, dvl = seg["gt"], seg["dvl"]
     body = np.array([rotation_rpy(*row[7:10]).T @ row[4:7] for row in gt])
+    psi, speed = gt[:, 9], np.hypot(gt[:, 4], gt[:, 5])
+    a = np.column_stack([-np.sin(psi), np.cos(psi), speed])
+    ok = straight(seg)
+    (c_n, c_e, _), *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    through_water = body[:, 1] - a[:, :2] @ [c_n, c_e]
     return {"sway_dvl": dvl[:, 2].std(), "sway_ref": body[:, 1].std(),
+            "sway_water": through_water.std(), "current": math.hypot(c_n, c_e),
+            "sway_straight": (body[ok, 1] - a[ok] @ np.linalg.lstsq(a[ok], body[ok, 1],
+                                                                    rcond=None)[0]).std(),
             "roll": math.degrees(gt[:, 7].mean())}
 
 
-def sim_sway_roll(path: Path) -> dict[str, dict[str, float]]:
-    """The same per mission of a simulated dataset (a single HDF5 file)."""
+def roll_period(seg: dict[str, np.ndarray]) -> float:
+    """Period (s) of the largest peak of the roll-rate spectrum between 0.05 and 3 Hz
+    (the gyro's x, Hann window, smoothed over 41 bins)."""
+    imu = seg["imu"]
+    p = imu[:, 4] - imu[:, 4].mean()
+    f = np.fft.rfftfreq(len(p), np.median(np.diff(imu[:, 0])))
+    power = np.convolve(np.abs(np.fft.rfft(p * np.hanning(len(p)))) ** 2,
+                        np.ones(41) / 41, mode="same")
+    band = (f > 0.05) & (f < 3.0)
+    return 1.0 / f[band][np.argmax(power[band])]
+
+
+def model_roll_period(name: str = "auv") -> float:
+    """The model's damped roll period (s): omega_n^2 = W BG / (I_x + A_44) with the inertia
+    about the CO, and the damping ratio of its linear roll damping."""
+    h = Vehicle(name).hydro
+    m44 = np.linalg.inv(h.mass_matrix_inv)[3, 3]
+    omega = math.sqrt(h.weight * h.r_g[2] / m44)
+    zeta = h.linear_damping[3] / (2.0 * omega * m44)
+    return 2.0 * math.pi / (omega * math.sqrt(1.0 - zeta * zeta))
+
+
+def heading_change(seg: dict[str, np.ndarray]) -> float:
+    """Total heading change of a segment in its turns, deg (both ways counted; the steps
+    whose yaw rate exceeds ``START`` deg/s, so that the wobble of straight flight does not
+    count)."""
+    gt = seg["gt"]
+    step = np.diff(np.unwrap(gt[:, 9]))
+    turning = np.abs(np.degrees(step / np.diff(gt[:, 0]))) > START
+    return math.degrees(np.abs(step[turning]).sum())
+
+
+def sim_missions(path: Path) -> dict[str, dict[str, np.ndarray]]:
+    """Each mission of a simulated dataset (one HDF5 file) laid out as a real segment: its
+    truth sampled at 1 Hz as the reference (time, three unused columns, NED velocity,
+    roll, pitch, yaw), its truth's angular rate as the gyro, its DVL velocity (valid
+    pings) as the DVL, and its truth's body velocity."""
     out = {}
     with h5py.File(path, "r") as f:
         for name, m in f["missions"].items():
-            vel = m["truth/velocity_body"][:]
-            roll = euler_angles(m["truth/quaternion"][:])[:, 0]
-            figures = {"sway_ref": vel[:, 1].std(), "roll": math.degrees(roll.mean())}
-            if "dvl/velocity" in m:
-                v = m["dvl/velocity"][:]
-                ok = np.all(np.isfinite(v), axis=1)
-                figures["sway_dvl"] = v[ok, 1].std() if ok.any() else math.nan
-            out[name] = figures
+            t = m["truth/time"][:]
+            every = max(1, round(1.0 / (t[1] - t[0])))
+            euler = euler_angles(m["truth/quaternion"][:])
+            gt = np.column_stack([t, np.zeros((len(t), 3)), m["truth/velocity_ned"][:],
+                                  euler])[::every]
+            imu = np.column_stack([t, np.zeros((len(t), 3)), m["truth/angular_rate"][:]])
+            v = m["dvl/velocity"][:] if "dvl/velocity" in m else np.full((1, 3), np.nan)
+            dvl = np.column_stack([np.zeros(len(v)), v])
+            out[name] = {"gt": gt, "imu": imu, "dvl": dvl[np.all(np.isfinite(v), axis=1)],
+                         "velocity_body": m["truth/velocity_body"][:], "roll": euler[:, 0],
+                         "velocity_water_body": m["truth/velocity_water_body"][:],
+                         "current": m["truth/current_ned"][:]}
     return out
+
+
+def sim_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
+    """``real_sway_roll`` of a simulated mission (``sim_missions``), from its truth at the
+    simulation's rate."""
+    dvl = seg["dvl"]
+    ok = np.repeat(straight(seg), round(len(seg["roll"]) / len(seg["gt"])))[:len(seg["roll"])]
+    return {"sway_ref": seg["velocity_body"][:, 1].std(),
+            "sway_dvl": dvl[:, 2].std() if len(dvl) else math.nan,
+            "sway_water": seg["velocity_water_body"][:, 1].std(),
+            "sway_straight": seg["velocity_water_body"][ok, 1].std() if ok.any() else math.nan,
+            "current": float(np.linalg.norm(seg["current"][:, :2], axis=1).mean()),
+            "roll": math.degrees(seg["roll"].mean())}
+
+
+def turn_summary(turns: list[dict]) -> str:
+    """One line on the hard turns among ``turns``."""
+    hard = [t for t in turns if abs(t["peak"]) >= HARD]
+    if not hard:
+        return f"no turn with a |r| peak >= {HARD:g} deg/s"
+    med = lambda key: float(np.median([t[key] for t in hard]))  # noqa: E731
+    return (f"{len(hard):3d} hard turns: |r| peak median "
+            f"{np.median(np.abs([t['peak'] for t in hard])):4.1f} deg/s, speed loss median "
+            f"{100 * med('loss'):3.0f} %, sway at the peak median "
+            f"{np.median([abs(t['slip']) for t in hard]):.2f} m/s, fin flow angle median "
+            f"{med('fin_flow_slip'):4.1f} deg; roll toward the inside at the peak median "
+            f"{med('roll_peak'):+.1f} deg, largest inward {med('roll_in'):+.1f}, outward "
+            f"{med('roll_out'):+.1f} deg (medians)")
 
 
 def model_step(name: str = "auv", speed: float = 2.0, rudder_max: float | None = None
@@ -196,80 +292,114 @@ def main() -> None:
     args = parser.parse_args()
     segments = sorted(args.data.glob("Trajectory*"), key=lambda p: int(p.name[10:]))
     if not segments:
-        raise SystemExit(f"--data: no Trajectory*/ folders in {args.data}")
+        parser.error(f"--data: expected a folder of Trajectory*/ segments, got {args.data}")
     sims = []
     for item in args.sim:
         label, sep, file = item.partition("=")
         if not sep or not Path(file).is_file():
-            raise SystemExit(f"--sim: expected LABEL=FILE.h5 of an existing file, got {item!r}")
+            parser.error(f"--sim: expected LABEL=FILE.h5 of an existing file, got {item!r}")
         sims.append((label, Path(file)))
 
     fin_lever = abs(Vehicle("auv").hydro.fin_x)
     data = {p.name: read_segment(p) for p in segments}
-    print(f"Real turns (|r| peak >= {args.min_peak:g} deg/s), {args.data}; fin lever "
-          f"{fin_lever:g} m")
+    turns = print_real_turns(data, fin_lever, args.min_peak, args.data)
+    hard = [t for t in turns if abs(t["peak"]) >= HARD]
+    flows = np.array([t["fin_flow_slip"] for t in hard])
+    alone = float(np.median([t["fin_flow"] for t in hard]))
+    print(f"{len(hard)} hard turns (|r| peak >= {HARD:g} deg/s): fin flow angle with the "
+          f"sway at the peak median {np.median(flows):.1f} deg (quartiles "
+          f"{np.percentile(flows, 25):.1f} to {np.percentile(flows, 75):.1f}), from "
+          f"r |x_fin| / U alone median {alone:.1f} deg")
+    if args.infer:
+        limits = [implied_limit(float(np.percentile(flows, q))) for q in (50, 25, 75)]
+        print(f"rudder limit at which the model's full-rudder step has that flow angle at "
+              f"its peak: {limits[0]:.1f} deg (quartiles {limits[1]:.1f} to {limits[2]:.1f}); "
+              f"from r |x_fin| / U alone (no sway, so no reference point): "
+              f"{implied_limit(alone, 'fin_flow'):.1f} deg")
+
+    step = model_step()
+    print(f"\nModel A18-D, full rudder ({step['limit']:.1f} deg) from 2 m/s, depth held, "
+          f"{STEP_S:g} s: peak {step['peak']:.2f} deg/s, steady {step['steady']:.2f} deg/s, "
+          f"speed loss {100 * step['loss_min']:.1f} % at the least, "
+          f"{100 * step['loss_steady']:.1f} % steady; at the peak: sway {step['slip']:+.2f} "
+          f"m/s, fin flow angle {step['fin_flow']:.1f} deg, {step['fin_flow_slip']:.1f} deg "
+          "with the sway")
+
+    missions = {label: sim_missions(path) for label, path in sims}
+    print("\nHard turns, real and simulated (the same detector on the truth at 1 Hz):")
+    print(f"{'real':24s} {turn_summary(turns)}")
+    for label, per in missions.items():
+        sim_turns = [t for seg in per.values()
+                     for t in real_turns(seg, fin_lever, args.min_peak)]
+        print(f"{label:24s} {turn_summary(sim_turns)}")
+    print_sway_roll(data, missions)
+
+    periods = [roll_period(s) for s in data.values()]
+    print(f"\nRoll period: real (roll-rate spectrum peak) median {np.median(periods):.2f} s "
+          f"({min(periods):.2f} to {max(periods):.2f}); the model's damped period "
+          f"{model_roll_period():.2f} s")
+
+
+def print_real_turns(data: dict, fin_lever: float, min_peak: float, folder: Path
+                     ) -> list[dict]:
+    """Print the real segments' turns, one line each, and return them."""
+    print(f"Real turns (|r| peak >= {min_peak:g} deg/s), {folder}; fin lever {fin_lever:g} m")
     print(f"{'segment':13s} {'t s':>5s} {'r GT':>6s} {'gyro z':>6s} {'turned':>7s} "
           f"{'U0':>5s} {'Umin':>5s} {'loss':>6s} {'U pk':>5s} {'slip':>6s} {'fin flow':>8s} "
           f"{'+ slip':>7s}")
     turns = []
     for name, seg in data.items():
-        for turn in real_turns(seg, fin_lever, args.min_peak):
-            turns.append(turn)
-            print(f"{name:13s} {turn['time']:5.0f} {turn['peak']:+6.1f} {turn['gyro']:+6.1f} "
-                  f"{turn['heading_change']:+7.0f} {turn['u_before']:5.2f} {turn['u_min']:5.2f} "
-                  f"{100 * turn['loss']:5.1f}% {turn['u_peak']:5.2f} {turn['slip']:+6.2f} "
-                  f"{turn['fin_flow']:7.1f}d {turn['fin_flow_slip']:6.1f}d")
+        for t in real_turns(seg, fin_lever, min_peak):
+            turns.append(t)
+            print(f"{name:13s} {t['time']:5.0f} {t['peak']:+6.1f} {t['gyro']:+6.1f} "
+                  f"{t['heading_change']:+7.0f} {t['u_before']:5.2f} {t['u_min']:5.2f} "
+                  f"{100 * t['loss']:5.1f}% {t['u_peak']:5.2f} {t['slip']:+6.2f} "
+                  f"{t['fin_flow']:7.1f}d {t['fin_flow_slip']:6.1f}d")
     peaks = np.abs([t["peak"] for t in turns])
-    per_segment = [max(abs(t["peak"]) for t in real_turns(s, fin_lever, args.min_peak))
-                   for s in data.values()]
+    largest = [max(abs(t["peak"]) for t in real_turns(s, fin_lever, min_peak))
+               for s in data.values()]
+    losses = 100 * np.array([t["loss"] for t in turns])
     print(f"{len(turns)} turns: |r| peak median {np.median(peaks):.1f}, range {peaks.min():.1f} "
-          f"to {peaks.max():.1f} deg/s; each segment's largest {min(per_segment):.1f} to "
-          f"{max(per_segment):.1f} deg/s; speed loss median "
-          f"{100 * np.median([t['loss'] for t in turns]):.0f} % "
-          f"({100 * min(t['loss'] for t in turns):.0f} to "
-          f"{100 * max(t['loss'] for t in turns):.0f} %); fin flow angle at the peak up to "
-          f"{max(t['fin_flow'] for t in turns):.1f} deg (median "
-          f"{np.median([t['fin_flow'] for t in turns]):.1f})")
+          f"to {peaks.max():.1f} deg/s; each segment's largest {min(largest):.1f} to "
+          f"{max(largest):.1f} deg/s; speed loss median {np.median(losses):.0f} % "
+          f"({losses.min():.0f} to {losses.max():.0f} %)")
+    return turns
 
-    hard = [t for t in turns if abs(t["peak"]) >= HARD]
-    flows = np.array([t["fin_flow_slip"] for t in hard])
-    print(f"{len(hard)} hard turns (|r| peak >= {HARD:g} deg/s): peak median "
-          f"{np.median(np.abs([t['peak'] for t in hard])):.1f} deg/s, speed loss median "
-          f"{100 * np.median([t['loss'] for t in hard]):.0f} % ({100 * min(t['loss'] for t in hard):.0f}"
-          f" to {100 * max(t['loss'] for t in hard):.0f} %); fin flow angle with the sway at the "
-          f"peak median {np.median(flows):.1f} deg (quartiles {np.percentile(flows, 25):.1f} to "
-          f"{np.percentile(flows, 75):.1f}); r |x_fin| / U alone {np.median([t['fin_flow'] for t in hard]):.1f} deg")
-    if args.infer:
-        print(f"rudder limit at which the model's full-rudder step has that flow angle at its "
-              f"peak: {implied_limit(float(np.median(flows))):.1f} deg (quartiles: "
-              f"{implied_limit(float(np.percentile(flows, 25))):.1f} to "
-              f"{implied_limit(float(np.percentile(flows, 75))):.1f} deg); from r |x_fin| / U "
-              f"alone (no sway, so no reference point): "
-              f"{implied_limit(float(np.median([t['fin_flow'] for t in hard])), 'fin_flow'):.1f} deg")
 
-    step = model_step()
-    print(f"\nModel A18-D, full rudder ({step['limit']:.1f} deg) from 2 m/s, depth held, "
-          f"{STEP_S:g} s: peak {step['peak']:.2f} deg/s, steady {step['steady']:.2f} deg/s, "
-          f"speed loss {100 * step['loss_min']:.1f} % at the least, {100 * step['loss_steady']:.1f} "
-          f"% steady; at the peak: sway {step['slip']:+.2f} m/s, fin flow angle "
-          f"{step['fin_flow']:.1f} deg, {step['fin_flow_slip']:.1f} deg with the sway")
-
-    rows = {"real": {n: real_sway_roll(s) for n, s in data.items()}}
-    rows |= {label: sim_sway_roll(path) for label, path in sims}
-    print("\nPer-mission sway std (m/s) and mean roll (deg): median (range)")
-    print(f"{'source':24s} {'n':>3s} {'sway, DVL Y':>26s} {'sway, body velocity':>26s} "
-          f"{'mean roll':>26s} {'|mean roll| max':>15s}")
+def print_sway_roll(data: dict, missions: dict) -> None:
+    """The per-mission sway and roll table: real segments, each simulated dataset, and its
+    missions that turn at least as much as every real segment (like with like: a mission's
+    sway std grows with its heading changes, as the current's cross component turns with
+    the heading and every turn slips)."""
+    least = min(heading_change(s) for s in data.values())
+    rows = {"real": {n: real_sway_roll(s) | {"turned": heading_change(s)}
+                     for n, s in data.items()}}
+    for label, per in missions.items():
+        rows[label] = {n: sim_sway_roll(s) | {"turned": heading_change(s)}
+                       for n, s in per.items()}
+        rows[f"{label}, turning"] = {n: m for n, m in rows[label].items()
+                                     if m["turned"] >= least}
+    columns = (("sway_dvl", "sway, DVL Y"), ("sway_ref", "sway over the ground"),
+               ("sway_water", "sway through the water"), ("sway_straight", "straight, water"),
+               ("current", "current m/s"), ("roll", "mean roll deg"))
+    print(f"\nPer-mission sway std (m/s), current and mean roll (deg): median (range); "
+          f"'turning': the missions that turn at least as much as every real segment "
+          f"({least:.0f} deg)")
+    print(f"{'source':24s} {'n':>3s} " + " ".join(f"{title:>26s}" for _, title in columns)
+          + f" {'|mean roll| max':>15s}")
     for label, per in rows.items():
-        fig = lambda key: [m.get(key, math.nan) for m in per.values()]  # noqa: E731
-        print(f"{label:24s} {len(per):3d} {summary(fig('sway_dvl')):>26s} "
-              f"{summary(fig('sway_ref')):>26s} {summary(fig('roll')):>26s} "
-              f"{max(abs(x) for x in fig('roll')):15.2f}")
-    for label, per in list(rows.items())[1:]:
-        print(f"\n{label} per mission: sway std (body velocity, DVL Y) m/s, mean roll deg")
-        for name, m in per.items():
-            print(f"  {name:24s} {m['sway_ref']:.3f} {m.get('sway_dvl', math.nan):.3f} "
-                  f"{m['roll']:+.2f}")
-
+        if not per:
+            continue
+        figures = {key: [m[key] for m in per.values()] for key, _ in columns}
+        print(f"{label:24s} {len(per):3d} "
+              + " ".join(f"{summary(figures[key]):>26s}" for key, _ in columns)
+              + f" {max(abs(x) for x in figures['roll']):15.2f}")
+    for label in ("real", *missions):
+        print(f"\n{label} per mission: " + ", ".join(title for _, title in columns)
+              + ", heading change in turns (deg)")
+        for name, m in rows[label].items():
+            print(f"  {name:24s} " + " ".join(f"{m[key]:+7.3f}" for key, _ in columns)
+                  + f" {m['turned']:7.0f}")
 
 if __name__ == "__main__":
     sys.exit(perf_page.run(main))
