@@ -1068,3 +1068,35 @@ def test_an_attribute_given_an_array_of_another_type_is_read_as_its_numbers():
     for current in (np.array([1, 0, 0]), np.array([1.0, 9.0, 0.0, 9.0, 0.0, 9.0])[::2]):
         for got, want in zip(flown(current), expected, strict=True):
             assert got.tobytes() == want.tobytes()
+
+
+# The real Snapir segments (six 400 s logs), where the repository has them beside it.
+SNAPIR_AKIT = Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir-akit"
+
+
+@pytest.mark.skipif(not SNAPIR_AKIT.is_dir(), reason="no real Snapir segments beside the repo")
+def test_a18d_rudder_limit_is_the_one_the_real_turns_imply():
+    # The model's 38 deg rudder is inferred from the real hard turns (models/README.md): the
+    # flow angle at the fins at their yaw-rate peak is the rudder at its stop less the
+    # angle of attack the fins still hold, which the force model gives.
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import turning
+
+    lever = abs(Vehicle("auv").hydro.fin_x)
+    segments = sorted(SNAPIR_AKIT.glob("Trajectory*"))
+    assert len(segments) == 6
+    turns = [t for s in segments for t in turning.real_turns(turning.read_segment(s), lever,
+                                                             8.0)]
+    hard = [t for t in turns if abs(t["peak"]) >= turning.HARD]
+    peaks = np.abs([t["peak"] for t in hard])
+    flow = float(np.median([t["fin_flow_slip"] for t in hard]))
+    print(f"\n{len(hard)} hard real turns: peaks {peaks.min():.1f} to {peaks.max():.1f} deg/s, "
+          f"fin flow angle at the peak {flow:.1f} deg")
+    assert len(hard) == 21 and 12.0 <= peaks.min() and peaks.max() <= 18.0  # the range
+    limit = turning.implied_limit(flow)
+    assert limit == pytest.approx(math.degrees(Vehicle("auv").hydro.rudder_max), abs=1.0)
+    # The model's full-rudder step from 2 m/s peaks among the real hard turns.
+    step = turning.model_step()
+    assert peaks.min() < step["peak"] < peaks.max()
