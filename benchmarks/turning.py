@@ -1,31 +1,34 @@
 """How the simulated A18-D turns, sways and rolls, against the real Snapir (issue 24,
 items 7 and 8).
 
-Three parts, each printed as a table:
-
-* **Real turns** in the shared Snapir segments (``TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv``):
+* **Real turns** in the six Snapir segments (``TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv``):
   every turn whose yaw rate peaks above ``--min-peak`` deg/s. The yaw rate is the
   reference's (GT) unwrapped yaw difference over its time step, and the gyro's z axis
-  averaged over the same 1 s steps (the gyro's own axes are the body's FRD to the sign:
-  its z agrees with the reference's yaw rate). The speed loss is the horizontal speed of the
-  reference's NED velocity: its lowest value from the turn's start (the yaw rate passing
-  ``START`` deg/s) to ``AFTER`` s past the peak, against its mean over the ``BEFORE`` s
-  before the start. ``fin flow`` is the flow angle at the fins, atan(r |x_fin| / U) at the
-  peak with the model's fin lever: a fin still pushing in a turn has its angle beyond it
-  (models/README.md, "stall bound"), so it is a lower bound on the rudder angle that flew
-  the turn.
+  averaged over the same 1 s steps (its z agrees with the reference's yaw rate in sign).
+  The speed loss is the horizontal speed of the reference's NED velocity: its lowest value
+  from the turn's start (the yaw rate passing ``START`` deg/s) to ``AFTER`` s past the peak,
+  against its mean over the ``BEFORE`` s before the start. ``fin flow`` is the flow angle
+  at the fins at the peak, atan(r |x_fin| / U) with the model's fin lever, and ``+ slip``
+  the same with the sideslip (the reference's body-axis sway less its mean before the
+  turn): a rudder still pushing has its angle beyond it (models/README.md).
+* **The rudder limit they imply** (``--infer``): the limit at which the model's full-rudder
+  step has the hard turns' median flow angle at its peak (a bisection of model runs).
 * **The model's full-rudder step**: the A18-D at the shaft speed of 2 m/s, depth held,
   rudder stepped to its limit for 60 s: peak and steady yaw rate (mean of the last 10 s),
-  and the speed loss.
-* **Sway and roll per mission**: the std of the body-frame sway velocity (real: the DVL's
-  Y, and the reference's NED velocity in body axes, C^T v; simulated: the truth's
-  ``velocity_body`` at the body origin and the DVL's Y of the valid pings), and the mean
-  roll (real: the reference's; simulated: the truth's), each summarised by its median and
-  range over the missions, for the real segments and for each ``--sim`` dataset (e.g. one
-  ``auvsim generate --preset realistic-maneuvers`` file before a change and one after).
+  the speed loss and the flow angle at the peak.
+* **Hard turns of each ``--sim`` dataset**, with the same detector on its truth at 1 Hz.
+* **Sway, current and roll per mission**: the std of the body-frame sway (real: the DVL's
+  Y; the reference's NED velocity in body axes, C^T v, over the ground; and through the
+  water, less the current fitted on the straight stretches; simulated: the DVL's Y of the
+  valid pings, the truth's ``velocity_body`` and ``velocity_water_body``), the current, and
+  the mean roll, each summarised by its median and range over the missions, for the real
+  segments and each ``--sim`` dataset (e.g. ``auvsim generate --preset
+  realistic-maneuvers`` before a change and after), and for the simulated missions that
+  turn at least as much as every real segment.
+* **The roll period**: the real roll-rate spectra's peak against the model's damped period.
 
     .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
-        [--sim LABEL=FILE.h5 ...] [--min-peak 8]
+        [--sim LABEL=FILE.h5 ...] [--min-peak 8] [--infer]
 """
 
 from __future__ import annotations
