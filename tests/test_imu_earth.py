@@ -185,3 +185,12 @@ def test_without_an_origin_the_world_is_flat_and_the_config_says_so():
 def test_a_bad_origin_is_refused_naming_the_setting(settings, message):
     with pytest.raises(ConfigError, match=message):
         Config.from_dict({"location": settings})
+
+
+def test_inspect_says_where_a_mission_was_flown(tmp_path):
+    from auvsim.data.describe import describe
+
+    config = flat(mission(duration=2.0), location=LocationConfig(latitude_deg=-33.9,
+                                                                 longitude_deg=-18.4))
+    text = describe(write(config, tmp_path / "cape.h5"))
+    assert "gravity 9.79" in text and "at 33.9 deg S, 18.4 deg W (the rotating Earth)" in text

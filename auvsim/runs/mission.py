@@ -208,11 +208,10 @@ class MissionRun:
         flat world's (``auvsim.physics.earth.specific_force_on_earth``)."""
         rot = rotation_matrices(truth.quaternion)
         imu = self.vehicle.imu_position
-        at_imu = np.einsum("nij,nj->ni", rot, np.broadcast_to(imu, truth.position_ned.shape))
         v_imu = truth.velocity_ned + np.einsum("nij,nj->ni", rot,
                                                np.cross(truth.angular_rate, imu))
         return specific_force_on_earth(
-            truth.specific_force, rot, v_imu, truth.position_ned[:, 2] + at_imu[:, 2],
+            truth.specific_force, rot, v_imu, truth.position_ned[:, 2] + rot[:, 2] @ imu,
             latitude_deg=self.config.location.latitude_deg,
             flat_gravity=-float(self.vehicle.model.opt.gravity[2]))
 
