@@ -194,3 +194,27 @@ def test_inspect_says_where_a_mission_was_flown(tmp_path):
                                                                  longitude_deg=-18.4))
     text = describe(write(config, tmp_path / "cape.h5"))
     assert "gravity 9.79" in text and "at 33.9 deg S, 18.4 deg W (the rotating Earth)" in text
+
+
+def test_the_earths_terms_do_not_depend_on_how_a_mission_is_split_into_blocks():
+    """The environment's 10-step blocks and generate's long ones give the same bits, and
+    a second run the same again (the terms are per sample and draw nothing)."""
+    config = preset("navigator").with_duration(5.0)
+
+    def fields(block_steps: int) -> dict[str, np.ndarray]:
+        run = MissionRun(config, config.missions[0])
+        vehicle, dt = run.vehicle, run.vehicle.dt
+        vehicle.reset(**run.scenario.initial_state())
+        run.scenario.reset()
+        steps = np.arange(round(5.0 / dt))
+        traj = run.scenario.run(vehicle, steps * dt)
+        parts = [run.measure(steps[k:k + block_steps],
+                             Trajectory(*(x[k:k + block_steps] for x in traj)))
+                 for k in range(0, len(steps), block_steps)]
+        return {p: np.concatenate([b[p] for b in parts]) for p in (
+            "truth/specific_force", "imu/specific_force", "imu/angular_rate")}
+
+    small, large, again = fields(10), fields(10**6), fields(10)  # 10**6: one block
+    for path in small:
+        np.testing.assert_array_equal(small[path], large[path], err_msg=path)
+        np.testing.assert_array_equal(small[path], again[path], err_msg=path)
