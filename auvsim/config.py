@@ -488,7 +488,10 @@ class ImuConfig:
     ``+ G f`` (g-sensitivity, f the true specific force). S (diagonal scale factors), M
     (off-diagonal misalignment) and G are drawn per mission, N(0, std^2) per element; b(t)
     is a first-order Gauss-Markov process with steady-state std ``*_bias_instability``;
-    white noise std = density * sqrt(rate).
+    white noise std = density * sqrt(rate). The true values are those of a flat world that
+    does not rotate, or with a geographic origin (``Config.location``) of the rotating
+    Earth there: the gyros' true rate includes the Earth's, the true specific force the
+    WGS-84 normal gravity and the Coriolis term (``LocationConfig``).
 
     Attributes:
         rate_hz: sample rate; also the rate of the truth group.
