@@ -828,6 +828,9 @@ def describe_mission(mission) -> list[str]:
              "pings solvable",
              f"    DVL errors: scale factor {shown(a['dvl_scale_factor'])}, bias "
              f"{shown(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s"]
+    if a.get("dvl_slow_error_std", 0) > 0:
+        lines[-1] += (f", slow error std {a['dvl_slow_error_std']:g} m/s over "
+                      f"{a['dvl_slow_error_time']:g} s (Gauss-Markov)")
     if "dvl_sound_speed_ratio" in a:
         lines.append(f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
                      f"misalignment {shown(a['dvl_misalignment_rpy_deg'])} deg (roll, pitch, "
