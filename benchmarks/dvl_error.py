@@ -18,9 +18,16 @@ largest |e| is 27 mm/s in 15,393), and their ``error`` is the bottom track's. Th
 over every finite ping is printed beside it.
 
 It also prints the velocity error budget per axis at 2 m/s (analytic, from the preset's
-settings) and one mission's along-track velocity error (velocity_ls - velocity).
+settings), one mission's along-track velocity error (velocity_ls - velocity), and how fast
+the real DVL's velocity error decorrelates: the along-track difference between the DVL
+and the reference's velocity in the body frame (``../shared/data/snapir-akit``, Cohen &
+Klein 2025; the reference's NED velocity turned by its roll, pitch and yaw), its std and
+autocorrelation, on each 400 s segment. That difference holds the reference's own errors
+and the lever arm's and clocks' effects too (none removed here): an upper bound on the
+DVL's, and an estimate of its correlation time.
 
     .venv/bin/python benchmarks/dvl_error.py [--duration 600] [--seed 0] [--data DIR]
+        [--akit DIR]
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ REPO = Path(__file__).resolve().parent.parent
 DATA = next((p / "shared" / "data" / "snapir-missbeamnet" for p in REPO.parents[:2]
              if (p / "shared" / "data" / "snapir-missbeamnet").is_dir()),
             REPO.parent / "shared" / "data" / "snapir-missbeamnet")
+AKIT = DATA.parent / "snapir-akit"
 FILES = ("test_data.csv", "validation_data.csv")
 INVALID = 32.768  # the logs' mark of an invalid ping, m/s
 NOT_AN_ERROR_VELOCITY = 0.1  # m/s (see the module docstring)
@@ -84,6 +92,27 @@ def read_real(folder: Path) -> dict[str, np.ndarray]:
                 altitude.append(float(row["altitude"]))
     return dict(error=np.array(error), speed=np.array(speed), altitude=np.array(altitude),
                 invalid=invalid, other=other)
+
+
+def read_csv(path: Path) -> np.ndarray:
+    """A numeric CSV with one header line, as an (n, columns) array."""
+    return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def along_track_difference(folder: Path, k: int) -> np.ndarray:
+    """(n,) DVL x minus the reference's body-frame x velocity, m/s, of segment k."""
+    dvl = read_csv(folder / f"Trajectory{k}" / f"DVL_trajectory{k}.csv")
+    ref = read_csv(folder / f"Trajectory{k}" / f"GT_trajectory{k}.csv")
+    pitch, yaw = ref[:, 8], ref[:, 9]  # the x axis does not depend on the roll
+    # x row of R^T (R body -> NED, ZYX): the body's x axis in NED.
+    x_axis = np.column_stack([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw),
+                              -np.sin(pitch)])
+    return dvl[:, 1] - np.einsum("ni,ni->n", x_axis, ref[:, 4:7])
+
+
+def autocorrelation(x: np.ndarray, lag: int) -> float:
+    x = x - x.mean()
+    return float(np.mean(x[lag:] * x[:len(x) - lag]) / x.var())
 
 
 def summary(e: np.ndarray) -> str:
@@ -145,6 +174,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="the mission's seed")
     parser.add_argument("--data", type=Path, default=DATA,
                         help="the MissBeamNet logs (default: %(default)s)")
+    parser.add_argument("--akit", type=Path, default=AKIT,
+                        help="the A-KIT segments (default: %(default)s)")
     args = parser.parse_args()
 
     after = preset("navigator")
@@ -186,6 +217,16 @@ def main() -> None:
               f" mm/s + {1e3 * math.sqrt(2) * sin_a * slope:.2f} mm/s per m/s "
               f"(preset: {1e3 * after.dvl.noise_std:g} + {1e3 * after.dvl.noise_speed_coeff:g})")
 
+    if (args.akit / "Trajectory1").is_dir():
+        print("\nReal DVL minus reference, along track (m/s), by segment: std, "
+              "autocorrelation at lags 1, 2, 5 s, and tau = -1 s / ln(r(1)):\n")
+        print("| segment | std (mm/s) | r(1) | r(2) | r(5) | tau (s) |\n|---|---|---|---|---|---|")
+        for k in range(1, 7):
+            d = along_track_difference(args.akit, k)
+            r = [autocorrelation(d, lag) for lag in (1, 2, 5)]
+            print(f"| {k} | {1e3 * d.std():.1f} | {r[0]:.2f} | {r[1]:.2f} | {r[2]:.2f} | "
+                  f"{-1.0 / math.log(r[0]):.1f} |")
+
     print(f"\nVelocity error per axis along track at 2 m/s and {SLANT_RANGE:g} m of slant "
           "range (analytic), mm/s:\n")
     print("| term | before | after |\n|---|---|---|")
@@ -199,7 +240,7 @@ def main() -> None:
           f"velocity error RMS, bottom track: before "
           f"{1e3 * np.sqrt(np.mean(sims['before']['along']**2)):.1f} mm/s, after "
           f"{1e3 * np.sqrt(np.mean(sims['after']['along']**2)):.1f} mm/s (one mission: its "
-          "per-mission draws and a 100 s correlation time make this one sample, see "
+          "per-mission draws make this one sample, see "
           "tests/test_dvl_noise.py for the average).")
     if real is not None:
         lo, hi = min(r[1] for r in rows), max(r[1] for r in rows)

@@ -103,8 +103,8 @@ def test_the_navigators_velocity_error_per_axis_is_its_budget_and_the_stated_0_0
     budget: sigma / (sqrt(2) sin a), s_std U / 2, c_std U, b_std / (sqrt(2) sin a) and
     the slow std, in quadrature; and that is the Snapir DVL's published 0.02 m/s
     (../shared/reference/sensors.md) within 5 %. With 400 missions the per-mission terms
-    and the 100 s Gauss-Markov give about 1,000 independent samples: the RMS within about
-    2 % (1 sigma), 6 % asked."""
+    and the Gauss-Markov (3 s) give thousands of independent samples: the RMS within
+    about 2 % (1 sigma), 6 % asked."""
     c = preset("navigator").dvl
     speed, pings, missions = 2.0, 600, 400
     v = np.tile([speed, 0.0, 0.0], (pings, 1))
