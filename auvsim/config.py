@@ -498,7 +498,10 @@ class ImuConfig:
     ``+ G f`` (g-sensitivity, f the true specific force). S (diagonal scale factors), M
     (off-diagonal misalignment) and G are drawn per mission, N(0, std^2) per element; b(t)
     is a first-order Gauss-Markov process with steady-state std ``*_bias_instability``;
-    white noise std = density * sqrt(rate).
+    white noise std = density * sqrt(rate). The true values are those of a flat world that
+    does not rotate, or with a geographic origin (``Config.location``) of the rotating
+    Earth there: the gyros' true rate includes the Earth's, the true specific force the
+    WGS-84 normal gravity and the Coriolis term (``LocationConfig``).
 
     Attributes:
         rate_hz: sample rate; also the rate of the truth group.
@@ -729,6 +732,57 @@ class WaterConfig:
 
 
 @dataclass(frozen=True)
+class LocationConfig:
+    """Where on the Earth the missions are flown: the geographic origin of the local NED
+    frame (the point north 0, east 0 on the sea surface). Both or neither.
+
+    Without it (the default) the world is auvsim's flat one that does not rotate, with the
+    vehicle model's gravity (9.81 m/s^2 in ``models/auv.xml``): every dataset made before
+    it is unchanged. With it the vehicle's motion (MuJoCo's, unchanged) is read as motion
+    over an Earth that rotates (WGS-84, ``auvsim.physics.earth``), and what an inertial
+    sensor measures follows, at the origin's latitude:
+
+    - the gyros read ``w_ib = w_nb + C^T w_ie``: the body's rate in the local frame
+      (``truth/angular_rate``) plus the Earth's rate (15.04 deg/h: north
+      ``Omega cos(lat)``, down ``-Omega sin(lat)``) in body axes;
+    - the accelerometers read ``f = C^T (a + 2 w_ie x v - g_n)``, ``g_n`` the WGS-84
+      normal gravity at the latitude and the IMU's depth (``normal_gravity(lat,
+      -depth)``) instead of the model's gravity, with the Coriolis term of the frame's
+      rotation (v the IMU's NED velocity); ``truth/specific_force`` is this ideal reading.
+
+    A dataset's missions share one place, as they share the seafloor and the water; each
+    mission records it (attributes ``latitude_deg``, ``longitude_deg``, and ``gravity``
+    the normal gravity at the origin). The longitude changes nothing measured (the normal
+    gravity and the Earth's rate depend on the latitude alone); it places the missions on
+    a map.
+
+    Attributes:
+        latitude_deg: geodetic latitude, deg in [-90, 90] (north positive); None: none.
+        longitude_deg: longitude, deg in [-180, 180] (east positive); None: none.
+    """
+
+    latitude_deg: float | None = None
+    longitude_deg: float | None = None
+
+    def __post_init__(self) -> None:
+        for name, most in (("latitude_deg", 90.0), ("longitude_deg", 180.0)):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            _finite(f"location.{name}", value)
+            _check(abs(value) <= most, f"location.{name}",
+                   f"deg in [-{most:g}, {most:g}]", value)
+        _check((self.latitude_deg is None) == (self.longitude_deg is None),
+               "location", "both latitude_deg and longitude_deg, or neither",
+               dataclasses.asdict(self))
+
+    @property
+    def given(self) -> bool:
+        """Whether the missions have a geographic origin (else: the flat world)."""
+        return self.latitude_deg is not None
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that determines a dataset.
 
@@ -743,6 +797,8 @@ class Config:
         depth: the pressure depth sensor and its error model.
         water: the current and the motion disturbances (default: still water, none).
         compression: HDF5 compression, ``lzf`` (fast) or ``gzip`` (read by every HDF5 tool).
+        location: where on the Earth the missions are flown (``LocationConfig``; default:
+            nowhere, the flat world that does not rotate).
     """
 
     vehicle: VehicleConfig = field(default_factory=VehicleConfig)
@@ -753,6 +809,7 @@ class Config:
     depth: DepthConfig = field(default_factory=DepthConfig)
     compression: str = "lzf"
     water: WaterConfig = field(default_factory=WaterConfig)
+    location: LocationConfig = field(default_factory=LocationConfig)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "missions", tuple(self.missions))

@@ -78,8 +78,9 @@ def test_every_schema_field_is_written(ideal_file):
         np.testing.assert_array_equal(m.imu.index_of_dvl, np.arange(pings) * 100)
         np.testing.assert_array_equal(m.dvl.time,
                                       m.truth.time[m.imu.index_of_dvl])
-        for attr in attrs:
-            assert attr.name in m.attrs
+        for attr in attrs:  # an optional one (the geographic origin's) only where given
+            assert attr.name in m.attrs or attr.optional, attr.name
+        assert "latitude_deg" not in m.attrs  # IDEAL has no geographic origin
         assert m.attrs["dvl_scale_factor"].shape == (4,)
 
 

@@ -9,6 +9,7 @@ from auvsim.config import (
     Config,
     DepthConfig,
     DvlConfig,
+    LocationConfig,
     MissionConfig,
     ScenarioConfig,
     SeafloorConfig,
@@ -100,6 +101,15 @@ NAVIGATOR_WATER = WaterConfig(
     turbulence_time=3.0, rpm_jitter_std=2.0, fin_jitter_std_deg=0.2, jitter_time=1.0)
 
 
+# The Snapir's waters: the Mediterranean off Haifa, where the shared real segments were
+# recorded (../shared/data/snapir-akit/README.md); the first point of Trajectory1's
+# reference, GT_trajectory1.csv, is at 32.8498 N, 34.8922 E (its six segments start within
+# 32.8498-32.8582 N, 34.8922-34.9350 E). There the WGS-84 normal gravity is 9.7955 m/s^2,
+# the mean |f| the issue found in the data on quiet stretches, and the Earth's rate has a
+# north component of 12.64 deg/h and a down one of -8.16 deg/h.
+SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
+
+
 def navigator() -> Config:
     """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
     A18-D over gently rough terrain, with a navigation-grade IMU.
@@ -174,6 +184,10 @@ def navigator() -> Config:
     (4 mbar, 0.04 m of sea water at 9.94 m/bar; taken as the per-mission offset's spread)
     and a resolution of 5 ppm FS (0.1 mbar, 1 mm). Its noise (2 mm, two resolution steps)
     and its 10 Hz rate are our assumptions: the datasheet gives neither.
+
+    The missions are flown in the Snapir's waters off Haifa (``SNAPIR_WATERS``), so the
+    IMU measures the Earth's rate and the WGS-84 normal gravity there, as the real logs'
+    IMU does (``auvsim.config.LocationConfig``).
     """
     return Config(
         missions=(MissionConfig(),),
@@ -192,6 +206,7 @@ def navigator() -> Config:
         imu=IMU_GRADES["navigation-full"],
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
         water=NAVIGATOR_WATER,
+        location=SNAPIR_WATERS,
     )
 
 
@@ -208,7 +223,8 @@ def realistic_maneuvers(duration: float = 600.0) -> Config:
     with the navigator's water, terrain and sensors (every DVL failure and error, the
     calibrated IMU errors). Each mission draws its current from the navigator's
     distribution (surface speed 0.1-1 m/s, any direction), so the turns sway the DVL
-    frame by up to the current either way."""
+    frame by up to the current either way. In the navigator's place, the Snapir's waters
+    (``SNAPIR_WATERS``)."""
     nav = navigator()
     missions = []
     for i, (name, kind, options) in enumerate(MANEUVER_MISSIONS):
@@ -235,7 +251,10 @@ def sim2real(duration: float = 600.0, mounting_yaw_deg: float = SNAPIR_MOUNTING_
     the DVL error model the BeamsNet paper put on the Snapir streams (paper-sim's DVL: 20
     deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s, no failures), mounted yawed
     ``mounting_yaw_deg`` from the body (the Snapir's 45 deg by default), so that its
-    DVL-frame velocities are what the Snapir's DVL frame sees."""
+    DVL-frame velocities are what the Snapir's DVL frame sees. The place is
+    ``realistic_maneuvers``'s, the Snapir's waters, where the real streams were recorded:
+    the IMU (which the Snapir streams' models do not read) measures the Earth there, and
+    the DVL's data are those of a flat world's (the place changes no DVL array)."""
     dvl = dataclasses.replace(_paper(PAPER_NOISE_CODE).dvl,
                               mounting_rpy_deg=(0.0, 0.0, float(mounting_yaw_deg)))
     return dataclasses.replace(realistic_maneuvers(duration), dvl=dvl)
@@ -244,7 +263,8 @@ def sim2real(duration: float = 600.0, mounting_yaw_deg: float = SNAPIR_MOUNTING_
 PRESETS = {
     "navigator": ("physical default: one mission over rough terrain in a coastal current "
                   "with turbulence; a Navigator-like 30 deg DVL with every failure and error "
-                  "beyond eq. 7 (water track included); the navigation-full IMU", navigator),
+                  "beyond eq. 7 (water track included); the navigation-full IMU, off Haifa "
+                  "(the Earth's rate, WGS-84 gravity)", navigator),
     "paper-sim": ("the BeamsNet paper's simulation as its code ran it: 1, 2, 3 m/s x 7200 s, "
                   "20 deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s",
                   lambda: _paper(PAPER_NOISE_CODE)),
@@ -255,7 +275,7 @@ PRESETS = {
                   "line, 600 s each at 2 m/s, with the paper-sim sensors", maneuvers),
     "realistic-maneuvers": ("the same manoeuvres at 2 m/s and at 0.8 m/s, 600 s each, each "
                             "in its own current, with the navigator's terrain, disturbances "
-                            "and every DVL and IMU effect", realistic_maneuvers),
+                            "and every DVL and IMU effect, off Haifa", realistic_maneuvers),
     "sim2real": ("the realistic manoeuvres with the paper's DVL error model on the Snapir's "
                  "streams and its DVL mounting (yawed 45 deg): beamsnet reproduce sim2real "
                  "trains on it", sim2real),
