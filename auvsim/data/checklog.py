@@ -359,26 +359,31 @@ def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
                                 "the reference's attitude rate")
 
 
-def dvl_clock(log: Log, ref_body: np.ndarray, extra: np.ndarray | None = None
-              ) -> tuple[Clock, Finding]:
+def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
     """The DVL's clock: its velocity against the reference's velocity in the body
-    ``ref_body`` (R, 3), less ``extra`` (P, 3) (what the fitted model adds at each ping:
-    lever arm, scale, mounting), in windows of ``OFFSET_WINDOW`` s. Each window's mean
-    difference is removed (a constant misalignment or bias says nothing of the clock)."""
+    ``ref_body`` (R, 3), in windows of ``OFFSET_WINDOW`` s. At each trial offset the DVL
+    model (scale, mounting, lever arm with the body rates ``rates(times)`` (M, 3), and a
+    constant bias) is fitted first and its residual scored: the lever arm's ``w x L``
+    follows the turns as the body velocity does, and would pull a bare comparison's
+    offset by a large fraction of a second."""
     t_ref = np.asarray(log.reference_time, float)
     s = np.asarray(log.dvl_time, float)
     v = np.asarray(log.dvl_velocity, float)
-    if extra is not None:
-        v = v - extra
     ok = np.isfinite(v).all(axis=1)
 
     def offset_of(sel: np.ndarray, centre: float, half: float) -> tuple[float, float]:
         def cost(o: float) -> float:
             inside = sel & (s + o >= t_ref[0]) & (s + o <= t_ref[-1])
-            u = np.stack([np.interp(s[inside] + o, t_ref, ref_body[:, d]) for d in range(3)],
-                         -1)
-            d = v[inside] - u
-            return float(np.mean(np.sum((d - d.mean(axis=0)) ** 2, axis=1))) if len(d) else 1e9
+            if inside.sum() < 10:
+                return 1e9
+            t = s[inside] + o
+            u = np.stack([np.interp(t, t_ref, ref_body[:, d]) for d in range(3)], -1)
+            a = np.concatenate([dvl_model(u, rates(t)),
+                                np.broadcast_to(np.eye(3), (len(t), 3, 3))], axis=2)
+            b = (v[inside] - u).ravel()
+            x, *_ = np.linalg.lstsq(a.reshape(-1, 10), b, rcond=None)
+            r = b - a.reshape(-1, 10) @ x
+            return float(r @ r) / len(t)
         return scan(cost, centre, half)
 
     usable = ok & (s - MAX_OFFSET >= t_ref[0]) & (s + MAX_OFFSET <= t_ref[-1])
@@ -394,7 +399,8 @@ def dvl_clock(log: Log, ref_body: np.ndarray, extra: np.ndarray | None = None
             offsets.append(o)
     clock = fit_clock(stamps, offsets, whole)
     return clock, clock_finding("dvl clock", clock, len(s), s, "velocity against the "
-                                "reference's velocity in the body")
+                                "reference's velocity in the body, the DVL model fitted at "
+                                "each trial offset")
 
 
 def clock_finding(name: str, clock: Clock, n: int, t: np.ndarray, what: str) -> Finding:
@@ -555,9 +561,12 @@ def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
             q[3] = a0 * dz + a1 * dy - a2 * dx + a3 * dw
         w0, x, y, z = q[0], q[1], q[2], q[3]
         fx, fy, fz = f[i, 0], f[i, 1], f[i, 2]
-        out[i, 0] = (1 - 2 * (y * y + z * z)) * fx + 2 * (x * y - w0 * z) * fy + 2 * (x * z + w0 * y) * fz
-        out[i, 1] = 2 * (x * y + w0 * z) * fx + (1 - 2 * (x * x + z * z)) * fy + 2 * (y * z - w0 * x) * fz
-        out[i, 2] = 2 * (x * z - w0 * y) * fx + 2 * (y * z + w0 * x) * fy + (1 - 2 * (x * x + y * y)) * fz
+        out[i, 0] = ((1 - 2 * (y * y + z * z)) * fx + 2 * (x * y - w0 * z) * fy
+                     + 2 * (x * z + w0 * y) * fz)
+        out[i, 1] = (2 * (x * y + w0 * z) * fx + (1 - 2 * (x * x + z * z)) * fy
+                     + 2 * (y * z - w0 * x) * fz)
+        out[i, 2] = (2 * (x * z - w0 * y) * fx + 2 * (y * z + w0 * x) * fy
+                     + (1 - 2 * (x * x + y * y)) * fz)
     return out
 
 
@@ -647,18 +656,13 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         c = rotation_matrices(log.reference_quaternion)
         u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
         v = np.asarray(log.dvl_velocity, float)
-        clock, _ = dvl_clock(log, u_ref)
-        x = np.zeros(7)
-        for _ in range(2):  # the clock, then the calibration at it, then the clock again
-            s = np.asarray(log.dvl_time, float)
-            t = s + clock.offset + clock.rate_error * s
-            u = np.stack([np.interp(t, log.reference_time, u_ref[:, d]) for d in range(3)], -1)
-            inside = (t >= log.reference_time[0]) & (t <= log.reference_time[-1])
-            u[~inside] = np.nan
-            rates = rates_at(t, imu_t, w, ref)
-            x, calibration = dvl_calibration(u, rates, v)
-            extra = np.einsum("pij,j->pi", dvl_model(np.nan_to_num(u), rates), x)
-            clock, clock_found = dvl_clock(log, u_ref, extra)
+        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w, ref))
+        s = np.asarray(log.dvl_time, float)
+        t = s + clock.offset + clock.rate_error * s
+        u = np.stack([np.interp(t, log.reference_time, u_ref[:, d]) for d in range(3)], -1)
+        inside = (t >= log.reference_time[0]) & (t <= log.reference_time[-1])
+        u[~inside] = np.nan
+        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w, ref), v)
         report.findings.append(clock_found)
         report.findings.extend(calibration)
         corrections.update(dvl_time_offset_s=clock.offset, dvl_rate_error=clock.rate_error,
