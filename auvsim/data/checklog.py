@@ -42,11 +42,16 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 from dataclasses import asdict, dataclass, field
 
 import numba
 import numpy as np
 
+from auvsim.data.reader import open_dataset, require_attitude
+from auvsim.data.schema import mission_attrs
+from auvsim.data.writer import DatasetWriter
+from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import rotation_matrices
 
@@ -683,3 +688,119 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
 
 def to_json(reports: list[Report]) -> str:
     return json.dumps([r.to_json() for r in reports], indent=1)
+
+
+# ---- missions and files ------------------------------------------------------------------
+
+
+def log_of(mission) -> Log:
+    """A recorded mission (``auvsim.data.reader.Mission``) as a ``Log``.
+
+    Raises:
+        DatasetError: the mission is not a recorded one with a reference and its attitude,
+            or has neither an IMU nor a DVL to check.
+    """
+    if mission.origin != "recorded" or not mission.has("reference"):
+        raise DatasetError(f"mission {mission.name!r} is {mission.origin}; expected a recorded "
+                           "mission with a reference to check the log against")
+    quaternion = require_attitude(mission)
+    if not (mission.has("imu") or mission.has("dvl")):
+        raise DatasetError(f"mission {mission.name!r} has neither an IMU nor a DVL; "
+                           "expected a stream to check")
+    ref = mission.reference
+    latitude = mission.attrs.get("latitude_deg")
+    imu = mission.imu if mission.has("imu") else None
+    dvl = mission.dvl if mission.has("dvl") else None
+    return Log(ref.time, ref.velocity_ned, quaternion, ref.position_ned,
+               None if imu is None else imu.time,
+               None if imu is None else imu.specific_force,
+               None if imu is None else imu.angular_rate,
+               None if dvl is None else dvl.time,
+               None if dvl is None else dvl.velocity_ls,
+               gravity=float(mission.attrs["gravity"]),
+               latitude_deg=None if latitude is None else float(latitude))
+
+
+def check_log(mission) -> Report:
+    """Every finding of one recorded mission (``check_arrays`` on ``log_of(mission)``)."""
+    return check_arrays(log_of(mission), mission.name,
+                        gravity_source="WGS-84 normal gravity at the origin")
+
+
+def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """The mission's fields and attributes with ``report``'s corrections made:
+
+    * the IMU's triads through the axis map (``body = P logged``);
+    * every stream's stamps on the reference's clock, ``s + offset + rate_error * s``,
+      scaled by the reference clock's scale where that was significant, and all shifted
+      by one constant so the earliest is 0 (``log_time_origin_s`` moves with it);
+    * ``imu_time_offset_s`` and ``dvl_time_offset_s`` grow by the offsets found, the
+      rates are 1 / median interval again; the sensors' positions and the DVL's mounting
+      are the found ones where observable (``imu_position_body``, ``dvl_position_body``,
+      ``dvl_mounting_rpy_deg``);
+    * ``check_log_json``: the report (findings and corrections), JSON.
+
+    The DVL's velocity is left as the instrument gave it (its scale is in the report); a
+    depth stream's clock is not checked (only rescaled with the reference's).
+    """
+    c = report.corrections
+    found = {f.name: f for f in report.findings}
+    fields = {f"{g}/{name}": getattr(getattr(mission, g), name)
+              for g in json.loads(mission.attrs["groups"]) for name in getattr(mission, g)}
+    attrs = dict(mission.attrs)
+    scale = c.get("reference_clock_scale", 1.0)
+    maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
+            "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
+    for g in json.loads(mission.attrs["groups"]):
+        offset, rate = maps.get(g, (0.0, 0.0))
+        s = fields[f"{g}/time"]
+        fields[f"{g}/time"] = scale * (s + offset + rate * s)
+    start = min(float(fields[f"{g}/time"][0]) for g in json.loads(mission.attrs["groups"]))
+    for g in json.loads(mission.attrs["groups"]):
+        fields[f"{g}/time"] = fields[f"{g}/time"] - start
+        attrs[f"{g}_rate_hz"] = 1.0 / float(np.median(np.diff(fields[f"{g}/time"])))
+    attrs["log_time_origin_s"] = float(attrs.get("log_time_origin_s", 0.0)) + start
+    attrs["duration_s"] = max(float(fields[f"{g}/time"][-1])
+                              for g in json.loads(mission.attrs["groups"]))
+    if "imu_axis_matrix" in c:
+        p = np.asarray(c["imu_axis_matrix"])
+        for name in ("specific_force", "angular_rate"):
+            fields[f"imu/{name}"] = fields[f"imu/{name}"] @ p.T
+        attrs["imu_time_offset_s"] = float(attrs["imu_time_offset_s"]) + c["imu_time_offset_s"]
+        if "imu_position_body" in c:
+            attrs["imu_position_body"] = np.asarray(c["imu_position_body"])
+    if "dvl_time_offset_s" in c:
+        attrs["dvl_time_offset_s"] = float(attrs["dvl_time_offset_s"]) + c["dvl_time_offset_s"]
+        if found["dvl lever arm"].confidence != "not observable":
+            attrs["dvl_position_body"] = np.asarray(c["dvl_position_body"])
+        if found["dvl mounting"].confidence != "not observable":
+            attrs["dvl_mounting_rpy_deg"] = np.asarray(c["dvl_mounting_rpy_deg"])
+    attrs["check_log_json"] = json.dumps(report.to_json())
+    return fields, attrs
+
+
+def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,
+          compression: str = "lzf") -> None:
+    """Write ``out``: the dataset ``path`` with each reported mission corrected
+    (``corrected``) and every other mission as it was. Built under a temporary name and
+    renamed when complete (``DatasetWriter``)."""
+    by_name = {r.mission: r for r in reports}
+    with open_dataset(path) as ds:
+        config = json.dumps({"check_log": {"source": str(path),
+                                           "missions": sorted(by_name)},
+                             "source_config": ds.config_json})
+        with DatasetWriter(out, config_json=config, compression=compression) as writer:
+            for name, mission in ds.missions.items():
+                if name in by_name:
+                    fields, attrs = corrected(mission, by_name[name])
+                else:
+                    groups = mission.groups
+                    fields = {f"{g}/{n}": getattr(getattr(mission, g), n)
+                              for g in groups for n in getattr(mission, g)}
+                    attrs = dict(mission.attrs)
+                groups = sorted({p.split("/")[0] for p in fields})
+                sink = writer.mission(name, mission_attrs(**attrs),
+                                      rows={g: len(fields[f"{g}/time"]) for g in groups
+                                            if f"{g}/time" in fields})
+                sink.append(fields)
+                sink.flush()
