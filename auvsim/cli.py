@@ -22,6 +22,7 @@ EXAMPLES = """examples:
   auvsim inspect demo/straight.h5
   auvsim plot demo/straight.h5
   auvsim import DIR --format akit --out snapir.h5
+  auvsim check-log snapir.h5 --apply snapir-checked.h5
 
 Each command has its own --help."""
 
