@@ -214,7 +214,11 @@ def _check_log(args: argparse.Namespace) -> None:
     from auvsim.data.checklog import apply, check_log, to_json
     from auvsim.data.reader import open_dataset
 
+    if args.apply is not None and args.apply.resolve() == args.file.resolve():
+        raise ConfigError(f"--apply: {str(args.apply)!r} is the log itself; expected another "
+                          "file (the log stays as recorded)")
     with open_dataset(args.file) as ds:
+        others = len(ds.missions)
         names = args.missions or list(ds.missions)
         unknown = [n for n in names if n not in ds.missions]
         if unknown:
@@ -225,7 +229,9 @@ def _check_log(args: argparse.Namespace) -> None:
     if args.apply is not None:
         apply(args.file, args.apply, reports)
         if not args.json:
-            print(f"\nwrote {args.apply}: {len(reports)} mission(s) corrected")
+            print(f"\nwrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
+                  + (f", {others - len(reports)} other mission(s) as they were"
+                     if others > len(reports) else ""))
 
 
 def _nameable(path: str) -> str:

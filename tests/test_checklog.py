@@ -269,6 +269,8 @@ def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):
     status, _, err = run(["check-log", str(raw), "--mission", "nope", "--apply", str(out)])
     assert status == 2 and err.count("\n") == 1 and "'nope'" in err
     assert not out.exists()
+    status, _, err = run(["check-log", str(raw), "--apply", str(raw)])
+    assert status == 2 and err.count("\n") == 1 and "is the log itself" in err
     status, _, err = run(["check-log", str(tmp_path / "missing.h5")])
     assert status == 2 and err.count("\n") == 1
     sim = tmp_path / "simulated.h5"
