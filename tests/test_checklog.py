@@ -36,6 +36,7 @@ from auvsim.data.checklog import (
 from auvsim.data.reader import open_dataset
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
+from auvsim.errors import DatasetError
 from auvsim.physics.earth import radii
 from auvsim.physics.frames import rotation_rpy
 from auvsim.runs.generate import generate
@@ -167,6 +168,27 @@ def test_injected_faults_are_recovered(simulated, axes, imu_offset, imu_rate, dv
     corrected = s + c["imu_time_offset_s"] + c["imu_rate_error"] * s
     truth = s + imu_offset + imu_rate * s
     np.testing.assert_allclose(corrected, truth, atol=OFFSET_TOL)
+
+
+def test_a_stream_alone_and_a_short_log(simulated):
+    sim = simulated["zigzag"]
+    log = recorded_log(sim, axes=SWAP, imu_offset=0.37, imu_rate=0.0, dvl_offset=-0.8)
+    imu_only = check_arrays(dataclasses.replace(log, dvl_time=None, dvl_velocity=None))
+    assert imu_only.corrections["imu_axis_map"] == ["y", "x", "-z"]
+    assert imu_only.corrections["imu_time_offset_s"] == pytest.approx(0.37, abs=OFFSET_TOL)
+    assert "dvl_time_offset_s" not in imu_only.corrections
+    # The DVL alone turns with the reference's 1 Hz attitude rates: its clock is found
+    # less well, and says so.
+    dvl_only = check_arrays(dataclasses.replace(log, imu_time=None, specific_force=None,
+                                                angular_rate=None))
+    assert "imu_axis_map" not in dvl_only.corrections
+    assert dvl_only.corrections["dvl_time_offset_s"] == pytest.approx(-0.8, abs=0.2)
+    short = dataclasses.replace(log, reference_time=log.reference_time[:20],
+                                reference_velocity=log.reference_velocity[:20],
+                                reference_quaternion=log.reference_quaternion[:20],
+                                reference_position=log.reference_position[:20])
+    with pytest.raises(DatasetError, match="expected at least 30"):
+        check_arrays(short, "short")
 
 
 def test_gravity_on_the_straight_legs(simulated):

@@ -57,6 +57,7 @@ from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import rotation_matrices
 
 MAX_OFFSET = 5.0  # s: the clock offsets searched, either way
+MIN_REFERENCE = 30  # reference samples: fewer leave the windows' fits without data
 OFFSET_WINDOW = 100.0  # s of reference per window of the offset-vs-time fit
 SIGNIFICANT = 3.0  # standard errors: a rate error or parameter kept beyond this
 MIN_TURN = math.radians(0.5)  # rad/s RMS: a window turning less says nothing of its clock
@@ -362,7 +363,7 @@ def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
             stamps.append(centre - o)
             offsets.append(o)
     clock = fit_clock(stamps, offsets, whole)
-    return clock, clock_finding("imu clock", clock, len(t), t, "gyro interval means against "
+    return clock, clock_finding("imu clock", clock, t, "gyro interval means against "
                                 "the reference's attitude rate")
 
 
@@ -405,12 +406,12 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
             stamps.append(float(np.mean(s[sel])))
             offsets.append(o)
     clock = fit_clock(stamps, offsets, whole)
-    return clock, clock_finding("dvl clock", clock, len(s), s, "velocity against the "
+    return clock, clock_finding("dvl clock", clock, s, "velocity against the "
                                 "reference's velocity in the body, the DVL model fitted at "
                                 "each trial offset")
 
 
-def clock_finding(name: str, clock: Clock, n: int, t: np.ndarray, what: str) -> Finding:
+def clock_finding(name: str, clock: Clock, t: np.ndarray, what: str) -> Finding:
     nominal = 1.0 / float(np.median(np.diff(t)))
     realised = nominal / (1 + clock.rate_error)
     spread = (f"window offsets {min(o for _, o in clock.windows):+.3f} to "
@@ -655,6 +656,13 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     the DVL's clock and calibration (scale, mounting, lever arm; its clock fitted again
     with them), the IMU's lever arm and gravity. ``Report.corrections`` holds what
     ``apply`` changes (axis map, each stream's time map, positions, mounting)."""
+    span = float(log.reference_time[-1] - log.reference_time[0])
+    if len(log.reference_time) < MIN_REFERENCE or span < 2 * MAX_OFFSET + 10:
+        raise DatasetError(f"{name}: the reference has {len(log.reference_time)} samples over "
+                           f"{span:.3g} s; expected at least {MIN_REFERENCE} over "
+                           f"{2 * MAX_OFFSET + 10:g} s to check a log against")
+    if log.imu_time is None and log.dvl_time is None:
+        raise DatasetError(f"{name}: neither an IMU nor a DVL; expected a stream to check")
     report = Report(name)
     ref = intervals(log)
     scale, found = reference_clock(log)
@@ -676,7 +684,7 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
             rate_error=(1 + clock.rate_error) * (1 + again.rate_error) - 1,
             offset_se=max(clock.offset_se, again.offset_se),
             rate_se=max(clock.rate_se, again.rate_se))
-        found = clock_finding("imu clock", clock, len(s), s, "gyro interval means against "
+        found = clock_finding("imu clock", clock, s, "gyro interval means against "
                               "the reference's attitude rate (twice: the second on the "
                               f"first's stamps moved it {again.offset:+.3f} s, "
                               f"{again.rate_error * 1e6:+.0f} ppm)")
