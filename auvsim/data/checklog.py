@@ -12,8 +12,10 @@ quaternion, SI units). Times: a stream's stamp ``s`` happened at reference-clock
 ``t = s + offset + rate_error * s``; the reference's clock runs ``reference_clock_scale``
 physical seconds per stamped second (from its positions against its velocities).
 
-* IMU axes: ``P`` among the 24 proper signed permutations (det +1) maps the logged triads
-  onto the body, ``f_body = P f_log``. Between reference samples k and k+1 the gyro's mean
+* IMU axes: ``P`` among the 48 signed permutations maps the logged triads onto the body,
+  ``f_body = P f_log``: the 24 proper ones (det +1) and the 24 reflections, which no
+  physical triad is but a log written through a wrong transformation holds (the A-KIT
+  IMU files: ``[x, -y, z]``). Between reference samples k and k+1 the gyro's mean
   rate must equal the reference's attitude change ``log(C_k^T C_k+1) / dt``, and the
   accelerometers' mean must equal ``C^T (dv/dt - g n_down)`` (gravity levelled with the
   reference's roll and pitch). Each candidate's residuals, normalised by the signals' RMS,
