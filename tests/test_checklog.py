@@ -25,6 +25,7 @@ import pytest
 from auvsim.cli import main
 from auvsim.config import MissionConfig, ScenarioConfig
 from auvsim.data.checklog import (
+    T_3SIGMA,
     Log,
     axis_map_names,
     axis_maps,
@@ -85,6 +86,12 @@ def test_scan_finds_a_minimum_between_grid_points():
     assert curvature == pytest.approx(6.0)
 
 
+def test_the_t_quantiles_are_students():
+    stats = pytest.importorskip("scipy.stats")
+    expected = stats.t.ppf(stats.norm.cdf(3.0), np.arange(1, len(T_3SIGMA) + 1))
+    np.testing.assert_allclose(T_3SIGMA, expected, rtol=5e-3)
+
+
 def test_fit_clock_keeps_a_significant_slope_and_drops_noise():
     s = np.array([50.0, 150.0, 250.0, 350.0])
     line = fit_clock(list(s), list(0.3 + 2.5e-3 * s + [1e-3, -1e-3, 1e-3, -1e-3]), 0.7)
@@ -92,6 +99,9 @@ def test_fit_clock_keeps_a_significant_slope_and_drops_noise():
     assert line.rate_error == pytest.approx(2.5e-3, rel=0.02)
     flat = fit_clock(list(s), [0.31, 0.29, 0.30, 0.31], 0.30)
     assert flat.rate_error == 0.0 and flat.offset == 0.30
+    # Significant, but 20 ppm moves the clock 6 ms over the windows: not worth a rate.
+    tiny = fit_clock(list(s), list(0.3 + 2e-5 * s), 0.303)
+    assert tiny.rate_error == 0.0 and tiny.offset == 0.303
 
 
 # ---- known answers from simulated missions ----------------------------------------------

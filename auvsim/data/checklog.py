@@ -60,8 +60,14 @@ from auvsim.physics.frames import rotation_matrices
 
 MAX_OFFSET = 5.0  # s: the clock offsets searched, either way
 MIN_REFERENCE = 30  # reference samples: fewer leave the windows' fits without data
-OFFSET_WINDOW = 100.0  # s of reference per window of the offset-vs-time fit
-SIGNIFICANT = 3.0  # standard errors: a rate error or parameter kept beyond this
+OFFSET_WINDOW = 50.0  # s of reference per window of the offset-vs-time fit
+SIGNIFICANT = 3.0  # standard errors: a parameter kept beyond this
+# Student's t quantiles at the normal's 3 sigma (two-sided 99.73 %), by degrees of freedom
+# 1..30 (scipy.stats.t.ppf(scipy.stats.norm.cdf(3), dof); tests/test_checklog.py checks
+# them): a slope through a few windows' offsets is significant beyond these, not beyond 3.
+T_3SIGMA = (236, 19.2, 9.22, 6.62, 5.51, 4.9, 4.53, 4.28, 4.09, 3.96, 3.85, 3.76, 3.69,
+            3.64, 3.59, 3.54, 3.51, 3.48, 3.45, 3.42, 3.4, 3.38, 3.36, 3.34, 3.33, 3.32,
+            3.3, 3.29, 3.28, 3.27)
 MIN_TURN = math.radians(0.5)  # rad/s RMS: a window turning less says nothing of its clock
 QUIET_RATE = math.radians(0.5)  # rad/s: an interval turning less is "quiet" for gravity
 CLOCK_PROBE = 0.01  # s: the clock error an IMU lever arm's sensitivity is shown for
@@ -321,7 +327,10 @@ class Clock:
 
 
 def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
-    """A line through the windows' offsets; the slope is kept when significant."""
+    """A line through the windows' offsets. The slope (the rate error) is kept when it is
+    significant (Student's t beyond ``T_3SIGMA``) and moves the clock by more than
+    ``CLOCK_PROBE`` over the windows; else the offset is ``whole``, the one found over
+    the whole log."""
     s, o = np.asarray(stamps), np.asarray(offsets)
     windows = [[float(a), float(b)] for a, b in zip(s, o, strict=True)]
     if len(s) >= 3:
@@ -331,7 +340,9 @@ def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
         var = float(resid @ resid) / (len(s) - 2)
         cov = var * np.linalg.inv(a.T @ a)
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        if abs(x[1]) > SIGNIFICANT * max(se[1], 1e-12):
+        critical = T_3SIGMA[min(len(s) - 2, len(T_3SIGMA)) - 1]
+        drift = abs(x[1]) * float(s.max() - s.min())
+        if abs(x[1]) > critical * max(se[1], 1e-12) and drift > CLOCK_PROBE:
             return Clock(float(x[0]), float(x[1]), float(se[0]), float(se[1]), windows)
         spread = float(np.std(o, ddof=1) / math.sqrt(len(o)))
         return Clock(whole, 0.0, spread, float(se[1]), windows)
