@@ -9,8 +9,9 @@ rests on and a confidence. ``check_arrays`` runs them in order on a ``Log`` (arr
 
 Models (auvsim's conventions: body FRD, world NED, C = body -> NED from the reference's
 quaternion, SI units). Times: a stream's stamp ``s`` happened at reference-clock time
-``t = s + offset + rate_error * s``; the reference's clock runs ``reference_clock_scale``
-physical seconds per stamped second (from its positions against its velocities).
+``t = s + offset + rate_error * s``: the reference's stamps are the time base (how its
+own stamps compare with physical seconds is reported from its positions against its
+velocities, not applied: see ``reference_clock``).
 
 * IMU axes: ``P`` among the 48 signed permutations maps the logged triads onto the body,
   ``f_body = P f_log``: the 24 proper ones (det +1) and the 24 reflections, which no
@@ -446,16 +447,20 @@ def clock_finding(name: str, clock: Clock, t: np.ndarray, what: str) -> Finding:
                    f"{spread}{rate}", confidence)
 
 
-def reference_clock(log: Log) -> tuple[float, Finding]:
-    """Physical seconds per stamped second of the reference: its horizontal positions
-    against its velocities integrated over the stamps (metres and m/s know the second),
-    fitted in windows of ``OFFSET_WINDOW`` s (one scale, an intercept per axis); the
-    windows' spread gives the standard error (the residuals are not white). Where the
-    reference's velocities were themselves made from its positions and stamps, this
-    says nothing: the evidence gives the figure, not that caveat's answer."""
+def reference_clock(log: Log) -> Finding:
+    """How many physical seconds a stamped second of the reference is, as far as its own
+    data say: its horizontal positions against its velocities integrated over the
+    stamps, fitted in windows of ``OFFSET_WINDOW`` s (one scale, an intercept per axis;
+    the windows' spread gives the standard error, the residuals not being white).
+
+    Reported, never applied: the ratio is the clock's scale times the reference's
+    velocity scale, and a DVL-aided INS's velocities carry a scale error of a few
+    thousandths (the DVL's own, which ``dvl_calibration`` measures at that size), the
+    size of the stretch it would have to detect. Every other stream is put on the
+    reference's stamps as they are."""
     if log.reference_position is None:
-        return 1.0, Finding("reference clock", {"scale": 1.0}, "1 (assumed)",
-                            "no reference positions", "not observable")
+        return Finding("reference clock", {"scale": None}, "-", "no reference positions",
+                       "not observable")
     t = np.asarray(log.reference_time, float)
     p = np.asarray(log.reference_position, float)[:, :2]
     flown = cumulative(t, np.asarray(log.reference_velocity, float)[:, :2])
@@ -469,21 +474,18 @@ def reference_clock(log: Log) -> tuple[float, Finding]:
         if (f ** 2).sum() > 0:
             scales.append(float((f * d).sum() / (f ** 2).sum()))
     if len(scales) < 2:
-        return 1.0, Finding("reference clock", {"scale": 1.0}, "1 (assumed)",
-                            "too short for two windows", "not observable")
+        return Finding("reference clock", {"scale": None}, "-", "too short for two windows",
+                       "not observable")
     scale = float(np.mean(scales))
     se = float(np.std(scales, ddof=1) / math.sqrt(len(scales)))
-    significant = abs(scale - 1) > SIGNIFICANT * se
     stamp = float(np.median(np.diff(t)))
-    kept = scale if significant else 1.0
     evidence = (f"horizontal positions moved {scale:.5f} x the velocities integrated over "
                 f"the stamps ({len(scales)} windows: {min(scales):.5f} to {max(scales):.5f}, "
-                f"SE {se:.1e}); stamped every {stamp:.7g} s"
-                + (f", so {stamp * scale:.7g} physical s" if significant else
-                   "; not significantly different from 1: stamps kept"))
-    return kept, Finding("reference clock", {"scale": scale, "scale_se": se,
-                                             "windows": scales, "applied": kept},
-                         f"x{scale:.5f}", evidence, grade(se, 5e-4, 2e-3))
+                f"SE {se:.1e}); stamped every {stamp:.7g} s, {stamp * scale:.7g} s if the "
+                "velocities have no scale error: not applied (clock and velocity scale "
+                "are one product here)")
+    return Finding("reference clock", {"scale": scale, "scale_se": se, "windows": scales,
+                                       "stamp_s": stamp}, f"x{scale:.5f}", evidence, "low")
 
 
 # ---- lever arms, DVL calibration, gravity -------------------------------------------------
@@ -678,9 +680,8 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         raise DatasetError(f"{name}: neither an IMU nor a DVL; expected a stream to check")
     report = Report(name)
     ref = intervals(log)
-    scale, found = reference_clock(log)
-    report.findings.append(found)
-    corrections: dict = {"reference_clock_scale": scale}
+    report.findings.append(reference_clock(log))
+    corrections: dict = {}
     p = np.eye(3)
     imu_t = w = f = None
     if log.imu_time is not None:
@@ -781,9 +782,9 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     """The mission's fields and attributes with ``report``'s corrections made:
 
     * the IMU's triads through the axis map (``body = P logged``);
-    * every stream's stamps on the reference's clock, ``s + offset + rate_error * s``,
-      scaled by the reference clock's scale where that was significant, and all shifted
-      by one constant so the earliest is 0 (``log_time_origin_s`` moves with it);
+    * every stream's stamps on the reference's clock, ``s + offset + rate_error * s``
+      (the reference's own stamps unchanged), all shifted by one constant so the
+      earliest is 0 (``log_time_origin_s`` moves with it);
     * ``imu_time_offset_s`` and ``dvl_time_offset_s`` grow by the offsets found, the
       rates are 1 / median interval again; the sensors' positions and the DVL's mounting
       are the found ones where observable (``imu_position_body``, ``dvl_position_body``,
@@ -791,20 +792,19 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     * ``check_log_json``: the report (findings and corrections), JSON.
 
     The DVL's velocity is left as the instrument gave it (its scale is in the report); a
-    depth stream's clock is not checked (only rescaled with the reference's).
+    depth stream's clock is not checked (it is shifted with the others).
     """
     c = report.corrections
     found = {f.name: f for f in report.findings}
     fields = {f"{g}/{name}": getattr(getattr(mission, g), name)
               for g in json.loads(mission.attrs["groups"]) for name in getattr(mission, g)}
     attrs = dict(mission.attrs)
-    scale = c.get("reference_clock_scale", 1.0)
     maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
             "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
     for g in json.loads(mission.attrs["groups"]):
         offset, rate = maps.get(g, (0.0, 0.0))
         s = fields[f"{g}/time"]
-        fields[f"{g}/time"] = scale * (s + offset + rate * s)
+        fields[f"{g}/time"] = s + offset + rate * s
     start = min(float(fields[f"{g}/time"][0]) for g in json.loads(mission.attrs["groups"]))
     for g in json.loads(mission.attrs["groups"]):
         fields[f"{g}/time"] = fields[f"{g}/time"] - start
