@@ -436,7 +436,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         rng = np.random.default_rng(cfg.initial_error_seed)
         p0 = p0 + cfg.position_std * rng.standard_normal(3)
         v0 = v0 + cfg.velocity_std * rng.standard_normal(3)
-        c0 = _exp_np(att_std * rng.standard_normal(3)) @ c0
+        c0 = rotation_vector_exp(att_std * rng.standard_normal(3)) @ c0
 
     def bias_std(given, turn_on_key, instability_key):
         if given is not None:
@@ -506,7 +506,8 @@ def _chi2_1dof(probability: float) -> float:
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
 
 
-def _exp_np(phi: np.ndarray) -> np.ndarray:
+def rotation_vector_exp(phi: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation matrix of a rotation vector (3,), rad (Rodrigues)."""
     return _exp(np.asarray(phi, dtype=float))
 
 
