@@ -109,3 +109,34 @@ def find_clock(imu_time, yaw_rate_body, ref_time, ref_yaw, *, window: float = 10
         offsets.append(lags[int(np.argmin(cost))])
     slope, intercept = np.polyfit(centres, offsets, 1)
     return float(intercept), float(1.0 + slope)
+
+
+def find_dvl(imu_time, angular_rate, ref_time_imu, ref_rotation, ref_velocity, dvl_time,
+             velocity, *, clock_rate: float, clock_offset: float,
+             search: float = 3.0) -> tuple[float, np.ndarray, float]:
+    """The DVL's clock and its position relative to the reference point: for each trial
+    lag, the DVL's sample j is taken at IMU time offset + rate (t_j + lag) and
+    v_dvl - C_ref^T v_ref = w x L + b is solved for the lever arm L and a constant b by
+    least squares (the turns' rates make L observable); the lag of least residual wins.
+    Returns (lag s in the DVL's stamps, L (3,) m body FRD, residual RMS m/s)."""
+    body = np.einsum("nji,nj->ni", ref_rotation, ref_velocity)
+    csum = np.concatenate([np.zeros((1, 3)), np.cumsum(angular_rate, axis=0)])
+    best = None
+    for lag in np.arange(-search, search + 1e-9, 0.05):
+        t = clock_offset + clock_rate * (dvl_time + lag)
+        ok = (t > max(ref_time_imu[0], imu_time[0]) + 0.5) & (
+            t < min(ref_time_imu[-1], imu_time[-1]) - 0.5)
+        vb = np.stack([np.interp(t[ok], ref_time_imu, body[:, j]) for j in range(3)], 1)
+        i0, i1 = np.searchsorted(imu_time, [t[ok] - 0.5, t[ok] + 0.5])
+        w = (csum[i1] - csum[i0]) / (i1 - i0)[:, None]  # the ping's second, averaged
+        d = velocity[ok] - vb
+        # w x L = -[L x] w ... as rows: (w x L)_i = sum_j (skew(w))_ij L_j
+        skew = np.zeros((len(w), 3, 3))
+        skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+        skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+        a = np.concatenate([skew, np.broadcast_to(np.eye(3), skew.shape)], axis=2)
+        x, *_ = np.linalg.lstsq(a.reshape(-1, 6), d.ravel(), rcond=None)
+        rms = float(np.sqrt(np.mean((a.reshape(-1, 6) @ x - d.ravel()) ** 2)))
+        if best is None or rms < best[2]:
+            best = (float(lag), x[:3], rms)
+    return best
