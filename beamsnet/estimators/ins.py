@@ -304,6 +304,7 @@ class FilterTrack(NamedTuple):
     nees_velocity: np.ndarray  # (P,) e^T cov^-1 e against the true velocity (NaN: none)
     accepted: np.ndarray  # (P,) bool: the filter accepted a measurement of the ping
     events: tuple[Event, ...] = ()  # the divergence watch's restarts, in time order
+    quaternion: np.ndarray | None = None  # (P, 4) body -> NED [w, x, y, z], its attitude
 
     @property
     def availability(self) -> float:
@@ -370,7 +371,8 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
-            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, watch):
+            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, watch,
+            timing_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
     (p, v, c, ba, bg, P); outputs per ping are returned.
 
@@ -390,6 +392,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         bias_decay: 1 / correlation time of the measurement biases c_k, 1/s (0: constant).
         bias_psd: their driving PSD, (m/s)^2/s.
         watch: (window pings, rejected share) of the divergence watch; window 0: off.
+        timing_std: s, the std of each ping's time on the IMU's clock: a measurement
+            along b changes at b . du/dt, so it is uncertain by timing_std |b . du/dt|
+            more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
     """
     n_ping = ping_row.shape[0]
     n_dir = dirs.shape[0]
@@ -398,6 +403,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     out_p = np.full((n_ping, 3), np.nan)
     out_pstd = np.full((n_ping, 3), np.nan)
     out_b = np.full((n_ping, 28), np.nan)
+    out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
     reset = np.zeros(n_ping, dtype=np.bool_)
@@ -473,6 +479,12 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
             wb = w[i] - bg - c.T @ omega_ie
             worst = 0.0
+            u_dot = np.zeros(3)
+            if timing_std > 0.0:
+                u = c.T @ v + np.cross(wb, lever)
+                alpha = (w[i] - w[i - 1]) / dt[i] if i > 0 else np.zeros(3)
+                u_dot = (f[i] - ba + g * c[2, :] - np.cross(wb, u)
+                         + np.cross(alpha, lever))
             for k in range(n_dir):
                 if not usable[k_ping, k]:
                     continue
@@ -489,7 +501,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     hrow[15 + k] = along
                     hrow[19 + k] = 1.0
                 ph = P @ hrow
-                s_inn = hrow @ ph + r_meas[k]
+                rate_k = gmb[0, k] * u_dot[0] + gmb[1, k] * u_dot[1] + gmb[2, k] * u_dot[2]
+                s_inn = hrow @ ph + r_meas[k] + (timing_std * rate_k) ** 2
                 nu = meas[k_ping, k] - y_hat
                 if nu * nu > gate * s_inn:
                     rejected[k_ping] += 1
@@ -551,6 +564,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             out_cov[k_ping] = jac @ sub @ jac.T
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
             out_p[k_ping] = p - c @ r_imu
+            out_c[k_ping] = c
             for r in range(3):
                 # The origin's position error adds theta x (C r_imu); r_imu is short, and
                 # its share is below the position std's first digit: the IMU point's std.
@@ -566,7 +580,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     out_b[k_ping, 20 + k] = cb[k]
                     out_b[k_ping, 24 + k] = math.sqrt(P[19 + k, 19 + k])
             k_ping += 1
-    return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset
+    return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset, out_c
 
 
 def _dataset_config(mission) -> dict:
@@ -687,7 +701,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                instrument: Instrument, latitude_deg: float | None = None,
                height_m: float = 0.0, gravity: float | None = None,
                config: FilterConfig = FilterConfig(), truth_velocity_dvl=None,
-               ping_row=None) -> FilterTrack:
+               ping_row=None, timing_std: float | None = None) -> FilterTrack:
     """Run the filter on arrays: no dataset needed.
 
     The streams keep their own clocks: each DVL ping is applied at the IMU sample at or
@@ -717,6 +731,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         truth_velocity_dvl: (P, 3) m/s, for the NEES (NaN without).
         ping_row: (P,) the IMU sample of each ping, where a file states it (simulated
             missions' ``imu/index_of_dvl``); default from the times.
+        timing_std: s, how uncertain each ping's time is on the IMU's clock; None:
+            ``config.clock_std`` (0 for a simulated mission, whose clocks are exact).
 
     Returns:
         The track at every ping.
@@ -801,14 +817,15 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                              (len(dirs),)) ** 2
     dt = np.concatenate([[0.0], np.diff(t[i0:])])
     decay = 0.0 if cfg.bias_time is None else 1.0 / cfg.bias_time
-    out_v, cov, pos, pos_std, b, used, rejected, reset = _filter(
+    out_v, cov, pos, pos_std, b, used, rejected, reset, rot = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
         np.ascontiguousarray(r_meas), _chi2_1dof(cfg.gate_probability), n, decay,
         2.0 * cfg.beam_bias_std**2 * decay,
-        np.array([float(cfg.watch_pings), float(cfg.watch_share)]))
+        np.array([float(cfg.watch_pings), float(cfg.watch_share)]),
+        cfg.clock_std if timing_std is None else float(timing_std))
     if truth_velocity_dvl is not None:
         err = out_v - np.asarray(truth_velocity_dvl, dtype=float)
         ok = np.isfinite(err).all(axis=1)
@@ -831,7 +848,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
                        beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
-                       accepted=used > 0, events=events)
+                       accepted=used > 0, events=events,
+                       quaternion=quaternion_of(rot))
 
 
 def run_mission(mission, config: FilterConfig = FilterConfig(), *,
@@ -956,7 +974,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         start=start, instrument=instrument, latitude_deg=latitude,
         height_m=float(a.get("height_m", 0.0)), gravity=gravity,
         config=dataclasses.replace(cfg, beam_states=beam_states),
-        truth_velocity_dvl=truth_v, ping_row=ping_row)
+        truth_velocity_dvl=truth_v, ping_row=ping_row,
+        timing_std=None if recorded else 0.0)
 
 
 def _holds(group, field: str) -> bool:
@@ -1010,6 +1029,38 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
 def _chi2_1dof(probability: float) -> float:
     """Quantile of chi-square with 1 dof: the square of the normal's two-sided one."""
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
+
+
+def quaternion_of(rotation: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions [w, x, y, z], w >= 0, of rotation matrices (..., 3, 3):
+    Shepperd's method (1978, J. Guidance and Control 1(3)), from the largest of the four
+    squared components; NaN matrices give NaN."""
+    r = np.asarray(rotation, dtype=float)
+    t = np.stack([1 + r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2],
+                  1 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2],
+                  1 - r[..., 0, 0] + r[..., 1, 1] - r[..., 2, 2],
+                  1 - r[..., 0, 0] - r[..., 1, 1] + r[..., 2, 2]], axis=-1)
+    k = np.argmax(np.nan_to_num(t, nan=-1.0), axis=-1)
+    big = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], axis=-1)[..., 0],
+                             1e-300)) / 2
+    q = _shepperd(r, k, big)
+    q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def _shepperd(r: np.ndarray, k: np.ndarray, big: np.ndarray) -> np.ndarray:
+    """The quaternion from its largest component ``big`` (index k) and the matrix's
+    off-diagonal sums and differences (each 4 q_i q_j)."""
+    d = 4 * big
+    a = (r[..., 2, 1] - r[..., 1, 2]) / d
+    b = (r[..., 0, 2] - r[..., 2, 0]) / d
+    c = (r[..., 1, 0] - r[..., 0, 1]) / d
+    xy = (r[..., 0, 1] + r[..., 1, 0]) / d
+    xz = (r[..., 0, 2] + r[..., 2, 0]) / d
+    yz = (r[..., 1, 2] + r[..., 2, 1]) / d
+    cases = [np.stack([big, a, b, c], -1), np.stack([a, big, xy, xz], -1),
+             np.stack([b, xy, big, yz], -1), np.stack([c, xz, yz, big], -1)]
+    return np.take_along_axis(np.stack(cases, axis=-2), k[..., None, None], axis=-2)[..., 0, :]
 
 
 def rotation_vector_exp(phi: np.ndarray) -> np.ndarray:
