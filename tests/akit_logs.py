@@ -144,13 +144,48 @@ def find_dvl(imu_time, angular_rate, ref_time_imu, ref_rotation, ref_velocity, d
     return best
 
 
+def _skew(w: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) cross-product matrices [w x] of (N, 3) vectors."""
+    out = np.zeros((len(w), 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return out
+
+
+def find_imu(imu_time, specific_force, angular_rate, ref_time_imu, ref_rotation,
+             ref_velocity, *, gravity: float) -> tuple[np.ndarray, float]:
+    """The IMU's position relative to the reference point, m FRD: the IMU's specific
+    force (averaged over each reference interval) minus the reference point's own,
+    C^T (dv/dt - g), is alpha x r + w x (w x r) (+ a constant: the accelerometer biases),
+    solved for r by least squares (the roll oscillations and turns make it observable).
+    Returns (r, residual RMS m/s^2)."""
+    rows = np.searchsorted(imu_time, ref_time_imu)
+    ok = (rows > 0) & (rows < len(imu_time))
+    edges = rows[ok]
+    csum = np.concatenate([np.zeros((1, 6)),
+                           np.cumsum(np.hstack([specific_force, angular_rate]), axis=0)])
+    mean = (csum[edges[1:]] - csum[edges[:-1]]) / np.diff(edges)[:, None]
+    t, c, v = ref_time_imu[ok], ref_rotation[ok], ref_velocity[ok]
+    dt = np.diff(t)[:, None]
+    accel = np.diff(v, axis=0) / dt - np.array([0.0, 0.0, gravity])
+    f_ref = 0.5 * (np.einsum("nji,nj->ni", c[:-1], accel) + np.einsum("nji,nj->ni", c[1:],
+                                                                        accel))
+    w = mean[:, 3:]
+    alpha = np.gradient(w, axis=0) / dt
+    a = _skew(alpha) + np.einsum("nij,njk->nik", _skew(w), _skew(w))
+    a = np.concatenate([a, np.broadcast_to(np.eye(3), a.shape)], axis=2).reshape(-1, 6)
+    d = (mean[:, :3] - f_ref).ravel()
+    x, *_ = np.linalg.lstsq(a, d, rcond=None)
+    return x[:3], float(np.sqrt(np.mean((a @ x - d) ** 2)))
+
+
 def corrected(k: int, root: Path = AKIT) -> dict:
     """Segment ``k`` with what ``auvsim check-log --apply`` is to correct, found here from
     the data: the IMU's axes (``find_axes``: its y axis is mirrored, diag(1, -1, 1), on
     all six), the reference's and the DVL's stamps on the IMU's clock (``find_clock``,
-    ``find_dvl``) and the DVL's position from the reference point. The IMU is taken to
-    sit at the reference point (the reference is the INS's own post-processed
-    solution). The clock is found on the raw gyro z, which the map leaves as it is."""
+    ``find_dvl``) and the IMU's and the DVL's positions from the reference point
+    (``find_imu``, ``find_dvl``). The clock is found on the raw gyro z, which the map
+    leaves as it is."""
     from auvsim.physics.earth import normal_gravity
 
     s = read_segment(k, root)
@@ -166,8 +201,10 @@ def corrected(k: int, root: Path = AKIT) -> dict:
     lag, lever, rms = find_dvl(s["imu_time"], s["angular_rate"], ref_time, s["ref_rotation"],
                                s["ref_velocity"], s["dvl_time"], s["velocity"],
                                clock_rate=rate, clock_offset=offset)
+    r_imu, imu_rms = find_imu(s["imu_time"], s["specific_force"], s["angular_rate"],
+                              ref_time, s["ref_rotation"], s["ref_velocity"], gravity=gravity)
     s.update(ref_time=ref_time, dvl_time=offset + rate * (s["dvl_time"] + lag),
-             dvl_position_body=lever, clock=(offset, rate), dvl_lag=lag, dvl_rms=rms,
+             dvl_position_body=lever, imu_position_body=r_imu, imu_rms=imu_rms, clock=(offset, rate), dvl_lag=lag, dvl_rms=rms,
              gravity=gravity, axes=axes, axes_margin=ranked[1] / ranked[0])
     return s
 
@@ -215,7 +252,8 @@ def run_segment(s: dict, config=None) -> dict:
                                      config=config)
     track = ins.run_arrays(s["imu_time"], s["specific_force"], s["angular_rate"],
                            s["dvl_time"], velocity=s["velocity"],
-                           dvl_position_body=s["dvl_position_body"], start=start,
+                           dvl_position_body=s["dvl_position_body"],
+                           imu_position_body=s["imu_position_body"], start=start,
                            instrument=phins_instrument(s), latitude_deg=s["latitude_deg"],
                            height_m=s["height_m"], config=config)
     ok = np.isfinite(track.position_ned[:, 0])
@@ -269,7 +307,8 @@ if __name__ == "__main__":  # the table: python tests/akit_logs.py
         r = run_segment(s)
         print(f"segment {k}: axes {s['axes'].astype(int).tolist()} (next best "
               f"{s['axes_margin']:.1f}x worse), clock {s['clock'][0]:+.3f} s + {s['clock'][1]:.6f} t, DVL lag "
-              f"{s['dvl_lag']:+.2f} s, lever {np.round(s['dvl_position_body'], 2)} m | "
+              f"{s['dvl_lag']:+.2f} s, DVL at {np.round(s['dvl_position_body'], 2)} m, IMU at "
+              f"{np.round(s['imu_position_body'], 2)} m | "
               f"filter final {r['final']:.2f} m, RMSE {r['rmse']:.2f} m, 3-sigma coverage "
               f"{100 * r['coverage']:.0f} %, sigma_h final {r['sigma_final']:.2f} m, "
               f"availability {100 * r['availability']:.1f} %, events {r['events']} | DR "

@@ -83,7 +83,7 @@ from beamsnet.estimators.registry import Needs, Spec
 
 EARTH_RATE = OMEGA  # rad/s, WGS-84 (auvsim.physics.earth)
 N_CORE = 15  # p, v, theta, b_a, b_g
-N_BEAM = 23  # + 4 beam scale factors, 4 beam biases
+N_BEAM = 26  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
 
 
@@ -124,6 +124,13 @@ class FilterConfig:
             accuracy of a Teledyne RDI Workhorse Navigator (``auvsim.runs.presets
             .navigator`` cites it).
         beam_bias_std: initial std of each bias, m/s: 1 mm/s, likewise.
+        misalignment_std_deg: initial std of the DVL's mounting misalignment about each
+            of its axes, deg (with ``beam_states``): 0.5 deg, our choice for a DVL
+            mounted mechanically without an alignment calibration (at 0.5 deg a DVL
+            track bends by 0.9 % of the distance; Kinsey, Eustice & Whitcomb 2006, "A
+            survey of underwater vehicle navigation", IFAC MCMC, sec. 3.2, on why it
+            matters). The INS cannot tell a heading misalignment from its own heading on
+            a straight leg, so it is what makes the position's std grow with distance.
         bias_time: correlation time of those biases, s (first-order Gauss-Markov of std
             ``beam_bias_std``); None: constant over a mission.
         gate_probability: chi-square (1 dof) gate on each measurement's normalised
@@ -162,6 +169,7 @@ class FilterConfig:
     beam_states: bool | None = None
     beam_scale_std: float = 0.002
     beam_bias_std: float = 0.001
+    misalignment_std_deg: float = 0.5
     bias_time: float | None = None
     gate_probability: float = 0.999
     beam_noise_std: float | None = None
@@ -176,7 +184,8 @@ class FilterConfig:
     watch_share: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std"):
+        for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std",
+                     "misalignment_std_deg"):
             value = getattr(self, name)
             if not (_number(value) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
@@ -305,6 +314,8 @@ class FilterTrack(NamedTuple):
     accepted: np.ndarray  # (P,) bool: the filter accepted a measurement of the ping
     events: tuple[Event, ...] = ()  # the divergence watch's restarts, in time order
     quaternion: np.ndarray | None = None  # (P, 4) body -> NED [w, x, y, z], its attitude
+    misalignment: np.ndarray | None = None  # (P, 3) rad, the DVL's, about its axes
+    misalignment_std: np.ndarray | None = None  # (P, 3) rad
 
     @property
     def availability(self) -> float:
@@ -402,7 +413,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     out_cov = np.full((n_ping, 3, 3), np.nan)
     out_p = np.full((n_ping, 3), np.nan)
     out_pstd = np.full((n_ping, 3), np.nan)
-    out_b = np.full((n_ping, 28), np.nan)
+    out_b = np.full((n_ping, 34), np.nan)
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
@@ -413,10 +424,10 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     attitude_prior = np.array([P[6, 6], P[7, 7], P[8, 8]])
     s = np.zeros(4)
     cb = np.zeros(4)
+    mis = np.zeros(3)  # the DVL frame's small rotation from its nominal mounting, rad
     m_vv = np.zeros((3, 3))
     m_aa = np.zeros((3, 3))
     earth = omega_ie[0] != 0.0 or omega_ie[1] != 0.0 or omega_ie[2] != 0.0
-    gmb = mounting @ dirs.T  # (3, K): the directions in the body
     k_ping = 0
     while k_ping < n_ping and ping_row[k_ping] < 0:
         k_ping += 1
@@ -489,9 +500,13 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 if not usable[k_ping, k]:
                     continue
                 u = c.T @ v + np.cross(wb, lever)  # DVL point velocity, body
-                gk = (1.0 + s[k]) * gmb[:, k]
+                # Direction k of the DVL frame as mounted, in the body: d turned by the
+                # misalignment, d + mis x d (d . (x + x x mis) = (d + mis x d) . x).
+                d_k = dirs[k] + np.cross(mis, dirs[k])
+                gm = mounting @ d_k
+                gk = (1.0 + s[k]) * gm
                 a = c @ gk
-                along = gmb[0, k] * u[0] + gmb[1, k] * u[1] + gmb[2, k] * u[2]
+                along = gm[0] * u[0] + gm[1] * u[1] + gm[2] * u[2]
                 y_hat = (1.0 + s[k]) * along + cb[k]
                 hrow[:] = 0.0
                 hrow[3:6] = a
@@ -500,8 +515,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 if n > N_CORE:
                     hrow[15 + k] = along
                     hrow[19 + k] = 1.0
+                    hrow[23:26] = (1.0 + s[k]) * np.cross(dirs[k], mounting.T @ u)
                 ph = P @ hrow
-                rate_k = gmb[0, k] * u_dot[0] + gmb[1, k] * u_dot[1] + gmb[2, k] * u_dot[2]
+                rate_k = gm[0] * u_dot[0] + gm[1] * u_dot[1] + gm[2] * u_dot[2]
                 s_inn = hrow @ ph + r_meas[k] + (timing_std * rate_k) ** 2
                 nu = meas[k_ping, k] - y_hat
                 if nu * nu > gate * s_inn:
@@ -522,6 +538,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 if n > N_CORE:
                     s += dx[15:19]
                     cb += dx[19:23]
+                    mis += dx[23:26]
             if window > 0:
                 slot = k_ping % window
                 ring_used[slot] = used[k_ping] + rejected[k_ping]
@@ -579,6 +596,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     out_b[k_ping, 16 + k] = math.sqrt(P[15 + k, 15 + k])
                     out_b[k_ping, 20 + k] = cb[k]
                     out_b[k_ping, 24 + k] = math.sqrt(P[19 + k, 19 + k])
+                for r in range(3):
+                    out_b[k_ping, 28 + r] = mis[r]
+                    out_b[k_ping, 31 + r] = math.sqrt(P[23 + r, 23 + r])
             k_ping += 1
     return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset, out_c
 
@@ -804,7 +824,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         np.asarray(start.attitude_std, dtype=float),
         np.full(3, ins.accel_bias_std if cfg.accel_bias_std is None else cfg.accel_bias_std),
         np.full(3, ins.gyro_bias_std if cfg.gyro_bias_std is None else cfg.gyro_bias_std),
-        np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std)])[:n]
+        np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std),
+        np.full(3, math.radians(cfg.misalignment_std_deg))])[:n]
     P = np.diag(std**2)
     q = np.array([
         (ins.accel_noise_density if cfg.accel_noise_density is None
@@ -848,7 +869,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
                        beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
-                       accepted=used > 0, events=events,
+                       accepted=used > 0, events=events, misalignment=b[:, 28:31],
+                       misalignment_std=b[:, 31:34],
                        quaternion=quaternion_of(rot))
 
 
