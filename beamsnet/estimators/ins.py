@@ -83,7 +83,8 @@ from beamsnet.estimators.registry import Needs, Spec
 
 EARTH_RATE = OMEGA  # rad/s, WGS-84 (auvsim.physics.earth)
 N_CORE = 15  # p, v, theta, b_a, b_g
-N_BEAM = 26  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
+N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
+# and 3 lever-arm errors
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
 
 
@@ -131,6 +132,11 @@ class FilterConfig:
             survey of underwater vehicle navigation", IFAC MCMC, sec. 3.2, on why it
             matters). The INS cannot tell a heading misalignment from its own heading on
             a straight leg, so it is what makes the position's std grow with distance.
+        lever_arm_std: initial std of the DVL's lever arm from the IMU, m per axis
+            (with ``beam_states``): 0.1 m, the accuracy ``auvsim check-log`` is to find
+            lever arms to. A vehicle rolling at 30 deg/s moves a DVL 1.8 m below its IMU
+            at 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's
+            noise: the states make it observable instead of gated.
         bias_time: correlation time of those biases, s (first-order Gauss-Markov of std
             ``beam_bias_std``); None: constant over a mission.
         gate_probability: chi-square (1 dof) gate on each measurement's normalised
@@ -155,6 +161,10 @@ class FilterConfig:
         watch_share: the share of the window's measurements the gate must have rejected
             (with one rejected at the current ping) for the watch to restart the velocity
             from the measurements and widen the attitude and position (an ``Event``).
+            A quarter: one DVL axis (or one beam in four) rejected throughout; under the
+            gate's own false-alarm rate (0.1 %) a quarter of a window's 30 or more
+            measurements (8 or more) has a binomial probability below 1e-15, and a real
+            DVL's outliers (0.2 % to a few per cent of pings) stay well below it.
     """
 
     position_std: float = 0.1
@@ -170,6 +180,7 @@ class FilterConfig:
     beam_scale_std: float = 0.002
     beam_bias_std: float = 0.001
     misalignment_std_deg: float = 0.5
+    lever_arm_std: float = 0.1
     bias_time: float | None = None
     gate_probability: float = 0.999
     beam_noise_std: float | None = None
@@ -181,11 +192,11 @@ class FilterConfig:
     gyro_bias_psd: float | None = None
     clock_std: float = 0.05
     watch_pings: int = 10
-    watch_share: float = 0.5
+    watch_share: float = 0.25
 
     def __post_init__(self) -> None:
         for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std",
-                     "misalignment_std_deg"):
+                     "misalignment_std_deg", "lever_arm_std"):
             value = getattr(self, name)
             if not (_number(value) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
@@ -316,6 +327,8 @@ class FilterTrack(NamedTuple):
     quaternion: np.ndarray | None = None  # (P, 4) body -> NED [w, x, y, z], its attitude
     misalignment: np.ndarray | None = None  # (P, 3) rad, the DVL's, about its axes
     misalignment_std: np.ndarray | None = None  # (P, 3) rad
+    lever_arm: np.ndarray | None = None  # (P, 3) m, the DVL's from the IMU, body
+    lever_arm_std: np.ndarray | None = None  # (P, 3) m
 
     @property
     def availability(self) -> float:
@@ -413,7 +426,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     out_cov = np.full((n_ping, 3, 3), np.nan)
     out_p = np.full((n_ping, 3), np.nan)
     out_pstd = np.full((n_ping, 3), np.nan)
-    out_b = np.full((n_ping, 34), np.nan)
+    out_b = np.full((n_ping, 40), np.nan)
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
@@ -516,6 +529,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     hrow[15 + k] = along
                     hrow[19 + k] = 1.0
                     hrow[23:26] = (1.0 + s[k]) * np.cross(dirs[k], mounting.T @ u)
+                    hrow[26:29] = np.cross(gk, wb)  # g . (w x dL) = dL . (g x w)
                 ph = P @ hrow
                 rate_k = gm[0] * u_dot[0] + gm[1] * u_dot[1] + gm[2] * u_dot[2]
                 s_inn = hrow @ ph + r_meas[k] + (timing_std * rate_k) ** 2
@@ -539,6 +553,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     s += dx[15:19]
                     cb += dx[19:23]
                     mis += dx[23:26]
+                    lever += dx[26:29]
             if window > 0:
                 slot = k_ping % window
                 ring_used[slot] = used[k_ping] + rejected[k_ping]
@@ -599,6 +614,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 for r in range(3):
                     out_b[k_ping, 28 + r] = mis[r]
                     out_b[k_ping, 31 + r] = math.sqrt(P[23 + r, 23 + r])
+                    out_b[k_ping, 34 + r] = lever[r]
+                    out_b[k_ping, 37 + r] = math.sqrt(P[26 + r, 26 + r])
             k_ping += 1
     return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset, out_c
 
@@ -825,7 +842,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         np.full(3, ins.accel_bias_std if cfg.accel_bias_std is None else cfg.accel_bias_std),
         np.full(3, ins.gyro_bias_std if cfg.gyro_bias_std is None else cfg.gyro_bias_std),
         np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std),
-        np.full(3, math.radians(cfg.misalignment_std_deg))])[:n]
+        np.full(3, math.radians(cfg.misalignment_std_deg)),
+        np.full(3, cfg.lever_arm_std)])[:n]
     P = np.diag(std**2)
     q = np.array([
         (ins.accel_noise_density if cfg.accel_noise_density is None
@@ -870,7 +888,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
                        accepted=used > 0, events=events, misalignment=b[:, 28:31],
-                       misalignment_std=b[:, 31:34],
+                       misalignment_std=b[:, 31:34], lever_arm=b[:, 34:37],
+                       lever_arm_std=b[:, 37:40],
                        quaternion=quaternion_of(rot))
 
 
