@@ -204,8 +204,9 @@ def corrected(k: int, root: Path = AKIT) -> dict:
     r_imu, imu_rms = find_imu(s["imu_time"], s["specific_force"], s["angular_rate"],
                               ref_time, s["ref_rotation"], s["ref_velocity"], gravity=gravity)
     s.update(ref_time=ref_time, dvl_time=offset + rate * (s["dvl_time"] + lag),
-             dvl_position_body=lever, imu_position_body=r_imu, imu_rms=imu_rms, clock=(offset, rate), dvl_lag=lag, dvl_rms=rms,
-             gravity=gravity, axes=axes, axes_margin=ranked[1] / ranked[0])
+             dvl_position_body=lever, imu_position_body=r_imu, imu_rms=imu_rms,
+             clock=(offset, rate), dvl_lag=lag, dvl_rms=rms, gravity=gravity, axes=axes,
+             axes_margin=ranked[1] / ranked[0])
     return s
 
 
@@ -289,11 +290,8 @@ def dead_reckoning(s: dict, k0: int) -> np.ndarray:
     v_body = s["velocity"] - np.cross(w, s["dvl_position_body"])
     v_ned = np.einsum("pij,pj->pi", np.stack([rpy(*a) for a in angles]), v_body)
     out = np.full((len(tp), 3), np.nan)
-    p = np.interp(tp[0], t, s["ref_position"][:, 0]), np.interp(tp[0], t,
-                                                               s["ref_position"][:, 1])
     start = int(np.searchsorted(tp, t[k0]))
     pos = np.array([np.interp(tp[start], t, s["ref_position"][:, j]) for j in range(3)])
-    del p
     out[start] = pos
     for k in range(start + 1, len(tp)):
         pos = pos + (tp[k] - tp[k - 1]) * v_ned[k - 1]
@@ -306,7 +304,8 @@ if __name__ == "__main__":  # the table: python tests/akit_logs.py
         s = corrected(k)
         r = run_segment(s)
         print(f"segment {k}: axes {s['axes'].astype(int).tolist()} (next best "
-              f"{s['axes_margin']:.1f}x worse), clock {s['clock'][0]:+.3f} s + {s['clock'][1]:.6f} t, DVL lag "
+              f"{s['axes_margin']:.1f}x worse), clock {s['clock'][0]:+.3f} s + "
+              f"{s['clock'][1]:.6f} t, DVL lag "
               f"{s['dvl_lag']:+.2f} s, DVL at {np.round(s['dvl_position_body'], 2)} m, IMU at "
               f"{np.round(s['imu_position_body'], 2)} m | "
               f"filter final {r['final']:.2f} m, RMSE {r['rmse']:.2f} m, 3-sigma coverage "
