@@ -1,63 +1,107 @@
 """INS/DVL error-state Kalman filter: strapdown mechanisation at the IMU rate, corrected by
-each bottom-track DVL beam as a scalar measurement (issue 11, item 1).
+each bottom-track DVL beam (or each axis of the DVL's own velocity) as a scalar
+measurement (issue 11, item 1; fit for a real vehicle in issue 24, item 3).
+
+Entry points: ``run_arrays`` (arrays in, no dataset: IMU times and samples, DVL times and
+beams or velocity, lever arms, mounting, the place, a ``Start`` and the ``Instrument``'s
+noise), ``run_mission`` (a thin adapter: a simulated, imported-with-IMU or recorded
+mission's streams and attributes into ``run_arrays``), ``InsDvlFilter`` (the estimator
+of the tables). Settings: ``FilterConfig`` (``load_config`` reads one from TOML,
+``beamsnet estimate/evaluate --filter-config``). Output: ``FilterTrack`` at every ping,
+with the position and its std, the attitude, the instrument states, ``accepted`` (a
+measurement of the ping was used), ``availability`` (their share) and ``events``.
 
 Conventions are auvsim's (NED world, FRD body, body -> NED rotation C, SI units). The
-mechanised point is the IMU; the DVL and the body origin are reached through the lever
-arms of the file's attributes.
+mechanised point is the IMU; the DVL and the body origin (the reference point) are
+reached through the lever arms. The streams keep their own clocks: a ping is applied at
+the IMU sample at or just before its time (``np.searchsorted``); nothing is resampled.
 
 Mechanisation (Groves 2013, "Principles of GNSS, Inertial, and Multisensor Integrated
-Navigation Systems", 2nd ed., sec. 5.4, first-order form, flat Earth), from IMU sample
-i - 1 to i, dt = 1 / rate::
+Navigation Systems", 2nd ed., sec. 5.4, first-order form in a local-level frame), from
+IMU sample i - 1 to i, dt_i = t_i - t_{i-1}::
 
     v_i = v_{i-1} + dt (C_{i-1} f_{i-1} + g - 2 Omega_ie x v_{i-1})
     p_i = p_{i-1} + dt v_i
     C_i = C_{i-1} Exp(dt (w_i - C_{i-1}^T Omega_ie))
 
-with f and w the bias-corrected samples, g = (0, 0, g0) and Omega_ie the Earth rate at a
-configured latitude (off by default: auvsim's world is flat and does not rotate). This is
-the discrete form auvsim's truth obeys: MuJoCo's semi-implicit Euler step holds the
-acceleration recorded at step i - 1 over the step and rotates by the angular velocity
-recorded at step i, and the simulated accelerometer reads C^T (a - g) with the model's
-g0. So noise-free data integrate back exactly at the body origin; at the IMU point (and
-the DVL) the one discretisation error is the lever arm's (derived, and tested to 1e-9,
-in ``tests/test_ins.py::lever_arm_error``). A real
-IMU's increments would need Savage's coning and sculling terms instead.
+with f and w the bias-corrected samples, g = (0, 0, g) and Omega_ie the Earth's rate in
+NED. Whenever the latitude is known (a recorded log always; a simulated mission with a
+geographic origin, whose attributes carry ``latitude_deg``), Omega_ie and g are the
+WGS-84 Earth rate and normal gravity there (``auvsim.physics.earth``); without one,
+auvsim's flat world that does not rotate (Omega_ie = 0, the mission's own g). The
+transport rate (the local-level frame turning as the vehicle moves over the curved Earth,
+v / R: 3e-7 rad/s at 2 m/s, 2 % of the Earth's rate) and the change of gravity with the
+distance travelled are left out: over the few kilometres of a mission the frame turns
+by under 0.03 deg and the position error they make stays under a few centimetres, far
+below the DVL's. Without the Earth's rate, this is the discrete form auvsim's truth
+obeys: MuJoCo's semi-implicit Euler step holds the acceleration recorded at step i - 1
+over the step and rotates by the angular velocity recorded at step i, and the simulated
+accelerometer reads C^T (a - g) with the model's g. So noise-free data integrate back
+exactly at the body origin; at the IMU point (and the DVL) the one discretisation error
+is the lever arm's (derived, and tested to 1e-9, in ``tests/test_ins.py::
+lever_arm_error``). A real IMU's increments would need Savage's coning and sculling
+terms instead; at 100 Hz on the Snapir's logs they are below the logs' rounding.
 
 Error state (x = x_hat + dx; Groves ch. 14.2, Sola 2017 "Quaternion kinematics for the
 error-state Kalman filter" sec. 7 for the global attitude error): dp, dv (NED, m, m/s),
 attitude error theta with C = Exp(theta) C_hat (NED, rad), accelerometer and gyro bias
-errors (body, m/s^2, rad/s), and with ``beam_states`` each beam's scale factor s_k and
-bias c_k (8 more). Continuous error dynamics (Groves eq. 14.64 without the curvature and
-Earth-rate terms unless ``earth_rate``)::
+errors (body, m/s^2, rad/s), and with ``beam_states`` (on for recorded logs and arrays)
+14 instrument states: each measurement's scale factor s_k and bias c_k (4 + 4: per beam,
+or per DVL axis), the DVL frame's misalignment mu (3, rad) and the DVL's lever-arm error
+(3, m). Continuous error dynamics (Groves eq. 14.64 without the curvature terms)::
 
-    dp' = dv,   dv' = -[C f x] theta - C db_a - C n_a,   theta' = -C db_g - C n_g,
-    db_a' = w_ba,  db_g' = w_bg  (random walks; s and c constant)
+    dp' = dv,   dv' = -[C f x] theta - C db_a - 2 Omega_ie x dv - C n_a,
+    theta' = -Omega_ie x theta - C db_g - C n_g,
+    db_a' = w_ba,  db_g' = w_bg  (random walks),  c_k' = -c_k / tau + w_c (``bias_time``;
+    constant without), s, mu, L constant
 
 propagated at every IMU sample with Phi = I + F dt and Q = diag(...) dt (Groves eq.
-14.72-14.82, first order), applied to the sparse blocks only. Beam k measures (auvsim's
-DVL, ``auvsim.sensors.dvl``)::
+14.72-14.82, first order), applied to the sparse blocks only. Measurement k, along the
+unit direction d_k of the DVL frame (a beam, or an axis of its velocity)::
 
-    y_k = (1 + s_k) b_k . M^T (C^T v + w x L) + c_k + n_k,   n_k ~ N(0, sigma^2)
+    y_k = (1 + s_k) (d_k + mu x d_k) . M^T (C^T v + w x L) + c_k + n_k
 
-with M the nominal mounting (DVL frame -> body) and L = r_dvl - r_imu, so each usable
-beam (``valid`` and bottom track) is one scalar update (Groves sec. 3.2.5: sequential
-processing of uncorrelated measurements) and one to four beams all help. Each innovation
-is gated by chi-square with 1 dof at ``gate_probability``. A beam is used where it has
-bottom lock (``dvl/valid``) on a ping not in water track (``dvl/mode`` != 1): with fewer
-than 3 such beams the ping has no LS velocity (mode -1), but its locked beams still
-measure the velocity over ground. A ping without one leaves the prior, so the track has
-a velocity at every ping.
+with M the nominal mounting (DVL frame -> body) and L = r_dvl - r_imu: one scalar update
+each (Groves sec. 3.2.5, sequential processing of uncorrelated measurements), so one to
+four beams all help. n_k is white with the instrument's std, plus what the ping's timing
+uncertainty (``clock_std`` on a recorded log, 0 for simulated clocks) makes of the rate
+at which y_k changes. Each innovation is gated by chi-square with 1 dof at
+``gate_probability``. A beam is used where it has bottom lock (``dvl/valid``) on a ping
+not in water track (``dvl/mode`` != 1).
+
+No silent divergence: the watch counts, over the last ``watch_pings`` pings, the
+measurements the gate rejected; when they reach ``watch_share`` of those offered (and the
+current ping had one), the velocity is restarted from the measurements (its variance set
+to cover the worst innovation, its correlations dropped), the attitude's variance gets
+its initial prior back and the position's grows by what that velocity error moves it
+over the window. Each restart is an ``Event`` of the track (ping, time, one line), listed
+by ``beamsnet estimate``.
+
+Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
+the mission's attributes (a simulated file's turn-on spread from its config, where the
+attributes hold the drawn value), with a recorded log's rounding added
+(``quantisation_density``); the beams' white noise from ``dvl_noise_std``, a velocity's
+from it through the Janus geometry (``janus_velocity_std``) or from
+``dvl_velocity_accuracy``; ``beam_noise_from_error_velocity`` estimates a beam noise from
+the DVL's error velocity. None of it comes from a synthetic protocol's sigma.
+
+Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
+recorded one at its reference's first sample within the IMU's span
+(``start_from_reference``: the reference's accuracy, widened by what the vehicle turns,
+accelerates and moves in ``clock_std``); without either, ``coarse_alignment`` (levelling
+from the averaged accelerometers, a given heading).
 
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
-factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's mounting
-misalignment, sound-speed ratio, range- and speed-dependent noise and heavy-tailed
-outliers (those the gate handles), and the bias's Gauss-Markov decay (a random walk with
-the same drive: the missions are much shorter than tau).
+factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
+ratio (a scale factor shared by the beams: the per-measurement ones hold it), range- and
+speed-dependent noise, heavy-tailed outliers (the gate handles them), and the DVL's
+time-correlated errors beyond the Gauss-Markov bias (the Snapir logs' DVL residual
+against their reference is correlated over seconds: ``bias_time`` models it when set).
 
-Speed (``benchmarks/filter.py``, 600 s at 100 Hz, one core): the compiled loop runs at
-3400x to 4400x real time, ``run_mission`` with its HDF5 reads at 2200x to 2800x (15
-states) and 1800x to 2100x (23), on a shared machine. The first call compiles the loop
-(about 30 s) into numba's on-disk cache; later processes load it in under a second.
+Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
+real time; on a recorded 400 s segment with the 29 states, about 5000x
+(``docs/performance/results/filter.md``). The first call compiles the loop (about 30 s)
+into numba's on-disk cache; later processes load it in under a second.
 """
 
 from __future__ import annotations
