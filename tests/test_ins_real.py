@@ -15,7 +15,7 @@ from conftest import flat
 from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
-from auvsim.physics.frames import rotation_matrices, rotation_rpy
+from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rotation_rpy
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
 from beamsnet.estimators import ins
@@ -226,3 +226,49 @@ def test_the_filter_converges_on_each_shared_segment_with_its_defaults(k):
     np.testing.assert_array_equal(s["axes"], np.diag([1.0, -1.0, 1.0]))
     result = run_segment(s)
     assert result["final"] < 5.0, result
+
+
+class _Group:
+    """A group view of plain arrays (fields as attributes, as ``Mission``'s groups)."""
+
+    def __init__(self, **fields) -> None:
+        self.__dict__.update(fields)
+
+
+def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotating_earth():
+    """A recorded mission as the schema-7 contract has it (``origin = "recorded"``,
+    ``reference/`` instead of ``truth/``, the DVL's own ``velocity_ls``, the instrument's
+    attributes): ``run_mission`` starts at the reference, turns the Earth at the mission's
+    latitude with its gravity, takes the DVL's noise from ``dvl_velocity_accuracy``, and
+    the IMU at rest stays put (the same answer as ``run_arrays`` on its arrays)."""
+    latitude = 32.85
+    data = stationary(latitude, seconds=120.0)
+    n_ref = 121
+    c = data["start"].rotation
+    attrs = dict(origin="recorded", latitude_deg=latitude, longitude_deg=34.9, height_m=-20.0,
+                 gravity=normal_gravity(latitude), imu_rate_hz=100.0,
+                 imu_position_body=np.zeros(3), imu_accel_noise_density=2e-4,
+                 imu_gyro_noise_density=7e-7, imu_accel_bias_instability=1e-4,
+                 imu_gyro_bias_instability=5e-8, imu_bias_correlation_time=3600.0,
+                 dvl_rate_hz=1.0, beam_angle_deg=30.0, dvl_position_body=np.zeros(3),
+                 dvl_mounting_rpy_deg=np.zeros(3), dvl_velocity_accuracy=0.02,
+                 dvl_beams_derived=True)
+    mission = _Group(
+        name="rest", origin="recorded", attrs=attrs, gravity=attrs["gravity"],
+        has=lambda group: group in ("imu", "dvl", "reference"),
+        imu=_Group(time=data["imu_time"], specific_force=data["specific_force"],
+                   angular_rate=data["angular_rate"]),
+        dvl=_Group(time=data["dvl_time"], velocity_ls=data["velocity"]),
+        reference=_Group(time=np.arange(n_ref, dtype=float), position_ned=np.zeros((n_ref, 3)),
+                         velocity_ned=np.zeros((n_ref, 3)),
+                         quaternion=np.tile(quaternion_from_euler(0.0, 0.0, math.radians(30)),
+                                            (n_ref, 1))),
+        dataset=_Group(config_json=""))
+    np.testing.assert_allclose(rotation_matrices(mission.reference.quaternion[:1])[0], c,
+                               atol=1e-12)
+    track = ins.run_mission(mission)
+    assert np.abs(track.position_ned).max() < 0.05 and track.availability == 1.0
+    assert np.all(np.abs(track.position_ned) <= 3 * track.position_std)
+    assert np.isnan(track.nees_velocity).all()  # a reference is not a truth
+    without = ins.run_mission(mission, ins.FilterConfig(earth_rate=False, dvl_updates=False))
+    assert np.abs(without.position_ned[:60, :2]).max() > 1.0  # the Earth's rate mattered
