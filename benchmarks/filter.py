@@ -48,8 +48,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=600.0, help="mission length, s")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--akit", type=Path, default=perf_page.ROOT.parent / "shared" / "data"
-                        / "snapir-akit", help="the shared real segments (skipped if absent)")
+    parser.add_argument("--akit", type=Path, default=_shared_akit(),
+                        help="the shared real segments (skipped if absent)")
     perf_page.add_write_option(parser, "filter")
     args = parser.parse_args()
 
@@ -108,6 +108,15 @@ def main() -> None:
         recorded(args.akit / "Trajectory1", args.repeats)
     else:
         print(f"recorded segment: {args.akit} absent, not measured")
+
+
+def _shared_akit() -> Path:
+    """``../shared/data/snapir-akit`` beside the repository (or beside the folder of
+    worktrees it sits in)."""
+    for up in (perf_page.ROOT.parent, perf_page.ROOT.parent.parent):
+        if (up / "shared" / "data" / "snapir-akit").is_dir():
+            return up / "shared" / "data" / "snapir-akit"
+    return perf_page.ROOT.parent / "shared" / "data" / "snapir-akit"
 
 
 def recorded(folder: Path, repeats: int) -> None:
