@@ -6,7 +6,7 @@ zigzag), then runs, side by side and alternating (these machines are noisy):
 
 * ``generate``: ``auvsim generate`` of that mission, HDF5 writing included;
 * ``filter``: ``beamsnet.estimators.ins.run_mission`` on it, HDF5 reading included (15 states);
-* ``filter+beams``: the same with the 8 beam states (23 states);
+* ``filter+beams``: the same with the 14 instrument states (29 states);
 * ``kernel``: the compiled filter loop alone (15 states), no file reading.
 
 and, where the shared real logs are (``--akit``, default ``../shared/data/snapir-akit``),

@@ -272,3 +272,29 @@ def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotati
     assert np.isnan(track.nees_velocity).all()  # a reference is not a truth
     without = ins.run_mission(mission, ins.FilterConfig(earth_rate=False, dvl_updates=False))
     assert np.abs(without.position_ned[:60, :2]).max() > 1.0  # the Earth's rate mattered
+
+
+def test_coarse_alignment_levels_a_tilted_imu_at_rest():
+    """At rest, roll 3 deg and pitch -2 deg: the averaged accelerometers give them back
+    (to rounding), the heading is the one given, and the level std is the floor (1 mrad)
+    since nothing moves."""
+    c = rotation_rpy(math.radians(3.0), math.radians(-2.0), math.radians(120.0))
+    t = np.arange(0.0, 20.0, 0.01)
+    f = np.tile(c.T @ [0.0, 0.0, -9.8], (len(t), 1))
+    start = ins.coarse_alignment(t, f, heading_deg=120.0)
+    np.testing.assert_allclose(start.rotation, c, atol=1e-12)
+    assert start.attitude_std[:2] == pytest.approx([1e-3, 1e-3])
+    assert start.attitude_std[2] == pytest.approx(math.radians(1.0))
+
+
+def test_a_start_from_a_reference_is_as_uncertain_as_its_clock_lets_it_be():
+    """A vehicle rolling at 33 deg/s when it starts: a clock known to 0.05 s leaves its
+    roll uncertain by 1.65 deg (beside the reference's 0.01 deg), a 2 m/s speed its
+    position by 0.1 m more along the track."""
+    config = ins.FilterConfig(clock_std=0.05)
+    start = ins.start_from_reference(0.0, np.zeros(3), np.array([2.0, 0.0, 0.0]), np.eye(3),
+                                     angular_rate=np.radians([33.0, 0.0, 0.0]), config=config)
+    assert math.degrees(start.attitude_std[0]) == pytest.approx(math.hypot(1.65, 0.01))
+    assert math.degrees(start.attitude_std[2]) == pytest.approx(0.05)
+    assert start.position_std[0] == pytest.approx(math.hypot(0.1, 0.1))
+    assert start.position_std[1] == pytest.approx(0.1)
