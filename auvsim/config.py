@@ -336,6 +336,11 @@ class DvlConfig:
             below the DVL of the water layer it tracks.
         water_track_noise_std: m/s, >= 0: the beam noise in water track (in place of the
             bottom-track noise).
+        slow_error_std: m/s, >= 0: std of a time-correlated velocity error, per DVL axis,
+            that the measured beams share (``H dv``): first-order Gauss-Markov, started
+            stationary. It survives averaging and lies in the span of the beams, so the
+            error velocity does not see it (the white beam noise is what that shows).
+        slow_error_time: s, > 0: its correlation time.
     """
 
     rate_hz: float = 1.0
@@ -366,6 +371,8 @@ class DvlConfig:
     water_track: bool = False
     water_track_range: float = 10.0
     water_track_noise_std: float = 0.0
+    slow_error_std: float = 0.0
+    slow_error_time: float = 600.0
 
     def __post_init__(self) -> None:
         for name in ("rate_hz", "beam_angle_deg", "min_range", "max_range",
@@ -373,7 +380,8 @@ class DvlConfig:
                      "grazing_loss_width_deg", "dropout_rate", "dropout_burst",
                      "ping_dropout_rate", "noise_range_coeff", "noise_speed_coeff",
                      "outlier_rate", "outlier_std", "sound_speed_std", "misalignment_std_deg",
-                     "water_track_range", "water_track_noise_std"):
+                     "water_track_range", "water_track_noise_std", "slow_error_std",
+                     "slow_error_time"):
             _finite(f"dvl.{name}", getattr(self, name))
         _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
         _check(self.rate_hz >= MIN_DVL_RATE, "dvl.rate_hz",
@@ -397,7 +405,7 @@ class DvlConfig:
                 _finite(f"dvl.{name}", value)
         self._check_lock_loss()
         for name in ("noise_range_coeff", "noise_speed_coeff", "outlier_std",
-                     "water_track_noise_std"):
+                     "water_track_noise_std", "slow_error_std"):
             _check(getattr(self, name) >= 0, f"dvl.{name}", "a value >= 0",
                    getattr(self, name))
         _check(0 <= self.outlier_rate < 1, "dvl.outlier_rate", "a share in [0, 1)",
@@ -410,6 +418,8 @@ class DvlConfig:
                self.water_track)
         _check(self.water_track_range > 0, "dvl.water_track_range", "a distance > 0 m",
                self.water_track_range)
+        _check(self.slow_error_time > 0, "dvl.slow_error_time", "a correlation time > 0 s",
+               self.slow_error_time)
         _check(not self.water_track or self.water_track_range <= self.max_range,
                "dvl.water_track_range", f"a distance of at most max_range = "
                f"{self.max_range:g} m with water_track on", self.water_track_range)
