@@ -298,3 +298,34 @@ def test_a_start_from_a_reference_is_as_uncertain_as_its_clock_lets_it_be():
     assert math.degrees(start.attitude_std[2]) == pytest.approx(0.05)
     assert start.position_std[0] == pytest.approx(math.hypot(0.1, 0.1))
     assert start.position_std[1] == pytest.approx(0.1)
+
+
+@needs_akit
+def test_run_mission_on_an_imported_segment_with_the_corrections_applied(tmp_path):
+    """``auvsim import --format akit`` of segment 5, then the corrections ``check-log
+    --apply`` is to write (``akit_logs.corrected_mission``): ``run_mission`` with its
+    defaults (the noise from the file's attributes, the Earth's rate at its latitude, the
+    start from its reference) ends under 5 m from the reference, and covers its error
+    within 3 sigma. On the file as imported (the IMU's y axis mirrored, the clocks
+    apart) it does not converge, and says so: restarts, and far fewer pings accepted."""
+    from akit_logs import corrected_mission
+
+    from auvsim.cli import main as auvsim_main
+
+    path = tmp_path / "akit.h5"
+    assert auvsim_main(["import", str(AKIT / "Trajectory5"), "--format", "akit",
+                        "--out", str(path)]) == 0
+    with open_dataset(path) as f:
+        m = f.missions["trajectory5"]
+        view = corrected_mission(m, corrected(5))
+        track = ins.run_mission(view)
+        raw = ins.run_mission(m)
+        ref_time, ref_position = view.reference.time, m.reference.position_ned
+    rows = (ref_time >= track.ping_time[0]) & (ref_time <= track.ping_time[-1])
+    est = np.stack([np.interp(ref_time[rows], track.ping_time, track.position_ned[:, j])
+                    for j in range(2)], axis=1)
+    error = np.linalg.norm(est - ref_position[rows, :2], axis=1)
+    sigma = np.interp(ref_time[rows], track.ping_time, track.horizontal_std)
+    assert error[-1] < 5.0 and np.mean(error <= 3 * sigma) >= 0.9
+    assert track.availability > 0.95
+    assert len(raw.events) > 10 and raw.availability < 0.9

@@ -83,7 +83,12 @@ attributes hold the drawn value), with a recorded log's rounding added
 (``quantisation_density``); the beams' white noise from ``dvl_noise_std``, a velocity's
 from it through the Janus geometry (``janus_velocity_std``) or from
 ``dvl_velocity_accuracy``; ``beam_noise_from_error_velocity`` estimates a beam noise from
-the DVL's error velocity. None of it comes from a synthetic protocol's sigma.
+the DVL's error velocity. What of a recorded DVL's stated velocity accuracy the white
+noise does not explain, sqrt(accuracy^2 - white^2), is its time-correlated error: the
+biases c_k become Gauss-Markov with that std over the correlation time the ``navigator``
+preset measured on a real Navigator (3 s), unless the log states one; a simulated file's
+own slow error (``dvl_slow_error_std``, ``_time``) likewise. None of it comes from a
+synthetic protocol's sigma.
 
 Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
 recorded one at its reference's first sample within the IMU's span
@@ -94,9 +99,7 @@ from the averaged accelerometers, a given heading).
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
 factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
 ratio (a scale factor shared by the beams: the per-measurement ones hold it), range- and
-speed-dependent noise, heavy-tailed outliers (the gate handles them), and the DVL's
-time-correlated errors beyond the Gauss-Markov bias (the Snapir logs' DVL residual
-against their reference is correlated over seconds: ``bias_time`` models it when set).
+speed-dependent noise and heavy-tailed outliers (the gate handles them).
 
 Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
 real time; on a recorded 400 s segment with the 29 states, about 5000x
@@ -162,9 +165,10 @@ class FilterConfig:
         gravity: m/s^2 (down); None: the mission's ``gravity`` (the WGS-84 normal
             gravity at the latitude for a recorded log; the arrays': from the latitude).
         beam_states: estimate each measurement's scale factor and bias (8 more states:
-            per beam, or per DVL axis for a velocity); None: on for a recorded log and
-            for arrays (a real instrument's slow errors), off for simulated missions
-            (whose error model the file states).
+            per beam, or per DVL axis for a velocity); None: on for a recorded log, for
+            arrays and for a simulated file with a slow DVL error (a real instrument's
+            slow errors), off for other simulated missions (white beam noise, as their
+            file states).
         beam_scale_std: initial std of each scale factor, -: 0.2 %, the long-term
             accuracy of a Teledyne RDI Workhorse Navigator (``auvsim.runs.presets
             .navigator`` cites it).
@@ -182,7 +186,8 @@ class FilterConfig:
             at 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's
             noise: the states make it observable instead of gated.
         bias_time: correlation time of those biases, s (first-order Gauss-Markov of std
-            ``beam_bias_std``); None: constant over a mission.
+            ``beam_bias_std`` with the instrument's slow error added); None: the
+            instrument's slow-error time where it has one, else constant.
         gate_probability: chi-square (1 dof) gate on each measurement's normalised
             innovation; 0.999 rejects 0.1 % of good ones (3.29 sigma).
         beam_noise_std: white noise of a beam, m/s; None: the mission's instrument
@@ -773,6 +778,8 @@ class Instrument(NamedTuple):
     accel_bias_psd: float  # (m/s^2)^2/s
     gyro_bias_psd: float  # (rad/s)^2/s
     measurement_std: np.ndarray  # (K,) m/s, white noise of each beam or velocity axis
+    slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
+    slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
 
 
 def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
@@ -899,14 +906,23 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     r_meas = np.broadcast_to(np.asarray(ins.measurement_std, dtype=float),
                              (len(dirs),)) ** 2
     dt = np.concatenate([[0.0], np.diff(t[i0:])])
-    decay = 0.0 if cfg.bias_time is None else 1.0 / cfg.bias_time
+    # The measurement biases c_k: constant (``beam_bias_std``), or first-order Gauss-Markov
+    # with the instrument's slow error (its std added, its correlation time) or
+    # ``bias_time``. Over a mission of hundreds of correlation times the constant part
+    # it replaces is a share of a few per cent of its variance.
+    bias_time = cfg.bias_time if cfg.bias_time is not None else (
+        ins.slow_error_time if ins.slow_error_std > 0 else None)
+    bias_std = math.hypot(cfg.beam_bias_std, ins.slow_error_std)
+    if bias_time is not None and n > N_CORE:
+        P[19:23, 19:23] = np.diag(np.full(4, bias_std**2))
+    decay = 0.0 if bias_time is None else 1.0 / bias_time
     out_v, cov, pos, pos_std, b, used, rejected, reset, rot = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
         np.ascontiguousarray(r_meas), _chi2_1dof(cfg.gate_probability), n, decay,
-        2.0 * cfg.beam_bias_std**2 * decay,
+        2.0 * bias_std**2 * decay,
         np.array([float(cfg.watch_pings), float(cfg.watch_share)]),
         cfg.clock_std if timing_std is None else float(timing_std))
     if truth_velocity_dvl is not None:
@@ -1020,6 +1036,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         raise DataError(f"mission {mission.name}: no DVL noise (dvl_noise_std or "
                         "dvl_velocity_accuracy); expected one, or velocity_noise_std in the "
                         "filter's settings")
+    slow_std, slow_time = _slow_error(a, measurement_std, recorded=recorded,
+                                      beams=use_beams, beam_angle=beam_angle)
     instrument = Instrument(
         accel_noise_density=density("imu_accel_noise_density", f),
         gyro_noise_density=density("imu_gyro_noise_density", w),
@@ -1027,7 +1045,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         gyro_bias_std=bias_std("gyro_turn_on_bias", "imu_gyro_bias_instability"),
         accel_bias_psd=psd("imu_accel_bias_instability", "imu_accel_bias_correlation_time"),
         gyro_bias_psd=psd("imu_gyro_bias_instability", "imu_gyro_bias_correlation_time"),
-        measurement_std=measurement_std)
+        measurement_std=measurement_std, slow_error_std=slow_std,
+        slow_error_time=slow_time)
 
     dvl_time = np.asarray(dvl.time, dtype=float)
     if use_beams:
@@ -1049,7 +1068,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     truth_v = None if recorded or not _holds(dvl, "velocity") else np.asarray(dvl.velocity, float)
     ping_row = (np.asarray(imu.index_of_dvl, dtype=np.int64) if _holds(imu, "index_of_dvl")
                 else None)
-    beam_states = cfg.beam_states if cfg.beam_states is not None else recorded
+    # A file that states a slow DVL error needs the bias states to hold it.
+    beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
     gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
     return run_arrays(
         imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
@@ -1063,9 +1083,34 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         timing_std=None if recorded else 0.0)
 
 
+def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: bool,
+                beam_angle: float | None) -> tuple[float, float | None]:
+    """The DVL's time-correlated velocity error (std per axis, m/s; correlation time, s):
+    a simulated file's own (``dvl_slow_error_std``, ``_time``); for a recorded log, what
+    of the stated velocity accuracy the white noise does not explain,
+    sqrt(accuracy^2 - white^2) (the white part from the beam noise through the Janus
+    geometry), over the correlation time the ``navigator`` preset measured on a real
+    Navigator (``auvsim.runs.presets.navigator``), unless the log states one."""
+    if "dvl_slow_error_std" in a and float(a["dvl_slow_error_std"]) > 0:
+        return float(a["dvl_slow_error_std"]), float(a["dvl_slow_error_time"])
+    if not recorded or "dvl_velocity_accuracy" not in a or "dvl_noise_std" not in a:
+        return 0.0, None
+    from auvsim.runs.presets import navigator
+
+    white = (janus_velocity_std(float(a["dvl_noise_std"]), beam_angle)[0]
+             if beams and beam_angle is not None else float(np.max(measurement_std[:2])))
+    slow = math.sqrt(max(float(a["dvl_velocity_accuracy"]) ** 2 - white**2, 0.0))
+    time = float(a.get("dvl_slow_error_time", navigator().dvl.slow_error_time))
+    return slow, time
+
+
 def _holds(group, field: str) -> bool:
-    """Whether a group view (or any object with its fields as attributes) has ``field``."""
-    return hasattr(group, field)
+    """Whether a group view (``field in group``), or any object with its fields as
+    attributes, has ``field``."""
+    try:
+        return field in group
+    except TypeError:  # no __contains__: fields as attributes
+        return hasattr(group, field)
 
 
 def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
