@@ -743,7 +743,8 @@ def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_n
     ``seconds`` (gravity is -f on average: roll = atan2(-f_y, -f_z), pitch = atan2(f_x,
     |(f_y, f_z)|); Groves 2013 sec. 5.6.2), heading given. The level std is the spread of
     the tilt over the window (a vehicle that moves or rolls while it is averaged) over
-    sqrt of its independent seconds, at least the accelerations' share of g. The velocity
+    sqrt of its independent seconds, at least 1 mrad (our floor, ten times what a
+    navigation-grade accelerometer's 100 micro-g bias tilts). The velocity
     is given (default at rest), with ``speed_std`` per axis; the DVL corrects both within
     pings."""
     t = np.asarray(imu_time, dtype=float)
@@ -760,10 +761,9 @@ def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_n
                            for k in np.unique(seconds_of)])
     tilt = np.linalg.norm(per_second[:, :2] - mean[:2], axis=1) / g
     level = max(float(np.sqrt(np.mean(tilt**2) / max(len(per_second), 1))), 1e-3)
-    from auvsim.physics.frames import rotation_rpy as rpy
     return Start(time=float(t[0]), position_ned=np.asarray(position_ned, dtype=float),
                  velocity_ned=np.asarray(velocity_ned, dtype=float),
-                 rotation=rpy(roll, pitch, math.radians(heading_deg)),
+                 rotation=rotation_rpy(roll, pitch, math.radians(heading_deg)),
                  position_std=np.full(3, 1.0), velocity_std=np.full(3, speed_std),
                  attitude_std=np.array([level, level, math.radians(heading_std_deg)]))
 
