@@ -34,7 +34,9 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
          "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster",
          "refresh_reports": "--refresh-reports", "train_duration": "--train-duration",
-         "maneuver_duration": "--maneuver-duration"}
+         "maneuver_duration": "--maneuver-duration", "filter_config": "--filter-config"}
+FILTER_CONFIG_HELP = ("the INS/DVL filter's settings: a TOML file whose keys are fields of "
+                      "beamsnet.estimators.ins.FilterConfig (default: its defaults)")
 CLUSTER_HELP = ("run the training jobs on a Dask cluster: local:N or a scheduler's address "
                 "(needs auvsim[cluster])")
 QUIET_HELP = "no progress bars"
@@ -117,6 +119,8 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", type=Path, metavar="FOLDER",
                     help="report folder (evaluation.md, evaluation.json, plots; default: a "
                     "new runs/evaluation-DATE-TIME)")
+    ev.add_argument("--filter-config", type=Path, metavar="FILE.toml",
+                    help=FILTER_CONFIG_HELP)
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
@@ -130,6 +134,8 @@ def _parser() -> argparse.ArgumentParser:
                     + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
                     help="fit on this file's training split (default: the dataset's own)")
+    es.add_argument("--filter-config", type=Path, metavar="FILE.toml",
+                    help=FILTER_CONFIG_HELP)
     es.add_argument("--out", type=Path, metavar="FOLDER",
                     help="folder for estimates.csv and summary.json (default: a new "
                     "runs/estimate-DATE-TIME)")
@@ -269,9 +275,10 @@ def _train(args) -> None:
 def _evaluate(args) -> None:
     from beamsnet.evaluate import evaluate, markdown
 
+    config = _filter_config(args.filter_config)
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
-                       allow_mismatch=args.allow_mismatch)
+                       allow_mismatch=args.allow_mismatch, filter_config=config)
     for dataset, result in results.items():
         print(markdown(result["rows"], str(dataset)))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
@@ -280,16 +287,33 @@ def _evaluate(args) -> None:
 def _estimate(args) -> None:
     from beamsnet.evaluate import estimate
 
+    config = _filter_config(args.filter_config)
     args.out = report_dir(args.out, False, "estimate")
-    summary = estimate(args.estimator, args.dataset, args.out, train=args.train)
+    summary = estimate(args.estimator, args.dataset, args.out, train=args.train,
+                       filter_config=config)
     for mission, row in summary["missions"].items():
-        said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"]
+        said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"
+                + (" accepted" if "events" in row else "")]
+        if "events" in row:
+            said.append(f"{len(row['events'])} restart{'' if len(row['events']) == 1 else 's'}"
+                        " by the divergence watch")
         if "rmse_vector" in row:
             said.append(f"vector RMSE {row['rmse_vector']:.4f} m/s")
         if "dr_error" in row:
             said.append(f"position error after the mission {row['dr_error']:.2f} m")
         print(f"{summary['estimator']} on {mission}: " + ", ".join(said))
+        for event in row.get("events", []):
+            print(f"  {event}")
     print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")
+
+
+def _filter_config(path: Path | None):
+    """The filter's settings from ``--filter-config`` (read before anything is written)."""
+    if path is None:
+        return None
+    from beamsnet.estimators.ins import load_config
+
+    return load_config(path)
 
 
 def _reproduce(args) -> None:

@@ -81,7 +81,8 @@ def estimates(runs: list[str | Path], dataset: str | Path,
 
 
 def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
-               missions: list[str] | None = None) -> tuple[Windows, dict]:
+               missions: list[str] | None = None, *,
+               filter_config=None) -> tuple[Windows, dict]:
     """``estimates`` for loaded models (run directory, model, checkpoint)."""
     configs = [c["train_config"] for _, _, c in models]
     n_past = max([c["n_past"] for c in configs], default=3)
@@ -92,7 +93,8 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
         train_w, test_w = split(windows, fraction)
     except ValueError as e:
         raise DataError(f"{dataset}: {e}") from None
-    return test_w, predictions(models, train_w, test_w, dataset=dataset)
+    return test_w, predictions(models, train_w, test_w, dataset=dataset,
+                               filter_config=filter_config)
 
 
 def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
@@ -169,10 +171,11 @@ def baselines() -> list:
     return [s.make() for s in specs("model-based")]
 
 
-def filters(dataset: str | Path, *, strict: bool = False) -> list:
+def filters(dataset: str | Path, *, strict: bool = False, filter_config=None) -> list:
     """The registry's filters, which run on the file itself (``dataset``, the one the test
     windows come from), unfitted: the INS/DVL filter integrates the IMU between pings,
-    which a window holds only in part.
+    which a window holds only in part. ``filter_config``: its settings
+    (``beamsnet.estimators.ins.FilterConfig``; None: the defaults).
 
     Raises:
         DataError: with ``strict``, a filter needs the IMU record and the file has none
@@ -190,20 +193,22 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
                                 f"{s.name} filter integrates the IMU, so it cannot run on "
                                 "it")
             continue
-        out.append(s.make(dataset))
+        out.append(s.make(dataset) if filter_config is None
+                   else s.make(dataset, filter_config))
     return out
 
 
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
                 test_w: Windows, *, dataset: str | Path | None = None,
-                positions: dict | None = None) -> dict[str, np.ndarray]:
+                positions: dict | None = None, filter_config=None) -> dict[str, np.ndarray]:
     """Every estimator's (S, 3) predictions on ``test_w``: the baselines fitted on
     ``train_w`` (and the INS/DVL filter run on ``dataset``, the file ``test_w`` comes
     from, if given), then the loaded ``models`` (run directory, model, checkpoint).
     ``positions``, a dict, receives the (S, 3) NED position of every estimator with a
     position solution of its own."""
     out: dict[str, np.ndarray] = {}
-    for baseline in baselines() + ([] if dataset is None else filters(dataset)):
+    for baseline in baselines() + ([] if dataset is None else filters(
+            dataset, filter_config=filter_config)):
         out[baseline.name] = baseline.fit(train_w).predict(test_w)
         if positions is not None and hasattr(baseline, "positions"):
             positions[baseline.name] = baseline.positions(test_w)
@@ -247,7 +252,7 @@ def _or_na(value: float, spec: str) -> str:
 
 
 def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path, *,
-             allow_mismatch: bool = False) -> dict:
+             allow_mismatch: bool = False, filter_config=None) -> dict:
     """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
 
     Args:
@@ -257,6 +262,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
             once every run and dataset has been read and checked.
         allow_mismatch: evaluate on data whose beam geometry or rates differ from a run's
             training data (with a warning) instead of refusing it.
+        filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
 
     Raises:
         ConfigError: ``out`` cannot be a directory; a dataset's sensors do not match.
@@ -270,7 +276,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         setup = sensor_setup(dataset)  # read once for every run
         for run, _, checkpoint in models:
             check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
-        windows, predictions = _estimates(models, dataset)
+        windows, predictions = _estimates(models, dataset, filter_config=filter_config)
         for run, _, checkpoint in models:
             check_missions(run, checkpoint, dataset, list(windows.names))
         rows = table(windows, predictions)
@@ -320,7 +326,7 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
     save_figure(fig, path, dpi=110)
 
 
-def find_estimator(name: str, dataset: str | Path) -> object:
+def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> object:
     """The model-based estimator (or filter on ``dataset``) whose table name is ``name``,
     unfitted; case, spaces and dashes do not matter (``beam-calibration``).
 
@@ -337,7 +343,8 @@ def find_estimator(name: str, dataset: str | Path) -> object:
         if s.kind == "model-based":
             return s.make()
         try:
-            return next(f for f in filters(dataset, strict=True) if f.name == s.name)
+            return next(f for f in filters(dataset, strict=True, filter_config=filter_config)
+                        if f.name == s.name)
         except DataError as e:
             raise ConfigError(str(e), argument="estimator") from None
     known = [s.name for s in specs() if s.kind != "network"]
@@ -346,7 +353,7 @@ def find_estimator(name: str, dataset: str | Path) -> object:
 
 
 def estimate(name: str, dataset: str | Path, out: str | Path, *,
-             train: str | Path | None = None) -> dict:
+             train: str | Path | None = None, filter_config=None) -> dict:
     """Run one model-based estimator over every ping of ``dataset`` and write its
     velocity (and position, for a filter) beside the truth: ``out/estimates.csv``, and
     ``out/summary.json`` with its availability, vector RMSE and dead-reckoning error per
@@ -359,6 +366,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         out: the directory to write, made once every input has been checked.
         train: the file whose training split the estimator is fitted on (default the
             training split of ``dataset`` itself).
+        filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
 
     Returns:
         The summary.
@@ -368,7 +376,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             a file gives no samples.
     """
     out = check_out_dir(out)
-    estimator = find_estimator(name, dataset)
+    estimator = find_estimator(name, dataset, filter_config=filter_config)
     windows = load_windows(dataset, every_ping=True)
     check_truth(windows, dataset)
     train_windows = load_windows(dataset if train is None else train)
@@ -383,11 +391,22 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred),
                    availability=availability(pred), missions={})
+    if hasattr(estimator, "config"):
+        import dataclasses
+
+        summary["filter_config"] = dataclasses.asdict(estimator.config)
     truth = truth_at_pings(dataset, windows) if has_truth else None
     for i, mission in enumerate(windows.names):
         mine = windows.mission == i
         have = mine & np.isfinite(pred).all(axis=1)
         row = dict(pings=int(mine.sum()), availability=float(have.sum() / mine.sum()))
+        if hasattr(estimator, "tracks"):
+            # A filter outputs a number at every ping, diverged or not: its availability
+            # is the share of pings whose measurement it accepted, and its events say when
+            # its divergence watch restarted it.
+            track = estimator.tracks(windows)[mission]
+            row["availability"] = track.availability
+            row["events"] = [event.text for event in track.events]
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
@@ -395,6 +414,10 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
                                if positions is not None else
                                dead_reckoning_error(windows, held(windows, pred), truth, i)[0])
         summary["missions"][mission] = row
+    if hasattr(estimator, "tracks"):
+        tracks = estimator.tracks(windows)
+        summary["availability"] = float(np.mean(np.concatenate(
+            [t.accepted for t in tracks.values()])))
     columns = ["mission", "time", "vx", "vy", "vz", "true_vx", "true_vy", "true_vz"]
     table = [windows.names[m] for m in windows.mission], windows.time, *pred.T, \
         *windows.target.T
