@@ -48,6 +48,7 @@ MAX_CURRENT = 3.0  # m/s
 # blows up, and it resets the vehicle to rest.
 MAX_NET_BUOYANCY = 1000.0  # N
 SPEED_CONTROLS = ("speed", "rpm")  # VehicleConfig.speed_control
+HEADING_CONTROLS = ("pid", "full-rudder-turns")  # VehicleConfig.heading_control
 # Depths of the water, the seafloor and the terrain: the deepest ocean, the Challenger
 # Deep, is about 10.9 km deep.
 MAX_DEPTH = 11000.0  # m
@@ -121,12 +122,17 @@ class VehicleConfig:
             the water, raising the rpm in a turn) or ``rpm`` (the shaft holds the rpm that
             gives the set speed in straight flight, as a real AUV commands propeller rpm, so
             the vehicle slows in a turn; ``auvsim.physics.control.Gains.hold_rpm``).
+        heading_control: ``pid`` (the default: the heading PID throughout, whose yaw-rate
+            term backs the rudder off as a turn builds) or ``full-rudder-turns`` (a heading
+            change beyond the PID's braking point flown at full rudder, as a survey AUV
+            turns at the end of its lines; ``Gains.full_rudder_turns``).
     """
 
     model: str = "auv"
     net_buoyancy: float = 0.0
     current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
     speed_control: str = "speed"
+    heading_control: str = "pid"
 
     def __post_init__(self) -> None:
         _check(isinstance(self.model, str) and self.model != "", "vehicle.model",
@@ -134,6 +140,8 @@ class VehicleConfig:
         _finite("vehicle.net_buoyancy", self.net_buoyancy)
         _check(self.speed_control in SPEED_CONTROLS, "vehicle.speed_control",
                f"one of {', '.join(SPEED_CONTROLS)}", self.speed_control)
+        _check(self.heading_control in HEADING_CONTROLS, "vehicle.heading_control",
+               f"one of {', '.join(HEADING_CONTROLS)}", self.heading_control)
         _check(abs(self.net_buoyancy) <= MAX_NET_BUOYANCY, "vehicle.net_buoyancy",
                f"at most {MAX_NET_BUOYANCY:g} N either way (a trimmed vehicle's buoyancy "
                "minus weight)", self.net_buoyancy)

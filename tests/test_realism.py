@@ -42,6 +42,7 @@ def test_real_presets_fly_in_the_shelf_current_at_a_held_rpm(name):
     assert (config.water.speed_min, config.water.speed_max) == (0.05, 0.5)
     assert config.water.speed_std == 0.03
     assert config.vehicle.speed_control == "rpm"
+    assert config.vehicle.heading_control == "full-rudder-turns"
 
 
 @pytest.mark.parametrize("name", ["navigator", "realistic-maneuvers"])
@@ -53,7 +54,7 @@ def test_every_mission_of_the_real_presets_turns(name):
 def test_the_paper_presets_keep_their_speed_loop_and_headings():
     for name in ("paper-sim", "maneuvers"):
         config = preset(name)
-        assert config.vehicle.speed_control == "speed"
+        assert (config.vehicle.speed_control, config.vehicle.heading_control) == ("speed", "pid")
         assert all("leg_m" not in m.scenario.options and "turn_s" not in m.scenario.options
                    for m in config.missions)
 
@@ -85,6 +86,27 @@ def test_held_rpm_slows_in_a_turn_and_the_speed_loop_does_not():
     assert out[True][0] < 0.85 * 2.0  # at least 15 % lost
     assert out[True][1] == pytest.approx(cruise_rpm(Vehicle("auv").hydro, 2.0), rel=1e-3)
     assert out[False][1] > 1.1 * out[True][1]
+
+
+def test_full_rudder_turns_reach_the_full_rudder_rate_and_the_pid_does_not():
+    """A 90 deg heading change: at full rudder to the PID's braking point, the yaw rate
+    reaches the model's full-rudder peak (the rudder reaches its limit, which the PID never does),
+    and the PID takes over and settles on the new heading."""
+    out = {}
+    for full in (False, True):
+        vehicle = Vehicle("auv", hold_rpm=True, full_rudder_turns=full)
+        vehicle.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(2.0, 0.0, 0.0))
+        n = round(60.0 / vehicle.dt)
+        traj = vehicle.run(np.tile([2.0, math.pi / 2, 20.0], (n, 1)), (True, True, True))
+        at_limit = np.abs(traj.actuators[:, 1]) > vehicle.hydro.rudder_max - 1e-6
+        out[full] = (np.degrees(traj.angular_rate[:, 2]).max(), at_limit.sum() * vehicle.dt,
+                     math.degrees(vehicle.yaw()))
+    # The A18-D's full-rudder step peaks at 15.8 deg/s from 2 m/s (the model card).
+    assert out[True][0] == pytest.approx(15.8, abs=0.3)
+    assert out[False][0] < out[True][0] - 1.0
+    assert out[True][1] > 0.5 and out[False][1] == 0.0  # seconds at the limit
+    for full in (False, True):
+        assert out[full][2] == pytest.approx(90.0, abs=0.5)
 
 
 def test_survey_lines_reverse_the_heading_and_zero_keeps_it():

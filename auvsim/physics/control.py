@@ -35,6 +35,13 @@ class Gains(NamedTuple):
     # propeller rpm: the speed then drops in a turn as the hull's drag grows. False (the
     # default): a speed loop raises the rpm to hold the speed through the water.
     hold_rpm: bool = False
+    # True: a heading change larger than the PID's own braking point is flown at full
+    # rudder (the rudder commanded past its limit, toward the new heading) until the
+    # heading error falls to the angle at which the yaw-rate term equals the heading term,
+    # |e| = heading_d (L/U) |r| / heading_p, and the PID takes over from there: a turn as
+    # a survey AUV flies its line turns. False (the default): the PID throughout, whose
+    # yaw-rate term backs the rudder off as the turn builds.
+    full_rudder_turns: bool = False
 
 
 @numba.njit(cache=True)
@@ -112,7 +119,11 @@ def autopilot_into(h, g, reference, closed_loop, integrals, u, depth, depth_rate
         err = wrap_angle(reference[1] - yaw)
         if abs(err) < 0.2:  # integrate near the target only, so turns do not wind it up
             integrals[1] = min(max(integrals[1] + err * dt / t_scale, -5.0), 5.0)
-        cmd[1] = g.heading_p * err + g.heading_i * integrals[1] - g.heading_d * t_scale * r
+        braking = g.heading_d * t_scale * abs(r) / g.heading_p
+        if g.full_rudder_turns and abs(err) >= 0.2 and abs(err) > braking:
+            cmd[1] = math.copysign(math.pi, err)  # the servo stops it at the rudder limit
+        else:
+            cmd[1] = g.heading_p * err + g.heading_i * integrals[1] - g.heading_d * t_scale * r
     if closed_loop[2]:
         err = (reference[2] - depth) / g.length
         if abs(err) < 0.2:

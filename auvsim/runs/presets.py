@@ -116,7 +116,12 @@ NAVIGATOR_WATER = WaterConfig(
 # - It commands propeller rpm from a speed table and lets the speed drop in a turn (the
 #   Snapir's hard turns lose 29 % of their speed, median of 21: benchmarks/turning.py),
 #   where auvsim's speed loop would raise the rpm and hold it: ``speed_control="rpm"``.
-REAL_VEHICLE = VehicleConfig(speed_control="rpm")
+# - It turns at the end of a line at full rudder (the Snapir's hard turns peak at 16.5
+#   deg/s, median of 21, where the A18-D's full-rudder step peaks at 15.8), where the
+#   heading PID's yaw-rate term backs the rudder off from the start of the turn (peaks
+#   of 12.4 deg/s in the survey turns): ``heading_control="full-rudder-turns"`` holds full
+#   rudder up to the PID's own braking point and hands over to the PID there.
+REAL_VEHICLE = VehicleConfig(speed_control="rpm", heading_control="full-rudder-turns")
 # - It flies parallel survey lines joined by turns at their ends (the lawnmower pattern
 #   of bathymetric and side-scan surveys), and a depth, speed or straight-line test on a
 #   survey is flown along those lines, not on one endless heading: the lawnmower's own
