@@ -117,10 +117,10 @@ def dead_reckoning(mission) -> tuple[np.ndarray, np.ndarray]:
     return tp, start + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
 
 
-def score(mission, config: ins.FilterConfig = ins.FilterConfig()) -> dict:
+def score(mission, config: ins.FilterConfig | None = None) -> dict:
     """The filter (``run_mission``, ``config``) and the dead reckoning on one corrected
     mission, scored (the module docstring)."""
-    track = ins.run_mission(mission, config)
+    track = ins.run_mission(mission, ins.FilterConfig() if config is None else config)
     t, error = errors(mission, track.ping_time, track.position_ned)
     ok = np.isfinite(track.position_ned[:, 0])
     sigma = np.interp(t, track.ping_time[ok], track.horizontal_std[ok])
