@@ -30,7 +30,7 @@ def test_the_registry_finds_every_plugin_with_its_part_of_the_schema():
     for name, sensor in sensors.items():
         assert issubclass(sensor, Sensor) and sensor.name == name
         assert sensor.section in {f.name for f in Config.__dataclass_fields__.values()}
-        assert set(sensor.streams) <= set(STREAMS)
+        assert set(sensor.streams) <= set(stream_names())
         assert all(f.path.split("/")[0] in (name, "imu") for f in sensor.fields)
     # The file's schema is the core plus every plugin's fields and attributes.
     fields, attrs = schema("simulated")
@@ -175,7 +175,10 @@ def thermometer():
 def test_a_new_sensors_streams_follow_every_earlier_one(thermometer):
     """Declared in its plugin alone, they are spawned after the closed layout, whose
     generators draw what they drew before."""
-    assert stream_names() == (*STREAMS, "thermometer_parameters", "thermometer_noise")
+    # Ordered by the schema version that added each plugin's streams, then by name: the
+    # toy's (v6) before the DVL's slow error (v7).
+    assert stream_names() == (*STREAMS, "thermometer_parameters", "thermometer_noise",
+                              "dvl_slow_error")
     streams = mission_streams(7)
     before = np.random.default_rng(7).spawn(len(STREAMS))
     for name, old in zip(STREAMS, before, strict=True):
