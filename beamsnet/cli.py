@@ -282,14 +282,30 @@ def _estimate(args) -> None:
 
     args.out = report_dir(args.out, False, "estimate")
     summary = estimate(args.estimator, args.dataset, args.out, train=args.train)
+    print(f"{summary['estimator']} on {args.dataset}, scored against {summary['against']}"
+          + (f"; beams derived as H v from the DVL's own velocity in "
+             f"{', '.join(summary['beams_derived'])} (the log has none)"
+             if summary.get("beams_derived") else ""))
     for mission, row in summary["missions"].items():
         said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"]
         if "rmse_vector" in row:
-            said.append(f"vector RMSE {row['rmse_vector']:.4f} m/s")
-        if "dr_error" in row:
-            said.append(f"position error after the mission {row['dr_error']:.2f} m")
+            said.append(f"velocity RMSE {row['rmse_vector']:.4f} m/s")
+        if "position" in row:
+            said.append(_position_words(row["position"]))
         print(f"{summary['estimator']} on {mission}: " + ", ".join(said))
+        for name, scores in row.get("baselines", {}).items():
+            print(f"  {name}: {_position_words(scores)}")
     print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")
+
+
+def _position_words(scores: dict) -> str:
+    """A position score in words: final, RMSE, % of the distance, 3-sigma coverage."""
+    words = (f"horizontal position error final {scores['final_m']:.2f} m, RMSE "
+             f"{scores['rmse_m']:.2f} m, {scores['final_percent']:.2f} % of "
+             f"{scores['distance_m']:.0f} m travelled")
+    if "coverage_3sigma" in scores:
+        words += f", within its 3 sigma {100 * scores['coverage_3sigma']:.1f} % of the time"
+    return words
 
 
 def _reproduce(args) -> None:
