@@ -337,8 +337,9 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
     mission's reference at ``times`` (s, on the DVL's clock):
     ``M^T (C_ref^T v_ref + w x L)``.
 
-    ``v_ref`` (NED) and the attitude ``C_ref`` (body -> NED) are interpolated linearly in
-    time (the quaternion normalised after, on one hemisphere); ``w`` is the body rate:
+    ``C_ref^T v_ref`` (the reference's NED velocity in its body frame, with its attitude
+    ``C_ref``, body -> NED) is formed at the reference's samples and interpolated linearly
+    in time; ``w`` is the body rate:
     the IMU's gyro interpolated at ``times`` where the mission has an IMU (the Earth's
     rate in it, 7e-5 rad/s, moves a 1 m lever by 0.07 mm/s), else the rate between the
     reference's attitudes. ``L`` is ``dvl_position_body``, the DVL's place from the
@@ -359,9 +360,12 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
                         "cannot be put in the DVL frame; expected reference/quaternion")
     t = np.asarray(ref.time, dtype=float)
     times = np.asarray(times, dtype=float)
-    v_ned = np.stack([np.interp(times, t, ref.velocity_ned[:, i]) for i in range(3)], axis=1)
-    q = quaternions_at(t, np.asarray(ref.quaternion, dtype=float), times)
-    c = rotation_matrices(q)
+    # In the body frame, where a steady turn's velocity is constant (in NED it turns, and
+    # a line between two samples 1 s apart cuts the circle's chord: 0.4 % slow at 0.2
+    # rad/s).
+    c = rotation_matrices(np.asarray(ref.quaternion, dtype=float))
+    v_ref = np.einsum("rji,rj->ri", c, np.asarray(ref.velocity_ned, dtype=float))
+    v_body = np.stack([np.interp(times, t, v_ref[:, i]) for i in range(3)], axis=1)
     if m.has("imu"):
         rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
                          for i in range(3)], axis=1)
@@ -369,8 +373,7 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
         rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)
     lever = np.asarray(m.attrs["dvl_position_body"], dtype=float)
     mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
-    v_body = np.einsum("pji,pj->pi", c, v_ned) + np.cross(rate, lever)
-    return v_body @ mounting  # M^T v for each row
+    return (v_body + np.cross(rate, lever)) @ mounting  # M^T v for each row
 
 
 def quaternions_at(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarray:
