@@ -17,6 +17,10 @@ from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
+from beamsnet.experiments.sea import DEFAULT_SEA
+from beamsnet.experiments.sea import DURATION as SEA_DURATION
+from beamsnet.experiments.sea import EPOCHS as SEA_EPOCHS
+from beamsnet.experiments.sea import SEEDS as SEA_SEEDS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
 from beamsnet.experiments.sim2real import SIM_SEEDS
@@ -136,25 +140,29 @@ def _parser() -> argparse.ArgumentParser:
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
-    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real"),
+    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real",
+                                           "sea"),
                     metavar="EXPERIMENT",
                     help="paper-sim: the paper's simulation (Table 1); paper-sim-text: the "
                     "same with its text's beam noise; snapir: the Snapir sea data (Table 3); "
                     "sim2real: train every estimator on auvsim data only, test on the "
-                    "Snapir streams")
+                    "Snapir streams; sea: every estimator on recorded IMU, DVL and "
+                    "reference logs, scored against the reference, with sim-to-real rows")
     rp.add_argument("--data", type=Path, metavar="PATH",
                     help="paper-sim: use this dataset instead of generating one; snapir, "
                     "sim2real: the folder with V.npy and V_test.npy (default "
-                    f"{DEFAULT_SNAPIR})")
+                    f"{DEFAULT_SNAPIR}); sea: a folder of A-KIT logs (default {DEFAULT_SEA})")
     rp.add_argument("--duration", type=float, metavar="SECONDS",
                     help="s per speed of paper-sim (default 7200), s per manoeuvre of "
-                    f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
+                    f"sim2real's training sets (default {SIM2REAL_DURATION:g}) and of sea's "
+                    f"(default {SEA_DURATION:g})")
     rp.add_argument("--seeds", type=int, metavar="N",
-                    help="snapir, sim2real: seeds per network, every one scored (default "
+                    help="snapir, sim2real, sea: seeds per network, every one scored (default "
                     + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
-                    + f" in snapir; {SIM_SEEDS} in sim2real)")
+                    + f" in snapir; {SIM_SEEDS} in sim2real; {SEA_SEEDS} in sea)")
     rp.add_argument("--epochs", type=int,
-                    help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
+                    help="default: " + _per_experiment("epochs", "paper-sim", "snapir")
+                    + f", {SEA_EPOCHS} (sea)")
     rp.add_argument("--lr", type=float,
                     help="default: the paper's, " + _per_experiment("lr", "paper-sim", "snapir"))
     rp.add_argument("--average-epochs", type=int, metavar="N",
@@ -310,13 +318,16 @@ def _position_words(scores: dict) -> str:
 
 def _reproduce(args) -> None:
     from beamsnet.experiments.reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
+    from beamsnet.experiments.sea import sea
 
-    # sim2real tests on sea data: it trains with the paper's sea-data settings.
-    profile = PROFILES["snapir" if args.experiment == "sim2real" else args.experiment]
+    # sim2real and sea test on sea data: they train with the paper's sea-data settings.
+    profile = PROFILES["snapir" if args.experiment in ("sim2real", "sea")
+                       else args.experiment]
     training, restarts = profile.resolve(
-        epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
+        epochs=SEA_EPOCHS if args.experiment == "sea" and args.epochs is None
+        else args.epochs, lr=args.lr, average_epochs=args.average_epochs,
         restarts=args.restarts)
-    seeded = args.experiment in ("snapir", "sim2real")
+    seeded = args.experiment in ("snapir", "sim2real", "sea")
     if seeded and args.restarts is not None:
         raise ConfigError(f"is not used by {args.experiment}, which scores every seed; "
                           "expected --seeds N", argument="restarts")
@@ -327,7 +338,12 @@ def _reproduce(args) -> None:
         raise ConfigError(f"is not used by {args.experiment}, which keeps the best of "
                           "its seeds; expected --restarts N", argument="seeds")
     args.out = report_dir(args.out, args.refresh_reports, args.experiment)
-    if args.experiment == "sim2real":
+    if args.experiment == "sea":
+        report = sea(DEFAULT_SEA if args.data is None else args.data, out=args.out,
+                     duration=SEA_DURATION if args.duration is None else args.duration,
+                     seeds=SEA_SEEDS if args.seeds is None else args.seeds,
+                     training=training, progress=not args.quiet, cluster=args.cluster)
+    elif args.experiment == "sim2real":
         report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                           duration=SIM2REAL_DURATION if args.duration is None
                           else args.duration, training=training, seeds=args.seeds,

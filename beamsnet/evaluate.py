@@ -11,6 +11,15 @@ them) unless told to allow it, and warns (``SensorSetupWarning``) when only the 
 model differs, which is a legitimate robustness test. Every run and dataset is read and
 checked before the output directory is made, so a refused evaluation leaves nothing
 behind.
+
+On a recorded mission (``auvsim import``) every score is against its reference (a
+navigation solution, ``reference_source``), never a truth, and says so: the velocity
+against the reference's moved to the DVL (``beamsnet.data.reference_velocity``), and
+the horizontal position (``navigation_scores``: final, RMSE, % of the distance) of each
+estimator's own position or its dead reckoning with the reference's attitude, the
+filter's 3-sigma coverage, and two dead-reckoning baselines: the DVL's own velocity with
+the reference's attitude and with the filter's. A simulated mission's scores are against
+the simulator's truth, in the same words.
 """
 
 from __future__ import annotations
