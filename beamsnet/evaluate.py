@@ -222,9 +222,9 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
         if positions is not None and hasattr(baseline, "positions"):
             positions[baseline.name] = baseline.positions(test_w)
         if stds is not None:
-            stds.update(_stds(baseline, test_w))
+            stds.update(reported_stds(baseline, test_w))
         if rotations is not None:
-            rotations.update(_rotations(baseline, test_w))
+            rotations.update(own_rotations(baseline, test_w))
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
         out[name] = predict(model, trimmed(test_w, checkpoint))
@@ -416,8 +416,8 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     navigation = (navigation_scores(windows, {estimator.name: pred}, truth,
                                     positions={} if positions is None
                                     else {estimator.name: positions},
-                                    stds=_stds(estimator, windows),
-                                    rotations=_rotations(estimator, windows))
+                                    stds=reported_stds(estimator, windows),
+                                    rotations=own_rotations(estimator, windows))
                   if truth is not None else {})
     for i, mission in enumerate(windows.names):
         mine = windows.mission == i
@@ -510,18 +510,49 @@ def _derived_words(windows: Windows) -> str:
             "velocity: the log has no beams)")
 
 
-def _stds(estimator, windows: Windows) -> dict:
-    """{name: (S, 3) reported position 1 sigma, m} of an estimator that reports one."""
-    if not hasattr(estimator, "position_stds"):
-        return {}
-    return {estimator.name: estimator.position_stds(windows)}
+def reported_stds(estimator, windows: Windows) -> dict[str, np.ndarray]:
+    """{name: (S, 3) the position 1 sigma it reports at each sample's ping, m} of an
+    estimator with tracks of its own (the INS/DVL filter's ``position_std``); {} for
+    the others."""
+    std = _track_at_pings(estimator, windows, "position_std")
+    return {} if std is None else {estimator.name: std}
 
 
-def _rotations(estimator, windows: Windows) -> dict:
-    """{name: (S, 3, 3) body -> NED} of an estimator with an attitude of its own."""
-    if not hasattr(estimator, "rotations"):
+def own_rotations(estimator, windows: Windows) -> dict[str, np.ndarray]:
+    """{name: (S, 3, 3) body -> NED, its attitude at each sample's ping} of an estimator
+    whose tracks carry an attitude (the INS/DVL filter's ``quaternion``); {} for the
+    others (NaN where it has no ping at that time)."""
+    from auvsim.physics.frames import rotation_matrices
+
+    q = _track_at_pings(estimator, windows, "quaternion")
+    if q is None:
         return {}
-    return {estimator.name: estimator.rotations(windows)}
+    out = np.full((len(q), 3, 3), np.nan)
+    have = np.isfinite(q).all(axis=1)
+    out[have] = rotation_matrices(q[have])
+    return {estimator.name: out}
+
+
+def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | None:
+    """(S, k) ``field`` of the estimator's per-mission tracks (``tracks(windows)``, each
+    with ``ping_time``) at each sample's ping; None when it has no tracks or a track
+    lacks the field."""
+    if not hasattr(estimator, "tracks"):
+        return None
+    tracks = estimator.tracks(windows)
+    if any(getattr(t, field, None) is None for t in tracks.values()):
+        return None
+    width = np.shape(getattr(next(iter(tracks.values())), field))[1]
+    out = np.full((len(windows.time), width), np.nan)
+    for i in np.unique(windows.mission):
+        track = tracks[windows.names[i]]
+        rows = np.flatnonzero(windows.mission == i)
+        k = np.minimum(np.searchsorted(track.ping_time, windows.time[rows]),
+                       len(track.ping_time) - 1)
+        hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
+            1.0, np.abs(windows.time[rows]))
+        out[rows[hit]] = np.asarray(getattr(track, field))[k[hit]]
+    return out
 
 
 def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:

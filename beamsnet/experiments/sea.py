@@ -47,7 +47,14 @@ from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows, split
-from beamsnet.evaluate import baseline_names, baselines, navigation_scores, trimmed
+from beamsnet.evaluate import (
+    baseline_names,
+    baselines,
+    navigation_scores,
+    own_rotations,
+    reported_stds,
+    trimmed,
+)
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
 from beamsnet.navigation import dead_reckoning_positions, truth_at_pings
@@ -220,8 +227,11 @@ def _filters(dataset: Path, noise: dict[str, float]) -> dict[str, object]:
         gyro_noise_density=noise["imu_gyro_noise_density"],
         accel_bias_psd=2 * noise["imu_accel_bias_instability"] ** 2 / tau,
         gyro_bias_psd=2 * noise["imu_gyro_bias_instability"] ** 2 / tau)
-    return {FILTER: InsDvlFilter(dataset, calibrate=False),
-            SIM_FILTER: InsDvlFilter(dataset, simulated, calibrate=False)}
+    out = {FILTER: InsDvlFilter(dataset, calibrate=False),
+           SIM_FILTER: InsDvlFilter(dataset, simulated, calibrate=False)}
+    for label, estimator in out.items():
+        estimator.name = label  # its rows' name in this report
+    return out
 
 
 def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
@@ -239,10 +249,9 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
         try:
             predictions[label] = estimator.predict(windows)
             positions[label] = estimator.positions(windows)
-            if hasattr(estimator, "position_stds"):
-                stds[label] = estimator.position_stds(windows)
-            if hasattr(estimator, "rotations") and label == FILTER:
-                rotations[label] = estimator.rotations(windows)
+            stds.update(reported_stds(estimator, windows))
+            if label == FILTER:
+                rotations.update(own_rotations(estimator, windows))
         except AuvsimError as e:  # said in the report, not hidden
             predictions.pop(label, None)
             failed[label] = str(e).strip().splitlines()[0]
