@@ -19,7 +19,6 @@ from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
 from beamsnet.experiments.sea import DEFAULT_SEA
 from beamsnet.experiments.sea import DURATION as SEA_DURATION
-from beamsnet.experiments.sea import EPOCHS as SEA_EPOCHS
 from beamsnet.experiments.sea import SEEDS as SEA_SEEDS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
@@ -161,8 +160,7 @@ def _parser() -> argparse.ArgumentParser:
                     + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
                     + f" in snapir; {SIM_SEEDS} in sim2real; {SEA_SEEDS} in sea)")
     rp.add_argument("--epochs", type=int,
-                    help="default: " + _per_experiment("epochs", "paper-sim", "snapir")
-                    + f", {SEA_EPOCHS} (sea)")
+                    help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,
                     help="default: the paper's, " + _per_experiment("lr", "paper-sim", "snapir"))
     rp.add_argument("--average-epochs", type=int, metavar="N",
@@ -324,8 +322,7 @@ def _reproduce(args) -> None:
     profile = PROFILES["snapir" if args.experiment in ("sim2real", "sea")
                        else args.experiment]
     training, restarts = profile.resolve(
-        epochs=SEA_EPOCHS if args.experiment == "sea" and args.epochs is None
-        else args.epochs, lr=args.lr, average_epochs=args.average_epochs,
+        epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
         restarts=args.restarts)
     seeded = args.experiment in ("snapir", "sim2real", "sea")
     if seeded and args.restarts is not None:
