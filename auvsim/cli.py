@@ -21,12 +21,14 @@ EXAMPLES = """examples:
   auvsim generate --preset maneuvers --out datasets/maneuvers.h5
   auvsim inspect demo/straight.h5
   auvsim plot demo/straight.h5
+  auvsim import DIR --format akit --out snapir.h5
 
 Each command has its own --help."""
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
-         "workers": "--workers", "shards": "--shards", "cluster": "--cluster"}
+         "workers": "--workers", "shards": "--shards", "cluster": "--cluster",
+         "description": "--description", "format": "--format", "sources": "SOURCE"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -92,7 +94,8 @@ def _parser() -> argparse.ArgumentParser:
     inspect.add_argument("file", type=Path,
                          help="a dataset: an .h5 file, or a sharded dataset's index.h5")
     imp = sub.add_parser(
-        "import-velocity", help="make a dataset from recorded DVL velocities",
+        "import-velocity",
+        help="make a dataset from recorded DVL velocities (import --format velocity)",
         description="Take recorded DVL velocities as the truth and synthesise the beams a "
         "DVL under test would measure, with a preset's DVL error model, as the BeamsNet "
         "paper's sea experiment did. Each file becomes one mission (named by the file) "
@@ -114,6 +117,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
     imp.add_argument("--out", type=Path, required=True, metavar="FILE",
                      help="HDF5 file to write")
+    _import_parser(sub)
     plot = sub.add_parser(
         "plot", help="draw each mission of a dataset to PNG",
         description="Draw each mission of a dataset to a PNG: track, depth over the "
@@ -128,6 +132,57 @@ def _parser() -> argparse.ArgumentParser:
                       help="folder for the PNGs, <file>_<mission>.png (default: beside the "
                       "file)")
     return parser
+
+
+# ---- auvsim import: recorded logs (auvsim.data.recorded) and velocity streams ----------
+
+
+def _import_parser(sub) -> None:
+    imp = sub.add_parser(
+        "import", help="make a dataset from a vehicle's recorded logs",
+        description="Make a dataset of recorded missions from a vehicle's logs: IMU, DVL, "
+        "depth and a reference navigation solution, each on its own clock, nothing "
+        "resampled. --format akit reads the A-KIT layout (TrajectoryK/{IMU,DVL,GT}_"
+        "trajectoryK.csv, one mission per segment); --format csv reads a folder of CSV "
+        "files that a log description (TOML) explains; --format velocity is import-velocity "
+        "(recorded DVL velocities taken as the truth, beams synthesised).")
+    imp.add_argument("sources", type=Path, nargs="+", metavar="SOURCE",
+                     help="akit: the A-KIT folder or a TrajectoryK folder; csv: a log's "
+                     "folder; velocity: .npy (3, N) or .csv (N rows vx,vy,vz) files")
+    imp.add_argument("--format", choices=("akit", "csv", "velocity"), required=True,
+                     help="the logs' layout (required; no default)")
+    imp.add_argument("--description", type=Path, metavar="LOG.toml",
+                     help="the log description (csv only; default: none, required there)")
+    imp.add_argument("--rate", type=float, default=1.0, metavar="HZ",
+                     help="velocity only: ping rate of the files, Hz (default: 1)")
+    imp.add_argument("--preset", default="paper-sim", metavar="NAME",
+                     help="velocity only: whose DVL error model to apply (default: paper-sim)")
+    imp.add_argument("--noise-std", type=float, metavar="X",
+                     help="velocity only: beam noise std, m/s (default: the preset's)")
+    imp.add_argument("--seed", type=int, default=0, metavar="N",
+                     help="velocity only: seed of the first file's errors (default: 0)")
+    imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
+                     help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
+    imp.add_argument("--out", type=Path, required=True, metavar="FILE",
+                     help="HDF5 file to write")
+
+
+def _import(args: argparse.Namespace) -> None:
+    if args.format == "velocity":
+        if args.description is not None:
+            raise ConfigError("--description: only for --format csv")
+        args.files = args.sources
+        _import_velocity(args)
+        return
+    from auvsim.data.recorded import import_logs
+
+    summary = import_logs(args.sources, args.out, format=args.format,
+                          description=args.description, compression=args.compression)
+    missions = "; ".join(
+        f"{name} (" + ", ".join(f"{g} {rows} at {rate:.4g} Hz"
+                                for g, (rows, rate) in groups.items()) + ")"
+        for name, groups in summary.items())
+    print(f"wrote {args.out}: {missions}")
 
 
 def _nameable(path: str) -> str:
@@ -279,7 +334,8 @@ def main(argv: list[str] | None = None) -> int:
     141 when the reader of its output has gone (``auvsim.cli_support``)."""
     args = _parser().parse_args(argv)
     command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
-               "import-velocity": _import_velocity, "plot": _plot}[args.command]
+               "import-velocity": _import_velocity, "import": _import,
+               "plot": _plot}[args.command]
     return run_command("auvsim", lambda: command(args), FLAGS)
 
 

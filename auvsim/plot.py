@@ -7,7 +7,10 @@ lock, with the reason each beam lost it where the file says (``dvl/status``, sch
 v4 mission adds two more: the current at the vehicle (speed, and the direction it flows
 toward, 0 to 360 deg from north, as ``auvsim inspect`` says it) and the DVL's error
 velocity. An imported mission (a recorded DVL stream, no trajectory) gets the DVL panels
-only. Legends sit beside their panels, outside the data.
+only. A recorded mission (a real vehicle's logs) gets its reference's track, depth, speed
+and attitude, labelled as a reference (a navigation solution, not the truth), and each
+stream it holds with its rate: the DVL's velocity beside the reference's, the IMU's
+rates and specific force. Legends sit beside their panels, outside the data.
 """
 
 from __future__ import annotations
@@ -60,7 +63,8 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
         if not names:
             raise DatasetError(f"{path}: no missions to draw")
         for name in names:
-            require_usable_beams(group[name])
+            if group[name].origin != "recorded":  # a real log may have no beams at all
+                require_usable_beams(group[name])
         pngs = {out / f"{path.stem}_{name}.png": _render(group[name], path)
                 for name in names}
     with all_or_nothing():  # a full disk at the third figure leaves none
@@ -78,7 +82,10 @@ def _render(m: Mission, path: Path) -> bytes:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = (4 if "current_ned" in m.truth else 3) if m.has("truth") else 1
+    if m.origin == "recorded":
+        rows = 3
+    else:
+        rows = (4 if "current_ned" in m.truth else 3) if m.has("truth") else 1
     fig, axes = plt.subplots(rows, 2, figsize=(15, 3.2 * rows), squeeze=False,
                              layout="constrained")
     buffer = io.BytesIO()
@@ -87,7 +94,7 @@ def _render(m: Mission, path: Path) -> bytes:
         # and matplotlib's warnings about them would only clutter the command's output.
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
-            _draw(m, axes)
+            (_draw_recorded if m.origin == "recorded" else _draw)(m, axes)
             fig.suptitle(f"{path.name}: {m.name}")
             fig.savefig(buffer, format="png", dpi=100)
     except (ValueError, OverflowError, FloatingPointError) as e:
@@ -191,6 +198,93 @@ def _draw(m: Mission, axes: np.ndarray) -> None:
 
     if axes.shape[0] == 4:
         _draw_water(m, axes[3, 0], axes[3, 1])
+
+
+def _draw_recorded(m: Mission, axes: np.ndarray) -> None:
+    """A recorded mission on a (3, 2) grid: the reference (track, depth, speed, attitude),
+    then the DVL's velocity and the IMU's rates, each stream with its rate."""
+    a = m.attrs
+    rate = {g: a.get(f"{g}_rate_hz", float("nan")) for g in ("imu", "dvl", "depth",
+                                                              "reference")}
+    ref = m.reference if m.has("reference") else None
+    ax = axes[0, 0]
+    if ref is not None:
+        pos = ref.position_ned
+        ax.plot(pos[:, 1], pos[:, 0], lw=1, label="reference")
+        ax.plot(pos[0, 1], pos[0, 0], "go", label="start (origin)")
+        ax.plot(pos[-1, 1], pos[-1, 0], "rs", label="end")
+        ax.set_aspect("equal", adjustable="datalim")
+        _legend_beside(ax)
+    ax.set_xlabel("east, m")
+    ax.set_ylabel("north, m")
+    ax.set_title(f"reference track (a navigation solution, not the truth), "
+                 f"{rate['reference']:.3g} Hz" if ref is not None else "no reference in the log")
+
+    ax = axes[0, 1]
+    if ref is not None:
+        ax.plot(ref.time, ref.position_ned[:, 2] - a["height_m"], label="reference")
+    if m.has("depth"):
+        ax.plot(m.depth.time, m.depth.depth, lw=0.8, label=f"depth sensor, {rate['depth']:.3g} Hz")
+    ax.invert_yaxis()
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("depth, m")
+    ax.set_title("depth (reference: -height)")
+    _legend_beside(ax)
+
+    ax = axes[1, 0]
+    if ref is not None:
+        ax.plot(ref.time, np.linalg.norm(ref.velocity_ned, axis=1), label="reference |v|")
+    if m.has("dvl"):
+        ax.plot(m.dvl.time, np.linalg.norm(m.dvl.velocity_ls, axis=1), ".", ms=2,
+                label=f"DVL |v|, {rate['dvl']:.3g} Hz")
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("m/s")
+    ax.set_title("speed over ground")
+    _legend_beside(ax)
+
+    ax = axes[1, 1]
+    if ref is not None and "rpy_deg" in ref:
+        rpy = ref.rpy_deg
+        ax.plot(ref.time, rpy[:, 0], label="roll")
+        ax.plot(ref.time, rpy[:, 1], label="pitch")
+        twin = ax.twinx()
+        twin.plot(ref.time, np.degrees(np.unwrap(np.radians(rpy[:, 2]))), "k", lw=0.8,
+                  label="yaw")
+        twin.set_ylabel("yaw, deg")
+        ax.set_title("reference attitude")
+        _legend_beside(ax, twin)
+    else:
+        ax.set_title("no attitude in the reference")
+    ax.set_ylabel("roll, pitch, deg")
+    ax.set_xlabel("time, s")
+
+    ax = axes[2, 0]
+    if m.has("dvl"):
+        v = m.dvl.velocity_ls
+        for k, axis in enumerate("xyz"):
+            ax.plot(m.dvl.time, v[:, k], ".", ms=2, label=f"v{axis}")
+        ax.set_title(f"DVL velocity (its own output, DVL frame), {rate['dvl']:.3g} Hz")
+        _legend_beside(ax)
+    else:
+        ax.set_title("no DVL in the log")
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("m/s")
+
+    ax = axes[2, 1]
+    if m.has("imu"):
+        t, w = m.imu.time, np.degrees(m.imu.angular_rate)
+        for k, axis in enumerate("xyz"):
+            ax.plot(t, w[:, k], lw=0.5, label=f"gyro {axis}")
+        twin = ax.twinx()
+        twin.plot(t, np.linalg.norm(m.imu.specific_force, axis=1), color="0.6", lw=0.3,
+                  label="|specific force|")
+        twin.set_ylabel("m/s^2")
+        ax.set_title(f"IMU (body FRD), {rate['imu']:.4g} Hz")
+        _legend_beside(ax, twin)
+    else:
+        ax.set_title("no IMU in the log")
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("deg/s")
 
 
 # The colours of the first status codes (``Status``), chosen to read: ok green, the

@@ -60,7 +60,7 @@ def demo_file(tmp_path_factory):
 def test_generate_writes_the_schema_truth(demo_file):
     with open_dataset(demo_file) as f:
         assert f.attrs["format"] == "auvsim-dataset"
-        assert f.attrs["format_version"] == FORMAT_VERSION == 6
+        assert f.attrs["format_version"] == FORMAT_VERSION == 7
         assert {"auvsim_version", "created_utc", "config_json"} <= set(f.attrs)
         config = Config.from_json(f.attrs["config_json"])
         assert config.missions[0].scenario.heading_deg == 30.0
@@ -291,9 +291,9 @@ def test_reader_refuses_foreign_corrupt_and_other_versions(tmp_path, demo_file):
     newer = tmp_path / "newer.h5"
     newer.write_bytes(demo_file.read_bytes())
     with h5py.File(newer, "r+") as f:
-        f.attrs["format_version"] = 7
+        f.attrs["format_version"] = 8
     with pytest.raises(DatasetError,
-                       match="format_version 7; this auvsim reads versions 1, 2, 3, 4, 5, 6 "
+                       match="format_version 8; this auvsim reads versions 1, 2, 3, 4, 5, 6, 7 "
                        r"\(the file is from a newer auvsim\)"):
         open_dataset(newer)
 

@@ -2,12 +2,15 @@
 
 Each mission gets its own lines (scenario, seed, gravity, manoeuvre phases), each sensor
 plugin's (``auvsim.sensors.Sensor.describe``, for the sensors whose group it holds) and
-the water's; then the fields of the first mission.
+the water's; then the fields of the first mission. A recorded mission (a real vehicle's
+logs) gets its origin, its reference (named as one) and each stream with its rate.
 """
 
 from __future__ import annotations
 
+import json
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -34,6 +37,9 @@ def describe(path: str | os.PathLike) -> str:
                  f"{f.attrs.get('created_utc', '?')}), {len(f.missions)} mission(s)"
                  + sharded]
         for name, m in f.missions.items():
+            if m.origin == "recorded":
+                lines += _recorded(name, m)
+                continue
             lines += _mission(name, m)
             for sensor in registry().values():
                 if m.has(sensor.name):
@@ -69,6 +75,49 @@ def _mission(name: str, m: Mission) -> list[str]:
         more = f" (and {len(phases) - MAX_PHASES} more)" if len(phases) > MAX_PHASES else ""
         lines.append(f"    phases: {listed}{more}")
     return lines
+
+
+def _recorded(name: str, m: Mission) -> list[str]:
+    """A recorded mission: where it was, what its reference is, and each stream's rows,
+    rate, span and what the import applied to it."""
+    a = m.attrs
+    files = json.loads(a["source_files"])
+    lines = [f"  {name}: recorded, {a['duration_s']:g} s, from {len(files)} file(s) "
+             f"({', '.join(Path(p).name for p in files)}); origin {a['latitude_deg']:.6f} deg "
+             f"N, {a['longitude_deg']:.6f} deg E, height {a['height_m']:.2f} m; WGS-84 gravity "
+             f"there {a['gravity']:.5f} m/s^2"]
+    for group in json.loads(a["groups"]):
+        t = getattr(m, group).time
+        rate = a.get(f"{group}_rate_hz", float("nan"))
+        head = (f"    {group}: {len(t)} samples at {rate:.4g} Hz, {t[0]:g} to {t[-1]:g} s, "
+                f"time offset {a.get(f'{group}_time_offset_s', 0.0):g} s")
+        if group == "imu":
+            head += (f", at {_vec(a['imu_position_body'])} m (body); spec: accelerometer "
+                     f"noise {a['imu_accel_noise_density']:.3g} m/s^2/sqrt(Hz), gyro noise "
+                     f"{a['imu_gyro_noise_density']:.3g} rad/s/sqrt(Hz)")
+        elif group == "dvl":
+            v = m.dvl.velocity_ls
+            lock = 100 * np.isfinite(v).all(axis=1).mean()
+            beams = ("no beams in the log (derived beams would be H v)"
+                     if a["dvl_beams_derived"] else "beams as logged")
+            head += (f", at {_vec(a['dvl_position_body'])} m (body); velocity in {lock:.1f} % "
+                     f"of pings; {beams}; spec: beam noise {a['dvl_noise_std']:g} m/s, "
+                     f"velocity accuracy {a['dvl_velocity_accuracy']:g} m/s")
+        elif group == "reference":
+            ref = m.reference
+            pos = ref.position_ned
+            track = float(np.linalg.norm(np.diff(pos[:, :2], axis=0), axis=1).sum())
+            attitude = "with attitude" if "quaternion" in ref else "WITHOUT attitude"
+            head = (f"    reference (a navigation solution, not the truth): "
+                    f"{a['reference_source']}; " + head.split(": ", 1)[1]
+                    + f"; track {track:.0f} m, ends {pos[-1, 0]:.1f} m N, {pos[-1, 1]:.1f} m E,"
+                    f" {pos[-1, 2]:.1f} m down of the origin; {attitude}")
+        lines.append(head)
+    return lines
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:g}" for x in np.asarray(v)) + ")"
 
 
 def _water(m: Mission) -> list[str]:

@@ -21,11 +21,14 @@ from auvsim.data.schema import (
     INDEX,
     ORIGINS,
     READABLE_VERSIONS,
+    RECORDED_SINCE,
     SHARDS,
     Phases,
     Shard,
     data_digest,
+    parse_groups,
     parse_phases,
+    recorded_schema,
     schema,
 )
 from auvsim.errors import DatasetError
@@ -87,7 +90,10 @@ class Group:
 class Mission:
     """A mission of an open dataset: its ``name``, ``origin``, ``attrs`` (plain Python
     values and numpy arrays, the realised error parameters among them) and groups as
-    attributes (``mission.truth.position_ned``, ``mission.dvl.beam_velocity``)."""
+    attributes (``mission.truth.position_ned``, ``mission.dvl.beam_velocity``).
+
+    A recorded mission (schema v7) has a ``reference`` (a navigation solution) where a
+    simulated one has its ``truth``; asking it for ``truth`` is refused in one line."""
 
     def __init__(self, dataset: Dataset, name: str, group: h5py.Group, origin: str) -> None:
         self.dataset = dataset
@@ -104,8 +110,24 @@ class Mission:
         return sorted(k for k, v in self._group.items() if isinstance(v, h5py.Group))
 
     def has(self, group: str) -> bool:
-        """Whether the mission holds this group (an imported one has only ``dvl``)."""
+        """Whether the mission holds this group (an imported one has only ``dvl``; a
+        recorded one those its ``groups`` attribute lists)."""
         return isinstance(self._group.get(group), h5py.Group)
+
+    @property
+    def reference(self) -> Group:
+        """A recorded mission's reference: the navigation solution it is scored against
+        (``reference/time``, ``latitude_deg``, ``position_ned``, ``velocity_ned``, and
+        ``quaternion`` when the log has attitude). A reference, never the truth.
+
+        Raises:
+            DatasetError: the mission has none (simulated and imported ones do not).
+        """
+        if not self.has("reference"):
+            hint = ("its truth is in mission.truth" if self.has("truth")
+                    else "only recorded missions have one")
+            raise DatasetError(f"{self._where} has no reference group; {hint}")
+        return Group(self, "reference")
 
     @property
     def gravity(self) -> float | None:
@@ -129,11 +151,14 @@ class Mission:
         from an older file whose config does not name exactly its missions."""
         if "phases" in self.attrs:
             return parse_phases(self.attrs["phases"])
-        if self.origin == "imported":
+        if self.origin != "simulated":
             return []
         return list(self.dataset._derived_phases().get(self.name, []))
 
     def __getattr__(self, group: str) -> Group:
+        if group == "truth" and self.origin == "recorded":
+            raise DatasetError(f"{self._where}: recorded missions have a reference, not a "
+                               "truth; use mission.reference (a navigation solution)")
         if group.startswith("_") or not self.has(group):
             raise AttributeError(f"mission {self.name} has no group {group!r}")
         return Group(self, group)
@@ -344,7 +369,8 @@ def _check_missions(path: Path, f: h5py.File, dataset: Dataset,
         if "origin" not in group.attrs and version >= 2:
             raise DatasetError(f"{path}: mission {name} has no origin attribute; {expected}")
         origin = group.attrs.get("origin", "simulated")
-        if not (isinstance(origin, str) and origin in ORIGINS):
+        if not (isinstance(origin, str) and origin in ORIGINS) or (
+                origin == "recorded" and version < RECORDED_SINCE):
             raise DatasetError(f"{path}: mission {name} has origin {_show(origin)}; "
                                f"{expected}")
         _check_mission(path, name, group, origin, version)
@@ -410,8 +436,11 @@ def _shard_group(path: Path, f: h5py.File, name: str, records: dict[str, Shard],
 
 def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
                    version: int) -> None:
-    fields, attrs = schema(origin, version)
     where = _where(Path(group.file.filename), name, origin)
+    if origin == "recorded":
+        fields, attrs = _recorded_fields(where, group)
+    else:
+        fields, attrs = schema(origin, version)
     missing = [fl.path for fl in fields if not isinstance(group.get(fl.path), h5py.Dataset)]
     missing += [f"attribute {a.name}" for a in attrs
                 if a.name not in group.attrs and not (a.name == "origin" and version == 1)]
@@ -492,6 +521,24 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
                     f"{where}: field {fl.path} row {k} is {index[k]}, the sample of "
                     f"{other_path} at {other[index[k]]:.9g} s, but {own_path} is "
                     f"{own[k]:.9g} s there; expected the index of the sample at that time")
+
+
+def _recorded_fields(where: str, group: h5py.Group) -> tuple[list, tuple]:
+    """A recorded mission's fields to check (the required ones of the groups its
+    ``groups`` attribute lists, and the optional ones it holds) and its attributes."""
+    text = group.attrs.get("groups")
+    try:
+        groups = parse_groups(text)
+    except ValueError:
+        raise DatasetError(f"{where}: attribute groups is {_show(text)}; expected a JSON "
+                           "list of the groups it holds (imu, dvl, depth, reference)") from None
+    unlisted = [k for k, v in group.items() if isinstance(v, h5py.Group) and k not in groups]
+    if unlisted:
+        raise DatasetError(f"{where} holds group {unlisted[0]}, which its groups attribute "
+                           f"{_show(text)} does not list; expected the groups it holds")
+    required, optional, attrs = recorded_schema(groups)
+    return [*required, *(f for f in optional if isinstance(group.get(f.path), h5py.Dataset))
+            ], attrs
 
 
 def _rebuilt_phases(config_json: str, names: set[str]) -> dict[str, Phases]:
@@ -616,6 +663,26 @@ def require_usable_beams(mission: Mission) -> np.ndarray:
                            "(every beam is flagged invalid or its velocity is NaN); expected "
                            "at least one valid, finite beam velocity")
     return usable
+
+
+def require_attitude(mission: Mission) -> np.ndarray:
+    """(R, 4) the mission's attitude, body -> NED [w, x, y, z], at its reference's (or a
+    simulated mission's truth's) samples, for a consumer that needs one (the INS/DVL
+    filter's start and scores).
+
+    Raises:
+        DatasetError: the mission has no attitude (a recorded reference without one, or
+            an imported DVL stream), in one line naming it.
+    """
+    if mission.has("truth"):
+        return mission.truth.quaternion
+    if mission.has("reference") and "quaternion" in Group(mission, "reference"):
+        return mission.reference.quaternion
+    what = ("its reference has no attitude (reference/quaternion)" if mission.has("reference")
+            else "it has neither a reference nor a truth")
+    raise DatasetError(f"{mission._where}: {what}; expected a reference with roll, pitch "
+                       "and yaw (map them in the log description) or a start attitude given "
+                       "another way")
 
 
 def read_attrs(path: str | os.PathLike) -> tuple[dict, dict[str, dict]]:

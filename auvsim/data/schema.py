@@ -15,9 +15,13 @@ some of the missions, sealed with the root attributes ``config_sha256`` and
 ``layout = "index"``, ``shards`` a JSON list of ``Shard`` records) whose missions are HDF5
 external links into them.
 
+A mission of origin ``recorded`` (a real vehicle's logs, ``auvsim import``) has a schema of
+its own (``recorded_schema``): the groups its attribute ``groups`` lists, each stream on its
+own clock, and a ``reference`` group (a navigation solution) in place of ``truth``.
+
 Reading lives in ``auvsim.data.reader``, writing in ``auvsim.data.writer``, the sharded
-layout in ``auvsim.data.shards`` and ``auvsim inspect``'s summary in
-``auvsim.data.describe``.
+layout in ``auvsim.data.shards``, ``auvsim inspect``'s summary in ``auvsim.data.describe``
+and the recorded logs' import in ``auvsim.data.recorded``.
 """
 
 from __future__ import annotations
@@ -48,12 +52,19 @@ FORMAT = "auvsim-dataset"
 # its compiled MJCF) and ``phases`` (its manoeuvre's phases, ``phases_json``). Older files
 # are read; ``auvsim.data.reader.Mission`` derives both for them as before (``gravity``
 # from the model file named by the config, ``phases`` by making the manoeuvre again from
-# the mission's seed).
-FORMAT_VERSION = 6
-READABLE_VERSIONS = (1, 2, 3, 4, 5, 6)
+# the mission's seed). Version 7 = version 6 + a third origin, ``recorded``: a real
+# vehicle's logs (IMU, DVL, depth, and a navigation solution as the ``reference``, never
+# called truth), each stream on its own clock, every group optional and named by the
+# mission's ``groups`` attribute (``recorded_schema``). A new origin changes what a
+# reader must expect of a mission, so the version says it: a version-6 reader refuses the
+# file in one line instead of misreading it. Simulated and imported missions are written
+# as in version 6, array by array; older files are read as before.
+FORMAT_VERSION = 7
+READABLE_VERSIONS = (1, 2, 3, 4, 5, 6, 7)
 INDEX = "index.h5"  # a sharded dataset's index, in its folder
 SHARDS = "shards"  # the folder of its shards, beside the index
-ORIGINS = ("simulated", "imported")
+ORIGINS = ("simulated", "imported", "recorded")
+RECORDED_SINCE = 7  # the first version with recorded missions
 
 # The core of every simulated mission; the sensors add their own (``schema``).
 CORE_FIELDS = (
@@ -75,7 +86,7 @@ CORE_FIELDS = (
     Field("control/stern_planes", (), "f", "imu", "rad", "stern-plane angle reached"),
 )
 CORE_ATTRS = (
-    Attr("origin", None, "simulated or imported", imported=True),
+    Attr("origin", None, "simulated, imported or recorded (v7)", imported=True),
     Attr("scenario", None, "the manoeuvre's name", imported=True),
     Attr("seed", (), "the mission's seed", imported=True, low=0, whole=True),
     Attr("duration_s", (), "s", imported=True, low=0, strict=True),
@@ -92,6 +103,128 @@ CORE_ATTRS = (
 )
 IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
                 Attr("source_sha256", None, "its SHA-256"))
+
+
+# A recorded mission (schema v7): every group optional, the ``groups`` attribute says
+# which are there; each group's fields are on its own clock (its ``time``, s, from the log's
+# first stamp, after the stream's described time offset). Fields in ``RECORDED_OPTIONAL``
+# may be absent from a group that is present.
+RECORDED_GROUPS = ("imu", "dvl", "depth", "reference")
+RECORDED_FIELDS = (
+    Field("imu/time", (), "f", "imu", "s", "the IMU's own clock"),
+    Field("imu/specific_force", (3,), "f", "imu", "m/s^2", "body FRD, after the axis map"),
+    Field("imu/angular_rate", (3,), "f", "imu", "rad/s", "body FRD, after the axis map"),
+    Field("dvl/time", (), "f", "dvl", "s", "the DVL's own clock"),
+    Field("dvl/velocity_ls", (3,), "f", "dvl", "m/s",
+          "the instrument's own velocity output, DVL frame (NaN: no bottom lock)"),
+    Field("dvl/beam_velocity", (4,), "f", "dvl", "m/s", "along each beam, as logged"),
+    Field("dvl/beam_range", (4,), "f", "dvl", "m", "slant range of each beam"),
+    Field("dvl/error_velocity", (), "f", "dvl", "m/s", "the instrument's error velocity"),
+    Field("dvl/altitude", (), "f", "dvl", "m", "above the seafloor, as the DVL reports it"),
+    Field("dvl/valid", (4,), "b", "dvl", "-", "the beam measured something"),
+    Field("dvl/status", (4,), "i", "dvl", "-", "the instrument's status per beam"),
+    Field("dvl/mode", (), "i", "dvl", "-", "0 bottom track, -1 none"),
+    Field("depth/time", (), "f", "depth", "s", "the depth sensor's own clock"),
+    Field("depth/depth", (), "f", "depth", "m", "positive down"),
+    Field("reference/time", (), "f", "reference", "s", "the reference's own clock"),
+    Field("reference/latitude_deg", (), "f", "reference", "deg", "geodetic, WGS-84"),
+    Field("reference/longitude_deg", (), "f", "reference", "deg", "WGS-84"),
+    Field("reference/height_m", (), "f", "reference", "m",
+          "above the ellipsoid (negative under water)"),
+    Field("reference/position_ned", (3,), "f", "reference", "m",
+          "local NED from the mission origin (latitude_deg, longitude_deg, height_m)"),
+    Field("reference/velocity_ned", (3,), "f", "reference", "m/s", "NED"),
+    Field("reference/quaternion", (4,), "f", "reference", "-", "body -> NED, [w, x, y, z]"),
+    Field("reference/rpy_deg", (3,), "f", "reference", "deg", "roll, pitch, yaw (ZYX)"),
+)
+RECORDED_OPTIONAL = frozenset({
+    "dvl/beam_velocity", "dvl/beam_range", "dvl/error_velocity", "dvl/altitude",
+    "dvl/valid", "dvl/status", "dvl/mode", "reference/quaternion", "reference/rpy_deg"})
+_COMMON = {a.name: a for a in CORE_ATTRS if a.imported}
+RECORDED_ATTRS = {  # group -> the attributes a recorded mission holds when it has it
+    "": (
+        _COMMON["origin"], _COMMON["scenario"], _COMMON["seed"], _COMMON["duration_s"],
+        Attr("groups", None, "the groups present, a JSON list (of imu, dvl, depth, reference)"),
+        Attr("latitude_deg", (), "the mission origin's geodetic latitude, deg"),
+        Attr("longitude_deg", (), "the mission origin's longitude, deg"),
+        Attr("height_m", (), "the mission origin's height above the ellipsoid, m"),
+        Attr("gravity", (), "m/s^2, WGS-84 normal gravity at the mission origin "
+             "(auvsim.physics.earth.normal_gravity)", low=0, strict=True),
+        Attr("log_description", None, "the log description (TOML) the import followed"),
+        Attr("source_files", None, "the log's files, a JSON list"),
+        Attr("source_sha256", None, "their SHA-256, a JSON list in the same order"),
+    ),
+    "imu": (
+        Attr("imu_rate_hz", (), "nominal rate, 1 / median sample interval, Hz", low=0,
+             strict=True),
+        Attr("imu_position_body", (3,), "m, body FRD, from the reference point"),
+        Attr("imu_accel_noise_density", (), "instrument spec, m/s^2/sqrt(Hz)", low=0),
+        Attr("imu_gyro_noise_density", (), "instrument spec, rad/s/sqrt(Hz)", low=0),
+        Attr("imu_accel_bias_instability", (), "instrument spec, m/s^2", low=0),
+        Attr("imu_gyro_bias_instability", (), "instrument spec, rad/s", low=0),
+        Attr("imu_bias_correlation_time", (), "instrument spec, s", low=0, strict=True),
+        Attr("imu_time_offset_s", (), "s, added to the log's stamps"),
+    ),
+    "dvl": (
+        Attr("dvl_rate_hz", (), "nominal rate, 1 / median ping interval, Hz", low=0,
+             strict=True),
+        Attr("beam_angle_deg", (), "beam angle from the DVL's axis, deg", low=0),
+        Attr("dvl_position_body", (3,), "m, body FRD, from the reference point"),
+        Attr("dvl_mounting_rpy_deg", (3,), "deg, ZYX, DVL frame -> body"),
+        Attr("dvl_noise_std", (), "the instrument's white beam noise, m/s", low=0),
+        Attr("dvl_velocity_accuracy", (), "the instrument's stated velocity std, m/s", low=0),
+        Attr("dvl_time_offset_s", (), "s, added to the log's stamps"),
+        Attr("dvl_beams_derived", (), "1: the log has no beams (a reader deriving H v from "
+             "velocity_ls must say so); 0: dvl/beam_velocity is the instrument's",
+             low=0, whole=True),
+    ),
+    "depth": (
+        Attr("depth_rate_hz", (), "nominal rate, Hz", low=0, strict=True),
+        Attr("depth_time_offset_s", (), "s, added to the log's stamps"),
+    ),
+    "reference": (
+        Attr("reference_source", None, "what the reference is (a navigation solution, "
+             "never the truth)"),
+        Attr("reference_rate_hz", (), "nominal rate, Hz", low=0, strict=True),
+        Attr("reference_time_offset_s", (), "s, added to the log's stamps"),
+    ),
+}
+
+
+def recorded_schema(groups: Sequence[str]) -> tuple[tuple[Field, ...], tuple[Field, ...],
+                                                     tuple[Attr, ...]]:
+    """What a recorded mission with these groups holds: its required fields, the
+    optional ones it may hold, and its attributes.
+
+    Raises:
+        ValueError: a group is not one of ``RECORDED_GROUPS``, or none is given.
+    """
+    unknown = [g for g in groups if g not in RECORDED_GROUPS]
+    if unknown or not groups:
+        raise ValueError(f"expected groups among {', '.join(RECORDED_GROUPS)}, got "
+                         f"{list(groups)}")
+    fields = [f for f in RECORDED_FIELDS if f.path.split("/")[0] in groups]
+    attrs = RECORDED_ATTRS[""] + tuple(a for g in RECORDED_GROUPS if g in groups
+                                       for a in RECORDED_ATTRS[g])
+    return (tuple(f for f in fields if f.path not in RECORDED_OPTIONAL),
+            tuple(f for f in fields if f.path in RECORDED_OPTIONAL), attrs)
+
+
+def parse_groups(text: object) -> list[str]:
+    """The groups a recorded mission's ``groups`` attribute lists.
+
+    Raises:
+        ValueError: not a JSON list of known group names, or an empty one.
+    """
+    try:
+        groups = json.loads(text) if isinstance(text, str) else None
+    except ValueError:
+        groups = None
+    if not (isinstance(groups, list) and all(isinstance(g, str) for g in groups)
+            and len(set(groups)) == len(groups)):
+        raise ValueError(f"expected a JSON list of group names, got {text!r}")
+    recorded_schema(groups)  # known names, at least one
+    return groups
 
 
 def core_block(truth: Truth, *, propeller_rpm: np.ndarray, thrust: np.ndarray,
@@ -150,7 +283,9 @@ def parse_phases(text: str) -> Phases:
 def schema(origin: str, version: int = FORMAT_VERSION) -> tuple[tuple[Field, ...],
                                                                  tuple[Attr, ...]]:
     """The fields and attributes every mission of this origin holds in a file of this
-    format version (extra ones are allowed): the core's and the sensor plugins'."""
+    format version (extra ones are allowed): the core's and the sensor plugins'. A
+    recorded mission's depend on its groups (``recorded_schema``): here, its common
+    attributes and no field."""
     return _schema(origin, version, tuple(registry().values()))
 
 
@@ -162,6 +297,8 @@ def _schema(origin: str, version: int, plugins: tuple[type[Sensor], ...]
                    if f.since <= version)
     attrs = tuple(a for a in CORE_ATTRS + tuple(a for s in sensors for a in s.attributes)
                   if a.since <= version)
+    if origin == "recorded":
+        return (), RECORDED_ATTRS[""]
     if origin == "imported":
         return (tuple(f for f in fields if f.imported),
                 tuple(a for a in attrs if a.imported) + IMPORT_ATTRS)
@@ -174,7 +311,9 @@ def mission_attrs(*, origin: str, **attrs) -> dict[str, object]:
     if origin not in ORIGINS:
         raise ValueError(f"origin: expected one of {', '.join(ORIGINS)}, got {origin!r}")
     out = dict(origin=origin, **attrs)
-    missing = [a.name for a in schema(origin)[1] if a.name not in out]
+    needed = (recorded_schema(parse_groups(out.get("groups")))[2] if origin == "recorded"
+              else schema(origin)[1])
+    missing = [a.name for a in needed if a.name not in out]
     if missing:
         raise ValueError(f"mission attributes: {origin} missions need {', '.join(missing)}")
     return out

@@ -1,0 +1,808 @@
+"""``auvsim import``: a real vehicle's logs (IMU, DVL, depth, a reference navigation
+solution) as datasets of recorded missions (schema v7, ``auvsim.data.schema.recorded_schema``).
+
+A log is a folder of CSV files and a **log description**, a small TOML that says what the
+files hold (``parse_description``; ``docs/guides/recorded-logs.md`` shows one whole):
+
+* ``[log]``: ``name`` (the mission's; default the folder's), ``reference_source`` (what the
+  reference is), ``origin = [lat deg, lon deg, height m]`` (default the reference's first
+  point; needed when the log has no reference);
+* ``[imu]``, ``[dvl]``, ``[depth]``, ``[reference]``, each optional: ``file``, ``time`` (the
+  time column) and ``time_unit`` (s, ms, us, ns), ``time_offset_s`` (added to the stamps),
+  ``columns`` (field -> a column name, or a list of them for a vector), ``units`` (field ->
+  unit), ``ignore`` (columns the import may skip), ``delimiter``;
+* the frames: ``frame`` FRD or FLU for the body-fixed streams (``imu``, ``dvl``), with an
+  ``axis_map`` (the log's axis on each body axis, ``["x", "-y", "-z"]``), and for the
+  reference ``frame`` NED or ENU and ``body`` FRD or FLU (its attitude's body frame);
+* where the sensors sit: ``position_body`` (m, FRD, from the reference point) for the IMU
+  and the DVL, the DVL's ``mounting_rpy_deg`` and ``beam_angle_deg``; the DVL's
+  ``invalid``, its no-data value as logged (NaN in the dataset: no bottom lock);
+* the instruments' specifications, which estimators read from the file: ``[imu.noise]``
+  (``accel_noise_density``, ``gyro_noise_density``, ``accel_bias_instability``,
+  ``gyro_bias_instability``, ``bias_correlation_time``, SI units) and the DVL's
+  ``noise_std`` (white beam noise) and ``velocity_accuracy`` (its stated velocity std),
+  m/s. No default: a spec the log does not state is not invented here.
+
+Everything is written in auvsim's conventions (``auvsim`` package docstring): body FRD,
+world NED, SI units, quaternions [w, x, y, z] body -> NED. Each stream keeps its own
+clock; nothing is resampled. All clocks are shifted by one constant so that the earliest
+stamp is 0 (``log_time_origin_s`` keeps it). The reference's positions become local NED
+from the mission origin (``auvsim.physics.earth.ned_from_geodetic``), and ``gravity`` the
+WGS-84 normal gravity there.
+
+A log the description does not fit is refused in one line, before anything is written
+(``ConfigError``): missing or extra columns, a row with another number of cells, time that
+runs backwards or repeats, a cell that is NaN or not a number, units that cannot be right
+(gyros beyond a turn per second where rad/s is declared, accelerometers that do not see
+gravity, angles beyond their range in rad, positions that disagree with the velocities),
+and streams that do not overlap in time.
+
+The built-in layout ``akit`` (``AKIT_DESCRIPTION``) is that of the Snapir AUV's logs
+published with A-KIT (N. Cohen and I. Klein, "Adaptive Kalman-Informed Transformer",
+Engineering Applications of Artificial Intelligence 146 (2025) 110221): one folder
+``TrajectoryK/`` per segment, one mission ``trajectoryK`` each.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import re
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
+from auvsim.data.writer import DatasetWriter
+from auvsim.errors import ConfigError
+from auvsim.physics.earth import ned_from_geodetic, normal_gravity
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+FORMATS = ("akit", "csv", "velocity")
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+STANDARD_GRAVITY = 9.80665  # m/s^2, the unit "g" (CGPM 1901)
+_SPEED = {"m/s": 1.0, "mm/s": 1e-3}
+_ANGLE = {"rad": 1.0, "deg": math.pi / 180}
+# group -> field -> (number of columns, units and their factor to SI, required)
+FIELDS = {
+    "imu": {"specific_force": (3, {"m/s^2": 1.0, "g": STANDARD_GRAVITY}, True),
+            "angular_rate": (3, {"rad/s": 1.0, "deg/s": math.pi / 180}, True)},
+    "dvl": {"velocity": (3, _SPEED, True), "beam_velocity": (4, _SPEED, False),
+            "beam_range": (4, {"m": 1.0}, False), "error_velocity": (1, _SPEED, False),
+            "altitude": (1, {"m": 1.0}, False)},
+    "depth": {"depth": (1, {"m": 1.0}, True)},
+    "reference": {"latitude": (1, _ANGLE, True), "longitude": (1, _ANGLE, True),
+                  "height": (1, {"m": 1.0}, True), "velocity": (3, _SPEED, True),
+                  "attitude": (3, _ANGLE, False)},
+}
+IMU_NOISE = ("accel_noise_density", "gyro_noise_density", "accel_bias_instability",
+             "gyro_bias_instability", "bias_correlation_time")
+# Bounds that no recording of an underwater vehicle reaches, so a value beyond one means a
+# unit other than the declared one. A full turn per second is ten times the fastest rate in
+# the Snapir logs (a 33 deg/s roll oscillation). Gyros in deg/s declared rad/s are caught
+# once the vehicle turns faster than 360 deg/s / 57.3 = 6.3 deg/s, which every log with a
+# turn does; a log of a straight line alone may pass.
+MAX_RATE = 2 * math.pi  # rad/s
+MAX_SPEED = 15.0  # m/s: five times an AUV's top speed (the A18-D's 3 m/s, vehicles.md)
+TRACK_RATIO = 2.0  # positions and integrated velocities may disagree by at most this factor
+MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
+
+
+# The A-KIT layout. Every figure carries its source; what the publication does not state
+# (the IMU's axes, the clocks' alignment, where the sensors sit) is left at "as logged",
+# for ``auvsim check-log`` to find from the data.
+AKIT_DESCRIPTION = """\
+# The Snapir AUV's logs as published with A-KIT (N. Cohen and I. Klein, "Adaptive
+# Kalman-Informed Transformer", EAAI 146 (2025) 110221; repository ansfl/A-KIT):
+# TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv.
+[log]
+name = "trajectory{k}"
+reference_source = "Delph INS post-processed navigation solution (A-KIT GT file), 1 Hz"
+
+[imu]
+# iXblue Phins Subsea (fibre-optic gyros), 100 Hz, "in the body frame": the publication
+# states no axis convention; FRD as logged (auvsim check-log tests it against the reference).
+file = "IMU_trajectory{k}.csv"
+time = "Time [s]"
+time_unit = "s"
+frame = "FRD"
+position_body = [0.0, 0.0, 0.0]  # not published
+columns.specific_force = ["ACC X [m/s^2]", "ACC Y [m/s^2]", "ACC Z [m/s^2]"]
+columns.angular_rate = ["GYRO X [rad/s]", "GYRO Y [rad/s]", "GYRO Z [rad/s]"]
+units = {specific_force = "m/s^2", angular_rate = "rad/s"}
+
+[imu.noise]
+# Phins class, ../shared/reference/sensors.md: gyro ARW 0.0025 deg/sqrt(h) and bias
+# stability 0.01 deg/h; accelerometer bias 10 to 50 micro-g (the low end taken as the
+# in-run instability). Accelerometer noise: sensors.md gives none; 20 micro-g/sqrt(Hz),
+# the aviation-grade IMU of Groves, "Principles of GNSS, Inertial, and Multisensor
+# Integrated Navigation Systems" (2nd ed., 2013), example INS_GNSS_Demo_12, whose gyro ARW
+# (0.002 deg/sqrt(h)) matches the Phins'. Correlation time: none published; one hour.
+accel_noise_density = 1.96133e-4  # 20e-6 * 9.80665 m/s^2/sqrt(Hz)
+gyro_noise_density = 7.27221e-7  # 0.0025 deg/sqrt(h) = 0.0025 * pi/180 / 60 rad/s/sqrt(Hz)
+accel_bias_instability = 9.80665e-5  # 10 micro-g, m/s^2
+gyro_bias_instability = 4.84814e-8  # 0.01 deg/h = 0.01 * pi/180 / 3600 rad/s
+bias_correlation_time = 3600.0
+
+[dvl]
+# Teledyne RDI Workhorse Navigator, 1 Hz, 30 deg Janus beams (../shared/reference/sensors.md);
+# the log holds its velocity output only, in the body frame.
+file = "DVL_trajectory{k}.csv"
+time = "Time [s]"
+time_unit = "s"
+frame = "FRD"
+position_body = [0.0, 0.0, 0.0]  # not published
+mounting_rpy_deg = [0.0, 0.0, 0.0]
+beam_angle_deg = 30.0
+columns.velocity = ["DVL X [m/s]", "DVL Y [m/s]", "DVL Z [m/s]"]
+units = {velocity = "m/s"}
+# The velocity standard deviation the publication states.
+velocity_accuracy = 0.02
+# White beam noise: for RDI's Janus transformation the error velocity is
+# e = (b1 + b2 - b3 - b4) / (2 sqrt(2) sin a) (Teledyne RDI, "ADCP Coordinate
+# Transformation", P/N 951-6079-00, 2010, sec. 5.3), so white beam noise s gives
+# std(e) = s / (sqrt(2) sin a): s = sqrt(2) sin(30 deg) std(e) = 0.707 std(e). The same
+# Navigator's own error velocity has std 3.73 mm/s over the 5,631 pings of
+# ../shared/data/snapir-missbeamnet/validation_data.csv (MissBeamNet, Yona and Klein 2024):
+# s = 2.6 mm/s. The rest of the stated 0.02 m/s survives averaging (scale, bias, alignment).
+noise_std = 0.0026
+
+[reference]
+file = "GT_trajectory{k}.csv"
+time = "Time [s]"
+time_unit = "s"
+frame = "NED"
+body = "FRD"
+columns.latitude = "Latitude [rad]"
+columns.longitude = "Longitude [rad]"
+columns.height = "Altitude [m]"  # negative below the surface: a height
+columns.velocity = ["V North [m/s]", "V East [m/s]", "V Down [m/s]"]
+columns.attitude = ["Roll [rad]", "Pitch [rad]", "Yaw [rad]"]
+units = {latitude = "rad", longitude = "rad", velocity = "m/s", attitude = "rad"}
+"""
+AKIT_SEGMENT = re.compile(r"Trajectory(\d+)")
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One stream of a log description (``[imu]``, ``[dvl]``, ``[depth]``, ``[reference]``).
+
+    Attributes:
+        group: its group in the dataset.
+        file: its CSV, relative to the log's folder.
+        time: the time column; ``scale`` its unit in s; ``offset`` s added to it.
+        columns: field -> its column names (one per component).
+        units: field -> factor to SI.
+        axes: (3, 3) log axes -> body FRD (the axis map, then FLU -> FRD), or for the
+            reference NED <- its frame.
+        settings: the stream's other keys (positions, specifications), as given.
+    """
+
+    group: str
+    file: str
+    time: str
+    scale: float
+    offset: float
+    columns: dict[str, tuple[str, ...]]
+    units: dict[str, float]
+    axes: np.ndarray
+    ignore: tuple[str, ...] = ()
+    delimiter: str = ","
+    body_flip: bool = False
+    settings: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class LogDescription:
+    """A parsed log description: its ``text``, the log's ``name``, ``reference_source``,
+    ``origin`` (lat deg, lon deg, height m, or None: the reference's first point) and its
+    streams by group."""
+
+    text: str
+    name: str | None
+    reference_source: str | None
+    origin: tuple[float, float, float] | None
+    streams: dict[str, Stream]
+
+
+def parse_description(text: str, *, where: str = "log description") -> LogDescription:
+    """A log description (TOML text; see the module docstring), checked.
+
+    Raises:
+        ConfigError: not TOML, or a key missing, unknown or of the wrong kind, in one line
+            naming it.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{where}: not valid TOML ({e})") from None
+    unknown = sorted(set(data) - {"log", *RECORDED_GROUPS})
+    if unknown:
+        raise ConfigError(f"{where}: unknown table [{unknown[0]}]; expected [log], "
+                          + ", ".join(f"[{g}]" for g in RECORDED_GROUPS))
+    log = data.get("log", {})
+    _keys(where, "log", log, {"name", "reference_source", "origin"})
+    origin = log.get("origin")
+    if origin is not None:
+        origin = tuple(_numbers(where, "log.origin", origin, 3))
+    streams = {g: _stream(where, g, data[g]) for g in RECORDED_GROUPS if g in data}
+    if not streams:
+        raise ConfigError(f"{where}: no stream; expected at least one of "
+                          + ", ".join(f"[{g}]" for g in RECORDED_GROUPS))
+    if "reference" in streams and not isinstance(log.get("reference_source"), str):
+        raise ConfigError(f"{where}: log.reference_source: expected a text saying what the "
+                          "reference is (a navigation solution, say which)")
+    for key in ("name",):
+        if key in log and not isinstance(log[key], str):
+            raise ConfigError(f"{where}: log.{key}: expected a text, got {log[key]!r}")
+    return LogDescription(text, log.get("name"), log.get("reference_source"), origin, streams)
+
+
+_STREAM_KEYS = {"file", "time", "time_unit", "time_offset_s", "columns", "units", "ignore",
+                "delimiter", "frame"}
+_GROUP_KEYS = {"imu": {"axis_map", "position_body", "noise"},
+               "dvl": {"axis_map", "position_body", "mounting_rpy_deg", "beam_angle_deg",
+                       "noise_std", "velocity_accuracy", "invalid"},
+               "depth": set(), "reference": {"body"}}
+
+
+def _stream(where: str, group: str, table: object) -> Stream:
+    name = f"{where}: {group}"
+    if not isinstance(table, dict):
+        raise ConfigError(f"{name}: expected a table")
+    _keys(where, group, table, _STREAM_KEYS | _GROUP_KEYS[group])
+    for key in ("file", "time"):
+        if not isinstance(table.get(key), str):
+            raise ConfigError(f"{name}.{key}: expected a text (the "
+                              f"{'CSV file' if key == 'file' else 'time column'}), got "
+                              f"{table.get(key)!r}")
+    unit = table.get("time_unit", "s")
+    if unit not in TIME_UNITS:
+        raise ConfigError(f"{name}.time_unit: expected one of {', '.join(TIME_UNITS)}, got "
+                          f"{unit!r}")
+    offset = _number(where, f"{group}.time_offset_s", table.get("time_offset_s", 0.0))
+    specs = FIELDS[group]
+    columns_in = table.get("columns")
+    if not isinstance(columns_in, dict):
+        raise ConfigError(f"{name}.columns: expected a table of field = column name(s); "
+                          f"fields: {', '.join(specs)}")
+    columns, units = {}, {}
+    units_in = table.get("units", {})
+    if not isinstance(units_in, dict):
+        raise ConfigError(f"{name}.units: expected a table of field = unit")
+    for key in list(columns_in) + list(units_in):
+        if key not in specs:
+            raise ConfigError(f"{name}: unknown field {key!r}; expected one of "
+                              f"{', '.join(specs)}")
+    for key, (n, choices, required) in specs.items():
+        if key not in columns_in:
+            if required:
+                raise ConfigError(f"{name}.columns.{key}: missing; expected "
+                                  f"{'a column name' if n == 1 else f'{n} column names'}")
+            continue
+        cols = columns_in[key]
+        cols = [cols] if isinstance(cols, str) else cols
+        if not (isinstance(cols, list) and len(cols) == n and all(isinstance(c, str)
+                                                                 for c in cols)):
+            raise ConfigError(f"{name}.columns.{key}: expected "
+                              f"{'a column name' if n == 1 else f'{n} column names'}, got "
+                              f"{columns_in[key]!r}")
+        columns[key] = tuple(cols)
+        unit = units_in.get(key, next(iter(choices)))
+        if unit not in choices:
+            raise ConfigError(f"{name}.units.{key}: expected one of {', '.join(choices)}, "
+                              f"got {unit!r}")
+        units[key] = choices[unit]
+    ignore = table.get("ignore", [])
+    if not (isinstance(ignore, list) and all(isinstance(c, str) for c in ignore)):
+        raise ConfigError(f"{name}.ignore: expected a list of column names")
+    delimiter = table.get("delimiter", ",")
+    if not (isinstance(delimiter, str) and len(delimiter) == 1):
+        raise ConfigError(f"{name}.delimiter: expected one character, got {delimiter!r}")
+    flip = False
+    if group == "reference":
+        frame = table.get("frame", "NED")
+        if frame not in ("NED", "ENU"):
+            raise ConfigError(f"{name}.frame: expected NED or ENU, got {frame!r}")
+        axes = np.eye(3) if frame == "NED" else np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, -1]])
+        body = table.get("body", "FRD")
+        if body not in ("FRD", "FLU"):
+            raise ConfigError(f"{name}.body: expected FRD or FLU, got {body!r}")
+        flip = body == "FLU"
+    else:
+        axes = _axis_map(where, group, table.get("axis_map", ["x", "y", "z"]))
+        frame = table.get("frame", "FRD")
+        if frame not in ("FRD", "FLU"):
+            raise ConfigError(f"{name}.frame: expected FRD or FLU, got {frame!r}")
+        if frame == "FLU":
+            axes = np.diag([1.0, -1.0, -1.0]) @ axes
+    settings = {k: v for k, v in table.items() if k in _GROUP_KEYS[group]}
+    return Stream(group, table["file"], table["time"], TIME_UNITS[table.get("time_unit", "s")],
+                  offset, columns, units, axes, tuple(ignore), delimiter, flip, settings)
+
+
+def _axis_map(where: str, group: str, value: object) -> np.ndarray:
+    """(3, 3) log axes -> declared frame: row i has sign s at column j for "s<axis j>"."""
+    expected = ('three of "x", "y", "z", each once, with an optional "-" (the log\'s axis '
+                'on each body axis)')
+    if not (isinstance(value, list) and len(value) == 3 and all(isinstance(v, str)
+                                                                for v in value)):
+        raise ConfigError(f"{where}: {group}.axis_map: expected {expected}, got {value!r}")
+    out = np.zeros((3, 3))
+    for i, v in enumerate(value):
+        sign, axis = (-1.0, v[1:]) if v.startswith("-") else (1.0, v.lstrip("+"))
+        if axis not in ("x", "y", "z"):
+            raise ConfigError(f"{where}: {group}.axis_map: expected {expected}, got {value!r}")
+        out[i, "xyz".index(axis)] = sign
+    if sorted(np.abs(out).argmax(axis=1)) != [0, 1, 2]:
+        raise ConfigError(f"{where}: {group}.axis_map: expected {expected}, got {value!r}")
+    return out
+
+
+def _keys(where: str, table: str, value: object, allowed: set[str]) -> None:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}: [{table}]: expected a table")
+    unknown = sorted(set(value) - allowed)
+    if unknown:
+        raise ConfigError(f"{where}: {table}.{unknown[0]}: unknown key; expected "
+                          f"{', '.join(sorted(allowed))}")
+
+
+def _number(where: str, key: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+            value):
+        raise ConfigError(f"{where}: {key}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def _numbers(where: str, key: str, value: object, n: int) -> list[float]:
+    if not (isinstance(value, list) and len(value) == n):
+        raise ConfigError(f"{where}: {key}: expected {n} numbers, got {value!r}")
+    return [_number(where, key, v) for v in value]
+
+
+def _spec(where: str, key: str, value: object, *, strict: bool = False) -> float:
+    """An instrument specification: a finite number >= 0 (> 0 when ``strict``)."""
+    if value is None:
+        raise ConfigError(f"{where}: {key}: missing; expected the instrument's figure (from "
+                          "its datasheet; auvsim does not invent one)")
+    x = _number(where, key, value)
+    if x < 0 or (strict and x == 0):
+        bound = "above 0" if strict else "of at least 0"
+        raise ConfigError(f"{where}: {key}: expected a number {bound}, got {value!r}")
+    return x
+
+
+# ---- reading -------------------------------------------------------------------------
+
+
+def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
+    """The stream's columns of a CSV with a header line, by field: (N,) stamps under
+    ``time`` (s, before the offset) and (N, n) values in SI units, in the log's axes.
+
+    Raises:
+        ConfigError: the file is missing or unreadable; a described column is missing or a
+            column is neither described nor ignored; a row has another number of cells; a
+            cell is not a number or is NaN; time runs backwards or repeats.
+    """
+    if not path.is_file():
+        raise ConfigError(f"{str(path)!r}: no such file (the log description's "
+                          f"{stream.group}.file)")
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            header = [c.strip() for c in f.readline().rstrip("\r\n").split(stream.delimiter)]
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{str(path)!r}: cannot read it as text ({e})") from None
+    wanted = {"time": (stream.time,), **stream.columns}
+    named = [c for cols in wanted.values() for c in cols]
+    for c in named:
+        if c not in header:
+            has = ", ".join(map(repr, header))
+            raise ConfigError(f"{str(path)!r}: no column {c!r} (the log description's "
+                              f"{stream.group}.columns); the file has {has}")
+    extra = [c for c in header if c not in named and c not in stream.ignore]
+    if extra:
+        raise ConfigError(f"{str(path)!r}: column {extra[0]!r} is not in the log description; "
+                          f"expected it mapped in {stream.group}.columns or listed in "
+                          f"{stream.group}.ignore")
+    use = sorted({header.index(c) for c in named})
+    try:
+        array = np.loadtxt(path, delimiter=stream.delimiter, skiprows=1, usecols=use,
+                           ndmin=2, encoding="utf-8-sig")
+    except ValueError:
+        raise ConfigError(_bad_row(path, stream.delimiter, len(header))) from None
+    if array.shape[0] == 0:
+        raise ConfigError(f"{str(path)!r}: no rows under the header; expected samples")
+    # loadtxt takes a row of more cells when usecols is given: count them.
+    _check_width(path, stream.delimiter, len(header), array.shape[0])
+    bad = ~np.isfinite(array)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise ConfigError(f"{str(path)!r} line {row + 2}: column {header[use[col]]!r} is "
+                          f"{array[row, col]}; expected a number in every cell (a row of "
+                          "missing data is dropped from the log, not left NaN)")
+    column = {i: array[:, k] for k, i in enumerate(use)}
+    out = {key: np.stack([column[header.index(c)] for c in cols], axis=1)
+           for key, cols in stream.columns.items()}
+    marker = stream.settings.get("invalid")
+    if marker is not None:  # the instrument's no-data value, as logged: NaN from here on
+        marker = _number("log description", f"{stream.group}.invalid", marker)
+        for v in out.values():
+            v[v == marker] = np.nan
+    out = {key: (v[:, 0] if v.shape[1] == 1 else v) * stream.units[key]
+           for key, v in out.items()}
+    t = column[header.index(stream.time)] * stream.scale
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if len(back):
+        k = back[0]
+        what = "repeats" if t[k + 1] == t[k] else "runs backwards"
+        raise ConfigError(f"{str(path)!r} line {k + 3}: time {what} ({t[k]:.9g} s, then "
+                          f"{t[k + 1]:.9g} s); expected increasing stamps")
+    out["time"] = t
+    return out
+
+
+def _check_width(path: Path, delimiter: str, width: int, rows: int) -> None:
+    """Every row has as many cells as the header (loadtxt does not check the cells it
+    skips); cheap when they do: only a file whose delimiters do not add up is scanned."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data.count(delimiter.encode()) == (width - 1) * (rows + 1):
+        return
+    raise ConfigError(_bad_row(path, delimiter, width))
+
+
+def _bad_row(path: Path, delimiter: str, width: int) -> str:
+    """The first row that is not ``width`` numbers, said in one line."""
+    with open(path, encoding="utf-8-sig") as f:
+        next(f, None)
+        for number, line in enumerate(f, start=2):
+            if not line.strip():
+                continue
+            cells = line.rstrip("\r\n").split(delimiter)
+            if len(cells) != width:
+                return (f"{str(path)!r} line {number}: {len(cells)} cells, the header has "
+                        f"{width}; expected every row to have the header's columns")
+            for cell in cells:
+                try:
+                    float(cell)
+                except ValueError:
+                    return (f"{str(path)!r} line {number}: {cell.strip()!r} is not a "
+                            "number; expected numbers under the header")
+    return f"{str(path)!r}: cannot be read as a table of numbers"
+
+
+# ---- one log -------------------------------------------------------------------------
+
+
+@dataclass
+class Recording:
+    """One log, read and checked: its mission name, fields by path, attributes and the
+    files it came from."""
+
+    name: str
+    fields: dict[str, np.ndarray]
+    attrs: dict[str, object]
+    files: list[Path]
+
+
+def read_log(folder: str | os.PathLike, description: LogDescription, *,
+             name: str | None = None) -> Recording:
+    """Read and check one log: the files ``description`` names, in ``folder``.
+
+    Raises:
+        ConfigError: a file does not fit the description, a unit cannot be right, or the
+            streams do not overlap in time (one line each).
+    """
+    folder = Path(folder)
+    tables = {g: read_table(folder / s.file, s) for g, s in description.streams.items()}
+    streams = description.streams
+    where = {g: repr(str(folder / s.file)) for g, s in streams.items()}
+    _check_units(tables, where)
+    starts = {g: t["time"][0] + streams[g].offset for g, t in tables.items()}
+    ends = {g: t["time"][-1] + streams[g].offset for g, t in tables.items()}
+    if len(tables) > 1 and max(starts.values()) >= min(ends.values()):
+        a = max(starts, key=starts.get)
+        b = min(ends, key=ends.get)
+        raise ConfigError(f"{where[a]}: the {a} stream spans {starts[a]:.9g} to {ends[a]:.9g} s"
+                          f" and the {b} stream {starts[b]:.9g} to {ends[b]:.9g} s: they do not "
+                          "overlap; expected streams of one mission (check the files and each "
+                          "stream's time_offset_s)")
+    t0 = min(starts.values())
+    fields: dict[str, np.ndarray] = {}
+    attrs: dict[str, object] = {}
+    for g, table in tables.items():
+        s = streams[g]
+        t = table["time"] + (s.offset - t0)
+        fields[f"{g}/time"] = t
+        rate = 1.0 / float(np.median(np.diff(t))) if len(t) > 1 else None
+        if g == "reference":
+            fields.update(_reference(table, s))
+            attrs.update(reference_source=description.reference_source,
+                         reference_time_offset_s=s.offset)
+        elif g == "imu":
+            fields["imu/specific_force"] = table["specific_force"] @ s.axes.T
+            fields["imu/angular_rate"] = table["angular_rate"] @ s.axes.T
+            noise = s.settings.get("noise")
+            if not isinstance(noise, dict):
+                raise ConfigError(f"log description: imu.noise: missing; expected a table of "
+                                  f"{', '.join(IMU_NOISE)} (the IMU's datasheet, SI units)")
+            _keys("log description", "imu.noise", noise, set(IMU_NOISE))
+            attrs.update({f"imu_{k}": _spec("log description", f"imu.noise.{k}", noise.get(k),
+                                            strict=k == "bias_correlation_time")
+                          for k in IMU_NOISE})
+            attrs.update(imu_position_body=_vector(s, "position_body"),
+                         imu_time_offset_s=s.offset)
+        elif g == "dvl":
+            fields.update(_dvl(table, s))
+            d = "log description"
+            attrs.update(beam_angle_deg=_spec(d, "dvl.beam_angle_deg",
+                                              s.settings.get("beam_angle_deg"), strict=True),
+                         dvl_position_body=_vector(s, "position_body"),
+                         dvl_mounting_rpy_deg=_vector(s, "mounting_rpy_deg"),
+                         dvl_noise_std=_spec(d, "dvl.noise_std", s.settings.get("noise_std")),
+                         dvl_velocity_accuracy=_spec(d, "dvl.velocity_accuracy",
+                                                     s.settings.get("velocity_accuracy")),
+                         dvl_time_offset_s=s.offset,
+                         dvl_beams_derived=int("beam_velocity" not in table))
+        else:
+            fields["depth/depth"] = table["depth"]
+            attrs["depth_time_offset_s"] = s.offset
+        if rate is None:
+            raise ConfigError(f"{where[g]}: one row; expected a stream of samples")
+        attrs[f"{g}_rate_hz"] = rate
+    if description.origin is not None:
+        origin = description.origin
+    elif "reference" in tables:
+        origin = (float(fields["reference/latitude_deg"][0]),
+                  float(fields["reference/longitude_deg"][0]),
+                  float(fields["reference/height_m"][0]))
+    else:
+        raise ConfigError("log description: log.origin: missing; expected [latitude deg, "
+                          "longitude deg, height m] when the log has no reference")
+    if "reference" in tables:
+        fields["reference/position_ned"] = ned_from_geodetic(
+            fields["reference/latitude_deg"], fields["reference/longitude_deg"],
+            fields["reference/height_m"], origin)
+        _check_track(fields, where["reference"])
+    groups = [g for g in RECORDED_GROUPS if g in tables]
+    duration = max(float(fields[f"{g}/time"][-1]) for g in groups)
+    attrs.update(groups=json.dumps(groups), latitude_deg=origin[0], longitude_deg=origin[1],
+                 height_m=origin[2], gravity=normal_gravity(origin[0], origin[2]),
+                 log_time_origin_s=t0, duration_s=duration)
+    files = [folder / streams[g].file for g in groups]
+    return Recording(name or description.name or folder.name, fields, attrs, files)
+
+
+def _vector(s: Stream, key: str) -> np.ndarray:
+    return np.array(_numbers("log description", f"{s.group}.{key}",
+                             s.settings.get(key, [0.0, 0.0, 0.0]), 3))
+
+
+def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
+    out = {key: values for key, values in table.items() if key != "time"}
+    velocity = out.pop("velocity") @ s.axes.T
+    fields = {"dvl/velocity_ls": velocity,
+              "dvl/mode": np.where(np.isfinite(velocity).all(axis=1), 0, -1)}
+    for key, values in out.items():
+        fields[f"dvl/{key}"] = values
+    if "beam_velocity" in out:
+        fields["dvl/valid"] = np.isfinite(out["beam_velocity"])
+    return fields
+
+
+def _reference(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
+    out = {"reference/latitude_deg": np.degrees(table["latitude"]),
+           "reference/longitude_deg": np.degrees(table["longitude"]),
+           "reference/height_m": table["height"],
+           "reference/velocity_ned": table["velocity"] @ s.axes.T}
+    if "attitude" in table:
+        q = quaternions(table["attitude"])
+        if s.axes[0, 0] == 0:  # ENU: the frame's rotation first (ENU -> NED, 180 deg about
+            q = _multiply(np.array([0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0]), q)  # NE)
+        if s.body_flip:  # FLU body: FRD -> FLU, 180 deg about x, then the attitude
+            q = _multiply(q, np.array([0.0, 1.0, 0.0, 0.0]))
+        q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w >= 0: one of the two signs, always
+        out["reference/quaternion"] = q
+        out["reference/rpy_deg"] = np.degrees(_euler(q))
+    return out
+
+
+def quaternions(rpy: np.ndarray) -> np.ndarray:
+    """(N, 4) unit quaternions [w, x, y, z] of (N, 3) ZYX roll, pitch, yaw (rad):
+    ``auvsim.physics.frames.quaternion_from_euler`` row by row."""
+    half = np.asarray(rpy, float) / 2
+    cr, cp, cy = np.cos(half).T
+    sr, sp, sy = np.sin(half).T
+    return np.stack([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy], axis=1)
+
+
+def _euler(q: np.ndarray) -> np.ndarray:
+    from auvsim.physics.frames import euler_angles
+
+    return euler_angles(q)
+
+
+def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a b, broadcast over rows ([w, x, y, z])."""
+    aw, ax, ay, az = np.moveaxis(np.broadcast_to(a, np.broadcast_shapes(a.shape, b.shape)), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.broadcast_to(b, np.broadcast_shapes(a.shape, b.shape)), -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw],
+                    axis=-1)
+
+
+def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]) -> None:
+    """Refuse values no vehicle's log holds in the declared unit (see the bounds above)."""
+    if "imu" in tables:
+        rate = np.linalg.norm(tables["imu"]["angular_rate"], axis=1)
+        k = int(rate.argmax())
+        if rate[k] > MAX_RATE:
+            raise ConfigError(
+                f"{where['imu']} line {k + 2}: the angular rate reaches {rate[k]:.4g} rad/s, "
+                "beyond a full turn per second; expected rad/s as declared (are the gyros in "
+                "deg/s? say imu.units.angular_rate = \"deg/s\")")
+        force = float(np.median(np.linalg.norm(tables["imu"]["specific_force"], axis=1)))
+        if not STANDARD_GRAVITY / 2 < force < 2 * STANDARD_GRAVITY:
+            raise ConfigError(
+                f"{where['imu']}: the specific force's median magnitude is {force:.4g} m/s^2 "
+                "in the declared unit; expected about gravity, 9.8 m/s^2 (is "
+                "imu.units.specific_force right: m/s^2 or g?)")
+    if "dvl" in tables:
+        v = np.linalg.norm(tables["dvl"]["velocity"], axis=1)
+        speed = float(np.median(v[np.isfinite(v)])) if np.isfinite(v).any() else 0.0
+        if speed > MAX_SPEED:
+            raise ConfigError(
+                f"{where['dvl']}: the DVL's median speed is {speed:.4g} m/s in the declared "
+                f"unit, beyond {MAX_SPEED:g} m/s; expected m/s (is dvl.units.velocity mm/s?)")
+    if "reference" in tables:
+        ref = tables["reference"]
+        for key, limit, what in (("latitude", math.pi / 2, "90 deg"),
+                                 ("longitude", 2 * math.pi, "360 deg")):
+            worst = float(np.abs(ref[key]).max())
+            if worst > limit * (1 + 1e-9):
+                raise ConfigError(
+                    f"{where['reference']}: the {key} reaches {math.degrees(worst):.6g} deg "
+                    f"in the declared unit, beyond {what}; expected its unit as declared "
+                    f"(reference.units.{key}: deg or rad?)")
+        if "attitude" in ref:
+            worst = float(np.abs(ref["attitude"]).max())
+            if worst > 2 * math.pi * (1 + 1e-9):
+                raise ConfigError(
+                    f"{where['reference']}: an attitude angle reaches {worst:.6g} rad, "
+                    "beyond a full turn; expected radians as declared (reference.units."
+                    "attitude = \"deg\"?)")
+
+
+def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
+    """The distance travelled by the reference's positions and by its integrated
+    velocities agree to within ``TRACK_RATIO``: lat/lon in degrees declared as radians (or
+    the reverse) makes them differ by 57x."""
+    t = fields["reference/time"]
+    step = np.linalg.norm(np.diff(fields["reference/position_ned"][:, :2], axis=0), axis=1)
+    v = np.linalg.norm(fields["reference/velocity_ned"][:, :2], axis=1)
+    flown = float(np.sum((v[1:] + v[:-1]) / 2 * np.diff(t)))
+    track = float(step.sum())
+    if max(flown, track) > MIN_TRACK and not (
+            1 / TRACK_RATIO < track / max(flown, 1e-12) < TRACK_RATIO):
+        raise ConfigError(
+            f"{where}: the positions travel {track:.4g} m but the velocities "
+            f"{flown:.4g} m; expected them to agree (are reference.units.latitude and "
+            "longitude, or the velocity's, right?)")
+
+
+# ---- the import ----------------------------------------------------------------------
+
+
+def akit_segments(source: Path) -> list[tuple[Path, int]]:
+    """The A-KIT segments under ``source``: itself if it is a ``TrajectoryK`` folder, else
+    its ``TrajectoryK`` subfolders, in K order."""
+    if not source.is_dir():
+        raise ConfigError(f"{str(source)!r}: not a folder; expected an A-KIT folder "
+                          "(TrajectoryK/ subfolders) or one TrajectoryK folder")
+    match = AKIT_SEGMENT.fullmatch(source.name)
+    if match:
+        return [(source, int(match[1]))]
+    found = sorted(((p, int(m[1])) for p in source.iterdir()
+                    if p.is_dir() and (m := AKIT_SEGMENT.fullmatch(p.name))),
+                   key=lambda pk: pk[1])
+    if not found:
+        raise ConfigError(f"{str(source)!r}: no TrajectoryK folder in it; expected the A-KIT "
+                          "layout, TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv")
+    return found
+
+
+def read_description(path: str | os.PathLike) -> str:
+    """The text of a log description file.
+
+    Raises:
+        ConfigError: the file is missing or cannot be read as text.
+    """
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{str(path)!r}: no such file", argument="description") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{str(path)!r}: cannot read it ({e})",
+                          argument="description") from None
+
+
+def import_logs(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
+                format: str, description: str | os.PathLike | None = None,
+                compression: str = "lzf") -> dict[str, dict]:
+    """Write a dataset with one recorded mission per log (every log read and checked
+    before anything is written; the file is built under a temporary name and renamed
+    when complete).
+
+    Args:
+        sources: ``akit``: A-KIT folders (or ``TrajectoryK`` folders), a mission per
+            segment; ``csv``: log folders, a mission each (named by the folder, or by
+            ``log.name`` for a single one).
+        out: the HDF5 file to write.
+        format: ``akit`` or ``csv`` (``velocity`` is ``auvsim.data.importer``'s).
+        description: the log description file (``csv``; ``akit`` has its own).
+
+    Returns:
+        Each mission's groups, by name: ``{group: (rows, rate Hz)}``.
+    """
+    if format not in ("akit", "csv"):
+        raise ConfigError(f": expected akit or csv, got {format!r}", argument="format")
+    if not sources:
+        raise ConfigError(": expected at least one log", argument="sources")
+    logs: list[tuple[Path, LogDescription, str | None]] = []
+    if format == "akit":
+        if description is not None:
+            raise ConfigError(": the akit layout has its own description; give one only "
+                              "with --format csv", argument="description")
+        for source in sources:
+            for folder, k in akit_segments(Path(source)):
+                text = AKIT_DESCRIPTION.replace("{k}", str(k))
+                logs.append((folder, parse_description(text, where=f"akit layout ({folder})"),
+                             None))
+    else:
+        if description is None:
+            raise ConfigError(": missing; --format csv needs a log description (TOML)",
+                              argument="description")
+        parsed = parse_description(read_description(description), where=str(description))
+        for source in sources:
+            if not Path(source).is_dir():
+                raise ConfigError(f"{str(source)!r}: not a folder; expected the folder of a "
+                                  "log's CSV files")
+            logs.append((Path(source), parsed,
+                         None if len(sources) == 1 else Path(source).name))
+    recordings = [read_log(folder, d, name=name) for folder, d, name in logs]
+    names = [r.name for r in recordings]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"mission names must differ, got {names}; rename a folder")
+    settings = dict(format=format, sources=[str(s) for s in sources],
+                    description=None if description is None else str(description))
+    summary: dict[str, dict] = {}
+    with DatasetWriter(out, config_json=json.dumps({"import": settings}),
+                       compression=compression) as writer:
+        for recording, (_, d, _) in zip(recordings, logs, strict=True):
+            attrs = mission_attrs(
+                origin="recorded", scenario="recorded", seed=0,
+                log_description=d.text,
+                source_files=json.dumps([str(p) for p in recording.files]),
+                source_sha256=json.dumps([hashlib.sha256(p.read_bytes()).hexdigest()
+                                          for p in recording.files]),
+                **recording.attrs)
+            groups = json.loads(attrs["groups"])
+            sink = writer.mission(recording.name, attrs,
+                                  rows={g: len(recording.fields[f"{g}/time"]) for g in groups})
+            sink.append(recording.fields)
+            sink.flush()
+            summary[recording.name] = {g: (len(recording.fields[f"{g}/time"]),
+                                           attrs[f"{g}_rate_hz"]) for g in groups}
+    return summary

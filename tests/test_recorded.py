@@ -1,0 +1,467 @@
+"""Recorded logs as datasets (``auvsim import``, schema v7 ``recorded`` missions).
+
+Small logs are built here with known motion: a tiny folder in the A-KIT layout and a CSV
+log with its description in other conventions (FLU body, ENU reference, deg, ms, an axis
+map, a clock offset). Every stream must come back as written, in auvsim's conventions,
+on its own clock; bad logs are refused in one line with exit 2 and nothing written. The
+six shared A-KIT segments are imported too where ``../shared/data/snapir-akit`` exists.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from h5compare import assert_same_contents
+
+from auvsim.cli import main
+from auvsim.data.reader import open_dataset, require_attitude
+from auvsim.data.recorded import AKIT_DESCRIPTION, parse_description, read_log
+from auvsim.errors import DatasetError
+from auvsim.physics.earth import normal_gravity, radii
+from auvsim.physics.frames import euler_angles
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = next((p / "shared/data/snapir-akit" for p in REPO.parents
+               if (p / "shared/data/snapir-akit").is_dir()), None)
+LAT0, LON0, H0 = 32.85, 34.89, -20.0  # deg, deg, m: where the Snapir dived
+T = 30.0  # s of log
+V_NED = np.array([1.5, -0.5, 0.02])  # m/s, the reference's constant velocity
+RPY = np.radians([2.0, -3.0, 120.0])  # constant attitude
+
+
+def _write_csv(path: Path, header: list[str], columns: list[np.ndarray]) -> None:
+    rows = np.column_stack(columns)
+    lines = [",".join(header)] + [",".join(repr(float(x)) for x in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _geodetic(t: np.ndarray, v: np.ndarray = V_NED) -> tuple[np.ndarray, ...]:
+    """Latitude, longitude (deg) and height (m) of a constant-velocity track from the
+    origin, to first order in the distance (metres of error per kilometre squared)."""
+    m, n = radii(LAT0)
+    m, n = m + H0, n + H0  # the radii of curvature at the vehicle's height
+    lat = LAT0 + np.degrees(v[0] * t / m)
+    lon = LON0 + np.degrees(v[1] * t / (n * math.cos(math.radians(LAT0))))
+    return lat, lon, H0 - v[2] * t
+
+
+def _akit(folder: Path, k: int = 3) -> dict[str, np.ndarray]:
+    """A tiny A-KIT segment folder ``TrajectoryK``: IMU 100 Hz, DVL and GT 1 Hz; returns
+    what it wrote."""
+    seg = folder / f"Trajectory{k}"
+    seg.mkdir(parents=True)
+    rng = np.random.default_rng(0)
+    t_imu = np.arange(int(T * 100)) * 0.01
+    f = np.column_stack([0.01 * rng.standard_normal(len(t_imu)),
+                         0.01 * rng.standard_normal(len(t_imu)),
+                         -9.7956 + 0.01 * rng.standard_normal(len(t_imu))])
+    w = 0.02 * rng.standard_normal((len(t_imu), 3))
+    _write_csv(seg / f"IMU_trajectory{k}.csv",
+               ["Time [s]", "ACC X [m/s^2]", "ACC Y [m/s^2]", "ACC Z [m/s^2]",
+                "GYRO X [rad/s]", "GYRO Y [rad/s]", "GYRO Z [rad/s]"], [t_imu, f, w])
+    t = np.arange(int(T)) * 1.0
+    v_dvl = np.column_stack([np.full(len(t), 1.58), 0.01 * rng.standard_normal(len(t)),
+                             np.zeros(len(t))])
+    _write_csv(seg / f"DVL_trajectory{k}.csv",
+               ["Time [s]", "DVL X [m/s]", "DVL Y [m/s]", "DVL Z [m/s]"], [t, v_dvl])
+    lat, lon, h = _geodetic(t)
+    _write_csv(seg / f"GT_trajectory{k}.csv",
+               ["Time [s]", "Longitude [rad]", "Latitude [rad]", "Altitude [m]",
+                "V North [m/s]", "V East [m/s]", "V Down [m/s]", "Roll [rad]", "Pitch [rad]",
+                "Yaw [rad]"],
+               [t, np.radians(lon), np.radians(lat), h, np.tile(V_NED, (len(t), 1)),
+                np.tile(RPY, (len(t), 1))])
+    return dict(t_imu=t_imu, f=f, w=w, t=t, v_dvl=v_dvl)
+
+
+def run(args: list[str]) -> tuple[int, str]:
+    """The CLI's exit code and what it printed to stderr."""
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(args)
+    return code, err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def akit(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("akit")
+    written = _akit(folder)
+    out = folder / "akit.h5"
+    assert run([ "import", str(folder), "--format", "akit", "--out", str(out)]) == (0, "")
+    return out, written
+
+
+def test_akit_round_trip(akit):
+    out, w = akit
+    with open_dataset(out, verify=True) as f:
+        assert f.version == 7 and list(f.missions) == ["trajectory3"]
+        m = f.missions["trajectory3"]
+        assert m.origin == "recorded" and m.groups == ["dvl", "imu", "reference"]
+        assert json.loads(m.attrs["groups"]) == ["imu", "dvl", "reference"]
+        # Every stream as written, on its own clock, nothing resampled.
+        np.testing.assert_array_equal(m.imu.time, w["t_imu"])
+        np.testing.assert_array_equal(m.imu.specific_force, w["f"])
+        np.testing.assert_array_equal(m.imu.angular_rate, w["w"])
+        np.testing.assert_array_equal(m.dvl.time, w["t"])
+        np.testing.assert_array_equal(m.dvl.velocity_ls, w["v_dvl"])
+        assert "velocity" not in m.dvl and m.attrs["dvl_beams_derived"] == 1
+        np.testing.assert_array_equal(m.dvl.mode, 0)
+        assert m.attrs["imu_rate_hz"] == pytest.approx(100.0)
+        assert m.attrs["dvl_rate_hz"] == m.attrs["reference_rate_hz"] == pytest.approx(1.0)
+        # The reference: local NED from its first point, exactly 0 there.
+        ref = m.reference
+        np.testing.assert_array_equal(ref.position_ned[0], 0.0)
+        np.testing.assert_allclose(ref.position_ned, np.outer(w["t"], V_NED), atol=1e-3)
+        np.testing.assert_array_equal(ref.velocity_ned, np.tile(V_NED, (len(w["t"]), 1)))
+        np.testing.assert_allclose(euler_angles(ref.quaternion), np.tile(RPY, (30, 1)),
+                                   atol=1e-12)
+        np.testing.assert_allclose(ref.rpy_deg, np.degrees(np.tile(RPY, (30, 1))), atol=1e-9)
+        assert (m.attrs["latitude_deg"], m.attrs["longitude_deg"], m.attrs["height_m"]) == \
+            pytest.approx((LAT0, LON0, H0))
+        assert m.attrs["gravity"] == normal_gravity(LAT0, H0)
+        assert "not" not in m.attrs["reference_source"] and m.attrs["reference_source"]
+        assert m.attrs["log_description"] == AKIT_DESCRIPTION.replace("{k}", "3")
+        assert len(json.loads(m.attrs["source_sha256"])) == 3
+        assert m.phases == []
+        with pytest.raises(DatasetError, match=r"recorded missions have a reference, not a "
+                           r"truth") as e:
+            m.truth  # noqa: B018
+        assert "\n" not in str(e.value)
+        np.testing.assert_array_equal(require_attitude(m), ref.quaternion)
+
+
+def test_inspect_and_plot_show_a_recorded_mission(akit, tmp_path, capsys):
+    out, _ = akit
+    assert main(["inspect", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "trajectory3: recorded, 29.99 s" in text
+    assert "imu: 3000 samples at 100 Hz" in text and "dvl: 30 samples at 1 Hz" in text
+    assert "reference (a navigation solution, not the truth)" in text
+    assert "track 46 m" in text  # |V_NED horizontal| 1.581 m/s x 29 s
+    assert main(["plot", str(out), "--out", str(tmp_path / "figs")]) == 0
+    png = tmp_path / "figs" / "akit_trajectory3.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+DESCRIPTION = """\
+[log]
+name = "dive"
+reference_source = "the vehicle's own INS, real time"
+
+[imu]
+file = "imu.csv"
+time = "t_ms"
+time_unit = "ms"
+frame = "FLU"
+axis_map = ["y", "x", "z"]  # the log's y axis points forward
+position_body = [0.5, 0.0, 0.1]
+columns = {specific_force = ["fx", "fy", "fz"], angular_rate = ["wx", "wy", "wz"]}
+units = {specific_force = "g", angular_rate = "deg/s"}
+ignore = ["temperature"]
+
+[imu.noise]
+accel_noise_density = 1e-4
+gyro_noise_density = 1e-6
+accel_bias_instability = 1e-4
+gyro_bias_instability = 1e-7
+bias_correlation_time = 600.0
+
+[dvl]
+file = "dvl.csv"
+time = "t_ms"
+time_unit = "ms"
+time_offset_s = 0.25
+frame = "FRD"
+beam_angle_deg = 30.0
+noise_std = 0.003
+velocity_accuracy = 0.02
+invalid = -32768
+columns = {velocity = ["vx", "vy", "vz"], error_velocity = "err", altitude = "alt"}
+units = {velocity = "mm/s", error_velocity = "mm/s"}
+
+[depth]
+file = "depth.csv"
+time = "t_ms"
+time_unit = "ms"
+columns = {depth = "depth"}
+
+[reference]
+file = "nav.csv"
+time = "t_ms"
+time_unit = "ms"
+frame = "ENU"
+body = "FLU"
+columns.latitude = "lat"
+columns.longitude = "lon"
+columns.height = "h"
+columns.velocity = ["ve", "vn", "vu"]
+columns.attitude = ["roll", "pitch", "yaw"]
+units = {latitude = "deg", longitude = "deg", attitude = "deg"}
+"""
+
+
+def _csv_log(folder: Path, *, yaw_enu_deg: float = 90.0) -> dict[str, np.ndarray]:
+    """A log in other conventions than auvsim's, with a known meaning in auvsim's."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "log.toml").write_text(DESCRIPTION)
+    t = np.arange(200) * 10.0  # ms: 100 Hz for 2 s
+    n = len(t)
+    # FLU after the map: the log's (y, x, z) are the body's (x, y, z) in FLU.
+    f_flu = np.tile([0.01, 0.02, 1.0], (n, 1))  # g
+    w_flu = np.tile([10.0, 20.0, 30.0], (n, 1))  # deg/s: a turn
+    _write_csv(folder / "imu.csv", ["t_ms", "fx", "fy", "fz", "wx", "wy", "wz", "temperature"],
+               [t, f_flu[:, 1], f_flu[:, 0], f_flu[:, 2], w_flu[:, 1], w_flu[:, 0],
+                w_flu[:, 2], np.full(n, 12.0)])
+    t_dvl = np.arange(4) * 500.0
+    v = np.array([[1500.0, 10.0, -5.0], [-32768.0, -32768.0, -32768.0],
+                  [1490.0, 0.0, 0.0], [1510.0, 20.0, 5.0]])
+    _write_csv(folder / "dvl.csv", ["t_ms", "vx", "vy", "vz", "err", "alt"],
+               [t_dvl, v, np.array([2.0, -32768.0, -1.0, 3.0]), np.full(4, 12.5)])
+    _write_csv(folder / "depth.csv", ["t_ms", "depth"], [np.arange(20) * 100.0,
+                                                         np.full(20, 20.0)])
+    t_ref = np.arange(2) * 1000.0
+    lat, lon, h = _geodetic(t_ref / 1000)
+    _write_csv(folder / "nav.csv", ["t_ms", "lat", "lon", "h", "ve", "vn", "vu", "roll",
+                                    "pitch", "yaw"],
+               [t_ref, lat, lon, h, np.tile([V_NED[1], V_NED[0], -V_NED[2]], (2, 1)),
+                np.tile([0.0, 0.0, yaw_enu_deg], (2, 1))])
+    return dict(f_flu=f_flu, w_flu=w_flu, v=v)
+
+
+def test_a_described_csv_log_in_auvsim_conventions(tmp_path):
+    w = _csv_log(tmp_path / "dive")
+    out = tmp_path / "dive.h5"
+    code, err = run(["import", str(tmp_path / "dive"), "--format", "csv", "--description",
+                     str(tmp_path / "dive" / "log.toml"), "--out", str(out)])
+    assert (code, err) == (0, "")
+    with open_dataset(out, verify=True) as f:
+        m = f.missions["dive"]
+        assert m.groups == ["depth", "dvl", "imu", "reference"]
+        flu_to_frd = np.array([1.0, -1.0, -1.0])
+        np.testing.assert_allclose(m.imu.specific_force, w["f_flu"] * 9.80665 * flu_to_frd)
+        np.testing.assert_allclose(m.imu.angular_rate, np.radians(w["w_flu"]) * flu_to_frd)
+        np.testing.assert_allclose(m.imu.time, np.arange(200) * 0.01)
+        assert m.attrs["imu_rate_hz"] == pytest.approx(100.0)
+        np.testing.assert_array_equal(m.attrs["imu_position_body"], [0.5, 0.0, 0.1])
+        # The DVL's clock: its own stamps plus its offset; the no-data marker is NaN.
+        np.testing.assert_allclose(m.dvl.time, np.arange(4) * 0.5 + 0.25)
+        assert m.attrs["dvl_rate_hz"] == pytest.approx(2.0)
+        v = m.dvl.velocity_ls
+        assert np.isnan(v[1]).all() and m.dvl.mode.tolist() == [0, -1, 0, 0]
+        np.testing.assert_allclose(v[[0, 2, 3]], w["v"][[0, 2, 3]] / 1000)
+        np.testing.assert_allclose(m.dvl.error_velocity, [0.002, np.nan, -0.001, 0.003])
+        np.testing.assert_array_equal(m.dvl.altitude, 12.5)
+        assert m.attrs["depth_rate_hz"] == pytest.approx(10.0)
+        # ENU velocity -> NED; heading north (ENU yaw 90 deg, FLU) is yaw 0 in NED/FRD.
+        np.testing.assert_allclose(m.reference.velocity_ned, np.tile(V_NED, (2, 1)))
+        np.testing.assert_allclose(m.reference.quaternion, np.tile([1.0, 0, 0, 0], (2, 1)),
+                                   atol=1e-12)
+        np.testing.assert_allclose(m.reference.position_ned[1], V_NED, atol=1e-6)
+    east = tmp_path / "east"
+    _csv_log(east, yaw_enu_deg=0.0)  # heading east: NED yaw 90 deg
+    recording = read_log(east, parse_description(DESCRIPTION))
+    np.testing.assert_allclose(recording.fields["reference/rpy_deg"],
+                               np.tile([0.0, 0.0, 90.0], (2, 1)), atol=1e-9)
+
+
+def test_import_velocity_is_import_format_velocity(tmp_path):
+    v = np.stack([np.full(20, 1.5), np.linspace(-0.2, 0.2, 20), np.full(20, 0.05)])
+    np.save(tmp_path / "rec.npy", v)
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    assert run(["import-velocity", str(tmp_path / "rec.npy"), "--seed", "4",
+                "--out", str(a)])[0] == 0
+    assert run(["import", str(tmp_path / "rec.npy"), "--format", "velocity", "--seed", "4",
+                "--out", str(b)])[0] == 0
+    assert_same_contents(a, b)
+
+
+def test_a_reference_without_attitude_is_refused_where_one_is_needed(tmp_path):
+    folder = tmp_path / "noatt"
+    _csv_log(folder)
+    text = DESCRIPTION.replace('columns.attitude = ["roll", "pitch", "yaw"]\n', "").replace(
+        ', attitude = "deg"}', "}").replace('ignore = ["temperature"]', 'ignore = []')
+    (folder / "nav.csv").write_text("\n".join(
+        ",".join(line.split(",")[:7]) for line in (folder / "nav.csv").read_text().splitlines()))
+    (folder / "imu.csv").write_text("\n".join(
+        ",".join(line.split(",")[:7]) for line in (folder / "imu.csv").read_text().splitlines()))
+    (folder / "log.toml").write_text(text)
+    out = tmp_path / "noatt.h5"
+    assert run(["import", str(folder), "--format", "csv", "--description",
+                str(folder / "log.toml"), "--out", str(out)]) == (0, "")
+    with open_dataset(out) as f:
+        m = f.missions["dive"]
+        assert "quaternion" not in m.reference and "rpy_deg" not in m.reference
+        with pytest.raises(DatasetError, match="its reference has no attitude") as e:
+            require_attitude(m)
+        assert "\n" not in str(e.value)
+
+
+# Bad logs: one line, exit 2, nothing at the output path --------------------------------
+
+def _edit(file: str, change):
+    def apply(folder: Path) -> None:
+        path = folder / file
+        path.write_text(change(path.read_text()))
+    return apply
+
+
+def _lines(change):
+    return lambda text: "\n".join(change(text.splitlines())) + "\n"
+
+
+BAD_LOGS = {
+    "missing_column": (_edit("imu.csv", _lines(lambda ls: [",".join(x.split(",")[:-2])
+                                                            for x in ls])),
+                       "no column 'wz'"),
+    "extra_column": (_edit("depth.csv", _lines(lambda ls: [x + ",0" for x in ls])),
+                     "column '0' is not in the log description"),
+    "short_row": (_edit("imu.csv", _lines(lambda ls: ls[:5] + [ls[5].rsplit(",", 1)[0]]
+                                          + ls[6:])), "line 6: 7 cells, the header has 8"),
+    "not_a_number": (_edit("depth.csv", lambda t: t.replace("20.0", "deep", 1)),
+                     "line 2: 'deep' is not a number"),
+    "nan_row": (_edit("dvl.csv", _lines(lambda ls: ls[:3] + [",".join(["nan"] * 6)]
+                                        + ls[4:])), "line 4: column 't_ms' is nan"),
+    "time_backwards": (_edit("depth.csv", _lines(lambda ls: ls[:4] + [ls[5], ls[4]] + ls[6:])),
+                       "line 6: time runs backwards"),
+    "time_repeats": (_edit("depth.csv", _lines(lambda ls: ls[:5] + [ls[4]] + ls[6:])),
+                     "line 6: time repeats"),
+    "deg_s_as_rad_s": (_edit("log.toml", lambda t: t.replace('angular_rate = "deg/s"',
+                                                             'angular_rate = "rad/s"')),
+                       "the angular rate reaches 37.42 rad/s"),  # |(10, 20, 30)|
+    "g_as_m_s2": (_edit("log.toml", lambda t: t.replace('specific_force = "g"',
+                                                        'specific_force = "m/s^2"')),
+                  "the specific force's median magnitude is 1 m/s^2"),
+    "lat_deg_as_rad": (_edit("log.toml", lambda t: t.replace('latitude = "deg"',
+                                                             'latitude = "rad"')),
+                       "the latitude reaches 1882.17 deg"),
+    "attitude_deg_as_rad": (_edit("log.toml", lambda t: t.replace('attitude = "deg"',
+                                                                  'attitude = "rad"')),
+                            "an attitude angle reaches 90 rad"),
+    "no_overlap": (_edit("log.toml", lambda t: t.replace("time_offset_s = 0.25",
+                                                         "time_offset_s = 1000.0")),
+                   "they do not overlap"),
+    "unknown_key": (_edit("log.toml", lambda t: t.replace("beam_angle_deg", "beam_angel_deg")),
+                    "dvl.beam_angel_deg: unknown key"),
+    "no_spec": (_edit("log.toml", lambda t: t.replace("noise_std = 0.003\n", "")),
+                "dvl.noise_std: missing; expected the instrument's figure"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_LOGS))
+def test_bad_logs_are_refused_in_one_line(case, tmp_path):
+    damage, message = BAD_LOGS[case]
+    folder = tmp_path / "dive"
+    _csv_log(folder)
+    damage(folder)
+    out = tmp_path / "out" / "x.h5"
+    code, err = run(["import", str(folder), "--format", "csv", "--description",
+                     str(folder / "log.toml"), "--out", str(out)])
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("auvsim: error: "), err
+    assert message in err, err
+    assert not out.exists() and not (tmp_path / "out").exists()
+
+
+def test_a_lat_lon_in_radians_declared_degrees_disagrees_with_the_velocity(tmp_path):
+    folder = tmp_path / "dive"
+    _csv_log(folder)
+    nav = folder / "nav.csv"
+    lines = nav.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    for r in rows:  # radians written where degrees are declared: 57x too short a track
+        r[1], r[2] = repr(math.radians(float(r[1]))), repr(math.radians(float(r[2])))
+    speed = 30.0  # m/s over 1 s: far enough for the check to mean something
+    for r, k in zip(rows, range(2), strict=True):
+        r[5] = repr(speed)
+        r[1] = repr(math.radians(LAT0 + np.degrees(speed * k / radii(LAT0)[0])))
+    nav.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    code, err = run(["import", str(folder), "--format", "csv", "--description",
+                     str(folder / "log.toml"), "--out", str(tmp_path / "x.h5")])
+    assert code == 2 and "the positions travel" in err and err.count("\n") == 1
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_recorded_mission_is_checked_by_the_reader(akit, tmp_path):
+    out, _ = akit
+    bad = tmp_path / "bad.h5"
+    for change, message in (
+            (lambda g: g.attrs.__setitem__("groups", '["imu", "sonar"]'), "attribute groups"),
+            (lambda g: g.attrs.__setitem__("groups", '["imu", "reference"]'),
+             "holds group dvl, which its groups attribute"),
+            (lambda g: g.__delitem__("reference/velocity_ned"), "lacks reference/velocity_ned"),
+            (lambda g: g.attrs.__delitem__("dvl_noise_std"), "lacks attribute dvl_noise_std")):
+        bad.write_bytes(out.read_bytes())
+        with h5py.File(bad, "r+") as f:
+            change(f["missions/trajectory3"])
+        with pytest.raises(DatasetError, match=message):
+            open_dataset(bad)
+    with h5py.File(bad, "r+") as f:
+        f.attrs["format_version"] = 6
+    with pytest.raises(DatasetError, match="has origin 'recorded'"):
+        open_dataset(bad)
+
+
+# The shared A-KIT segments, where ../shared is present --------------------------------
+
+@pytest.mark.skipif(SHARED is None, reason="../shared/data/snapir-akit is not here")
+def test_the_six_shared_segments(tmp_path):
+    out = tmp_path / "akit.h5"
+    assert run(["import", str(SHARED), "--format", "akit", "--out", str(out)]) == (0, "")
+    with open_dataset(out) as f:
+        assert list(f.missions) == [f"trajectory{k}" for k in range(1, 7)]
+        for k, m in enumerate(f.missions.values(), start=1):
+            seg = SHARED / f"Trajectory{k}"
+            imu = np.loadtxt(seg / f"IMU_trajectory{k}.csv", delimiter=",", skiprows=1)
+            dvl = np.loadtxt(seg / f"DVL_trajectory{k}.csv", delimiter=",", skiprows=1)
+            gt = np.loadtxt(seg / f"GT_trajectory{k}.csv", delimiter=",", skiprows=1)
+            np.testing.assert_array_equal(m.imu.time, imu[:, 0])
+            np.testing.assert_array_equal(m.imu.specific_force, imu[:, 1:4])
+            np.testing.assert_array_equal(m.imu.angular_rate, imu[:, 4:7])
+            np.testing.assert_array_equal(m.dvl.velocity_ls, dvl[:, 1:4])
+            np.testing.assert_array_equal(m.reference.time, gt[:, 0])
+            np.testing.assert_array_equal(m.reference.velocity_ned, gt[:, 4:7])
+            np.testing.assert_allclose(np.radians(m.reference.latitude_deg), gt[:, 2],
+                                       rtol=1e-15)
+            assert m.attrs["imu_rate_hz"] == pytest.approx(100.0, rel=1e-4)
+            assert m.attrs["dvl_rate_hz"] == pytest.approx(1.0, rel=0.01)
+            pos = m.reference.position_ned
+            np.testing.assert_array_equal(pos[0], 0.0)
+            # Positions and velocities of the reference agree: the trapezoid integral of
+            # its NED velocity lands within a few metres of its last position.
+            t, v = m.reference.time, m.reference.velocity_ned
+            flown = np.sum((v[1:] + v[:-1]) / 2 * np.diff(t)[:, None], axis=0)
+            assert np.linalg.norm(flown[:2] - pos[-1, :2]) < 0.02 * np.abs(
+                np.diff(pos[:, :2], axis=0)).sum()
+
+
+def test_every_group_is_optional(tmp_path, capsys):
+    """A log of a DVL alone, its origin given by the description: imported, inspected
+    and drawn."""
+    folder = tmp_path / "dvl_only"
+    _csv_log(folder)
+    dvl = DESCRIPTION[DESCRIPTION.index("[dvl]"):DESCRIPTION.index("[depth]")]
+    text = ('[log]\nname = "dvl_only"\norigin = [32.85, 34.89, -20.0]\n\n' + dvl)
+    (folder / "only.toml").write_text(text)
+    out = tmp_path / "only.h5"
+    assert run(["import", str(folder), "--format", "csv", "--description",
+                str(folder / "only.toml"), "--out", str(out)]) == (0, "")
+    with open_dataset(out) as f:
+        m = f.missions["dvl_only"]
+        assert m.groups == ["dvl"] and json.loads(m.attrs["groups"]) == ["dvl"]
+        assert m.attrs["gravity"] == normal_gravity(32.85, -20.0)
+        np.testing.assert_allclose(m.dvl.time, np.arange(4) * 0.5)  # its own first stamp: 0
+        with pytest.raises(DatasetError, match="has no reference group"):
+            m.reference  # noqa: B018
+        with pytest.raises(DatasetError, match="neither a reference nor a truth"):
+            require_attitude(m)
+    assert main(["inspect", str(out)]) == 0
+    assert "dvl: 4 samples at 2 Hz" in capsys.readouterr().out
+    assert main(["plot", str(out), "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "only_dvl_only.png").is_file()
