@@ -14,7 +14,7 @@ from auvsim.cli_support import run_command
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
-from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
+from beamsnet.evaluate import FilterWarning, SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
 from beamsnet.experiments.sea import DEFAULT_SEA
@@ -273,13 +273,15 @@ def _train(args) -> None:
 
 
 def _evaluate(args) -> None:
-    from beamsnet.evaluate import evaluate, markdown
+    from beamsnet.evaluate import evaluate, markdown, navigation_markdown
 
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
                        allow_mismatch=args.allow_mismatch)
     for dataset, result in results.items():
-        print(markdown(result["rows"], str(dataset)))
+        print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
+        if "navigation" in result:
+            print(navigation_markdown(result["navigation"], result["against"]))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
 
 
@@ -396,6 +398,7 @@ def main(argv: list[str] | None = None) -> int:
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
         warnings.simplefilter("always", UnseenMissionWarning)
+        warnings.simplefilter("always", FilterWarning)
         return run_command("beamsnet", command, FLAGS)
 
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
-from auvsim.errors import ConfigError
+from auvsim.errors import AuvsimError, ConfigError
 from beamsnet import metrics
 from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
@@ -56,6 +56,10 @@ class SensorSetupWarning(UserWarning):
     """The evaluation data's sensors differ from the training data's: the DVL error model
     (a robustness test), a geometry or rate the caller allowed, or a run too old to
     tell."""
+
+
+class FilterWarning(UserWarning):
+    """A filter could not run on a file (its row is left out): the reason, in one line."""
 
 
 class UnseenMissionWarning(UserWarning):
@@ -218,7 +222,16 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
     out: dict[str, np.ndarray] = {}
     for baseline in baselines() + ([] if dataset is None else filters(dataset)):
-        out[baseline.name] = baseline.fit(train_w).predict(test_w)
+        try:
+            out[baseline.name] = baseline.fit(train_w).predict(test_w)
+        except AuvsimError as e:
+            if baseline.name not in {s.name for s in specs("filter")}:
+                raise
+            # A filter the file cannot feed (a reference without attitude to start
+            # from, say): its row is left out, and the warning says why.
+            warnings.warn(f"{baseline.name} left out on {dataset}: "
+                          f"{str(e).strip().splitlines()[0]}", FilterWarning, stacklevel=2)
+            continue
         if positions is not None and hasattr(baseline, "positions"):
             positions[baseline.name] = baseline.positions(test_w)
         if stds is not None:

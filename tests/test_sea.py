@@ -257,3 +257,28 @@ def test_reproduce_sea_on_the_shared_segments(tmp_path, monkeypatch):
     for scores in results["segments"].values():
         assert scores["DR: DVL + reference attitude"]["final_percent"] < 2.0
     assert "| **median** |" in report and "truth" not in report
+
+
+def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsys):
+    """The test split (the last 30 of 117 pings, 90 to 119 s): LS dead-reckoned with the
+    reference's attitude drifts 0.01 m/s x 29 s = 0.29 m east (and north, holding each
+    velocity over its second, (v(90 s) - v(119 s)) x 1 s / 2), as its baseline does, and
+    the tables say what they are against."""
+    from auvsim.data.recorded import import_logs
+    from beamsnet.cli import main
+
+    write_akit(tmp_path / "logs", 1)  # the speed swings: the calibrations have a fit
+    recorded = tmp_path / "sea.h5"
+    import_logs([tmp_path / "logs"], recorded, format="akit")
+    run = tmp_path / "corr"
+    assert main(["train", str(recorded), "--model", "corr", "--epochs", "1", "--out", str(run),
+                 "--quiet"]) == 0
+    assert main(["evaluate", str(run), str(recorded), "--out", str(tmp_path / "ev")]) == 0
+    said = capsys.readouterr()
+    assert "against the reference: Delph INS" in said.out and "truth" not in said.out
+    result = json.loads((tmp_path / "ev" / "evaluation.json").read_text())[str(recorded)]
+    rows = result["navigation"]["trajectory1"]
+    north = (math.sin(OMEGA * 90) - math.sin(OMEGA * 119)) * SURGE / 2
+    assert rows["LS"]["final_m"] == pytest.approx(math.hypot(0.29, north), abs=2e-3)
+    assert rows["DR: DVL + reference attitude"] == pytest.approx(rows["LS"])
+    assert np.isfinite(rows["CorrectionNet (corr)"]["final_m"])
