@@ -147,9 +147,10 @@ def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.
                     mission: int, position_std: np.ndarray | None = None) -> dict[str, float]:
     """``beamsnet.metrics.position_scores`` of the mission's positions (``position``, (S_m,
     3) or the whole (S, 3), m NED) against ``truth["position"]`` (the truth, or the
-    reference), and with ``position_std`` (same shape, the estimator's reported 1 sigma)
-    ``coverage_3sigma``: the share of pings whose north and east errors both lie within
-    3 sigma (``beamsnet.metrics.coverage``)."""
+    reference), and with ``position_std`` (same shape, the estimator's reported 1 sigma
+    per axis) ``coverage_3sigma``: the share of pings whose horizontal error lies within
+    the radius 3 sqrt(sigma_N^2 + sigma_E^2) (``beamsnet.metrics.coverage``), 1 - e^-9 =
+    99.99 % for a right covariance with equal north and east sigmas."""
     mine = windows.mission == mission
     if len(position) == len(windows.time):
         position = position[mine]
@@ -157,6 +158,7 @@ def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.
     reference = truth["position"][mine]
     out = metrics.position_scores(position, reference)
     if position_std is not None:
-        out["coverage_3sigma"] = metrics.coverage(position[:, :2] - reference[:, :2],
-                                                  position_std[:, :2])
+        out["coverage_3sigma"] = metrics.coverage(
+            np.linalg.norm(position[:, :2] - reference[:, :2], axis=1),
+            np.hypot(position_std[:, 0], position_std[:, 1]))
     return out

@@ -47,8 +47,9 @@ def test_position_scores_refuse_mismatched_or_missing_rows():
 
 def test_coverage_of_a_known_gaussian_error():
     """Errors drawn from N(0, sigma^2) and reported with that sigma lie within 3 sigma
-    2 Phi(3) - 1 = 99.73 % of the time; two independent components both 99.73 %^2; a
-    filter that reports half its sigma covers 2 Phi(1.5) - 1 = 86.64 %."""
+    2 Phi(3) - 1 = 99.73 % of the time; two independent components both 99.73 %^2, their
+    horizontal length within 3 sqrt(2) sigma 1 - e^-9; a filter that reports half its
+    sigma covers 2 Phi(1.5) - 1 = 86.64 %."""
     rng = np.random.default_rng(0)
     n, sigma = 200_000, 0.7
     error = sigma * rng.standard_normal((n, 2))
@@ -60,6 +61,11 @@ def test_coverage_of_a_known_gaussian_error():
     half = math.erf(1.5 / math.sqrt(2))
     assert metrics.coverage(error[:, 0], std[:, 0] / 2) == pytest.approx(
         half, abs=5 * math.sqrt(half * (1 - half) / n))
+    # The horizontal radius (the filter's report): |e| <= 3 sqrt(sigma_N^2 + sigma_E^2),
+    # |e|^2 / sigma^2 chi-square with 2 dof: 1 - exp(-18 / 2).
+    radius = 1 - math.exp(-9)
+    assert metrics.coverage(np.linalg.norm(error, axis=1), np.hypot(std[:, 0], std[:, 1])) \
+        == pytest.approx(radius, abs=5 * math.sqrt(radius * (1 - radius) / n) + 1 / n)
     # Epochs without a sigma are not counted.
     std[: n // 2, 0] = np.nan
     assert metrics.coverage(error[:, 0], std[:, 0]) == pytest.approx(within, abs=2 * tolerance)

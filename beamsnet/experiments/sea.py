@@ -318,8 +318,9 @@ def report(results: dict, setup: dict) -> str:
         "## Per segment",
         "",
         "Horizontal position error, m: final / RMSE / final as % of the distance "
-        "travelled; the filter's share of pings whose north and east errors both lie "
-        "within its reported 3 sigma; velocity RMSE (vector, DVL frame, m/s).",
+        "travelled; the filter's share of pings whose horizontal error lies within its "
+        "reported 3 sigma (the radius 3 sqrt(sigma_N^2 + sigma_E^2)); velocity RMSE "
+        "(vector, DVL frame, m/s).",
         "",
         f"| segment | distance (m) | {FILTER} | {FILTER} within 3 sigma (%) | "
         f"{by_reference} | {by_filter} | velocity RMSE {FILTER} | velocity RMSE DVL |",
