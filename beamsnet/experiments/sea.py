@@ -47,6 +47,7 @@ from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows, split
+from beamsnet.estimators import spec
 from beamsnet.evaluate import (
     baseline_names,
     baselines,
@@ -192,6 +193,13 @@ def _segments(dataset: Path) -> list[str]:
         return list(f.missions)
 
 
+def _has_imu(dataset: Path, name: str) -> bool:
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return f.missions[name].has("imu")
+
+
 def simulated_noise(sim: Path) -> dict[str, float]:
     """The simulated instrument's noise settings, as its file records them (its first
     mission's attributes: every mission of a preset has one instrument): the DVL's white
@@ -242,7 +250,12 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
             predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
     predictions.update({f"{b.name} (other segments)": b.predict(windows) for b in real})
     positions, stds, rotations, failed = {}, {}, {}, {}
+    needs = spec(FILTER).needs
+    if needs.imu and not _has_imu(dataset, name):  # the registry says what it needs
+        failed = dict.fromkeys((FILTER, SIM_FILTER), f"n/a: {needs.text}")
     for label, estimator in _filters(dataset, noise).items():
+        if label in failed:
+            continue
         try:
             predictions[label] = estimator.predict(windows)
             positions[label] = estimator.positions(windows)
