@@ -132,7 +132,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         results[name] = _segment(dataset, name, fitted, real, nets, noise)
     setup = dict(data=str(data), dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
-                 corrections=CORRECTIONS)
+                 corrections=CORRECTIONS,
+                 geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)})
     with staged_dir(out) as stage:  # the report, its data and its figure, or none
         write_text(stage / "sea.json", json.dumps(
             {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()}},
@@ -191,6 +192,16 @@ def _segments(dataset: Path) -> list[str]:
 
     with open_dataset(dataset) as f:
         return list(f.missions)
+
+
+def _geometry(path: Path) -> list[str]:
+    """Each distinct DVL geometry of a file's missions, in words (beam angle, mounting)."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(path) as f:
+        return sorted({f"{float(m.attrs['beam_angle_deg']):g} deg beams, mounted at "
+                       f"({', '.join(f'{x:g}' for x in m.attrs['dvl_mounting_rpy_deg'])}) deg"
+                       for m in f.missions.values()})
 
 
 def _has_imu(dataset: Path, name: str) -> bool:
@@ -406,7 +417,12 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
         f"{noise['imu_accel_noise_density']:.3g} m/s^2/sqrt(Hz), gyro "
         f"{noise['imu_gyro_noise_density']:.3g} rad/s/sqrt(Hz)) in place of the real "
         "instrument's. Beside them, each model-based estimator fitted on the other real "
-        "segments (the segment scored left out). Medians over the segments; the position "
+        "segments (the segment scored left out). The DVL's geometry, auvsim's: "
+        f"{'; '.join(setup['geometry']['auvsim'])}; the logs': "
+        f"{'; '.join(setup['geometry']['logs'])}"
+        + (" (the same frame)" if setup["geometry"]["auvsim"] == setup["geometry"]["logs"]
+           else " (**they differ**: a fit in one frame is applied in another)")
+        + ". Medians over the segments; the position "
         "of a velocity estimator is its velocity dead-reckoned with the reference's "
         "attitude:",
         "",
@@ -444,7 +460,8 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
         f"spreads: {100 * noise['dvl_scale_factor_std']:g} % and "
         f"{1000 * noise['dvl_bias_std']:g} mm/s), so a fit over all the training missions "
         "learns their mean, about none, and what it carries over is the shrinking of the "
-        "simulated noise and the cross-axis terms of the simulated manoeuvres. "
+        "simulated noise and the cross-axis terms of the simulated manoeuvres (our "
+        "reading, not measured here). "
         + ("The real segments' beams are derived from the DVL's velocity, so no per-beam "
            "error is there to undo. " if derived else "")
         + "What the real DVL's velocity differs from the reference by (the instrument's "
