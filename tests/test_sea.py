@@ -288,3 +288,47 @@ def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsy
     assert rows["LS"]["final_m"] == pytest.approx(math.hypot(0.29, north), abs=2e-3)
     assert rows["DR: DVL + reference attitude"] == pytest.approx(rows["LS"])
     assert np.isfinite(rows["CorrectionNet (corr)"]["final_m"])
+
+
+class OwnTrack:
+    """An estimator with tracks of its own, as the INS/DVL filter has: its position the
+    reference's plus 1 m east, its reported sigma ``sigma`` per axis, its attitude the
+    reference's (so the baseline with its attitude is the one with the reference's)."""
+
+    name = "own"
+
+    def __init__(self, dataset: Path, sigma: float) -> None:
+        from auvsim.data.reader import open_dataset
+
+        with open_dataset(dataset) as f:
+            ref = f.missions["trajectory1"].reference
+            self.track = SimpleNamespace(
+                ping_time=ref.time, quaternion=ref.quaternion,
+                position_ned=ref.position_ned + [0.0, 1.0, 0.0],
+                position_std=np.full((len(ref.time), 3), sigma))
+
+    def tracks(self, windows):
+        return {"trajectory1": self.track}
+
+
+@pytest.mark.parametrize("sigma, covered", [(0.5, 1.0), (0.2, 0.0)])
+def test_own_position_sigma_and_attitude_from_an_estimators_tracks(recorded, sigma, covered):
+    """1 m off, reported 0.5 m per axis: within 3 sqrt(2) 0.5 = 2.1 m always; 0.2 m per
+    axis: 0.85 m, never. The dead reckoning with its attitude (the reference's) scores as
+    the one with the reference's."""
+    from beamsnet.data import load_windows
+    from beamsnet.evaluate import navigation_scores, own_rotations, reported_stds
+    from beamsnet.navigation import truth_at_pings
+
+    windows = load_windows(recorded)
+    truth = truth_at_pings(recorded, windows)
+    own = OwnTrack(recorded, sigma)
+    position = own.track.position_ned[np.searchsorted(own.track.ping_time, windows.time)]
+    rows = navigation_scores(windows, {"own": windows.velocity_ls}, truth,
+                             positions={"own": position}, stds=reported_stds(own, windows),
+                             rotations=own_rotations(own, windows))["trajectory1"]
+    assert rows["own"]["final_m"] == pytest.approx(1.0, abs=1e-9)
+    assert rows["own"]["rmse_m"] == pytest.approx(1.0, abs=1e-9)
+    assert rows["own"]["coverage_3sigma"] == covered
+    assert rows["DR: DVL + filter attitude"] == pytest.approx(
+        rows["DR: DVL + reference attitude"], abs=1e-9)
