@@ -142,7 +142,7 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
         steps += 1
     assert steps == 50 and not terminated and reward == 0.0
     assert info["time"] == pytest.approx(5.0)
-    assert env.run.vehicle.actuators[1] == pytest.approx(env.run.vehicle.hydro.fin_max)
+    assert env.run.vehicle.actuators[1] == pytest.approx(env.run.vehicle.hydro.rudder_max)
 
 
 def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_path):

@@ -17,8 +17,8 @@ ranges); a non-finite or wrongly shaped action is refused (``ValueError``):
 
     index  actuator                     -1 .. 1 maps to
     0      propeller shaft speed        -rpm_max .. rpm_max (900 rpm on the A18-D)
-    1      rudder angle (+ = starboard)  -fin_max .. fin_max (15 deg)
-    2      stern-plane angle             -fin_max .. fin_max (+ = trailing edge down,
+    1      rudder angle (+ = starboard)  -rudder_max .. rudder_max (38 deg on the A18-D)
+    2      stern-plane angle             -planes_max .. planes_max (15 deg; + = trailing edge down,
                                                            pitches the nose up)
 
 ## Observation Space
@@ -175,7 +175,7 @@ class AuvEnv(gym.Env):
             raise ConfigError(f"frame_skip: expected a multiple of {self.run.decimation} "
                               "physics steps per IMU sample")
         h = self.run.vehicle.hydro
-        self.limits = np.array([h.rpm_max, h.fin_max, h.fin_max])
+        self.limits = np.array([h.rpm_max, h.rudder_max, h.planes_max])
         self._limits = self.limits.tolist()
         # Reused by every step: the commands held over its physics steps, and their indices
         # from the step's first.

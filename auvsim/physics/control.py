@@ -110,7 +110,8 @@ def servo(h, actuators, cmd, dt):
     rpm_cmd = min(max(cmd[0], -h.rpm_max), h.rpm_max)
     actuators[0] += (rpm_cmd - actuators[0]) * (1.0 - math.exp(-dt / h.shaft_tau))
     for i in (1, 2):
-        target = min(max(cmd[i], -h.fin_max), h.fin_max)
+        limit = h.rudder_max if i == 1 else h.planes_max
+        target = min(max(cmd[i], -limit), limit)
         rate = (target - actuators[i]) / h.fin_tau
         rate = min(max(rate, -h.fin_rate), h.fin_rate)
         step = rate * dt

@@ -72,7 +72,8 @@ class Hydro(NamedTuple):
     fin_x: float  # m, x of the rudder and stern-plane pairs
     fin_lift: float  # N s^2/m^2 per rad, for a PAIR of fins: 1/2 rho (2 S) CL_alpha
     fin_stall: float  # rad
-    fin_max: float  # rad, angle limit
+    rudder_max: float  # rad, the rudder's angle limit
+    planes_max: float  # rad, the stern planes' angle limit
     fin_tau: float  # s, servo time constant
     fin_rate: float  # rad/s, rate limit
     prop_d: float  # m
@@ -346,7 +347,8 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0,
         fin_x=float(model.site("rudder").pos[0]),
         fin_lift=0.5 * rho * 2.0 * num("fin_area") * num("fin_lift_slope"),
         fin_stall=num("fin_stall_angle"),
-        fin_max=float(ranges["rudder"][1]),
+        rudder_max=float(ranges["rudder"][1]),
+        planes_max=float(ranges["stern_planes"][1]),
         fin_tau=num("fin_time_constant"),
         fin_rate=num("fin_rate_limit"),
         prop_d=num("propeller_diameter"),

@@ -242,7 +242,7 @@ class TurningCircle(Maneuver):
 
     @dataclass(frozen=True)
     class Options:
-        rudder_deg: float = 15.0  # the A18-D's full rudder
+        rudder_deg: float = 15.0  # a standard turn; the A18-D's full rudder is 38 deg
         lead_s: float = 20.0
 
     def __init__(self, config, rng=None):
@@ -268,8 +268,8 @@ class Zigzag(Maneuver):
     both at 10). Speed and depth are held. The rudder is decided every ``check_s``."""
 
     name = "zigzag"
-    # The two zigzags of the manoeuvring standards (IMO MSC.137(76)); the 20/20 one's rudder
-    # is capped by the A18-D's 15 deg fin limit.
+    # The two zigzags of the manoeuvring standards (IMO MSC.137(76)); both rudders lie
+    # within the A18-D's 38 deg rudder limit.
     variants = {"zigzag_10_10": {"angle_deg": 10.0, "rudder_deg": 10.0},
                 "zigzag_20_20": {"angle_deg": 20.0, "rudder_deg": 20.0}}
 

@@ -185,7 +185,8 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
             # Jitter about the angle reached, within the fins' and shaft's limits.
             reached[0] = min(max(actuators[0] + jolt[6], -h.rpm_max), h.rpm_max)
             for i in (1, 2):
-                reached[i] = min(max(actuators[i] + jolt[6 + i], -h.fin_max), h.fin_max)
+                limit = h.rudder_max if i == 1 else h.planes_max
+                reached[i] = min(max(actuators[i] + jolt[6 + i], -limit), limit)
             thrust = water_wrench_into(h, nu, rot, reached, cur, jolt[:6], tau, nu_dot,
                                        applied)
         else:

@@ -1,0 +1,408 @@
+"""How the simulated A18-D turns, sways and rolls, against the real Snapir (issue 24,
+items 7 and 8).
+
+* **Real turns** in the six Snapir segments (``TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv``):
+  every turn whose yaw rate peaks above ``--min-peak`` deg/s. The yaw rate is the
+  reference's (GT) unwrapped yaw difference over its time step, and the gyro's z axis
+  averaged over the same 1 s steps (its z agrees with the reference's yaw rate in sign).
+  The speed loss is the horizontal speed of the reference's NED velocity: its lowest value
+  from the turn's start (the yaw rate passing ``START`` deg/s) to ``AFTER`` s past the peak,
+  against its mean over the ``BEFORE`` s before the start. ``fin flow`` is the flow angle
+  at the fins at the peak, atan(r |x_fin| / U) with the model's fin lever, and ``+ slip``
+  the same with the sideslip (the reference's body-axis sway less its mean before the
+  turn): a rudder still pushing has its angle beyond it (models/README.md).
+* **The rudder limit they imply** (``--infer``): the limit at which the model's full-rudder
+  step has the hard turns' median flow angle at its peak (a bisection of model runs).
+* **The model's full-rudder step**: the A18-D at the shaft speed of 2 m/s, depth held,
+  rudder stepped to its limit for 60 s: peak and steady yaw rate (mean of the last 10 s),
+  the speed loss and the flow angle at the peak.
+* **Hard turns of each ``--sim`` dataset**, with the same detector on its truth at 1 Hz.
+* **Sway, current and roll per mission**: the std of the body-frame sway (real: the DVL's
+  Y; the reference's NED velocity in body axes, C^T v, over the ground; and through the
+  water, less the current fitted on the straight stretches; simulated: the DVL's Y of the
+  valid pings, the truth's ``velocity_body`` and ``velocity_water_body``), the current, and
+  the mean roll, each summarised by its median and range over the missions, for the real
+  segments and each ``--sim`` dataset (e.g. ``auvsim generate --preset
+  realistic-maneuvers`` before a change and after), and for the simulated missions that
+  turn at least as much as every real segment.
+* **The roll period**: the real roll-rate spectra's peak against the model's damped period.
+
+    .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
+        [--sim LABEL=FILE.h5 ...] [--min-peak 8] [--infer]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import perf_page
+
+from auvsim.physics.frames import euler_angles, rotation_rpy
+from auvsim.physics.vehicle import Vehicle
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = ROOT.parent / "shared" / "data" / "snapir-akit"
+START = 2.0  # deg/s: a turn starts where the yaw rate passes this on the way to its peak
+BEFORE = 5.0  # s of speed before the turn's start: the speed the turn began from
+AFTER = 15.0  # s past the peak in which the lowest speed is sought
+STEP_S = 60.0  # s of the model's full-rudder step
+STEADY_S = 10.0  # s at its end that make the steady yaw rate
+HARD = 12.0  # deg/s: a hard turn's peak, the lower end of the issue's 12-18 deg/s
+STRAIGHT, STRAIGHT_S = 1.5, 5.0  # deg/s, s: straight flight, |r| below this so long
+
+
+def read_segment(folder: Path) -> dict[str, np.ndarray]:
+    """One segment's three streams as arrays (the CSV header skipped)."""
+    k = folder.name.removeprefix("Trajectory")
+    load = lambda name: np.loadtxt(folder / f"{name}_trajectory{k}.csv",  # noqa: E731
+                                   delimiter=",", skiprows=1)
+    return {"gt": load("GT"), "imu": load("IMU"), "dvl": load("DVL")}
+
+
+def real_turns(seg: dict[str, np.ndarray], fin_lever: float, min_peak: float) -> list[dict]:
+    """The turns of one segment whose |yaw rate| peaks above ``min_peak`` deg/s."""
+    gt, imu = seg["gt"], seg["imu"]
+    t = gt[:, 0]
+    r = np.degrees(np.diff(np.unwrap(gt[:, 9])) / np.diff(t))  # between GT samples
+    t_mid = 0.5 * (t[1:] + t[:-1])
+    # The gyro averaged over each GT step (the IMU clock taken as the GT's: its offset,
+    # a fraction of a second, moves a 1 s mean little).
+    gyro = np.array([imu[(imu[:, 0] >= a) & (imu[:, 0] < b), 6].mean()
+                     for a, b in zip(t[:-1], t[1:], strict=True)])
+    speed = np.hypot(gt[:, 4], gt[:, 5])
+    # The reference's velocity in body axes: its sway, less its mean before the turn (the
+    # current's share, which turns with the heading only slowly), is the hull's sideslip.
+    sway = np.array([(rotation_rpy(*row[7:10]).T @ row[4:7])[1] for row in gt])
+    turns = []
+    i = 0
+    while i < len(r):
+        if abs(r[i]) < min_peak:
+            i += 1
+            continue
+        sign = math.copysign(1.0, r[i])
+        end = i
+        while end + 1 < len(r) and sign * r[end + 1] > START:
+            end += 1
+        start = i
+        while start > 0 and sign * r[start - 1] > START:
+            start -= 1
+        peak = start + int(np.argmax(sign * r[start:end + 1]))
+        before = (t >= t[start] - BEFORE) & (t <= t[start])
+        window = (t >= t[start]) & (t <= t_mid[peak] + AFTER)
+        u_before = speed[before].mean()
+        u_peak = 0.5 * (speed[peak] + speed[peak + 1])
+        # Flow at the fins, positive against the turn: r |x_fin| plus the sideslip
+        # (v < 0 in a starboard turn), the reference point taken as the hull's centre.
+        slip = 0.5 * (sway[peak] + sway[peak + 1]) - sway[before].mean()
+        fin_flow_slip = math.atan((math.radians(abs(r[peak])) * fin_lever - sign * slip)
+                                  / u_peak)
+        turns.append({
+            "time": t_mid[peak], "peak": r[peak], "gyro": math.degrees(gyro[peak]),
+            "u_before": u_before, "u_min": speed[window].min(),
+            "loss": 1.0 - speed[window].min() / u_before, "u_peak": u_peak,
+            "fin_flow": math.degrees(math.atan(math.radians(abs(r[peak])) * fin_lever
+                                               / u_peak)),
+            "fin_flow_slip": math.degrees(fin_flow_slip), "slip": slip,
+            # Roll toward the turn's inside (starboard in a starboard turn) at the peak, and
+            # its largest either way from the start to AFTER s past the peak.
+            "roll_peak": sign * math.degrees(0.5 * (gt[peak, 7] + gt[peak + 1, 7])),
+            "roll_in": float(np.degrees(sign * gt[window, 7]).max()),
+            "roll_out": float(np.degrees(-sign * gt[window, 7]).max()),
+            "heading_change": float(np.sum(r[start:end + 1] * np.diff(t)[start:end + 1])),
+        })
+        i = end + 1
+    return turns
+
+
+def straight(seg: dict[str, np.ndarray]) -> np.ndarray:
+    """(N,) bool: the reference's samples with |yaw rate| < ``STRAIGHT`` deg/s for
+    ``STRAIGHT_S`` s either side."""
+    gt = seg["gt"]
+    r = np.abs(np.degrees(np.gradient(np.unwrap(gt[:, 9]), gt[:, 0])))
+    half = round(STRAIGHT_S / np.median(np.diff(gt[:, 0])))
+    return np.array([r[max(0, i - half):i + half + 1].max() < STRAIGHT for i in range(len(r))])
+
+
+def real_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
+    """Per-segment std of the body sway (DVL Y; the reference's C^T v over the ground, and
+    through the water) and mean roll, and the current.
+
+    The current is fitted on the straight stretches, where a hull flies without sideslip and
+    its sway over the ground is the current's cross component: sway = -sin(psi) c_N +
+    cos(psi) c_E + U sin(e), with e a yaw misalignment of the reference (least squares over
+    the segment's headings; the turns between the legs make it well posed)."""
+    gt, dvl = seg["gt"], seg["dvl"]
+    body = np.array([rotation_rpy(*row[7:10]).T @ row[4:7] for row in gt])
+    psi, speed = gt[:, 9], np.hypot(gt[:, 4], gt[:, 5])
+    a = np.column_stack([-np.sin(psi), np.cos(psi), speed])
+    ok = straight(seg)
+    (c_n, c_e, _), *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    through_water = body[:, 1] - a[:, :2] @ [c_n, c_e]
+    return {"sway_dvl": dvl[:, 2].std(), "sway_ref": body[:, 1].std(),
+            "sway_water": through_water.std(), "current": math.hypot(c_n, c_e),
+            "sway_straight": (body[ok, 1] - a[ok] @ np.linalg.lstsq(a[ok], body[ok, 1],
+                                                                    rcond=None)[0]).std(),
+            "roll": math.degrees(gt[:, 7].mean())}
+
+
+def roll_period(seg: dict[str, np.ndarray]) -> float:
+    """Period (s) of the largest peak of the roll-rate spectrum between 0.05 and 3 Hz
+    (the gyro's x, Hann window, smoothed over 41 bins)."""
+    imu = seg["imu"]
+    p = imu[:, 4] - imu[:, 4].mean()
+    f = np.fft.rfftfreq(len(p), np.median(np.diff(imu[:, 0])))
+    power = np.convolve(np.abs(np.fft.rfft(p * np.hanning(len(p)))) ** 2,
+                        np.ones(41) / 41, mode="same")
+    band = (f > 0.05) & (f < 3.0)
+    return 1.0 / f[band][np.argmax(power[band])]
+
+
+def model_roll_period(name: str = "auv") -> float:
+    """The model's damped roll period (s): omega_n^2 = W BG / (I_x + A_44) with the inertia
+    about the CO, and the damping ratio of its linear roll damping."""
+    h = Vehicle(name).hydro
+    m44 = np.linalg.inv(h.mass_matrix_inv)[3, 3]
+    omega = math.sqrt(h.weight * h.r_g[2] / m44)
+    zeta = h.linear_damping[3] / (2.0 * omega * m44)
+    return 2.0 * math.pi / (omega * math.sqrt(1.0 - zeta * zeta))
+
+
+def heading_change(seg: dict[str, np.ndarray]) -> float:
+    """Total heading change of a segment in its turns, deg (both ways counted; the steps
+    whose yaw rate exceeds ``START`` deg/s, so that the wobble of straight flight does not
+    count)."""
+    gt = seg["gt"]
+    step = np.diff(np.unwrap(gt[:, 9]))
+    turning = np.abs(np.degrees(step / np.diff(gt[:, 0]))) > START
+    return math.degrees(np.abs(step[turning]).sum())
+
+
+def sim_missions(path: Path) -> dict[str, dict[str, np.ndarray]]:
+    """Each mission of a simulated dataset (one HDF5 file) laid out as a real segment: its
+    truth sampled at 1 Hz as the reference (time, three unused columns, NED velocity,
+    roll, pitch, yaw), its truth's angular rate as the gyro, its DVL velocity (valid
+    pings) as the DVL, and its truth's body velocity."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        for name, m in f["missions"].items():
+            t = m["truth/time"][:]
+            every = max(1, round(1.0 / (t[1] - t[0])))
+            euler = euler_angles(m["truth/quaternion"][:])
+            gt = np.column_stack([t, np.zeros((len(t), 3)), m["truth/velocity_ned"][:],
+                                  euler])[::every]
+            imu = np.column_stack([t, np.zeros((len(t), 3)), m["truth/angular_rate"][:]])
+            v = m["dvl/velocity"][:] if "dvl/velocity" in m else np.full((1, 3), np.nan)
+            dvl = np.column_stack([np.zeros(len(v)), v])
+            out[name] = {"gt": gt, "imu": imu, "dvl": dvl[np.all(np.isfinite(v), axis=1)],
+                         "velocity_body": m["truth/velocity_body"][:], "roll": euler[:, 0],
+                         "velocity_water_body": m["truth/velocity_water_body"][:],
+                         "current": m["truth/current_ned"][:]}
+    return out
+
+
+def sim_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
+    """``real_sway_roll`` of a simulated mission (``sim_missions``), from its truth at the
+    simulation's rate."""
+    dvl = seg["dvl"]
+    ok = np.repeat(straight(seg), round(len(seg["roll"]) / len(seg["gt"])))[:len(seg["roll"])]
+    return {"sway_ref": seg["velocity_body"][:, 1].std(),
+            "sway_dvl": dvl[:, 2].std() if len(dvl) else math.nan,
+            "sway_water": seg["velocity_water_body"][:, 1].std(),
+            "sway_straight": seg["velocity_water_body"][ok, 1].std() if ok.any() else math.nan,
+            "current": float(np.linalg.norm(seg["current"][:, :2], axis=1).mean()),
+            "roll": math.degrees(seg["roll"].mean())}
+
+
+def turn_summary(turns: list[dict]) -> str:
+    """One line on the hard turns among ``turns``."""
+    hard = [t for t in turns if abs(t["peak"]) >= HARD]
+    if not hard:
+        return f"no turn with a |r| peak >= {HARD:g} deg/s"
+    med = lambda key: float(np.median([t[key] for t in hard]))  # noqa: E731
+    return (f"{len(hard):3d} hard turns: |r| peak median "
+            f"{np.median(np.abs([t['peak'] for t in hard])):4.1f} deg/s, speed loss median "
+            f"{100 * med('loss'):3.0f} %, sway at the peak median "
+            f"{np.median([abs(t['slip']) for t in hard]):.2f} m/s, fin flow angle median "
+            f"{med('fin_flow_slip'):4.1f} deg; roll toward the inside at the peak median "
+            f"{med('roll_peak'):+.1f} deg, largest inward {med('roll_in'):+.1f}, outward "
+            f"{med('roll_out'):+.1f} deg (medians)")
+
+
+def model_step(name: str = "auv", speed: float = 2.0, rudder_max: float | None = None
+               ) -> dict[str, float]:
+    """The model's full-rudder step from ``speed``, depth held; ``rudder_max`` (rad) in
+    place of the model's rudder limit if given."""
+    vehicle = Vehicle(name)
+    if rudder_max is not None:
+        vehicle.hydro = vehicle.hydro._replace(rudder_max=rudder_max)
+    vehicle.reset(position_ned=(0.0, 0.0, 50.0), velocity_body=(speed, 0.0, 0.0))
+    steps = round(STEP_S / vehicle.dt)
+    command = np.tile([vehicle.actuators[0], vehicle.hydro.rudder_max, 50.0], (steps, 1))
+    traj = vehicle.run(command, closed_loop=(False, False, True))
+    r = np.degrees(traj.angular_rate[:, 2])
+    u = np.linalg.norm(traj.velocity_body, axis=1)
+    last = slice(-round(STEADY_S / vehicle.dt), None)
+    peak = int(np.argmax(r))
+    lever = abs(vehicle.hydro.fin_x)
+    flow = lambda slip: math.degrees(math.atan(  # noqa: E731
+        (math.radians(r[peak]) * lever - slip) / u[peak]))
+    return {"limit": math.degrees(vehicle.hydro.rudder_max), "peak": r[peak],
+            "steady": r[last].mean(), "loss_steady": 1.0 - u[last].mean() / speed,
+            "loss_min": 1.0 - u.min() / speed, "slip": traj.velocity_body[peak, 1],
+            "fin_flow": flow(0.0), "fin_flow_slip": flow(traj.velocity_body[peak, 1])}
+
+
+def implied_limit(flow_deg: float, key: str = "fin_flow_slip") -> float:
+    """The rudder limit (deg) at which the model's full-rudder step from 2 m/s has the fin
+    flow angle ``flow_deg`` at its yaw-rate peak (``key``: with the sway, or from r |x_fin| / U
+    alone): the limit the measured turns imply through the model's own balance of fin and
+    hull at the peak. Bisection; the flow angle grows with the limit (with the sway: 25.4,
+    28.0, 29.5 deg at 30, 35, 38 deg) and does not depend on the speed."""
+    lo, hi = 15.0, 60.0
+    for _ in range(12):
+        mid = 0.5 * (lo + hi)
+        if model_step(rudder_max=math.radians(mid))[key] < flow_deg:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def summary(values) -> str:
+    v = np.asarray([x for x in values if math.isfinite(x)])
+    if v.size == 0:
+        return f"{'-':>20s}"
+    return f"{np.median(v):6.3f} ({v.min():.3f} to {v.max():.3f})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA,
+                        help="folder of TrajectoryK/ segments")
+    parser.add_argument("--sim", action="append", default=[], metavar="LABEL=FILE.h5",
+                        help="a simulated dataset to measure beside the real segments")
+    parser.add_argument("--min-peak", type=float, default=8.0,
+                        help="deg/s: the smallest yaw-rate peak counted as a turn")
+    parser.add_argument("--infer", action="store_true",
+                        help="also find the rudder limit the hard turns imply (a bisection "
+                        "of model runs, about a minute)")
+    perf_page.add_write_option(parser, "turning")
+    args = parser.parse_args()
+    segments = sorted(args.data.glob("Trajectory*"), key=lambda p: int(p.name[10:]))
+    if not segments:
+        parser.error(f"--data: expected a folder of Trajectory*/ segments, got {args.data}")
+    sims = []
+    for item in args.sim:
+        label, sep, file = item.partition("=")
+        if not sep or not Path(file).is_file():
+            parser.error(f"--sim: expected LABEL=FILE.h5 of an existing file, got {item!r}")
+        sims.append((label, Path(file)))
+
+    fin_lever = abs(Vehicle("auv").hydro.fin_x)
+    data = {p.name: read_segment(p) for p in segments}
+    turns = print_real_turns(data, fin_lever, args.min_peak, args.data)
+    hard = [t for t in turns if abs(t["peak"]) >= HARD]
+    flows = np.array([t["fin_flow_slip"] for t in hard])
+    alone = float(np.median([t["fin_flow"] for t in hard]))
+    print(f"{len(hard)} hard turns (|r| peak >= {HARD:g} deg/s): fin flow angle with the "
+          f"sway at the peak median {np.median(flows):.1f} deg (quartiles "
+          f"{np.percentile(flows, 25):.1f} to {np.percentile(flows, 75):.1f}), from "
+          f"r |x_fin| / U alone median {alone:.1f} deg")
+    if args.infer:
+        limits = [implied_limit(float(np.percentile(flows, q))) for q in (50, 25, 75)]
+        print(f"rudder limit at which the model's full-rudder step has that flow angle at "
+              f"its peak: {limits[0]:.1f} deg (quartiles {limits[1]:.1f} to {limits[2]:.1f}); "
+              f"from r |x_fin| / U alone (no sway, so no reference point): "
+              f"{implied_limit(alone, 'fin_flow'):.1f} deg")
+
+    step = model_step()
+    print(f"\nModel A18-D, full rudder ({step['limit']:.1f} deg) from 2 m/s, depth held, "
+          f"{STEP_S:g} s: peak {step['peak']:.2f} deg/s, steady {step['steady']:.2f} deg/s, "
+          f"speed loss {100 * step['loss_min']:.1f} % at the least, "
+          f"{100 * step['loss_steady']:.1f} % steady; at the peak: sway {step['slip']:+.2f} "
+          f"m/s, fin flow angle {step['fin_flow']:.1f} deg, {step['fin_flow_slip']:.1f} deg "
+          "with the sway")
+
+    missions = {label: sim_missions(path) for label, path in sims}
+    print("\nHard turns, real and simulated (the same detector on the truth at 1 Hz):")
+    print(f"{'real':24s} {turn_summary(turns)}")
+    for label, per in missions.items():
+        sim_turns = [t for seg in per.values()
+                     for t in real_turns(seg, fin_lever, args.min_peak)]
+        print(f"{label:24s} {turn_summary(sim_turns)}")
+    print_sway_roll(data, missions)
+
+    periods = [roll_period(s) for s in data.values()]
+    print(f"\nRoll period: real (roll-rate spectrum peak) median {np.median(periods):.2f} s "
+          f"({min(periods):.2f} to {max(periods):.2f}); the model's damped period "
+          f"{model_roll_period():.2f} s")
+
+
+def print_real_turns(data: dict, fin_lever: float, min_peak: float, folder: Path
+                     ) -> list[dict]:
+    """Print the real segments' turns, one line each, and return them."""
+    print(f"Real turns (|r| peak >= {min_peak:g} deg/s), {folder}; fin lever {fin_lever:g} m")
+    print(f"{'segment':13s} {'t s':>5s} {'r GT':>6s} {'gyro z':>6s} {'turned':>7s} "
+          f"{'U0':>5s} {'Umin':>5s} {'loss':>6s} {'U pk':>5s} {'slip':>6s} {'fin flow':>8s} "
+          f"{'+ slip':>7s}")
+    turns = []
+    for name, seg in data.items():
+        for t in real_turns(seg, fin_lever, min_peak):
+            turns.append(t)
+            print(f"{name:13s} {t['time']:5.0f} {t['peak']:+6.1f} {t['gyro']:+6.1f} "
+                  f"{t['heading_change']:+7.0f} {t['u_before']:5.2f} {t['u_min']:5.2f} "
+                  f"{100 * t['loss']:5.1f}% {t['u_peak']:5.2f} {t['slip']:+6.2f} "
+                  f"{t['fin_flow']:7.1f}d {t['fin_flow_slip']:6.1f}d")
+    peaks = np.abs([t["peak"] for t in turns])
+    largest = [max(abs(t["peak"]) for t in real_turns(s, fin_lever, min_peak))
+               for s in data.values()]
+    losses = 100 * np.array([t["loss"] for t in turns])
+    print(f"{len(turns)} turns: |r| peak median {np.median(peaks):.1f}, range {peaks.min():.1f} "
+          f"to {peaks.max():.1f} deg/s; each segment's largest {min(largest):.1f} to "
+          f"{max(largest):.1f} deg/s; speed loss median {np.median(losses):.0f} % "
+          f"({losses.min():.0f} to {losses.max():.0f} %)")
+    return turns
+
+
+def print_sway_roll(data: dict, missions: dict) -> None:
+    """The per-mission sway and roll table: real segments, each simulated dataset, and its
+    missions that turn at least as much as every real segment (like with like: a mission's
+    sway std grows with its heading changes, as the current's cross component turns with
+    the heading and every turn slips)."""
+    least = min(heading_change(s) for s in data.values())
+    rows = {"real": {n: real_sway_roll(s) | {"turned": heading_change(s)}
+                     for n, s in data.items()}}
+    for label, per in missions.items():
+        rows[label] = {n: sim_sway_roll(s) | {"turned": heading_change(s)}
+                       for n, s in per.items()}
+        rows[f"{label}, turning"] = {n: m for n, m in rows[label].items()
+                                     if m["turned"] >= least}
+    columns = (("sway_dvl", "sway, DVL Y"), ("sway_ref", "sway over the ground"),
+               ("sway_water", "sway through the water"), ("sway_straight", "straight, water"),
+               ("current", "current m/s"), ("roll", "mean roll deg"))
+    print(f"\nPer-mission sway std (m/s), current and mean roll (deg): median (range); "
+          f"'turning': the missions that turn at least as much as every real segment "
+          f"({least:.0f} deg)")
+    print(f"{'source':24s} {'n':>3s} " + " ".join(f"{title:>26s}" for _, title in columns)
+          + f" {'|mean roll| max':>15s}")
+    for label, per in rows.items():
+        if not per:
+            continue
+        figures = {key: [m[key] for m in per.values()] for key, _ in columns}
+        print(f"{label:24s} {len(per):3d} "
+              + " ".join(f"{summary(figures[key]):>26s}" for key, _ in columns)
+              + f" {max(abs(x) for x in figures['roll']):15.2f}")
+    for label in ("real", *missions):
+        print(f"\n{label} per mission: " + ", ".join(title for _, title in columns)
+              + ", heading change in turns (deg)")
+        for name, m in rows[label].items():
+            print(f"  {name:24s} " + " ".join(f"{m[key]:+7.3f}" for key, _ in columns)
+                  + f" {m['turned']:7.0f}")
+
+if __name__ == "__main__":
+    sys.exit(perf_page.run(main))
