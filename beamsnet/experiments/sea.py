@@ -4,8 +4,9 @@ against its recorded reference (issue 24, items 5 and 9).
 The data are a folder of recorded logs (default the Snapir AUV's six A-KIT segments,
 ``../shared/data/snapir-akit``: Phins IMU at 100 Hz, Navigator DVL at 1 Hz, the Delph INS
 post-processed solution as the reference). Every segment is imported
-(``auvsim.data.recorded.import_logs``, the layout ``akit``) into ``datasets/sea.h5``, one
-recorded mission each. The scores are against that reference, never a truth: the
+(``auvsim.data.recorded.import_logs``, the layout ``akit``), one recorded mission each,
+and corrected by ``auvsim check-log --apply`` (the IMU's axes, the streams' clocks, the
+sensors' positions, found from the data) into ``datasets/sea.h5``. The scores are against that reference, never a truth: the
 target velocity is the reference's, moved to the DVL (``beamsnet.data.reference_velocity``),
 and positions are in the mission's local frame (origin: the reference's first point).
 
@@ -73,10 +74,11 @@ SEEDS = 3  # CorrectionNet seeds, every one scored
 FILTER = "INS/DVL"
 SIM_FILTER = "INS/DVL (simulated instrument's noise)"
 LEARNED = {"CorrectionNet": ("corr", dict(model="corr"))}
-# TODO(issue 24, check-log): apply ``auvsim check-log --apply``'s corrections (the IMU's
-# axes, the streams' clocks, the sensors' lever arms) to the imported file once they are
-# on main; until then every segment is scored as logged, and the report says so.
-CORRECTIONS = None
+# The logs do not document the IMU's axes, the streams' clocks or the sensors' positions:
+# ``auvsim check-log`` finds them from the data and ``--apply`` writes a corrected file,
+# which every estimator here runs on. TODO(check-log): once ``auvsim.data.checklog`` is
+# on main, drop the fallback in ``_checklog`` (until then the segments are scored as
+# logged, and the report says so).
 
 
 def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
@@ -113,7 +115,7 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     check_out_dir(out)
     if cluster is not None:
         check_address(cluster)
-    dataset = sea_dataset(Path(data), datasets)
+    dataset, corrections = sea_dataset(Path(data), datasets)
     sim = ensure_dataset(realistic_maneuvers(duration), datasets / f"sea-train_{duration:g}s.h5",
                          progress=progress, cluster=cluster)
     nets = train_seeds(sim, {key: dataclasses.replace(training, **change)
@@ -132,7 +134,7 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         results[name] = _segment(dataset, name, fitted, real, nets, noise)
     setup = dict(data=str(data), dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
-                 corrections=CORRECTIONS,
+                 corrections=corrections,
                  geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)})
     with staged_dir(out) as stage:  # the report, its data and its figure, or none
         write_text(stage / "sea.json", json.dumps(
@@ -153,23 +155,63 @@ def _check(duration, seeds) -> None:
                           argument="seeds")
 
 
-def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
+def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, dict | None]:
     """``datasets/sea.h5``: every A-KIT segment of ``data`` imported as a recorded mission
-    (``auvsim import --format akit``); imported again only when the logs' SHA-256 digests
-    differ from those the file records.
+    (``auvsim import --format akit``, into ``datasets/sea-logged.h5``) and corrected by
+    ``auvsim check-log --apply``; made again only when the logs' SHA-256 digests differ
+    from those the file records.
+
+    Returns:
+        The file, and what check-log found and applied per segment ({mission: [(finding,
+        value, confidence)]}), or None where check-log is not available (the logs as
+        logged).
 
     Raises:
         ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
     """
+    from auvsim.data.reader import open_dataset
     from auvsim.data.recorded import akit_segments, import_logs
 
     segments = akit_segments(data)
     digests = sorted(hashlib.sha256(p.read_bytes()).hexdigest()
                      for folder, _ in segments for p in sorted(folder.glob("*.csv")))
+    checklog = _checklog()
+    logged = datasets / ("sea-logged.h5" if checklog else "sea.h5")
+    if not _imported_from(logged, digests):
+        import_logs([data], logged, format="akit")
+    if checklog is None:
+        return logged, None
     dataset = datasets / "sea.h5"
-    if not _imported_from(dataset, digests):
-        import_logs([data], dataset, format="akit")
-    return dataset
+    with open_dataset(logged) as f:
+        reports = [checklog.check_log(m) for m in f.missions.values()]
+    if not _imported_from(dataset, digests) or _findings(dataset) != _said(reports):
+        checklog.apply(logged, dataset, reports)
+    return dataset, _said(reports)
+
+
+def _checklog():
+    """``auvsim.data.checklog`` (``check_log``, ``apply``), or None in an auvsim without it."""
+    try:
+        from auvsim.data import checklog
+    except ImportError:  # TODO(check-log): remove once it is on main
+        return None
+    return checklog
+
+
+def _said(reports) -> dict:
+    """What check-log found, per mission: [(finding, value in words, confidence)]."""
+    return {r.mission: [[f.name, f.text, f.confidence] for f in r.findings] for r in reports}
+
+
+def _findings(dataset: Path) -> dict:
+    """The findings a corrected file records (``check_log_json``), per mission."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return {name: [[x["name"], x["text"], x["confidence"]]
+                       for x in json.loads(m.attrs.get("check_log_json", "{}"))
+                       .get("findings", [])]
+                for name, m in f.missions.items()}
 
 
 def _imported_from(dataset: Path, digests: list[str]) -> bool:
@@ -333,11 +375,15 @@ def report(results: dict, setup: dict) -> str:
                   "as `H v` of the DVL's own velocity (30 deg Janus geometry), so they carry "
                   "the instrument's velocity errors but no error of one beam alone.", ""]
     if setup["corrections"] is None:
-        lines += ["**Not yet corrected by `auvsim check-log --apply`** (not on main when "
-                  "this report was made): the IMU's axes, the streams' clocks and the "
-                  "sensors' lever arms are as logged, so the filter and the dead reckoning "
-                  "meet the clock offsets and lever arms the logs do not document. "
-                  "TODO: re-run once check-log's corrections are applied.", ""]
+        lines += ["**Not corrected by `auvsim check-log --apply`** (this auvsim has no "
+                  "check-log): the IMU's axes, the streams' clocks and the sensors' lever "
+                  "arms are as logged, so the filter and the dead reckoning meet the clock "
+                  "offsets and lever arms the logs do not document. TODO: re-run with "
+                  "check-log.", ""]
+    else:
+        lines += ["Every segment was corrected by `auvsim check-log --apply` before any "
+                  "estimator ran: what it found, from the data alone (value; confidence):",
+                  "", *_corrections_table(setup["corrections"]), ""]
     lines += [
         "## Per segment",
         "",
@@ -394,6 +440,17 @@ def report(results: dict, setup: dict) -> str:
     lines += ["", "![each segment's track and every estimator's error along it](sea.png)",
               "", *_sim_to_real(results, setup, by_reference)]
     return "\n".join(lines) + "\n"
+
+
+def _corrections_table(corrections: dict) -> list[str]:
+    """check-log's findings, a row per segment, a column per finding."""
+    names = list(dict.fromkeys(f[0] for found in corrections.values() for f in found))
+    lines = ["| segment | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for mission, found in corrections.items():
+        by_name = {name: f"{text}; {confidence}" for name, text, confidence in found}
+        lines.append(f"| {mission} | "
+                     + " | ".join(by_name.get(n, "") for n in names) + " |")
+    return lines
 
 
 def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
