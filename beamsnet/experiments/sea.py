@@ -6,9 +6,10 @@ The data are a folder of recorded logs (default the Snapir AUV's six A-KIT segme
 post-processed solution as the reference). Every segment is imported
 (``auvsim.data.recorded.import_logs``, the layout ``akit``), one recorded mission each,
 and corrected by ``auvsim check-log --apply`` (the IMU's axes, the streams' clocks, the
-sensors' positions, found from the data) into ``datasets/sea.h5``. The scores are against that reference, never a truth: the
-target velocity is the reference's, moved to the DVL (``beamsnet.data.reference_velocity``),
-and positions are in the mission's local frame (origin: the reference's first point).
+sensors' positions, found from the data) into ``datasets/sea.h5``. The scores are
+against that reference, never a truth: the target velocity is the reference's, moved to
+the DVL (``beamsnet.data.reference_velocity``), and positions are in the mission's
+local frame (origin: the reference's first point).
 
 What runs on each segment, from its fourth ping (three past pings, as every table):
 
@@ -135,7 +136,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     setup = dict(data=str(data), dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
                  corrections=corrections,
-                 geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)})
+                 geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)},
+                 logged_noise=_logged_noise(dataset))
     with staged_dir(out) as stage:  # the report, its data and its figure, or none
         write_text(stage / "sea.json", json.dumps(
             {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()}},
@@ -236,14 +238,41 @@ def _segments(dataset: Path) -> list[str]:
         return list(f.missions)
 
 
-def _geometry(path: Path) -> list[str]:
-    """Each distinct DVL geometry of a file's missions, in words (beam angle, mounting)."""
+def _geometry(path: Path) -> dict:
+    """The DVL geometry of a file's missions: their beam angles (deg) and mountings (roll,
+    pitch, yaw, deg), each mission's."""
     from auvsim.data.reader import open_dataset
 
     with open_dataset(path) as f:
-        return sorted({f"{float(m.attrs['beam_angle_deg']):g} deg beams, mounted at "
-                       f"({', '.join(f'{x:g}' for x in m.attrs['dvl_mounting_rpy_deg'])}) deg"
-                       for m in f.missions.values()})
+        return {"beam_angle_deg": sorted({float(m.attrs["beam_angle_deg"])
+                                          for m in f.missions.values()}),
+                "mounting_rpy_deg": [[float(x) for x in m.attrs["dvl_mounting_rpy_deg"]]
+                                     for m in f.missions.values()]}
+
+
+def _geometry_words(geometry: dict) -> str:
+    """auvsim's DVL geometry against the logs', in words: beams, and how far the logs'
+    mountings lie from auvsim's."""
+    sim, logs = geometry["auvsim"], geometry["logs"]
+
+    def angles(g):
+        return " and ".join(f"{a:g}" for a in g["beam_angle_deg"]) + " deg beams"
+
+    reference = np.asarray(sim["mounting_rpy_deg"][0])
+    apart = float(np.abs(np.asarray(logs["mounting_rpy_deg"]) - reference).max())
+    return (f"auvsim's, {angles(sim)} mounted at "
+            f"({', '.join(f'{x:g}' for x in reference)}) deg; the logs', {angles(logs)} "
+            f"mounted within {apart:.2g} deg of that on every axis")
+
+
+def _logged_noise(dataset: Path) -> float:
+    """The logged DVL's white beam noise, m/s: the median over the missions of their
+    ``dvl_noise_std`` (the instrument's specification the log description gives)."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return float(np.median([float(m.attrs["dvl_noise_std"])
+                                for m in f.missions.values()]))
 
 
 def _has_imu(dataset: Path, name: str) -> bool:
@@ -474,12 +503,8 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
         f"{noise['imu_accel_noise_density']:.3g} m/s^2/sqrt(Hz), gyro "
         f"{noise['imu_gyro_noise_density']:.3g} rad/s/sqrt(Hz)) in place of the real "
         "instrument's. Beside them, each model-based estimator fitted on the other real "
-        "segments (the segment scored left out). The DVL's geometry, auvsim's: "
-        f"{'; '.join(setup['geometry']['auvsim'])}; the logs': "
-        f"{'; '.join(setup['geometry']['logs'])}"
-        + (" (the same frame)" if setup["geometry"]["auvsim"] == setup["geometry"]["logs"]
-           else " (**they differ**: a fit in one frame is applied in another)")
-        + ". Medians over the segments; the position "
+        f"segments (the segment scored left out). The DVL's geometry: "
+        f"{_geometry_words(setup['geometry'])}. Medians over the segments; the position "
         "of a velocity estimator is its velocity dead-reckoned with the reference's "
         "attitude:",
         "",
@@ -495,12 +520,13 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
                      f"{_fmt(_median(results, label, 'final_m'))} | "
                      f"{_fmt(_median(results, label, 'rmse_m'))} | {_fmt(real, '.4f')} |")
     lines += ["", "### What transfers, and why", "",
-              *_transfers(results, sim, ls, noise, setup["corrections"])]
+              *_transfers(results, sim, ls, noise, setup["corrections"],
+                          setup["logged_noise"])]
     return lines
 
 
-def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
-               corrections) -> list[str]:
+def _transfers(results: dict, sim: list[str], ls: float, noise: dict, corrections,
+               logged: float) -> list[str]:
     """Statements computed from the medians: which sim-trained estimators beat LS on the
     real segments, which lose, and the filter's two noise settings."""
     derived = next(iter(results.values()))["scores"]["derived"]
@@ -529,6 +555,15 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
         "real segments show how much of it is systematic, and so learnable, on this "
         "vehicle.",
     ]
+    ratio = noise["dvl_noise_std"] / logged if logged > 0 else math.nan
+    lines.append(
+        f"- Noise: the simulated DVL's white beam noise is {noise['dvl_noise_std']:g} m/s, "
+        f"the logged instrument's (its specification in the log description) {logged:g} m/s:"
+        f" the simulated one is {ratio:.2g} times as noisy."
+        + (" An estimator that learned to average the simulated noise (the Kalman filters' "
+           "random walk, CorrectionNet's past pings) smooths the real velocity's changes "
+           "instead, which the real DVL, quieter, did not need: that is how we read the "
+           "rows worse than LS." if ratio > 2 and worse else ""))
     f, s = _median(results, FILTER, "final_m"), _median(results, SIM_FILTER, "final_m")
     if math.isfinite(f) and math.isfinite(s):
         lines.append(
