@@ -134,28 +134,39 @@ LATITUDE, LONGITUDE, HEIGHT = 32.85, 34.95, -20.0  # deg, deg, m: off Haifa, 20 
 SURGE, OMEGA = 0.3, 2 * math.pi / 60  # m/s and rad/s of the speed's swing
 
 
-def write_akit(folder: Path, k: int, *, sway_bias: float = 0.01, surge: float = SURGE,
-               duration: int = 120) -> Path:
+def write_akit(folder: Path, k: int, *, sway_bias: float = 0.01, scale: float = 0.0,
+               surge: float = SURGE, weave_deg_s: float = 0.0, duration: int = 120) -> Path:
     """A segment in the A-KIT layout (``TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv``): a
-    level vehicle flying due north at 1.5 m/s, ``surge`` m/s up and down over a minute,
-    its IMU reading that acceleration in the Earth's gravity (WGS-84 normal
-    gravity there), its DVL reading the body velocity with a bias of ``sway_bias`` m/s to
-    starboard; the reference exact."""
+    level vehicle flying forward at 1.5 m/s, ``surge`` m/s up and down over a minute,
+    heading north, or weaving about it at a yaw rate of ``weave_deg_s`` sin(2 pi t / 40
+    s); its IMU reading that motion in the Earth's gravity (WGS-84 normal gravity there),
+    its DVL the body velocity with a scale factor error ``scale`` forward and a bias of
+    ``sway_bias`` m/s to starboard; the reference exact (positions integrated at 100 Hz).
+    """
     from auvsim.physics.earth import normal_gravity, radii
 
     segment = folder / f"Trajectory{k}"
     segment.mkdir(parents=True)
-    t_imu = np.arange(0, duration * 100) / 100.0
-    zero = 0 * t_imu
-    imu = np.column_stack([t_imu, surge * OMEGA * np.cos(OMEGA * t_imu), zero,
-                           zero - normal_gravity(LATITUDE, HEIGHT), zero, zero, zero])
-    t = np.arange(duration, dtype=float)
-    speed = 1.5 + surge * np.sin(OMEGA * t)
-    north = 1.5 * t + surge / OMEGA * (1 - np.cos(OMEGA * t))
-    dvl = np.column_stack([t, speed, sway_bias + 0 * t, 0 * t])
-    lat = np.radians(LATITUDE) + north / (radii(LATITUDE)[0] + HEIGHT)
-    gt = np.column_stack([t, np.radians(LONGITUDE) + 0 * t, lat, HEIGHT + 0 * t,
-                          speed, 0 * t, 0 * t, 0 * t, 0 * t, 0 * t])
+    t = np.arange(0, duration * 100) / 100.0
+    zero = 0 * t
+    u, du = 1.5 + surge * np.sin(OMEGA * t), surge * OMEGA * np.cos(OMEGA * t)
+    r0, weave = math.radians(weave_deg_s), 2 * math.pi / 40
+    rate = r0 * np.sin(weave * t)
+    heading = r0 / weave * (1 - np.cos(weave * t))
+    # Body acceleration (du, u r, 0), so the specific force (du, u r, -g).
+    imu = np.column_stack([t, du, u * rate, zero - normal_gravity(LATITUDE, HEIGHT), zero,
+                           zero, rate])
+    v_north, v_east = u * np.cos(heading), u * np.sin(heading)
+    north, east = (np.concatenate([[0.0], np.cumsum((v[1:] + v[:-1]) / 2 * 0.01)])
+                   for v in (v_north, v_east))
+    i = np.arange(0, len(t), 100)  # the 1 Hz stamps
+    meridian, transverse = radii(LATITUDE)
+    lat = np.radians(LATITUDE) + north[i] / (meridian + HEIGHT)
+    lon = np.radians(LONGITUDE) + east[i] / ((transverse + HEIGHT)
+                                             * math.cos(math.radians(LATITUDE)))
+    gt = np.column_stack([t[i], lon, lat, HEIGHT + zero[i], v_north[i], v_east[i], zero[i],
+                          zero[i], zero[i], heading[i]])
+    dvl = np.column_stack([t[i], (1 + scale) * u[i], sway_bias + zero[i], zero[i]])
     heads = {"IMU": "Time [s],ACC X [m/s^2],ACC Y [m/s^2],ACC Z [m/s^2],GYRO X [rad/s],"
                     "GYRO Y [rad/s],GYRO Z [rad/s]",
              "DVL": "Time [s],DVL X [m/s],DVL Y [m/s],DVL Z [m/s]",
@@ -224,24 +235,34 @@ def reproduce_sea(data: Path, tmp_path: Path, monkeypatch) -> tuple[dict, str]:
 
 @pytest.mark.slow
 def test_reproduce_sea_scores_every_segment_against_its_reference(tmp_path, monkeypatch):
-    """Two segments the test writes (the DVL 1 and 2 cm/s to starboard): every estimator a
-    row, the dead-reckoning baseline's known drift (east, bias x 116 s; north, holding
-    each velocity over its second costs (v(3 s) - v(119 s)) x 1 s / 2 = 6 cm), the
-    medians, and no word of truth."""
+    """Three weaving segments the test writes, the DVL reading 0, 1 and 2 % fast (a scale
+    factor check-log reports and leaves in the velocity): the dead-reckoning baseline's
+    velocity error is that share of the speed, and its final error that share of the
+    displacement, give or take what holding each velocity over its second costs (the
+    exact DVL's final error); every estimator a row; the medians; no word of truth."""
     logs = tmp_path / "logs"
-    write_akit(logs, 1, sway_bias=0.01)
-    write_akit(logs, 2, sway_bias=0.02)
+    for k, scale in enumerate((0.0, 0.01, 0.02), start=1):
+        write_akit(logs, k, sway_bias=0.0, scale=scale, weave_deg_s=3.0)
     results, report = reproduce_sea(logs, tmp_path, monkeypatch)
     segments = results["segments"]
-    assert list(segments) == ["trajectory1", "trajectory2"]
-    for name, bias in (("trajectory1", 0.01), ("trajectory2", 0.02)):
+    assert list(segments) == ["trajectory1", "trajectory2", "trajectory3"]
+    pings = np.arange(3.0, 120.0)
+    speed = 1.5 + SURGE * np.sin(OMEGA * pings)
+    held = segments["trajectory1"]["DR: DVL + reference attitude"]["final_m"]
+    for name, scale in (("trajectory2", 0.01), ("trajectory3", 0.02)):
         baseline = segments[name]["DR: DVL + reference attitude"]
-        north = (math.sin(OMEGA * 3) - math.sin(OMEGA * 119)) * SURGE / 2
-        assert baseline["final_m"] == pytest.approx(math.hypot(bias * 116, north), abs=5e-3)
-        assert baseline["velocity_rmse"] == pytest.approx(bias, rel=1e-6)
+        assert baseline["velocity_rmse"] == pytest.approx(
+            scale * math.sqrt(np.mean(speed**2)), rel=1e-3)
+        # Displacement from 3 s to 119 s: weaving 2 x 3 deg/s / (2 pi / 40 s) = 38 deg
+        # at most, the track is nearly straight: at most the distance, at least its
+        # cosine of 19 deg.
+        distance = baseline["distance_m"]
+        assert (0.94 * scale * distance - held - 1e-3 <= baseline["final_m"]
+                <= scale * distance + held + 1e-3)
         for label in ("LS", "Affine", "Robust LS", "CorrectionNet (seed_0)",
                       "Affine (other segments)"):
             assert np.isfinite(segments[name][label]["velocity_rmse"])
+    assert held < 0.5
     assert "| **median** |" in report
     ours = "\n".join(line for line in report.splitlines()  # not the errors it quotes
                       if not line.startswith("Filters that did not run"))
