@@ -13,10 +13,14 @@ Conventions (a contract: the HDF5 files and every public function follow them):
 * SI units: m, s, rad, m/s, m/s^2, rad/s, N, N m. Degrees only in CLI and config inputs
   whose names end in ``_deg``. Propeller shaft speed in rpm.
 * Specific force ``f = a - g`` in body axes: at rest and level an accelerometer reads
-  ``(0, 0, -9.81)`` m/s^2.
+  ``(0, 0, -9.81)`` m/s^2, the vehicle model's gravity. With a geographic origin
+  (``Config.location``) the NED frame turns with the Earth: ``f = C^T (a + 2 w_ie x v -
+  g_n)``, g_n the WGS-84 normal gravity there (``(0, 0, -9.7955)`` at rest off Haifa).
 * Array names: ``position_ned``, ``velocity_ned``, ``velocity_body`` (at the body origin,
-  the centre of buoyancy), ``quaternion``, ``angular_rate`` (body), ``specific_force``
-  (body, at the IMU site). Time is the first axis of every array.
+  the centre of buoyancy), ``quaternion``, ``angular_rate`` (body, relative to the NED
+  frame; with a geographic origin a gyro reads it plus the Earth's rate, ``C^T w_ie``),
+  ``specific_force`` (body, at the IMU site: what an ideal accelerometer reads). Time is
+  the first axis of every array.
 """
 
 from auvsim.lazy import exports

@@ -336,6 +336,11 @@ class DvlConfig:
             below the DVL of the water layer it tracks.
         water_track_noise_std: m/s, >= 0: the beam noise in water track (in place of the
             bottom-track noise).
+        slow_error_std: m/s, >= 0: std of a time-correlated velocity error, per DVL axis,
+            that the measured beams share (``H dv``): first-order Gauss-Markov, started
+            stationary. It survives averaging and lies in the span of the beams, so the
+            error velocity does not see it (the white beam noise is what that shows).
+        slow_error_time: s, > 0: its correlation time.
     """
 
     rate_hz: float = 1.0
@@ -366,6 +371,8 @@ class DvlConfig:
     water_track: bool = False
     water_track_range: float = 10.0
     water_track_noise_std: float = 0.0
+    slow_error_std: float = 0.0
+    slow_error_time: float = 600.0
 
     def __post_init__(self) -> None:
         for name in ("rate_hz", "beam_angle_deg", "min_range", "max_range",
@@ -373,7 +380,8 @@ class DvlConfig:
                      "grazing_loss_width_deg", "dropout_rate", "dropout_burst",
                      "ping_dropout_rate", "noise_range_coeff", "noise_speed_coeff",
                      "outlier_rate", "outlier_std", "sound_speed_std", "misalignment_std_deg",
-                     "water_track_range", "water_track_noise_std"):
+                     "water_track_range", "water_track_noise_std", "slow_error_std",
+                     "slow_error_time"):
             _finite(f"dvl.{name}", getattr(self, name))
         _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
         _check(self.rate_hz >= MIN_DVL_RATE, "dvl.rate_hz",
@@ -397,7 +405,7 @@ class DvlConfig:
                 _finite(f"dvl.{name}", value)
         self._check_lock_loss()
         for name in ("noise_range_coeff", "noise_speed_coeff", "outlier_std",
-                     "water_track_noise_std"):
+                     "water_track_noise_std", "slow_error_std"):
             _check(getattr(self, name) >= 0, f"dvl.{name}", "a value >= 0",
                    getattr(self, name))
         _check(0 <= self.outlier_rate < 1, "dvl.outlier_rate", "a share in [0, 1)",
@@ -410,6 +418,8 @@ class DvlConfig:
                self.water_track)
         _check(self.water_track_range > 0, "dvl.water_track_range", "a distance > 0 m",
                self.water_track_range)
+        _check(self.slow_error_time > 0, "dvl.slow_error_time", "a correlation time > 0 s",
+               self.slow_error_time)
         _check(not self.water_track or self.water_track_range <= self.max_range,
                "dvl.water_track_range", f"a distance of at most max_range = "
                f"{self.max_range:g} m with water_track on", self.water_track_range)
@@ -488,7 +498,10 @@ class ImuConfig:
     ``+ G f`` (g-sensitivity, f the true specific force). S (diagonal scale factors), M
     (off-diagonal misalignment) and G are drawn per mission, N(0, std^2) per element; b(t)
     is a first-order Gauss-Markov process with steady-state std ``*_bias_instability``;
-    white noise std = density * sqrt(rate).
+    white noise std = density * sqrt(rate). The true values are those of a flat world that
+    does not rotate, or with a geographic origin (``Config.location``) of the rotating
+    Earth there: the gyros' true rate includes the Earth's, the true specific force the
+    WGS-84 normal gravity and the Coriolis term (``LocationConfig``).
 
     Attributes:
         rate_hz: sample rate; also the rate of the truth group.
@@ -719,6 +732,57 @@ class WaterConfig:
 
 
 @dataclass(frozen=True)
+class LocationConfig:
+    """Where on the Earth the missions are flown: the geographic origin of the local NED
+    frame (the point north 0, east 0 on the sea surface). Both or neither.
+
+    Without it (the default) the world is auvsim's flat one that does not rotate, with the
+    vehicle model's gravity (9.81 m/s^2 in ``models/auv.xml``): every dataset made before
+    it is unchanged. With it the vehicle's motion (MuJoCo's, unchanged) is read as motion
+    over an Earth that rotates (WGS-84, ``auvsim.physics.earth``), and what an inertial
+    sensor measures follows, at the origin's latitude:
+
+    - the gyros read ``w_ib = w_nb + C^T w_ie``: the body's rate in the local frame
+      (``truth/angular_rate``) plus the Earth's rate (15.04 deg/h: north
+      ``Omega cos(lat)``, down ``-Omega sin(lat)``) in body axes;
+    - the accelerometers read ``f = C^T (a + 2 w_ie x v - g_n)``, ``g_n`` the WGS-84
+      normal gravity at the latitude and the IMU's depth (``normal_gravity(lat,
+      -depth)``) instead of the model's gravity, with the Coriolis term of the frame's
+      rotation (v the IMU's NED velocity); ``truth/specific_force`` is this ideal reading.
+
+    A dataset's missions share one place, as they share the seafloor and the water; each
+    mission records it (attributes ``latitude_deg``, ``longitude_deg``, and ``gravity``
+    the normal gravity at the origin). The longitude changes nothing measured (the normal
+    gravity and the Earth's rate depend on the latitude alone); it places the missions on
+    a map.
+
+    Attributes:
+        latitude_deg: geodetic latitude, deg in [-90, 90] (north positive); None: none.
+        longitude_deg: longitude, deg in [-180, 180] (east positive); None: none.
+    """
+
+    latitude_deg: float | None = None
+    longitude_deg: float | None = None
+
+    def __post_init__(self) -> None:
+        for name, most in (("latitude_deg", 90.0), ("longitude_deg", 180.0)):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            _finite(f"location.{name}", value)
+            _check(abs(value) <= most, f"location.{name}",
+                   f"deg in [-{most:g}, {most:g}]", value)
+        _check((self.latitude_deg is None) == (self.longitude_deg is None),
+               "location", "both latitude_deg and longitude_deg, or neither",
+               dataclasses.asdict(self))
+
+    @property
+    def given(self) -> bool:
+        """Whether the missions have a geographic origin (else: the flat world)."""
+        return self.latitude_deg is not None
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that determines a dataset.
 
@@ -733,6 +797,8 @@ class Config:
         depth: the pressure depth sensor and its error model.
         water: the current and the motion disturbances (default: still water, none).
         compression: HDF5 compression, ``lzf`` (fast) or ``gzip`` (read by every HDF5 tool).
+        location: where on the Earth the missions are flown (``LocationConfig``; default:
+            nowhere, the flat world that does not rotate).
     """
 
     vehicle: VehicleConfig = field(default_factory=VehicleConfig)
@@ -743,6 +809,7 @@ class Config:
     depth: DepthConfig = field(default_factory=DepthConfig)
     compression: str = "lzf"
     water: WaterConfig = field(default_factory=WaterConfig)
+    location: LocationConfig = field(default_factory=LocationConfig)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "missions", tuple(self.missions))

@@ -21,7 +21,7 @@ from auvsim.config import (
     SeafloorConfig,
 )
 from auvsim.data.reader import open_dataset
-from auvsim.data.schema import schema
+from auvsim.data.schema import FORMAT_VERSION, schema
 from auvsim.errors import DatasetError
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import PRESETS, preset
@@ -78,8 +78,9 @@ def test_every_schema_field_is_written(ideal_file):
         np.testing.assert_array_equal(m.imu.index_of_dvl, np.arange(pings) * 100)
         np.testing.assert_array_equal(m.dvl.time,
                                       m.truth.time[m.imu.index_of_dvl])
-        for attr in attrs:
-            assert attr.name in m.attrs
+        for attr in attrs:  # an optional one (the geographic origin's) only where given
+            assert attr.name in m.attrs or attr.optional, attr.name
+        assert "latitude_deg" not in m.attrs  # IDEAL has no geographic origin
         assert m.attrs["dvl_scale_factor"].shape == (4,)
 
 
@@ -402,7 +403,7 @@ def facts_file(dataset_of):
 def test_missions_store_their_gravity_and_phases(facts_file):
     phases, gravity = _rebuilt(FACTS)
     with open_dataset(facts_file) as f:
-        assert f.version == 6
+        assert f.version == FORMAT_VERSION >= 6
         for name, m in f.missions.items():
             assert m.gravity == gravity == 9.81
             assert m.phases == phases[name] and m.phases

@@ -66,8 +66,13 @@ def _mission(name: str, m: Mission) -> list[str]:
                 f"{a['source_sha256'][:12]}...), seed {a['seed']}, {a['duration_s']:g} s; no "
                 "truth, IMU or controls"]
     gravity = m.gravity
+    place = ""
+    if "latitude_deg" in a:  # a geographic origin (schema v7)
+        lat, lon = float(a["latitude_deg"]), float(a["longitude_deg"])
+        place = (f", at {abs(lat):g} deg {'N' if lat >= 0 else 'S'}, {abs(lon):g} deg "
+                 f"{'E' if lon >= 0 else 'W'} (the rotating Earth)")
     lines = [f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, vehicle "
-             f"{a['vehicle']}" + (f", gravity {gravity:g} m/s^2" if gravity else "")]
+             f"{a['vehicle']}" + (f", gravity {gravity:g} m/s^2" if gravity else "") + place]
     phases = m.phases
     if phases:
         listed = ", ".join(f"{label} {start:g}-{end:g} s"

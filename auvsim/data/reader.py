@@ -442,8 +442,8 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
     else:
         fields, attrs = schema(origin, version)
     missing = [fl.path for fl in fields if not isinstance(group.get(fl.path), h5py.Dataset)]
-    missing += [f"attribute {a.name}" for a in attrs
-                if a.name not in group.attrs and not (a.name == "origin" and version == 1)]
+    missing += [f"attribute {a.name}" for a in attrs if a.name not in group.attrs
+                and not a.optional and not (a.name == "origin" and version == 1)]
     if missing:
         raise DatasetError(f"{where} lacks {', '.join(missing)} (schema v{version})")
     for a in attrs:  # attributes first: they are small, and say what the fields mean

@@ -58,7 +58,11 @@ FORMAT = "auvsim-dataset"
 # mission's ``groups`` attribute (``recorded_schema``). A new origin changes what a
 # reader must expect of a mission, so the version says it: a version-6 reader refuses the
 # file in one line instead of misreading it. Simulated and imported missions are written
-# as in version 6, array by array; older files are read as before.
+# as in version 6, array by array; older files are read as before. Also from version 7, a
+# simulated mission flown at a geographic origin (``auvsim.config.LocationConfig``) holds
+# the optional attributes ``latitude_deg`` and ``longitude_deg``, its ``gravity`` is the
+# WGS-84 normal gravity there, and its IMU measured the rotating Earth; without an
+# origin, nothing changes.
 FORMAT_VERSION = 7
 READABLE_VERSIONS = (1, 2, 3, 4, 5, 6, 7)
 INDEX = "index.h5"  # a sharded dataset's index, in its folder
@@ -96,10 +100,17 @@ CORE_ATTRS = (
     Attr("water_direction_deg", (), "REALISED direction the surface current flows toward, "
          "deg from north", since=4),
     Attr("gravity", (), "m/s^2, magnitude of the vehicle model's gravity (its compiled MJCF's "
-         "opt.gravity, pointing down)", low=0, strict=True, since=6),
+         "opt.gravity, pointing down); with a geographic origin (v7), the WGS-84 normal "
+         "gravity at it on the surface", low=0, strict=True, since=6),
     Attr("phases", None, "the manoeuvre's phases, a JSON list of [start s, end s, label] "
          "(auvsim.physics.maneuvers.Maneuver.phases; [] for a mission flown by a policy, "
          "such as an environment's episode)", since=6),
+    # A simulated mission flown at a geographic origin (auvsim.config.LocationConfig).
+    Attr("latitude_deg", (), "geodetic latitude of the mission origin, deg (only with a "
+         "geographic origin: its IMU measures the Earth's rate and normal gravity there)",
+         since=7, optional=True),
+    Attr("longitude_deg", (), "longitude of the mission origin, deg (with latitude_deg)",
+         since=7, optional=True),
 )
 IMPORT_ATTRS = (Attr("source_file", None, "the recording"),
                 Attr("source_sha256", None, "its SHA-256"))
@@ -313,7 +324,7 @@ def mission_attrs(*, origin: str, **attrs) -> dict[str, object]:
     out = dict(origin=origin, **attrs)
     needed = (recorded_schema(parse_groups(out.get("groups")))[2] if origin == "recorded"
               else schema(origin)[1])
-    missing = [a.name for a in needed if a.name not in out]
+    missing = [a.name for a in needed if a.name not in out and not a.optional]
     if missing:
         raise ValueError(f"mission attributes: {origin} missions need {', '.join(missing)}")
     return out

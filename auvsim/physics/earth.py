@@ -78,3 +78,56 @@ def _ecef(lat: np.ndarray, lon: np.ndarray, h: np.ndarray) -> np.ndarray:
     n = A / np.sqrt(1.0 - E2 * np.sin(lat) ** 2)
     return np.stack([(n + h) * np.cos(lat) * np.cos(lon), (n + h) * np.cos(lat) * np.sin(lon),
                      (n * (1.0 - E2) + h) * np.sin(lat)], axis=-1)
+
+
+# What an inertial sensor measures over this Earth, for the simulator (``auvsim.config.
+# LocationConfig``). MuJoCo flies the vehicle in a flat NED frame fixed to the ground,
+# with the model's gravity along its down axis; with a geographic origin that frame is
+# read as the local NED frame at the origin, turning with the Earth. Order of magnitude
+# of what is and is not added, at the Snapir's 2 m/s and 32.85 N, against the navigation
+# grade's in-run biases (10 micro-g, 0.01 deg/h; auvsim.sensors.imu):
+# - the Earth's rate, 15.04 deg/h: added (gyro);
+# - normal gravity instead of the model's 9.81: 9.7955 m/s^2 at 32.85 N, 1.5 milli-g
+#   less; its free-air increase with depth, 3.09e-6 m/s^2 per m (6 micro-g at 20 m):
+#   added (accelerometer). Under water the water above pulls up, 4 pi G rho = 0.86e-6
+#   m/s^2 per m less (Bouguer), 1.8 micro-g at 20 m: left out, as normal gravity does;
+# - the Coriolis term 2 w_ie x v: at 2 m/s, 2 Omega sin(lat) v = 1.6e-4 m/s^2 (16
+#   micro-g) across the track, and up to 2 Omega cos(lat) v = 2.4e-4 m/s^2 vertically on
+#   an east or west heading: one and a half to two and a half times the in-run bias, and
+#   what a navigation filter subtracts whenever it models the Earth's rate (left in the
+#   data, a filter would read it as a bias that turns with the heading): added
+#   (accelerometer);
+# - the transport rate v / R, 3.1e-7 rad/s (0.065 deg/h) at 2 m/s, and its term in the
+#   accelerometers, 6e-7 m/s^2 (0.06 micro-g): left out. The flat world does not curve,
+#   so its frame does not turn as the vehicle moves; over a 600 s mission it would turn
+#   the heading by 0.011 deg;
+# - the latitude held at the origin's: 1 km north changes the Earth's rate by 0.002
+#   deg/h and gravity by 7.4e-6 m/s^2 (0.8 micro-g).
+def specific_force_on_earth(flat_specific_force: np.ndarray, rotation: np.ndarray,
+                            velocity_ned: np.ndarray, depth: np.ndarray, *,
+                            latitude_deg: float, flat_gravity: float) -> np.ndarray:
+    """(N, 3) specific force an ideal accelerometer reads on the rotating Earth, m/s^2,
+    body: ``f = C^T (a + 2 w_ie x v - g_n)`` (the velocity equation of Groves' local
+    navigation frame, ch. 5, without the transport rate), with
+    g_n = (0, 0, ``normal_gravity(latitude_deg, -depth)``), from the flat world's
+    ``f_flat = C^T (a - g_flat)``, whose gravity is (0, 0, ``flat_gravity``)::
+
+        f = f_flat + C^T ((g_flat - g_n) e_down + 2 w_ie x v)
+
+    Args:
+        flat_specific_force: (N, 3) m/s^2, body, the flat world's.
+        rotation: (N, 3, 3) body -> NED, C.
+        velocity_ned: (N, 3) m/s, the sensor's velocity over the ground, NED.
+        depth: (N,) m, the sensor's depth (positive down).
+        latitude_deg: deg, the origin's.
+        flat_gravity: m/s^2, the flat world's gravity.
+    """
+    extra = 2.0 * np.cross(earth_rate_ned(latitude_deg), velocity_ned)
+    extra[:, 2] += flat_gravity - normal_gravity(latitude_deg, -np.asarray(depth, float))
+    return flat_specific_force + np.einsum("nji,nj->ni", rotation, extra)
+
+
+def earth_rate_body(rotation: np.ndarray, latitude_deg: float) -> np.ndarray:
+    """(N, 3) the Earth's rate in body axes, rad/s: ``C^T w_ie`` with C the (N, 3, 3)
+    body -> NED rotations, what a gyro at rest in the local NED frame reads."""
+    return np.einsum("nji,j->ni", rotation, earth_rate_ned(latitude_deg))

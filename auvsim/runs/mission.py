@@ -21,6 +21,8 @@ from auvsim.config import Config, MissionConfig
 from auvsim.data.schema import core_block, mission_attrs, phases_json
 from auvsim.data.streams import mission_streams
 from auvsim.errors import ConfigError, SimulationError
+from auvsim.physics.earth import normal_gravity, specific_force_on_earth
+from auvsim.physics.frames import rotation_matrices
 from auvsim.physics.maneuvers import check_scenario, make_maneuver
 from auvsim.physics.vehicle import Trajectory, Vehicle
 from auvsim.physics.water import Disturbance, Water
@@ -99,12 +101,17 @@ class MissionRun:
         for sensor in self.sensors:
             sensed.update(sensor.attrs())
         # Gravity points down in every model auvsim loads (auvsim.physics.hydro checks it).
+        gravity = -float(self.vehicle.model.opt.gravity[2])
+        place = self.config.location
+        if place.given:  # the Earth's, at the origin on the surface (LocationConfig)
+            sensed.update(latitude_deg=place.latitude_deg, longitude_deg=place.longitude_deg)
+            gravity = normal_gravity(place.latitude_deg, 0.0)
         return mission_attrs(origin="simulated", scenario=m.scenario.name, seed=m.seed,
                              duration_s=m.scenario.duration, vehicle=self.config.vehicle.model,
                              water_surface_speed=self.water.surface_speed,
                              water_direction_deg=self.water.direction_deg,
-                             gravity=-float(self.vehicle.model.opt.gravity[2]),
-                             phases=phases_json(self.scenario.phases()), **sensed)
+                             gravity=gravity, phases=phases_json(self.scenario.phases()),
+                             **sensed)
 
     @property
     def samples(self) -> int:
@@ -183,6 +190,8 @@ class MissionRun:
                       traj.position_ned, traj.velocity_ned, traj.velocity_body,
                       traj.quaternion, traj.angular_rate, traj.specific_force,
                       traj.current_ned, traj.velocity_water_body)
+        if self.config.location.given:
+            truth = truth._replace(specific_force=self._on_earth(truth))
         sensed = {}
         for sensor in self.sensors:
             sensed.update(sensor.measure(truth, self.noise[sensor.name]))
@@ -192,6 +201,19 @@ class MissionRun:
         return {**core_block(truth, propeller_rpm=actuators[:, 0], thrust=traj.thrust,
                              rudder=actuators[:, 1], stern_planes=actuators[:, 2],
                              altitude=altitude), **sensed}
+
+    def _on_earth(self, truth: Truth) -> np.ndarray:
+        """The truth's specific force on the rotating Earth at the config's origin: what
+        an ideal accelerometer at the IMU site reads there (``LocationConfig``), from the
+        flat world's (``auvsim.physics.earth.specific_force_on_earth``)."""
+        rot = rotation_matrices(truth.quaternion)
+        imu = self.vehicle.imu_position
+        v_imu = truth.velocity_ned + np.einsum("nij,nj->ni", rot,
+                                               np.cross(truth.angular_rate, imu))
+        return specific_force_on_earth(
+            truth.specific_force, rot, v_imu, truth.position_ned[:, 2] + rot[:, 2] @ imu,
+            latitude_deg=self.config.location.latitude_deg,
+            flat_gravity=-float(self.vehicle.model.opt.gravity[2]))
 
     def _altitude(self, truth: Truth) -> np.ndarray:
         pos, t = truth.position_ned, truth.time

@@ -9,6 +9,7 @@ from auvsim.config import (
     Config,
     DepthConfig,
     DvlConfig,
+    LocationConfig,
     MissionConfig,
     ScenarioConfig,
     SeafloorConfig,
@@ -100,16 +101,53 @@ NAVIGATOR_WATER = WaterConfig(
     turbulence_time=3.0, rpm_jitter_std=2.0, fin_jitter_std_deg=0.2, jitter_time=1.0)
 
 
+# The Snapir's waters: the Mediterranean off Haifa, where the shared real segments were
+# recorded (../shared/data/snapir-akit/README.md); the first point of Trajectory1's
+# reference, GT_trajectory1.csv, is at 32.8498 N, 34.8922 E (its six segments start within
+# 32.8498-32.8582 N, 34.8922-34.9350 E). There the WGS-84 normal gravity is 9.7955 m/s^2,
+# the mean |f| the issue found in the data on quiet stretches, and the Earth's rate has a
+# north component of 12.64 deg/h and a down one of -8.16 deg/h.
+SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
+
+
 def navigator() -> Config:
     """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
     A18-D over gently rough terrain, with a navigation-grade IMU.
 
     Figures of the Teledyne RDI Workhorse Navigator (its published specification): 30 deg
     Janus beams; bottom track about 0.7 to 90 m; long-term accuracy about 0.2 % of speed
-    +/- 1 mm/s (taken here as the per-mission spread of the scale factor and bias); beam
-    noise 0.02 m/s (what the Snapir's DVL is given in the BeamsNet lab's later datasets).
-    1 Hz as in the paper's data. The terrain (1 m roughness, 25 m features, 60 m deep) is
-    our choice.
+    +/- 1 mm/s (taken here as the per-mission spread of the scale factor and bias;
+    ../shared/reference/sensors.md). 1 Hz as in the paper's data. The terrain (1 m
+    roughness, 25 m features, 60 m deep) is our choice.
+
+    Its velocity error, split into what one ping adds and what survives averaging
+    (``benchmarks/dvl_error.py`` prints the figures):
+
+    - White beam noise, per beam and ping, is what the error velocity shows. The Snapir's
+      own Navigator reports an error velocity of std 4.9 mm/s (robust std 4.4 mm/s) over
+      15,393 valid pings of the MissBeamNet logs (Yona & Klein 2024), white (lag-1
+      autocorrelation 0.09), growing with speed (2.0 mm/s below 0.5 m/s, 5.2 at 1.8-2.2
+      m/s, 5.6 above) and not with altitude (5.6 mm/s at 10-20 m, 3.1 at 45-60 m). With
+      auvsim's error velocity ``e = (y1 + y3 - y2 - y4) / (2 sqrt(2) sin(alpha))`` (RDI's
+      scaling) white beam noise sigma gives ``std(e) = sigma / (sqrt(2) sin(alpha))`` =
+      sqrt(2) sigma at 30 deg, the std of one horizontal component. The line through the
+      logs' speed bins, std(e) = 1.6 mm/s + 1.7 mm/s per m/s, so gives sigma = 1.2 mm/s +
+      1.2 mm/s per m/s of speed, with no range term: 5.1 mm/s of e at 2 m/s.
+    - The slower errors the beams share do not show in the error velocity: the
+      per-mission scale factor, bias, sound speed and misalignment below, and a
+      time-correlated velocity error dv (Gauss-Markov, ``slow_error_std``). The Snapir's
+      DVL is published with a velocity standard deviation of 0.02 m/s (Cohen & Klein 2025,
+      A-KIT; ../shared/data/snapir-akit/README.md; sensors.md: "sigma 0.02 m/s"): per axis
+      at 2 m/s, white 5.1 mm/s, scale factor 2.0, sound speed 6.0 and bias 1.4 mm/s leave
+      sqrt(20^2 - 5.1^2 - 2^2 - 6^2 - 1.4^2) = 18 mm/s for dv. Its correlation time, 3 s,
+      is measured on the same logs: the along-track difference between the DVL and the
+      reference's body-frame velocity has a std of 22 mm/s on the two straight segments
+      (5 and 6) and decorrelates with tau = -1 s / ln r(1) = 2.5 and 3.3 s there (3.0-5.6
+      s on all six, whose turns add the lever arm's and clocks' effects). It agrees with
+      the Navigator's long-term accuracy: averaged over T >> tau, dv leaves 18 mm/s
+      sqrt(2 tau / T), 0.7 mm/s over an hour, within 0.2 % +/- 1 mm/s; and with dead
+      reckoning, where it adds 18 mm/s sqrt(2 tau T) = 0.9 m per axis over 400 s, below
+      the 1.5 m median final error of the real segments' DVL dead reckoning (issue 24).
 
     The DVL loses lock and errs as an instrument does (``DvlConfig``):
 
@@ -124,10 +162,8 @@ def navigator() -> Config:
       lost, one beam (index 2, the third) dead from 300 to 360 s and a soft bottom from 450 to 480 s
       (lock lost on every beam): our choices, so that every default mission shows each
       kind of loss.
-    - Beam noise grows by 2 mm/s per m/s of speed and 0.1 mm/s per m of range (at 2 m/s
-      and 46 m, 0.029 m/s instead of 0.02): our choice of terms of the form of Teledyne
-      RDI's specifications (a constant plus a share of the speed); the single-ping
-      figures of the Navigator's datasheet were not at hand.
+    - Beam noise grows with speed as the real error velocity does (above); the real logs
+      show no growth with range, so there is no range term.
     - Outliers: 0.2 % of beam-pings, Student t of std 0.3 m/s (our choice: the spikes of
       tenths of a m/s a real log shows).
     - Sound speed: a spread of 0.3 % of c_true / c_assumed. By Medwin's formula, which
@@ -148,23 +184,29 @@ def navigator() -> Config:
     (4 mbar, 0.04 m of sea water at 9.94 m/bar; taken as the per-mission offset's spread)
     and a resolution of 5 ppm FS (0.1 mbar, 1 mm). Its noise (2 mm, two resolution steps)
     and its 10 Hz rate are our assumptions: the datasheet gives neither.
+
+    The missions are flown in the Snapir's waters off Haifa (``SNAPIR_WATERS``), so the
+    IMU measures the Earth's rate and the WGS-84 normal gravity there, as the real logs'
+    IMU does (``auvsim.config.LocationConfig``).
     """
     return Config(
         missions=(MissionConfig(),),
         seafloor=SeafloorConfig(kind="procedural", depth=60.0, roughness=1.0,
                                 correlation_length=25.0),
         dvl=DvlConfig(rate_hz=1.0, beam_angle_deg=30.0, min_range=0.7, max_range=90.0,
-                      scale_factor_std=0.002, bias_std=0.001, noise_std=0.02,
+                      scale_factor_std=0.002, bias_std=0.001, noise_std=0.0012,
                       echo_loss_range=80.0, echo_loss_width=4.0, grazing_loss_angle_deg=60.0,
                       grazing_loss_width_deg=3.0, dropout_rate=0.02, dropout_burst=3.0,
                       ping_dropout_rate=0.005, beam_failures=((2, 300.0, 360.0),),
-                      lock_loss_intervals=((450.0, 480.0),), noise_range_coeff=1e-4,
-                      noise_speed_coeff=0.002, outlier_rate=0.002, outlier_std=0.3,
+                      lock_loss_intervals=((450.0, 480.0),), noise_range_coeff=0.0,
+                      noise_speed_coeff=0.0012, outlier_rate=0.002, outlier_std=0.3,
                       sound_speed_std=0.003, misalignment_std_deg=0.1, water_track=True,
-                      water_track_range=10.0, water_track_noise_std=0.05),
+                      water_track_range=10.0, water_track_noise_std=0.05,
+                      slow_error_std=0.018, slow_error_time=3.0),
         imu=IMU_GRADES["navigation-full"],
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
         water=NAVIGATOR_WATER,
+        location=SNAPIR_WATERS,
     )
 
 
@@ -181,7 +223,8 @@ def realistic_maneuvers(duration: float = 600.0) -> Config:
     with the navigator's water, terrain and sensors (every DVL failure and error, the
     calibrated IMU errors). Each mission draws its current from the navigator's
     distribution (surface speed 0.1-1 m/s, any direction), so the turns sway the DVL
-    frame by up to the current either way."""
+    frame by up to the current either way. In the navigator's place, the Snapir's waters
+    (``SNAPIR_WATERS``)."""
     nav = navigator()
     missions = []
     for i, (name, kind, options) in enumerate(MANEUVER_MISSIONS):
@@ -208,7 +251,10 @@ def sim2real(duration: float = 600.0, mounting_yaw_deg: float = SNAPIR_MOUNTING_
     the DVL error model the BeamsNet paper put on the Snapir streams (paper-sim's DVL: 20
     deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s, no failures), mounted yawed
     ``mounting_yaw_deg`` from the body (the Snapir's 45 deg by default), so that its
-    DVL-frame velocities are what the Snapir's DVL frame sees."""
+    DVL-frame velocities are what the Snapir's DVL frame sees. The place is
+    ``realistic_maneuvers``'s, the Snapir's waters, where the real streams were recorded:
+    the IMU (which the Snapir streams' models do not read) measures the Earth there, and
+    the DVL's data are those of a flat world's (the place changes no DVL array)."""
     dvl = dataclasses.replace(_paper(PAPER_NOISE_CODE).dvl,
                               mounting_rpy_deg=(0.0, 0.0, float(mounting_yaw_deg)))
     return dataclasses.replace(realistic_maneuvers(duration), dvl=dvl)
@@ -217,7 +263,8 @@ def sim2real(duration: float = 600.0, mounting_yaw_deg: float = SNAPIR_MOUNTING_
 PRESETS = {
     "navigator": ("physical default: one mission over rough terrain in a coastal current "
                   "with turbulence; a Navigator-like 30 deg DVL with every failure and error "
-                  "beyond eq. 7 (water track included); the navigation-full IMU", navigator),
+                  "beyond eq. 7 (water track included); the navigation-full IMU, off Haifa "
+                  "(the Earth's rate, WGS-84 gravity)", navigator),
     "paper-sim": ("the BeamsNet paper's simulation as its code ran it: 1, 2, 3 m/s x 7200 s, "
                   "20 deg beams, s = 0.7 %, b = 1e-4 m/s, sigma = 0.042^2 m/s",
                   lambda: _paper(PAPER_NOISE_CODE)),
@@ -228,7 +275,7 @@ PRESETS = {
                   "line, 600 s each at 2 m/s, with the paper-sim sensors", maneuvers),
     "realistic-maneuvers": ("the same manoeuvres at 2 m/s and at 0.8 m/s, 600 s each, each "
                             "in its own current, with the navigator's terrain, disturbances "
-                            "and every DVL and IMU effect", realistic_maneuvers),
+                            "and every DVL and IMU effect, off Haifa", realistic_maneuvers),
     "sim2real": ("the realistic manoeuvres with the paper's DVL error model on the Snapir's "
                  "streams and its DVL mounting (yawed 45 deg): beamsnet reproduce sim2real "
                  "trains on it", sim2real),

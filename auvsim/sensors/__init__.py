@@ -68,7 +68,8 @@ class Attr(NamedTuple):
     """One mission attribute of the schema: ``shape`` ``()`` for a number, ``(n,)`` for a
     vector of n numbers, ``None`` for a string; ``low`` the least value it may take (and
     ``strict`` whether it must exceed it), ``whole`` for a whole number; ``since`` the
-    first schema version that holds it."""
+    first schema version that holds it; ``optional`` for one only some missions hold
+    (checked where present)."""
 
     name: str
     shape: tuple[int, ...] | None
@@ -78,6 +79,7 @@ class Attr(NamedTuple):
     strict: bool = False
     whole: bool = False
     since: int = 1
+    optional: bool = False
 
 
 class Platform(NamedTuple):

@@ -17,15 +17,18 @@ eq. 7 (``DvlConfig``; each effect off by default, and then every array is what i
 per beam and ping a reason code (``Status``, ``dvl/status``) says why a beam has no bottom
 lock; the measured beams are, per beam k (bottom track)::
 
-    y_k = (1 + s_k) (b_k . v) / (c_true / c_assumed) + bias_k + n_k + o_k
+    y_k = (1 + s_k) (b_k . v) / (c_true / c_assumed) + bias_k + n_k + o_k + b_k . dv
 
 with n_k of std ``noise_std + noise_range_coeff * r_k + noise_speed_coeff * |v|``
 (``beam_noise_std``) and o_k a heavy-tailed outlier on a share ``outlier_rate`` of the
-beam-pings; the ray casts and v use the TRUE mounting (nominal mounting times a realised
-misalignment). With ``water_track`` on, a ping with fewer than 3 bottom-locked beams
-measures ``H (v - v_water)`` instead (``dvl/mode``). ``error_velocity`` is the instrument's
-error velocity. The realised sound-speed ratio and misalignment come from the
-``dvl_calibration`` stream, every per-ping draw of these effects from ``dvl_faults``.
+beam-pings and dv a time-correlated velocity error in the DVL frame (Gauss-Markov,
+``slow_velocity_error``), common to the beams; the ray casts and v use the TRUE
+mounting (nominal mounting times a realised misalignment). With ``water_track`` on, a
+ping with fewer than 3 bottom-locked beams measures ``H (v - v_water)`` instead
+(``dvl/mode``). ``error_velocity`` is the instrument's error velocity: white beam noise
+shows in it, dv (in the beams' span) does not. The realised sound-speed ratio and
+misalignment come from the ``dvl_calibration`` stream, every per-ping draw of these effects
+from ``dvl_faults``, dv from ``dvl_slow_error``.
 """
 
 from __future__ import annotations
@@ -257,6 +260,37 @@ def lock_status(time: np.ndarray, ranges: np.ndarray, *, config: DvlConfig,
     return status
 
 
+def slow_velocity_error(state: np.ndarray, pings: int, *, std: float, time: float,
+                        dt: float, rng: np.random.Generator) -> np.ndarray:
+    """A time-correlated DVL velocity error, first-order Gauss-Markov per axis:
+    ``dv[k + 1] = phi dv[k] + std sqrt(1 - phi^2) w[k]``, ``phi = exp(-dt / time)``,
+    ``w ~ N(0, 1)``; stationary std ``std``, autocorrelation ``exp(-lag / time)``.
+
+    Added to the beams as ``H dv``, it is a velocity error the four beams agree on (a
+    sound-speed or scale error that drifts, a bias of the bottom's echo): averaging pings
+    does not remove it within ``time``, and the error velocity, whose combination of the
+    beams is orthogonal to H's columns, does not see it.
+
+    Args:
+        state: (3,) dv at the first ping, DVL frame, m/s; updated in place to dv after the
+            last ping, so that blocks of any length give the same path.
+        pings: M, the number of pings.
+        std, time, dt: stationary std, m/s; correlation time, s; ping interval, s.
+        rng: the ``dvl_slow_error`` stream (three normals per ping, in ping order).
+
+    Returns:
+        (M, 3) dv at each ping, DVL frame, m/s.
+    """
+    phi = math.exp(-dt / time)
+    drive_std = std * math.sqrt(-math.expm1(-2.0 * dt / time))  # 1 - phi^2 loses digits
+    drive = rng.standard_normal((pings, 3))
+    out = np.empty((pings, 3))
+    for k in range(pings):
+        out[k] = state
+        state[:] = phi * state + drive_std * drive[k]
+    return out
+
+
 def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
     """(M,) the instrument's error velocity, m/s, from (M, 4) measured beams (NaN where a
     beam is missing, and then NaN).
@@ -456,6 +490,8 @@ class Effects(NamedTuple):
             layer the DVL tracks, or None: no water track.
         water_lock: (M, 4) bool, beams that can track it.
         water_noise: (M, 4) m/s, the water-track beams' noise.
+        slow_error: (M, 3) m/s, DVL frame, the time-correlated velocity error dv
+            (``slow_velocity_error``) added to every measured beam as ``H dv``, or None.
     """
 
     status: np.ndarray
@@ -466,6 +502,7 @@ class Effects(NamedTuple):
     water_velocity: np.ndarray | None
     water_lock: np.ndarray
     water_noise: np.ndarray
+    slow_error: np.ndarray | None = None
 
 
 def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlErrors,
@@ -478,7 +515,8 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
     track and ``v - v_water`` in water track (a ping with fewer than 3 bottom-locked beams
     and at least 3 beams that can see the water layer, when water track is on), n_k the
     eq. 7 noise plus ``extra_noise`` in bottom track and ``water_noise`` in water track,
-    and o_k the outlier error on bottom-locked outlier beams.
+    and o_k the outlier error on bottom-locked outlier beams; ``slow_error`` dv adds
+    ``b_k . dv`` to every beam, in either track (the instrument's own error).
 
     Args:
         velocity: (M, 3) true velocity over ground of the DVL in its frame, m/s (NaN rows:
@@ -516,6 +554,8 @@ def ping(velocity: np.ndarray, lock: np.ndarray, *, h: np.ndarray, errors: DvlEr
         valid = np.where(water[:, None], e.water_lock & finite[:, None], valid)
         signal = np.where(water[:, None], true_beams(velocity - e.water_velocity, h), signal)
         noise = np.where(water[:, None], e.water_noise, noise)
+    if e.slow_error is not None:
+        noise = noise + e.slow_error @ h.T
     y = _measured_beams(signal, errors.scale_factor, errors.bias, e.sound_speed_ratio, noise)
     if e.outlier is None:
         status = e.status.astype(np.int64)
@@ -570,7 +610,9 @@ class Dvl(Sensor):
     ``imu/index_of_dvl`` records them.
 
     Streams: ``dvl_parameters`` (scale factors, biases), ``dvl_noise`` (eq. 7's noise),
-    ``dvl_calibration`` (sound-speed ratio, misalignment) and ``dvl_faults``, split into
+    ``dvl_calibration`` (sound-speed ratio, misalignment), ``dvl_slow_error`` (the
+    Gauss-Markov velocity error, drawn only when ``slow_error_std`` > 0: its start, then
+    three normals per ping) and ``dvl_faults``, split into
     three children each drawn once per block in ping order, so that blocks of any length
     give the same pings: uniforms (M, 17: echo loss 4, grazing loss 4, dropout chain 4,
     ping dropout 1, outliers 4; the chain's first state 4 at the start), normals (M, 8:
@@ -579,7 +621,9 @@ class Dvl(Sensor):
 
     name = "dvl"
     section = "dvl"
-    streams = ("dvl_parameters", "dvl_noise", "dvl_calibration", "dvl_faults")
+    # dvl_slow_error is not in STREAMS: spawned after every earlier stream (stream_names).
+    streams = ("dvl_parameters", "dvl_noise", "dvl_calibration", "dvl_faults",
+               "dvl_slow_error")
     fields = (
         Field("dvl/time", (), "f", "dvl", "s", "ping times", imported=True),
         Field("dvl/velocity", (3,), "f", "dvl", "m/s", "TRUE DVL velocity in the (true) DVL "
@@ -621,9 +665,14 @@ class Dvl(Sensor):
              "are divided by it", low=0, strict=True, since=4),
         Attr("dvl_misalignment_rpy_deg", (3,), "REALISED misalignment, true DVL frame -> "
              "nominal DVL frame, ZYX, deg", since=4),
+        Attr("dvl_slow_error_std", (), "std of the Gauss-Markov velocity error dv per DVL "
+             "axis, m/s (0: none)", low=0, since=7),
+        Attr("dvl_slow_error_time", (), "its correlation time, s", low=0, strict=True,
+             since=7),
+        Attr("dvl_slow_error_start", (3,), "REALISED dv at t = 0, DVL frame, m/s", since=7),
     )
 
-    def __init__(self, config, platform, parameters, calibration, faults):
+    def __init__(self, config, platform, parameters, calibration, faults, slow):
         c = self.config = config.dvl
         self.platform = platform
         self.errors = draw_errors(c, parameters)
@@ -636,6 +685,11 @@ class Dvl(Sensor):
         self.every_imu = self.every(config)
         self.uniform, self.normal, self.heavy = faults.spawn(3)
         self.in_burst = self.uniform.random(4) < c.dropout_rate  # a stationary start
+        self.slow_rng = slow
+        # Started stationary, as the IMU's Gauss-Markov biases are; no draw when off.
+        self.slow_state = (c.slow_error_std * slow.standard_normal(3) if c.slow_error_std > 0
+                           else np.zeros(3))
+        self.slow_start = self.slow_state.copy()
 
     def rows(self, n_imu):
         return {"dvl": samples_in(n_imu, self.every_imu)}
@@ -650,7 +704,10 @@ class Dvl(Sensor):
                     dvl_max_range=c.max_range, dvl_mounting_rpy_deg=c.mounting_rpy_deg,
                     dvl_position_body=self.platform.vehicle.dvl_position,
                     dvl_sound_speed_ratio=self.calibration.sound_speed_ratio,
-                    dvl_misalignment_rpy_deg=self.calibration.misalignment_rpy_deg)
+                    dvl_misalignment_rpy_deg=self.calibration.misalignment_rpy_deg,
+                    dvl_slow_error_std=c.slow_error_std,
+                    dvl_slow_error_time=c.slow_error_time,
+                    dvl_slow_error_start=self.slow_start)
 
     def measure(self, truth, rng):
         c, vehicle, seafloor = self.config, self.platform.vehicle, self.platform.seafloor
@@ -718,12 +775,17 @@ class Dvl(Sensor):
                                                    directions[..., 2], np.nan)
             water_lock = ((~np.isfinite(ranges) | (ranges > layer)) & np.isfinite(layer)
                           & (status != _PING_DROPOUT) & (status != _BEAM_FAILED))
+        slow = None
+        if c.slow_error_std > 0:
+            slow = slow_velocity_error(self.slow_state, m, std=c.slow_error_std,
+                                       time=c.slow_error_time, dt=1.0 / c.rate_hz,
+                                       rng=self.slow_rng)
         return Effects(status=status, sound_speed_ratio=self.calibration.sound_speed_ratio,
                        extra_noise=extra,
                        outlier=u[:, 13:17] < c.outlier_rate if c.outlier_rate > 0 else None,
                        outlier_error=c.outlier_std / math.sqrt(3.0) * t,
                        water_velocity=water, water_lock=water_lock,
-                       water_noise=c.water_track_noise_std * n[:, 4:8])
+                       water_noise=c.water_track_noise_std * n[:, 4:8], slow_error=slow)
 
     def water_velocity(self, time: np.ndarray, origins: np.ndarray,
                        rotation: np.ndarray) -> np.ndarray:
@@ -766,6 +828,9 @@ def describe_mission(mission) -> list[str]:
              "pings solvable",
              f"    DVL errors: scale factor {shown(a['dvl_scale_factor'])}, bias "
              f"{shown(a['dvl_bias'])} m/s, noise std {a['dvl_noise_std']:g} m/s"]
+    if a.get("dvl_slow_error_std", 0) > 0:
+        lines[-1] += (f", slow error std {a['dvl_slow_error_std']:g} m/s over "
+                      f"{a['dvl_slow_error_time']:g} s (Gauss-Markov)")
     if "dvl_sound_speed_ratio" in a:
         lines.append(f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
                      f"misalignment {shown(a['dvl_misalignment_rpy_deg'])} deg (roll, pitch, "

@@ -21,6 +21,13 @@ stationary distribution, b[0] ~ N(0, sigma_b^2); u, v ~ N(0, 1) white. There is 
 quantisation or saturation. With S, M and G zero (every config before them) the output is
 bitwise that of the additive model: the products are skipped, not multiplied by zero.
 
+The true values are the truth's: f its ``specific_force`` and w its ``angular_rate``, the
+body's rate in the local NED frame. With a geographic origin (``auvsim.config.
+LocationConfig``) the gyros measure the rate in inertial space, ``w = w_nb + C^T w_ie``
+(``auvsim.physics.earth.earth_rate_body``), and f is already the rotating Earth's (normal
+gravity and the Coriolis term; the truth holds it so); without one the world is flat and
+does not rotate, w = w_nb, and the output is what it always was.
+
 Units (see ``auvsim``): specific force in m/s^2, angular rate in rad/s, body FRD axes.
 """
 
@@ -34,6 +41,8 @@ import numba
 import numpy as np
 
 from auvsim.config import ImuConfig
+from auvsim.physics.earth import earth_rate_body
+from auvsim.physics.frames import rotation_matrices
 from auvsim.sensors import Attr, Field, Sensor, shown
 
 G0 = 9.80665  # m/s^2, standard gravity: the g of micro-g and mg in datasheets
@@ -470,8 +479,9 @@ class ImuErrorModel:
 
 
 class Imu(Sensor):
-    """The IMU at its site: the truth's specific force and angular rate through
-    ``ImuErrorModel``, at every truth sample (the truth group runs at the IMU rate).
+    """The IMU at its site: the truth's specific force and angular rate (with a
+    geographic origin, plus the Earth's rate in body axes) through ``ImuErrorModel``, at
+    every truth sample (the truth group runs at the IMU rate).
 
     Streams: turn-on biases from ``imu_biases``, noise from ``imu_noise``, and the
     scale-factor, misalignment and g-sensitivity errors from ``imu_calibration`` (the
@@ -513,6 +523,7 @@ class Imu(Sensor):
 
     def __init__(self, config, platform, parameters, calibration):
         self.config = config.imu
+        self.latitude_deg = config.location.latitude_deg  # None: the flat world
         self.position = platform.vehicle.imu_position
         self.biases = draw_biases(config.imu, parameters)
         self.calibration = draw_calibration(config.imu, calibration)
@@ -547,7 +558,11 @@ class Imu(Sensor):
         if self.model is None:  # its four child streams, spawned once from the noise stream
             self.model = ImuErrorModel(self.config, self.biases, rng,
                                        calibration=self.calibration)
-        force, rate = self.model.corrupt(truth.specific_force, truth.angular_rate)
+        rate = truth.angular_rate
+        if self.latitude_deg is not None:  # in inertial space: the Earth's rate too
+            rate = rate + earth_rate_body(rotation_matrices(truth.quaternion),
+                                          self.latitude_deg)
+        force, rate = self.model.corrupt(truth.specific_force, rate)
         return {"imu/time": truth.time, "imu/specific_force": force, "imu/angular_rate": rate}
 
 
