@@ -559,7 +559,8 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict, correction
     lines.append(
         f"- Noise: the simulated DVL's white beam noise is {noise['dvl_noise_std']:g} m/s, "
         f"the logged instrument's (its specification in the log description) {logged:g} m/s:"
-        f" the simulated one is {ratio:.2g} times as noisy."
+        + (f" the simulated one is {ratio:.2g} times as noisy." if ratio >= 1 else
+           f" the logged one is {1 / ratio:.2g} times as noisy.")
         + (" An estimator that learned to average the simulated noise (the Kalman filters' "
            "random walk, CorrectionNet's past pings) smooths the real velocity's changes "
            "instead, which the real DVL, quieter, did not need: that is how we read the "
