@@ -22,6 +22,7 @@ EXAMPLES = """examples:
   auvsim inspect demo/straight.h5
   auvsim plot demo/straight.h5
   auvsim import DIR --format akit --out snapir.h5
+  auvsim check-log snapir.h5 --apply snapir-checked.h5
 
 Each command has its own --help."""
 
@@ -118,6 +119,7 @@ def _parser() -> argparse.ArgumentParser:
     imp.add_argument("--out", type=Path, required=True, metavar="FILE",
                      help="HDF5 file to write")
     _import_parser(sub)
+    _check_log_parser(sub)
     plot = sub.add_parser(
         "plot", help="draw each mission of a dataset to PNG",
         description="Draw each mission of a dataset to a PNG: track, depth over the "
@@ -183,6 +185,53 @@ def _import(args: argparse.Namespace) -> None:
                                 for g, (rows, rate) in groups.items()) + ")"
         for name, groups in summary.items())
     print(f"wrote {args.out}: {missions}")
+
+
+
+# ---- auvsim check-log: what a recorded log does not document (auvsim.data.checklog) ----
+
+
+def _check_log_parser(sub) -> None:
+    check = sub.add_parser(
+        "check-log", help="find a recorded log's IMU axes, clocks, lever arms and more",
+        description="Find what a recorded log does not document, from its data, against "
+        "its reference: the IMU's axis convention, each stream's clock offset and rate "
+        "error, the IMU's and the DVL's positions from the reference point, gravity, and "
+        "the DVL's scale and mounting; each with its evidence and a confidence. --apply "
+        "writes a corrected copy of the dataset.")
+    check.add_argument("file", type=Path, help="a dataset of recorded missions (auvsim "
+                       "import)")
+    check.add_argument("--mission", action="append", dest="missions", metavar="NAME",
+                       help="check this mission only (repeatable; default: all)")
+    check.add_argument("--json", action="store_true",
+                       help="print the findings as JSON instead of tables")
+    check.add_argument("--apply", type=Path, metavar="OUT.h5",
+                       help="write the dataset corrected by the findings to this file "
+                       "(default: none)")
+
+
+def _check_log(args: argparse.Namespace) -> None:
+    from auvsim.data.checklog import apply, check_log, to_json
+    from auvsim.data.reader import open_dataset
+
+    if args.apply is not None and args.apply.resolve() == args.file.resolve():
+        raise ConfigError(f"--apply: {str(args.apply)!r} is the log itself; expected another "
+                          "file (the log stays as recorded)")
+    with open_dataset(args.file) as ds:
+        others = len(ds.missions)
+        names = args.missions or list(ds.missions)
+        unknown = [n for n in names if n not in ds.missions]
+        if unknown:
+            raise ConfigError(f"--mission: {unknown[0]!r} is not in {str(args.file)!r}; "
+                              f"expected one of {', '.join(ds.missions)}")
+        reports = [check_log(ds.missions[n]) for n in names]
+    print(to_json(reports) if args.json else "\n\n".join(r.table() for r in reports))
+    if args.apply is not None:
+        apply(args.file, args.apply, reports)
+        if not args.json:
+            print(f"\nwrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
+                  + (f", {others - len(reports)} other mission(s) as they were"
+                     if others > len(reports) else ""))
 
 
 def _nameable(path: str) -> str:
@@ -335,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
                "import-velocity": _import_velocity, "import": _import,
-               "plot": _plot}[args.command]
+               "check-log": _check_log, "plot": _plot}[args.command]
     return run_command("auvsim", lambda: command(args), FLAGS)
 
 

@@ -47,6 +47,8 @@ MAX_CURRENT = 3.0  # m/s
 # time); from about 1e6 N on the REMUS 100 (1e8 N on the A18-D) MuJoCo's integration
 # blows up, and it resets the vehicle to rest.
 MAX_NET_BUOYANCY = 1000.0  # N
+SPEED_CONTROLS = ("speed", "rpm")  # VehicleConfig.speed_control
+HEADING_CONTROLS = ("pid", "full-rudder-turns")  # VehicleConfig.heading_control
 # Depths of the water, the seafloor and the terrain: the deepest ocean, the Challenger
 # Deep, is about 10.9 km deep.
 MAX_DEPTH = 11000.0  # m
@@ -116,16 +118,30 @@ class VehicleConfig:
             magnitude (with the ``water`` section's current added). The speed autopilot
             holds the speed through the water, so since schema v4 a closed-loop mission in
             a current flies at its set speed relative to the water, not over ground.
+        speed_control: ``speed`` (the default: the speed loop holds the set speed through
+            the water, raising the rpm in a turn) or ``rpm`` (the shaft holds the rpm that
+            gives the set speed in straight flight, as a real AUV commands propeller rpm, so
+            the vehicle slows in a turn; ``auvsim.physics.control.Gains.hold_rpm``).
+        heading_control: ``pid`` (the default: the heading PID throughout, whose yaw-rate
+            term backs the rudder off as a turn builds) or ``full-rudder-turns`` (a heading
+            change beyond the PID's braking point flown at full rudder, as a survey AUV
+            turns at the end of its lines; ``Gains.full_rudder_turns``).
     """
 
     model: str = "auv"
     net_buoyancy: float = 0.0
     current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    speed_control: str = "speed"
+    heading_control: str = "pid"
 
     def __post_init__(self) -> None:
         _check(isinstance(self.model, str) and self.model != "", "vehicle.model",
                "a vehicle name or model path", self.model)
         _finite("vehicle.net_buoyancy", self.net_buoyancy)
+        _check(self.speed_control in SPEED_CONTROLS, "vehicle.speed_control",
+               f"one of {', '.join(SPEED_CONTROLS)}", self.speed_control)
+        _check(self.heading_control in HEADING_CONTROLS, "vehicle.heading_control",
+               f"one of {', '.join(HEADING_CONTROLS)}", self.heading_control)
         _check(abs(self.net_buoyancy) <= MAX_NET_BUOYANCY, "vehicle.net_buoyancy",
                f"at most {MAX_NET_BUOYANCY:g} N either way (a trimmed vehicle's buoyancy "
                "minus weight)", self.net_buoyancy)

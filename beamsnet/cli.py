@@ -37,7 +37,9 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
          "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster",
          "refresh_reports": "--refresh-reports", "train_duration": "--train-duration",
-         "maneuver_duration": "--maneuver-duration"}
+         "maneuver_duration": "--maneuver-duration", "filter_config": "--filter-config"}
+FILTER_CONFIG_HELP = ("the INS/DVL filter's settings: a TOML file whose keys are fields of "
+                      "beamsnet.estimators.ins.FilterConfig (default: its defaults)")
 CLUSTER_HELP = ("run the training jobs on a Dask cluster: local:N or a scheduler's address "
                 "(needs auvsim[cluster])")
 QUIET_HELP = "no progress bars"
@@ -120,6 +122,8 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", type=Path, metavar="FOLDER",
                     help="report folder (evaluation.md, evaluation.json, plots; default: a "
                     "new runs/evaluation-DATE-TIME)")
+    ev.add_argument("--filter-config", type=Path, metavar="FILE.toml",
+                    help=FILTER_CONFIG_HELP)
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
@@ -133,6 +137,8 @@ def _parser() -> argparse.ArgumentParser:
                     + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
                     help="fit on this file's training split (default: the dataset's own)")
+    es.add_argument("--filter-config", type=Path, metavar="FILE.toml",
+                    help=FILTER_CONFIG_HELP)
     es.add_argument("--out", type=Path, metavar="FOLDER",
                     help="folder for estimates.csv and summary.json (default: a new "
                     "runs/estimate-DATE-TIME)")
@@ -275,9 +281,10 @@ def _train(args) -> None:
 def _evaluate(args) -> None:
     from beamsnet.evaluate import evaluate, markdown, navigation_markdown
 
+    config = _filter_config(args.filter_config)
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
-                       allow_mismatch=args.allow_mismatch)
+                       allow_mismatch=args.allow_mismatch, filter_config=config)
     for dataset, result in results.items():
         print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
         if "navigation" in result:
@@ -288,19 +295,27 @@ def _evaluate(args) -> None:
 def _estimate(args) -> None:
     from beamsnet.evaluate import estimate
 
+    config = _filter_config(args.filter_config)
     args.out = report_dir(args.out, False, "estimate")
-    summary = estimate(args.estimator, args.dataset, args.out, train=args.train)
+    summary = estimate(args.estimator, args.dataset, args.out, train=args.train,
+                       filter_config=config)
     print(f"{summary['estimator']} on {args.dataset}, scored against {summary['against']}"
           + (f"; beams derived as H v from the DVL's own velocity in "
              f"{', '.join(summary['beams_derived'])} (the log has none)"
              if summary.get("beams_derived") else ""))
     for mission, row in summary["missions"].items():
-        said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"]
+        said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"
+                + (" accepted" if "events" in row else "")]
+        if "events" in row:
+            said.append(f"{len(row['events'])} restart{'' if len(row['events']) == 1 else 's'}"
+                        " by the divergence watch")
         if "rmse_vector" in row:
             said.append(f"velocity RMSE {row['rmse_vector']:.4f} m/s")
         if "position" in row:
             said.append(_position_words(row["position"]))
         print(f"{summary['estimator']} on {mission}: " + ", ".join(said))
+        for event in row.get("events", []):
+            print(f"  {event}")
         for name, scores in row.get("baselines", {}).items():
             print(f"  {name}: {_position_words(scores)}")
     print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")
@@ -314,6 +329,15 @@ def _position_words(scores: dict) -> str:
     if "coverage_3sigma" in scores:
         words += f", within its 3 sigma {100 * scores['coverage_3sigma']:.1f} % of the time"
     return words
+
+
+def _filter_config(path: Path | None):
+    """The filter's settings from ``--filter-config`` (read before anything is written)."""
+    if path is None:
+        return None
+    from beamsnet.estimators.ins import load_config
+
+    return load_config(path)
 
 
 def _reproduce(args) -> None:

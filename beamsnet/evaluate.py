@@ -96,7 +96,8 @@ def estimates(runs: list[str | Path], dataset: str | Path,
 
 
 def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
-               missions: list[str] | None = None, **own) -> tuple[Windows, dict]:
+               missions: list[str] | None = None, *, filter_config=None,
+               **own) -> tuple[Windows, dict]:
     """``estimates`` for loaded models (run directory, model, checkpoint); ``own``: the
     dicts ``predictions`` fills with the filters' positions, sigmas and attitudes."""
     configs = [c["train_config"] for _, _, c in models]
@@ -108,7 +109,8 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
         train_w, test_w = split(windows, fraction)
     except ValueError as e:
         raise DataError(f"{dataset}: {e}") from None
-    return test_w, predictions(models, train_w, test_w, dataset=dataset, **own)
+    return test_w, predictions(models, train_w, test_w, dataset=dataset,
+                               filter_config=filter_config, **own)
 
 
 def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
@@ -185,10 +187,11 @@ def baselines() -> list:
     return [s.make() for s in specs("model-based")]
 
 
-def filters(dataset: str | Path, *, strict: bool = False) -> list:
+def filters(dataset: str | Path, *, strict: bool = False, filter_config=None) -> list:
     """The registry's filters, which run on the file itself (``dataset``, the one the test
     windows come from), unfitted: the INS/DVL filter integrates the IMU between pings,
-    which a window holds only in part.
+    which a window holds only in part. ``filter_config``: its settings
+    (``beamsnet.estimators.ins.FilterConfig``; None: the defaults).
 
     Raises:
         DataError: with ``strict``, a filter needs the IMU record and the file has none
@@ -206,14 +209,15 @@ def filters(dataset: str | Path, *, strict: bool = False) -> list:
                                 f"{s.name} filter integrates the IMU, so it cannot run on "
                                 "it")
             continue
-        out.append(s.make(dataset))
+        out.append(s.make(dataset) if filter_config is None
+                   else s.make(dataset, filter_config))
     return out
 
 
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
                 test_w: Windows, *, dataset: str | Path | None = None,
                 positions: dict | None = None, stds: dict | None = None,
-                rotations: dict | None = None) -> dict[str, np.ndarray]:
+                rotations: dict | None = None, filter_config=None) -> dict[str, np.ndarray]:
     """Every estimator's (S, 3) predictions on ``test_w``: the baselines fitted on
     ``train_w`` (and the INS/DVL filter run on ``dataset``, the file ``test_w`` comes
     from, if given), then the loaded ``models`` (run directory, model, checkpoint).
@@ -221,7 +225,8 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
     one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
     out: dict[str, np.ndarray] = {}
-    for baseline in baselines() + ([] if dataset is None else filters(dataset)):
+    for baseline in baselines() + ([] if dataset is None else filters(
+            dataset, filter_config=filter_config)):
         try:
             out[baseline.name] = baseline.fit(train_w).predict(test_w)
         except AuvsimError as e:
@@ -278,7 +283,7 @@ def _or_na(value: float, spec: str) -> str:
 
 
 def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path, *,
-             allow_mismatch: bool = False) -> dict:
+             allow_mismatch: bool = False, filter_config=None) -> dict:
     """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
 
     Args:
@@ -288,6 +293,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
             once every run and dataset has been read and checked.
         allow_mismatch: evaluate on data whose beam geometry or rates differ from a run's
             training data (with a warning) instead of refusing it.
+        filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
 
     Raises:
         ConfigError: ``out`` cannot be a directory; a dataset's sensors do not match.
@@ -302,7 +308,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         for run, _, checkpoint in models:
             check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
         own = dict(positions={}, stds={}, rotations={})
-        windows, predictions = _estimates(models, dataset, **own)
+        windows, predictions = _estimates(models, dataset, filter_config=filter_config, **own)
         for run, _, checkpoint in models:
             check_missions(run, checkpoint, dataset, list(windows.names))
         rows = table(windows, predictions)
@@ -360,7 +366,7 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
     save_figure(fig, path, dpi=110)
 
 
-def find_estimator(name: str, dataset: str | Path) -> object:
+def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> object:
     """The model-based estimator (or filter on ``dataset``) whose table name is ``name``,
     unfitted; case, spaces and dashes do not matter (``beam-calibration``).
 
@@ -377,7 +383,8 @@ def find_estimator(name: str, dataset: str | Path) -> object:
         if s.kind == "model-based":
             return s.make()
         try:
-            return next(f for f in filters(dataset, strict=True) if f.name == s.name)
+            return next(f for f in filters(dataset, strict=True, filter_config=filter_config)
+                        if f.name == s.name)
         except DataError as e:
             raise ConfigError(str(e), argument="estimator") from None
     known = [s.name for s in specs() if s.kind != "network"]
@@ -386,7 +393,7 @@ def find_estimator(name: str, dataset: str | Path) -> object:
 
 
 def estimate(name: str, dataset: str | Path, out: str | Path, *,
-             train: str | Path | None = None) -> dict:
+             train: str | Path | None = None, filter_config=None) -> dict:
     """Run one model-based estimator over every ping of ``dataset`` and write its
     velocity (and position, for a filter) beside the truth: ``out/estimates.csv``, and
     ``out/summary.json`` with its availability, vector RMSE and dead-reckoning error per
@@ -399,6 +406,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         out: the directory to write, made once every input has been checked.
         train: the file whose training split the estimator is fitted on (default the
             training split of ``dataset`` itself).
+        filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
 
     Returns:
         The summary.
@@ -408,7 +416,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             a file gives no samples.
     """
     out = check_out_dir(out)
-    estimator = find_estimator(name, dataset)
+    estimator = find_estimator(name, dataset, filter_config=filter_config)
     windows = load_windows(dataset, every_ping=True)
     check_truth(windows, dataset)
     train_windows = load_windows(dataset if train is None else train)
@@ -424,6 +432,10 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
                    availability=availability(pred), missions={})
     if windows.derived:
         summary["beams_derived"] = list(windows.derived)
+    if hasattr(estimator, "config"):
+        import dataclasses
+
+        summary["filter_config"] = dataclasses.asdict(estimator.config)
     truth = (truth_at_pings(dataset, windows) if _has_truth(dataset, windows.names)
              else None)
     navigation = (navigation_scores(windows, {estimator.name: pred}, truth,
@@ -436,6 +448,13 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         mine = windows.mission == i
         have = mine & np.isfinite(pred).all(axis=1)
         row = dict(pings=int(mine.sum()), availability=float(have.sum() / mine.sum()))
+        if hasattr(estimator, "tracks"):
+            # A filter outputs a number at every ping, diverged or not: its availability
+            # is the share of pings whose measurement it accepted, and its events say when
+            # its divergence watch restarted it.
+            track = estimator.tracks(windows)[mission]
+            row["availability"] = track.availability
+            row["events"] = [event.text for event in track.events]
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
@@ -446,6 +465,10 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             row["position"] = scores.pop(estimator.name)
             row["baselines"] = scores
         summary["missions"][mission] = row
+    if hasattr(estimator, "tracks"):
+        tracks = estimator.tracks(windows)
+        summary["availability"] = float(np.mean(np.concatenate(
+            [t.accepted for t in tracks.values()])))
     target = "true" if windows.reference == TRUTH else "reference"
     columns = ["mission", "time", "vx", "vy", "vz", f"{target}_vx", f"{target}_vy",
                f"{target}_vz"]

@@ -6,13 +6,22 @@ zigzag), then runs, side by side and alternating (these machines are noisy):
 
 * ``generate``: ``auvsim generate`` of that mission, HDF5 writing included;
 * ``filter``: ``beamsnet.estimators.ins.run_mission`` on it, HDF5 reading included (15 states);
-* ``filter+beams``: the same with the 8 beam states (23 states);
+* ``filter+beams``: the same with the 14 instrument states (29 states);
 * ``kernel``: the compiled filter loop alone (15 states), no file reading.
 
-Real-time factor per core = simulated seconds / CPU seconds of this (single-threaded)
-process; the first call (numba compiling, or loading its on-disk cache) is not timed.
+and, where the shared real logs are (``--akit``, default ``../shared/data/snapir-akit``),
+on a recorded segment (``Trajectory1``: 400 s, IMU 100 Hz, DVL velocity 1 Hz), the
+filter with its defaults for a real vehicle (``run_arrays``: 29 states with the DVL's
+scale factors, biases, misalignment and lever arm; the Earth's rate; the pings' timing):
 
-    .venv/bin/python benchmarks/filter.py [--duration 600] [--repeats 3]
+* ``recorded``: ``beamsnet.estimators.ins.run_arrays`` on the arrays (the CSVs read once,
+  untimed; their axes and clocks as published: the speed does not depend on them).
+
+Real-time factor per core = simulated (or recorded) seconds / CPU seconds of this
+(single-threaded) process; the first call (numba compiling, or loading its on-disk
+cache) is not timed.
+
+    .venv/bin/python benchmarks/filter.py [--duration 600] [--repeats 3] [--akit DIR]
 """
 
 from __future__ import annotations
@@ -24,6 +33,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import perf_page
 from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
 
@@ -38,6 +48,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=600.0, help="mission length, s")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--akit", type=Path, default=_shared_akit(),
+                        help="the shared real segments (skipped if absent)")
     perf_page.add_write_option(parser, "filter")
     args = parser.parse_args()
 
@@ -92,6 +104,48 @@ def main() -> None:
               f"{t / med['generate']:11.3f}")
     print(f"target: filter >= 1000x real time per core -> "
           f"{'met' if args.duration / med['filter'] >= 1000 else 'MISSED'}")
+    if (args.akit / "Trajectory1").is_dir():
+        recorded(args.akit / "Trajectory1", args.repeats)
+    else:
+        print(f"recorded segment: {args.akit} absent, not measured")
+
+
+def _shared_akit() -> Path:
+    """``../shared/data/snapir-akit`` beside the repository (or beside the folder of
+    worktrees it sits in)."""
+    for up in (perf_page.ROOT.parent, perf_page.ROOT.parent.parent):
+        if (up / "shared" / "data" / "snapir-akit").is_dir():
+            return up / "shared" / "data" / "snapir-akit"
+    return perf_page.ROOT.parent / "shared" / "data" / "snapir-akit"
+
+
+def recorded(folder: Path, repeats: int) -> None:
+    """The filter's speed on a recorded segment (the A-KIT layout's Trajectory1)."""
+    from auvsim.sensors.imu import IMU_GRADES
+
+    def load(kind: str) -> np.ndarray:
+        return np.loadtxt(folder / f"{kind}_trajectory1.csv", delimiter=",", skiprows=1)
+
+    imu, dvl, gt = load("IMU"), load("DVL"), load("GT")
+    grade = IMU_GRADES["navigation"]
+    start = ins.start_from_reference(
+        imu[0, 0], np.zeros(3), gt[0, 4:7], ins.rotation_vector_exp(np.array(
+            [0.0, 0.0, gt[0, 9]])), angular_rate=imu[0, 4:7])
+    inputs = dict(imu_time=imu[:, 0], specific_force=imu[:, 1:4], angular_rate=imu[:, 4:7],
+                  dvl_time=dvl[:, 0], velocity=dvl[:, 1:4], start=start,
+                  instrument=ins.Instrument(grade.accel_noise_density,
+                                            grade.gyro_noise_density, 5e-4, 5e-8, 0.0, 0.0,
+                                            np.full(3, 0.02)),
+                  latitude_deg=float(np.degrees(gt[0, 2])))
+    ins.run_arrays(**inputs)  # compiled or loaded once, untimed
+    seconds = float(imu[-1, 0] - imu[0, 0])
+    times = [cpu_seconds(lambda: ins.run_arrays(**inputs)) for _ in range(repeats)]
+    t = statistics.median(times)
+    print(f"recorded segment {folder.name}: {seconds:g} s, {len(imu)} IMU samples, "
+          f"{len(dvl)} DVL pings, {ins.N_BEAM} states, median of {repeats}: {t:.3f} CPU s, "
+          f"{seconds / t:.0f}x real time per core")
+    print(f"target: filter >= 1000x real time per core on a recorded segment -> "
+          f"{'met' if seconds / t >= 1000 else 'MISSED'}")
 
 
 if __name__ == "__main__":

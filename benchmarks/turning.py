@@ -25,6 +25,8 @@ items 7 and 8).
   segments and each ``--sim`` dataset (e.g. ``auvsim generate --preset
   realistic-maneuvers`` before a change and after), and for the simulated missions that
   turn at least as much as every real segment.
+  Then, for each source, whether issue 24's bounds hold: the median over missions of each
+  sway std within ``SWAY_BOUNDS`` and every mission's |mean roll| within ``ROLL_BOUND``.
 * **The roll period**: the real roll-rate spectra's peak against the model's damped period.
 
     .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
@@ -54,6 +56,8 @@ STEP_S = 60.0  # s of the model's full-rudder step
 STEADY_S = 10.0  # s at its end that make the steady yaw rate
 HARD = 12.0  # deg/s: a hard turn's peak, the lower end of the issue's 12-18 deg/s
 STRAIGHT, STRAIGHT_S = 1.5, 5.0  # deg/s, s: straight flight, |r| below this so long
+SWAY_BOUNDS = (0.03, 0.44)  # m/s: issue 24's range of the real per-segment sway std
+ROLL_BOUND = 2.3  # deg: issue 24's largest real per-segment |mean roll|
 
 
 def read_segment(folder: Path) -> dict[str, np.ndarray]:
@@ -369,6 +373,16 @@ def print_real_turns(data: dict, fin_lever: float, min_peak: float, folder: Path
     return turns
 
 
+def _verdict(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def _sway_inside(per: dict, key: str) -> bool:
+    """Whether the median over missions of ``key`` lies within ``SWAY_BOUNDS``."""
+    median = float(np.median([m[key] for m in per.values()]))
+    return SWAY_BOUNDS[0] <= median <= SWAY_BOUNDS[1]
+
+
 def print_sway_roll(data: dict, missions: dict) -> None:
     """The per-mission sway and roll table: real segments, each simulated dataset, and its
     missions that turn at least as much as every real segment (like with like: a mission's
@@ -397,6 +411,15 @@ def print_sway_roll(data: dict, missions: dict) -> None:
         print(f"{label:24s} {len(per):3d} "
               + " ".join(f"{summary(figures[key]):>26s}" for key, _ in columns)
               + f" {max(abs(x) for x in figures['roll']):15.2f}")
+    print(f"\nIssue 24's bounds (from the real segments): per-mission sway std median in "
+          f"{SWAY_BOUNDS[0]:g}-{SWAY_BOUNDS[1]:g} m/s, every |mean roll| <= {ROLL_BOUND:g} deg")
+    for label in rows:
+        if label.endswith(", turning") or not rows[label]:
+            continue
+        verdicts = [f"{title} {_verdict(_sway_inside(rows[label], key))}"
+                    for key, title in columns[:3]]
+        roll_ok = max(abs(m["roll"]) for m in rows[label].values()) <= ROLL_BOUND
+        print(f"  {label:22s} " + ", ".join(verdicts) + f"; roll {_verdict(roll_ok)}")
     for label in ("real", *missions):
         print(f"\n{label} per mission: " + ", ".join(title for _, title in columns)
               + ", heading change in turns (deg)")

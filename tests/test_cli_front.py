@@ -283,7 +283,7 @@ def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
 
 
 @pytest.mark.parametrize("command", ["", "generate", "presets", "inspect",
-                                     "import-velocity", "import", "plot"])
+                                     "import-velocity", "import", "check-log", "plot"])
 def test_help_is_for_users(command, capsys):
     from auvsim.runs.presets import DEFAULT_PRESET
 
@@ -294,7 +294,7 @@ def test_help_is_for_users(command, capsys):
     assert "``" not in text and "library" not in text and "thin shell" not in text
     assert "{" not in text.replace("{lzf,gzip}", "").replace("{akit,csv,velocity}", "").replace(
         "{IMU,DVL,GT}", "").replace(
-        "{generate,presets,inspect,import-velocity,import,plot}", "")  # no Python values
+        "{generate,presets,inspect,import-velocity,import,check-log,plot}", "")  # no Python values
     if command in ("generate", "import-velocity", "import"):
         options = [line.split()[0] for line in text.splitlines()
                    if line.startswith("  --") and "--out" not in line

@@ -1,7 +1,8 @@
 """Files: the HDF5 schema (``schema``), its reader (``reader``) and writer (``writer``),
 sharded datasets (``shards``), ``auvsim inspect``'s summary (``describe``), the random
 streams (``streams``), atomic outputs (``files``), imported velocity streams
-(``importer``) and recorded logs (``recorded``).
+(``importer``), recorded logs (``recorded``) and what they leave out, found against
+their reference (``checklog``, ``auvsim check-log``).
 
 ``open_dataset`` is importable from here (and from ``auvsim``), with
 ``require_usable_beams``, which refuses a mission with no usable DVL beam in one line,

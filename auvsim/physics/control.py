@@ -30,6 +30,18 @@ class Gains(NamedTuple):
     depth_d: float = 1.5  # rad of pitch per unit of (depth rate / speed)
     pitch_p: float = 1.5  # rad of stern planes per rad of pitch error
     pitch_d: float = 1.5
+    # True: the speed channel sets the shaft to the rpm that holds its reference in
+    # straight flight (``cruise_rpm``) and leaves it there, as a real AUV commands
+    # propeller rpm: the speed then drops in a turn as the hull's drag grows. False (the
+    # default): a speed loop raises the rpm to hold the speed through the water.
+    hold_rpm: bool = False
+    # True: a heading change larger than the PID's own braking point is flown at full
+    # rudder (the rudder commanded past its limit, toward the new heading) until the
+    # heading error falls to the angle at which the yaw-rate term equals the heading term,
+    # |e| = heading_d (L/U) |r| / heading_p, and the PID takes over from there: a turn as
+    # a survey AUV flies its line turns. False (the default): the PID throughout, whose
+    # yaw-rate term backs the rudder off as the turn builds.
+    full_rudder_turns: bool = False
 
 
 @numba.njit(cache=True)
@@ -39,6 +51,19 @@ def feedforward_rpm(h: Hydro, speed: float) -> float:
     a = k * h.prop_kt[0]
     b = k * h.prop_kt[1] * (1.0 - h.wake_fraction) * speed / h.prop_d
     c = h.axial_drag * speed * speed
+    n = (-b + math.sqrt(b * b + 4.0 * a * c)) / (2.0 * a)
+    return 60.0 * n
+
+
+@numba.njit(cache=True)
+def cruise_rpm(h: Hydro, speed: float) -> float:
+    """Shaft speed (rpm) at which thrust balances the whole surge drag in straight level
+    flight at ``speed``: the quadratic hull drag and the linear damping with its speed fade
+    (``hydro``), the rpm a vehicle's speed table gives."""
+    k = (1.0 - h.thrust_deduction) * h.rho * h.prop_d**4
+    a = k * h.prop_kt[0]
+    b = k * h.prop_kt[1] * (1.0 - h.wake_fraction) * speed / h.prop_d
+    c = h.axial_drag * speed * speed + h.linear_damping[0] * math.exp(-3.0 * speed) * speed
     n = (-b + math.sqrt(b * b + 4.0 * a * c)) / (2.0 * a)
     return 60.0 * n
 
@@ -83,7 +108,9 @@ def autopilot_into(h, g, reference, closed_loop, integrals, u, depth, depth_rate
     the physics loop's, so that a step allocates nothing."""
     speed = max(abs(u), 0.5)
     t_scale = g.length / speed
-    if closed_loop[0]:
+    if closed_loop[0] and g.hold_rpm:
+        cmd[0] = math.copysign(cruise_rpm(h, abs(reference[0])), reference[0])
+    elif closed_loop[0]:
         err = reference[0] - u
         integrals[0] = min(max(integrals[0] + err * dt, -2.0 * g.length), 2.0 * g.length)
         target = reference[0] + g.speed_p * err + g.speed_i * integrals[0] / t_scale
@@ -92,7 +119,11 @@ def autopilot_into(h, g, reference, closed_loop, integrals, u, depth, depth_rate
         err = wrap_angle(reference[1] - yaw)
         if abs(err) < 0.2:  # integrate near the target only, so turns do not wind it up
             integrals[1] = min(max(integrals[1] + err * dt / t_scale, -5.0), 5.0)
-        cmd[1] = g.heading_p * err + g.heading_i * integrals[1] - g.heading_d * t_scale * r
+        braking = g.heading_d * t_scale * abs(r) / g.heading_p
+        if g.full_rudder_turns and abs(err) >= 0.2 and abs(err) > braking:
+            cmd[1] = math.copysign(math.pi, err)  # the servo stops it at the rudder limit
+        else:
+            cmd[1] = g.heading_p * err + g.heading_i * integrals[1] - g.heading_d * t_scale * r
     if closed_loop[2]:
         err = (reference[2] - depth) / g.length
         if abs(err) < 0.2:

@@ -224,18 +224,70 @@ ALL_CLOSED = np.array([True, True, True])
 RUDDER_OPEN = np.array([True, False, True])
 
 
-class Straight(Maneuver):
-    """Constant speed, heading and depth."""
+def survey_legs(heading: float, speed: float, duration: float, leg_m: float,
+                spacing_m: float) -> list[tuple[float, float, float, str]]:
+    """(start s, end s, heading rad, label) of every leg of a survey pattern that starts
+    within ``duration``: legs of ``leg_m`` alternating between ``heading`` and its reverse,
+    joined by cross legs of ``spacing_m`` to starboard (so the turns alternate starboard
+    and port), each timed at ``speed``."""
+    legs, start, k = [], 0.0, 0
+    while start < duration:
+        if len(legs) == MAX_LEGS:
+            raise _too_many_legs("leg_m, spacing_m", f"{leg_m!r} and {spacing_m!r} m over "
+                                 f"{duration:g} s at {speed:g} m/s")
+        along = k % 2 == 0
+        length = leg_m if along else spacing_m
+        leg_heading = heading + (math.pi * (k // 2 % 2) if along else math.pi / 2)
+        end = start + length / speed
+        legs.append((start, end, leg_heading, "survey leg" if along else "cross leg"))
+        start, k = end, k + 1
+    return legs
+
+
+class _OnSurveyLines(Maneuver):
+    """A manoeuvre flown along survey lines when its ``leg_m`` option is positive: its
+    heading follows ``survey_legs`` (legs of ``leg_m``, cross legs of ``spacing_m``) as an
+    AUV's survey flies parallel track lines joined by turns at their ends; 0 (the default)
+    holds the scenario's heading. ``Options`` must have ``leg_m`` and ``spacing_m``."""
+
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        o = self.options
+        if o.leg_m != 0.0:
+            _at_least("leg_m", o.leg_m, 1.0, "m")
+            _at_least("spacing_m", o.spacing_m, 1.0, "m")
+            self.legs = survey_legs(self.heading, self.speed, self.duration, o.leg_m,
+                                    o.spacing_m)
+
+    def headings(self, t: np.ndarray) -> np.ndarray | None:
+        """(N,) heading references (rad) at times ``t``, or None for the scenario's."""
+        if self.options.leg_m == 0.0:
+            return None
+        starts = np.array([leg[0] for leg in self.legs])
+        i = np.searchsorted(starts, t, side="right") - 1
+        return np.array([leg[2] for leg in self.legs])[i]
+
+
+class Straight(_OnSurveyLines):
+    """Constant speed, heading and depth (on survey lines with ``leg_m``)."""
 
     name = "straight"
 
+    @dataclass(frozen=True)
+    class Options:
+        leg_m: float = 0.0  # 0: one heading
+        spacing_m: float = 50.0
+
     def schedule(self, t):
-        return self._hold(len(t)), np.tile(ALL_CLOSED, (len(t), 1))
+        return self._hold(len(t), heading=self.headings(t)), np.tile(ALL_CLOSED, (len(t), 1))
 
 
 class TurningCircle(Maneuver):
     """Straight for ``lead_s``, then the rudder held at ``rudder_deg`` (positive turns to
-    starboard) with speed and depth held: the heading then advances monotonically."""
+    starboard) with speed and depth held: the heading then advances monotonically. With
+    ``turn_s`` positive the rudder is held that long only, and the heading autopilot then
+    brings the vehicle back to its initial heading for the rest of the mission (a few
+    circles, then a leg); 0 (the default) turns to the end."""
 
     name = "turning_circle"
     turn_label: ClassVar[str] = "turn"
@@ -244,21 +296,30 @@ class TurningCircle(Maneuver):
     class Options:
         rudder_deg: float = 15.0  # a standard turn; the A18-D's full rudder is 38 deg
         lead_s: float = 20.0
+        turn_s: float = 0.0  # 0: to the end
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
         _rudder("rudder_deg", self.options.rudder_deg)
+        _at_least("turn_s", self.options.turn_s, 0.0, "s")
 
     def schedule(self, t):
         o = self.options
         turning = t >= o.lead_s
+        if o.turn_s > 0.0:
+            turning &= t < o.lead_s + o.turn_s
         refs = self._hold(len(t))
         refs[turning, 1] = math.radians(o.rudder_deg)
         closed = np.where(turning[:, None], RUDDER_OPEN, ALL_CLOSED)
         return refs, closed
 
     def phases(self):
-        return self._lead_then(self.turn_label)
+        o = self.options
+        if o.turn_s <= 0.0 or o.lead_s + o.turn_s >= self.duration:
+            return self._lead_then(self.turn_label)
+        end = o.lead_s + o.turn_s
+        return [*self._lead_then(self.turn_label)[:1], Phase(o.lead_s, end, self.turn_label),
+                Phase(end, self.duration, "straight")]
 
 
 class Zigzag(Maneuver):
@@ -335,22 +396,8 @@ class Lawnmower(Maneuver):
         super().__init__(config, rng)
         _at_least("leg_m", self.options.leg_m, 1.0, "m")
         _at_least("spacing_m", self.options.spacing_m, 1.0, "m")
-        self.legs = self._legs()
-
-    def _legs(self):
-        """(start, end, heading, label) of every leg that starts within the mission."""
-        o, legs, start, k = self.options, [], 0.0, 0
-        while start < self.duration:
-            if len(legs) == MAX_LEGS:
-                raise _too_many_legs("leg_m, spacing_m", f"{o.leg_m!r} and {o.spacing_m!r} m "
-                                     f"over {self.duration:g} s at {self.speed:g} m/s")
-            along = k % 2 == 0
-            length = o.leg_m if along else o.spacing_m
-            heading = self.heading + (math.pi * (k // 2 % 2) if along else math.pi / 2)
-            end = start + length / self.speed
-            legs.append((start, end, heading, "survey leg" if along else "cross leg"))
-            start, k = end, k + 1
-        return legs
+        o = self.options
+        self.legs = survey_legs(self.heading, self.speed, self.duration, o.leg_m, o.spacing_m)
 
     def schedule(self, t):
         starts = np.array([leg[0] for leg in self.legs])
@@ -362,9 +409,9 @@ class Lawnmower(Maneuver):
         return [Phase(a, min(b, self.duration), label) for a, b, _, label in self.legs]
 
 
-class _Steps(Maneuver):
+class _Steps(_OnSurveyLines):
     """One channel's reference alternating between the scenario's value and ``other()``
-    every ``period_s`` (``Options`` must have ``period_s``)."""
+    every ``period_s`` (``Options`` must have ``period_s``, ``leg_m`` and ``spacing_m``)."""
 
     channel: ClassVar[int]  # 0 speed, 2 depth
     unit: ClassVar[str]
@@ -378,7 +425,7 @@ class _Steps(Maneuver):
 
     def schedule(self, t):
         first, second = self.levels()
-        refs = self._hold(len(t))
+        refs = self._hold(len(t), heading=self.headings(t))
         refs[:, self.channel] = np.where((t // self.options.period_s) % 2 == 0, first, second)
         return refs, np.tile(ALL_CLOSED, (len(t), 1))
 
@@ -399,6 +446,8 @@ class DepthSteps(_Steps):
     class Options:
         step_m: float = 10.0
         period_s: float = 120.0
+        leg_m: float = 0.0  # 0: one heading
+        spacing_m: float = 50.0
 
     def levels(self):
         return self.depth, self.depth + self.options.step_m
@@ -415,6 +464,8 @@ class SpeedSteps(_Steps):
     class Options:
         low: float = 1.0
         period_s: float = 120.0
+        leg_m: float = 0.0  # 0: one heading; legs timed at the higher speed
+        spacing_m: float = 50.0
 
     def levels(self):
         return self.speed, self.options.low
@@ -423,9 +474,10 @@ class SpeedSteps(_Steps):
         return self.levels()
 
 
-class Yoyo(Maneuver):
+class Yoyo(_OnSurveyLines):
     """Sawtooth (triangle) depth profile between ``depth`` and ``depth + amplitude_m``,
-    one descent and one ascent per ``period_s``, after ``lead_s`` level."""
+    one descent and one ascent per ``period_s``, after ``lead_s`` level (on survey lines
+    with ``leg_m``)."""
 
     name = "yoyo"
 
@@ -434,6 +486,8 @@ class Yoyo(Maneuver):
         amplitude_m: float = 10.0
         period_s: float = 200.0
         lead_s: float = 20.0
+        leg_m: float = 0.0  # 0: one heading
+        spacing_m: float = 50.0
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
@@ -444,7 +498,8 @@ class Yoyo(Maneuver):
         phase = np.clip(t - o.lead_s, 0.0, None) % o.period_s / o.period_s  # 0..1
         triangle = 1.0 - np.abs(2.0 * phase - 1.0)  # 0 -> 1 -> 0
         depth = self.depth + o.amplitude_m * triangle
-        return self._hold(len(t), depth=depth), np.tile(ALL_CLOSED, (len(t), 1))
+        return (self._hold(len(t), heading=self.headings(t), depth=depth),
+                np.tile(ALL_CLOSED, (len(t), 1)))
 
     def phases(self):
         o = self.options
@@ -465,6 +520,7 @@ class SpiralDive(TurningCircle):
         dive_m: float = 20.0
         descent_rate: float = 0.1
         lead_s: float = 20.0
+        turn_s: float = 0.0  # 0: to the end
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)  # the rudder and lead_s, as a turning circle's

@@ -247,12 +247,17 @@ class Vehicle:
         seafloor: terrain to add to the scene (``auvsim.world.seafloor.Seafloor``), for ray casts;
             bind it to a ``MjData`` of its own (``ray_data``), not to ``self.data``, so that
             casts may run while another thread steps the physics.
+        hold_rpm: the speed channel holds the shaft at the rpm of its reference speed in
+            straight flight instead of holding the speed (``control.Gains.hold_rpm``).
+        full_rudder_turns: large heading changes at full rudder up to the PID's braking
+            point (``control.Gains.full_rudder_turns``).
     """
 
     def __init__(self, vehicle: str = "auv", *, net_buoyancy: float = 0.0,
                  current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  seafloor=None, water: Water | None = None,
-                 disturbance: Disturbance | None = None) -> None:
+                 disturbance: Disturbance | None = None, hold_rpm: bool = False,
+                 full_rudder_turns: bool = False) -> None:
         self.name = vehicle
         path = model_path(vehicle)
         try:
@@ -277,7 +282,8 @@ class Vehicle:
                                                           d.xfrc_applied)
         self._warnings = d.warning.number[_UNSTABLE]
         self.length = 2.0 * float(self.model.geom("hull").size[0])
-        self.gains = Gains(length=self.length)
+        self.gains = Gains(length=self.length, hold_rpm=bool(hold_rpm),
+                           full_rudder_turns=bool(full_rudder_turns))
         self.current_ned = np.array(current_ned, dtype=float)
         self.water_table = water.table if water is not None else still_water()
         self.disturbance = disturbance if disturbance is not None and disturbance.active \

@@ -74,7 +74,9 @@ class MissionRun:
                            constant_ned=v.current_ned, water_depth=config.seafloor.depth)
         self.vehicle = Vehicle(v.model, net_buoyancy=v.net_buoyancy, current_ned=v.current_ned,
                                seafloor=self.seafloor, water=self.water,
-                               disturbance=Disturbance(config.water, streams["disturbance"]))
+                               disturbance=Disturbance(config.water, streams["disturbance"]),
+                               hold_rpm=v.speed_control == "rpm",
+                               full_rudder_turns=v.heading_control == "full-rudder-turns")
         self.ray_data = self.vehicle.ray_data()
         self.seafloor.bind(self.vehicle.model, self.ray_data)
         dt = self.vehicle.dt

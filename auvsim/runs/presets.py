@@ -13,9 +13,11 @@ from auvsim.config import (
     MissionConfig,
     ScenarioConfig,
     SeafloorConfig,
+    VehicleConfig,
     WaterConfig,
 )
 from auvsim.errors import ConfigError
+from auvsim.physics.maneuvers import Lawnmower, SpiralDive
 from auvsim.physics.maneuvers import missions as maneuver_missions
 from auvsim.sensors.imu import IMU_GRADES
 
@@ -61,43 +63,53 @@ def maneuvers(duration: float = 600.0, noise_std: float = PAPER_NOISE_CODE) -> C
     return Config(missions=missions, seafloor=paper.seafloor, dvl=paper.dvl, imu=paper.imu)
 
 
-# The navigator's water: a coastal current, with the turbulence and actuator jitter a
-# vehicle meets in it (auvsim.physics.water has the model, config.WaterConfig the settings).
-# - Surface speed uniform in [0.1, 1.0] m/s, in any direction: tidal streams are "weak"
-#   below 0.5 m/s and "moderately strong" at 0.5-1.5 m/s (MarLIN's tidal strength scale,
-#   marlin.ac.uk/glossary/waterflowrate); shelf tides run typically at 0.1-1 m/s. With the
-#   A18-D at 1-2 m/s this gives crab angles of 3 to 45 deg, and turns sway the DVL frame
-#   by up to +/- the current (measured over the manoeuvre set: -0.92 to +0.99 m/s).
-# - Over depth the 1/7 power law of a tidal bottom boundary layer filling the column
+# The navigator's water: the current over the Israeli shelf, where the Snapir flies (off
+# Haifa), with the turbulence and actuator jitter a vehicle meets in it
+# (auvsim.physics.water has the model, config.WaterConfig the settings).
+# - Surface speed uniform in [0.05, 0.5] m/s, in any direction relative to the survey. The
+#   shelf current off Israel is a wind- and circulation-driven alongshore flow, northward
+#   throughout the year with maxima in winter and summer and in winter storms (Rosentraub &
+#   Brenner 2007, JGR 112, C11001, "Circulation over the southeastern continental shelf
+#   and slope of the Mediterranean Sea": from its abstract; its figures were not at hand);
+#   a year of 16 current moorings in the south-east Mediterranean (Feb 1999 - Jan 2000)
+#   saw at most 0.89 m/s, in winter storms (K. M. Tonbol, "Circulation patterns of south
+#   east sector of the Mediterranean Sea", AAST abstract). The tide is weak there: its
+#   current amplitudes are 1-2 cm/s (M2) to a few cm/s (K1, O1) at the DeepLev mooring
+#   off Israel (Front. Mar. Sci. 2024, 10.3389/fmars.2024.1388137), so the floor is a few
+#   cm/s, not slack water. The upper bound is MarLIN's "weak" flow (below 0.5 m/s,
+#   marlin.ac.uk/glossary/waterflowrate), our choice for the days a survey is flown:
+#   the storm flows near the year's maximum are the days it is not. (The previous
+#   0.1-1 m/s was a tidal shelf's, 2.3 times the Snapir day's current: benchmarks/turning.py.)
+# - Over depth the 1/7 power law of a bottom boundary layer filling the column
 #   (Soulsby 1997, Dynamics of Marine Sands, ch. 3), over the seafloor's 60 m.
-# - In time: the semidiurnal tide (M2, 12.42 h) turns a current over about a quarter
-#   period, 3 h, so speed and direction are Gauss-Markov with a 3 h correlation time;
-#   0.1 m/s and 20 deg stds change a current by about 0.07 m/s and 15 deg within an hour,
-#   the rate of a 0.5 m/s tide (0.5 m/s x 2 pi / 12.42 h = 0.25 m/s per hour at most).
+# - In time: the diurnal tide (K1, 23.93 h) of a few cm/s turns the flow over about a
+#   quarter period, 6 h: speed and direction are Gauss-Markov with a 6 h correlation time,
+#   0.03 m/s (the tide's amplitude) and 6 deg (that amplitude across the mean 0.275 m/s:
+#   atan(0.03 / 0.275)).
 # - In space: 0.05 m/s over 5 km, the submesoscale of coastal currents (0.1-10 km:
 #   McWilliams 2016, Proc. R. Soc. A 472, 20160117); our choice of magnitude.
-# - Turbulence: in a tidal boundary layer u' = 2.30 u* exp(-z/h), v' = 1.63 u* exp(-z/h),
+# - Turbulence: in a bottom boundary layer u' = 2.30 u* exp(-z/h), v' = 1.63 u* exp(-z/h),
 #   w' = 1.27 u* exp(-z/h) (Nezu & Nakagawa 1993, Turbulence in Open-Channel Flows),
-#   with u* = sqrt(C_D) U and C_D = 0.0025 (Soulsby 1997): at U = 0.5 m/s, u* = 0.025 m/s,
-#   and at mid-depth the fluctuations are 0.02-0.035 m/s; we take 0.03 m/s. Through the
-#   A18-D's force model at 2 m/s (hydro.py's coefficients of models/auv.xml), linearised:
-#   surge 2 X_uu U u' = 2 x 11.08 x 2 x 0.03 = 1.3 N (Prestero's axial drag, C_d 0.11);
-#   sway and heave (hull lift 153.9 N s^2/m^2
-#   and fin-pair lift 147.6 N s^2/m^2, each times U v') 9 + 9 = 18 N; pitch and yaw, the
-#   same forces at the hull-lift centre (-1.32 m) and the fins (-2.6 m), 35 N m; roll, one
-#   fin pair meeting opposite flows of an eddy smaller than its span (each fin 74 x 2 x
-#   0.03 = 4.4 N, about 0.35 m from the axis), 3 N m. Correlation time 3 s: an eddy of
-#   about a hull length (6 m) passed at 2 m/s; larger ones are the slow current, smaller
-#   ones average out over the 5.5 m hull (our choice).
+#   with u* = sqrt(C_D) U and C_D = 0.0025 (Soulsby 1997): at the mean current, U = 0.275
+#   m/s, u* = 0.014 m/s and at mid-depth the fluctuations are 0.011-0.019 m/s; we take
+#   0.0165 m/s (0.03 m/s at U = 0.5 m/s, scaled with U). Through the A18-D's force model
+#   at 2 m/s (hydro.py's coefficients of models/auv.xml), linearised: surge 2 X_uu U u' =
+#   2 x 11.08 x 2 x 0.0165 = 0.7 N (Prestero's axial drag, C_d 0.11); sway and heave (hull
+#   lift 153.9 N s^2/m^2 and fin-pair lift 147.6 N s^2/m^2, each times U v') 5 + 5 = 10 N;
+#   pitch and yaw, the same forces at the hull-lift centre (-1.32 m) and the fins
+#   (-2.6 m), 19 N m; roll, one fin pair meeting opposite flows of an eddy smaller than
+#   its span (each fin 74 x 2 x 0.0165 = 2.4 N, about 0.35 m from the axis), 1.7 N m.
+#   Correlation time 3 s: an eddy of about a hull length (6 m) passed at 2 m/s; larger
+#   ones are the slow current, smaller ones average out over the 5.5 m hull (our choice).
 # - Jitter: 0.2 deg on the rudder and stern planes (a fin servo's deadband and position
 #   sensing, a few tenths of a degree) and 2 rpm on the shaft (0.4 % at the 490 rpm of
 #   2 m/s, a speed controller's ripple), correlated over 1 s: our choices, no datasheet
 #   at hand gives them.
 NAVIGATOR_WATER = WaterConfig(
-    speed_min=0.1, speed_max=1.0, direction_deg=0.0, direction_spread_deg=180.0,
-    speed_std=0.1, speed_time=10800.0, direction_std_deg=20.0, direction_time=10800.0,
+    speed_min=0.05, speed_max=0.5, direction_deg=0.0, direction_spread_deg=180.0,
+    speed_std=0.03, speed_time=21600.0, direction_std_deg=6.0, direction_time=21600.0,
     spatial_std=0.05, spatial_wavelength=5000.0, profile="power", power_exponent=1.0 / 7.0,
-    turbulence_force_std=(1.3, 18.0, 18.0), turbulence_moment_std=(3.0, 35.0, 35.0),
+    turbulence_force_std=(0.7, 10.0, 10.0), turbulence_moment_std=(1.7, 19.0, 19.0),
     turbulence_time=3.0, rpm_jitter_std=2.0, fin_jitter_std_deg=0.2, jitter_time=1.0)
 
 
@@ -110,9 +122,47 @@ NAVIGATOR_WATER = WaterConfig(
 SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 
 
+# How a real survey AUV flies, for the presets that mean to look like its logs:
+# - It commands propeller rpm from a speed table and lets the speed drop in a turn (the
+#   Snapir's hard turns lose 29 % of their speed, median of 21: benchmarks/turning.py),
+#   where auvsim's speed loop would raise the rpm and hold it: ``speed_control="rpm"``.
+# - It turns at the end of a line at full rudder (the Snapir's hard turns peak at 16.5
+#   deg/s, median of 21, where the A18-D's full-rudder step peaks at 15.8), where the
+#   heading PID's yaw-rate term backs the rudder off from the start of the turn (peaks
+#   of 12.4 deg/s in the survey turns): ``heading_control="full-rudder-turns"`` holds full
+#   rudder up to the PID's own braking point and hands over to the PID there.
+REAL_VEHICLE = VehicleConfig(speed_control="rpm", heading_control="full-rudder-turns")
+# - It flies parallel survey lines joined by turns at their ends (the lawnmower pattern
+#   of bathymetric and side-scan surveys), and a depth, speed or straight-line test on a
+#   survey is flown along those lines, not on one endless heading: the lawnmower's own
+#   300 m legs and 50 m spacing.
+SURVEY_LINES = {"leg_m": Lawnmower.Options.leg_m, "spacing_m": Lawnmower.Options.spacing_m}
+# - A turning trial turns about two circles and then goes on with the mission: the
+#   rudder is held for TURN_TRACK_M of track (two circles of the A18-D's 88 m at 15 deg
+#   of rudder, measured at 2 m/s; the radius barely depends on speed), i.e. TURN_TRACK_M /
+#   speed seconds, then the vehicle returns to its heading. A spiral dive turns while it
+#   dives (dive_m / descent_rate) and then flies level.
+TURN_TRACK_M = 180.0
+
+
+def _as_flown(kind: str, speed: float, options: dict) -> dict:
+    """A manoeuvre's options as a real survey vehicle flies it (``SURVEY_LINES``,
+    ``TURN_TRACK_M``): the options of ``maneuvers`` with the legs or the end of the turn."""
+    if kind in ("straight", "depth_steps", "yoyo", "speed_steps"):
+        return {**SURVEY_LINES, **options}
+    if kind == "turning_circle":
+        return {"turn_s": TURN_TRACK_M / speed, **options}
+    if kind == "spiral_dive":
+        o = SpiralDive.Options(**options)
+        return {"turn_s": o.dive_m / o.descent_rate, **options}
+    return dict(options)
+
+
 def navigator() -> Config:
     """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
-    A18-D over gently rough terrain, with a navigation-grade IMU.
+    A18-D over gently rough terrain, with a navigation-grade IMU, flying survey lines
+    (``SURVEY_LINES``) at a held shaft speed (``REAL_VEHICLE``) in the shelf current
+    (``NAVIGATOR_WATER``).
 
     Figures of the Teledyne RDI Workhorse Navigator (its published specification): 30 deg
     Janus beams; bottom track about 0.7 to 90 m; long-term accuracy about 0.2 % of speed
@@ -190,7 +240,8 @@ def navigator() -> Config:
     IMU does (``auvsim.config.LocationConfig``).
     """
     return Config(
-        missions=(MissionConfig(),),
+        missions=(MissionConfig(scenario=ScenarioConfig(options=dict(SURVEY_LINES))),),
+        vehicle=REAL_VEHICLE,
         seafloor=SeafloorConfig(kind="procedural", depth=60.0, roughness=1.0,
                                 correlation_length=25.0),
         dvl=DvlConfig(rate_hz=1.0, beam_angle_deg=30.0, min_range=0.7, max_range=90.0,
@@ -220,21 +271,26 @@ SLOW_OPTIONS = {"speed_steps": (1.0, {"low": 0.5})}
 def realistic_maneuvers(duration: float = 600.0) -> Config:
     """The manoeuvre set flown as a real vehicle flies it: every manoeuvre of
     ``maneuvers`` at 2 m/s and again slowly (``SLOW_SPEED``), each in its own current,
-    with the navigator's water, terrain and sensors (every DVL failure and error, the
-    calibrated IMU errors). Each mission draws its current from the navigator's
-    distribution (surface speed 0.1-1 m/s, any direction), so the turns sway the DVL
-    frame by up to the current either way. In the navigator's place, the Snapir's waters
+    with the navigator's water, terrain, sensors (every DVL failure and error, the
+    calibrated IMU errors) and vehicle (rpm held, ``REAL_VEHICLE``). Each mission draws its
+    current from the navigator's distribution (surface speed 0.05-0.5 m/s, any direction),
+    so the turns sway the DVL frame by up to the current either way. The steady manoeuvres
+    are flown on survey lines and the turns end (``_as_flown``), so every mission turns,
+    as every real survey segment does. In the navigator's place, the Snapir's waters
     (``SNAPIR_WATERS``)."""
     nav = navigator()
     missions = []
     for i, (name, kind, options) in enumerate(MANEUVER_MISSIONS):
         missions.append(MissionConfig(name=name, seed=200 + i, scenario=ScenarioConfig(
-            name=kind, speed=2.0, depth=20.0, duration=duration, options=dict(options))))
+            name=kind, speed=2.0, depth=20.0, duration=duration,
+            options=_as_flown(kind, 2.0, options))))
         speed, slow = SLOW_OPTIONS.get(kind, (SLOW_SPEED, {}))
         missions.append(MissionConfig(name=f"{name}_slow", seed=300 + i,
                                       scenario=ScenarioConfig(
                                           name=kind, speed=speed, depth=20.0,
-                                          duration=duration, options={**options, **slow})))
+                                          duration=duration,
+                                          options=_as_flown(kind, speed,
+                                                            {**options, **slow}))))
     return dataclasses.replace(nav, missions=tuple(missions))
 
 

@@ -1,67 +1,115 @@
 """INS/DVL error-state Kalman filter: strapdown mechanisation at the IMU rate, corrected by
-each bottom-track DVL beam as a scalar measurement (issue 11, item 1).
+each bottom-track DVL beam (or each axis of the DVL's own velocity) as a scalar
+measurement (issue 11, item 1; fit for a real vehicle in issue 24, item 3).
+
+Entry points: ``run_arrays`` (arrays in, no dataset: IMU times and samples, DVL times and
+beams or velocity, lever arms, mounting, the place, a ``Start`` and the ``Instrument``'s
+noise), ``run_mission`` (a thin adapter: a simulated, imported-with-IMU or recorded
+mission's streams and attributes into ``run_arrays``), ``InsDvlFilter`` (the estimator
+of the tables). Settings: ``FilterConfig`` (``load_config`` reads one from TOML,
+``beamsnet estimate/evaluate --filter-config``). Output: ``FilterTrack`` at every ping,
+with the position and its std, the attitude, the instrument states, ``accepted`` (a
+measurement of the ping was used), ``availability`` (their share) and ``events``.
 
 Conventions are auvsim's (NED world, FRD body, body -> NED rotation C, SI units). The
-mechanised point is the IMU; the DVL and the body origin are reached through the lever
-arms of the file's attributes.
+mechanised point is the IMU; the DVL and the body origin (the reference point) are
+reached through the lever arms. The streams keep their own clocks: a ping is applied at
+the IMU sample at or just before its time (``np.searchsorted``); nothing is resampled.
 
 Mechanisation (Groves 2013, "Principles of GNSS, Inertial, and Multisensor Integrated
-Navigation Systems", 2nd ed., sec. 5.4, first-order form, flat Earth), from IMU sample
-i - 1 to i, dt = 1 / rate::
+Navigation Systems", 2nd ed., sec. 5.4, first-order form in a local-level frame), from
+IMU sample i - 1 to i, dt_i = t_i - t_{i-1}::
 
     v_i = v_{i-1} + dt (C_{i-1} f_{i-1} + g - 2 Omega_ie x v_{i-1})
     p_i = p_{i-1} + dt v_i
     C_i = C_{i-1} Exp(dt (w_i - C_{i-1}^T Omega_ie))
 
-with f and w the bias-corrected samples, g = (0, 0, g0) and Omega_ie the Earth rate at a
-configured latitude (off by default: auvsim's world is flat and does not rotate). This is
-the discrete form auvsim's truth obeys: MuJoCo's semi-implicit Euler step holds the
-acceleration recorded at step i - 1 over the step and rotates by the angular velocity
-recorded at step i, and the simulated accelerometer reads C^T (a - g) with the model's
-g0. So noise-free data integrate back exactly at the body origin; at the IMU point (and
-the DVL) the one discretisation error is the lever arm's (derived, and tested to 1e-9,
-in ``tests/test_ins.py::lever_arm_error``). A real
-IMU's increments would need Savage's coning and sculling terms instead.
+with f and w the bias-corrected samples, g = (0, 0, g) and Omega_ie the Earth's rate in
+NED. Whenever the latitude is known (a recorded log always; a simulated mission with a
+geographic origin, whose attributes carry ``latitude_deg``), Omega_ie and g are the
+WGS-84 Earth rate and normal gravity there (``auvsim.physics.earth``); without one,
+auvsim's flat world that does not rotate (Omega_ie = 0, the mission's own g). The
+transport rate (the local-level frame turning as the vehicle moves over the curved Earth,
+v / R: 3e-7 rad/s at 2 m/s, 2 % of the Earth's rate) and the change of gravity with the
+distance travelled are left out: over the few kilometres of a mission the frame turns
+by under 0.03 deg and the position error they make stays under a few centimetres, far
+below the DVL's. Without the Earth's rate, this is the discrete form auvsim's truth
+obeys: MuJoCo's semi-implicit Euler step holds the acceleration recorded at step i - 1
+over the step and rotates by the angular velocity recorded at step i, and the simulated
+accelerometer reads C^T (a - g) with the model's g. So noise-free data integrate back
+exactly at the body origin; at the IMU point (and the DVL) the one discretisation error
+is the lever arm's (derived, and tested to 1e-9, in ``tests/test_ins.py::
+lever_arm_error``). A real IMU's increments would need Savage's coning and sculling
+terms instead; at 100 Hz on the Snapir's logs they are below the logs' rounding.
 
 Error state (x = x_hat + dx; Groves ch. 14.2, Sola 2017 "Quaternion kinematics for the
 error-state Kalman filter" sec. 7 for the global attitude error): dp, dv (NED, m, m/s),
 attitude error theta with C = Exp(theta) C_hat (NED, rad), accelerometer and gyro bias
-errors (body, m/s^2, rad/s), and with ``beam_states`` each beam's scale factor s_k and
-bias c_k (8 more). Continuous error dynamics (Groves eq. 14.64 without the curvature and
-Earth-rate terms unless ``earth_rate``)::
+errors (body, m/s^2, rad/s), and with ``beam_states`` (on for recorded logs and arrays)
+14 instrument states: each measurement's scale factor s_k and bias c_k (4 + 4: per beam,
+or per DVL axis), the DVL frame's misalignment mu (3, rad) and the DVL's lever-arm error
+(3, m). Continuous error dynamics (Groves eq. 14.64 without the curvature terms)::
 
-    dp' = dv,   dv' = -[C f x] theta - C db_a - C n_a,   theta' = -C db_g - C n_g,
-    db_a' = w_ba,  db_g' = w_bg  (random walks; s and c constant)
+    dp' = dv,   dv' = -[C f x] theta - C db_a - 2 Omega_ie x dv - C n_a,
+    theta' = -Omega_ie x theta - C db_g - C n_g,
+    db_a' = w_ba,  db_g' = w_bg  (random walks),  c_k' = -c_k / tau + w_c (``bias_time``;
+    constant without), s, mu, L constant
 
 propagated at every IMU sample with Phi = I + F dt and Q = diag(...) dt (Groves eq.
-14.72-14.82, first order), applied to the sparse blocks only. Beam k measures (auvsim's
-DVL, ``auvsim.sensors.dvl``)::
+14.72-14.82, first order), applied to the sparse blocks only. Measurement k, along the
+unit direction d_k of the DVL frame (a beam, or an axis of its velocity)::
 
-    y_k = (1 + s_k) b_k . M^T (C^T v + w x L) + c_k + n_k,   n_k ~ N(0, sigma^2)
+    y_k = (1 + s_k) (d_k + mu x d_k) . M^T (C^T v + w x L) + c_k + n_k
 
-with M the nominal mounting (DVL frame -> body) and L = r_dvl - r_imu, so each usable
-beam (``valid`` and bottom track) is one scalar update (Groves sec. 3.2.5: sequential
-processing of uncorrelated measurements) and one to four beams all help. Each innovation
-is gated by chi-square with 1 dof at ``gate_probability``. A beam is used where it has
-bottom lock (``dvl/valid``) on a ping not in water track (``dvl/mode`` != 1): with fewer
-than 3 such beams the ping has no LS velocity (mode -1), but its locked beams still
-measure the velocity over ground. A ping without one leaves the prior, so the track has
-a velocity at every ping.
+with M the nominal mounting (DVL frame -> body) and L = r_dvl - r_imu: one scalar update
+each (Groves sec. 3.2.5, sequential processing of uncorrelated measurements), so one to
+four beams all help. n_k is white with the instrument's std, plus what the ping's timing
+uncertainty (``clock_std`` on a recorded log, 0 for simulated clocks) makes of the rate
+at which y_k changes. Each innovation is gated by chi-square with 1 dof at
+``gate_probability``. A beam is used where it has bottom lock (``dvl/valid``) on a ping
+not in water track (``dvl/mode`` != 1).
+
+No silent divergence: the watch counts, over the last ``watch_pings`` pings, the
+measurements the gate rejected; when they reach ``watch_share`` of those offered (and the
+current ping had one), the velocity is restarted from the measurements (its variance set
+to cover the worst innovation, its correlations dropped), the attitude's variance gets
+its initial prior back and the position's grows by what that velocity error moves it
+over the window. Each restart is an ``Event`` of the track (ping, time, one line), listed
+by ``beamsnet estimate``.
+
+Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
+the mission's attributes (a simulated file's turn-on spread from its config, where the
+attributes hold the drawn value), with a recorded log's rounding added
+(``quantisation_density``); the beams' white noise from ``dvl_noise_std``, a velocity's
+from it through the Janus geometry (``janus_velocity_std``) or from
+``dvl_velocity_accuracy``; ``beam_noise_from_error_velocity`` estimates a beam noise from
+the DVL's error velocity. What of a recorded DVL's stated velocity accuracy the white
+noise does not explain, sqrt(accuracy^2 - white^2), is its time-correlated error: the
+biases c_k become Gauss-Markov with that std over the correlation time the ``navigator``
+preset measured on a real Navigator (3 s), unless the log states one; a simulated file's
+own slow error (``dvl_slow_error_std``, ``_time``) likewise. None of it comes from a
+synthetic protocol's sigma.
+
+Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
+recorded one at its reference's first sample within the IMU's span
+(``start_from_reference``: the reference's accuracy, widened by what the vehicle turns,
+accelerates and moves in ``clock_std``); without either, ``coarse_alignment`` (levelling
+from the averaged accelerometers, a given heading).
 
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
-factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's mounting
-misalignment, sound-speed ratio, range- and speed-dependent noise and heavy-tailed
-outliers (those the gate handles), and the bias's Gauss-Markov decay (a random walk with
-the same drive: the missions are much shorter than tau).
+factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
+ratio (a scale factor shared by the beams: the per-measurement ones hold it), range- and
+speed-dependent noise and heavy-tailed outliers (the gate handles them).
 
-Speed (``benchmarks/filter.py``, 600 s at 100 Hz, one core): the compiled loop runs at
-3400x to 4400x real time, ``run_mission`` with its HDF5 reads at 2200x to 2800x (15
-states) and 1800x to 2100x (23), on a shared machine. The first call compiles the loop
-(about 30 s) into numba's on-disk cache; later processes load it in under a second.
+Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
+real time; on a recorded 400 s segment with the 29 states, about 5000x
+(``docs/performance/results/filter.md``). The first call compiles the loop (about 30 s)
+into numba's on-disk cache; later processes load it in under a second.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import statistics
@@ -74,14 +122,16 @@ import numpy as np
 from auvsim.data.beams import beam_matrix
 from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
+from auvsim.physics.earth import OMEGA
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.data import DataError, Windows
 from beamsnet.estimators.baselines import BeamCalibration
 from beamsnet.estimators.registry import Needs, Spec
 
-EARTH_RATE = 7.292115e-5  # rad/s, WGS84 (Groves eq. 2.133)
+EARTH_RATE = OMEGA  # rad/s, WGS-84 (auvsim.physics.earth)
 N_CORE = 15  # p, v, theta, b_a, b_g
-N_BEAM = 23  # + 4 beam scale factors, 4 beam biases
+N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
+# and 3 lever-arm errors
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
 
 
@@ -91,40 +141,79 @@ class NoImuError(DataError):
 
 @dataclass(frozen=True)
 class FilterConfig:
-    """Settings of the INS/DVL filter. Stds are 1 sigma; None: from the dataset. The
-    default initial stds are our choice, of the order of a navigation-grade INS aligned
-    at the start of a mission.
+    """Settings of the INS/DVL filter. Stds are 1 sigma; None: from the mission (or the
+    arrays' instrument arguments). The default initial stds are our choice, of the order
+    of a navigation-grade INS aligned at the start of a mission.
 
     Attributes:
-        position_std: initial position error, m per NED axis.
-        velocity_std: initial velocity error, m/s per NED axis.
+        position_std: initial position error, m per NED axis (a start at the truth or
+            given; a start from a reference adds what ``clock_std`` leaves).
+        velocity_std: initial velocity error, m/s per NED axis (likewise).
         attitude_std_deg: initial attitude error (level axes, heading), deg; one number
-            sets both.
+            sets both. From a reference: its accuracy, to which the start adds the
+            rotation over ``clock_std``; a coarse alignment has its own.
         accel_bias_std: initial accelerometer bias std, m/s^2 per axis; None:
-            sqrt(turn-on spread^2 + bias instability^2) of the dataset's IMU config.
+            sqrt(turn-on spread^2 + bias instability^2) of the mission's IMU attributes.
         gyro_bias_std: initial gyro bias std, rad/s per axis; None: as above.
         initial_error_seed: None starts exactly at the truth (biases at zero) with the
             covariance above; a seed draws the initial position, velocity and attitude
-            errors from it with those stds.
-        earth_rate: compensate the Earth's rotation at ``latitude_deg`` (the simulator's
-            world does not rotate: keep it off for auvsim data).
-        latitude_deg: deg, used only with ``earth_rate``.
-        gravity: m/s^2 (down); None: the mission's, as its dataset stores it (``gravity``).
-        beam_states: estimate each beam's scale factor and bias (8 more states).
-        beam_scale_std: initial std of each beam's scale factor, - (``beam_states``).
-        beam_bias_std: initial std of each beam's bias, m/s (``beam_states``).
-        gate_probability: chi-square (1 dof) gate on each beam's normalised innovation;
-            0.999 rejects 0.1 % of good beams (3.29 sigma) and a 10 sigma outlier always.
-        beam_noise_std: m/s per beam; None: the dataset's ``dvl_noise_std``, at least
-            ``BEAM_NOISE_FLOOR``.
-        dvl_updates: False: no beam is used, pure inertial navigation from the start
-            (the mechanisation alone, as in a DVL outage).
-        accel_noise_density: m/s^2/sqrt(Hz); None: the dataset's.
-        gyro_noise_density: rad/s/sqrt(Hz); None: the dataset's.
+            errors from it with those stds (simulated missions).
+        earth_rate: compensate the Earth's rotation at the latitude; None: whenever the
+            latitude is known (a recorded log; a simulated mission with a geographic
+            origin), off in auvsim's flat world that does not rotate.
+        latitude_deg: deg; None: the mission's ``latitude_deg`` attribute.
+        gravity: m/s^2 (down); None: the mission's ``gravity`` (the WGS-84 normal
+            gravity at the latitude for a recorded log; the arrays': from the latitude).
+        beam_states: estimate each measurement's scale factor and bias (8 more states:
+            per beam, or per DVL axis for a velocity); None: on for a recorded log, for
+            arrays and for a simulated file with a slow DVL error (a real instrument's
+            slow errors), off for other simulated missions (white beam noise, as their
+            file states).
+        beam_scale_std: initial std of each scale factor, -: 0.2 %, the long-term
+            accuracy of a Teledyne RDI Workhorse Navigator (``auvsim.runs.presets
+            .navigator`` cites it).
+        beam_bias_std: initial std of each bias, m/s: 1 mm/s, likewise.
+        misalignment_std_deg: initial std of the DVL's mounting misalignment about each
+            of its axes, deg (with ``beam_states``): 0.5 deg, our choice for a DVL
+            mounted mechanically without an alignment calibration (at 0.5 deg a DVL
+            track bends by 0.9 % of the distance; Kinsey, Eustice & Whitcomb 2006, "A
+            survey of underwater vehicle navigation", IFAC MCMC, sec. 3.2, on why it
+            matters). The INS cannot tell a heading misalignment from its own heading on
+            a straight leg, so it is what makes the position's std grow with distance.
+        lever_arm_std: initial std of the DVL's lever arm from the IMU, m per axis
+            (with ``beam_states``): 0.1 m, the accuracy ``auvsim check-log`` is to find
+            lever arms to. A vehicle rolling at 30 deg/s moves a DVL 1.8 m below its IMU
+            at 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's
+            noise: the states make it observable instead of gated.
+        bias_time: correlation time of those biases, s (first-order Gauss-Markov of std
+            ``beam_bias_std`` with the instrument's slow error added); None: the
+            instrument's slow-error time where it has one, else constant.
+        gate_probability: chi-square (1 dof) gate on each measurement's normalised
+            innovation; 0.999 rejects 0.1 % of good ones (3.29 sigma).
+        beam_noise_std: white noise of a beam, m/s; None: the mission's instrument
+            (``dvl_noise_std``, at least ``BEAM_NOISE_FLOOR``).
+        velocity_noise_std: white noise of each axis of a DVL velocity, m/s; None: the
+            beam noise through the Janus geometry (``janus_velocity_std``) if known, else
+            the mission's ``dvl_velocity_accuracy``.
+        dvl_updates: False: no measurement is used, pure inertial navigation.
+        accel_noise_density: m/s^2/sqrt(Hz); None: the mission's, with a recorded log's
+            quantisation added (``quantisation_density``).
+        gyro_noise_density: rad/s/sqrt(Hz); None: likewise.
         accel_bias_psd: accelerometer bias random-walk PSD, (m/s^2)^2/s; None:
-            2 sigma^2 / tau of the dataset's Gauss-Markov bias (its drive, to first order
+            2 sigma^2 / tau of the mission's Gauss-Markov bias (its drive, to first order
             in t / tau).
         gyro_bias_psd: gyro bias random-walk PSD, (rad/s)^2/s; None: likewise.
+        clock_std: s, how well the streams' clocks are aligned with the reference's (the
+            tolerance ``auvsim check-log`` states for its offsets): a start from a
+            reference is uncertain by what the vehicle moves and turns in that time.
+        watch_pings: the divergence watch's window, pings (0: no watch).
+        watch_share: the share of the window's measurements the gate must have rejected
+            (with one rejected at the current ping) for the watch to restart the velocity
+            from the measurements and widen the attitude and position (an ``Event``).
+            A quarter: one DVL axis (or one beam in four) rejected throughout; under the
+            gate's own false-alarm rate (0.1 %) a quarter of a window's 30 or more
+            measurements (8 or more) has a binomial probability below 1e-15, and a real
+            DVL's outliers (0.2 % to a few per cent of pings) stay well below it.
     """
 
     position_std: float = 0.1
@@ -133,38 +222,137 @@ class FilterConfig:
     accel_bias_std: float | None = None
     gyro_bias_std: float | None = None
     initial_error_seed: int | None = None
-    earth_rate: bool = False
-    latitude_deg: float = 0.0
+    earth_rate: bool | None = None
+    latitude_deg: float | None = None
     gravity: float | None = None
-    beam_states: bool = False
-    beam_scale_std: float = 0.01
-    beam_bias_std: float = 0.01
+    beam_states: bool | None = None
+    beam_scale_std: float = 0.002
+    beam_bias_std: float = 0.001
+    misalignment_std_deg: float = 0.5
+    lever_arm_std: float = 0.1
+    bias_time: float | None = None
     gate_probability: float = 0.999
     beam_noise_std: float | None = None
+    velocity_noise_std: float | None = None
     dvl_updates: bool = True
     accel_noise_density: float | None = None
     gyro_noise_density: float | None = None
     accel_bias_psd: float | None = None
     gyro_bias_psd: float | None = None
+    clock_std: float = 0.05
+    watch_pings: int = 10
+    watch_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std"):
+        for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std",
+                     "misalignment_std_deg", "lever_arm_std"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
+            if not (_number(value) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
-        if isinstance(self.attitude_std_deg, (int, float)):  # one std for all three axes
+        if _number(self.attitude_std_deg):  # one std for all three axes
             object.__setattr__(self, "attitude_std_deg", (float(self.attitude_std_deg),) * 2)
-        if len(self.attitude_std_deg) != 2 or min(self.attitude_std_deg) <= 0:
+        att = self.attitude_std_deg
+        if not (isinstance(att, tuple) and len(att) == 2 and all(_number(x) and x > 0
+                                                                  for x in att)):
             raise ValueError("FilterConfig.attitude_std_deg: expected two positive stds "
-                             f"(level, heading) in deg, got {self.attitude_std_deg!r}")
-        if not 0 < self.gate_probability < 1:
+                             f"(level, heading) in deg, got {att!r}")
+        if not (_number(self.gate_probability) and 0 < self.gate_probability < 1):
             raise ValueError("FilterConfig.gate_probability: expected a probability in "
                              f"(0, 1), got {self.gate_probability!r}")
+        for name in ("beam_noise_std", "velocity_noise_std", "bias_time", "gravity",
+                     "accel_bias_std", "gyro_bias_std", "accel_noise_density",
+                     "gyro_noise_density", "accel_bias_psd", "gyro_bias_psd"):
+            value = getattr(self, name)
+            if value is not None and not (_number(value) and value >= 0):
+                raise ValueError(f"FilterConfig.{name}: expected a number >= 0 or None, "
+                                 f"got {value!r}")
+        for name in ("earth_rate", "beam_states"):
+            if getattr(self, name) not in (None, True, False):
+                raise ValueError(f"FilterConfig.{name}: expected true, false or None, got "
+                                 f"{getattr(self, name)!r}")
+        if self.latitude_deg is not None and not (_number(self.latitude_deg)
+                                                  and abs(self.latitude_deg) <= 90):
+            raise ValueError("FilterConfig.latitude_deg: expected deg in [-90, 90], got "
+                             f"{self.latitude_deg!r}")
+        if not (_number(self.clock_std) and self.clock_std >= 0):
+            raise ValueError(f"FilterConfig.clock_std: expected s >= 0, got {self.clock_std!r}")
+        if not (isinstance(self.watch_pings, int) and not isinstance(self.watch_pings, bool)
+                and self.watch_pings >= 0):
+            raise ValueError("FilterConfig.watch_pings: expected a whole number of pings "
+                             f">= 0, got {self.watch_pings!r}")
+        if not (_number(self.watch_share) and 0 < self.watch_share <= 1):
+            raise ValueError("FilterConfig.watch_share: expected a share in (0, 1], got "
+                             f"{self.watch_share!r}")
+
+
+def _number(value) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+def load_config(path) -> FilterConfig:
+    """A ``FilterConfig`` from a TOML file whose keys are its fields (any subset; arrays
+    for tuples).
+
+    Raises:
+        ConfigError: the file cannot be read or parsed, a key is not a field, or a value
+            is refused (one line naming it).
+    """
+    import dataclasses
+
+    import tomllib
+
+    from auvsim.errors import ConfigError
+
+    try:
+        with open(path, "rb") as f:
+            table = tomllib.load(f)
+    except OSError as e:
+        raise ConfigError(f": cannot read {str(path)!r} ({e.strerror})",
+                          argument="filter_config") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f": {str(path)!r} is not TOML ({e})",
+                          argument="filter_config") from None
+    fields = [f.name for f in dataclasses.fields(FilterConfig)]
+    unknown = [k for k in table if k not in fields]
+    if unknown:
+        raise ConfigError(f": {str(path)!r} has key {unknown[0]!r}, which is not a filter "
+                          f"setting; expected some of {', '.join(fields)}",
+                          argument="filter_config")
+    table = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
+    try:
+        return FilterConfig(**table)
+    except ValueError as e:
+        raise ConfigError(f": {str(path)!r}: {e}", argument="filter_config") from None
+
+
+class Start(NamedTuple):
+    """Where the filter starts: the body origin's state at IMU time ``time`` and its
+    uncertainty (1 sigma each, NED)."""
+
+    time: float  # s, on the IMU's clock
+    position_ned: np.ndarray  # (3,) m
+    velocity_ned: np.ndarray  # (3,) m/s
+    rotation: np.ndarray  # (3, 3) body -> NED
+    position_std: np.ndarray  # (3,) m
+    velocity_std: np.ndarray  # (3,) m/s
+    attitude_std: np.ndarray  # (3,) rad (the global attitude error theta, NED)
+    angular_rate: np.ndarray | None = None  # (3,) rad/s body, for the IMU's lever arm
+    # at the start (None: the gyros' sample there)
+
+
+class Event(NamedTuple):
+    """A restart by the divergence watch."""
+
+    ping: int  # the ping's index in the track
+    time: float  # s
+    kind: str  # "restart"
+    text: str  # one line, for a report
 
 
 class FilterTrack(NamedTuple):
     """The filter's output at every DVL ping of one mission (posterior, after the ping's
-    beams). Shapes (P, .)."""
+    measurements). Shapes (P, .); NaN at pings before the filter's start."""
 
     ping_time: np.ndarray  # (P,) s
     velocity_dvl: np.ndarray  # (P, 3) m/s, DVL frame (nominal mounting)
@@ -176,13 +364,31 @@ class FilterTrack(NamedTuple):
     accel_bias_std: np.ndarray  # (P, 3)
     gyro_bias: np.ndarray  # (P, 3) rad/s, body
     gyro_bias_std: np.ndarray  # (P, 3)
-    beam_scale: np.ndarray  # (P, 4) -, each beam's scale factor s_k (NaN: no beam states)
+    beam_scale: np.ndarray  # (P, 4) -, each measurement's scale factor (NaN: no states)
     beam_scale_std: np.ndarray  # (P, 4)
-    beam_bias: np.ndarray  # (P, 4) m/s, each beam's bias c_k (NaN: no beam states)
+    beam_bias: np.ndarray  # (P, 4) m/s, each measurement's bias (NaN: no states)
     beam_bias_std: np.ndarray  # (P, 4)
-    beams_used: np.ndarray  # (P,) int
+    beams_used: np.ndarray  # (P,) int, measurements accepted
     beams_rejected: np.ndarray  # (P,) int, gated out
-    nees_velocity: np.ndarray  # (P,) e^T cov^-1 e of velocity_dvl against dvl/velocity
+    nees_velocity: np.ndarray  # (P,) e^T cov^-1 e against the true velocity (NaN: none)
+    accepted: np.ndarray  # (P,) bool: the filter accepted a measurement of the ping
+    events: tuple[Event, ...] = ()  # the divergence watch's restarts, in time order
+    quaternion: np.ndarray | None = None  # (P, 4) body -> NED [w, x, y, z], its attitude
+    misalignment: np.ndarray | None = None  # (P, 3) rad, the DVL's, about its axes
+    misalignment_std: np.ndarray | None = None  # (P, 3) rad
+    lever_arm: np.ndarray | None = None  # (P, 3) m, the DVL's from the IMU, body
+    lever_arm_std: np.ndarray | None = None  # (P, 3) m
+
+    @property
+    def availability(self) -> float:
+        """Share of the pings whose measurement the filter accepted (not of its finite
+        outputs: a filter that has diverged still outputs numbers)."""
+        return float(self.accepted.mean()) if len(self.accepted) else math.nan
+
+    @property
+    def horizontal_std(self) -> np.ndarray:
+        """(P,) m, sqrt(var N + var E) of the position."""
+        return np.hypot(self.position_std[:, 0], self.position_std[:, 1])
 
 
 @numba.njit(cache=True)
@@ -237,47 +443,69 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 
 
 @numba.njit(cache=True)
-def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, r_imu,
-            p, v, c, ba, bg, P, q, r_beam, gate, n):
+def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
+            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, watch,
+            timing_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
     (p, v, c, ba, bg, P); outputs per ping are returned.
 
     Args:
         f, w: (N, 3) measured specific force, m/s^2, and angular rate, rad/s, body.
-        dt: IMU interval, s. g: gravity, m/s^2 (down). omega_ie: (3,) Earth rate, NED.
-        ping_row: (P,) IMU sample of each ping. beams: (P, 4) m/s. usable: (P, 4) bool.
-        h: (4, 3) beam matrix. mounting: (3, 3) DVL -> body. lever: (3,) r_dvl - r_imu.
-        r_imu: (3,) IMU position in the body, m.
+        dt: (N,) s, dt[i] the interval from sample i - 1 to i (dt[0] unused).
+        g: gravity, m/s^2 (down). omega_ie: (3,) Earth rate, NED.
+        ping_row: (P,) IMU sample of each ping (-1: before the start, skipped).
+        meas: (P, K) m/s, K <= 4 scalar measurements per ping along ``dirs``.
+        usable: (P, K) bool. dirs: (K, 3) unit directions in the DVL frame (beams, or
+        the DVL's axes for its velocity). mounting: (3, 3) DVL -> body.
+        lever: (3,) r_dvl - r_imu. r_imu: (3,) IMU position in the body, m.
         p, v, c, ba, bg: initial IMU-point position, velocity, rotation, biases.
         P: (n, n) initial covariance. q: (4,) PSDs (accel, gyro white noise; accel, gyro
-            bias random walk). r_beam: beam variance, (m/s)^2. gate: chi-square threshold.
-        n: states, 15 or 23.
+            bias random walk). r_meas: (K,) measurement variances, (m/s)^2.
+        gate: chi-square threshold. n: states, 15 or 23.
+        bias_decay: 1 / correlation time of the measurement biases c_k, 1/s (0: constant).
+        bias_psd: their driving PSD, (m/s)^2/s.
+        watch: (window pings, rejected share) of the divergence watch; window 0: off.
+        timing_std: s, the std of each ping's time on the IMU's clock: a measurement
+            along b changes at b . du/dt, so it is uncertain by timing_std |b . du/dt|
+            more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
     """
     n_ping = ping_row.shape[0]
-    out_v = np.empty((n_ping, 3))
-    out_cov = np.empty((n_ping, 3, 3))
-    out_p = np.empty((n_ping, 3))
-    out_pstd = np.empty((n_ping, 3))
-    out_b = np.full((n_ping, 28), np.nan)
+    n_dir = dirs.shape[0]
+    out_v = np.full((n_ping, 3), np.nan)
+    out_cov = np.full((n_ping, 3, 3), np.nan)
+    out_p = np.full((n_ping, 3), np.nan)
+    out_pstd = np.full((n_ping, 3), np.nan)
+    out_b = np.full((n_ping, 40), np.nan)
+    out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
+    reset = np.zeros(n_ping, dtype=np.bool_)
+    window = int(watch[0])
+    ring_used = np.zeros(max(window, 1), dtype=np.int64)
+    ring_rejected = np.zeros(max(window, 1), dtype=np.int64)
+    attitude_prior = np.array([P[6, 6], P[7, 7], P[8, 8]])
     s = np.zeros(4)
     cb = np.zeros(4)
+    mis = np.zeros(3)  # the DVL frame's small rotation from its nominal mounting, rad
     m_vv = np.zeros((3, 3))
     m_aa = np.zeros((3, 3))
     earth = omega_ie[0] != 0.0 or omega_ie[1] != 0.0 or omega_ie[2] != 0.0
-    if earth:
-        m_vv = -2.0 * dt * np.array([[0.0, -omega_ie[2], omega_ie[1]],
-                                     [omega_ie[2], 0.0, -omega_ie[0]],
-                                     [-omega_ie[1], omega_ie[0], 0.0]])
-        m_aa = 0.5 * m_vv
-    gmb = mounting @ h.T  # (3, 4): M b_k, beam directions in the body
     k_ping = 0
+    while k_ping < n_ping and ping_row[k_ping] < 0:
+        k_ping += 1
     hrow = np.zeros(n)
     fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
     c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(f.shape[0]):
         if i > 0:
+            h = dt[i]
+            if earth:  # -2 dt [Omega_ie x] on v <- v, half of it on theta <- theta
+                m_vv[0, 1], m_vv[0, 2], m_vv[1, 2] = 2.0 * h * omega_ie[2], \
+                    -2.0 * h * omega_ie[1], 2.0 * h * omega_ie[0]
+                m_vv[1, 0], m_vv[2, 0], m_vv[2, 1] = -m_vv[0, 1], -m_vv[0, 2], -m_vv[1, 2]
+                for r in range(3):
+                    for j in range(3):
+                        m_aa[r, j] = 0.5 * m_vv[r, j]
             for r in range(3):
                 fb[r] = f[i - 1, r] - ba[r]
                 wb[r] = w[i, r] - bg[r]
@@ -289,9 +517,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
                 cf -= 2.0 * cor
             cf[2] += g
             for r in range(3):
-                v[r] += dt * cf[r]
-                p[r] += dt * v[r]
-                dphi[r] = dt * wb[r]
+                v[r] += h * cf[r]
+                p[r] += h * v[r]
+                dphi[r] = h * wb[r]
                 c_old[r, :] = c[r, :]
             cf[2] -= g  # C f (less the Coriolis term) is what the error dynamics see
             if earth:
@@ -299,43 +527,65 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
             _exp_into(dphi, rot)
             _matmul_into(c_old, rot, c)
             # Covariance: Phi P Phi^T (columns, then rows of the result), + Q dt.
-            m_va[0, 1], m_va[0, 2], m_va[1, 2] = dt * cf[2], -dt * cf[1], dt * cf[0]
-            m_va[1, 0], m_va[2, 0], m_va[2, 1] = -dt * cf[2], dt * cf[1], -dt * cf[0]
+            m_va[0, 1], m_va[0, 2], m_va[1, 2] = h * cf[2], -h * cf[1], h * cf[0]
+            m_va[1, 0], m_va[2, 0], m_va[2, 1] = -h * cf[2], h * cf[1], -h * cf[0]
             for r in range(3):
                 for j in range(3):
-                    m_c[r, j] = -dt * c_old[r, j]
+                    m_c[r, j] = -h * c_old[r, j]
             for j in range(n):
-                _phi_apply(P[:, j], dt, m_va, m_c, m_c, m_vv, m_aa)
+                _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa)
             for j in range(n):
-                _phi_apply(P[j, :], dt, m_va, m_c, m_c, m_vv, m_aa)
+                _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa)
             for r in range(3):
-                P[3 + r, 3 + r] += q[0] * dt
-                P[6 + r, 6 + r] += q[1] * dt
-                P[9 + r, 9 + r] += q[2] * dt
-                P[12 + r, 12 + r] += q[3] * dt
+                P[3 + r, 3 + r] += q[0] * h
+                P[6 + r, 6 + r] += q[1] * h
+                P[9 + r, 9 + r] += q[2] * h
+                P[12 + r, 12 + r] += q[3] * h
+            if n > N_CORE and bias_decay > 0.0:  # first-order Gauss-Markov biases c_k
+                decay = 1.0 - h * bias_decay
+                for k in range(4):
+                    cb[k] *= decay
+                    P[19 + k, :] *= decay
+                    P[:, 19 + k] *= decay
+                    P[19 + k, 19 + k] += bias_psd * h
         while k_ping < n_ping and ping_row[k_ping] == i:
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
             wb = w[i] - bg - c.T @ omega_ie
-            for k in range(4):
+            worst = 0.0
+            u_dot = np.zeros(3)
+            if timing_std > 0.0:
+                u = c.T @ v + np.cross(wb, lever)
+                alpha = (w[i] - w[i - 1]) / dt[i] if i > 0 else np.zeros(3)
+                u_dot = (f[i] - ba + g * c[2, :] - np.cross(wb, u)
+                         + np.cross(alpha, lever))
+            for k in range(n_dir):
                 if not usable[k_ping, k]:
                     continue
                 u = c.T @ v + np.cross(wb, lever)  # DVL point velocity, body
-                gk = (1.0 + s[k]) * gmb[:, k]
+                # Direction k of the DVL frame as mounted, in the body: d turned by the
+                # misalignment, d + mis x d (d . (x + x x mis) = (d + mis x d) . x).
+                d_k = dirs[k] + np.cross(mis, dirs[k])
+                gm = mounting @ d_k
+                gk = (1.0 + s[k]) * gm
                 a = c @ gk
-                beam_true = gmb[0, k] * u[0] + gmb[1, k] * u[1] + gmb[2, k] * u[2]
-                y_hat = (1.0 + s[k]) * beam_true + cb[k]
+                along = gm[0] * u[0] + gm[1] * u[1] + gm[2] * u[2]
+                y_hat = (1.0 + s[k]) * along + cb[k]
                 hrow[:] = 0.0
                 hrow[3:6] = a
                 hrow[6:9] = np.cross(a, v)
                 hrow[12:15] = np.cross(gk, lever)
                 if n > N_CORE:
-                    hrow[15 + k] = beam_true
+                    hrow[15 + k] = along
                     hrow[19 + k] = 1.0
+                    hrow[23:26] = (1.0 + s[k]) * np.cross(dirs[k], mounting.T @ u)
+                    hrow[26:29] = np.cross(gk, wb)  # g . (w x dL) = dL . (g x w)
                 ph = P @ hrow
-                s_inn = hrow @ ph + r_beam
-                nu = beams[k_ping, k] - y_hat
+                rate_k = gm[0] * u_dot[0] + gm[1] * u_dot[1] + gm[2] * u_dot[2]
+                s_inn = hrow @ ph + r_meas[k] + (timing_std * rate_k) ** 2
+                nu = meas[k_ping, k] - y_hat
                 if nu * nu > gate * s_inn:
                     rejected[k_ping] += 1
+                    worst = max(worst, abs(nu))
                     continue
                 used[k_ping] += 1
                 gain = ph / s_inn
@@ -351,6 +601,32 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
                 if n > N_CORE:
                     s += dx[15:19]
                     cb += dx[19:23]
+                    mis += dx[23:26]
+                    lever += dx[26:29]
+            if window > 0:
+                slot = k_ping % window
+                ring_used[slot] = used[k_ping] + rejected[k_ping]
+                ring_rejected[slot] = rejected[k_ping]
+                offered = ring_used.sum()
+                if (rejected[k_ping] > 0 and offered >= window
+                        and ring_rejected.sum() >= watch[1] * offered):
+                    # The gate has rejected most measurements for a window: the state, not
+                    # the instrument, is wrong. Restart the velocity from the measurements
+                    # (its variance covers the worst innovation, uncorrelated), widen the
+                    # attitude back to its prior and the position by what the velocity
+                    # error could have moved it over the window.
+                    first = ping_row[max(0, k_ping - window + 1)]
+                    span = (i - first) * dt[i] if first >= 0 else 0.0
+                    for r in range(3):
+                        for j in range(n):
+                            P[3 + r, j] = 0.0
+                            P[j, 3 + r] = 0.0
+                        P[3 + r, 3 + r] = 4.0 * worst * worst + r_meas.max()
+                        P[6 + r, 6 + r] += attitude_prior[r]
+                        P[r, r] += (worst * span) ** 2
+                    reset[k_ping] = True
+                    ring_used[:] = 0
+                    ring_rejected[:] = 0
             wb = w[i] - bg - c.T @ omega_ie
             jac = np.zeros((3, 9))  # d v_dvl / d (dv, theta, db_g)
             mt = mounting.T
@@ -369,6 +645,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
             out_cov[k_ping] = jac @ sub @ jac.T
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
             out_p[k_ping] = p - c @ r_imu
+            out_c[k_ping] = c
             for r in range(3):
                 # The origin's position error adds theta x (C r_imu); r_imu is short, and
                 # its share is below the position std's first digit: the IMU point's std.
@@ -383,8 +660,13 @@ def _filter(f, w, dt, g, omega_ie, ping_row, beams, usable, h, mounting, lever, 
                     out_b[k_ping, 16 + k] = math.sqrt(P[15 + k, 15 + k])
                     out_b[k_ping, 20 + k] = cb[k]
                     out_b[k_ping, 24 + k] = math.sqrt(P[19 + k, 19 + k])
+                for r in range(3):
+                    out_b[k_ping, 28 + r] = mis[r]
+                    out_b[k_ping, 31 + r] = math.sqrt(P[23 + r, 23 + r])
+                    out_b[k_ping, 34 + r] = lever[r]
+                    out_b[k_ping, 37 + r] = math.sqrt(P[26 + r, 26 + r])
             k_ping += 1
-    return out_v, out_cov, out_p, out_pstd, out_b, used, rejected
+    return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset, out_c
 
 
 def _dataset_config(mission) -> dict:
@@ -392,113 +674,486 @@ def _dataset_config(mission) -> dict:
     return json.loads(text) if text else {}
 
 
-def run_mission(mission, config: FilterConfig = FilterConfig(), *,
-                beam_correction: tuple[np.ndarray, np.ndarray] | None = None) -> FilterTrack:
-    """Run the filter over one mission from its start.
+def janus_velocity_std(beam_noise_std: float, beam_angle_deg: float) -> np.ndarray:
+    """(3,) m/s, the white noise of each axis of the velocity a 4-beam Janus DVL solves
+    from beams of white noise ``beam_noise_std`` (independent, equal) at
+    ``beam_angle_deg`` from the vertical: v_x = (b1 - b2) / (2 sin a) and likewise y,
+    v_z = (b1 + b2 + b3 + b4) / (4 cos a) (Teledyne RD Instruments, "ADCP Coordinate
+    Transformation: Formulas and Calculations", P/N 951-6079-00, 2010, sec. 5), so
+    sigma_x = sigma_y = sigma / (sqrt 2 sin a) and sigma_z = sigma / (2 cos a)."""
+    a = math.radians(beam_angle_deg)
+    return beam_noise_std * np.array([1 / (math.sqrt(2) * math.sin(a)),
+                                      1 / (math.sqrt(2) * math.sin(a)), 0.5 / math.cos(a)])
+
+
+def beam_noise_from_error_velocity(error_velocity: np.ndarray, beam_angle_deg: float) -> float:
+    """The white beam noise, m/s, of a 4-beam Janus DVL from its error velocity (P,):
+    e = (b1 + b2 - b3 - b4) / (2 sqrt 2 sin a) (RD Instruments 951-6079-00, sec. 5: its
+    scale makes e's noise that of a horizontal axis) cancels any velocity and keeps the
+    beams' noise, so sigma = sqrt 2 sin(a) std(e). The std is robust (1.4826 MAD about
+    the median), so the outliers the gate handles do not inflate it."""
+    e = np.asarray(error_velocity, dtype=float)
+    e = e[np.isfinite(e)]
+    if len(e) < 2:
+        raise DataError(f"error_velocity: expected at least 2 finite values, got {len(e)}")
+    std = 1.4826 * float(np.median(np.abs(e - np.median(e))))
+    return math.sqrt(2.0) * math.sin(math.radians(beam_angle_deg)) * std
+
+
+def quantisation_density(samples: np.ndarray, rate_hz: float) -> float:
+    """The white-noise density, per sqrt(Hz), of a log's rounding: its step q (the
+    smallest nonzero difference between the distinct values the log holds) gives a
+    uniform error of variance q^2 / 12 in every sample (Widrow & Kollar 2008,
+    "Quantization Noise", ch. 4), white over the band rate/2: q / sqrt(12 rate)."""
+    values = np.unique(np.asarray(samples, dtype=float))
+    steps = np.diff(values)
+    steps = steps[steps > 1e-12 * max(1.0, float(np.abs(values).max(initial=0.0)))]
+    if not len(steps):
+        return 0.0
+    return float(steps.min()) / math.sqrt(12.0 * rate_hz)
+
+
+def start_from_reference(time: float, position_ned, velocity_ned, rotation, *,
+                         angular_rate, acceleration=None,
+                         config: FilterConfig = FilterConfig()) -> Start:
+    """A start at a reference's sample (its ``time`` on the IMU's clock; the body origin's
+    position (3,) m, NED velocity (3,) m/s and body -> NED rotation (3, 3)), uncertain by
+    the reference's own accuracy (``config``'s position, velocity and attitude stds) and
+    by what a clock error of ``config.clock_std`` makes of it: the rotation over that
+    time, |w| clock_std for the body rate ``angular_rate`` (3,) rad/s there (a vehicle
+    that starts rolling at 33 deg/s is 1.7 deg off in roll for 0.05 s), the velocity
+    change |a| clock_std, the distance |v| clock_std."""
+    level, heading = np.radians(config.attitude_std_deg)
+    rotation = np.asarray(rotation, dtype=float)
+    turned = np.abs(rotation @ np.asarray(angular_rate, dtype=float)) * config.clock_std
+    accel = np.zeros(3) if acceleration is None else np.asarray(acceleration, dtype=float)
+    velocity_ned = np.asarray(velocity_ned, dtype=float)
+    return Start(
+        time=float(time), position_ned=np.asarray(position_ned, dtype=float),
+        velocity_ned=velocity_ned, rotation=rotation,
+        position_std=np.hypot(config.position_std, np.abs(velocity_ned) * config.clock_std),
+        velocity_std=np.hypot(config.velocity_std, np.abs(accel) * config.clock_std),
+        attitude_std=np.hypot(np.array([level, level, heading]), turned))
+
+
+def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_ned=(0, 0, 0),
+                     velocity_ned=(0, 0, 0), heading_std_deg: float = 1.0,
+                     seconds: float = 10.0, speed_std: float = 0.5) -> Start:
+    """A start without a reference: level from the accelerometers averaged over the first
+    ``seconds`` (gravity is -f on average: roll = atan2(-f_y, -f_z), pitch = atan2(f_x,
+    |(f_y, f_z)|); Groves 2013 sec. 5.6.2), heading given. The level std is the spread of
+    the tilt over the window (a vehicle that moves or rolls while it is averaged) over
+    sqrt of its independent seconds, at least 1 mrad (our floor, ten times what a
+    navigation-grade accelerometer's 100 micro-g bias tilts). The velocity
+    is given (default at rest), with ``speed_std`` per axis; the DVL corrects both within
+    pings."""
+    t = np.asarray(imu_time, dtype=float)
+    f = np.asarray(specific_force, dtype=float)
+    rows = t <= t[0] + seconds
+    mean = f[rows].mean(axis=0)
+    roll = math.atan2(-mean[1], -mean[2])
+    pitch = math.atan2(mean[0], math.hypot(mean[1], mean[2]))
+    g = float(np.linalg.norm(mean))
+    # Per second, the tilt the mean specific force shows: its spread is what the motion
+    # leaves in the average.
+    seconds_of = np.floor(t[rows] - t[0]).astype(int)
+    per_second = np.stack([f[rows][seconds_of == k].mean(axis=0)
+                           for k in np.unique(seconds_of)])
+    tilt = np.linalg.norm(per_second[:, :2] - mean[:2], axis=1) / g
+    level = max(float(np.sqrt(np.mean(tilt**2) / max(len(per_second), 1))), 1e-3)
+    return Start(time=float(t[0]), position_ned=np.asarray(position_ned, dtype=float),
+                 velocity_ned=np.asarray(velocity_ned, dtype=float),
+                 rotation=rotation_rpy(roll, pitch, math.radians(heading_deg)),
+                 position_std=np.full(3, 1.0), velocity_std=np.full(3, speed_std),
+                 attitude_std=np.array([level, level, math.radians(heading_std_deg)]))
+
+
+class Instrument(NamedTuple):
+    """An IMU's and a DVL's error specifications, as the filter uses them (1 sigma)."""
+
+    accel_noise_density: float  # m/s^2/sqrt(Hz)
+    gyro_noise_density: float  # rad/s/sqrt(Hz)
+    accel_bias_std: float  # m/s^2, initial
+    gyro_bias_std: float  # rad/s, initial
+    accel_bias_psd: float  # (m/s^2)^2/s
+    gyro_bias_psd: float  # (rad/s)^2/s
+    measurement_std: np.ndarray  # (K,) m/s, white noise of each beam or velocity axis
+    slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
+    slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
+
+
+def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
+               velocity=None, valid=None, beam_angle_deg: float | None = None,
+               mounting_rpy_deg=(0.0, 0.0, 0.0), imu_position_body=(0.0, 0.0, 0.0),
+               dvl_position_body=(0.0, 0.0, 0.0), start: Start,
+               instrument: Instrument, latitude_deg: float | None = None,
+               height_m: float = 0.0, gravity: float | None = None,
+               config: FilterConfig = FilterConfig(), truth_velocity_dvl=None,
+               ping_row=None, timing_std: float | None = None) -> FilterTrack:
+    """Run the filter on arrays: no dataset needed.
+
+    The streams keep their own clocks: each DVL ping is applied at the IMU sample at or
+    just before its time (``np.searchsorted``), nothing is resampled; pings before
+    ``start.time`` are left out (NaN, not accepted).
 
     Args:
-        mission: an ``auvsim.data.reader.Mission`` view of a simulated mission.
-        config: the filter's settings.
-        beam_correction: per-beam (scale factors s, biases b (m/s)), each (4,), known from
-            a calibration (``beamsnet.estimators.baselines.BeamCalibration``): every beam is used as
-            ``(y - b) / (1 + s)``. None: the beams as measured.
+        imu_time: (N,) s, increasing. specific_force: (N, 3) m/s^2 and angular_rate:
+            (N, 3) rad/s, body FRD at the IMU.
+        dvl_time: (P,) s on the IMU's clock.
+        beams: (P, 4) m/s, each Janus beam's velocity (``auvsim.data.beams``), or
+        velocity: (P, 3) m/s, the DVL's own velocity in its frame: one of the two.
+        valid: (P, 4) or (P, 3) or (P,) bool, which measurements to use (default: the
+            finite ones).
+        beam_angle_deg: the beams' angle from the vertical (needed with ``beams``).
+        mounting_rpy_deg: (3,) DVL frame -> body, deg. imu_position_body,
+            dvl_position_body: (3,) m, FRD from the body origin (the reference point).
+        start: where and how sure the filter starts (``start_from_reference``,
+            ``coarse_alignment``, or the truth).
+        instrument: the IMU's and DVL's noise (``Instrument``).
+        latitude_deg: the place; with it (unless ``config.earth_rate`` is False) the
+            Earth's rate is compensated and gravity is WGS-84's normal gravity there
+            (``auvsim.physics.earth``). None: a flat Earth that does not rotate.
+        height_m: height for the normal gravity, m (negative under water).
+        gravity: m/s^2, overrides both (``config.gravity`` overrides it).
+        config: settings; its instrument fields override ``instrument``'s.
+        truth_velocity_dvl: (P, 3) m/s, for the NEES (NaN without).
+        ping_row: (P,) the IMU sample of each ping, where a file states it (simulated
+            missions' ``imu/index_of_dvl``); default from the times.
+        timing_std: s, how uncertain each ping's time is on the IMU's clock; None:
+            ``config.clock_std`` (0 for a simulated mission, whose clocks are exact).
 
     Returns:
-        The track at every DVL ping.
+        The track at every ping.
 
     Raises:
-        NoImuError: the mission has no IMU record (an imported stream).
+        ValueError: an argument of the wrong shape, order or value, named.
     """
-    if not mission.has("imu"):
-        raise NoImuError(f"mission {mission.name} has no IMU record; the INS/DVL filter "
-                         "integrates the IMU, so it is skipped")
-    a, cfg = mission.attrs, config
-    dataset_config = _dataset_config(mission)
-    imu_cfg = dataset_config.get("imu", {})
-    rate = float(a["imu_rate_hz"])
-    f = np.ascontiguousarray(mission.imu.specific_force, dtype=np.float64)
-    w = np.ascontiguousarray(mission.imu.angular_rate, dtype=np.float64)
-    truth = mission.truth
-    r_imu = np.asarray(a["imu_position_body"], dtype=float)
-    r_dvl = np.asarray(a["dvl_position_body"], dtype=float)
-    mounting = rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"]))
-    h = beam_matrix(math.radians(float(a["beam_angle_deg"])))
-    gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
+    from auvsim.physics.earth import earth_rate_ned, normal_gravity
 
-    # Initial state: the truth at sample 0, moved to the IMU point.
-    c0 = rotation_matrices(truth.quaternion[:1])[0]
-    w0 = truth.angular_rate[0]
-    p0 = truth.position_ned[0] + c0 @ r_imu
-    v0 = truth.velocity_ned[0] + c0 @ np.cross(w0, r_imu)
-    level, heading = np.radians(cfg.attitude_std_deg)
-    att_std = np.array([level, level, heading])
-    if cfg.initial_error_seed is not None:
-        rng = np.random.default_rng(cfg.initial_error_seed)
-        p0 = p0 + cfg.position_std * rng.standard_normal(3)
-        v0 = v0 + cfg.velocity_std * rng.standard_normal(3)
-        c0 = _exp_np(att_std * rng.standard_normal(3)) @ c0
+    t = np.asarray(imu_time, dtype=float)
+    f = np.ascontiguousarray(specific_force, dtype=np.float64)
+    w = np.ascontiguousarray(angular_rate, dtype=np.float64)
+    if t.ndim != 1 or len(t) < 2 or f.shape != (len(t), 3) or w.shape != (len(t), 3):
+        raise ValueError(f"imu_time, specific_force, angular_rate: expected (N,), (N, 3), "
+                         f"(N, 3) with N >= 2, got {t.shape}, {f.shape}, {w.shape}")
+    if not (np.diff(t) > 0).all():
+        raise ValueError("imu_time: expected increasing times")
+    tp = np.asarray(dvl_time, dtype=float)
+    if (beams is None) == (velocity is None):
+        raise ValueError("beams, velocity: expected one of the two")
+    if beams is not None:
+        meas = np.asarray(beams, dtype=float)
+        if beam_angle_deg is None:
+            raise ValueError("beam_angle_deg: expected the beams' angle with beams")
+        dirs = beam_matrix(math.radians(float(beam_angle_deg)))
+    else:
+        meas = np.asarray(velocity, dtype=float)
+        dirs = np.eye(3)
+    if meas.shape != (len(tp), len(dirs)):
+        raise ValueError(f"{'beams' if beams is not None else 'velocity'}: expected shape "
+                         f"({len(tp)}, {len(dirs)}), got {meas.shape}")
+    usable = np.isfinite(meas)
+    if valid is not None:
+        valid = np.asarray(valid, dtype=bool)
+        usable &= valid[:, None] if valid.ndim == 1 else valid
+    usable &= bool(config.dvl_updates)
 
-    def bias_std(given, turn_on_key, instability_key):
-        if given is not None:
-            return given
-        return math.hypot(float(imu_cfg.get(turn_on_key, 0.0)), float(a[instability_key]))
+    # The start: IMU sample i0 at or just before start.time; the IMU point's state.
+    i0 = max(int(np.searchsorted(t, start.time, side="right")) - 1, 0)
+    r_imu = np.asarray(imu_position_body, dtype=float)
+    r_dvl = np.asarray(dvl_position_body, dtype=float)
+    c0 = np.asarray(start.rotation, dtype=float)
+    p0 = np.asarray(start.position_ned, dtype=float) + c0 @ r_imu
+    w0 = w[i0] if start.angular_rate is None else np.asarray(start.angular_rate, float)
+    v0 = np.asarray(start.velocity_ned, dtype=float) + c0 @ np.cross(w0, r_imu)
+    if ping_row is None:
+        # At or just before each ping; a tolerance for stamps that are the same instant.
+        ping_row = np.searchsorted(t, tp + 1e-9 * np.maximum(1.0, np.abs(tp)),
+                                   side="right") - 1
+    ping_row = np.asarray(ping_row, dtype=np.int64) - i0
+    ping_row[ping_row < 0] = -1
+    if ping_row.size and (np.diff(ping_row) < 0).any():
+        raise ValueError("dvl_time: expected increasing times")
 
-    def psd(given, instability_key, tau_key):
-        if given is not None:
-            return given
-        sigma, tau = float(a[instability_key]), float(a.get(tau_key, a[
-            "imu_bias_correlation_time"]))
-        return 2.0 * sigma**2 / tau
-
-    n = N_BEAM if cfg.beam_states else N_CORE
+    cfg = config
+    earth = (cfg.earth_rate if cfg.earth_rate is not None else latitude_deg is not None)
+    if earth and latitude_deg is None:
+        raise ValueError("latitude_deg: the Earth's rate needs the latitude")
+    omega_ie = earth_rate_ned(latitude_deg) if earth else np.zeros(3)
+    g = (cfg.gravity if cfg.gravity is not None else gravity if gravity is not None
+         else normal_gravity(latitude_deg, height_m) if latitude_deg is not None else None)
+    if g is None:
+        raise ValueError("gravity: expected it, or latitude_deg for the normal gravity")
+    beam_states = cfg.beam_states if cfg.beam_states is not None else True
+    n = N_BEAM if beam_states else N_CORE
+    ins = instrument
     std = np.concatenate([
-        np.full(3, cfg.position_std), np.full(3, cfg.velocity_std), att_std,
-        np.full(3, bias_std(cfg.accel_bias_std, "accel_turn_on_bias",
-                            "imu_accel_bias_instability")),
-        np.full(3, bias_std(cfg.gyro_bias_std, "gyro_turn_on_bias",
-                            "imu_gyro_bias_instability")),
-        np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std)])[:n]
-    # Zero stds (an ideal IMU) would make P singular only where nothing is unknown.
+        np.asarray(start.position_std, dtype=float), np.asarray(start.velocity_std, float),
+        np.asarray(start.attitude_std, dtype=float),
+        np.full(3, ins.accel_bias_std if cfg.accel_bias_std is None else cfg.accel_bias_std),
+        np.full(3, ins.gyro_bias_std if cfg.gyro_bias_std is None else cfg.gyro_bias_std),
+        np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std),
+        np.full(3, math.radians(cfg.misalignment_std_deg)),
+        np.full(3, cfg.lever_arm_std)])[:n]
     P = np.diag(std**2)
     q = np.array([
-        (cfg.accel_noise_density if cfg.accel_noise_density is not None
-         else float(a["imu_accel_noise_density"]))**2,
-        (cfg.gyro_noise_density if cfg.gyro_noise_density is not None
-         else float(a["imu_gyro_noise_density"]))**2,
-        psd(cfg.accel_bias_psd, "imu_accel_bias_instability", "imu_accel_bias_correlation_time"),
-        psd(cfg.gyro_bias_psd, "imu_gyro_bias_instability", "imu_gyro_bias_correlation_time")])
-    sigma_beam = cfg.beam_noise_std if cfg.beam_noise_std is not None else max(
-        float(a["dvl_noise_std"]), BEAM_NOISE_FLOOR)
-    lat = math.radians(cfg.latitude_deg)
-    omega_ie = (EARTH_RATE * np.array([math.cos(lat), 0.0, -math.sin(lat)])
-                if cfg.earth_rate else np.zeros(3))
-
-    dvl = mission.dvl
-    beams = np.asarray(dvl.beam_velocity, dtype=float)
-    if beam_correction is not None:
-        scale, bias = (np.asarray(x, dtype=float) for x in beam_correction)
-        beams = (beams - bias) / (1.0 + scale)
-    mode = dvl.mode if "mode" in dvl else np.zeros(len(beams), dtype=np.int64)
-    # A beam with bottom lock measures the velocity over ground whether or not the ping
-    # has the 3 such beams an LS velocity needs (mode 0 or -1; ``valid`` is the lock
-    # there); in water track (mode 1) ``valid`` means it measured the water: not used.
-    usable = (np.asarray(dvl.valid, dtype=bool) & (mode != 1)[:, None] & np.isfinite(beams)
-              & cfg.dvl_updates)
-    ping_row = np.asarray(mission.imu.index_of_dvl, dtype=np.int64)
-    out_v, cov, pos, pos_std, b, used, rejected = _filter(
-        f, w, 1.0 / rate, gravity, omega_ie, ping_row, np.nan_to_num(beams), usable, h,
-        mounting, r_dvl - r_imu, r_imu, p0.copy(), v0.copy(), c0.copy(), np.zeros(3),
-        np.zeros(3), P, q, sigma_beam**2, _chi2_1dof(cfg.gate_probability), n)
-    err = out_v - np.asarray(dvl.velocity, dtype=float)
-    nees = np.einsum("pi,pi->p", err, np.linalg.solve(cov, err[..., None])[..., 0])
-    return FilterTrack(ping_time=np.asarray(dvl.time, dtype=float), velocity_dvl=out_v,
+        (ins.accel_noise_density if cfg.accel_noise_density is None
+         else cfg.accel_noise_density) ** 2,
+        (ins.gyro_noise_density if cfg.gyro_noise_density is None
+         else cfg.gyro_noise_density) ** 2,
+        ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
+        ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd])
+    r_meas = np.broadcast_to(np.asarray(ins.measurement_std, dtype=float),
+                             (len(dirs),)) ** 2
+    dt = np.concatenate([[0.0], np.diff(t[i0:])])
+    # The measurement biases c_k: constant (``beam_bias_std``), or first-order Gauss-Markov
+    # with the instrument's slow error (its std added, its correlation time) or
+    # ``bias_time``. Over a mission of hundreds of correlation times the constant part
+    # it replaces is a share of a few per cent of its variance.
+    bias_time = cfg.bias_time if cfg.bias_time is not None else (
+        ins.slow_error_time if ins.slow_error_std > 0 else None)
+    bias_std = math.hypot(cfg.beam_bias_std, ins.slow_error_std)
+    if bias_time is not None and n > N_CORE:
+        P[19:23, 19:23] = np.diag(np.full(4, bias_std**2))
+    decay = 0.0 if bias_time is None else 1.0 / bias_time
+    out_v, cov, pos, pos_std, b, used, rejected, reset, rot = _filter(
+        f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
+        np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
+        rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
+        v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
+        np.ascontiguousarray(r_meas), _chi2_1dof(cfg.gate_probability), n, decay,
+        2.0 * bias_std**2 * decay,
+        np.array([float(cfg.watch_pings), float(cfg.watch_share)]),
+        cfg.clock_std if timing_std is None else float(timing_std))
+    if truth_velocity_dvl is not None:
+        err = out_v - np.asarray(truth_velocity_dvl, dtype=float)
+        ok = np.isfinite(err).all(axis=1)
+        nees = np.full(len(tp), np.nan)
+        nees[ok] = np.einsum("pi,pi->p", err[ok],
+                             np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
+    else:
+        nees = np.full(len(tp), np.nan)
+    events = tuple(Event(int(k), float(tp[k]), "restart",
+                         f"ping {k} at {tp[k]:.2f} s: the gate had rejected at least "
+                         f"{100 * cfg.watch_share:.0f} % of the last {cfg.watch_pings} pings' "
+                         "measurements; velocity restarted from the measurements, attitude "
+                         "and position widened")
+                   for k in np.flatnonzero(reset))
+    return FilterTrack(ping_time=tp, velocity_dvl=out_v,
                        velocity_std=np.sqrt(np.diagonal(cov, axis1=1, axis2=2)),
                        velocity_cov=cov, position_ned=pos, position_std=pos_std,
                        accel_bias=b[:, 0:3], accel_bias_std=b[:, 3:6],
                        gyro_bias=b[:, 6:9], gyro_bias_std=b[:, 9:12],
                        beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
                        beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
-                       beams_used=used, beams_rejected=rejected, nees_velocity=nees)
+                       beams_used=used, beams_rejected=rejected, nees_velocity=nees,
+                       accepted=used > 0, events=events, misalignment=b[:, 28:31],
+                       misalignment_std=b[:, 31:34], lever_arm=b[:, 34:37],
+                       lever_arm_std=b[:, 37:40],
+                       quaternion=quaternion_of(rot))
+
+
+def run_mission(mission, config: FilterConfig = FilterConfig(), *,
+                beam_correction: tuple[np.ndarray, np.ndarray] | None = None) -> FilterTrack:
+    """Run the filter over one mission (``run_arrays`` on its streams).
+
+    A simulated mission starts at its truth (or, with ``initial_error_seed``, drawn
+    around it); a recorded one at its reference's first sample within the IMU's span
+    (``start_from_reference``). The instrument's noise comes from the mission's
+    attributes; the Earth rotates when it has a latitude.
+
+    Args:
+        mission: an ``auvsim.data.reader.Mission`` with an IMU (simulated or recorded).
+        config: the filter's settings.
+        beam_correction: per-beam (scale factors s, biases b (m/s)), each (4,), known from
+            a calibration (``beamsnet.estimators.baselines.BeamCalibration``): every beam is
+            used as ``(y - b) / (1 + s)``. None: the beams as measured.
+
+    Returns:
+        The track at every DVL ping.
+
+    Raises:
+        NoImuError: the mission has no IMU record (an imported stream).
+        DataError: a recorded mission without a reference attitude to start from.
+    """
+    if not mission.has("imu"):
+        raise NoImuError(f"mission {mission.name} has no IMU record; the INS/DVL filter "
+                         "integrates the IMU, so it is skipped")
+    a, cfg = mission.attrs, config
+    recorded = getattr(mission, "origin", a.get("origin")) == "recorded"
+    imu, dvl = mission.imu, mission.dvl
+    f = np.asarray(imu.specific_force, dtype=float)
+    w = np.asarray(imu.angular_rate, dtype=float)
+    imu_time = np.asarray(imu.time if _holds(imu, "time") else mission.truth.time, dtype=float)
+    rate = float(a["imu_rate_hz"]) if "imu_rate_hz" in a else 1.0 / float(
+        np.median(np.diff(imu_time)))
+    r_imu = np.asarray(a.get("imu_position_body", np.zeros(3)), dtype=float)
+    latitude = cfg.latitude_deg if cfg.latitude_deg is not None else a.get("latitude_deg")
+    latitude = None if latitude is None else float(latitude)
+
+    if recorded:
+        start = _reference_start(mission, imu_time, w, cfg)
+    else:
+        start = _truth_start(mission, r_imu, cfg)
+
+    imu_cfg = _dataset_config(mission).get("imu", {})
+
+    def bias_std(turn_on_key, instability_key):
+        # A simulated file stores its turn-on biases as drawn (the truth), their spread
+        # only in its config; a recorded log's attributes give the instability alone.
+        turn_on = 0.0 if recorded else float(imu_cfg.get(turn_on_key, 0.0))
+        return math.hypot(turn_on, float(a[instability_key]))
+
+    def psd(instability_key, tau_key):
+        sigma = float(a[instability_key])
+        tau = float(a.get(tau_key, a["imu_bias_correlation_time"]))
+        return 2.0 * sigma**2 / tau
+
+    def density(key, samples):
+        spec = float(a[key])
+        if not recorded:
+            return spec
+        return math.hypot(spec, quantisation_density(samples, rate))
+
+    beam_angle = float(a["beam_angle_deg"]) if "beam_angle_deg" in a else None
+    beam_noise = (cfg.beam_noise_std if cfg.beam_noise_std is not None
+                  else float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None)
+    use_beams = _holds(dvl, "beam_velocity") and not (
+        recorded and a.get("dvl_beams_derived", False))
+    if use_beams:
+        if beam_noise is None:
+            raise DataError(f"mission {mission.name}: no beam noise (dvl_noise_std); "
+                            "expected it, or beam_noise_std in the filter's settings")
+        measurement_std = np.full(4, max(beam_noise, BEAM_NOISE_FLOOR))
+    elif cfg.velocity_noise_std is not None:
+        measurement_std = np.full(3, cfg.velocity_noise_std)
+    elif beam_noise is not None and beam_angle is not None:
+        measurement_std = np.maximum(janus_velocity_std(beam_noise, beam_angle),
+                                     BEAM_NOISE_FLOOR)
+    elif "dvl_velocity_accuracy" in a:
+        measurement_std = np.full(3, float(a["dvl_velocity_accuracy"]))
+    else:
+        raise DataError(f"mission {mission.name}: no DVL noise (dvl_noise_std or "
+                        "dvl_velocity_accuracy); expected one, or velocity_noise_std in the "
+                        "filter's settings")
+    slow_std, slow_time = _slow_error(a, measurement_std, recorded=recorded,
+                                      beams=use_beams, beam_angle=beam_angle)
+    instrument = Instrument(
+        accel_noise_density=density("imu_accel_noise_density", f),
+        gyro_noise_density=density("imu_gyro_noise_density", w),
+        accel_bias_std=bias_std("accel_turn_on_bias", "imu_accel_bias_instability"),
+        gyro_bias_std=bias_std("gyro_turn_on_bias", "imu_gyro_bias_instability"),
+        accel_bias_psd=psd("imu_accel_bias_instability", "imu_accel_bias_correlation_time"),
+        gyro_bias_psd=psd("imu_gyro_bias_instability", "imu_gyro_bias_correlation_time"),
+        measurement_std=measurement_std, slow_error_std=slow_std,
+        slow_error_time=slow_time)
+
+    dvl_time = np.asarray(dvl.time, dtype=float)
+    if use_beams:
+        beams = np.asarray(dvl.beam_velocity, dtype=float)
+        if beam_correction is not None:
+            scale, bias = (np.asarray(x, dtype=float) for x in beam_correction)
+            beams = (beams - bias) / (1.0 + scale)
+        mode = dvl.mode if _holds(dvl, "mode") else np.zeros(len(beams), dtype=np.int64)
+        # A beam with bottom lock measures the velocity over ground whether or not the
+        # ping has the 3 such beams an LS velocity needs (mode 0 or -1; ``valid`` is the
+        # lock there); in water track (mode 1) ``valid`` means it measured the water.
+        valid = np.asarray(dvl.valid, dtype=bool) & (np.asarray(mode) != 1)[:, None]
+        measured = dict(beams=beams)
+    else:
+        velocity = np.asarray(dvl.velocity_ls if _holds(dvl, "velocity_ls") else dvl.velocity,
+                              dtype=float)
+        valid = (np.asarray(dvl.mode) == 0) if _holds(dvl, "mode") else None
+        measured = dict(velocity=velocity)
+    truth_v = None if recorded or not _holds(dvl, "velocity") else np.asarray(dvl.velocity, float)
+    ping_row = (np.asarray(imu.index_of_dvl, dtype=np.int64) if _holds(imu, "index_of_dvl")
+                else None)
+    # A file that states a slow DVL error needs the bias states to hold it.
+    beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
+    gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
+    return run_arrays(
+        imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
+        mounting_rpy_deg=np.asarray(a.get("dvl_mounting_rpy_deg", np.zeros(3)), float),
+        imu_position_body=r_imu,
+        dvl_position_body=np.asarray(a.get("dvl_position_body", np.zeros(3)), float),
+        start=start, instrument=instrument, latitude_deg=latitude,
+        height_m=float(a.get("height_m", 0.0)), gravity=gravity,
+        config=dataclasses.replace(cfg, beam_states=beam_states),
+        truth_velocity_dvl=truth_v, ping_row=ping_row,
+        timing_std=None if recorded else 0.0)
+
+
+def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: bool,
+                beam_angle: float | None) -> tuple[float, float | None]:
+    """The DVL's time-correlated velocity error (std per axis, m/s; correlation time, s):
+    a simulated file's own (``dvl_slow_error_std``, ``_time``); for a recorded log, what
+    of the stated velocity accuracy the white noise does not explain,
+    sqrt(accuracy^2 - white^2) (the white part from the beam noise through the Janus
+    geometry), over the correlation time the ``navigator`` preset measured on a real
+    Navigator (``auvsim.runs.presets.navigator``), unless the log states one."""
+    if "dvl_slow_error_std" in a and float(a["dvl_slow_error_std"]) > 0:
+        return float(a["dvl_slow_error_std"]), float(a["dvl_slow_error_time"])
+    if not recorded or "dvl_velocity_accuracy" not in a or "dvl_noise_std" not in a:
+        return 0.0, None
+    from auvsim.runs.presets import navigator
+
+    white = (janus_velocity_std(float(a["dvl_noise_std"]), beam_angle)[0]
+             if beams and beam_angle is not None else float(np.max(measurement_std[:2])))
+    slow = math.sqrt(max(float(a["dvl_velocity_accuracy"]) ** 2 - white**2, 0.0))
+    time = float(a.get("dvl_slow_error_time", navigator().dvl.slow_error_time))
+    return slow, time
+
+
+def _holds(group, field: str) -> bool:
+    """Whether a group view (``field in group``), or any object with its fields as
+    attributes, has ``field``."""
+    try:
+        return field in group
+    except TypeError:  # no __contains__: fields as attributes
+        return hasattr(group, field)
+
+
+def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
+    """A simulated mission's start: its truth at sample 0, or drawn around it."""
+    truth = mission.truth
+    c0 = rotation_matrices(truth.quaternion[:1])[0]
+    p0 = np.asarray(truth.position_ned[0], dtype=float)
+    v0 = np.asarray(truth.velocity_ned[0], dtype=float)
+    level, heading = np.radians(cfg.attitude_std_deg)
+    att_std = np.array([level, level, heading])
+    if cfg.initial_error_seed is not None:
+        rng = np.random.default_rng(cfg.initial_error_seed)
+        # Drawn for the IMU point, as before the array API: the same draws.
+        w0 = np.asarray(truth.angular_rate[0], dtype=float)
+        p_imu = p0 + c0 @ r_imu + cfg.position_std * rng.standard_normal(3)
+        v_imu = v0 + c0 @ np.cross(w0, r_imu) + cfg.velocity_std * rng.standard_normal(3)
+        c0 = rotation_vector_exp(att_std * rng.standard_normal(3)) @ c0
+        p0 = p_imu - c0 @ r_imu
+        v0 = v_imu - c0 @ np.cross(w0, r_imu)
+    return Start(time=float(truth.time[0]), position_ned=p0, velocity_ned=v0, rotation=c0,
+                 position_std=np.full(3, cfg.position_std),
+                 velocity_std=np.full(3, cfg.velocity_std), attitude_std=att_std,
+                 angular_rate=np.asarray(truth.angular_rate[0], dtype=float))
+
+
+def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
+                     cfg: FilterConfig) -> Start:
+    """A recorded mission's start: its reference's first sample within the IMU's span."""
+    ref = mission.reference
+    if not _holds(ref, "quaternion"):
+        raise DataError(f"mission {mission.name}: its reference has no attitude; the "
+                        "filter starts from it (expected reference/quaternion)")
+    t = np.asarray(ref.time, dtype=float)
+    k = int(np.searchsorted(t, imu_time[0]))
+    if k >= len(t):
+        raise DataError(f"mission {mission.name}: its reference ends before the IMU starts")
+    i = min(int(np.searchsorted(imu_time, t[k])), len(imu_time) - 1)
+    c = rotation_matrices(np.asarray(ref.quaternion[k:k + 1], dtype=float))[0]
+    v = np.asarray(ref.velocity_ned, dtype=float)
+    accel = (v[min(k + 1, len(t) - 1)] - v[max(k - 1, 0)]) / max(
+        t[min(k + 1, len(t) - 1)] - t[max(k - 1, 0)], 1e-9)
+    return start_from_reference(imu_time[i], np.asarray(ref.position_ned[k], dtype=float),
+                                v[k], c, angular_rate=w[i], acceleration=accel, config=cfg)
 
 
 def _chi2_1dof(probability: float) -> float:
@@ -506,7 +1161,40 @@ def _chi2_1dof(probability: float) -> float:
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
 
 
-def _exp_np(phi: np.ndarray) -> np.ndarray:
+def quaternion_of(rotation: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions [w, x, y, z], w >= 0, of rotation matrices (..., 3, 3):
+    Shepperd's method (1978, J. Guidance and Control 1(3)), from the largest of the four
+    squared components; NaN matrices give NaN."""
+    r = np.asarray(rotation, dtype=float)
+    t = np.stack([1 + r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2],
+                  1 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2],
+                  1 - r[..., 0, 0] + r[..., 1, 1] - r[..., 2, 2],
+                  1 - r[..., 0, 0] - r[..., 1, 1] + r[..., 2, 2]], axis=-1)
+    k = np.argmax(np.nan_to_num(t, nan=-1.0), axis=-1)
+    big = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], axis=-1)[..., 0],
+                             1e-300)) / 2
+    q = _shepperd(r, k, big)
+    q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def _shepperd(r: np.ndarray, k: np.ndarray, big: np.ndarray) -> np.ndarray:
+    """The quaternion from its largest component ``big`` (index k) and the matrix's
+    off-diagonal sums and differences (each 4 q_i q_j)."""
+    d = 4 * big
+    a = (r[..., 2, 1] - r[..., 1, 2]) / d
+    b = (r[..., 0, 2] - r[..., 2, 0]) / d
+    c = (r[..., 1, 0] - r[..., 0, 1]) / d
+    xy = (r[..., 0, 1] + r[..., 1, 0]) / d
+    xz = (r[..., 0, 2] + r[..., 2, 0]) / d
+    yz = (r[..., 1, 2] + r[..., 2, 1]) / d
+    cases = [np.stack([big, a, b, c], -1), np.stack([a, big, xy, xz], -1),
+             np.stack([b, xy, big, yz], -1), np.stack([c, xz, yz, big], -1)]
+    return np.take_along_axis(np.stack(cases, axis=-2), k[..., None, None], axis=-2)[..., 0, :]
+
+
+def rotation_vector_exp(phi: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation matrix of a rotation vector (3,), rad (Rodrigues)."""
     return _exp(np.asarray(phi, dtype=float))
 
 

@@ -1,0 +1,856 @@
+"""``auvsim check-log``: what a recorded log does not document, found from its data.
+
+A log's description may leave out the IMU's axis convention, how the streams' clocks line
+up, where the sensors sit and how the DVL is mounted. Each is found here against the log's
+reference navigation solution (position, NED velocity and attitude of the reference point),
+by a small pure function on arrays that returns a ``Finding``: the value, the evidence it
+rests on and a confidence. ``check_arrays`` runs them in order on a ``Log`` (arrays), and
+``check_log`` on a recorded mission; ``apply`` writes a corrected dataset.
+
+Models (auvsim's conventions: body FRD, world NED, C = body -> NED from the reference's
+quaternion, SI units). Times: a stream's stamp ``s`` happened at reference-clock time
+``t = s + offset + rate_error * s``: the reference's stamps are the time base (how its
+own stamps compare with physical seconds is reported from its positions against its
+velocities, not applied: see ``reference_clock``).
+
+* IMU axes: ``P`` among the 48 signed permutations maps the logged triads onto the body,
+  ``f_body = P f_log``: the 24 proper ones (det +1) and the 24 reflections, which no
+  physical triad is but a log written through a wrong transformation holds (the A-KIT
+  IMU files: ``[x, -y, z]``). Between reference samples k and k+1 the gyro's mean
+  rate must equal the reference's attitude change ``log(C_k^T C_k+1) / dt``, and the
+  accelerometers' mean must equal ``C^T (dv/dt - g n_down)`` (gravity levelled with the
+  reference's roll and pitch). Each candidate's residuals, normalised by the signals' RMS,
+  give its score; the winner's margin is the runner-up's score over the winner's.
+* Clock offsets: the IMU's by the gyro's interval means against the reference's attitude
+  rate, the DVL's by its velocity against the reference's velocity in the body,
+  ``C^T v_ref``; a least-squares scan over the offset (the cross-correlation's equivalent
+  for vectors), refined by a parabola to a fraction of a sample, in windows along the log;
+  a line through the windows' offsets gives the offset and the clock-rate error, kept when
+  the slope is significant (three standard errors).
+* DVL: ``v_dvl = (1 + k) M^T (C^T v_ref + w x L)``, linearised for small mounting angles
+  ``m`` (``M ~ I + [m]x``): ``v_dvl - u = k u + u x m + w x L`` with ``u = C^T v_ref``,
+  solved by least squares for the scale ``1 + k``, the mounting ``m`` and the lever arm
+  ``L`` (from the reference point), with standard errors from the residuals.
+* IMU lever arm: ``f_imu = f_ref + dw/dt x L + w x (w x L) + b``: the IMU's specific force
+  rotated into NED with the gyro-propagated attitude and integrated over each reference
+  interval, against the reference's velocity change minus gravity (and Coriolis where the
+  latitude is known); least squares for ``L`` and an accelerometer bias ``b``.
+* Gravity: the IMU's mean |f| over quiet intervals (no turn, no acceleration in the
+  reference) against the WGS-84 normal gravity at the latitude
+  (``auvsim.physics.earth.normal_gravity``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+
+import numba
+import numpy as np
+
+from auvsim.data.reader import open_dataset, require_attitude
+from auvsim.data.schema import mission_attrs
+from auvsim.data.writer import DatasetWriter
+from auvsim.errors import DatasetError
+from auvsim.physics.earth import earth_rate_ned
+from auvsim.physics.frames import rotation_matrices
+
+MAX_OFFSET = 5.0  # s: the clock offsets searched, either way
+MIN_REFERENCE = 30  # reference samples: fewer leave the windows' fits without data
+OFFSET_WINDOW = 50.0  # s of reference per window of the offset-vs-time fit
+SIGNIFICANT = 3.0  # standard errors: a parameter kept beyond this
+# Student's t quantiles at the normal's 3 sigma (two-sided 99.73 %), by degrees of freedom
+# 1..30 (scipy.stats.t.ppf(scipy.stats.norm.cdf(3), dof); tests/test_checklog.py checks
+# them): a slope through a few windows' offsets is significant beyond these, not beyond 3.
+T_3SIGMA = (236, 19.2, 9.22, 6.62, 5.51, 4.9, 4.53, 4.28, 4.09, 3.96, 3.85, 3.76, 3.69,
+            3.64, 3.59, 3.54, 3.51, 3.48, 3.45, 3.42, 3.4, 3.38, 3.36, 3.34, 3.33, 3.32,
+            3.3, 3.29, 3.28, 3.27)
+MIN_TURN = math.radians(0.5)  # rad/s RMS: a window turning less says nothing of its clock
+QUIET_RATE = math.radians(0.5)  # rad/s: an interval turning less is "quiet" for gravity
+CLOCK_PROBE = 0.01  # s: the clock error an IMU lever arm's sensitivity is shown for
+QUIET_ACCEL = 0.02  # m/s^2: and accelerating less
+AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One thing the log does not document, as found.
+
+    Attributes:
+        name: what was looked for ("imu axes", "imu clock", ...).
+        value: the value, JSON-able (numbers, lists, strings).
+        text: the value for a reader.
+        evidence: what the value rests on, with its figures.
+        confidence: "high", "medium", "low" or "not observable".
+    """
+
+    name: str
+    value: dict
+    text: str
+    evidence: str
+    confidence: str
+
+
+@dataclass(frozen=True)
+class Log:
+    """A log as arrays (each stream on its own stamps, seconds). The IMU or the DVL may be
+    absent (``None``); the reference is required.
+
+    Attributes:
+        reference_time: (R,) s. reference_velocity: (R, 3) m/s NED. reference_quaternion:
+            (R, 4) body -> NED [w, x, y, z]. reference_position: (R, 3) m NED or None.
+        imu_time: (N,) s. specific_force: (N, 3) m/s^2 and angular_rate: (N, 3) rad/s, as
+            logged (axes to be found).
+        dvl_time: (P,) s. dvl_velocity: (P, 3) m/s in the DVL frame (NaN where none).
+        gravity: m/s^2, the expected gravity (WGS-84 normal gravity at the latitude).
+        latitude_deg: the latitude, or None (no Earth rate then).
+    """
+
+    reference_time: np.ndarray
+    reference_velocity: np.ndarray
+    reference_quaternion: np.ndarray
+    reference_position: np.ndarray | None = None
+    imu_time: np.ndarray | None = None
+    specific_force: np.ndarray | None = None
+    angular_rate: np.ndarray | None = None
+    dvl_time: np.ndarray | None = None
+    dvl_velocity: np.ndarray | None = None
+    gravity: float = 9.80665
+    latitude_deg: float | None = None
+
+
+@dataclass
+class Report:
+    """Every finding of one mission, and the corrections ``apply`` makes of them."""
+
+    mission: str
+    findings: list[Finding] = field(default_factory=list)
+    corrections: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"mission": self.mission, "findings": [asdict(f) for f in self.findings],
+                "corrections": self.corrections}
+
+    def table(self) -> str:
+        """The findings as a table for a reader."""
+        rows = [("finding", "value", "confidence", "evidence")]
+        rows += [(f.name, f.text, f.confidence, f.evidence) for f in self.findings]
+        widths = [max(len(r[i]) for r in rows) for i in range(3)]
+        lines = [f"mission {self.mission}"]
+        for r in rows:
+            lines.append("  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)) + "  " + r[3])
+        return "\n".join(lines)
+
+
+# ---- geometry ------------------------------------------------------------------------
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) matrices [v]x with [v]x a = v x a, of (..., 3) vectors."""
+    v = np.asarray(v, float)
+    z = np.zeros(v.shape[:-1])
+    x, y, w = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
+                     np.stack([-y, x, z], -1)], -2)
+
+
+def rotation_vectors(r: np.ndarray) -> np.ndarray:
+    """(M, 3) rotation vectors (rad) of (M, 3, 3) rotation matrices (angles below pi)."""
+    cos = np.clip((np.trace(r, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+    angle = np.arccos(cos)
+    vee = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0],
+                    r[:, 1, 0] - r[:, 0, 1]], axis=1) / 2
+    sin = np.sin(angle)
+    ratio = np.where(sin > 1e-9, angle / np.where(sin > 1e-9, sin, 1.0), 1.0)
+    return vee * ratio[:, None]
+
+
+def axis_maps(*, proper: bool = True) -> list[np.ndarray]:
+    """The 24 proper signed permutations (det +1), (3, 3) each: ``body = P @ logged``;
+    all 48 with ``proper=False``."""
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            p = np.zeros((3, 3))
+            p[range(3), perm] = signs
+            if not proper or np.linalg.det(p) > 0:
+                out.append(p)
+    return out
+
+
+def axis_map_names(p: np.ndarray) -> list[str]:
+    """The log's axis on each body axis, as a log description's ``axis_map`` writes it
+    (``["x", "-y", "-z"]``)."""
+    return [("-" if p[i, j] < 0 else "") + AXES[j] for i in range(3)
+            for j in range(3) if p[i, j] != 0]
+
+
+# ---- the reference, interval by interval ------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Intervals:
+    """The reference between consecutive samples: (K,) starts and ends (reference clock,
+    s), body rates (K, 3) rad/s from the attitude change, the specific force the reference
+    implies in the body (K, 3) m/s^2, and the NED velocity change (K, 3) m/s."""
+
+    start: np.ndarray
+    end: np.ndarray
+    rate: np.ndarray
+    force: np.ndarray
+    dv: np.ndarray
+
+    @property
+    def dt(self) -> np.ndarray:
+        return self.end - self.start
+
+
+def intervals(log: Log) -> Intervals:
+    t = np.asarray(log.reference_time, float)
+    c = rotation_matrices(log.reference_quaternion)
+    dt = np.diff(t)
+    rate = rotation_vectors(np.einsum("kji,kjl->kil", c[:-1], c[1:])) / dt[:, None]
+    dv = np.diff(np.asarray(log.reference_velocity, float), axis=0)
+    accel = dv / dt[:, None] - np.array([0.0, 0.0, log.gravity])
+    mid = (c[:-1] + c[1:]) / 2  # the attitude halfway, to first order
+    force = np.einsum("kji,kj->ki", mid, accel)
+    return Intervals(t[:-1], t[1:], rate, force, dv)
+
+
+def cumulative(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(N, D) trapezoidal running integral of (N, D) samples ``x`` at times ``t``."""
+    steps = (x[1:] + x[:-1]) / 2 * np.diff(t)[:, None]
+    return np.vstack([np.zeros((1, x.shape[1])), np.cumsum(steps, axis=0)])
+
+
+def window_means(t: np.ndarray, integral: np.ndarray, a: np.ndarray,
+                 b: np.ndarray) -> np.ndarray:
+    """(K, D) means over [a, b] (stamps) of the signal whose running integral is
+    ``integral`` (N, D) at ``t``."""
+    ia = np.stack([np.interp(a, t, integral[:, d]) for d in range(integral.shape[1])], -1)
+    ib = np.stack([np.interp(b, t, integral[:, d]) for d in range(integral.shape[1])], -1)
+    return (ib - ia) / (b - a)[:, None]
+
+
+# ---- IMU axes ---------------------------------------------------------------------------
+
+
+def imu_axes(log: Log, ref: Intervals) -> tuple[np.ndarray, Finding]:
+    """The axis map P (body = P logged) that best explains the reference's attitude change
+    and levelled gravity. Every signed permutation is scored, the 24 proper ones (det +1)
+    and the 24 reflections: a reflection is no physical triad, but a log written through
+    a wrong transformation holds one, and the data should say so rather than be forced
+    into the best proper map. The gyro is compared in windows of ``OFFSET_WINDOW`` s, each
+    at its own best clock offset (the clocks are not known yet and may drift)."""
+    t = np.asarray(log.imu_time, float)
+    w_int = cumulative(t, np.asarray(log.angular_rate, float))
+    f_int = cumulative(t, np.asarray(log.specific_force, float))
+    inside = (ref.start - MAX_OFFSET >= t[0]) & (ref.end + MAX_OFFSET <= t[-1])
+    if inside.sum() < 10:
+        inside = (ref.start >= t[0]) & (ref.end <= t[-1])
+    a, b = ref.start[inside], ref.end[inside]
+    rate, force = ref.rate[inside], ref.force[inside]
+    window = ((a - a[0]) // OFFSET_WINDOW).astype(int)
+    offsets = np.arange(-MAX_OFFSET, MAX_OFFSET + 1e-9, 0.05)
+    gyro = np.stack([window_means(t, w_int, a - o, b - o) for o in offsets])  # (T, K, 3)
+    accel = window_means(t, f_int, a, b)
+    rate_rms = float(np.sqrt(np.mean(rate ** 2)))
+    force_rms = float(np.sqrt(np.mean(force ** 2)))
+    scored = []
+    for p in axis_maps(proper=False):
+        cost = np.sum((gyro @ p.T - rate) ** 2, axis=-1)  # (T, K)
+        per_window = [cost[:, window == j].sum(axis=1) for j in np.unique(window)]
+        gyro_ms = sum(float(c.min()) for c in per_window) / len(a)
+        force_ms = float(np.mean(np.sum((accel @ p.T - force) ** 2, axis=-1)))
+        score = math.sqrt(gyro_ms / rate_rms ** 2 + force_ms / force_rms ** 2)
+        scored.append((score, p, math.sqrt(gyro_ms), math.sqrt(force_ms)))
+    scored.sort(key=lambda s: s[0])
+    proper = [s for s in scored if np.linalg.det(s[1]) > 0]
+    (s1, p, g1, f1), (s2, p2, g2, f2) = scored[0], scored[1]
+    margin = s2 / max(s1, 1e-12)
+    names = axis_map_names(p)
+    reflection = np.linalg.det(p) < 0
+    evidence = (f"gyro residual {math.degrees(g1):.3g} deg/s (reference rate RMS "
+                f"{math.degrees(rate_rms):.3g} deg/s), levelled gravity residual {f1:.3g} "
+                f"m/s^2, over {len(a)} intervals; runner-up {axis_map_names(p2)}: "
+                f"{math.degrees(g2):.3g} deg/s, {f2:.3g} m/s^2; margin {margin:.3g}x")
+    if reflection:
+        sp, pp, gp, fp = proper[0]
+        evidence += (f"; a REFLECTION (det -1): no physical triad is left-handed, the log's "
+                     f"transformation is; best proper map {axis_map_names(pp)}: "
+                     f"{math.degrees(gp):.3g} deg/s, {fp:.3g} m/s^2, {sp / s1:.3g}x worse")
+    confidence = "high" if margin > 3 else "medium" if margin > 1.5 else "low"
+    best_proper = proper[0]
+    return p, Finding("imu axes", {"axis_map": names, "matrix": p.tolist(),
+                                   "determinant": int(round(np.linalg.det(p))),
+                                   "score": s1, "runner_up": axis_map_names(p2),
+                                   "runner_up_score": s2, "margin": margin,
+                                   "best_proper": axis_map_names(best_proper[1]),
+                                   "best_proper_score": best_proper[0]},
+                      f"[{', '.join(names)}]" + (" (reflection)" if reflection else ""),
+                      evidence, confidence)
+
+
+# ---- clocks -----------------------------------------------------------------------------
+
+
+def scan(cost, centre: float = 0.0, half: float = MAX_OFFSET,
+         step: float = 0.05) -> tuple[float, float]:
+    """The offset minimising ``cost(offset)``: a grid over centre +- half, a finer grid
+    around its best, and a parabola through the best three points. Returns the offset and
+    the cost's curvature there (its second derivative)."""
+    for h, s in ((half, step), (5 * step, step / 10)):
+        grid = np.arange(centre - h, centre + h + s / 2, s)
+        costs = np.array([cost(o) for o in grid])
+        k = int(np.argmin(costs))
+        centre = float(grid[k])
+    if 0 < k < len(grid) - 1:
+        c0, c1, c2 = costs[k - 1], costs[k], costs[k + 1]
+        curvature = (c0 - 2 * c1 + c2) / s ** 2
+        if curvature > 0:
+            return centre + s * (c0 - c2) / (2 * (c0 - 2 * c1 + c2)), float(curvature)
+    return centre, 0.0
+
+
+@dataclass(frozen=True)
+class Clock:
+    """A stream's clock against the reference's: ``t = s + offset + rate_error * s``."""
+
+    offset: float
+    rate_error: float
+    offset_se: float
+    rate_se: float
+    windows: list  # [stamp at the window's centre, offset]
+
+
+def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
+    """A line through the windows' offsets. The slope (the rate error) is kept when it is
+    significant (Student's t beyond ``T_3SIGMA``) and moves the clock by more than
+    ``CLOCK_PROBE`` over the windows; else the offset is ``whole``, the one found over
+    the whole log."""
+    s, o = np.asarray(stamps), np.asarray(offsets)
+    windows = [[float(a), float(b)] for a, b in zip(s, o, strict=True)]
+    if len(s) >= 3:
+        a = np.stack([np.ones_like(s), s], axis=1)
+        x, *_ = np.linalg.lstsq(a, o, rcond=None)
+        resid = o - a @ x
+        var = float(resid @ resid) / (len(s) - 2)
+        cov = var * np.linalg.inv(a.T @ a)
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        critical = T_3SIGMA[min(len(s) - 2, len(T_3SIGMA)) - 1]
+        drift = abs(x[1]) * float(s.max() - s.min())
+        if abs(x[1]) > critical * max(se[1], 1e-12) and drift > CLOCK_PROBE:
+            return Clock(float(x[0]), float(x[1]), float(se[0]), float(se[1]), windows)
+        spread = float(np.std(o, ddof=1) / math.sqrt(len(o)))
+        return Clock(whole, 0.0, spread, float(se[1]), windows)
+    return Clock(whole, 0.0, float("nan"), float("nan"), windows)
+
+
+def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
+    """The IMU's clock: its gyro's interval means (axes ``p``) against the reference's
+    attitude rate, in windows of ``OFFSET_WINDOW`` s."""
+    t = np.asarray(log.imu_time, float)
+    w_int = cumulative(t, np.asarray(log.angular_rate, float) @ p.T)
+
+    def offset_of(sel: np.ndarray, centre: float, half: float) -> tuple[float, float]:
+        a, b, rate = ref.start[sel], ref.end[sel], ref.rate[sel]
+
+        def cost(o: float) -> float:
+            return float(np.mean(np.sum((window_means(t, w_int, a - o, b - o) - rate) ** 2,
+                                        axis=1)))
+        return scan(cost, centre, half)
+
+    usable = (ref.start - MAX_OFFSET >= t[0]) & (ref.end + MAX_OFFSET <= t[-1])
+    whole, _ = offset_of(usable, 0.0, MAX_OFFSET)
+    stamps, offsets = [], []
+    for lo in np.arange(ref.start[0], ref.end[-1], OFFSET_WINDOW):
+        sel = usable & (ref.start >= lo) & (ref.end <= lo + OFFSET_WINDOW)
+        if sel.sum() < 10 or np.sqrt(np.mean(ref.rate[sel] ** 2)) < MIN_TURN:
+            continue
+        o, curvature = offset_of(sel, whole, 2.0)
+        if curvature > 0:
+            centre = float(np.mean((ref.start[sel] + ref.end[sel]) / 2))
+            stamps.append(centre - o)
+            offsets.append(o)
+    clock = fit_clock(stamps, offsets, whole)
+    return clock, clock_finding("imu clock", clock, t, "gyro interval means against "
+                                "the reference's attitude rate")
+
+
+def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
+    """The DVL's clock: its velocity against the reference's velocity in the body
+    ``ref_body`` (R, 3), in windows of ``OFFSET_WINDOW`` s. At each trial offset the DVL
+    model (scale, mounting, lever arm with the body rates ``rates(times)`` (M, 3), and a
+    constant bias) is fitted first and its residual scored: the lever arm's ``w x L``
+    follows the turns as the body velocity does, and would pull a bare comparison's
+    offset by a large fraction of a second."""
+    t_ref = np.asarray(log.reference_time, float)
+    s = np.asarray(log.dvl_time, float)
+    v = np.asarray(log.dvl_velocity, float)
+    ok = np.isfinite(v).all(axis=1)
+
+    def offset_of(sel: np.ndarray, centre: float, half: float) -> tuple[float, float]:
+        def cost(o: float) -> float:
+            inside = sel & (s + o >= t_ref[0]) & (s + o <= t_ref[-1])
+            if inside.sum() < 10:
+                return 1e9
+            t = s[inside] + o
+            u = np.stack([np.interp(t, t_ref, ref_body[:, d]) for d in range(3)], -1)
+            a = np.concatenate([dvl_model(u, rates(t)),
+                                np.broadcast_to(np.eye(3), (len(t), 3, 3))], axis=2)
+            b = (v[inside] - u).ravel()
+            x, *_ = np.linalg.lstsq(a.reshape(-1, 10), b, rcond=None)
+            r = b - a.reshape(-1, 10) @ x
+            return float(r @ r) / len(t)
+        return scan(cost, centre, half)
+
+    usable = ok & (s - MAX_OFFSET >= t_ref[0]) & (s + MAX_OFFSET <= t_ref[-1])
+    whole, _ = offset_of(usable, 0.0, MAX_OFFSET)
+    stamps, offsets = [], []
+    for lo in np.arange(s[0], s[-1], OFFSET_WINDOW):
+        sel = usable & (s >= lo) & (s < lo + OFFSET_WINDOW)
+        if sel.sum() < 10:
+            continue
+        o, curvature = offset_of(sel, whole, 2.0)
+        if curvature > 0:
+            stamps.append(float(np.mean(s[sel])))
+            offsets.append(o)
+    clock = fit_clock(stamps, offsets, whole)
+    return clock, clock_finding("dvl clock", clock, s, "velocity against the "
+                                "reference's velocity in the body, the DVL model fitted at "
+                                "each trial offset")
+
+
+def clock_finding(name: str, clock: Clock, t: np.ndarray, what: str) -> Finding:
+    nominal = 1.0 / float(np.median(np.diff(t)))
+    realised = nominal / (1 + clock.rate_error)
+    spread = (f"window offsets {min(o for _, o in clock.windows):+.3f} to "
+              f"{max(o for _, o in clock.windows):+.3f} s" if clock.windows else "no window")
+    rate = (f", rate error {clock.rate_error * 1e6:+.0f} ppm +- {clock.rate_se * 1e6:.0f}"
+            f" ({nominal:.6g} Hz stamped, {realised:.6g} Hz on the reference's clock)"
+            if clock.rate_error else
+            f", no significant rate error ({clock.rate_se * 1e6:.0f} ppm SE)"
+            if math.isfinite(clock.rate_se) else "")
+    text = f"{clock.offset:+.3f} s" + (f", {clock.rate_error * 1e6:+.0f} ppm"
+                                       if clock.rate_error else "")
+    se = clock.offset_se
+    confidence = ("low" if not math.isfinite(se) or len(clock.windows) < 3 else
+                  "high" if se < 0.02 else "medium" if se < 0.1 else "low")
+    return Finding(name, {"offset_s": clock.offset, "offset_se_s": se,
+                          "rate_error": clock.rate_error, "rate_error_se": clock.rate_se,
+                          "windows": clock.windows},
+                   text, f"{what}; {len(clock.windows)} windows of {OFFSET_WINDOW:g} s, "
+                   f"{spread}{rate}", confidence)
+
+
+def reference_clock(log: Log) -> Finding:
+    """How many physical seconds a stamped second of the reference is, as far as its own
+    data say: its horizontal positions against its velocities integrated over the
+    stamps, fitted in windows of ``OFFSET_WINDOW`` s (one scale, an intercept per axis;
+    the windows' spread gives the standard error, the residuals not being white).
+
+    Reported, never applied: the ratio is the clock's scale times the reference's
+    velocity scale, and a DVL-aided INS's velocities carry a scale error of a few
+    thousandths (the DVL's own, which ``dvl_calibration`` measures at that size), the
+    size of the stretch it would have to detect. Every other stream is put on the
+    reference's stamps as they are."""
+    if log.reference_position is None:
+        return Finding("reference clock", {"scale": None}, "-", "no reference positions",
+                       "not observable")
+    t = np.asarray(log.reference_time, float)
+    p = np.asarray(log.reference_position, float)[:, :2]
+    flown = cumulative(t, np.asarray(log.reference_velocity, float)[:, :2])
+    scales = []
+    for lo in np.arange(t[0], t[-1], OFFSET_WINDOW):
+        sel = (t >= lo) & (t < lo + OFFSET_WINDOW)
+        if sel.sum() < 10:
+            continue
+        f = flown[sel] - flown[sel].mean(axis=0)
+        d = p[sel] - p[sel].mean(axis=0)
+        if (f ** 2).sum() > 0:
+            scales.append(float((f * d).sum() / (f ** 2).sum()))
+    if len(scales) < 2:
+        return Finding("reference clock", {"scale": None}, "-", "too short for two windows",
+                       "not observable")
+    scale = float(np.mean(scales))
+    se = float(np.std(scales, ddof=1) / math.sqrt(len(scales)))
+    stamp = float(np.median(np.diff(t)))
+    evidence = (f"horizontal positions moved {scale:.5f} x the velocities integrated over "
+                f"the stamps ({len(scales)} windows: {min(scales):.5f} to {max(scales):.5f}, "
+                f"SE {se:.1e}); stamped every {stamp:.7g} s, {stamp * scale:.7g} s if the "
+                "velocities have no scale error: not applied (clock and velocity scale "
+                "are one product here)")
+    return Finding("reference clock", {"scale": scale, "scale_se": se, "windows": scales,
+                                       "stamp_s": stamp}, f"x{scale:.5f}", evidence, "low")
+
+
+# ---- lever arms, DVL calibration, gravity -------------------------------------------------
+
+
+def rates_at(times: np.ndarray, imu_time: np.ndarray | None, rate: np.ndarray | None,
+             ref: Intervals, half: float = 0.1) -> np.ndarray:
+    """(M, 3) body rates at ``times`` (reference clock): the gyro's mean over +- ``half``
+    when there is one, else the reference's attitude rate, interpolated."""
+    if imu_time is not None:
+        integral = cumulative(imu_time, rate)
+        return window_means(imu_time, integral, times - half, times + half)
+    mid = (ref.start + ref.end) / 2
+    return np.stack([np.interp(times, mid, ref.rate[:, d]) for d in range(3)], -1)
+
+
+def least_squares(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Solution, standard errors and residual RMS of ``a x = b``."""
+    x, *_ = np.linalg.lstsq(a, b, rcond=None)
+    resid = b - a @ x
+    var = float(resid @ resid) / max(len(b) - a.shape[1], 1)
+    cov = var * np.linalg.pinv(a.T @ a)
+    return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), math.sqrt(var)
+
+
+def dvl_model(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(P, 3, 7) design of ``v_dvl - u = k u + u x m + w x L`` for [k, m (3), L (3)]."""
+    return np.concatenate([u[:, :, None], skew(u), skew(w)], axis=2)
+
+
+def dvl_calibration(u: np.ndarray, w: np.ndarray, v: np.ndarray
+                    ) -> tuple[np.ndarray, list[Finding]]:
+    """Scale, mounting and lever arm of the DVL (module docstring) from pings' reference
+    velocity in the body ``u`` (P, 3), body rate ``w`` (P, 3) and DVL velocity ``v`` (P, 3).
+    Returns [k, m, L] (7,) and the findings."""
+    ok = np.isfinite(v).all(axis=1) & np.isfinite(u).all(axis=1) & np.isfinite(w).all(axis=1)
+    a = dvl_model(u[ok], w[ok]).reshape(-1, 7)
+    b = (v[ok] - u[ok]).ravel()
+    x, se, rms = least_squares(a, b)
+    k, m, lever = x[0], x[1:4], x[4:]
+    turn = math.degrees(float(np.sqrt(np.mean(w[ok] ** 2))))
+    rpy = np.degrees(m)
+    lever_se = se[4:]
+    found = [
+        Finding("dvl scale", {"scale": 1 + k, "se": se[0]}, f"{1 + k:.5f}",
+                f"LS on v_dvl - C^T v_ref over {int(ok.sum())} pings, residual RMS "
+                f"{rms * 1e3:.1f} mm/s; SE {se[0]:.1e}", grade(se[0], 1e-3, 5e-3)),
+        Finding("dvl mounting", {"rpy_deg": rpy.tolist(), "se_deg": np.degrees(se[1:4]).tolist()},
+                "[" + ", ".join(f"{a:+.3f}" for a in rpy) + "] deg",
+                "small-angle mounting m (DVL frame -> body, M ~ I + [m]x) from the same fit; "
+                "SE [" + ", ".join(f"{a:.3f}" for a in np.degrees(se[1:4])) + "] deg",
+                grade(float(np.degrees(se[1:4]).max()), 0.05, 0.3)),
+        Finding("dvl lever arm", {"position_body_m": lever.tolist(), "se_m": lever_se.tolist()},
+                "[" + ", ".join(f"{a:+.3f}" for a in lever) + "] m",
+                f"w x L in the same fit (body rate RMS {turn:.2g} deg/s); SE ["
+                + ", ".join(f"{a:.3f}" for a in lever_se) + "] m",
+                grade(float(lever_se.max()), 0.03, 0.1)),
+    ]
+    return x, found
+
+
+def grade(se: float, high: float, medium: float) -> str:
+    """Confidence of a standard error: high below ``high``, medium below ``medium``, else
+    not observable."""
+    return "high" if se < high else "medium" if se < medium else "not observable"
+
+
+@numba.njit(cache=True)
+def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
+               f: np.ndarray) -> np.ndarray:
+    """(N, 3) NED specific force C f at each IMU sample, the attitude C propagated with the
+    gyro from the reference's at the latest reference time before the sample (``start``
+    (K,) times, ``q0`` (K, 4) quaternions)."""
+    out = np.full((len(t), 3), np.nan)
+    k = -1
+    q = np.zeros(4)
+    last = 0.0
+    for i in range(len(t)):
+        while k + 1 < len(start) and start[k + 1] <= t[i]:
+            k += 1
+            q[:] = q0[k]
+            last = start[k]
+        if k < 0:
+            continue
+        h = t[i] - last  # rotate by the rate held over the step since the last update
+        last = t[i]
+        rx, ry, rz = w[i, 0] * h, w[i, 1] * h, w[i, 2] * h
+        angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+        if angle > 0:
+            s = math.sin(angle / 2) / angle
+            dw, dx, dy, dz = math.cos(angle / 2), rx * s, ry * s, rz * s
+            a0, a1, a2, a3 = q[0], q[1], q[2], q[3]
+            q[0] = a0 * dw - a1 * dx - a2 * dy - a3 * dz
+            q[1] = a0 * dx + a1 * dw + a2 * dz - a3 * dy
+            q[2] = a0 * dy - a1 * dz + a2 * dw + a3 * dx
+            q[3] = a0 * dz + a1 * dy - a2 * dx + a3 * dw
+        w0, x, y, z = q[0], q[1], q[2], q[3]
+        fx, fy, fz = f[i, 0], f[i, 1], f[i, 2]
+        out[i, 0] = ((1 - 2 * (y * y + z * z)) * fx + 2 * (x * y - w0 * z) * fy
+                     + 2 * (x * z + w0 * y) * fz)
+        out[i, 1] = (2 * (x * y + w0 * z) * fx + (1 - 2 * (x * x + z * z)) * fy
+                     + 2 * (y * z - w0 * x) * fz)
+        out[i, 2] = (2 * (x * z - w0 * y) * fx + 2 * (y * z + w0 * x) * fy
+                     + (1 - 2 * (x * x + y * y)) * fz)
+    return out
+
+
+def imu_lever_arm(log: Log, t: np.ndarray, f: np.ndarray, w: np.ndarray, *,
+                  delta: float = CLOCK_PROBE) -> tuple[np.ndarray, Finding]:
+    """The IMU's position from the reference point (module docstring), from IMU samples
+    on the reference clock ``t`` (N,), body specific force ``f`` and rate ``w`` (N, 3).
+    Its uncertainty adds, to the fit's standard errors, how far the solution moves when
+    the IMU's clock moves by ``delta`` s either way: the angular acceleration's term makes
+    it sensitive to timing, and a clock found from 1 Hz references is good to about
+    that."""
+    lever, se, rms, bias, n = _lever_fit(log, t, f, w)
+    moved = [_lever_fit(log, t + d, f, w)[0] for d in (-delta, delta)]
+    timing = np.abs(moved[1] - moved[0]) / 2
+    total = np.sqrt(se ** 2 + timing ** 2)
+    return lever, Finding(
+        "imu lever arm", {"position_body_m": lever.tolist(), "se_m": total.tolist(),
+                          "fit_se_m": se.tolist(), "clock_sensitivity_m": timing.tolist(),
+                          "accel_bias": bias.tolist()},
+        "[" + ", ".join(f"{a:+.3f}" for a in lever) + "] m",
+        f"LS of the IMU's specific force (strapdown over each of {n} reference "
+        f"intervals) against the reference's dv/dt - g: dw/dt x L + w x (w x L) + bias; "
+        f"residual RMS {rms * 1e3:.1f} mm/s^2; SE [" + ", ".join(f"{a:.3f}" for a in total)
+        + f"] m, of which the clock's +-{delta * 1e3:.0f} ms moves it ["
+        + ", ".join(f"{a:.3f}" for a in timing) + "] m", grade(float(total.max()), 0.03, 0.1))
+
+
+def _lever_fit(log: Log, t: np.ndarray, f: np.ndarray, w: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, int]:
+    t_ref = np.asarray(log.reference_time, float)
+    q = np.asarray(log.reference_quaternion, float)
+    v = np.asarray(log.reference_velocity, float)
+    sel = (t_ref[:-1] >= t[0]) & (t_ref[1:] <= t[-1])
+    k = np.flatnonzero(sel)
+    a, b = t_ref[k], t_ref[k + 1]
+    dwdt = np.gradient(w, t, axis=0)
+    # Each term rotated into NED with the propagated attitude: C f, and C A for the lever
+    # arm's design A = [dw/dt]x + [w]x^2 and the bias's A = I.
+    design = skew(dwdt) + skew(w) @ skew(w)
+    terms = [f] + [design[:, :, j] for j in range(3)] \
+        + [np.tile(np.eye(3)[:, j], (len(t), 1)) for j in range(3)]
+    ned = [_propagate(q, t_ref, t, w, x) for x in terms]
+    means = [window_means(t, cumulative(t, np.nan_to_num(x)), a, b) for x in ned]
+    gravity = np.array([0.0, 0.0, log.gravity])
+    accel = (v[k + 1] - v[k]) / (b - a)[:, None] - gravity
+    if log.latitude_deg is not None:  # Coriolis of the Earth's rate on the velocity
+        accel = accel + np.cross(2 * earth_rate_ned(log.latitude_deg), (v[k + 1] + v[k]) / 2)
+    lhs = means[0] - accel  # (K, 3): what the lever arm and the bias must explain
+    x, se, rms = least_squares(np.stack(means[1:], axis=2).reshape(-1, 6), lhs.ravel())
+    return x[:3], se[:3], rms, x[3:], len(k)
+
+
+def gravity_check(force: np.ndarray, ref: Intervals, expected: float, where: str
+                  ) -> Finding:
+    """The IMU's mean |f| over quiet intervals (``force`` (K, 3): its interval means)
+    against the expected gravity."""
+    quiet = ((np.linalg.norm(ref.rate, axis=1) < QUIET_RATE)
+             & (np.linalg.norm(ref.dv / ref.dt[:, None], axis=1) < QUIET_ACCEL)
+             & np.isfinite(force).all(axis=1))
+    if quiet.sum() < 3:
+        return Finding("gravity", {"expected": expected}, "-", "fewer than 3 quiet intervals",
+                       "not observable")
+    mag = np.linalg.norm(force[quiet], axis=1)
+    mean, se = float(mag.mean()), float(mag.std(ddof=1) / math.sqrt(len(mag)))
+    diff = mean - expected
+    return Finding("gravity", {"mean_specific_force": mean, "se": se, "expected": expected,
+                               "difference": diff, "quiet_intervals": int(quiet.sum())},
+                   f"{mean:.4f} m/s^2",
+                   f"mean |f| over {int(quiet.sum())} quiet 1-interval means (SE {se:.1e}); "
+                   f"{where} {expected:.4f}: difference {diff:+.4f} m/s^2",
+                   "high" if se < 1e-3 else "medium")
+
+
+# ---- the whole check ---------------------------------------------------------------------
+
+
+def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected") -> Report:
+    """Every finding of one log, in order: the reference's clock, the IMU's axes and clock,
+    the DVL's clock and calibration (scale, mounting, lever arm; its clock fitted again
+    with them), the IMU's lever arm and gravity. ``Report.corrections`` holds what
+    ``apply`` changes (axis map, each stream's time map, positions, mounting)."""
+    span = float(log.reference_time[-1] - log.reference_time[0])
+    if len(log.reference_time) < MIN_REFERENCE or span < 2 * MAX_OFFSET + 10:
+        raise DatasetError(f"{name}: the reference has {len(log.reference_time)} samples over "
+                           f"{span:.3g} s; expected at least {MIN_REFERENCE} over "
+                           f"{2 * MAX_OFFSET + 10:g} s to check a log against")
+    if log.imu_time is None and log.dvl_time is None:
+        raise DatasetError(f"{name}: neither an IMU nor a DVL; expected a stream to check")
+    report = Report(name)
+    ref = intervals(log)
+    report.findings.append(reference_clock(log))
+    corrections: dict = {}
+    p = np.eye(3)
+    imu_t = w = f = None
+    if log.imu_time is not None:
+        p, found = imu_axes(log, ref)
+        report.findings.append(found)
+        clock, found = imu_clock(log, p, ref)
+        s = np.asarray(log.imu_time, float)
+        # Once more on the corrected stamps: a window's own drift (0.25 s per 100 s at
+        # 2500 ppm) blurs its offset in the first pass. The two maps compose.
+        again, _ = imu_clock(dataclasses.replace(log, imu_time=s + clock.offset
+                                                 + clock.rate_error * s), p, ref)
+        clock = dataclasses.replace(
+            clock, offset=clock.offset * (1 + again.rate_error) + again.offset,
+            rate_error=(1 + clock.rate_error) * (1 + again.rate_error) - 1,
+            offset_se=max(clock.offset_se, again.offset_se),
+            rate_se=max(clock.rate_se, again.rate_se))
+        found = clock_finding("imu clock", clock, s, "gyro interval means against "
+                              "the reference's attitude rate (twice: the second on the "
+                              f"first's stamps moved it {again.offset:+.3f} s, "
+                              f"{again.rate_error * 1e6:+.0f} ppm)")
+        report.findings.append(found)
+        imu_t = s + clock.offset + clock.rate_error * s
+        w = np.asarray(log.angular_rate, float) @ p.T
+        f = np.asarray(log.specific_force, float) @ p.T
+        corrections.update(imu_axis_map=axis_map_names(p), imu_axis_matrix=p.tolist(),
+                           imu_time_offset_s=clock.offset, imu_rate_error=clock.rate_error)
+    if log.dvl_time is not None:
+        c = rotation_matrices(log.reference_quaternion)
+        u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
+        v = np.asarray(log.dvl_velocity, float)
+        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w, ref))
+        s = np.asarray(log.dvl_time, float)
+        t = s + clock.offset + clock.rate_error * s
+        u = np.stack([np.interp(t, log.reference_time, u_ref[:, d]) for d in range(3)], -1)
+        inside = (t >= log.reference_time[0]) & (t <= log.reference_time[-1])
+        u[~inside] = np.nan
+        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w, ref), v)
+        report.findings.append(clock_found)
+        report.findings.extend(calibration)
+        corrections.update(dvl_time_offset_s=clock.offset, dvl_rate_error=clock.rate_error,
+                           dvl_scale=1 + x[0], dvl_mounting_rpy_deg=np.degrees(x[1:4]).tolist(),
+                           dvl_position_body=x[4:].tolist())
+    if imu_t is not None:
+        lever, found = imu_lever_arm(log, imu_t, f, w)
+        report.findings.append(found)
+        if found.confidence != "not observable":
+            corrections["imu_position_body"] = lever.tolist()
+        means = window_means(imu_t, cumulative(imu_t, f), ref.start, ref.end)
+        inside = (ref.start >= imu_t[0]) & (ref.end <= imu_t[-1])
+        means[~inside] = np.nan
+        report.findings.append(gravity_check(means, ref, log.gravity, gravity_source))
+    report.corrections = corrections
+    return report
+
+
+def to_json(reports: list[Report]) -> str:
+    return json.dumps([r.to_json() for r in reports], indent=1)
+
+
+# ---- missions and files ------------------------------------------------------------------
+
+
+def log_of(mission) -> Log:
+    """A recorded mission (``auvsim.data.reader.Mission``) as a ``Log``.
+
+    Raises:
+        DatasetError: the mission is not a recorded one with a reference and its attitude,
+            or has neither an IMU nor a DVL to check.
+    """
+    if mission.origin != "recorded" or not mission.has("reference"):
+        raise DatasetError(f"mission {mission.name!r} is {mission.origin}; expected a recorded "
+                           "mission with a reference to check the log against")
+    quaternion = require_attitude(mission)
+    if not (mission.has("imu") or mission.has("dvl")):
+        raise DatasetError(f"mission {mission.name!r} has neither an IMU nor a DVL; "
+                           "expected a stream to check")
+    ref = mission.reference
+    latitude = mission.attrs.get("latitude_deg")
+    imu = mission.imu if mission.has("imu") else None
+    dvl = mission.dvl if mission.has("dvl") else None
+    return Log(ref.time, ref.velocity_ned, quaternion, ref.position_ned,
+               None if imu is None else imu.time,
+               None if imu is None else imu.specific_force,
+               None if imu is None else imu.angular_rate,
+               None if dvl is None else dvl.time,
+               None if dvl is None else dvl.velocity_ls,
+               gravity=float(mission.attrs["gravity"]),
+               latitude_deg=None if latitude is None else float(latitude))
+
+
+def check_log(mission) -> Report:
+    """Every finding of one recorded mission (``check_arrays`` on ``log_of(mission)``)."""
+    return check_arrays(log_of(mission), mission.name,
+                        gravity_source="WGS-84 normal gravity at the origin")
+
+
+def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """The mission's fields and attributes with ``report``'s corrections made:
+
+    * the IMU's triads through the axis map (``body = P logged``);
+    * every stream's stamps on the reference's clock, ``s + offset + rate_error * s``
+      (the reference's own stamps unchanged), all shifted by one constant so the
+      earliest is 0 (``log_time_origin_s`` moves with it);
+    * ``imu_time_offset_s`` and ``dvl_time_offset_s`` grow by the offsets found, the
+      rates are 1 / median interval again; the sensors' positions and the DVL's mounting
+      are the found ones where observable (``imu_position_body``, ``dvl_position_body``,
+      ``dvl_mounting_rpy_deg``);
+    * ``check_log_json``: the report (findings and corrections), JSON.
+
+    The DVL's velocity is left as the instrument gave it (its scale is in the report); a
+    depth stream's clock is not checked (it is shifted with the others).
+    """
+    c = report.corrections
+    found = {f.name: f for f in report.findings}
+    fields = {f"{g}/{name}": getattr(getattr(mission, g), name)
+              for g in json.loads(mission.attrs["groups"]) for name in getattr(mission, g)}
+    attrs = dict(mission.attrs)
+    maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
+            "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
+    for g in json.loads(mission.attrs["groups"]):
+        offset, rate = maps.get(g, (0.0, 0.0))
+        s = fields[f"{g}/time"]
+        fields[f"{g}/time"] = s + offset + rate * s
+    start = min(float(fields[f"{g}/time"][0]) for g in json.loads(mission.attrs["groups"]))
+    for g in json.loads(mission.attrs["groups"]):
+        fields[f"{g}/time"] = fields[f"{g}/time"] - start
+        attrs[f"{g}_rate_hz"] = 1.0 / float(np.median(np.diff(fields[f"{g}/time"])))
+    attrs["log_time_origin_s"] = float(attrs.get("log_time_origin_s", 0.0)) + start
+    attrs["duration_s"] = max(float(fields[f"{g}/time"][-1])
+                              for g in json.loads(mission.attrs["groups"]))
+    if "imu_axis_matrix" in c:
+        p = np.asarray(c["imu_axis_matrix"])
+        for name in ("specific_force", "angular_rate"):
+            fields[f"imu/{name}"] = fields[f"imu/{name}"] @ p.T
+        attrs["imu_time_offset_s"] = float(attrs["imu_time_offset_s"]) + c["imu_time_offset_s"]
+        if "imu_position_body" in c:
+            attrs["imu_position_body"] = np.asarray(c["imu_position_body"])
+    if "dvl_time_offset_s" in c:
+        attrs["dvl_time_offset_s"] = float(attrs["dvl_time_offset_s"]) + c["dvl_time_offset_s"]
+        if found["dvl lever arm"].confidence != "not observable":
+            attrs["dvl_position_body"] = np.asarray(c["dvl_position_body"])
+        if found["dvl mounting"].confidence != "not observable":
+            attrs["dvl_mounting_rpy_deg"] = np.asarray(c["dvl_mounting_rpy_deg"])
+    attrs["check_log_json"] = json.dumps(report.to_json())
+    return fields, attrs
+
+
+def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,
+          compression: str = "lzf") -> None:
+    """Write ``out``: the dataset ``path`` with each reported mission corrected
+    (``corrected``) and every other mission as it was. Built under a temporary name and
+    renamed when complete (``DatasetWriter``)."""
+    by_name = {r.mission: r for r in reports}
+    with open_dataset(path) as ds:
+        config = json.dumps({"check_log": {"source": str(path),
+                                           "missions": sorted(by_name)},
+                             "source_config": ds.config_json})
+        with DatasetWriter(out, config_json=config, compression=compression) as writer:
+            for name, mission in ds.missions.items():
+                if name in by_name:
+                    fields, attrs = corrected(mission, by_name[name])
+                else:
+                    groups = mission.groups
+                    fields = {f"{g}/{n}": getattr(getattr(mission, g), n)
+                              for g in groups for n in getattr(mission, g)}
+                    attrs = dict(mission.attrs)
+                groups = sorted({p.split("/")[0] for p in fields})
+                sink = writer.mission(name, mission_attrs(**attrs),
+                                      rows={g: len(fields[f"{g}/time"]) for g in groups
+                                            if f"{g}/time" in fields})
+                sink.append(fields)
+                sink.flush()

@@ -1,0 +1,336 @@
+"""``auvsim check-log``: what a recorded log does not document, found from its data.
+
+Known answers from simulated missions: the simulator's truth, sampled at 1 Hz, becomes
+the reference (its point: the body origin), and its IMU and DVL become recorded streams
+with injected faults: an axis map, clock offsets of either sign, a clock-rate error. The
+lever arms are the model's own sites (``models/auv.xml``: IMU at (0.5, 0, 0) m, DVL at
+(1.0, 0, 0.23) m FRD), which the simulated sensors measure at. The issue's targets: the
+axis map exactly, each clock offset within 0.05 s with its sign, the lever arms within
+0.1 m. The shared A-KIT segments, where ``../shared/data/snapir-akit`` exists, must come
+out of ``--apply`` self-consistent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from auvsim.cli import main
+from auvsim.config import MissionConfig, ScenarioConfig
+from auvsim.data.checklog import (
+    T_3SIGMA,
+    Log,
+    axis_map_names,
+    axis_maps,
+    check_arrays,
+    fit_clock,
+    rotation_vectors,
+    scan,
+)
+from auvsim.data.reader import open_dataset
+from auvsim.data.schema import mission_attrs
+from auvsim.data.writer import DatasetWriter
+from auvsim.errors import DatasetError
+from auvsim.physics.earth import radii
+from auvsim.physics.frames import rotation_rpy
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import preset
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = next((p / "shared/data/snapir-akit" for p in REPO.parents
+               if (p / "shared/data/snapir-akit").is_dir()), None)
+IMU_SITE = np.array([0.5, 0.0, 0.0])  # m FRD, models/auv.xml site "imu"
+DVL_SITE = np.array([1.0, 0.0, 0.23])  # m FRD, site "dvl" (MuJoCo z up -> FRD z down)
+OFFSET_TOL = 0.05  # s, the issue's target
+LEVER_TOL = 0.1  # m, the issue's target
+# A proper map that swaps and flips (det +1) and a reflection (det -1).
+SWAP = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+REFLECT = np.diag([1.0, -1.0, 1.0])
+
+
+# ---- pure functions -------------------------------------------------------------------
+
+
+def test_axis_maps_are_the_24_proper_signed_permutations():
+    proper = axis_maps()
+    assert len(proper) == 24
+    assert all(np.linalg.det(p) == pytest.approx(1.0) for p in proper)
+    assert len({tuple(p.ravel()) for p in proper}) == 24
+    everything = axis_maps(proper=False)
+    assert len({tuple(p.ravel()) for p in everything}) == 48
+    assert axis_map_names(SWAP) == ["y", "x", "-z"]
+    assert axis_map_names(np.diag([1.0, -1.0, -1.0])) == ["x", "-y", "-z"]
+
+
+def test_rotation_vectors_invert_a_rotation():
+    r = np.stack([rotation_rpy(0.1, -0.2, 0.3), rotation_rpy(0.0, 0.0, 1e-7), np.eye(3)])
+    v = rotation_vectors(r)
+    for rot, vec in zip(r, v, strict=True):  # Rodrigues' formula back
+        angle = np.linalg.norm(vec)
+        k = vec / angle if angle else vec
+        kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+        back = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+        np.testing.assert_allclose(back, rot, atol=1e-12)
+
+
+def test_scan_finds_a_minimum_between_grid_points():
+    offset, curvature = scan(lambda o: 3.0 * (o - 0.1234) ** 2 + 1.0)
+    assert offset == pytest.approx(0.1234, abs=1e-9)
+    assert curvature == pytest.approx(6.0)
+
+
+def test_the_t_quantiles_are_students():
+    stats = pytest.importorskip("scipy.stats")
+    expected = stats.t.ppf(stats.norm.cdf(3.0), np.arange(1, len(T_3SIGMA) + 1))
+    np.testing.assert_allclose(T_3SIGMA, expected, rtol=5e-3)
+
+
+def test_fit_clock_keeps_a_significant_slope_and_drops_noise():
+    s = np.array([50.0, 150.0, 250.0, 350.0])
+    line = fit_clock(list(s), list(0.3 + 2.5e-3 * s + [1e-3, -1e-3, 1e-3, -1e-3]), 0.7)
+    assert line.offset == pytest.approx(0.3, abs=3e-3)
+    assert line.rate_error == pytest.approx(2.5e-3, rel=0.02)
+    flat = fit_clock(list(s), [0.31, 0.29, 0.30, 0.31], 0.30)
+    assert flat.rate_error == 0.0 and flat.offset == 0.30
+    # Significant, but 20 ppm moves the clock 6 ms over the windows: not worth a rate.
+    tiny = fit_clock(list(s), list(0.3 + 2e-5 * s), 0.303)
+    assert tiny.rate_error == 0.0 and tiny.offset == 0.303
+
+
+# ---- known answers from simulated missions ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """Two 300 s missions of the ``navigator`` preset's sensors (noise, biases, scale
+    factors, misalignments, DVL errors): a zigzag (turns all along: lever arms, clocks)
+    and a lawnmower (straight legs: gravity)."""
+    base = preset("navigator")
+    missions = (MissionConfig(name="zigzag", seed=3,
+                              scenario=ScenarioConfig(name="zigzag", duration=300.0)),
+                MissionConfig(name="lawnmower", seed=4,
+                              scenario=ScenarioConfig(name="lawnmower", duration=300.0)))
+    path = tmp_path_factory.mktemp("checklog") / "sim.h5"
+    generate(dataclasses.replace(base, missions=missions), path, workers=1, progress=False)
+    out = {}
+    with open_dataset(path) as ds:
+        for name, m in ds.missions.items():
+            out[name] = dict(
+                t=m.truth.time, q=m.truth.quaternion, v=m.truth.velocity_ned,
+                p=m.truth.position_ned, imu_t=m.imu.time, f=m.imu.specific_force,
+                w=m.imu.angular_rate, dvl_t=m.dvl.time, dvl_v=m.dvl.velocity_ls,
+                gravity=m.attrs["gravity"],
+                imu_site=m.attrs["imu_position_body"], dvl_site=m.attrs["dvl_position_body"])
+    return out
+
+
+def recorded_log(sim: dict, *, axes: np.ndarray, imu_offset: float, imu_rate: float,
+                 dvl_offset: float, start: float = 5.0) -> Log:
+    """The simulated mission as a recorded log: the truth at 1 Hz as the reference, the
+    IMU's triads logged through ``axes`` (body = axes @ logged), and each stream stamped
+    so that stamp s happened at reference time ``s + offset + rate * s`` (all stamps
+    ``start`` s later, so none is negative)."""
+    step = int(round(1.0 / float(np.median(np.diff(sim["t"])))))
+    ref = slice(0, None, step)
+    imu_stamp = (sim["imu_t"] + start - imu_offset) / (1 + imu_rate)
+    return Log(sim["t"][ref] + start, sim["v"][ref], sim["q"][ref], sim["p"][ref],
+               imu_stamp, sim["f"] @ axes, sim["w"] @ axes,
+               sim["dvl_t"] + start - dvl_offset, sim["dvl_v"], gravity=sim["gravity"])
+
+
+def findings(report) -> dict:
+    return {f.name: f for f in report.findings}
+
+
+@pytest.mark.parametrize("axes, imu_offset, imu_rate, dvl_offset", [
+    (SWAP, 0.37, 2.5e-3, -0.8),  # the A-KIT IMU's stretch: 400 stamped s for 399 s
+    (REFLECT, -0.62, 0.0, 0.45),
+])
+def test_injected_faults_are_recovered(simulated, axes, imu_offset, imu_rate, dvl_offset):
+    sim = simulated["zigzag"]
+    np.testing.assert_array_equal(sim["imu_site"], IMU_SITE)  # what the answers rest on
+    np.testing.assert_allclose(sim["dvl_site"], DVL_SITE, atol=1e-12)
+    log = recorded_log(sim, axes=axes, imu_offset=imu_offset, imu_rate=imu_rate,
+                       dvl_offset=dvl_offset)
+    report = check_arrays(log, "zigzag")
+    found = findings(report)
+    c = report.corrections
+    np.testing.assert_array_equal(c["imu_axis_matrix"], axes)
+    assert found["imu axes"].value["margin"] > 2
+    assert found["imu axes"].value["determinant"] == round(np.linalg.det(axes))
+    # The offset at the stamps' zero; with a rate error, the line through the windows.
+    assert c["imu_time_offset_s"] == pytest.approx(imu_offset, abs=OFFSET_TOL)
+    assert c["imu_rate_error"] == pytest.approx(imu_rate, abs=3e-4)
+    assert c["dvl_time_offset_s"] == pytest.approx(dvl_offset, abs=OFFSET_TOL)
+    assert c["dvl_rate_error"] == 0.0
+    np.testing.assert_allclose(c["dvl_position_body"], DVL_SITE, atol=LEVER_TOL)
+    np.testing.assert_allclose(c["imu_position_body"], IMU_SITE, atol=LEVER_TOL)
+    # Over the whole log the IMU's corrected clock agrees with the reference's within
+    # the target, at its first and its last sample.
+    s = log.imu_time[[0, -1]]
+    corrected = s + c["imu_time_offset_s"] + c["imu_rate_error"] * s
+    truth = s + imu_offset + imu_rate * s
+    np.testing.assert_allclose(corrected, truth, atol=OFFSET_TOL)
+
+
+def test_a_stream_alone_and_a_short_log(simulated):
+    sim = simulated["zigzag"]
+    log = recorded_log(sim, axes=SWAP, imu_offset=0.37, imu_rate=0.0, dvl_offset=-0.8)
+    imu_only = check_arrays(dataclasses.replace(log, dvl_time=None, dvl_velocity=None))
+    assert imu_only.corrections["imu_axis_map"] == ["y", "x", "-z"]
+    assert imu_only.corrections["imu_time_offset_s"] == pytest.approx(0.37, abs=OFFSET_TOL)
+    assert "dvl_time_offset_s" not in imu_only.corrections
+    # The DVL alone turns with the reference's 1 Hz attitude rates: its clock is found
+    # less well, and says so.
+    dvl_only = check_arrays(dataclasses.replace(log, imu_time=None, specific_force=None,
+                                                angular_rate=None))
+    assert "imu_axis_map" not in dvl_only.corrections
+    assert dvl_only.corrections["dvl_time_offset_s"] == pytest.approx(-0.8, abs=0.2)
+    short = dataclasses.replace(log, reference_time=log.reference_time[:20],
+                                reference_velocity=log.reference_velocity[:20],
+                                reference_quaternion=log.reference_quaternion[:20],
+                                reference_position=log.reference_position[:20])
+    with pytest.raises(DatasetError, match="expected at least 30"):
+        check_arrays(short, "short")
+
+
+def test_gravity_on_the_straight_legs(simulated):
+    sim = simulated["lawnmower"]
+    report = check_arrays(recorded_log(sim, axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
+                                       dvl_offset=0.0), "lawnmower")
+    g = findings(report)["gravity"].value
+    assert g["quiet_intervals"] >= 20
+    # The simulated world's gravity (the model's 9.81): within 3 standard errors, and the
+    # vehicle's own accelerations on a straight leg (a few mm/s^2).
+    assert abs(g["mean_specific_force"] - sim["gravity"]) < 3 * g["se"] + 5e-3
+
+
+# ---- the command on a recorded file -------------------------------------------------------
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main(argv)
+    return status, out.getvalue(), err.getvalue()
+
+
+def write_recorded(path: Path, log: Log, name: str = "sim") -> None:
+    """``log`` as a recorded mission (schema v7) at a made-up origin, sensors undescribed
+    (positions, mountings and offsets 0), as ``auvsim import`` would write it."""
+    lat0, lon0, h0 = 32.85, 34.89, -20.0
+    m, n = radii(lat0)
+    p = log.reference_position
+    fields = {
+        "imu/time": log.imu_time, "imu/specific_force": log.specific_force,
+        "imu/angular_rate": log.angular_rate, "dvl/time": log.dvl_time,
+        "dvl/velocity_ls": log.dvl_velocity,
+        "dvl/mode": np.zeros(len(log.dvl_time), dtype=np.int64),
+        "reference/time": log.reference_time,
+        "reference/latitude_deg": lat0 + np.degrees(p[:, 0] / (m + h0)),
+        "reference/longitude_deg": lon0 + np.degrees(
+            p[:, 1] / ((n + h0) * math.cos(math.radians(lat0)))),
+        "reference/height_m": h0 - p[:, 2], "reference/position_ned": p,
+        "reference/velocity_ned": log.reference_velocity,
+        "reference/quaternion": log.reference_quaternion,
+        "reference/rpy_deg": np.zeros((len(p), 3)),
+    }
+    zero = np.zeros(3)
+    attrs = mission_attrs(
+        origin="recorded", scenario="recorded", seed=0,
+        duration_s=float(max(log.imu_time[-1], log.dvl_time[-1], log.reference_time[-1])),
+        groups=json.dumps(["imu", "dvl", "reference"]), latitude_deg=lat0,
+        longitude_deg=lon0, height_m=h0, gravity=log.gravity, log_description="",
+        source_files="[]", source_sha256="[]",
+        imu_rate_hz=1 / float(np.median(np.diff(log.imu_time))), imu_position_body=zero,
+        imu_accel_noise_density=0.0, imu_gyro_noise_density=0.0,
+        imu_accel_bias_instability=0.0, imu_gyro_bias_instability=0.0,
+        imu_bias_correlation_time=3600.0, imu_time_offset_s=0.0,
+        dvl_rate_hz=1 / float(np.median(np.diff(log.dvl_time))), beam_angle_deg=30.0,
+        dvl_position_body=zero, dvl_mounting_rpy_deg=zero, dvl_noise_std=0.0,
+        dvl_velocity_accuracy=0.02, dvl_time_offset_s=0.0, dvl_beams_derived=1,
+        reference_source="the simulator's truth at 1 Hz", reference_rate_hz=1.0,
+        reference_time_offset_s=0.0, log_time_origin_s=0.0)
+    with DatasetWriter(path, config_json="{}") as writer:
+        sink = writer.mission(name, attrs, rows={"imu": len(log.imu_time),
+                                                 "dvl": len(log.dvl_time),
+                                                 "reference": len(p)})
+        sink.append(fields)
+        sink.flush()
+
+
+def test_check_log_apply_writes_a_file_that_checks_clean(simulated, tmp_path):
+    log = recorded_log(simulated["zigzag"], axes=SWAP, imu_offset=0.37, imu_rate=0.0,
+                       dvl_offset=-0.8)
+    raw, fixed = tmp_path / "raw.h5", tmp_path / "fixed.h5"
+    write_recorded(raw, log)
+    status, out, err = run(["check-log", str(raw), "--apply", str(fixed)])
+    assert (status, err) == (0, "")
+    assert "imu axes" in out and "[y, x, -z]" in out and f"wrote {fixed}" in out
+    with open_dataset(fixed) as ds:
+        m = ds.missions["sim"]
+        report = json.loads(m.attrs["check_log_json"])
+        assert report["corrections"]["imu_axis_map"] == ["y", "x", "-z"]
+        np.testing.assert_allclose(m.attrs["dvl_position_body"], DVL_SITE, atol=LEVER_TOL)
+        np.testing.assert_allclose(m.attrs["imu_position_body"], IMU_SITE, atol=LEVER_TOL)
+        assert m.attrs["imu_time_offset_s"] == pytest.approx(0.37, abs=OFFSET_TOL)
+        assert m.attrs["dvl_time_offset_s"] == pytest.approx(-0.8, abs=OFFSET_TOL)
+        # The IMU's triads are body FRD now: gravity levelled at the first sample.
+        assert m.imu.specific_force[:100, 2].mean() == pytest.approx(-9.81, abs=0.1)
+        assert m.reference.time[0] >= 0 and m.imu.time[0] >= 0 and m.dvl.time[0] >= 0
+    status, out, _ = run(["check-log", str(fixed), "--json"])
+    assert status == 0
+    again = json.loads(out)[0]["corrections"]
+    assert again["imu_axis_map"] == ["x", "y", "z"]
+    assert abs(again["imu_time_offset_s"]) < OFFSET_TOL
+    assert abs(again["dvl_time_offset_s"]) < OFFSET_TOL
+
+
+def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):
+    raw = tmp_path / "raw.h5"
+    write_recorded(raw, recorded_log(simulated["lawnmower"], axes=np.eye(3), imu_offset=0,
+                                     imu_rate=0, dvl_offset=0))
+    out = tmp_path / "out.h5"
+    status, _, err = run(["check-log", str(raw), "--mission", "nope", "--apply", str(out)])
+    assert status == 2 and err.count("\n") == 1 and "'nope'" in err
+    assert not out.exists()
+    status, _, err = run(["check-log", str(raw), "--apply", str(raw)])
+    assert status == 2 and err.count("\n") == 1 and "is the log itself" in err
+    status, _, err = run(["check-log", str(tmp_path / "missing.h5")])
+    assert status == 2 and err.count("\n") == 1
+    sim = tmp_path / "simulated.h5"
+    generate(dataclasses.replace(preset("navigator"), missions=(MissionConfig(
+        name="s", scenario=ScenarioConfig(duration=20.0)),)), sim, workers=1, progress=False)
+    status, _, err = run(["check-log", str(sim)])
+    assert status == 2 and err.count("\n") == 1 and "expected a recorded mission" in err
+
+
+# ---- the shared A-KIT segments --------------------------------------------------------------
+
+
+@pytest.mark.skipif(SHARED is None, reason="../shared/data/snapir-akit is not here")
+def test_a_shared_segment_checks_clean_after_apply(tmp_path):
+    raw, fixed = tmp_path / "akit.h5", tmp_path / "fixed.h5"
+    assert run(["import", str(SHARED / "Trajectory2"), "--format", "akit",
+                "--out", str(raw)])[0] == 0
+    status, out, _ = run(["check-log", str(raw), "--json", "--apply", str(fixed)])
+    assert status == 0
+    first = {f["name"]: f for f in json.loads(out)[0]["findings"]}
+    assert first["imu axes"]["confidence"] == "high"
+    status, out, _ = run(["check-log", str(fixed), "--json"])
+    again = json.loads(out)[0]
+    assert again["corrections"]["imu_axis_map"] == ["x", "y", "z"]
+    assert abs(again["corrections"]["imu_time_offset_s"]) < OFFSET_TOL
+    assert abs(again["corrections"]["dvl_time_offset_s"]) < OFFSET_TOL
+    # The lever arms found the second time agree with the first (within the target).
+    after = {f["name"]: f for f in again["findings"]}
+    for name in ("dvl lever arm", "imu lever arm"):
+        np.testing.assert_allclose(after[name]["value"]["position_body_m"],
+                                   first[name]["value"]["position_body_m"], atol=LEVER_TOL)
