@@ -425,7 +425,11 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         train_w = split(train_windows)[0]
     except ValueError as e:
         raise DataError(f"{train or dataset}: {e}") from None
-    pred = estimator.fit(train_w).predict(windows)
+    try:
+        estimator.fit(train_w)
+    except ValueError as e:  # a training split it cannot be fitted on, in one line
+        raise DataError(f"{train or dataset}: {e}") from None
+    pred = estimator.predict(windows)
     positions = estimator.positions(windows) if hasattr(estimator, "positions") else None
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred), against=windows.reference,

@@ -143,7 +143,7 @@ def write_akit(folder: Path, k: int, *, sway_bias: float = 0.01, scale: float = 
     its DVL the body velocity with a scale factor error ``scale`` forward and a bias of
     ``sway_bias`` m/s to starboard; the reference exact (positions integrated at 100 Hz).
     """
-    from auvsim.physics.earth import normal_gravity, radii
+    from auvsim.physics.earth import earth_rate_ned, normal_gravity, radii
 
     segment = folder / f"Trajectory{k}"
     segment.mkdir(parents=True)
@@ -153,10 +153,23 @@ def write_akit(folder: Path, k: int, *, sway_bias: float = 0.01, scale: float = 
     r0, weave = math.radians(weave_deg_s), 2 * math.pi / 40
     rate = r0 * np.sin(weave * t)
     heading = r0 / weave * (1 - np.cos(weave * t))
-    # Body acceleration (du, u r, 0), so the specific force (du, u r, -g).
-    imu = np.column_stack([t, du, u * rate, zero - normal_gravity(LATITUDE, HEIGHT), zero,
-                           zero, rate])
+    # The Earth's rate and the Coriolis term in NED (Groves eqs. 2.133 and 5.54; the
+    # transport rate, v / R = 2e-7 rad/s, left out), seen in the level body yawed by
+    # ``heading``: the gyro reads C^T w_ie + (0, 0, r), the accelerometers
+    # C^T (2 w_ie x v) + (du, u r, -g).
     v_north, v_east = u * np.cos(heading), u * np.sin(heading)
+    w_ie = earth_rate_ned(LATITUDE)
+    coriolis = 2 * np.cross(w_ie, np.column_stack([v_north, v_east, zero]))
+    c, s_ = np.cos(heading), np.sin(heading)
+
+    def body(x):  # C^T x for a level body at ``heading``
+        return np.column_stack([c * x[:, 0] + s_ * x[:, 1], -s_ * x[:, 0] + c * x[:, 1],
+                                x[:, 2]])
+
+    force = body(coriolis) + np.column_stack(
+        [du, u * rate, zero - normal_gravity(LATITUDE, HEIGHT)])
+    gyro = body(np.tile(w_ie, (len(t), 1))) + np.column_stack([zero, zero, rate])
+    imu = np.column_stack([t, force, gyro])
     north, east = (np.concatenate([[0.0], np.cumsum((v[1:] + v[:-1]) / 2 * 0.01)])
                    for v in (v_north, v_east))
     i = np.arange(0, len(t), 100)  # the 1 Hz stamps
@@ -353,3 +366,31 @@ def test_own_position_sigma_and_attitude_from_an_estimators_tracks(recorded, sig
     assert rows["own"]["coverage_3sigma"] == covered
     assert rows["DR: DVL + filter attitude"] == pytest.approx(
         rows["DR: DVL + reference attitude"], abs=1e-9)
+
+
+def test_the_filter_on_a_recorded_mission_writes_its_own_track(tmp_path, capsys):
+    """The INS/DVL filter: ``estimates.csv`` carries its position in the mission's local
+    frame (``north_m``, ``east_m``, ``down_m``), the summary its scores with the 3-sigma
+    coverage and both dead-reckoning baselines, against the reference."""
+    from auvsim.data.recorded import import_logs
+    from beamsnet.cli import main
+
+    write_akit(tmp_path / "logs", 1)  # the speed swings: its beam calibration has a fit
+    recorded = tmp_path / "sea.h5"
+    import_logs([tmp_path / "logs"], recorded, format="akit")
+    out = tmp_path / "ins"
+    assert main(["estimate", str(recorded), "--estimator", "INS/DVL", "--out", str(out)]) == 0
+    assert "truth" not in capsys.readouterr().out
+    rows = (out / "estimates.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    assert header[:2] == ["mission", "time"] and header[-3:] == ["north_m", "east_m", "down_m"]
+    first = dict(zip(header, rows[1].split(","), strict=True))
+    # The fourth ping, 3 s after the start from the reference's first point:
+    # 1.5 x 3 + (0.3 / OMEGA)(1 - cos(3 OMEGA)) m north.
+    north = 1.5 * 3 + SURGE / OMEGA * (1 - math.cos(3 * OMEGA))
+    assert float(first["north_m"]) == pytest.approx(north, abs=0.05)
+    summary = json.loads((out / "summary.json").read_text())
+    row = summary["missions"]["trajectory1"]
+    assert 0 <= row["position"]["coverage_3sigma"] <= 1
+    assert set(row["baselines"]) == {"DR: DVL + reference attitude",
+                                     "DR: DVL + filter attitude"}
