@@ -77,9 +77,7 @@ SIM_FILTER = "INS/DVL (simulated instrument's noise)"
 LEARNED = {"CorrectionNet": ("corr", dict(model="corr"))}
 # The logs do not document the IMU's axes, the streams' clocks or the sensors' positions:
 # ``auvsim check-log`` finds them from the data and ``--apply`` writes a corrected file,
-# which every estimator here runs on. TODO(check-log): once ``auvsim.data.checklog`` is
-# on main, drop the fallback in ``_checklog`` (until then the segments are scored as
-# logged, and the report says so).
+# which every estimator here runs on (``sea_dataset``).
 
 
 def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
@@ -157,47 +155,34 @@ def _check(duration, seeds) -> None:
                           argument="seeds")
 
 
-def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, dict | None]:
+def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, dict]:
     """``datasets/sea.h5``: every A-KIT segment of ``data`` imported as a recorded mission
     (``auvsim import --format akit``, into ``datasets/sea-logged.h5``) and corrected by
-    ``auvsim check-log --apply``; made again only when the logs' SHA-256 digests differ
-    from those the file records.
+    ``auvsim check-log --apply``; made again only when the logs' SHA-256 digests or
+    check-log's findings differ from those the files record.
 
     Returns:
         The file, and what check-log found and applied per segment ({mission: [(finding,
-        value, confidence)]}), or None where check-log is not available (the logs as
-        logged).
+        value, confidence)]}).
 
     Raises:
         ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
     """
+    from auvsim.data.checklog import apply, check_log
     from auvsim.data.reader import open_dataset
     from auvsim.data.recorded import akit_segments, import_logs
 
     segments = akit_segments(data)
     digests = sorted(hashlib.sha256(p.read_bytes()).hexdigest()
                      for folder, _ in segments for p in sorted(folder.glob("*.csv")))
-    checklog = _checklog()
-    logged = datasets / ("sea-logged.h5" if checklog else "sea.h5")
+    logged, dataset = datasets / "sea-logged.h5", datasets / "sea.h5"
     if not _imported_from(logged, digests):
         import_logs([data], logged, format="akit")
-    if checklog is None:
-        return logged, None
-    dataset = datasets / "sea.h5"
     with open_dataset(logged) as f:
-        reports = [checklog.check_log(m) for m in f.missions.values()]
+        reports = [check_log(m) for m in f.missions.values()]
     if not _imported_from(dataset, digests) or _findings(dataset) != _said(reports):
-        checklog.apply(logged, dataset, reports)
+        apply(logged, dataset, reports)
     return dataset, _said(reports)
-
-
-def _checklog():
-    """``auvsim.data.checklog`` (``check_log``, ``apply``), or None in an auvsim without it."""
-    try:
-        from auvsim.data import checklog
-    except ImportError:  # TODO(check-log): remove once it is on main
-        return None
-    return checklog
 
 
 def _said(reports) -> dict:
@@ -403,16 +388,9 @@ def report(results: dict, setup: dict) -> str:
         lines += ["The logs hold the DVL's velocity, not its beams: the beams are **derived** "
                   "as `H v` of the DVL's own velocity (30 deg Janus geometry), so they carry "
                   "the instrument's velocity errors but no error of one beam alone.", ""]
-    if setup["corrections"] is None:
-        lines += ["**Not corrected by `auvsim check-log --apply`** (this auvsim has no "
-                  "check-log): the IMU's axes, the streams' clocks and the sensors' lever "
-                  "arms are as logged, so the filter and the dead reckoning meet the clock "
-                  "offsets and lever arms the logs do not document. TODO: re-run with "
-                  "check-log.", ""]
-    else:
-        lines += ["Every segment was corrected by `auvsim check-log --apply` before any "
-                  "estimator ran: what it found, from the data alone (value; confidence):",
-                  "", *_corrections_table(setup["corrections"]), ""]
+    lines += ["Every segment was corrected by `auvsim check-log --apply` before any "
+              "estimator ran: what it found, from the data alone (value; confidence):",
+              "", *_corrections_table(setup["corrections"]), ""]
     lines += [
         "## Per segment",
         "",
@@ -520,12 +498,11 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
                      f"{_fmt(_median(results, label, 'final_m'))} | "
                      f"{_fmt(_median(results, label, 'rmse_m'))} | {_fmt(real, '.4f')} |")
     lines += ["", "### What transfers, and why", "",
-              *_transfers(results, sim, ls, noise, setup["corrections"],
-                          setup["logged_noise"])]
+              *_transfers(results, sim, ls, noise, setup["logged_noise"])]
     return lines
 
 
-def _transfers(results: dict, sim: list[str], ls: float, noise: dict, corrections,
+def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
                logged: float) -> list[str]:
     """Statements computed from the medians: which sim-trained estimators beat LS on the
     real segments, which lose, and the filter's two noise settings."""
@@ -548,10 +525,8 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict, correction
         + ("The real segments' beams are derived from the DVL's velocity, so no per-beam "
            "error is there to undo. " if derived else "")
         + "What the real DVL's velocity differs from the reference by (the instrument's "
-        "slow errors, the reference's own error"
-        + (", and the streams' clocks and lever arms the logs do not document, which "
-           "check-log has not corrected here" if corrections is None else "")
-        + ") is nothing any auvsim mission had; the same estimators fitted on the other "
+        "slow errors, the reference's own error, what check-log's corrections leave) is "
+        "nothing any auvsim mission had; the same estimators fitted on the other "
         "real segments show how much of it is systematic, and so learnable, on this "
         "vehicle.",
     ]
