@@ -305,6 +305,14 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
     else:
         ks = ks[ok]
     if recorded:
+        # Only the pings the reference covers are scored: beyond its span (a DVL clock
+        # that check-log moved past the reference's last sample) nothing says where the
+        # vehicle was.
+        ref_time = m.reference.time
+        inside = (m.dvl.time[ks] >= ref_time[0]) & (m.dvl.time[ks] <= ref_time[-1])
+        ks = ks[inside]
+        if accel is not None:
+            accel, gyro = accel[inside], gyro[inside]
         target = reference_velocity(m, m.dvl.time[ks])
         reference = f"the reference: {m.attrs.get('reference_source', 'unnamed')}"
     else:
@@ -365,7 +373,9 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
     # rad/s).
     c = rotation_matrices(np.asarray(ref.quaternion, dtype=float))
     v_ref = np.einsum("rji,rj->ri", c, np.asarray(ref.velocity_ned, dtype=float))
-    v_body = np.stack([np.interp(times, t, v_ref[:, i]) for i in range(3)], axis=1)
+    # NaN outside the reference's span: a ping it does not cover has no target.
+    v_body = np.stack([np.interp(times, t, v_ref[:, i], left=np.nan, right=np.nan)
+                       for i in range(3)], axis=1)
     if m.has("imu"):
         rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
                          for i in range(3)], axis=1)
@@ -379,13 +389,14 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
 def quaternions_at(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarray:
     """(P, 4) attitude quaternions [w, x, y, z] at ``times``: linear in each component
     between the two samples of ``q`` (R, 4) at ``t`` (R,) around it, on the first's
-    hemisphere, then normalised (nlerp: within 1e-4 rad of slerp for steps under 10 deg),
-    held at the ends."""
+    hemisphere, then normalised (nlerp: within 1e-4 rad of slerp for steps under 10 deg);
+    NaN outside ``t``'s span."""
     q = np.array(q, dtype=float)
     # q and -q are one attitude: flip each sample onto its predecessor's hemisphere.
     turn = np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0)
     q *= np.concatenate([[1.0], np.cumprod(turn)])[:, None]
-    out = np.stack([np.interp(times, t, q[:, i]) for i in range(4)], axis=1)
+    out = np.stack([np.interp(times, t, q[:, i], left=np.nan, right=np.nan)
+                    for i in range(4)], axis=1)
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 

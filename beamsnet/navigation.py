@@ -78,7 +78,8 @@ def _reference_at(m, times: np.ndarray) -> dict[str, np.ndarray]:
                 yaw_rate=np.abs(np.degrees(yaw_rate)),
                 acceleration=np.divide(change, step, out=np.zeros_like(change),
                                        where=step > 0),
-                position=np.stack([np.interp(times, t, ref.position_ned[:, i])
+                position=np.stack([np.interp(times, t, ref.position_ned[:, i], left=np.nan,
+                                             right=np.nan)
                                    for i in range(3)], axis=1))
 
 

@@ -394,3 +394,12 @@ def test_the_filter_on_a_recorded_mission_writes_its_own_track(tmp_path, capsys)
     assert 0 <= row["position"]["coverage_3sigma"] <= 1
     assert set(row["baselines"]) == {"DR: DVL + reference attitude",
                                      "DR: DVL + filter attitude"}
+
+
+def test_no_reference_velocity_beyond_the_references_span():
+    """A ping after the reference's last sample (a DVL clock check-log moved past it) has
+    no target: NaN, never the last sample held."""
+    t = np.arange(0.0, 20.0)
+    m = recorded_stub(t, 0.2, 2.0, np.zeros(3), 0.0, imu=False)
+    got = reference_velocity(m, np.array([-0.5, 0.0, 19.0, 19.5]))
+    assert np.isnan(got[[0, 3]]).all() and np.isfinite(got[[1, 2]]).all()
