@@ -67,9 +67,10 @@ from beamsnet.training.train import predict
 
 DEFAULT_SEA = Path(__file__).resolve().parents[3] / "shared" / "data" / "snapir-akit"
 # s per manoeuvre of the auvsim training set: 20 missions (10 manoeuvres at 2 and 0.8
-# m/s), 6,000 pings, generated in 8 s; 4,500 of them train, and CorrectionNet takes
-# 4,500 x 50 epochs / 816 samples/s = 4.6 min of a core per seed (measured: ``beamsnet
-# train`` at 3 epochs, 18 s), so 3 seeds on 2 cores and the rest make 10-12 min.
+# m/s), 4,897 samples, generated in 11 s; 3,668 of them train, and CorrectionNet takes
+# 3,668 x 50 epochs / 816 samples/s = 3.7 min of a core per seed (measured: ``beamsnet
+# train`` at 3 epochs, 18 s), so 3 seeds on 2 cores (two rounds) and the import,
+# check-log and the filters (about a minute) make 9-10 min on 2 free cores.
 DURATION = 300.0
 SEEDS = 3  # CorrectionNet seeds, every one scored
 FILTER = "INS/DVL"
