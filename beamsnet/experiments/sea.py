@@ -132,7 +132,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         real = ([b.fit(load_windows(dataset, missions=others)) for b in baselines()]
                 if others else [])
         results[name] = _segment(dataset, name, fitted, real, nets, noise)
-    setup = dict(data=str(data), dataset=str(dataset), sim=str(sim), duration=duration,
+    # The data folder by its name only: a report names no path outside the repository.
+    setup = dict(data=Path(data).name, dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
                  corrections=corrections,
                  geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)},
