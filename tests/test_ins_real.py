@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
-from akit_logs import AKIT, SEGMENTS, corrected, run_segment
 from conftest import flat
 
 from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
@@ -19,6 +20,9 @@ from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rota
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
 from beamsnet.estimators import ins
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import sea_filter  # noqa: E402  (the product path on the shared segments, and its scores)
 
 PAPER_NOISE = 0.042**2  # m/s, the paper-sim preset's beam noise
 
@@ -211,21 +215,36 @@ def test_beam_noise_from_the_error_velocity_of_a_janus_dvl():
     assert ins.janus_velocity_std(sigma, angle)[0] == pytest.approx(error.std(), rel=0.03)
 
 
-needs_akit = pytest.mark.skipif(not AKIT.is_dir(), reason="the shared A-KIT segments are "
-                                "absent (../shared/data/snapir-akit)")
+needs_akit = pytest.mark.skipif(not sea_filter.DATA.is_dir(), reason="the shared A-KIT "
+                                "segments are absent (../shared/data/snapir-akit)")
+SEGMENTS = tuple(range(1, 7))
+
+
+@pytest.fixture(scope="module")
+def akit_files(tmp_path_factory):
+    """The six shared segments through the product's path: ``auvsim import --format
+    akit``, then ``auvsim check-log --apply`` (``sea_filter.corrected_file``). Returns
+    (imported, corrected)."""
+    work = tmp_path_factory.mktemp("akit")
+    checked = sea_filter.corrected_file(sea_filter.DATA, work)
+    return work / "akit.h5", checked
 
 
 @needs_akit
 @pytest.mark.parametrize("k", SEGMENTS)
-def test_the_filter_converges_on_each_shared_segment_with_its_defaults(k):
-    """On each real segment, corrected as ``check-log --apply`` is to write it (found
-    from the data: ``akit_logs.corrected``) and started from the reference: the final
-    horizontal error against the reference is under 5 m, and the IMU's y axis is the
-    mirrored one on all of them."""
-    s = corrected(k)
-    np.testing.assert_array_equal(s["axes"], np.diag([1.0, -1.0, 1.0]))
-    result = run_segment(s)
+def test_the_filter_converges_on_each_shared_segment_with_its_defaults(akit_files, k):
+    """On each real segment as ``check-log --apply`` wrote it (the IMU's y axis mirrored
+    back, every stream on the reference's clock, the sensors' positions and the DVL's
+    mounting found from the data) and started from its reference, ``run_mission`` with
+    its defaults (no hand settings) ends under 5 m from the reference, accepting the
+    pings, without a restart."""
+    with open_dataset(akit_files[1]) as f:
+        m = f.missions[f"trajectory{k}"]
+        found = json.loads(m.attrs["check_log_json"])["corrections"]
+        np.testing.assert_array_equal(found["imu_axis_matrix"], np.diag([1.0, -1.0, 1.0]))
+        result = sea_filter.score(m)
     assert result["final"] < 5.0, result
+    assert result["restarts"] == 0 and result["availability"] > 0.95, result
 
 
 class _Group:
@@ -301,31 +320,17 @@ def test_a_start_from_a_reference_is_as_uncertain_as_its_clock_lets_it_be():
 
 
 @needs_akit
-def test_run_mission_on_an_imported_segment_with_the_corrections_applied(tmp_path):
-    """``auvsim import --format akit`` of segment 5, then the corrections ``check-log
-    --apply`` is to write (``akit_logs.corrected_mission``): ``run_mission`` with its
-    defaults (the noise from the file's attributes, the Earth's rate at its latitude, the
-    start from its reference) ends under 5 m from the reference, and covers its error
-    within 3 sigma. On the file as imported (the IMU's y axis mirrored, the clocks
-    apart) it does not converge, and says so: restarts, and far fewer pings accepted."""
-    from akit_logs import corrected_mission
-
-    from auvsim.cli import main as auvsim_main
-
-    path = tmp_path / "akit.h5"
-    assert auvsim_main(["import", str(AKIT / "Trajectory5"), "--format", "akit",
-                        "--out", str(path)]) == 0
-    with open_dataset(path) as f:
-        m = f.missions["trajectory5"]
-        view = corrected_mission(m, corrected(5))
-        track = ins.run_mission(view)
-        raw = ins.run_mission(m)
-        ref_time, ref_position = view.reference.time, m.reference.position_ned
-    rows = (ref_time >= track.ping_time[0]) & (ref_time <= track.ping_time[-1])
-    est = np.stack([np.interp(ref_time[rows], track.ping_time, track.position_ned[:, j])
-                    for j in range(2)], axis=1)
-    error = np.linalg.norm(est - ref_position[rows, :2], axis=1)
-    sigma = np.interp(ref_time[rows], track.ping_time, track.horizontal_std)
-    assert error[-1] < 5.0 and np.mean(error <= 3 * sigma) >= 0.9
-    assert track.availability > 0.95
+def test_run_mission_on_the_imported_and_the_corrected_segment(akit_files):
+    """Segment 5 as ``auvsim import --format akit`` wrote it (the IMU's y axis mirrored,
+    the clocks apart): the filter does not converge and says so (restarts, far fewer
+    pings accepted). As ``check-log --apply`` wrote it: under 5 m from the reference at
+    the end, and its error within the reported 3 sigma (radius 3 sqrt(var N + var E))
+    at least 90 % of the time."""
+    imported, checked = akit_files
+    with open_dataset(imported) as f:
+        raw = ins.run_mission(f.missions["trajectory5"])
+    with open_dataset(checked) as f:
+        result = sea_filter.score(f.missions["trajectory5"])
+    assert result["final"] < 5.0 and result["coverage"] >= 0.9, result
+    assert result["availability"] > 0.95
     assert len(raw.events) > 10 and raw.availability < 0.9

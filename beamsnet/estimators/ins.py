@@ -96,10 +96,23 @@ recorded one at its reference's first sample within the IMU's span
 accelerates and moves in ``clock_std``); without either, ``coarse_alignment`` (levelling
 from the averaged accelerometers, a given heading).
 
+A recorded file from ``auvsim check-log --apply`` is read as it is: the IMU's dt from its
+times (``imu_rate_hz`` only sets the rounding's density), ``imu_position_body``,
+``dvl_position_body``, ``dvl_mounting_rpy_deg``, ``latitude_deg``, ``height_m``,
+``gravity`` and the instrument's attributes; the DVL's scale that check-log reports is not
+applied to the file, and is what the scale states are for. The filter integrates on
+whatever clock the file's stamps are: it cannot tell stretched stamps from physical
+seconds, and a stretch of e makes every integration (angles, velocity, distance) e too
+large. The A-KIT file on the reference's clock has e = 0.25 % by the publication's stated
+rates (``benchmarks/sea_filter.py`` shows what that costs).
+
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
 factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
 ratio (a scale factor shared by the beams: the per-measurement ones hold it), range- and
-speed-dependent noise and heavy-tailed outliers (the gate handles them).
+speed-dependent noise and heavy-tailed outliers (the gate handles them). Scored against a
+reference, the reported covariance covers the filter's error only, not the reference's
+own (a post-processed INS solution: on the A-KIT segment 4 the dead reckoning with the
+reference's attitude is as far from the reference as the filter, 4 m).
 
 Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
 real time; on a recorded 400 s segment with the 29 states, about 5000x
