@@ -22,7 +22,9 @@ from beamsnet.data import DataError, Windows, body_rate, quaternions_at, referen
 def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.ndarray]:
     """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
     (S, 3, 3), yaw rate (S, deg/s), the rate of change of the true DVL-frame velocity since
-    the previous ping (S,) and the true position (S, 3, m NED).
+    the previous ping (S,), the true position (S, 3, m NED), and for moving a DVL velocity
+    to the body origin the body rate (``body_rate``, S, 3, rad/s) and the DVL's lever arm
+    (``lever``, S, 3, m, body).
 
     For a recorded mission the same from its reference (``reference_source``), at the
     pings' times: attitude and position interpolated (``beamsnet.data.quaternions_at``),
@@ -30,7 +32,8 @@ def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.nd
     the reference DVL velocity of ``windows.target``. Nothing here calls it truth but the
     caller's words: ``windows.reference`` says what it is.
     """
-    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
+    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position",
+                             "body_rate", "lever")}
     with open_dataset(path) as f:
         for i, name in enumerate(windows.names):
             m = f.missions[name]
@@ -51,6 +54,9 @@ def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.nd
             mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
             parts["mounting"].append(np.broadcast_to(mounting, (len(rows), 3, 3)))
             parts["yaw_rate"].append(np.abs(np.degrees(m.truth.angular_rate[rows, 2])))
+            parts["body_rate"].append(m.truth.angular_rate[rows])
+            parts["lever"].append(np.broadcast_to(
+                np.asarray(m.attrs["dvl_position_body"], dtype=float), (len(rows), 3)))
             parts["position"].append(m.truth.position_ned[rows])
             parts["acceleration"].append(
                 np.linalg.norm(v_dvl[ping] - v_dvl[np.maximum(ping - 1, 0)], axis=1) * rate)
@@ -66,16 +72,19 @@ def _reference_at(m, times: np.ndarray) -> dict[str, np.ndarray]:
                         "with the reference's attitude needs reference/quaternion")
     rotation = rotation_matrices(quaternions_at(t, ref.quaternion, times))
     if m.has("imu"):
-        yaw_rate = np.interp(times, m.imu.time, m.imu.angular_rate[:, 2])
+        rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
+                         for i in range(3)], axis=1)
     else:
-        yaw_rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)[:, 2]
+        rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)
     v_dvl = reference_velocity(m, times)
     step = np.diff(times, prepend=times[:1])
     change = np.linalg.norm(np.diff(v_dvl, axis=0, prepend=v_dvl[:1]), axis=1)
     mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
     return dict(rotation=rotation,
                 mounting=np.broadcast_to(mounting, (len(times), 3, 3)),
-                yaw_rate=np.abs(np.degrees(yaw_rate)),
+                yaw_rate=np.abs(np.degrees(rate[:, 2])), body_rate=rate,
+                lever=np.broadcast_to(np.asarray(m.attrs["dvl_position_body"], dtype=float),
+                                      (len(times), 3)),
                 acceleration=np.divide(change, step, out=np.zeros_like(change),
                                        where=step > 0),
                 position=np.stack([np.interp(times, t, ref.position_ned[:, i], left=np.nan,
@@ -135,13 +144,23 @@ def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
 
 def dead_reckoning_positions(windows: Windows, velocity: np.ndarray,
                              truth: dict[str, np.ndarray], mission: int) -> np.ndarray:
-    """(S_m, 3) NED positions at the mission's pings, m, from integrating ``velocity``
-    (S, 3, DVL frame; NaN rows held, ``held``) with ``truth["rotation"]`` (the reference's
-    attitude, or another's put in its place), started at ``truth["position"]`` of the
-    mission's first sample: a position solution in the frame of the reference's."""
+    """(S_m, 3) NED positions of the body origin (a recorded mission's reference point) at
+    the mission's pings, m: ``velocity`` (S, 3, DVL frame; NaN rows held, ``held``) moved
+    to the origin, ``M v - w x L`` (``truth``'s mounting, body rate and the DVL's lever
+    arm), rotated by ``truth["rotation"]`` (the reference's attitude, or another's put in
+    its place), each held until the next ping and summed from ``truth["position"]`` at
+    the mission's first sample: a position solution in the frame of the reference's.
+
+    Without the lever arm, the DVL's own track would stand L from the origin's, turned
+    with the heading: 3.7 m apart after a half turn with the Snapir's DVL 1.85 m aft."""
     mine = windows.mission == mission
-    track = dead_reckoning_track(windows, held(windows, velocity), truth, mission)
-    return track + truth["position"][mine][0]
+    v = held(windows, velocity)[mine]
+    body = np.einsum("sij,sj->si", truth["mounting"][mine], v) - np.cross(
+        truth["body_rate"][mine], truth["lever"][mine])
+    steps = np.einsum("sij,sj->si", truth["rotation"][mine][:-1], body[:-1]) * np.diff(
+        windows.time[mine])[:, None]
+    return truth["position"][mine][0] + np.concatenate([np.zeros((1, 3)),
+                                                        np.cumsum(steps, axis=0)])
 
 
 def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],

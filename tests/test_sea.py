@@ -403,3 +403,29 @@ def test_no_reference_velocity_beyond_the_references_span():
     m = recorded_stub(t, 0.2, 2.0, np.zeros(3), 0.0, imu=False)
     got = reference_velocity(m, np.array([-0.5, 0.0, 19.0, 19.5]))
     assert np.isnan(got[[0, 3]]).all() and np.isfinite(got[[1, 2]]).all()
+
+
+def test_dead_reckoning_moves_the_dvls_velocity_to_the_reference_point():
+    """Turning at 0.1 rad/s at 1.5 m/s with the DVL 1.85 m aft: the DVL reads the
+    origin's (1.5, 0, 0) plus w x L = (0, -0.185, 0) m/s. Moved back by M v - w x L, its
+    track is the origin's, step for step, to round-off."""
+    from beamsnet.navigation import dead_reckoning_positions
+
+    n, rate = 60, 0.1
+    t = np.arange(float(n))
+    windows = SimpleNamespace(mission=np.zeros(n, dtype=int), time=t)
+    heading = rate * t
+    rotation = np.zeros((n, 3, 3))
+    rotation[:, 0, 0], rotation[:, 0, 1] = np.cos(heading), -np.sin(heading)
+    rotation[:, 1, 0], rotation[:, 1, 1] = np.sin(heading), np.cos(heading)
+    rotation[:, 2, 2] = 1.0
+    truth = dict(rotation=rotation, mounting=np.tile(np.eye(3), (n, 1, 1)),
+                 position=np.zeros((n, 3)), body_rate=np.tile([0.0, 0.0, rate], (n, 1)),
+                 lever=np.tile([-1.85, 0.0, 0.0], (n, 1)))
+    at_origin = np.tile([1.5, 0.0, 0.0], (n, 1))
+    at_dvl = at_origin + np.cross(truth["body_rate"], truth["lever"])
+    np.testing.assert_allclose(at_dvl[0], [1.5, -0.185, 0.0])
+    origin = dead_reckoning_positions(windows, at_origin, dict(truth, lever=0 * truth["lever"]),
+                                      0)
+    np.testing.assert_allclose(dead_reckoning_positions(windows, at_dvl, truth, 0), origin,
+                               atol=1e-12)
