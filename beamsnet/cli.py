@@ -14,9 +14,12 @@ from auvsim.cli_support import run_command
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
-from beamsnet.evaluate import SensorSetupWarning, UnseenMissionWarning
+from beamsnet.evaluate import FilterWarning, SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
+from beamsnet.experiments.sea import DEFAULT_SEA
+from beamsnet.experiments.sea import DURATION as SEA_DURATION
+from beamsnet.experiments.sea import SEEDS as SEA_SEEDS
 from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
 from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
 from beamsnet.experiments.sim2real import SIM_SEEDS
@@ -142,23 +145,26 @@ def _parser() -> argparse.ArgumentParser:
     rp = sub.add_parser(
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
-    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real"),
+    rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real",
+                                           "sea"),
                     metavar="EXPERIMENT",
                     help="paper-sim: the paper's simulation (Table 1); paper-sim-text: the "
                     "same with its text's beam noise; snapir: the Snapir sea data (Table 3); "
                     "sim2real: train every estimator on auvsim data only, test on the "
-                    "Snapir streams")
+                    "Snapir streams; sea: every estimator on recorded IMU, DVL and "
+                    "reference logs, scored against the reference, with sim-to-real rows")
     rp.add_argument("--data", type=Path, metavar="PATH",
                     help="paper-sim: use this dataset instead of generating one; snapir, "
                     "sim2real: the folder with V.npy and V_test.npy (default "
-                    f"{DEFAULT_SNAPIR})")
+                    f"{DEFAULT_SNAPIR}); sea: a folder of A-KIT logs (default {DEFAULT_SEA})")
     rp.add_argument("--duration", type=float, metavar="SECONDS",
                     help="s per speed of paper-sim (default 7200), s per manoeuvre of "
-                    f"sim2real's training sets (default {SIM2REAL_DURATION:g})")
+                    f"sim2real's training sets (default {SIM2REAL_DURATION:g}) and of sea's "
+                    f"(default {SEA_DURATION:g})")
     rp.add_argument("--seeds", type=int, metavar="N",
-                    help="snapir, sim2real: seeds per network, every one scored (default "
+                    help="snapir, sim2real, sea: seeds per network, every one scored (default "
                     + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
-                    + f" in snapir; {SIM_SEEDS} in sim2real)")
+                    + f" in snapir; {SIM_SEEDS} in sim2real; {SEA_SEEDS} in sea)")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,
@@ -273,14 +279,16 @@ def _train(args) -> None:
 
 
 def _evaluate(args) -> None:
-    from beamsnet.evaluate import evaluate, markdown
+    from beamsnet.evaluate import evaluate, markdown, navigation_markdown
 
     config = _filter_config(args.filter_config)
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
                        allow_mismatch=args.allow_mismatch, filter_config=config)
     for dataset, result in results.items():
-        print(markdown(result["rows"], str(dataset)))
+        print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
+        if "navigation" in result:
+            print(navigation_markdown(result["navigation"], result["against"]))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
 
 
@@ -291,6 +299,10 @@ def _estimate(args) -> None:
     args.out = report_dir(args.out, False, "estimate")
     summary = estimate(args.estimator, args.dataset, args.out, train=args.train,
                        filter_config=config)
+    print(f"{summary['estimator']} on {args.dataset}, scored against {summary['against']}"
+          + (f"; beams derived as H v from the DVL's own velocity in "
+             f"{', '.join(summary['beams_derived'])} (the log has none)"
+             if summary.get("beams_derived") else ""))
     for mission, row in summary["missions"].items():
         said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"
                 + (" accepted" if "events" in row else "")]
@@ -298,13 +310,25 @@ def _estimate(args) -> None:
             said.append(f"{len(row['events'])} restart{'' if len(row['events']) == 1 else 's'}"
                         " by the divergence watch")
         if "rmse_vector" in row:
-            said.append(f"vector RMSE {row['rmse_vector']:.4f} m/s")
-        if "dr_error" in row:
-            said.append(f"position error after the mission {row['dr_error']:.2f} m")
+            said.append(f"velocity RMSE {row['rmse_vector']:.4f} m/s")
+        if "position" in row:
+            said.append(_position_words(row["position"]))
         print(f"{summary['estimator']} on {mission}: " + ", ".join(said))
         for event in row.get("events", []):
             print(f"  {event}")
+        for name, scores in row.get("baselines", {}).items():
+            print(f"  {name}: {_position_words(scores)}")
     print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")
+
+
+def _position_words(scores: dict) -> str:
+    """A position score in words: final, RMSE, % of the distance, 3-sigma coverage."""
+    words = (f"horizontal position error final {scores['final_m']:.2f} m, RMSE "
+             f"{scores['rmse_m']:.2f} m, {scores['final_percent']:.2f} % of "
+             f"{scores['distance_m']:.0f} m travelled")
+    if "coverage_3sigma" in scores:
+        words += f", within its 3 sigma {100 * scores['coverage_3sigma']:.1f} % of the time"
+    return words
 
 
 def _filter_config(path: Path | None):
@@ -318,13 +342,15 @@ def _filter_config(path: Path | None):
 
 def _reproduce(args) -> None:
     from beamsnet.experiments.reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
+    from beamsnet.experiments.sea import sea
 
-    # sim2real tests on sea data: it trains with the paper's sea-data settings.
-    profile = PROFILES["snapir" if args.experiment == "sim2real" else args.experiment]
+    # sim2real and sea test on sea data: they train with the paper's sea-data settings.
+    profile = PROFILES["snapir" if args.experiment in ("sim2real", "sea")
+                       else args.experiment]
     training, restarts = profile.resolve(
         epochs=args.epochs, lr=args.lr, average_epochs=args.average_epochs,
         restarts=args.restarts)
-    seeded = args.experiment in ("snapir", "sim2real")
+    seeded = args.experiment in ("snapir", "sim2real", "sea")
     if seeded and args.restarts is not None:
         raise ConfigError(f"is not used by {args.experiment}, which scores every seed; "
                           "expected --seeds N", argument="restarts")
@@ -335,7 +361,12 @@ def _reproduce(args) -> None:
         raise ConfigError(f"is not used by {args.experiment}, which keeps the best of "
                           "its seeds; expected --restarts N", argument="seeds")
     args.out = report_dir(args.out, args.refresh_reports, args.experiment)
-    if args.experiment == "sim2real":
+    if args.experiment == "sea":
+        report = sea(DEFAULT_SEA if args.data is None else args.data, out=args.out,
+                     duration=SEA_DURATION if args.duration is None else args.duration,
+                     seeds=SEA_SEEDS if args.seeds is None else args.seeds,
+                     training=training, progress=not args.quiet, cluster=args.cluster)
+    elif args.experiment == "sim2real":
         report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                           duration=SIM2REAL_DURATION if args.duration is None
                           else args.duration, training=training, seeds=args.seeds,
@@ -391,6 +422,7 @@ def main(argv: list[str] | None = None) -> int:
         # Each says something about this evaluation's inputs: never once per session.
         warnings.simplefilter("always", SensorSetupWarning)
         warnings.simplefilter("always", UnseenMissionWarning)
+        warnings.simplefilter("always", FilterWarning)
         return run_command("beamsnet", command, FLAGS)
 
 

@@ -9,6 +9,16 @@ One sample per DVL ping k (paper sec. 3, and the published code):
   input: 100 samples at 100 Hz / 1 Hz);
 * ``target``: the true DVL velocity of ping k, in the DVL frame.
 
+A recorded mission (``origin`` ``"recorded"``, ``auvsim import``) has no truth: its target
+is the REFERENCE velocity (a navigation solution, the mission's ``reference_source``) moved
+to the DVL, ``M^T (C_ref^T v_ref + w x L)`` at the ping's time (``reference_velocity``),
+and ``Windows.reference`` says so. Its beams are ``dvl/beam_velocity`` when the log has
+them, else ``H v`` of the instrument's own velocity (``dvl_beams_derived``, listed in
+``Windows.derived``): then the beams carry the instrument's velocity errors, mapped onto
+the beams, but no error of one beam alone. Its IMU interval is found by the stamps
+(``np.searchsorted``: a recorded mission keeps each stream's own clock), W the nearest
+whole number of IMU samples per ping.
+
 A ping is a sample only if it has n_past earlier pings and a full IMU interval in its own
 mission (k >= max(n_past, 1); ping 0 has no interval before it) and all the beams it uses
 (current and past) have bottom lock. So V1, V2 and every baseline see the SAME samples, and
@@ -48,6 +58,10 @@ class DataError(DatasetError, ValueError):
     boundary catches it with the others."""
 
 
+# What a simulated mission's target is; a recorded mission's is its reference.
+TRUTH = "the simulator's truth"
+
+
 class Windows(NamedTuple):
     """Samples, one per usable DVL ping, missions one after the other in ``names`` order,
     pings in time order within each mission. Arrays are float64 except ``mission``.
@@ -65,6 +79,10 @@ class Windows(NamedTuple):
         time: (S,) ping time from the start of its mission, s.
         names: the mission names.
         h: (4, 3) beam matrix shared by every mission.
+        reference: what ``target`` is: ``the simulator's truth``, or for recorded
+            missions ``the reference: <reference_source>``.
+        derived: the missions whose beams are ``H v`` of the instrument's velocity
+            (their log has no beams).
     """
 
     beams: np.ndarray
@@ -77,6 +95,8 @@ class Windows(NamedTuple):
     time: np.ndarray
     names: tuple[str, ...]
     h: np.ndarray
+    reference: str = TRUTH
+    derived: tuple[str, ...] = ()
 
 
 # Fields with one row per sample: what select() indexes.
@@ -150,7 +170,24 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
         raise DataError(f"{path}: no ping of {', '.join(names)} has all {n_past + 1} beam "
                         "epochs valid (bottom lock); no samples")
     return Windows(**out, names=names,
-                   h=beam_matrix(math.radians(next(iter(angles.values())))))
+                   h=beam_matrix(math.radians(next(iter(angles.values())))),
+                   reference=_reference_words(path, [p["reference"] for p in parts]),
+                   derived=tuple(n for n, p in zip(names, parts, strict=True)
+                                 if p["derived"]))
+
+
+def _reference_words(path, references: list[str]) -> str:
+    """``Windows.reference`` of missions whose targets are ``references``: one source.
+
+    Raises:
+        DataError: the missions mix the simulator's truth with a reference, or two
+            references: their scores would not say against what.
+    """
+    kinds = list(dict.fromkeys(references))
+    if len(kinds) > 1:
+        raise DataError(f"{path}: the missions are scored against different things "
+                        f"({'; '.join(kinds)}); pass missions= of one kind")
+    return kinds[0]
 
 
 def _check_each_has_samples(path, group, names: Sequence[str], parts: list[dict],
@@ -165,7 +202,7 @@ def _check_each_has_samples(path, group, names: Sequence[str], parts: list[dict]
     for name, part in zip(names, parts, strict=True):
         if len(part["target"]):
             continue
-        beams = group[name].dvl.beam_velocity
+        beams = recorded_beams(group[name])[0]
         why = ("every beam velocity is NaN (not one ping has a valid beam)"
                if not np.isfinite(beams).any() else
                f"no ping has all {n_past + 1} beam epochs valid (bottom lock)")
@@ -210,24 +247,27 @@ def check_truth(windows: Windows, dataset: str | os.PathLike) -> None:
     bad = ~np.isfinite(windows.target).all(axis=1)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
-        raise DataError(f"{dataset}: the true DVL velocity holds NaN or inf in "
+        what = ("true" if windows.reference == TRUTH else "reference")
+        raise DataError(f"{dataset}: the {what} DVL velocity holds NaN or inf in "
                         f"{int(bad.sum())} of {len(bad)} samples (the first in mission "
                         f"{windows.names[windows.mission[first]]} at "
-                        f"{windows.time[first]:g} s); expected finite true velocities to "
-                        "score the estimators against")
+                        f"{windows.time[first]:g} s); expected finite {what} velocities "
+                        "to score the estimators against")
 
 
 def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
                      every_ping: bool = False) -> dict:
     """The samples of one mission (an ``auvsim.data.reader.Mission``), as a dict of Windows
-    fields."""
-    beams = m.dvl.beam_velocity
+    fields (and ``reference``, ``derived``: what the target is, whether the beams are
+    derived)."""
+    recorded = m.origin == "recorded"
+    beams, derived = recorded_beams(m)
     n_pings = len(beams)
     first = max(n_past, 1)  # the first ping with n_past pings and an IMU interval before it
     if n_pings <= first:
         raise DataError(f"mission {name}: {n_pings} DVL ping(s); a sample with n_past="
                         f"{n_past} needs at least {first + 1}")
-    valid = m.dvl.valid
+    valid = (m.dvl.valid if "valid" in m.dvl else np.isfinite(beams)) & np.isfinite(beams)
     # Format v4 records the mode of each ping (0 bottom track, 1 water track, -1 none).
     mode = m.dvl.mode if "mode" in m.dvl else np.zeros(n_pings, dtype=np.int64)
     if every_ping:
@@ -246,11 +286,16 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
     accel = gyro = None
     if with_imu:
         width = m.attrs["imu_rate_hz"] / m.attrs["dvl_rate_hz"]
-        if abs(width - round(width)) > 1e-9 or round(width) < 1:
-            raise DataError(f"mission {name}: IMU rate {m.attrs['imu_rate_hz']:g} Hz is not a "
-                            f"whole multiple of the DVL rate {m.attrs['dvl_rate_hz']:g} Hz")
-        width = round(width)
-        end = m.imu.index_of_dvl
+        if recorded:  # stamped clocks: the IMU samples strictly before each ping
+            width = max(round(width), 1)
+            end = np.searchsorted(m.imu.time, m.dvl.time, side="left")
+        else:
+            if abs(width - round(width)) > 1e-9 or round(width) < 1:
+                raise DataError(f"mission {name}: IMU rate {m.attrs['imu_rate_hz']:g} Hz is "
+                                f"not a whole multiple of the DVL rate "
+                                f"{m.attrs['dvl_rate_hz']:g} Hz")
+            width = round(width)
+            end = m.imu.index_of_dvl
         n_imu = m.imu.rows
         ok &= (end[ks] - width >= 0) & (end[ks] <= n_imu)
         ks = ks[ok]
@@ -259,15 +304,119 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
         gyro = m.imu.angular_rate[rows]
     else:
         ks = ks[ok]
+    if recorded:
+        # Only the pings the reference covers are scored: beyond its span (a DVL clock
+        # that check-log moved past the reference's last sample) nothing says where the
+        # vehicle was.
+        ref_time = m.reference.time
+        inside = (m.dvl.time[ks] >= ref_time[0]) & (m.dvl.time[ks] <= ref_time[-1])
+        ks = ks[inside]
+        if accel is not None:
+            accel, gyro = accel[inside], gyro[inside]
+        target = reference_velocity(m, m.dvl.time[ks])
+        reference = f"the reference: {m.attrs.get('reference_source', 'unnamed')}"
+    else:
+        target, reference = m.dvl.velocity[ks], TRUTH
     return dict(
         beams=beams[ks],
         past_beams=beams[ks[:, None] + np.arange(-n_past, 0)],
         accel=accel, gyro=gyro,
-        target=m.dvl.velocity[ks],
+        target=target,
         velocity_ls=m.dvl.velocity_ls[ks],
         mission=np.full(len(ks), index, dtype=np.int64),
         time=m.dvl.time[ks],
+        reference=reference, derived=derived,
     )
+
+
+def recorded_beams(m) -> tuple[np.ndarray, bool]:
+    """(P, 4) beam velocities of a mission, m/s, and whether they are derived: the file's
+    ``dvl/beam_velocity``; for a recorded log without beams (``dvl_beams_derived``),
+    ``H v`` of the instrument's own velocity ``dvl/velocity_ls``, which puts its velocity
+    errors on the beams as LS would see them (LS of ``H v`` is ``v``, exactly)."""
+    if "beam_velocity" in m.dvl:
+        return np.asarray(m.dvl.beam_velocity, dtype=float), False
+    h = beam_matrix(math.radians(float(m.attrs["beam_angle_deg"])))
+    return np.asarray(m.dvl.velocity_ls, dtype=float) @ h.T, True
+
+
+def reference_velocity(m, times: np.ndarray) -> np.ndarray:
+    """(P, 3) velocity of the DVL over ground in its own frame, m/s, from a recorded
+    mission's reference at ``times`` (s, on the DVL's clock):
+    ``M^T (C_ref^T v_ref + w x L)``.
+
+    ``C_ref^T v_ref`` (the reference's NED velocity in its body frame, with its attitude
+    ``C_ref``, body -> NED) is formed at the reference's samples and interpolated linearly
+    in time; ``w`` is the body rate:
+    the IMU's gyro interpolated at ``times`` where the mission has an IMU (the Earth's
+    rate in it, 7e-5 rad/s, moves a 1 m lever by 0.07 mm/s), else the rate between the
+    reference's attitudes. ``L`` is ``dvl_position_body``, the DVL's place from the
+    reference point, and ``M`` the DVL mounting (DVL -> body).
+
+    Raises:
+        DataError: the mission has no reference, or its reference has no attitude (the
+            velocity cannot be put in the DVL frame without it).
+    """
+    from auvsim.physics.frames import rotation_matrices, rotation_rpy
+
+    if not m.has("reference"):
+        raise DataError(f"mission {m.name}: a recorded mission without a reference group; "
+                        "expected a reference to score against")
+    ref = m.reference
+    if "quaternion" not in ref:
+        raise DataError(f"mission {m.name}: its reference has no attitude, so its velocity "
+                        "cannot be put in the DVL frame; expected reference/quaternion")
+    t = np.asarray(ref.time, dtype=float)
+    times = np.asarray(times, dtype=float)
+    # In the body frame, where a steady turn's velocity is constant (in NED it turns, and
+    # a line between two samples 1 s apart cuts the circle's chord: 0.4 % slow at 0.2
+    # rad/s).
+    c = rotation_matrices(np.asarray(ref.quaternion, dtype=float))
+    v_ref = np.einsum("rji,rj->ri", c, np.asarray(ref.velocity_ned, dtype=float))
+    # NaN outside the reference's span: a ping it does not cover has no target.
+    v_body = np.stack([np.interp(times, t, v_ref[:, i], left=np.nan, right=np.nan)
+                       for i in range(3)], axis=1)
+    if m.has("imu"):
+        rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
+                         for i in range(3)], axis=1)
+    else:
+        rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)
+    lever = np.asarray(m.attrs["dvl_position_body"], dtype=float)
+    mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
+    return (v_body + np.cross(rate, lever)) @ mounting  # M^T v for each row
+
+
+def quaternions_at(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(P, 4) attitude quaternions [w, x, y, z] at ``times``: linear in each component
+    between the two samples of ``q`` (R, 4) at ``t`` (R,) around it, on the first's
+    hemisphere, then normalised (nlerp: within 1e-4 rad of slerp for steps under 10 deg);
+    NaN outside ``t``'s span."""
+    q = np.array(q, dtype=float)
+    # q and -q are one attitude: flip each sample onto its predecessor's hemisphere.
+    turn = np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0)
+    q *= np.concatenate([[1.0], np.cumprod(turn)])[:, None]
+    out = np.stack([np.interp(times, t, q[:, i], left=np.nan, right=np.nan)
+                    for i in range(4)], axis=1)
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def body_rate(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(P, 3) body angular rate, rad/s, at ``times`` from attitude samples ``q`` (R, 4)
+    at ``t`` (R,): the rotation vector of ``q_k^-1 q_{k+1}`` over ``t_{k+1} - t_k``,
+    interpolated between the steps' midpoints."""
+    a, b = q[:-1], q[1:]
+    # q_k^-1 q_{k+1} = conj(a) b (Hamilton product), on the short way round.
+    w = np.sum(a * b, axis=1)
+    v = (a[:, :1] * b[:, 1:] - b[:, :1] * a[:, 1:]
+         - np.cross(a[:, 1:], b[:, 1:]))
+    v *= np.sign(w + (w == 0))[:, None]
+    w = np.abs(w)
+    norm = np.linalg.norm(v, axis=1)
+    angle = 2.0 * np.arctan2(norm, w)
+    axis = np.divide(v, norm[:, None], out=np.zeros_like(v), where=norm[:, None] > 0)
+    rate = axis * (angle / np.diff(t))[:, None]
+    mid = 0.5 * (t[1:] + t[:-1])
+    return np.stack([np.interp(times, mid, rate[:, i]) for i in range(3)], axis=1)
 
 
 def select(windows: Windows, which: np.ndarray | Sequence[int] | slice) -> Windows:

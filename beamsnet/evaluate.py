@@ -11,6 +11,15 @@ them) unless told to allow it, and warns (``SensorSetupWarning``) when only the 
 model differs, which is a legitimate robustness test. Every run and dataset is read and
 checked before the output directory is made, so a refused evaluation leaves nothing
 behind.
+
+On a recorded mission (``auvsim import``) every score is against its reference (a
+navigation solution, ``reference_source``), never a truth, and says so: the velocity
+against the reference's moved to the DVL (``beamsnet.data.reference_velocity``), and
+the horizontal position (``navigation_scores``: final, RMSE, % of the distance) of each
+estimator's own position or its dead reckoning with the reference's attitude, the
+filter's 3-sigma coverage, and two dead-reckoning baselines: the DVL's own velocity with
+the reference's attitude and with the filter's. A simulated mission's scores are against
+the simulator's truth, in the same words.
 """
 
 from __future__ import annotations
@@ -22,15 +31,17 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
-from auvsim.errors import ConfigError
+from auvsim.errors import AuvsimError, ConfigError
 from beamsnet import metrics
-from beamsnet.data import DataError, Windows, check_truth, load_windows, split
+from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
 from beamsnet.navigation import (
     dead_reckoning_error,
+    dead_reckoning_positions,
     held,
     own_position_error,
+    position_report,
     truth_at_pings,
 )
 from beamsnet.plotstyle import figure_legend, styles
@@ -45,6 +56,10 @@ class SensorSetupWarning(UserWarning):
     """The evaluation data's sensors differ from the training data's: the DVL error model
     (a robustness test), a geometry or rate the caller allowed, or a run too old to
     tell."""
+
+
+class FilterWarning(UserWarning):
+    """A filter could not run on a file (its row is left out): the reason, in one line."""
 
 
 class UnseenMissionWarning(UserWarning):
@@ -81,9 +96,10 @@ def estimates(runs: list[str | Path], dataset: str | Path,
 
 
 def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
-               missions: list[str] | None = None, *,
-               filter_config=None) -> tuple[Windows, dict]:
-    """``estimates`` for loaded models (run directory, model, checkpoint)."""
+               missions: list[str] | None = None, *, filter_config=None,
+               **own) -> tuple[Windows, dict]:
+    """``estimates`` for loaded models (run directory, model, checkpoint); ``own``: the
+    dicts ``predictions`` fills with the filters' positions, sigmas and attitudes."""
     configs = [c["train_config"] for _, _, c in models]
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
@@ -94,7 +110,7 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
     except ValueError as e:
         raise DataError(f"{dataset}: {e}") from None
     return test_w, predictions(models, train_w, test_w, dataset=dataset,
-                               filter_config=filter_config)
+                               filter_config=filter_config, **own)
 
 
 def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
@@ -200,18 +216,33 @@ def filters(dataset: str | Path, *, strict: bool = False, filter_config=None) ->
 
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
                 test_w: Windows, *, dataset: str | Path | None = None,
-                positions: dict | None = None, filter_config=None) -> dict[str, np.ndarray]:
+                positions: dict | None = None, stds: dict | None = None,
+                rotations: dict | None = None, filter_config=None) -> dict[str, np.ndarray]:
     """Every estimator's (S, 3) predictions on ``test_w``: the baselines fitted on
     ``train_w`` (and the INS/DVL filter run on ``dataset``, the file ``test_w`` comes
     from, if given), then the loaded ``models`` (run directory, model, checkpoint).
     ``positions``, a dict, receives the (S, 3) NED position of every estimator with a
-    position solution of its own."""
+    position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
+    one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
     out: dict[str, np.ndarray] = {}
     for baseline in baselines() + ([] if dataset is None else filters(
             dataset, filter_config=filter_config)):
-        out[baseline.name] = baseline.fit(train_w).predict(test_w)
+        try:
+            out[baseline.name] = baseline.fit(train_w).predict(test_w)
+        except AuvsimError as e:
+            if baseline.name not in {s.name for s in specs("filter")}:
+                raise
+            # A filter the file cannot feed (a reference without attitude to start
+            # from, say): its row is left out, and the warning says why.
+            warnings.warn(f"{baseline.name} left out on {dataset}: "
+                          f"{str(e).strip().splitlines()[0]}", FilterWarning, stacklevel=2)
+            continue
         if positions is not None and hasattr(baseline, "positions"):
             positions[baseline.name] = baseline.positions(test_w)
+        if stds is not None:
+            stds.update(reported_stds(baseline, test_w))
+        if rotations is not None:
+            rotations.update(own_rotations(baseline, test_w))
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
         out[name] = predict(model, trimmed(test_w, checkpoint))
@@ -276,7 +307,8 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         setup = sensor_setup(dataset)  # read once for every run
         for run, _, checkpoint in models:
             check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
-        windows, predictions = _estimates(models, dataset, filter_config=filter_config)
+        own = dict(positions={}, stds={}, rotations={})
+        windows, predictions = _estimates(models, dataset, filter_config=filter_config, **own)
         for run, _, checkpoint in models:
             check_missions(run, checkpoint, dataset, list(windows.names))
         rows = table(windows, predictions)
@@ -285,8 +317,16 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
                                                   windows.target[windows.mission == m])
                    for m in np.unique(windows.mission)}
             for name, pred in predictions.items()}
-        results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission)
-        sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings"))
+        results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission,
+                                     against=windows.reference)
+        sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings, "
+                                       f"against {windows.reference}"
+                                       + _derived_words(windows)))
+        if _has_truth(dataset, windows.names):
+            navigation = navigation_scores(windows, predictions,
+                                           truth_at_pings(dataset, windows), **own)
+            results[str(dataset)]["navigation"] = navigation
+            sections.append(navigation_markdown(navigation, windows.reference))
         figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
     # Only now, every input checked, is ``out`` made: whole, or not at all.
     with staged_dir(out) as stage:
@@ -385,17 +425,29 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         train_w = split(train_windows)[0]
     except ValueError as e:
         raise DataError(f"{train or dataset}: {e}") from None
-    pred = estimator.fit(train_w).predict(windows)
+    try:
+        estimator.fit(train_w)
+    except ValueError as e:  # a training split it cannot be fitted on, in one line
+        raise DataError(f"{train or dataset}: {e}") from None
+    pred = estimator.predict(windows)
     positions = estimator.positions(windows) if hasattr(estimator, "positions") else None
-    has_truth = _has_truth(dataset, windows.names)
     summary = dict(estimator=estimator.name, dataset=str(dataset),
-                   train=str(train or dataset), pings=len(pred),
+                   train=str(train or dataset), pings=len(pred), against=windows.reference,
                    availability=availability(pred), missions={})
+    if windows.derived:
+        summary["beams_derived"] = list(windows.derived)
     if hasattr(estimator, "config"):
         import dataclasses
 
         summary["filter_config"] = dataclasses.asdict(estimator.config)
-    truth = truth_at_pings(dataset, windows) if has_truth else None
+    truth = (truth_at_pings(dataset, windows) if _has_truth(dataset, windows.names)
+             else None)
+    navigation = (navigation_scores(windows, {estimator.name: pred}, truth,
+                                    positions={} if positions is None
+                                    else {estimator.name: positions},
+                                    stds=reported_stds(estimator, windows),
+                                    rotations=own_rotations(estimator, windows))
+                  if truth is not None else {})
     for i, mission in enumerate(windows.names):
         mine = windows.mission == i
         have = mine & np.isfinite(pred).all(axis=1)
@@ -413,16 +465,23 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             row["dr_error"] = (own_position_error(windows, positions, truth, i)
                                if positions is not None else
                                dead_reckoning_error(windows, held(windows, pred), truth, i)[0])
+            scores = navigation[mission]
+            row["position"] = scores.pop(estimator.name)
+            row["baselines"] = scores
         summary["missions"][mission] = row
     if hasattr(estimator, "tracks"):
         tracks = estimator.tracks(windows)
         summary["availability"] = float(np.mean(np.concatenate(
             [t.accepted for t in tracks.values()])))
-    columns = ["mission", "time", "vx", "vy", "vz", "true_vx", "true_vy", "true_vz"]
+    target = "true" if windows.reference == TRUTH else "reference"
+    columns = ["mission", "time", "vx", "vy", "vz", f"{target}_vx", f"{target}_vy",
+               f"{target}_vz"]
     table = [windows.names[m] for m in windows.mission], windows.time, *pred.T, \
         *windows.target.T
     if positions is not None:
-        columns += ["north", "east", "down"]
+        # The estimator's own position, in the mission's local frame (the truth's, or
+        # the reference's: its origin is the reference's first point).
+        columns += ["north_m", "east_m", "down_m"]
         table += tuple(positions.T)
     lines = [",".join(columns)] + [
         ",".join(v if isinstance(v, str) else f"{v:.9g}" for v in row)
@@ -431,6 +490,125 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         write_text(stage / "estimates.csv", "\n".join(lines) + "\n")
         write_text(stage / "summary.json", json.dumps(summary, indent=1))
     return summary
+
+
+def baseline_names(reference: str) -> tuple[str, str]:
+    """The two dead-reckoning baselines' row names, for windows whose target is
+    ``reference`` (``Windows.reference``): the DVL's own velocity integrated with the
+    reference's (or the truth's) attitude, and with the filter's own attitude."""
+    whose = "true" if reference == TRUTH else "reference"
+    return f"DR: DVL + {whose} attitude", "DR: DVL + filter attitude"
+
+
+def navigation_scores(windows: Windows, predictions: dict[str, np.ndarray],
+                      truth: dict[str, np.ndarray], *, positions: dict | None = None,
+                      stds: dict | None = None, rotations: dict | None = None
+                      ) -> dict[str, dict[str, dict]]:
+    """Per mission, per estimator: its horizontal position error against
+    ``truth["position"]`` (the truth, or a recorded mission's reference; see
+    ``beamsnet.navigation.position_report``): its own position where it has one
+    (``positions``, name -> (S, 3) m NED; with ``stds`` its 3-sigma coverage), else its
+    velocity dead-reckoned with the truth's (reference's) attitude from the first sample
+    on. Beside them the two baselines of ``baseline_names``: the DVL's own velocity
+    (``windows.velocity_ls``) with that attitude, and with the attitude of each estimator
+    of ``rotations`` (name -> (S, 3, 3) body -> NED), the filter's.
+
+    Returns:
+        mission name -> row name -> the scores (``final_m``, ``rmse_m``,
+        ``final_percent``, ``distance_m``, ``coverage_3sigma`` where a sigma is given).
+    """
+    positions, stds, rotations = positions or {}, stds or {}, rotations or {}
+    by_reference, by_filter = baseline_names(windows.reference)
+    out: dict[str, dict[str, dict]] = {}
+    for i, mission in enumerate(windows.names):
+        rows = {}
+        for name, pred in predictions.items():
+            if name in positions:
+                rows[name] = position_report(windows, positions[name], truth, i,
+                                             stds.get(name))
+            elif np.isfinite(pred[windows.mission == i]).any():
+                rows[name] = position_report(
+                    windows, dead_reckoning_positions(windows, pred, truth, i), truth, i)
+        dvl = windows.velocity_ls
+        rows[by_reference] = position_report(
+            windows, dead_reckoning_positions(windows, dvl, truth, i), truth, i)
+        for name, rotation in rotations.items():
+            theirs = dict(truth, rotation=rotation)
+            label = by_filter if len(rotations) == 1 else f"{by_filter} ({name})"
+            rows[label] = position_report(
+                windows, dead_reckoning_positions(windows, dvl, theirs, i), truth, i)
+        out[mission] = rows
+    return out
+
+
+def _derived_words(windows: Windows) -> str:
+    """What a table must say when some missions' beams were derived from the DVL's own
+    velocity (their log has no beams)."""
+    if not windows.derived:
+        return ""
+    return (f" (beams of {', '.join(windows.derived)} derived as H v from the DVL's own "
+            "velocity: the log has no beams)")
+
+
+def reported_stds(estimator, windows: Windows) -> dict[str, np.ndarray]:
+    """{name: (S, 3) the position 1 sigma it reports at each sample's ping, m} of an
+    estimator with tracks of its own (the INS/DVL filter's ``position_std``); {} for
+    the others."""
+    std = _track_at_pings(estimator, windows, "position_std")
+    return {} if std is None else {estimator.name: std}
+
+
+def own_rotations(estimator, windows: Windows) -> dict[str, np.ndarray]:
+    """{name: (S, 3, 3) body -> NED, its attitude at each sample's ping} of an estimator
+    whose tracks carry an attitude (the INS/DVL filter's ``quaternion``); {} for the
+    others (NaN where it has no ping at that time)."""
+    from auvsim.physics.frames import rotation_matrices
+
+    q = _track_at_pings(estimator, windows, "quaternion")
+    if q is None:
+        return {}
+    out = np.full((len(q), 3, 3), np.nan)
+    have = np.isfinite(q).all(axis=1)
+    out[have] = rotation_matrices(q[have])
+    return {estimator.name: out}
+
+
+def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | None:
+    """(S, k) ``field`` of the estimator's per-mission tracks (``tracks(windows)``, each
+    with ``ping_time``) at each sample's ping; None when it has no tracks or a track
+    lacks the field."""
+    if not hasattr(estimator, "tracks"):
+        return None
+    tracks = estimator.tracks(windows)
+    if any(getattr(t, field, None) is None for t in tracks.values()):
+        return None
+    width = np.shape(getattr(next(iter(tracks.values())), field))[1]
+    out = np.full((len(windows.time), width), np.nan)
+    for i in np.unique(windows.mission):
+        track = tracks[windows.names[i]]
+        rows = np.flatnonzero(windows.mission == i)
+        k = np.minimum(np.searchsorted(track.ping_time, windows.time[rows]),
+                       len(track.ping_time) - 1)
+        hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
+            1.0, np.abs(windows.time[rows]))
+        out[rows[hit]] = np.asarray(getattr(track, field))[k[hit]]
+    return out
+
+
+def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:
+    """``navigation_scores`` as a Markdown table per mission, saying what it is against."""
+    lines = []
+    for mission, rows in scores.items():
+        lines += [f"#### {mission}: horizontal position error against {against}", "",
+                  "| estimator | final (m) | RMSE (m) | final (% of distance) | "
+                  "within 3 sigma (%) |", "|---|---|---|---|---|"]
+        for name, row in rows.items():
+            cover = row.get("coverage_3sigma")
+            lines.append(f"| {name} | {row['final_m']:.2f} | {row['rmse_m']:.2f} | "
+                         f"{row['final_percent']:.2f} | "
+                         f"{'n/a' if cover is None else f'{100 * cover:.1f}'} |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def _check_same_beams(train, train_windows: Windows, dataset, windows: Windows) -> None:
@@ -452,8 +630,10 @@ def _check_same_beams(train, train_windows: Windows, dataset, windows: Windows) 
 
 
 def _has_truth(dataset, missions) -> bool:
-    """Whether every one of ``missions`` of ``dataset`` has a truth group (one open)."""
+    """Whether every one of ``missions`` of ``dataset`` has a truth group, or (recorded) a
+    reference with an attitude, to score positions against (one open)."""
     from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
-        return all(f.missions[name].has("truth") for name in missions)
+        return all(m.has("truth") or (m.has("reference") and "quaternion" in m.reference)
+                   for m in (f.missions[name] for name in missions))

@@ -166,3 +166,95 @@ def report(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
         "rmse_z": float(z),
         "rmse_vector": rmse_vector(pred, true),
     }
+
+
+# Position against a reference, and the filter's reported uncertainty. A reference is what
+# the score is against: the simulator's truth for a simulated mission, a recorded
+# navigation solution (``reference_source``) for a recorded one; the functions do not care.
+
+
+def horizontal_errors(position: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """(T,) horizontal position error, m: |(p - r)_NE|, the north and east components only.
+
+    Args:
+        position: (T, 2) or (T, 3) estimated positions, m, NED (down ignored).
+        reference: the reference positions at the same epochs, same shape, m.
+
+    Raises:
+        ValueError: shapes differ or are not (T, 2|3) with T >= 1, or a row is not finite.
+    """
+    position = np.asarray(position, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    if position.ndim != 2 or position.shape[1] not in (2, 3) or len(position) < 1:
+        raise ValueError(f"position must have shape (T, 2) or (T, 3) with T >= 1, got "
+                         f"{position.shape}")
+    if reference.shape != position.shape:
+        raise ValueError(f"reference must have the shape of position, {position.shape}, got "
+                         f"{reference.shape}")
+    error = np.linalg.norm(position[:, :2] - reference[:, :2], axis=1)
+    if not np.isfinite(error).all():
+        raise ValueError(f"position or reference has {int((~np.isfinite(error)).sum())} of "
+                         f"{len(error)} rows with NaN or inf; expected finite positions")
+    return error
+
+
+def distance_travelled(reference: np.ndarray) -> float:
+    """Horizontal length of a track, m: the sum of |r_{k+1} - r_k|_NE over (T, 2|3) NED
+    positions."""
+    reference = np.asarray(reference, dtype=float)
+    return float(np.linalg.norm(np.diff(reference[:, :2], axis=0), axis=1).sum())
+
+
+def position_scores(position: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """Horizontal position error of a track against a reference at the same epochs.
+
+    Args:
+        position: (T, 2|3) estimated positions, m, NED, in the reference's frame.
+        reference: (T, 2|3) reference positions, m.
+
+    Returns:
+        ``final_m``: the error at the last epoch; ``rmse_m``: sqrt(mean e^2) over the
+        epochs; ``distance_m``: the reference's horizontal track length; ``final_percent``:
+        100 final / distance, the drift per distance travelled that navigation papers
+        quote (NaN on a track that did not move).
+    """
+    error = horizontal_errors(position, reference)
+    distance = distance_travelled(reference)
+    return {"final_m": float(error[-1]),
+            "rmse_m": float(np.sqrt(np.mean(error**2))),
+            "distance_m": distance,
+            "final_percent": 100.0 * float(error[-1]) / distance if distance > 0
+            else float("nan")}
+
+
+def coverage(error: np.ndarray, std: np.ndarray, *, k: float = 3.0) -> float:
+    """Share of epochs whose error lies within ``k`` times the reported standard
+    deviation, every component at once: |e_i| <= k sigma_i for each i.
+
+    For a filter whose covariance is right and whose errors are Gaussian, one component
+    lies within 3 sigma 99.73 % of the time (2 Phi(3) - 1); two independent components
+    (north and east) both do 99.46 % of the time. A filter that reports too small a
+    sigma covers less.
+
+    Args:
+        error: (T,) or (T, D) errors (estimate minus reference), any unit.
+        std: the reported standard deviations, the shape of ``error``, same unit, >= 0.
+        k: how many sigma, > 0.
+
+    Returns:
+        The share in [0, 1]; epochs where either is not finite are not counted (NaN if
+        none is left).
+    """
+    error = np.asarray(error, dtype=float)
+    std = np.asarray(std, dtype=float)
+    if error.shape != std.shape or error.ndim not in (1, 2):
+        raise ValueError(f"error and std must have one shape, (T,) or (T, D); got "
+                         f"{error.shape} and {std.shape}")
+    if not (np.isfinite(k) and k > 0):
+        raise ValueError(f"k must be a finite number > 0, got {k!r}")
+    if error.ndim == 1:
+        error, std = error[:, None], std[:, None]
+    have = np.isfinite(error).all(axis=1) & np.isfinite(std).all(axis=1)
+    if not have.any():
+        return float("nan")
+    return float(np.mean((np.abs(error[have]) <= k * std[have]).all(axis=1)))

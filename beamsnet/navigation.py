@@ -15,21 +15,37 @@ import numpy as np
 
 from auvsim.data.reader import open_dataset
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
-from beamsnet.data import DataError, Windows
+from beamsnet import metrics
+from beamsnet.data import DataError, Windows, body_rate, quaternions_at, reference_velocity
 
 
 def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.ndarray]:
     """Per sample of ``windows``: the true body->NED rotation (S, 3, 3), DVL->body mounting
-    (S, 3, 3), yaw rate (S,), the rate of change of the true DVL-frame velocity since
-    the previous ping (S,) and the true position (S, 3, m NED)."""
-    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position")}
+    (S, 3, 3), yaw rate (S, deg/s), the rate of change of the true DVL-frame velocity since
+    the previous ping (S,), the true position (S, 3, m NED), and for moving a DVL velocity
+    to the body origin the body rate (``body_rate``, S, 3, rad/s) and the DVL's lever arm
+    (``lever``, S, 3, m, body).
+
+    For a recorded mission the same from its reference (``reference_source``), at the
+    pings' times: attitude and position interpolated (``beamsnet.data.quaternions_at``),
+    the yaw rate from the gyro (or the reference's attitude), the velocity's change from
+    the reference DVL velocity of ``windows.target``. Nothing here calls it truth but the
+    caller's words: ``windows.reference`` says what it is.
+    """
+    parts = {k: [] for k in ("rotation", "mounting", "yaw_rate", "acceleration", "position",
+                             "body_rate", "lever")}
     with open_dataset(path) as f:
         for i, name in enumerate(windows.names):
             m = f.missions[name]
+            mine = windows.mission == i
+            if m.origin == "recorded":
+                for key, value in _reference_at(m, windows.time[mine]).items():
+                    parts[key].append(value)
+                continue
             if not m.has("truth"):
                 raise DataError(f"{path}: mission {name} has no truth group (an imported "
-                                "stream); dead reckoning is scored against a simulated truth")
-            mine = windows.mission == i
+                                "stream); dead reckoning is scored against a simulated truth "
+                                "or a recorded reference")
             ping = np.searchsorted(m.dvl.time, windows.time[mine])
             rows = m.imu.index_of_dvl[ping]
             rate = float(m.attrs["dvl_rate_hz"])
@@ -38,10 +54,42 @@ def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.nd
             mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
             parts["mounting"].append(np.broadcast_to(mounting, (len(rows), 3, 3)))
             parts["yaw_rate"].append(np.abs(np.degrees(m.truth.angular_rate[rows, 2])))
+            parts["body_rate"].append(m.truth.angular_rate[rows])
+            parts["lever"].append(np.broadcast_to(
+                np.asarray(m.attrs["dvl_position_body"], dtype=float), (len(rows), 3)))
             parts["position"].append(m.truth.position_ned[rows])
             parts["acceleration"].append(
                 np.linalg.norm(v_dvl[ping] - v_dvl[np.maximum(ping - 1, 0)], axis=1) * rate)
     return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def _reference_at(m, times: np.ndarray) -> dict[str, np.ndarray]:
+    """``truth_at_pings``'s fields for a recorded mission ``m`` at ``times`` (s)."""
+    ref = m.reference
+    t = np.asarray(ref.time, dtype=float)
+    if "quaternion" not in ref:
+        raise DataError(f"mission {m.name}: its reference has no attitude; dead reckoning "
+                        "with the reference's attitude needs reference/quaternion")
+    rotation = rotation_matrices(quaternions_at(t, ref.quaternion, times))
+    if m.has("imu"):
+        rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
+                         for i in range(3)], axis=1)
+    else:
+        rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)
+    v_dvl = reference_velocity(m, times)
+    step = np.diff(times, prepend=times[:1])
+    change = np.linalg.norm(np.diff(v_dvl, axis=0, prepend=v_dvl[:1]), axis=1)
+    mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
+    return dict(rotation=rotation,
+                mounting=np.broadcast_to(mounting, (len(times), 3, 3)),
+                yaw_rate=np.abs(np.degrees(rate[:, 2])), body_rate=rate,
+                lever=np.broadcast_to(np.asarray(m.attrs["dvl_position_body"], dtype=float),
+                                      (len(times), 3)),
+                acceleration=np.divide(change, step, out=np.zeros_like(change),
+                                       where=step > 0),
+                position=np.stack([np.interp(times, t, ref.position_ned[:, i], left=np.nan,
+                                             right=np.nan)
+                                   for i in range(3)], axis=1))
 
 
 def dead_reckoning_track(windows: Windows, velocity: np.ndarray,
@@ -91,4 +139,46 @@ def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
         rows = np.flatnonzero(windows.mission == m)  # in time order (``load_windows``)
         last = np.maximum.accumulate(np.where(have[rows], np.arange(len(rows)), -1))
         out[rows] = np.where((last >= 0)[:, None], pred[rows][np.maximum(last, 0)], 0.0)
+    return out
+
+
+def dead_reckoning_positions(windows: Windows, velocity: np.ndarray,
+                             truth: dict[str, np.ndarray], mission: int) -> np.ndarray:
+    """(S_m, 3) NED positions of the body origin (a recorded mission's reference point) at
+    the mission's pings, m: ``velocity`` (S, 3, DVL frame; NaN rows held, ``held``) moved
+    to the origin, ``M v - w x L`` (``truth``'s mounting, body rate and the DVL's lever
+    arm), rotated by ``truth["rotation"]`` (the reference's attitude, or another's put in
+    its place), each held until the next ping and summed from ``truth["position"]`` at
+    the mission's first sample: a position solution in the frame of the reference's.
+
+    Without the lever arm, the DVL's own track would stand L from the origin's, turned
+    with the heading: 3.7 m apart after a half turn with the Snapir's DVL 1.85 m aft."""
+    mine = windows.mission == mission
+    v = held(windows, velocity)[mine]
+    body = np.einsum("sij,sj->si", truth["mounting"][mine], v) - np.cross(
+        truth["body_rate"][mine], truth["lever"][mine])
+    steps = np.einsum("sij,sj->si", truth["rotation"][mine][:-1], body[:-1]) * np.diff(
+        windows.time[mine])[:, None]
+    return truth["position"][mine][0] + np.concatenate([np.zeros((1, 3)),
+                                                        np.cumsum(steps, axis=0)])
+
+
+def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],
+                    mission: int, position_std: np.ndarray | None = None) -> dict[str, float]:
+    """``beamsnet.metrics.position_scores`` of the mission's positions (``position``, (S_m,
+    3) or the whole (S, 3), m NED) against ``truth["position"]`` (the truth, or the
+    reference), and with ``position_std`` (same shape, the estimator's reported 1 sigma
+    per axis) ``coverage_3sigma``: the share of pings whose horizontal error lies within
+    the radius 3 sqrt(sigma_N^2 + sigma_E^2) (``beamsnet.metrics.coverage``), 1 - e^-9 =
+    99.99 % for a right covariance with equal north and east sigmas."""
+    mine = windows.mission == mission
+    if len(position) == len(windows.time):
+        position = position[mine]
+        position_std = None if position_std is None else position_std[mine]
+    reference = truth["position"][mine]
+    out = metrics.position_scores(position, reference)
+    if position_std is not None:
+        out["coverage_3sigma"] = metrics.coverage(
+            np.linalg.norm(position[:, :2] - reference[:, :2], axis=1),
+            np.hypot(position_std[:, 0], position_std[:, 1]))
     return out

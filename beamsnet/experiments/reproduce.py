@@ -14,6 +14,9 @@
   so it is skipped.
 * ``sim2real`` (``beamsnet.experiments.sim2real``): the same estimators trained only on auvsim data,
   tested on the same Snapir streams.
+* ``sea`` (``beamsnet.experiments.sea``): every estimator on recorded IMU, DVL and
+  reference logs (the Snapir's A-KIT segments), scored against the reference, with the
+  estimators trained only on auvsim data beside them.
 
 Both take their datasets and trained models from ``beamsnet.experiments.runner``, which reuses
 what an earlier run already made from the same data.

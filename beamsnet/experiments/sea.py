@@ -1,0 +1,602 @@
+"""``beamsnet reproduce sea``: every estimator on a real vehicle's own errors, scored
+against its recorded reference (issue 24, items 5 and 9).
+
+The data are a folder of recorded logs (default the Snapir AUV's six A-KIT segments,
+``../shared/data/snapir-akit``: Phins IMU at 100 Hz, Navigator DVL at 1 Hz, the Delph INS
+post-processed solution as the reference). Every segment is imported
+(``auvsim.data.recorded.import_logs``, the layout ``akit``), one recorded mission each,
+and corrected by ``auvsim check-log --apply`` (the IMU's axes, the streams' clocks, the
+sensors' positions, found from the data) into ``datasets/sea.h5``. The scores are
+against that reference, never a truth: the target velocity is the reference's, moved to
+the DVL (``beamsnet.data.reference_velocity``), and positions are in the mission's
+local frame (origin: the reference's first point).
+
+What runs on each segment, from its fourth ping (three past pings, as every table):
+
+* the INS/DVL filter at its defaults, on the beams as logged (the segment has no
+  training split of its own to calibrate on), with its own position, its reported
+  sigma (the 3-sigma coverage) and its attitude;
+* two dead-reckoning baselines: the DVL's own velocity with the reference's attitude, and
+  with the filter's (``beamsnet.evaluate.navigation_scores``);
+* sim-to-real (item 9): every model-based estimator (LS, the calibrations, the Kalman
+  filters, robust LS) fitted, and CorrectionNet trained, only on auvsim data of the
+  ``realistic-maneuvers`` preset (the navigator's DVL and IMU, generated here through
+  ``beamsnet.experiments.runner.ensure_dataset``), each dead-reckoned with the
+  reference's attitude; and the filter again with the noise settings of the simulated
+  instrument (its DVL beam noise, its IMU's noise densities and bias instabilities, as
+  the generated file records them) in place of the real one's;
+* beside them, the same model-based estimators fitted on the other real segments (each
+  segment left out of its own fit): what a calibration could learn from this vehicle.
+
+A segment's log has no beams (the A-KIT files hold the DVL's velocity only): the beams
+are ``H v`` of the DVL's own velocity (``dvl_beams_derived``), which carries the
+instrument's velocity errors onto the beams but no error of one beam alone. The report
+says so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.errors import AuvsimError, ConfigError
+from auvsim.runs.cluster import check_address
+from beamsnet import metrics
+from beamsnet.data import load_windows, split
+from beamsnet.estimators import spec
+from beamsnet.evaluate import (
+    baseline_names,
+    baselines,
+    navigation_scores,
+    own_rotations,
+    reported_stds,
+    trimmed,
+)
+from beamsnet.experiments.runner import ensure_dataset, train_seeds
+from beamsnet.experiments.wording import count
+from beamsnet.navigation import dead_reckoning_positions, truth_at_pings
+from beamsnet.plotstyle import figure_legend, styles
+from beamsnet.training.config import PROFILES, TrainConfig
+from beamsnet.training.train import predict
+
+DEFAULT_SEA = Path(__file__).resolve().parents[3] / "shared" / "data" / "snapir-akit"
+# s per manoeuvre of the auvsim training set: 20 missions (10 manoeuvres at 2 and 0.8
+# m/s), 4,897 samples, generated in 11 s; 3,668 of them train, and CorrectionNet takes
+# 3,668 x 50 epochs / 816 samples/s = 3.7 min of a core per seed (measured: ``beamsnet
+# train`` at 3 epochs, 18 s), so 3 seeds on 2 cores (two rounds) and the import,
+# check-log and the filters (about a minute) make 9-10 min on 2 free cores.
+DURATION = 300.0
+SEEDS = 3  # CorrectionNet seeds, every one scored
+FILTER = "INS/DVL"
+SIM_FILTER = "INS/DVL (simulated instrument's noise)"
+LEARNED = {"CorrectionNet": ("corr", dict(model="corr"))}
+# The logs do not document the IMU's axes, the streams' clocks or the sensors' positions:
+# ``auvsim check-log`` finds them from the data and ``--apply`` writes a corrected file,
+# which every estimator here runs on (``sea_dataset``).
+
+
+def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
+        seeds: int = SEEDS, training: TrainConfig | None = None,
+        runs: Path = Path("runs"), datasets: Path = Path("datasets"),
+        workers: int | None = None, progress: bool = True,
+        cluster: str | None = None) -> Path:
+    """Import every segment of ``data``, run every applicable estimator on each, write
+    ``out/sea.md``, ``sea.json`` and ``sea.png``.
+
+    Args:
+        data: a folder of A-KIT logs (``TrajectoryK/`` folders) or one such folder.
+        out: the report's directory.
+        duration: s per manoeuvre of the generated auvsim training set.
+        seeds: CorrectionNet seeds, every one scored.
+        training: the networks' training settings (default: the ``snapir`` profile, the
+            paper's sea-data learning rate and epochs, as ``sim2real``).
+        runs: where the networks go (``runs/sea/<training file stem>/corr/seed_<s>``).
+        datasets: where the imported segments and the training set go.
+        workers, progress: training processes; progress bars.
+        cluster: generate the training set and train on this Dask cluster instead.
+
+    Returns:
+        The report's path.
+
+    Raises:
+        ConfigError: ``data`` holds no A-KIT segment, ``duration`` or ``seeds`` are out of
+            range; and what the import refuses of a log (one line each).
+    """
+    from auvsim.runs.presets import realistic_maneuvers
+
+    training = PROFILES["snapir"].config if training is None else training
+    _check(duration, seeds)
+    check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
+    dataset, corrections = sea_dataset(Path(data), datasets)
+    sim = ensure_dataset(realistic_maneuvers(duration), datasets / f"sea-train_{duration:g}s.h5",
+                         progress=progress, cluster=cluster)
+    nets = train_seeds(sim, {key: dataclasses.replace(training, **change)
+                             for key, change in LEARNED.values()},
+                       runs / "sea" / Path(sim).stem, seeds, workers=workers,
+                       progress=progress, cluster=cluster)
+    sim_train = split(load_windows(sim), training.train_fraction)[0]
+    fitted = [b.fit(sim_train) for b in baselines()]
+    noise = simulated_noise(sim)
+    segments = _segments(dataset)
+    results = {}
+    for name in segments:
+        others = [s for s in segments if s != name]
+        real = ([b.fit(load_windows(dataset, missions=others)) for b in baselines()]
+                if others else [])
+        results[name] = _segment(dataset, name, fitted, real, nets, noise)
+    # The data folder by its name only: a report names no path outside the repository.
+    setup = dict(data=Path(data).name, dataset=str(dataset), sim=str(sim), duration=duration,
+                 seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
+                 corrections=corrections,
+                 geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)},
+                 logged_noise=_logged_noise(dataset))
+    with staged_dir(out) as stage:  # the report, its data and its figure, or none
+        write_text(stage / "sea.json", json.dumps(
+            {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()}},
+            indent=1, default=float))
+        _figure(results, stage / "sea.png")
+        write_text(stage / "sea.md", report(results, setup))
+    return Path(out) / "sea.md"
+
+
+def _check(duration, seeds) -> None:
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
+            math.isfinite(duration) and duration > 0):
+        raise ConfigError(f": expected a positive number of seconds per manoeuvre, got "
+                          f"{duration!r}", argument="duration")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f": expected a whole number of seeds >= 1, got {seeds!r}",
+                          argument="seeds")
+
+
+def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, dict]:
+    """``datasets/sea.h5``: every A-KIT segment of ``data`` imported as a recorded mission
+    (``auvsim import --format akit``, into ``datasets/sea-logged.h5``) and corrected by
+    ``auvsim check-log --apply``; made again only when the logs' SHA-256 digests or
+    check-log's findings differ from those the files record.
+
+    Returns:
+        The file, and what check-log found and applied per segment ({mission: [(finding,
+        value, confidence)]}).
+
+    Raises:
+        ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
+    """
+    from auvsim.data.checklog import apply, check_log
+    from auvsim.data.reader import open_dataset
+    from auvsim.data.recorded import akit_segments, import_logs
+
+    segments = akit_segments(data)
+    digests = sorted(hashlib.sha256(p.read_bytes()).hexdigest()
+                     for folder, _ in segments for p in sorted(folder.glob("*.csv")))
+    logged, dataset = datasets / "sea-logged.h5", datasets / "sea.h5"
+    if not _imported_from(logged, digests):
+        import_logs([data], logged, format="akit")
+    with open_dataset(logged) as f:
+        reports = [check_log(m) for m in f.missions.values()]
+    if not _imported_from(dataset, digests) or _findings(dataset) != _said(reports):
+        apply(logged, dataset, reports)
+    return dataset, _said(reports)
+
+
+def _said(reports) -> dict:
+    """What check-log found, per mission: [(finding, value in words, confidence)]."""
+    return {r.mission: [[f.name, f.text, f.confidence] for f in r.findings] for r in reports}
+
+
+def _findings(dataset: Path) -> dict:
+    """The findings a corrected file records (``check_log_json``), per mission."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return {name: [[x["name"], x["text"], x["confidence"]]
+                       for x in json.loads(m.attrs.get("check_log_json", "{}"))
+                       .get("findings", [])]
+                for name, m in f.missions.items()}
+
+
+def _imported_from(dataset: Path, digests: list[str]) -> bool:
+    """Whether ``dataset`` holds recorded missions imported from exactly these logs."""
+    from auvsim.data.reader import open_dataset
+
+    if not dataset.exists():
+        return False
+    try:
+        with open_dataset(dataset) as f:
+            found = sorted(d for m in f.missions.values()
+                           for d in json.loads(m.attrs.get("source_sha256", "[]")))
+    except (AuvsimError, OSError, ValueError):
+        return False
+    return found == digests
+
+
+def _segments(dataset: Path) -> list[str]:
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return list(f.missions)
+
+
+def _geometry(path: Path) -> dict:
+    """The DVL geometry of a file's missions: their beam angles (deg) and mountings (roll,
+    pitch, yaw, deg), each mission's."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(path) as f:
+        return {"beam_angle_deg": sorted({float(m.attrs["beam_angle_deg"])
+                                          for m in f.missions.values()}),
+                "mounting_rpy_deg": [[float(x) for x in m.attrs["dvl_mounting_rpy_deg"]]
+                                     for m in f.missions.values()]}
+
+
+def _geometry_words(geometry: dict) -> str:
+    """auvsim's DVL geometry against the logs', in words: beams, and how far the logs'
+    mountings lie from auvsim's."""
+    sim, logs = geometry["auvsim"], geometry["logs"]
+
+    def angles(g):
+        return " and ".join(f"{a:g}" for a in g["beam_angle_deg"]) + " deg beams"
+
+    reference = np.asarray(sim["mounting_rpy_deg"][0])
+    apart = float(np.abs(np.asarray(logs["mounting_rpy_deg"]) - reference).max())
+    return (f"auvsim's, {angles(sim)} mounted at "
+            f"({', '.join(f'{x:g}' for x in reference)}) deg; the logs', {angles(logs)} "
+            f"mounted within {apart:.2g} deg of that on every axis")
+
+
+def _logged_noise(dataset: Path) -> float:
+    """The logged DVL's white beam noise, m/s: the median over the missions of their
+    ``dvl_noise_std`` (the instrument's specification the log description gives)."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return float(np.median([float(m.attrs["dvl_noise_std"])
+                                for m in f.missions.values()]))
+
+
+def _has_imu(dataset: Path, name: str) -> bool:
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        return f.missions[name].has("imu")
+
+
+def simulated_noise(sim: Path) -> dict[str, float]:
+    """The simulated instrument's noise settings, as its file records them (its first
+    mission's attributes: every mission of a preset has one instrument): the DVL's white
+    beam noise, the IMU's noise densities and the bias instabilities with their
+    correlation time; and from its config the spreads of the DVL's scale factor and bias
+    (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(sim) as f:
+        a = next(iter(f.missions.values())).attrs
+        dvl = json.loads(f.config_json or "{}").get("dvl", {})
+    keys = ("dvl_noise_std", "imu_accel_noise_density", "imu_gyro_noise_density",
+            "imu_accel_bias_instability", "imu_gyro_bias_instability",
+            "imu_bias_correlation_time")
+    return {**{k: float(a[k]) for k in keys},
+            "dvl_scale_factor_std": float(dvl.get("scale_factor_std", math.nan)),
+            "dvl_bias_std": float(dvl.get("bias_std", math.nan))}
+
+
+def _filters(dataset: Path, noise: dict[str, float]) -> dict[str, object]:
+    """The INS/DVL filter at its defaults, and with the simulated instrument's noise
+    settings (beam noise, noise densities, bias random walks 2 sigma^2 / tau), both on
+    the beams as logged (no calibration: a segment has no split of its own to fit on)."""
+    from beamsnet.estimators.ins import FilterConfig, InsDvlFilter
+
+    tau = noise["imu_bias_correlation_time"]
+    simulated = FilterConfig(
+        beam_noise_std=noise["dvl_noise_std"],
+        accel_noise_density=noise["imu_accel_noise_density"],
+        gyro_noise_density=noise["imu_gyro_noise_density"],
+        accel_bias_psd=2 * noise["imu_accel_bias_instability"] ** 2 / tau,
+        gyro_bias_psd=2 * noise["imu_gyro_bias_instability"] ** 2 / tau)
+    out = {FILTER: InsDvlFilter(dataset, calibrate=False),
+           SIM_FILTER: InsDvlFilter(dataset, simulated, calibrate=False)}
+    for label, estimator in out.items():
+        estimator.name = label  # its rows' name in this report
+    return out
+
+
+def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
+             noise: dict[str, float]) -> dict:
+    """Every estimator on segment ``name``: velocities, positions and their scores."""
+    windows = load_windows(dataset, missions=[name])
+    truth = truth_at_pings(dataset, windows)
+    predictions = {b.name: b.predict(windows) for b in fitted}
+    for label, (key, _) in LEARNED.items():
+        for run, model, checkpoint in nets[key]:
+            predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
+    predictions.update({f"{b.name} (other segments)": b.predict(windows) for b in real})
+    positions, stds, rotations, failed = {}, {}, {}, {}
+    needs = spec(FILTER).needs
+    if needs.imu and not _has_imu(dataset, name):  # the registry says what it needs
+        failed = dict.fromkeys((FILTER, SIM_FILTER), f"n/a: {needs.text}")
+    for label, estimator in _filters(dataset, noise).items():
+        if label in failed:
+            continue
+        try:
+            predictions[label] = estimator.predict(windows)
+            positions[label] = estimator.positions(windows)
+            stds.update(reported_stds(estimator, windows))
+            if label == FILTER:
+                rotations.update(own_rotations(estimator, windows))
+        except AuvsimError as e:  # said in the report, not hidden
+            predictions.pop(label, None)
+            failed[label] = str(e).strip().splitlines()[0]
+    navigation = navigation_scores(windows, predictions, truth, positions=positions,
+                                   stds=stds, rotations=rotations)[name]
+    scores = {}
+    for label, pred in predictions.items():
+        have = np.isfinite(pred).all(axis=1)
+        scores[label] = dict(
+            velocity_rmse=(metrics.rmse_vector(pred[have], windows.target[have])
+                           if have.any() else math.nan),
+            availability=float(have.mean()), **navigation.get(label, {}))
+    by_reference, by_filter = baseline_names(windows.reference)
+    for label in (by_reference, by_filter):
+        if label in navigation:
+            scores[label] = dict(navigation[label])
+    scores[by_reference]["velocity_rmse"] = metrics.rmse_vector(
+        windows.velocity_ls, windows.target)
+    tracks = {label: positions.get(label) if label in positions else
+              dead_reckoning_positions(windows, pred, truth, 0)
+              for label, pred in predictions.items()}
+    tracks[by_reference] = dead_reckoning_positions(windows, windows.velocity_ls, truth, 0)
+    return dict(scores=dict(scores, failed=failed, pings=len(windows.time),
+                            against=windows.reference, derived=bool(windows.derived)),
+                time=windows.time, reference=truth["position"], tracks=tracks)
+
+
+def _median(results: dict, label: str, key: str) -> float:
+    values = [r["scores"][label][key] for r in results.values()
+              if label in r["scores"] and key in r["scores"][label]]
+    return float(np.median(values)) if values else math.nan
+
+
+def _fmt(value: float, spec: str = ".2f") -> str:
+    return "n/a" if value is None or not math.isfinite(value) else format(value, spec)
+
+
+def report(results: dict, setup: dict) -> str:
+    """``sea.md``: the per-segment table, the medians, sim-to-real, and what it shows."""
+    first = next(iter(results.values()))["scores"]
+    against = first["against"]
+    by_reference, by_filter = baseline_names(against)
+    lines = [
+        "# sea: every estimator on a real vehicle's own errors",
+        "",
+        "Made by `beamsnet reproduce sea --data DIR` (DIR: a folder of A-KIT logs, "
+        "`TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv`; by default the Snapir AUV's six "
+        "segments). Every segment imported with `auvsim import --format akit`, then "
+        f"corrected by `auvsim check-log --apply` into `{setup['dataset']}`. Every score "
+        f"is **against {against}**, a navigation solution with errors of its own: "
+        "velocities against the reference's velocity moved to the DVL, "
+        "`M^T (C_ref^T v_ref + w x L)`, positions in the mission's local frame (origin: "
+        "the reference's first point), from each segment's fourth ping (three past pings, "
+        "as every table) to its last.",
+        "",
+    ]
+    if first["derived"]:
+        lines += ["The logs hold the DVL's velocity, not its beams: the beams are **derived** "
+                  "as `H v` of the DVL's own velocity (30 deg Janus geometry), so they carry "
+                  "the instrument's velocity errors but no error of one beam alone.", ""]
+    lines += ["Every segment was corrected by `auvsim check-log --apply` before any "
+              "estimator ran: what it found, from the data alone (value; confidence):",
+              "", *_corrections_table(setup["corrections"]), ""]
+    lines += [
+        "## Per segment",
+        "",
+        "Horizontal position error, m: final / RMSE / final as % of the distance "
+        "travelled; the filter's share of pings whose horizontal error lies within its "
+        "reported 3 sigma (the radius 3 sqrt(sigma_N^2 + sigma_E^2)); velocity RMSE "
+        "(vector, DVL frame, m/s).",
+        "",
+        f"| segment | distance (m) | {FILTER} | {FILTER} within 3 sigma (%) | "
+        f"{by_reference} | {by_filter} | velocity RMSE {FILTER} | velocity RMSE DVL |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+
+    def triple(row: dict | None) -> str:
+        if not row or "final_m" not in row:
+            return "n/a"
+        return (f"{row['final_m']:.2f} / {row['rmse_m']:.2f} / "
+                f"{row['final_percent']:.2f} %")
+
+    for name, r in results.items():
+        s = r["scores"]
+        f = s.get(FILTER, {})
+        cover = f.get("coverage_3sigma")
+        lines.append(
+            f"| {name} | {s[by_reference]['distance_m']:.0f} | {triple(f)} | "
+            f"{_fmt(100 * cover if cover is not None else math.nan, '.1f')} | "
+            f"{triple(s[by_reference])} | {triple(s.get(by_filter))} | "
+            f"{_fmt(f.get('velocity_rmse', math.nan), '.4f')} | "
+            f"{s[by_reference]['velocity_rmse']:.4f} |")
+    med = {label: {k: _median(results, label, k) for k in
+                   ("final_m", "rmse_m", "final_percent", "velocity_rmse", "coverage_3sigma",
+                    "distance_m")}
+           for label in (FILTER, by_reference, by_filter)}
+
+    def mtriple(label: str) -> str:
+        m = med[label]
+        if not math.isfinite(m["final_m"]):
+            return "n/a"
+        return f"{m['final_m']:.2f} / {m['rmse_m']:.2f} / {m['final_percent']:.2f} %"
+
+    lines.append(
+        f"| **median** | {med[by_reference]['distance_m']:.0f} | {mtriple(FILTER)} | "
+        f"{_fmt(100 * med[FILTER]['coverage_3sigma'], '.1f')} | {mtriple(by_reference)} | "
+        f"{mtriple(by_filter)} | {_fmt(med[FILTER]['velocity_rmse'], '.4f')} | "
+        f"{med[by_reference]['velocity_rmse']:.4f} |")
+    failed: dict[tuple[str, str], list[str]] = {}  # (filter, why) -> segments
+    for name, r in results.items():
+        for label, why in r["scores"]["failed"].items():
+            failed.setdefault((label, why.replace(name, "SEGMENT")), []).append(name)
+    if failed:
+        lines += ["", "Filters that did not run: " + "; ".join(
+            f"{label} on {'every segment' if len(names) == len(results) else ', '.join(names)}"
+            f" ({why})" for (label, why), names in failed.items()) + "."]
+    lines += ["", "![each segment's track and every estimator's error along it](sea.png)",
+              "", *_sim_to_real(results, setup, by_reference)]
+    return "\n".join(lines) + "\n"
+
+
+def _corrections_table(corrections: dict) -> list[str]:
+    """check-log's findings, a row per segment, a column per finding."""
+    names = list(dict.fromkeys(f[0] for found in corrections.values() for f in found))
+    lines = ["| segment | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for mission, found in corrections.items():
+        by_name = {name: f"{text}; {confidence}" for name, text, confidence in found}
+        lines.append(f"| {mission} | "
+                     + " | ".join(by_name.get(n, "") for n in names) + " |")
+    return lines
+
+
+def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
+    """Item 9's table (medians over the segments) and what transfers, from the numbers."""
+    first = next(iter(results.values()))["scores"]
+    skip = {"failed", "pings", "against", "derived", by_reference}
+    labels = [k for k in first if k not in skip and not k.startswith("DR: ")]
+    sim = [k for k in labels if not k.endswith("(other segments)")]
+    ls = _median(results, "LS", "velocity_rmse")
+    noise = setup["noise"]
+    lines = [
+        "## Sim-to-real: trained on auvsim, run on the real segments",
+        "",
+        f"Model-based estimators fitted, and CorrectionNet trained (lr {setup['lr']:g}, "
+        f"{count(setup['epochs'], 'epoch')}, {count(setup['seeds'], 'seed')}, every seed "
+        "a row), only on auvsim's `realistic-maneuvers` preset "
+        f"({setup['duration']:g} s per manoeuvre, `{setup['sim']}`): the navigator's 30 deg "
+        f"DVL (white beam noise {noise['dvl_noise_std']:g} m/s) and navigation-grade IMU. "
+        f"`{SIM_FILTER}` is the filter with that simulated instrument's noise settings "
+        f"(beam noise {noise['dvl_noise_std']:g} m/s, accelerometer "
+        f"{noise['imu_accel_noise_density']:.3g} m/s^2/sqrt(Hz), gyro "
+        f"{noise['imu_gyro_noise_density']:.3g} rad/s/sqrt(Hz)) in place of the real "
+        "instrument's. Beside them, each model-based estimator fitted on the other real "
+        f"segments (the segment scored left out). The DVL's geometry: "
+        f"{_geometry_words(setup['geometry'])}. Medians over the segments; the position "
+        "of a velocity estimator is its velocity dead-reckoned with the reference's "
+        "attitude:",
+        "",
+        "| estimator | velocity RMSE (m/s) | vs LS (%) | final (m) | RMSE (m) | "
+        "fitted on the other real segments: velocity RMSE (m/s) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label in sim:
+        v = _median(results, label, "velocity_rmse")
+        real = _median(results, f"{label} (other segments)", "velocity_rmse")
+        lines.append(f"| {label} | {_fmt(v, '.4f')} | "
+                     f"{_fmt(100 * (1 - v / ls) if ls > 0 else math.nan, '.1f')} | "
+                     f"{_fmt(_median(results, label, 'final_m'))} | "
+                     f"{_fmt(_median(results, label, 'rmse_m'))} | {_fmt(real, '.4f')} |")
+    lines += ["", "### What transfers, and why", "",
+              *_transfers(results, sim, ls, noise, setup["logged_noise"])]
+    return lines
+
+
+def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
+               logged: float) -> list[str]:
+    """Statements computed from the medians: which sim-trained estimators beat LS on the
+    real segments, which lose, and the filter's two noise settings."""
+    derived = next(iter(results.values()))["scores"]["derived"]
+    def v(label):
+        return _median(results, label, "velocity_rmse")
+
+    def said(labels):
+        return ", ".join(f"{k} ({100 * (1 - v(k) / ls):+.1f} %)" for k in labels) or "none"
+
+    better = [k for k in sim if k not in ("LS", FILTER, SIM_FILTER) and v(k) < ls]
+    worse = [k for k in sim if k not in ("LS", FILTER, SIM_FILTER) and v(k) > ls]
+    lines = [
+        f"- Better than LS (the DVL's own velocity) against the reference, by the median "
+        f"velocity RMSE: {said(better)}. Worse: {said(worse)}.",
+        "- Why a calibration learned in auvsim cannot remove the real DVL's errors: each "
+        "simulated mission draws its own scale factors and biases (the simulated DVL's "
+        f"spreads: {100 * noise['dvl_scale_factor_std']:g} % and "
+        f"{1000 * noise['dvl_bias_std']:g} mm/s), so a fit over all the training missions "
+        "learns their mean, about none, and what it carries over is the shrinking of the "
+        "simulated noise and the cross-axis terms of the simulated manoeuvres (our "
+        "reading, not measured here). "
+        + ("The real segments' beams are derived from the DVL's velocity, so no per-beam "
+           "error is there to undo. " if derived else "")
+        + "What the real DVL's velocity differs from the reference by (the instrument's "
+        "slow errors, the reference's own error, what check-log's corrections leave) is "
+        "nothing any auvsim mission had; the same estimators fitted on the other "
+        "real segments show how much of it is systematic, and so learnable, on this "
+        "vehicle.",
+    ]
+    ratio = noise["dvl_noise_std"] / logged if logged > 0 else math.nan
+    lines.append(
+        f"- Noise: the simulated DVL's white beam noise is {noise['dvl_noise_std']:g} m/s, "
+        f"the logged instrument's (its specification in the log description) {logged:g} m/s:"
+        + (f" the simulated one is {ratio:.2g} times as noisy." if ratio >= 1 else
+           f" the logged one is {1 / ratio:.2g} times as noisy.")
+        + (" An estimator that learned to average the simulated noise (the Kalman filters' "
+           "random walk, CorrectionNet's past pings) smooths the real velocity's changes "
+           "instead, which the real DVL, quieter, did not need: that is how we read the "
+           "rows worse than LS." if ratio > 2 and worse else ""))
+    f, s = _median(results, FILTER, "final_m"), _median(results, SIM_FILTER, "final_m")
+    if math.isfinite(f) and math.isfinite(s):
+        lines.append(
+            f"- The filter with the simulated instrument's noise settings ends {_fmt(s)} m "
+            f"off (median) against {_fmt(f)} m with the real instrument's ({s / f:.2f} "
+            f"times), its 3-sigma coverage {_coverage(results, SIM_FILTER)} % against "
+            f"{_coverage(results, FILTER)} %: what changes is only the noise the filter "
+            "assumes, so the difference is what the simulated instrument's figures cost on "
+            "this one.")
+    else:
+        lines.append("- The filter's rows are n/a where it did not run on the recorded "
+                     "missions (see above).")
+    return lines
+
+
+def _coverage(results: dict, label: str) -> str:
+    return _fmt(100 * _median(results, label, "coverage_3sigma"), ".1f")
+
+
+def _figure(results: dict, path: Path) -> None:
+    """Each segment: its track (the reference, the filter, the DVL's dead reckoning) and
+    every estimator's horizontal error along it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(results)
+    fig, axes = plt.subplots(n, 2, figsize=(14, 3.6 * n), layout="constrained",
+                             squeeze=False, gridspec_kw=dict(width_ratios=(1, 2)))
+    names = list(dict.fromkeys(label for r in results.values() for label in r["tracks"]))
+    look = styles(names)
+    for (ax_track, ax_error), (segment, r) in zip(axes, results.items(), strict=True):
+        reference = r["reference"]
+        ax_track.plot(reference[:, 1], reference[:, 0], color="black", lw=2,
+                      label="reference")
+        for label, track in r["tracks"].items():
+            if label.endswith("(other segments)"):
+                continue
+            error = np.linalg.norm(track[:, :2] - reference[:, :2], axis=1)
+            ax_error.plot(r["time"], error, label=label, **look[label].line())
+            if label in (FILTER, "LS") or label.startswith("DR: "):
+                ax_track.plot(track[:, 1], track[:, 0], lw=1, **look[label].line())
+        ax_track.set_aspect("equal", adjustable="datalim")
+        ax_track.set_xlabel("east, m")
+        ax_track.set_ylabel("north, m")
+        ax_track.set_title(f"{segment}: track")
+        ax_error.set_xlabel("time, s")
+        ax_error.set_ylabel("horizontal error, m")
+        ax_error.set_yscale("symlog", linthresh=1.0)
+        ax_error.set_title(f"{segment}: error against the reference")
+        ax_error.grid(alpha=0.3)
+    figure_legend(fig, axes[0, 1], fontsize=7)
+    save_figure(fig, path, dpi=90)

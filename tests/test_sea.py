@@ -1,0 +1,431 @@
+"""Scores against a reference (issue 24, item 4) and ``beamsnet reproduce sea`` (items 5, 9):
+the scoring functions on known answers, the reference moved to the DVL, and the
+estimators on recorded missions."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from beamsnet import metrics
+from beamsnet.data import body_rate, quaternions_at, reference_velocity
+from beamsnet.experiments.sea import DEFAULT_SEA
+
+
+def yawing(t: np.ndarray, rate: float) -> np.ndarray:
+    """(T, 4) quaternions of a vehicle level and yawing at ``rate`` rad/s from north."""
+    return np.stack([np.cos(rate * t / 2), 0 * t, 0 * t, np.sin(rate * t / 2)], axis=1)
+
+
+def test_a_straight_track_with_a_known_drift_scores_its_known_errors():
+    """North at 2 m/s for 400 s, the estimate drifting east at 1 cm/s: the error at t is
+    0.01 t m, so final 4 m, RMSE 0.01 sqrt(mean t^2) over t = 0..400 s
+    (mean t^2 = 400 x 801 / 6 s^2), and 4 m over 800 m travelled is 0.5 %."""
+    t = np.arange(401.0)
+    reference = np.stack([2.0 * t, 0 * t, 20 + 0 * t], axis=1)
+    estimate = reference + np.stack([0 * t, 0.01 * t, 0.3 + 0 * t], axis=1)  # depth ignored
+    scores = metrics.position_scores(estimate, reference)
+    assert scores["final_m"] == pytest.approx(4.0, rel=1e-12)
+    assert scores["rmse_m"] == pytest.approx(0.01 * math.sqrt(400 * 801 / 6), rel=1e-12)
+    assert scores["distance_m"] == pytest.approx(800.0, rel=1e-12)
+    assert scores["final_percent"] == pytest.approx(0.5, rel=1e-12)
+
+
+def test_position_scores_refuse_mismatched_or_missing_rows():
+    with pytest.raises(ValueError, match="shape of position"):
+        metrics.position_scores(np.zeros((4, 3)), np.zeros((5, 3)))
+    bad = np.zeros((4, 3))
+    bad[2, 0] = np.nan
+    with pytest.raises(ValueError, match="1 of 4 rows"):
+        metrics.position_scores(bad, np.zeros((4, 3)))
+
+
+def test_coverage_of_a_known_gaussian_error():
+    """Errors drawn from N(0, sigma^2) and reported with that sigma lie within 3 sigma
+    2 Phi(3) - 1 = 99.73 % of the time; two independent components both 99.73 %^2, their
+    horizontal length within 3 sqrt(2) sigma 1 - e^-9; a filter that reports half its
+    sigma covers 2 Phi(1.5) - 1 = 86.64 %."""
+    rng = np.random.default_rng(0)
+    n, sigma = 200_000, 0.7
+    error = sigma * rng.standard_normal((n, 2))
+    std = np.full((n, 2), sigma)
+    within = 2 * 0.5 * (1 + math.erf(3 / math.sqrt(2))) - 1  # 0.99730
+    tolerance = 5 * math.sqrt(within * (1 - within) / n)  # five binomial sd
+    assert metrics.coverage(error[:, 0], std[:, 0]) == pytest.approx(within, abs=tolerance)
+    assert metrics.coverage(error, std) == pytest.approx(within**2, abs=2 * tolerance)
+    half = math.erf(1.5 / math.sqrt(2))
+    assert metrics.coverage(error[:, 0], std[:, 0] / 2) == pytest.approx(
+        half, abs=5 * math.sqrt(half * (1 - half) / n))
+    # The horizontal radius (the filter's report): |e| <= 3 sqrt(sigma_N^2 + sigma_E^2),
+    # |e|^2 / sigma^2 chi-square with 2 dof: 1 - exp(-18 / 2).
+    radius = 1 - math.exp(-9)
+    assert metrics.coverage(np.linalg.norm(error, axis=1), np.hypot(std[:, 0], std[:, 1])) \
+        == pytest.approx(radius, abs=5 * math.sqrt(radius * (1 - radius) / n) + 1 / n)
+    # Epochs without a sigma are not counted.
+    std[: n // 2, 0] = np.nan
+    assert metrics.coverage(error[:, 0], std[:, 0]) == pytest.approx(within, abs=2 * tolerance)
+
+
+def test_the_body_rate_and_the_attitude_between_reference_samples():
+    """A vehicle yawing at 0.3 rad/s (17 deg/s, the real segments' peaks), sampled at 1 Hz:
+    the rate comes back exactly (every step is the same rotation), and the attitude half
+    way between samples is the one at that time (nlerp of a 17 deg step: within 1e-4 rad
+    of slerp, and slerp is exact here)."""
+    t = np.arange(0.0, 30.0)
+    q = yawing(t, 0.3)
+    q[5:] *= -1  # the same attitudes, on the other hemisphere from sample 5 on
+    mid = t[:-1] + 0.5
+    np.testing.assert_allclose(body_rate(t, q, mid), np.tile([0, 0, 0.3], (len(mid), 1)),
+                               atol=1e-12)
+    got = quaternions_at(t, q, mid)
+    want = yawing(mid, 0.3)
+    angle = 2 * np.arccos(np.minimum(np.abs(np.sum(got * want, axis=1)), 1.0))
+    assert angle.max() < 1e-4
+
+
+class Fields(SimpleNamespace):
+    """A group of a mission: its fields as attributes, ``in`` as the reader's."""
+
+    def __contains__(self, name: str) -> bool:
+        return name in vars(self)
+
+
+def recorded_stub(t: np.ndarray, rate: float, speed: float, lever: np.ndarray,
+                  mounting_yaw_deg: float, imu: bool) -> SimpleNamespace:
+    """The parts of a recorded mission ``reference_velocity`` reads: a vehicle yawing at
+    ``rate`` while flying forward at ``speed`` (body velocity (speed, 0, 0) at the
+    reference point), its DVL at ``lever`` and yawed ``mounting_yaw_deg``."""
+    heading = rate * t
+    imu_t = np.arange(0.0, t[-1], 0.01)
+    groups = {"reference"} | ({"imu"} if imu else set())
+    return SimpleNamespace(
+        name="stub", has=groups.__contains__,
+        reference=Fields(time=t, quaternion=yawing(t, rate), velocity_ned=np.stack(
+            [speed * np.cos(heading), speed * np.sin(heading), 0 * t], axis=1)),
+        imu=Fields(time=imu_t, angular_rate=np.tile([0, 0, rate], (len(imu_t), 1))),
+        attrs={"dvl_position_body": lever,
+               "dvl_mounting_rpy_deg": np.array([0.0, 0.0, mounting_yaw_deg])})
+
+
+@pytest.mark.parametrize("imu", [True, False])
+def test_the_reference_velocity_at_the_dvl_is_the_body_velocity_plus_the_lever_arms(imu):
+    """Forward at 2 m/s, yawing at 0.2 rad/s, the DVL 1.5 m aft and 0.3 m down, yawed
+    45 deg: w x L = (0, 0, 0.2) x (-1.5, 0, 0.3) = (0, -0.3, 0) m/s in the body, so the
+    body velocity at the DVL is (2, -0.3, 0), and the DVL frame sees it rotated by -45
+    deg. The rate from the gyro or from the reference's attitudes gives the same."""
+    t = np.arange(0.0, 20.0)
+    lever = np.array([-1.5, 0.0, 0.3])
+    m = recorded_stub(t, 0.2, 2.0, lever, 45.0, imu)
+    pings = t[2:-2] + 0.25  # between the reference's samples
+    got = reference_velocity(m, pings)
+    c, s = math.cos(math.radians(45)), math.sin(math.radians(45))
+    body = np.array([2.0, -0.3, 0.0])
+    want = np.array([c * body[0] + s * body[1], -s * body[0] + c * body[1], 0.0])
+    # Interpolated in the body frame, where a steady turn's velocity is constant: exact.
+    np.testing.assert_allclose(got, np.tile(want, (len(pings), 1)), atol=1e-12)
+
+
+LATITUDE, LONGITUDE, HEIGHT = 32.85, 34.95, -20.0  # deg, deg, m: off Haifa, 20 m down
+SURGE, OMEGA = 0.3, 2 * math.pi / 60  # m/s and rad/s of the speed's swing
+
+
+def write_akit(folder: Path, k: int, *, sway_bias: float = 0.01, scale: float = 0.0,
+               surge: float = SURGE, weave_deg_s: float = 0.0, duration: int = 120) -> Path:
+    """A segment in the A-KIT layout (``TrajectoryK/{IMU,DVL,GT}_trajectoryK.csv``): a
+    level vehicle flying forward at 1.5 m/s, ``surge`` m/s up and down over a minute,
+    heading north, or weaving about it at a yaw rate of ``weave_deg_s`` sin(2 pi t / 40
+    s); its IMU reading that motion in the Earth's gravity (WGS-84 normal gravity there),
+    its DVL the body velocity with a scale factor error ``scale`` forward and a bias of
+    ``sway_bias`` m/s to starboard; the reference exact (positions integrated at 100 Hz).
+    """
+    from auvsim.physics.earth import earth_rate_ned, normal_gravity, radii
+
+    segment = folder / f"Trajectory{k}"
+    segment.mkdir(parents=True)
+    t = np.arange(0, duration * 100) / 100.0
+    zero = 0 * t
+    u, du = 1.5 + surge * np.sin(OMEGA * t), surge * OMEGA * np.cos(OMEGA * t)
+    r0, weave = math.radians(weave_deg_s), 2 * math.pi / 40
+    rate = r0 * np.sin(weave * t)
+    heading = r0 / weave * (1 - np.cos(weave * t))
+    # The Earth's rate and the Coriolis term in NED (Groves eqs. 2.133 and 5.54; the
+    # transport rate, v / R = 2e-7 rad/s, left out), seen in the level body yawed by
+    # ``heading``: the gyro reads C^T w_ie + (0, 0, r), the accelerometers
+    # C^T (2 w_ie x v) + (du, u r, -g).
+    v_north, v_east = u * np.cos(heading), u * np.sin(heading)
+    w_ie = earth_rate_ned(LATITUDE)
+    coriolis = 2 * np.cross(w_ie, np.column_stack([v_north, v_east, zero]))
+    c, s_ = np.cos(heading), np.sin(heading)
+
+    def body(x):  # C^T x for a level body at ``heading``
+        return np.column_stack([c * x[:, 0] + s_ * x[:, 1], -s_ * x[:, 0] + c * x[:, 1],
+                                x[:, 2]])
+
+    force = body(coriolis) + np.column_stack(
+        [du, u * rate, zero - normal_gravity(LATITUDE, HEIGHT)])
+    gyro = body(np.tile(w_ie, (len(t), 1))) + np.column_stack([zero, zero, rate])
+    imu = np.column_stack([t, force, gyro])
+    north, east = (np.concatenate([[0.0], np.cumsum((v[1:] + v[:-1]) / 2 * 0.01)])
+                   for v in (v_north, v_east))
+    i = np.arange(0, len(t), 100)  # the 1 Hz stamps
+    meridian, transverse = radii(LATITUDE)
+    lat = np.radians(LATITUDE) + north[i] / (meridian + HEIGHT)
+    lon = np.radians(LONGITUDE) + east[i] / ((transverse + HEIGHT)
+                                             * math.cos(math.radians(LATITUDE)))
+    gt = np.column_stack([t[i], lon, lat, HEIGHT + zero[i], v_north[i], v_east[i], zero[i],
+                          zero[i], zero[i], heading[i]])
+    dvl = np.column_stack([t[i], (1 + scale) * u[i], sway_bias + zero[i], zero[i]])
+    heads = {"IMU": "Time [s],ACC X [m/s^2],ACC Y [m/s^2],ACC Z [m/s^2],GYRO X [rad/s],"
+                    "GYRO Y [rad/s],GYRO Z [rad/s]",
+             "DVL": "Time [s],DVL X [m/s],DVL Y [m/s],DVL Z [m/s]",
+             "GT": "Time [s],Longitude [rad],Latitude [rad],Altitude [m],V North [m/s],"
+                   "V East [m/s],V Down [m/s],Roll [rad],Pitch [rad],Yaw [rad]"}
+    for kind, table in (("IMU", imu), ("DVL", dvl), ("GT", gt)):
+        np.savetxt(segment / f"{kind}_trajectory{k}.csv", table, delimiter=",",
+                   header=heads[kind], comments="", fmt="%.17g")
+    return segment
+
+
+@pytest.fixture
+def recorded(tmp_path) -> Path:
+    """A dataset of one recorded mission, ``trajectory1``, imported as the user would."""
+    from auvsim.data.recorded import import_logs
+
+    logs = tmp_path / "logs"
+    write_akit(logs, 1, surge=0.0)
+    import_logs([logs], tmp_path / "sea.h5", format="akit")
+    return tmp_path / "sea.h5"
+
+
+def test_estimate_on_a_recorded_mission_scores_against_the_reference(recorded, tmp_path,
+                                                                      capsys):
+    """Due north at 1.5 m/s, the DVL 1 cm/s to starboard: LS's velocity error is 1 cm/s,
+    and dead-reckoned with the reference's attitude from the fourth ping (t = 3 s) to the
+    last (119 s) it ends 0.01 x 116 = 1.16 m east of the reference, 1.16 / (1.5 x 116)
+    = 0.667 % of the distance."""
+    from beamsnet.cli import main
+
+    out = tmp_path / "ls"
+    assert main(["estimate", str(recorded), "--estimator", "LS", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "scored against the reference: Delph INS" in said and "truth" not in said
+    assert "derived as H v" in said
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["against"].startswith("the reference: ")
+    assert summary["beams_derived"] == ["trajectory1"]
+    row = summary["missions"]["trajectory1"]
+    assert row["rmse_vector"] == pytest.approx(0.01, rel=1e-6)
+    assert row["position"]["final_m"] == pytest.approx(1.16, abs=5e-3)
+    assert row["position"]["distance_m"] == pytest.approx(1.5 * 116, rel=1e-6)
+    assert row["position"]["final_percent"] == pytest.approx(100 * 0.01 / 1.5, rel=5e-3)
+    # The error grows as 0.01 (t - 3): RMSE 0.01 sqrt(mean k^2) over k = 0..116 s.
+    assert row["position"]["rmse_m"] == pytest.approx(0.01 * math.sqrt(116 * 233 / 6),
+                                                      abs=5e-3)
+    # LS's velocity is the DVL's own (LS of H v is v): its baseline scores the same.
+    assert row["baselines"]["DR: DVL + reference attitude"] == pytest.approx(row["position"])
+    header = (out / "estimates.csv").read_text().splitlines()[0].split(",")
+    assert header == ["mission", "time", "vx", "vy", "vz", "reference_vx", "reference_vy",
+                      "reference_vz"]  # LS has no position of its own
+
+
+def reproduce_sea(data: Path, tmp_path: Path, monkeypatch) -> tuple[dict, str]:
+    """``beamsnet reproduce sea`` on ``data`` at a tiny size (20 s per manoeuvre, one
+    seed, one epoch); its sea.json and sea.md."""
+    from beamsnet.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["reproduce", "sea", "--data", str(data), "--duration", "20", "--seeds", "1",
+                 "--epochs", "1", "--out", "report", "--quiet"]) == 0
+    assert (tmp_path / "report" / "sea.png").stat().st_size > 10_000
+    return (json.loads((tmp_path / "report" / "sea.json").read_text()),
+            (tmp_path / "report" / "sea.md").read_text())
+
+
+@pytest.mark.slow
+def test_reproduce_sea_scores_every_segment_against_its_reference(tmp_path, monkeypatch):
+    """Three weaving segments the test writes, the DVL reading 0, 1 and 2 % fast (a scale
+    factor check-log reports and leaves in the velocity): the dead-reckoning baseline's
+    velocity error is that share of the speed, and its final error that share of the
+    displacement, give or take what holding each velocity over its second costs (the
+    exact DVL's final error); every estimator a row; the medians; no word of truth."""
+    logs = tmp_path / "logs"
+    for k, scale in enumerate((0.0, 0.01, 0.02), start=1):
+        write_akit(logs, k, sway_bias=0.0, scale=scale, weave_deg_s=3.0)
+    results, report = reproduce_sea(logs, tmp_path, monkeypatch)
+    segments = results["segments"]
+    assert list(segments) == ["trajectory1", "trajectory2", "trajectory3"]
+    pings = np.arange(3.0, 120.0)
+    speed = 1.5 + SURGE * np.sin(OMEGA * pings)
+    held = segments["trajectory1"]["DR: DVL + reference attitude"]["final_m"]
+    for name, scale in (("trajectory2", 0.01), ("trajectory3", 0.02)):
+        baseline = segments[name]["DR: DVL + reference attitude"]
+        assert baseline["velocity_rmse"] == pytest.approx(
+            scale * math.sqrt(np.mean(speed**2)), rel=1e-3)
+        # Displacement from 3 s to 119 s: weaving 2 x 3 deg/s / (2 pi / 40 s) = 38 deg
+        # at most, the track is nearly straight: at most the distance, at least its
+        # cosine of 19 deg.
+        distance = baseline["distance_m"]
+        assert (0.94 * scale * distance - held - 1e-3 <= baseline["final_m"]
+                <= scale * distance + held + 1e-3)
+        for label in ("LS", "Affine", "Robust LS", "CorrectionNet (seed_0)",
+                      "Affine (other segments)"):
+            assert np.isfinite(segments[name][label]["velocity_rmse"])
+    assert held < 0.5
+    assert "| **median** |" in report
+    ours = "\n".join(line for line in report.splitlines()  # not the errors it quotes
+                      if not line.startswith("Filters that did not run"))
+    assert "against the reference: Delph INS" in report and "truth" not in ours
+    assert "derived** as `H v`" in report and "## Sim-to-real" in report
+
+
+SHARED = DEFAULT_SEA
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SHARED.is_dir(), reason="the shared A-KIT segments are not here")
+def test_reproduce_sea_on_the_shared_segments(tmp_path, monkeypatch):
+    """The six Snapir segments: every one scored; the DVL dead-reckoned with the
+    reference's attitude stays within 2 % of the distance travelled (a Navigator's
+    velocity accuracy is 0.2 % of speed, its publication's 0.02 m/s std 1.3 % of 1.5 m/s)."""
+    results, report = reproduce_sea(SHARED, tmp_path, monkeypatch)
+    assert len(results["segments"]) == len(list(SHARED.glob("Trajectory*")))
+    for scores in results["segments"].values():
+        assert scores["DR: DVL + reference attitude"]["final_percent"] < 2.0
+    assert "| **median** |" in report and "truth" not in report
+
+
+def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsys):
+    """The test split (the last 30 of 117 pings, 90 to 119 s): LS dead-reckoned with the
+    reference's attitude drifts 0.01 m/s x 29 s = 0.29 m east (and north, holding each
+    velocity over its second, (v(90 s) - v(119 s)) x 1 s / 2), as its baseline does, and
+    the tables say what they are against."""
+    from auvsim.data.recorded import import_logs
+    from beamsnet.cli import main
+
+    write_akit(tmp_path / "logs", 1)  # the speed swings: the calibrations have a fit
+    recorded = tmp_path / "sea.h5"
+    import_logs([tmp_path / "logs"], recorded, format="akit")
+    run = tmp_path / "corr"
+    assert main(["train", str(recorded), "--model", "corr", "--epochs", "1", "--out", str(run),
+                 "--quiet"]) == 0
+    assert main(["evaluate", str(run), str(recorded), "--out", str(tmp_path / "ev")]) == 0
+    said = capsys.readouterr()
+    assert "against the reference: Delph INS" in said.out and "truth" not in said.out
+    result = json.loads((tmp_path / "ev" / "evaluation.json").read_text())[str(recorded)]
+    rows = result["navigation"]["trajectory1"]
+    north = (math.sin(OMEGA * 90) - math.sin(OMEGA * 119)) * SURGE / 2
+    assert rows["LS"]["final_m"] == pytest.approx(math.hypot(0.29, north), abs=2e-3)
+    assert rows["DR: DVL + reference attitude"] == pytest.approx(rows["LS"])
+    assert np.isfinite(rows["CorrectionNet (corr)"]["final_m"])
+
+
+class OwnTrack:
+    """An estimator with tracks of its own, as the INS/DVL filter has: its position the
+    reference's plus 1 m east, its reported sigma ``sigma`` per axis, its attitude the
+    reference's (so the baseline with its attitude is the one with the reference's)."""
+
+    name = "own"
+
+    def __init__(self, dataset: Path, sigma: float) -> None:
+        from auvsim.data.reader import open_dataset
+
+        with open_dataset(dataset) as f:
+            ref = f.missions["trajectory1"].reference
+            self.track = SimpleNamespace(
+                ping_time=ref.time, quaternion=ref.quaternion,
+                position_ned=ref.position_ned + [0.0, 1.0, 0.0],
+                position_std=np.full((len(ref.time), 3), sigma))
+
+    def tracks(self, windows):
+        return {"trajectory1": self.track}
+
+
+@pytest.mark.parametrize("sigma, covered", [(0.5, 1.0), (0.2, 0.0)])
+def test_own_position_sigma_and_attitude_from_an_estimators_tracks(recorded, sigma, covered):
+    """1 m off, reported 0.5 m per axis: within 3 sqrt(2) 0.5 = 2.1 m always; 0.2 m per
+    axis: 0.85 m, never. The dead reckoning with its attitude (the reference's) scores as
+    the one with the reference's."""
+    from beamsnet.data import load_windows
+    from beamsnet.evaluate import navigation_scores, own_rotations, reported_stds
+    from beamsnet.navigation import truth_at_pings
+
+    windows = load_windows(recorded)
+    truth = truth_at_pings(recorded, windows)
+    own = OwnTrack(recorded, sigma)
+    position = own.track.position_ned[np.searchsorted(own.track.ping_time, windows.time)]
+    rows = navigation_scores(windows, {"own": windows.velocity_ls}, truth,
+                             positions={"own": position}, stds=reported_stds(own, windows),
+                             rotations=own_rotations(own, windows))["trajectory1"]
+    assert rows["own"]["final_m"] == pytest.approx(1.0, abs=1e-9)
+    assert rows["own"]["rmse_m"] == pytest.approx(1.0, abs=1e-9)
+    assert rows["own"]["coverage_3sigma"] == covered
+    assert rows["DR: DVL + filter attitude"] == pytest.approx(
+        rows["DR: DVL + reference attitude"], abs=1e-9)
+
+
+def test_the_filter_on_a_recorded_mission_writes_its_own_track(tmp_path, capsys):
+    """The INS/DVL filter: ``estimates.csv`` carries its position in the mission's local
+    frame (``north_m``, ``east_m``, ``down_m``), the summary its scores with the 3-sigma
+    coverage and both dead-reckoning baselines, against the reference."""
+    from auvsim.data.recorded import import_logs
+    from beamsnet.cli import main
+
+    write_akit(tmp_path / "logs", 1)  # the speed swings: its beam calibration has a fit
+    recorded = tmp_path / "sea.h5"
+    import_logs([tmp_path / "logs"], recorded, format="akit")
+    out = tmp_path / "ins"
+    assert main(["estimate", str(recorded), "--estimator", "INS/DVL", "--out", str(out)]) == 0
+    assert "truth" not in capsys.readouterr().out
+    rows = (out / "estimates.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    assert header[:2] == ["mission", "time"] and header[-3:] == ["north_m", "east_m", "down_m"]
+    first = dict(zip(header, rows[1].split(","), strict=True))
+    # The fourth ping, 3 s after the start from the reference's first point:
+    # 1.5 x 3 + (0.3 / OMEGA)(1 - cos(3 OMEGA)) m north.
+    north = 1.5 * 3 + SURGE / OMEGA * (1 - math.cos(3 * OMEGA))
+    assert float(first["north_m"]) == pytest.approx(north, abs=0.05)
+    summary = json.loads((out / "summary.json").read_text())
+    row = summary["missions"]["trajectory1"]
+    assert 0 <= row["position"]["coverage_3sigma"] <= 1
+    assert set(row["baselines"]) == {"DR: DVL + reference attitude",
+                                     "DR: DVL + filter attitude"}
+
+
+def test_no_reference_velocity_beyond_the_references_span():
+    """A ping after the reference's last sample (a DVL clock check-log moved past it) has
+    no target: NaN, never the last sample held."""
+    t = np.arange(0.0, 20.0)
+    m = recorded_stub(t, 0.2, 2.0, np.zeros(3), 0.0, imu=False)
+    got = reference_velocity(m, np.array([-0.5, 0.0, 19.0, 19.5]))
+    assert np.isnan(got[[0, 3]]).all() and np.isfinite(got[[1, 2]]).all()
+
+
+def test_dead_reckoning_moves_the_dvls_velocity_to_the_reference_point():
+    """Turning at 0.1 rad/s at 1.5 m/s with the DVL 1.85 m aft: the DVL reads the
+    origin's (1.5, 0, 0) plus w x L = (0, -0.185, 0) m/s. Moved back by M v - w x L, its
+    track is the origin's, step for step, to round-off."""
+    from beamsnet.navigation import dead_reckoning_positions
+
+    n, rate = 60, 0.1
+    t = np.arange(float(n))
+    windows = SimpleNamespace(mission=np.zeros(n, dtype=int), time=t)
+    heading = rate * t
+    rotation = np.zeros((n, 3, 3))
+    rotation[:, 0, 0], rotation[:, 0, 1] = np.cos(heading), -np.sin(heading)
+    rotation[:, 1, 0], rotation[:, 1, 1] = np.sin(heading), np.cos(heading)
+    rotation[:, 2, 2] = 1.0
+    truth = dict(rotation=rotation, mounting=np.tile(np.eye(3), (n, 1, 1)),
+                 position=np.zeros((n, 3)), body_rate=np.tile([0.0, 0.0, rate], (n, 1)),
+                 lever=np.tile([-1.85, 0.0, 0.0], (n, 1)))
+    at_origin = np.tile([1.5, 0.0, 0.0], (n, 1))
+    at_dvl = at_origin + np.cross(truth["body_rate"], truth["lever"])
+    np.testing.assert_allclose(at_dvl[0], [1.5, -0.185, 0.0])
+    origin = dead_reckoning_positions(windows, at_origin, dict(truth, lever=0 * truth["lever"]),
+                                      0)
+    np.testing.assert_allclose(dead_reckoning_positions(windows, at_dvl, truth, 0), origin,
+                               atol=1e-12)
