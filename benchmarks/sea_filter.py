@@ -1,6 +1,6 @@
 """The INS/DVL filter on the shared real segments, through the product's own path (issue
 24, item 3): ``auvsim import --format akit``, then ``auvsim check-log --apply`` (the IMU's
-axes, every stream on the reference's clock, the sensors' positions and the DVL's mounting
+axes, every stream on one clock, the sensors' positions and the DVL's mounting
 in the attributes), then ``beamsnet.estimators.ins.run_mission`` with its defaults (no
 hand settings), scored against the reference at the reference's times.
 
@@ -22,25 +22,23 @@ For each segment:
   the reference's attitude at the ping's time, interpolated), integrated by trapezoids
   from the reference's position at the first ping: final and RMSE likewise.
 
-``--time-base imu`` (a diagnostic, not the product path): every stream's times divided by
-1 + the IMU's rate error check-log found (``check_log_json``'s ``imu_rate_error``), so
-that the IMU's stamps are its own again. check-log's file is on the reference's clock;
-the A-KIT time columns are evenly spaced stamps, ``linspace(0, 400, N)`` (the README;
-the files' last stamp is 400.0 for 40000 IMU rows and for 400 reference rows), so at the
-publication's stated rates (IMU 100 Hz, reference and DVL 1 Hz) the IMU's stamps are
-exact to 25 ppm and the reference's and the DVL's are stretched by 400/399 (+2506 ppm).
-The rate error check-log measures (+2480 ppm, the same on all six segments) is their
-difference, and its ``reference clock`` finding (the reference's positions move 0.2 to
-0.35 % less than its velocities integrated over its stamps) says the same. On the
-reference's clock every integration (the gyros' angles, the accelerometers' velocity,
-the DVL's distance) comes out 0.25 % too large: a turn of 360 deg leaves 0.9 deg of
-heading, 800 m of track 2 m.
+The time base: the A-KIT time columns are evenly spaced stamps, ``linspace(0, 400, N)``
+(the files' last stamp is 400.0 for 40000 IMU rows and for 400 reference rows), so at the
+publication's stated rates (IMU 100 Hz, reference and DVL 1 Hz, the ``rate_hz`` of the
+built-in log description) the IMU's stamps are exact to 25 ppm and the reference's and
+the DVL's are stretched by 400/399 (+2506 ppm). check-log measures the IMU's rate error
+against the reference (+2480 ppm on all six segments, their difference) and the
+reference's positions against its velocities (0.2 to 0.35 % short), and so keeps the
+IMU's clock as the file's time base (its "time base" finding). On the reference's clock
+every integration (the gyros' angles, the accelerometers' velocity, the DVL's distance)
+would come out 0.25 % too large: a turn of 360 deg leaves 0.9 deg of heading, 800 m of
+track 2 m.
 
 Targets (issue 24): the final error under 5 m on every segment; the median final at most
 1.2 x the dead reckoning's median final; coverage at least 90 % on every segment.
 
     .venv/bin/python benchmarks/sea_filter.py [--data ../shared/data/snapir-akit]
-        [--work DIR] [--filter-config FILE.toml] [--time-base {reference,imu}]
+        [--work DIR] [--filter-config FILE.toml]
 """
 
 from __future__ import annotations
@@ -131,33 +129,6 @@ def dead_reckoning(mission) -> tuple[np.ndarray, np.ndarray]:
     return tp, start + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
 
 
-class _Scaled:
-    """A mission's view with every group's ``time`` multiplied by ``factor`` (the rest as
-    it is): ``--time-base imu``."""
-
-    def __init__(self, source, factor: float, groups=("imu", "dvl", "reference")) -> None:
-        self._source, self._factor = source, factor
-        for g in groups:
-            setattr(self, g, _Scaled(getattr(source, g), factor, groups=()))
-
-    def __getattr__(self, name: str):
-        value = getattr(self._source, name)
-        return np.asarray(value, dtype=float) * self._factor if name == "time" else value
-
-    def __contains__(self, name: str) -> bool:
-        return name in self._source
-
-
-def on_imu_clock(mission):
-    """``mission`` (check-log's file) with every stream's times divided by 1 + the IMU's
-    rate error check-log found: the IMU's stamps its own again (the module docstring)."""
-    import json
-
-    rate = json.loads(mission.attrs["check_log_json"])["corrections"].get("imu_rate_error",
-                                                                          0.0)
-    return _Scaled(mission, 1.0 / (1.0 + rate))
-
-
 def score(mission, config: ins.FilterConfig | None = None) -> dict:
     """The filter (``run_mission``, ``config``) and the dead reckoning on one corrected
     mission, scored (the module docstring)."""
@@ -209,9 +180,6 @@ def main(argv: list[str] | None = None) -> int:
                         "temporary folder)")
     parser.add_argument("--filter-config", type=Path, default=None,
                         help="filter settings (TOML); default: the filter's defaults")
-    parser.add_argument("--time-base", choices=("reference", "imu"), default="reference",
-                        help="reference: check-log's file as written (the product path); "
-                        "imu: every stream's times on the IMU's clock (a diagnostic)")
     args = parser.parse_args(argv)
     config = ins.FilterConfig() if args.filter_config is None else ins.load_config(
         args.filter_config)
@@ -222,8 +190,7 @@ def main(argv: list[str] | None = None) -> int:
         if not (args.work is not None and checked.exists()):
             checked = corrected_file(args.data, work)
         with open_dataset(checked) as ds:
-            view = on_imu_clock if args.time_base == "imu" else (lambda m: m)
-            rows = {name: score(view(m), config) for name, m in sorted(ds.missions.items())}
+            rows = {name: score(m, config) for name, m in sorted(ds.missions.items())}
     print("\n".join(table(rows)))
     return 0
 

@@ -109,12 +109,19 @@ def test_fit_clock_keeps_a_significant_slope_and_drops_noise():
 
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
-    """Two 300 s missions of the ``navigator`` preset's sensors (noise, biases, scale
-    factors, misalignments, DVL errors): a zigzag (turns all along: lever arms, clocks)
-    and a lawnmower (straight legs: gravity)."""
+    """Two missions of the ``navigator`` preset's sensors (noise, biases, scale factors,
+    misalignments, DVL errors): a 600 s zigzag (turns all along: lever arms, clocks) and a
+    300 s lawnmower (straight legs: gravity).
+
+    600 s, not 300: the preset's DVL carries a slow velocity error (18 mm/s over 3 s,
+    Gauss-Markov, beside 1.2 mm/s of white beam noise), which the DVL clock's fit sees
+    as noise correlated over several pings. Over 300 s of this zigzag it left the DVL
+    offset 0.07 s off (-0.871 for -0.8; without the slow error -0.808), and over seeds
+    3-8 the error spread over -0.07..+0.15 s; over 600 s, seeds 3-6: -0.044, +0.038,
+    +0.008, -0.002 s."""
     base = preset("navigator")
     missions = (MissionConfig(name="zigzag", seed=3,
-                              scenario=ScenarioConfig(name="zigzag", duration=300.0)),
+                              scenario=ScenarioConfig(name="zigzag", duration=600.0)),
                 MissionConfig(name="lawnmower", seed=4,
                               scenario=ScenarioConfig(name="lawnmower", duration=300.0)))
     path = tmp_path_factory.mktemp("checklog") / "sim.h5"
@@ -132,17 +139,20 @@ def simulated(tmp_path_factory):
 
 
 def recorded_log(sim: dict, *, axes: np.ndarray, imu_offset: float, imu_rate: float,
-                 dvl_offset: float, start: float = 5.0) -> Log:
+                 dvl_offset: float, start: float = 5.0, stretch: float = 0.0) -> Log:
     """The simulated mission as a recorded log: the truth at 1 Hz as the reference, the
     IMU's triads logged through ``axes`` (body = axes @ logged), and each stream stamped
     so that stamp s happened at reference time ``s + offset + rate * s`` (all stamps
-    ``start`` s later, so none is negative)."""
+    ``start`` s later, so none is negative). With ``stretch``, the reference's and the
+    DVL's stamps are ``(1 + stretch)`` x the reference clock's (the A-KIT logs': 400/399
+    - 1), the IMU's keep it."""
     step = int(round(1.0 / float(np.median(np.diff(sim["t"])))))
     ref = slice(0, None, step)
     imu_stamp = (sim["imu_t"] + start - imu_offset) / (1 + imu_rate)
-    return Log(sim["t"][ref] + start, sim["v"][ref], sim["q"][ref], sim["p"][ref],
-               imu_stamp, sim["f"] @ axes, sim["w"] @ axes,
-               sim["dvl_t"] + start - dvl_offset, sim["dvl_v"], gravity=sim["gravity"])
+    return Log((sim["t"][ref] + start) * (1 + stretch), sim["v"][ref], sim["q"][ref],
+               sim["p"][ref], imu_stamp, sim["f"] @ axes, sim["w"] @ axes,
+               (sim["dvl_t"] + start - dvl_offset) * (1 + stretch), sim["dvl_v"],
+               gravity=sim["gravity"])
 
 
 def findings(report) -> dict:
@@ -222,7 +232,7 @@ def run(argv: list[str]) -> tuple[int, str, str]:
     return status, out.getvalue(), err.getvalue()
 
 
-def write_recorded(path: Path, log: Log, name: str = "sim") -> None:
+def write_recorded(path: Path, log: Log, name: str = "sim", description: str = "") -> None:
     """``log`` as a recorded mission (schema v7) at a made-up origin, sensors undescribed
     (positions, mountings and offsets 0), as ``auvsim import`` would write it."""
     lat0, lon0, h0 = 32.85, 34.89, -20.0
@@ -247,7 +257,7 @@ def write_recorded(path: Path, log: Log, name: str = "sim") -> None:
         origin="recorded", scenario="recorded", seed=0,
         duration_s=float(max(log.imu_time[-1], log.dvl_time[-1], log.reference_time[-1])),
         groups=json.dumps(["imu", "dvl", "reference"]), latitude_deg=lat0,
-        longitude_deg=lon0, height_m=h0, gravity=log.gravity, log_description="",
+        longitude_deg=lon0, height_m=h0, gravity=log.gravity, log_description=description,
         source_files="[]", source_sha256="[]",
         imu_rate_hz=1 / float(np.median(np.diff(log.imu_time))), imu_position_body=zero,
         imu_accel_noise_density=0.0, imu_gyro_noise_density=0.0,
@@ -291,6 +301,49 @@ def test_check_log_apply_writes_a_file_that_checks_clean(simulated, tmp_path):
     assert again["imu_axis_map"] == ["x", "y", "z"]
     assert abs(again["imu_time_offset_s"]) < OFFSET_TOL
     assert abs(again["dvl_time_offset_s"]) < OFFSET_TOL
+
+
+STATED = "[imu]\nrate_hz = {imu}\n[dvl]\nrate_hz = 1.0\n[reference]\nrate_hz = 1.0\n"
+
+
+def test_apply_puts_a_stretched_reference_on_the_imus_clock(simulated, tmp_path):
+    """The A-KIT case: the reference's and the DVL's stamps stretched by 400/399 against
+    their stated 1 Hz, the IMU's true to its stated rate. The corrected file must be on
+    the IMU's (the true) clock: the reference's last stamp within the target of the truth's
+    span, the IMU's stamps unchanged."""
+    sim = simulated["zigzag"]
+    stretch = 400 / 399 - 1
+    log = recorded_log(sim, axes=SWAP, imu_offset=0.37, imu_rate=0.0, dvl_offset=-0.8,
+                       stretch=stretch)
+    imu_hz = 1 / float(np.median(np.diff(sim["imu_t"])))
+    raw, fixed = tmp_path / "raw.h5", tmp_path / "fixed.h5"
+    write_recorded(raw, log, description=STATED.format(imu=round(imu_hz, 6)))
+    status, out, err = run(["check-log", str(raw), "--apply", str(fixed)])
+    assert (status, err) == (0, "")
+    assert "time base" in out
+    with open_dataset(fixed) as ds:
+        m = ds.missions["sim"]
+        report = json.loads(m.attrs["check_log_json"])
+        base = {f["name"]: f for f in report["findings"]}["time base"]["value"]
+        assert report["corrections"]["time_base"] == base["clock"] == "imu"
+        assert base["stamp_stretch"]["reference"] == pytest.approx(stretch, rel=1e-6)
+        assert base["predicted_imu_rate_error"] == pytest.approx(stretch, rel=1e-6)
+        # The IMU's stamps unchanged (but for the one shift to 0).
+        np.testing.assert_allclose(np.diff(m.imu.time), np.diff(log.imu_time), atol=1e-9)
+        # The reference's span back to the truth's (the stretch adds 1.5 s over 600 s).
+        truth = sim["t"][::100]  # the reference's samples, truth's clock
+        span = m.reference.time[-1] - m.reference.time[0]
+        assert span == pytest.approx(truth[-1] - truth[0], abs=OFFSET_TOL)
+        # The streams aligned on that clock: the IMU at the truth's times, the DVL too.
+        ref0 = m.reference.time[0] - truth[0]
+        assert (m.imu.time[0] - ref0) == pytest.approx(sim["imu_t"][0], abs=OFFSET_TOL)
+        assert (m.dvl.time[-1] - ref0) == pytest.approx(sim["dvl_t"][-1], abs=OFFSET_TOL)
+    # Without stated rates the reference's clock stays the time base, and says why.
+    plain = tmp_path / "plain.h5"
+    write_recorded(plain, log)
+    status, out, _ = run(["check-log", str(plain), "--json"])
+    found = {f["name"]: f for f in json.loads(out)[0]["findings"]}["time base"]
+    assert found["value"]["clock"] == "reference" and "no stated rates" in found["evidence"]
 
 
 def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):

@@ -9,9 +9,12 @@ rests on and a confidence. ``check_arrays`` runs them in order on a ``Log`` (arr
 
 Models (auvsim's conventions: body FRD, world NED, C = body -> NED from the reference's
 quaternion, SI units). Times: a stream's stamp ``s`` happened at reference-clock time
-``t = s + offset + rate_error * s``: the reference's stamps are the time base (how its
-own stamps compare with physical seconds is reported from its positions against its
-velocities, not applied: see ``reference_clock``).
+``t = s + offset + rate_error * s``: every clock is measured against the reference's.
+The corrected file's time base is chosen by evidence (``time_base``): the IMU's own clock
+when its stamps keep the IMU's stated rate and the reference's stamps do not (the A-KIT
+logs: the reference's and the DVL's stamps are stretched by 400/399), else the
+reference's. How the reference's stamps compare with physical seconds is also measured
+from its positions against its velocities (``reference_clock``), as evidence.
 
 * IMU axes: ``P`` among the 48 signed permutations maps the logged triads onto the body,
   ``f_body = P f_log``: the 24 proper ones (det +1) and the 24 reflections, which no
@@ -59,6 +62,11 @@ from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import rotation_matrices
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 MAX_OFFSET = 5.0  # s: the clock offsets searched, either way
 MIN_REFERENCE = 30  # reference samples: fewer leave the windows' fits without data
 OFFSET_WINDOW = 50.0  # s of reference per window of the offset-vs-time fit
@@ -74,6 +82,10 @@ QUIET_RATE = math.radians(0.5)  # rad/s: an interval turning less is "quiet" for
 CLOCK_PROBE = 0.01  # s: the clock error an IMU lever arm's sensitivity is shown for
 QUIET_ACCEL = 0.02  # m/s^2: and accelerating less
 AXES = "xyz"
+# A stream's stamps "agree with its stated rate" within this: quartz oscillators, which
+# clock loggers and sensors, are specified to tens of ppm (e.g. +-20 to +-100 ppm
+# frequency tolerance), and a stretch of stamps that matters here is thousands.
+STAMP_TOLERANCE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -108,6 +120,9 @@ class Log:
         dvl_time: (P,) s. dvl_velocity: (P, 3) m/s in the DVL frame (NaN where none).
         gravity: m/s^2, the expected gravity (WGS-84 normal gravity at the latitude).
         latitude_deg: the latitude, or None (no Earth rate then).
+        stated_rates: the rate each stream's instrument states, Hz, by stream ("imu",
+            "dvl", "reference"; the log description's ``rate_hz``): where given, the
+            time base is chosen by them (``time_base``).
     """
 
     reference_time: np.ndarray
@@ -121,6 +136,7 @@ class Log:
     dvl_velocity: np.ndarray | None = None
     gravity: float = 9.80665
     latitude_deg: float | None = None
+    stated_rates: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -488,6 +504,63 @@ def reference_clock(log: Log) -> Finding:
                                        "stamp_s": stamp}, f"x{scale:.5f}", evidence, "low")
 
 
+def stamp_stretch(t: np.ndarray, stated: float) -> float:
+    """How many stamped seconds a stream's stamps (N,) give to a second at its stated
+    rate (Hz), less one: ``median interval x stated rate - 1``."""
+    return float(np.median(np.diff(np.asarray(t, float)))) * stated - 1.0
+
+
+def time_base(log: Log, imu_clock_found: Clock | None, reference: Finding) -> Finding:
+    """Which clock the corrected file keeps: the IMU's (an INS's own clock) or the
+    reference's.
+
+    The evidence: each stream's stamps against its stated rate (``log.stated_rates``), the
+    IMU's rate error against the reference (``imu_clock_found``), and the reference's
+    positions against its velocities (``reference``). The IMU's clock is the time base when
+    its stamps agree with its stated rate (within ``STAMP_TOLERANCE``), the reference's do
+    not, and the two stretches predict the rate error found (within three standard errors
+    and ``STAMP_TOLERANCE``); then the reference's stamps are the stretched ones. Else the
+    reference's clock stays the time base, as the findings measure every clock against it.
+    """
+    rates = log.stated_rates
+    stretch = {g: stamp_stretch(t, rates[g]) for g, t in
+               (("imu", log.imu_time), ("dvl", log.dvl_time),
+                ("reference", log.reference_time)) if t is not None and rates.get(g)}
+    value = {"clock": "reference", "stamp_stretch": stretch, "stated_rates_hz": dict(rates),
+             "reference_scale": reference.value.get("scale")}
+    parts = [f"{g} stamps {1e6 * e:+.0f} ppm against the stated {rates[g]:g} Hz"
+             for g, e in stretch.items()]
+    if imu_clock_found is None or "imu" not in stretch or "reference" not in stretch:
+        why = "no stated rates for the IMU and the reference" if imu_clock_found is not None \
+            else "no IMU"
+        return Finding("time base", value, "reference",
+                       "; ".join(parts + [f"{why}: every stream on the reference's clock"]),
+                       "low")
+    predicted = (1 + stretch["reference"]) / (1 + stretch["imu"]) - 1
+    found = imu_clock_found.rate_error
+    tolerance = SIGNIFICANT * (imu_clock_found.rate_se if math.isfinite(
+        imu_clock_found.rate_se) else 0.0) + STAMP_TOLERANCE
+    explained = abs(found - predicted) <= tolerance
+    value.update(predicted_imu_rate_error=predicted, imu_rate_error=found,
+                 imu_rate_error_se=imu_clock_found.rate_se)
+    parts.append(f"they predict the IMU's rate error against the reference "
+                 f"{1e6 * predicted:+.0f} ppm, found {1e6 * found:+.0f} ppm"
+                 f" (+-{1e6 * tolerance:.0f})")
+    scale = reference.value.get("scale")
+    if scale is not None:
+        parts.append(f"the reference's positions move x{scale:.4f} its velocities over its "
+                     f"stamps (x{1 / (1 + stretch['reference']):.4f} if its stamps are "
+                     "stretched so)")
+    imu_true = abs(stretch["imu"]) <= STAMP_TOLERANCE
+    if imu_true and abs(stretch["reference"]) > STAMP_TOLERANCE and explained:
+        value["clock"] = "imu"
+        return Finding("time base", value, "imu", "; ".join(parts + [
+            "the IMU's stamps keep their stated rate and the reference's do not: every "
+            "stream on the IMU's clock"]), "high")
+    return Finding("time base", value, "reference", "; ".join(parts + [
+        "every stream on the reference's clock"]), "medium")
+
+
 # ---- lever arms, DVL calibration, gravity -------------------------------------------------
 
 
@@ -683,7 +756,7 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     report.findings.append(reference_clock(log))
     corrections: dict = {}
     p = np.eye(3)
-    imu_t = w = f = None
+    imu_t = w = f = imu_clock_found = None
     if log.imu_time is not None:
         p, found = imu_axes(log, ref)
         report.findings.append(found)
@@ -704,6 +777,7 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
                               f"{again.rate_error * 1e6:+.0f} ppm)")
         report.findings.append(found)
         imu_t = s + clock.offset + clock.rate_error * s
+        imu_clock_found = clock
         w = np.asarray(log.angular_rate, float) @ p.T
         f = np.asarray(log.specific_force, float) @ p.T
         corrections.update(imu_axis_map=axis_map_names(p), imu_axis_matrix=p.tolist(),
@@ -733,6 +807,9 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         inside = (ref.start >= imu_t[0]) & (ref.end <= imu_t[-1])
         means[~inside] = np.nan
         report.findings.append(gravity_check(means, ref, log.gravity, gravity_source))
+    base = time_base(log, imu_clock_found, report.findings[0])
+    report.findings.append(base)
+    corrections["time_base"] = base.value["clock"]
     report.corrections = corrections
     return report
 
@@ -769,7 +846,21 @@ def log_of(mission) -> Log:
                None if dvl is None else dvl.time,
                None if dvl is None else dvl.velocity_ls,
                gravity=float(mission.attrs["gravity"]),
-               latitude_deg=None if latitude is None else float(latitude))
+               latitude_deg=None if latitude is None else float(latitude),
+               stated_rates=stated_rates(mission.attrs.get("log_description", "")))
+
+
+def stated_rates(description: str) -> dict[str, float]:
+    """The stated rate of each stream, Hz, from a log description's ``rate_hz`` keys
+    (``[imu] rate_hz = 100``): {stream: rate}; none where the text states none or is not
+    TOML (the import has checked it)."""
+    try:
+        data = tomllib.loads(description or "")
+    except tomllib.TOMLDecodeError:
+        return {}
+    return {g: float(t["rate_hz"]) for g, t in data.items()
+            if isinstance(t, dict) and isinstance(t.get("rate_hz"), (int, float))
+            and t["rate_hz"] > 0}
 
 
 def check_log(mission) -> Report:
@@ -782,10 +873,12 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     """The mission's fields and attributes with ``report``'s corrections made:
 
     * the IMU's triads through the axis map (``body = P logged``);
-    * every stream's stamps on the reference's clock, ``s + offset + rate_error * s``
-      (the reference's own stamps unchanged), all shifted by one constant so the
+    * every stream's stamps on the time base the report chose (its "time base"
+      finding): the reference's clock, ``s + offset + rate_error * s`` (the reference's
+      own stamps unchanged), or the IMU's, that mapped by ``(t - imu offset) / (1 + imu
+      rate error)`` (the IMU's own stamps unchanged); all shifted by one constant so the
       earliest is 0 (``log_time_origin_s`` moves with it);
-    * ``imu_time_offset_s`` and ``dvl_time_offset_s`` grow by the offsets found, the
+    * each stream's ``*_time_offset_s`` grows by the offset its map adds, the
       rates are 1 / median interval again; the sensors' positions and the DVL's mounting
       are the found ones where observable (``imu_position_body``, ``dvl_position_body``,
       ``dvl_mounting_rpy_deg``);
@@ -801,10 +894,15 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     attrs = dict(mission.attrs)
     maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
             "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
+    # The reference's clock t = s + offset + rate * s, then onto the IMU's own when it is
+    # the time base: tau = (t - imu offset) / (1 + imu rate error).
+    base_offset, base_rate = maps["imu"] if c.get("time_base") == "imu" else (0.0, 0.0)
+    shift = {}
     for g in json.loads(mission.attrs["groups"]):
         offset, rate = maps.get(g, (0.0, 0.0))
         s = fields[f"{g}/time"]
-        fields[f"{g}/time"] = s + offset + rate * s
+        fields[f"{g}/time"] = (s + offset + rate * s - base_offset) / (1 + base_rate)
+        shift[g] = (offset - base_offset) / (1 + base_rate)
     start = min(float(fields[f"{g}/time"][0]) for g in json.loads(mission.attrs["groups"]))
     for g in json.loads(mission.attrs["groups"]):
         fields[f"{g}/time"] = fields[f"{g}/time"] - start
@@ -816,15 +914,18 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
         p = np.asarray(c["imu_axis_matrix"])
         for name in ("specific_force", "angular_rate"):
             fields[f"imu/{name}"] = fields[f"imu/{name}"] @ p.T
-        attrs["imu_time_offset_s"] = float(attrs["imu_time_offset_s"]) + c["imu_time_offset_s"]
+        attrs["imu_time_offset_s"] = float(attrs["imu_time_offset_s"]) + shift["imu"]
         if "imu_position_body" in c:
             attrs["imu_position_body"] = np.asarray(c["imu_position_body"])
     if "dvl_time_offset_s" in c:
-        attrs["dvl_time_offset_s"] = float(attrs["dvl_time_offset_s"]) + c["dvl_time_offset_s"]
+        attrs["dvl_time_offset_s"] = float(attrs["dvl_time_offset_s"]) + shift["dvl"]
         if found["dvl lever arm"].confidence != "not observable":
             attrs["dvl_position_body"] = np.asarray(c["dvl_position_body"])
         if found["dvl mounting"].confidence != "not observable":
             attrs["dvl_mounting_rpy_deg"] = np.asarray(c["dvl_mounting_rpy_deg"])
+    for g in ("reference", "depth"):
+        if f"{g}_time_offset_s" in attrs and g in shift:
+            attrs[f"{g}_time_offset_s"] = float(attrs[f"{g}_time_offset_s"]) + shift[g]
     attrs["check_log_json"] = json.dumps(report.to_json())
     return fields, attrs
 

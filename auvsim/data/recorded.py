@@ -9,6 +9,8 @@ files hold (``parse_description``; ``docs/guides/recorded-logs.md`` shows one wh
   point; needed when the log has no reference);
 * ``[imu]``, ``[dvl]``, ``[depth]``, ``[reference]``, each optional: ``file``, ``time`` (the
   time column) and ``time_unit`` (s, ms, us, ns), ``time_offset_s`` (added to the stamps),
+  ``rate_hz`` (the rate the instrument states; ``auvsim check-log`` compares the stamps
+  with it to choose the time base),
   ``columns`` (field -> a column name, or a list of them for a vector), ``units`` (field ->
   unit), ``ignore`` (columns the import may skip), ``delimiter``;
 * the frames: ``frame`` FRD or FLU for the body-fixed streams (``imu``, ``dvl``), with an
@@ -113,6 +115,7 @@ reference_source = "Delph INS post-processed navigation solution (A-KIT GT file)
 # states no axis convention; FRD as logged (auvsim check-log tests it against the reference).
 file = "IMU_trajectory{k}.csv"
 time = "Time [s]"
+rate_hz = 100.0
 time_unit = "s"
 frame = "FRD"
 position_body = [0.0, 0.0, 0.0]  # not published
@@ -138,6 +141,7 @@ bias_correlation_time = 3600.0
 # the log holds its velocity output only, in the body frame.
 file = "DVL_trajectory{k}.csv"
 time = "Time [s]"
+rate_hz = 1.0
 time_unit = "s"
 frame = "FRD"
 position_body = [0.0, 0.0, 0.0]  # not published
@@ -157,8 +161,10 @@ velocity_accuracy = 0.02
 noise_std = 0.0026
 
 [reference]
+# The Delph INS solution at 1 Hz, as the publication states.
 file = "GT_trajectory{k}.csv"
 time = "Time [s]"
+rate_hz = 1.0
 time_unit = "s"
 frame = "NED"
 body = "FRD"
@@ -247,8 +253,8 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
     return LogDescription(text, log.get("name"), log.get("reference_source"), origin, streams)
 
 
-_STREAM_KEYS = {"file", "time", "time_unit", "time_offset_s", "columns", "units", "ignore",
-                "delimiter", "frame"}
+_STREAM_KEYS = {"file", "time", "time_unit", "time_offset_s", "rate_hz", "columns", "units",
+                "ignore", "delimiter", "frame"}
 _GROUP_KEYS = {"imu": {"axis_map", "position_body", "noise"},
                "dvl": {"axis_map", "position_body", "mounting_rpy_deg", "beam_angle_deg",
                        "noise_std", "velocity_accuracy", "invalid"},
@@ -270,6 +276,9 @@ def _stream(where: str, group: str, table: object) -> Stream:
         raise ConfigError(f"{name}.time_unit: expected one of {', '.join(TIME_UNITS)}, got "
                           f"{unit!r}")
     offset = _number(where, f"{group}.time_offset_s", table.get("time_offset_s", 0.0))
+    if "rate_hz" in table and not (_number(where, f"{group}.rate_hz", table["rate_hz"]) > 0):
+        raise ConfigError(f"{name}.rate_hz: expected the instrument's stated rate, Hz > 0, "
+                          f"got {table['rate_hz']!r}")
     specs = FIELDS[group]
     columns_in = table.get("columns")
     if not isinstance(columns_in, dict):

@@ -103,8 +103,9 @@ times (``imu_rate_hz`` only sets the rounding's density), ``imu_position_body``,
 applied to the file, and is what the scale states are for. The filter integrates on
 whatever clock the file's stamps are: it cannot tell stretched stamps from physical
 seconds, and a stretch of e makes every integration (angles, velocity, distance) e too
-large. The A-KIT file on the reference's clock has e = 0.25 % by the publication's stated
-rates (``benchmarks/sea_filter.py`` shows what that costs).
+large. check-log therefore puts a file on the clock whose stamps keep their stated rate:
+the A-KIT file on the IMU's (on the reference's it would have e = 0.25 % by the
+publication's stated rates).
 
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
 factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
