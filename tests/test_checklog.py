@@ -387,3 +387,16 @@ def test_a_shared_segment_checks_clean_after_apply(tmp_path):
     for name in ("dvl lever arm", "imu lever arm"):
         np.testing.assert_allclose(after[name]["value"]["position_body_m"],
                                    first[name]["value"]["position_body_m"], atol=LEVER_TOL)
+
+
+def test_a_log_that_never_turns_is_refused_in_one_line():
+    """Every finding reads how the streams see the vehicle turn; a straight, level log
+    gives none of them, and says so instead of dividing by its zero turn rate."""
+    t = np.arange(120.0)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1))
+    v = np.tile([2.0, 0.0, 0.0], (len(t), 1))
+    imu_t = np.arange(0.0, 120.0, 0.01)
+    f = np.tile([0.0, 0.0, -9.8], (len(imu_t), 1))
+    log = Log(t, v, q, None, imu_t, f, np.zeros_like(f), gravity=9.8)
+    with pytest.raises(DatasetError, match="turns at 0 deg/s RMS; expected turns"):
+        check_arrays(log, "straight")

@@ -753,6 +753,13 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         raise DatasetError(f"{name}: neither an IMU nor a DVL; expected a stream to check")
     report = Report(name)
     ref = intervals(log)
+    turn = float(np.sqrt(np.mean(np.sum(ref.rate ** 2, axis=1))))
+    if turn < MIN_TURN:
+        # Axes, clocks and lever arms are all read from how the streams see the vehicle
+        # turn: a log that never turns leaves every one of them unobservable.
+        raise DatasetError(f"{name}: the reference turns at {math.degrees(turn):.2g} deg/s "
+                           f"RMS; expected turns (at least {math.degrees(MIN_TURN):g} deg/s "
+                           "RMS) to tell the IMU's axes, the clocks and the lever arms from")
     report.findings.append(reference_clock(log))
     corrections: dict = {}
     p = np.eye(3)
