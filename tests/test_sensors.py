@@ -175,10 +175,10 @@ def thermometer():
 def test_a_new_sensors_streams_follow_every_earlier_one(thermometer):
     """Declared in its plugin alone, they are spawned after the closed layout, whose
     generators draw what they drew before."""
-    # Ordered by the schema version that added each plugin's streams, then by name: the
-    # toy's (v6) before the DVL's slow error (v7).
-    assert stream_names() == (*STREAMS, "thermometer_parameters", "thermometer_noise",
-                              "dvl_slow_error")
+    # Ordered by the schema version of the plugin that declares them, then by name: the
+    # DVL's slow error (a v1 plugin's stream outside the closed layout) before the toy's (v6).
+    assert stream_names() == (*STREAMS, "dvl_slow_error", "thermometer_parameters",
+                              "thermometer_noise")
     streams = mission_streams(7)
     before = np.random.default_rng(7).spawn(len(STREAMS))
     for name, old in zip(STREAMS, before, strict=True):
