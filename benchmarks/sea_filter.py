@@ -83,9 +83,7 @@ from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.estimators import ins
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = next((p for p in (ROOT / ".." / "shared" / "data" / "snapir-akit",
-                         Path("/work/shared/data/snapir-akit")) if p.is_dir()),
-            ROOT / ".." / "shared" / "data" / "snapir-akit")
+DATA = ROOT / ".." / "shared" / "data" / "snapir-akit"
 FINAL_BOUND = 5.0  # m, every segment
 DR_RATIO = 1.2  # median final against DR-with-the-reference-attitude's median final
 COVERAGE = 0.9  # share of the time within the reported 3 sigma
