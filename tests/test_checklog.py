@@ -400,3 +400,19 @@ def test_a_log_that_never_turns_is_refused_in_one_line():
     log = Log(t, v, q, None, imu_t, f, np.zeros_like(f), gravity=9.8)
     with pytest.raises(DatasetError, match="turns at 0 deg/s RMS; expected turns"):
         check_arrays(log, "straight")
+
+
+def test_a_dvl_that_seldom_has_a_velocity_is_not_observable_and_not_applied(simulated):
+    """With a handful of pings every trial clock offset would cost the same and a
+    calibration fitted on no rows would look exact: the DVL is reported not observable
+    and nothing of it is corrected."""
+    log = recorded_log(simulated["zigzag"], axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
+                       dvl_offset=0.3)
+    v = np.full_like(log.dvl_velocity, np.nan)
+    v[100:120] = log.dvl_velocity[100:120]  # 20 pings of 600 with a velocity
+    report = check_arrays(dataclasses.replace(log, dvl_velocity=v), "sparse")
+    found = findings(report)
+    assert found["dvl clock"].confidence == "not observable"
+    assert found["dvl clock"].value == {"pings": 20}
+    assert not any(k.startswith("dvl_") for k in report.corrections)
+    assert "imu_axis_matrix" in report.corrections  # the IMU is still checked

@@ -69,6 +69,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 MAX_OFFSET = 5.0  # s: the clock offsets searched, either way
 MIN_REFERENCE = 30  # reference samples: fewer leave the windows' fits without data
+MIN_DVL_PINGS = 30  # DVL pings with a velocity: fewer leave its clock and calibration open
 OFFSET_WINDOW = 50.0  # s of reference per window of the offset-vs-time fit
 SIGNIFICANT = 3.0  # standard errors: a parameter kept beyond this
 # Student's t quantiles at the normal's 3 sigma (two-sided 99.73 %), by degrees of freedom
@@ -268,6 +269,9 @@ def imu_axes(log: Log, ref: Intervals) -> tuple[np.ndarray, Finding]:
     inside = (ref.start - MAX_OFFSET >= t[0]) & (ref.end + MAX_OFFSET <= t[-1])
     if inside.sum() < 10:
         inside = (ref.start >= t[0]) & (ref.end <= t[-1])
+    if not inside.any():
+        raise DatasetError("the IMU's stamps and the reference's do not overlap by one whole "
+                           "reference interval; expected streams recorded together")
     a, b = ref.start[inside], ref.end[inside]
     rate, force = ref.rate[inside], ref.force[inside]
     window = ((a - a[0]) // OFFSET_WINDOW).astype(int)
@@ -789,7 +793,19 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         f = np.asarray(log.specific_force, float) @ p.T
         corrections.update(imu_axis_map=axis_map_names(p), imu_axis_matrix=p.tolist(),
                            imu_time_offset_s=clock.offset, imu_rate_error=clock.rate_error)
-    if log.dvl_time is not None:
+    dvl_pings = 0 if log.dvl_time is None else int(np.sum(
+        np.isfinite(np.asarray(log.dvl_velocity, float)).all(axis=1)
+        & (np.asarray(log.dvl_time, float) - MAX_OFFSET >= log.reference_time[0])
+        & (np.asarray(log.dvl_time, float) + MAX_OFFSET <= log.reference_time[-1])))
+    if log.dvl_time is not None and dvl_pings < MIN_DVL_PINGS:
+        # Too few pings to fit a clock or a calibration on: every trial offset would cost
+        # the same, and a fit on no rows would look exact. Nothing is applied.
+        report.findings.append(Finding(
+            "dvl clock", {"pings": dvl_pings}, "not found",
+            f"{dvl_pings} pings with a velocity inside the reference's span (less "
+            f"{MAX_OFFSET:g} s each end); expected at least {MIN_DVL_PINGS}",
+            "not observable"))
+    elif log.dvl_time is not None:
         c = rotation_matrices(log.reference_quaternion)
         u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
         v = np.asarray(log.dvl_velocity, float)
