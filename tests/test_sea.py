@@ -429,3 +429,27 @@ def test_dead_reckoning_moves_the_dvls_velocity_to_the_reference_point():
                                       0)
     np.testing.assert_allclose(dead_reckoning_positions(windows, at_dvl, truth, 0), origin,
                                atol=1e-12)
+
+
+def test_the_imported_segments_are_made_again_when_the_built_in_description_changes(
+        tmp_path, monkeypatch):
+    """The cached import is keyed by the logs' digests and by the description that read
+    them: new instrument specifications must reach the estimators."""
+    import auvsim.data.recorded as recorded
+    from auvsim.data.reader import open_dataset
+    from beamsnet.experiments.sea import sea_dataset
+
+    logs = tmp_path / "logs"
+    write_akit(logs, 1, weave_deg_s=8.0)
+    sea_dataset(logs, tmp_path)
+    logged = tmp_path / "sea-logged.h5"
+    made = logged.stat().st_mtime_ns
+    sea_dataset(logs, tmp_path)
+    assert logged.stat().st_mtime_ns == made  # same logs, same description: reused
+    changed = recorded.AKIT_DESCRIPTION.replace("velocity_accuracy = 0.02",
+                                                "velocity_accuracy = 0.03")
+    assert changed != recorded.AKIT_DESCRIPTION
+    monkeypatch.setattr(recorded, "AKIT_DESCRIPTION", changed)
+    sea_dataset(logs, tmp_path)
+    with open_dataset(logged) as f:
+        assert f.missions["trajectory1"].attrs["log_description"] == changed.replace("{k}", "1")

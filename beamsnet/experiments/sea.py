@@ -204,8 +204,11 @@ def _findings(dataset: Path) -> dict:
 
 
 def _imported_from(dataset: Path, digests: list[str]) -> bool:
-    """Whether ``dataset`` holds recorded missions imported from exactly these logs."""
+    """Whether ``dataset`` holds recorded missions imported from exactly these logs with
+    this auvsim's built-in A-KIT description (its instrument specifications and stated
+    rates are what the estimators and check-log read)."""
     from auvsim.data.reader import open_dataset
+    from auvsim.data.recorded import AKIT_DESCRIPTION
 
     if not dataset.exists():
         return False
@@ -213,9 +216,13 @@ def _imported_from(dataset: Path, digests: list[str]) -> bool:
         with open_dataset(dataset) as f:
             found = sorted(d for m in f.missions.values()
                            for d in json.loads(m.attrs.get("source_sha256", "[]")))
+            described = all(
+                m.attrs.get("log_description") == AKIT_DESCRIPTION.replace("{k}", k)
+                for k, m in ((name.removeprefix("trajectory"), m)
+                             for name, m in f.missions.items()))
     except (AuvsimError, OSError, ValueError):
         return False
-    return found == digests
+    return found == digests and described
 
 
 def _segments(dataset: Path) -> list[str]:
