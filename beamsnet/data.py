@@ -157,8 +157,7 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
         with_imu = all(group[n].has("imu") for n in names)
         parts = [_mission_windows(group[n], n, i, n_past, with_imu, every_ping)
                  for i, n in enumerate(names)]
-        if not every_ping:
-            _check_each_has_samples(path, group, names, parts, n_past)
+        _check_each_has_samples(path, group, names, parts, n_past)
 
     widths = {p["accel"].shape[1] for p in parts if p["accel"] is not None}
     if len(widths) > 1:
@@ -196,16 +195,22 @@ def _check_each_has_samples(path, group, names: Sequence[str], parts: list[dict]
     run would say nothing of it and exit as if all were well.
 
     Raises:
-        DataError: naming the first such mission and why (no beam velocity at all, or no
-            ping with all its beam epochs valid).
+        DataError: naming the first such mission and why (a recorded mission's pings all
+            outside its reference's span, no beam velocity at all, or no ping with all its
+            beam epochs valid).
     """
     for name, part in zip(names, parts, strict=True):
         if len(part["target"]):
             continue
-        beams = recorded_beams(group[name])[0]
-        why = ("every beam velocity is NaN (not one ping has a valid beam)"
-               if not np.isfinite(beams).any() else
-               f"no ping has all {n_past + 1} beam epochs valid (bottom lock)")
+        m = group[name]
+        beams = recorded_beams(m)[0]
+        t_ref = m.reference.time if m.origin == "recorded" else None
+        if t_ref is not None and not ((m.dvl.time >= t_ref[0]) & (m.dvl.time <= t_ref[-1])).any():
+            why = "no ping lies within the reference's time span"
+        elif not np.isfinite(beams).any():
+            why = "every beam velocity is NaN (not one ping has a valid beam)"
+        else:
+            why = f"no ping has all {n_past + 1} beam epochs valid (bottom lock)"
         raise DataError(f"{path}: mission {name}: {why}, so it gives no samples; expected "
                         "DVL data to use (pass missions= without it)")
 

@@ -453,3 +453,21 @@ def test_the_imported_segments_are_made_again_when_the_built_in_description_chan
     sea_dataset(logs, tmp_path)
     with open_dataset(logged) as f:
         assert f.missions["trajectory1"].attrs["log_description"] == changed.replace("{k}", "1")
+
+
+def test_a_recorded_mission_whose_pings_miss_the_reference_is_refused_in_one_line(tmp_path):
+    """Every ping outside the reference's span leaves nothing to score against: said so,
+    not divided by zero further on."""
+    import h5py
+
+    from auvsim.data.recorded import import_logs
+    from beamsnet.data import DataError, load_windows
+
+    write_akit(tmp_path / "logs", 1)
+    path = tmp_path / "late.h5"
+    import_logs([tmp_path / "logs"], path, format="akit")
+    with h5py.File(path, "r+") as f:
+        f["missions/trajectory1/dvl/time"][...] += 1000.0  # a clock far off
+    for every_ping in (False, True):
+        with pytest.raises(DataError, match="no ping lies within the reference's time span"):
+            load_windows(path, every_ping=every_ping)
