@@ -234,7 +234,7 @@ def akit_files(tmp_path_factory):
 @pytest.mark.parametrize("k", SEGMENTS)
 def test_the_filter_converges_on_each_shared_segment_with_its_defaults(akit_files, k):
     """On each real segment as ``check-log --apply`` wrote it (the IMU's y axis mirrored
-    back, every stream on the reference's clock, the sensors' positions and the DVL's
+    back, every stream on the IMU's clock, the sensors' positions and the DVL's
     mounting found from the data) and started from its reference, ``run_mission`` with
     its defaults (no hand settings) ends under 5 m from the reference, accepting the
     pings, without a restart."""
