@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-from auvsim.data.reader import open_dataset
+from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet import metrics
 from beamsnet.data import DataError, Windows, body_rate, quaternions_at, reference_velocity
@@ -67,10 +67,7 @@ def _reference_at(m, times: np.ndarray) -> dict[str, np.ndarray]:
     """``truth_at_pings``'s fields for a recorded mission ``m`` at ``times`` (s)."""
     ref = m.reference
     t = np.asarray(ref.time, dtype=float)
-    if "quaternion" not in ref:
-        raise DataError(f"mission {m.name}: its reference has no attitude; dead reckoning "
-                        "with the reference's attitude needs reference/quaternion")
-    rotation = rotation_matrices(quaternions_at(t, ref.quaternion, times))
+    rotation = rotation_matrices(quaternions_at(t, require_attitude(m), times))
     if m.has("imu"):
         rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
                          for i in range(3)], axis=1)

@@ -63,6 +63,7 @@ from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError
 from auvsim.physics.earth import ned_from_geodetic, normal_gravity
+from auvsim.physics.frames import euler_angles
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -622,7 +623,7 @@ def _reference(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]
             q = _multiply(q, np.array([0.0, 1.0, 0.0, 0.0]))
         q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w >= 0: one of the two signs, always
         out["reference/quaternion"] = q
-        out["reference/rpy_deg"] = np.degrees(_euler(q))
+        out["reference/rpy_deg"] = np.degrees(euler_angles(q))
     return out
 
 
@@ -634,12 +635,6 @@ def quaternions(rpy: np.ndarray) -> np.ndarray:
     sr, sp, sy = np.sin(half).T
     return np.stack([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
                      cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy], axis=1)
-
-
-def _euler(q: np.ndarray) -> np.ndarray:
-    from auvsim.physics.frames import euler_angles
-
-    return euler_angles(q)
 
 
 def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
