@@ -133,6 +133,27 @@ def test_a_stationary_imu_with_a_dvl_at_rest_stays_within_its_own_three_sigma():
     assert np.abs(track.position_ned).max() < 0.05 and track.availability == 1.0
 
 
+def test_the_dvl_calibration_prior_is_the_setting_else_the_calibrations_else_the_default():
+    """How well the DVL's mounting and lever arm are known: a setting wins, else a
+    calibration's standard errors (check-log's, per axis), else an uncalibrated DVL's
+    0.5 deg and 0.1 m. Without updates the states keep their prior at every ping."""
+    data = stationary(32.85, seconds=20.0)
+    pure = ins.FilterConfig(dvl_updates=False)
+    default = ins.run_arrays(**data, latitude_deg=32.85, config=pure)
+    np.testing.assert_allclose(default.misalignment_std[-1],
+                               np.radians(np.full(3, ins.MISALIGNMENT_STD_DEG)))
+    np.testing.assert_allclose(default.lever_arm_std[-1], np.full(3, ins.LEVER_ARM_STD))
+    calibrated = dict(mounting_std_deg=[0.04, 0.006, 0.07], dvl_position_std=[0.01, 0.02, 0.03])
+    known = ins.run_arrays(**data, latitude_deg=32.85, config=pure, **calibrated)
+    np.testing.assert_allclose(known.misalignment_std[-1], np.radians([0.04, 0.006, 0.07]))
+    np.testing.assert_allclose(known.lever_arm_std[-1], [0.01, 0.02, 0.03])
+    set_by_hand = ins.FilterConfig(dvl_updates=False, misalignment_std_deg=0.2,
+                                   lever_arm_std=0.05)
+    hand = ins.run_arrays(**data, latitude_deg=32.85, config=set_by_hand, **calibrated)
+    np.testing.assert_allclose(hand.misalignment_std[-1], np.radians(np.full(3, 0.2)))
+    np.testing.assert_allclose(hand.lever_arm_std[-1], np.full(3, 0.05))
+
+
 def test_the_divergence_watch_restarts_after_an_injected_transient(navigation):
     """A start 2 m/s off in north with a velocity std of 1 cm/s: every beam is gated out
     (innovations of 100 sigma). Without the watch the filter never recovers: it accepts

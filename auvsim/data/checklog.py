@@ -588,6 +588,41 @@ def least_squares(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), math.sqrt(var)
 
 
+def serial_least_squares(a: np.ndarray, b: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Least squares over a time series of blocks, ``a`` (T, K, n) x = ``b`` (T, K) (K
+    equations per epoch), with standard errors that hold when the residuals are
+    correlated from one epoch to the next: Newey & West's estimator (Econometrica 55,
+    1987: the Bartlett-weighted sum of the score's autocovariances between the OLS
+    sandwich's bread) with Andrews's bandwidth for it (Econometrica 59, 1991, eq. 6.2 and
+    the AR(1) plug-in of sec. 6: ``1.1447 (alpha T)^(1/3)``, one AR(1) per score
+    component, equally weighted). A DVL's slow error against a reference holds for tens of
+    pings, where the OLS standard error, which takes every ping as new information, is
+    several times too small. Returns the solution, its standard errors, the residual RMS
+    and the bandwidth (epochs)."""
+    t, k, n = a.shape
+    flat = a.reshape(-1, n)
+    x, *_ = np.linalg.lstsq(flat, b.ravel(), rcond=None)
+    resid = b - a @ x
+    score = np.einsum("tkn,tk->tn", a, resid)  # (T, n): each epoch's score
+    lag1 = (score[1:] * score[:-1]).sum(axis=0)
+    energy = (score[:-1] ** 2).sum(axis=0)
+    rho = np.clip(np.divide(lag1, energy, out=np.zeros(n), where=energy > 0), -0.97, 0.97)
+    var = (score ** 2).mean(axis=0) * (1 - rho ** 2)  # each AR(1)'s innovation variance
+    alpha = (np.sum(4 * rho ** 2 * var ** 2 / ((1 - rho) ** 6 * (1 + rho) ** 2))
+             / max(float(np.sum(var ** 2 / (1 - rho) ** 4)), 1e-300))
+    lags = min(int(1.1447 * (alpha * t) ** (1 / 3)), t - 1)
+    meat = score.T @ score
+    for lag in range(1, lags + 1):
+        cross = score[lag:].T @ score[:-lag]
+        meat += (1 - lag / (lags + 1)) * (cross + cross.T)
+    bread = np.linalg.pinv(flat.T @ flat)
+    dof = max(resid.size - n, 1)
+    cov = bread @ meat @ bread * resid.size / dof  # the sandwich's small-sample factor
+    rms = math.sqrt(float((resid ** 2).sum()) / dof)
+    return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), rms, lags
+
+
 def dvl_model(u: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(P, 3, 7) design of ``v_dvl - u = k u + u x m + w x L`` for [k, m (3), L (3)]."""
     return np.concatenate([u[:, :, None], skew(u), skew(w)], axis=2)
@@ -599,9 +634,7 @@ def dvl_calibration(u: np.ndarray, w: np.ndarray, v: np.ndarray
     velocity in the body ``u`` (P, 3), body rate ``w`` (P, 3) and DVL velocity ``v`` (P, 3).
     Returns [k, m, L] (7,) and the findings."""
     ok = np.isfinite(v).all(axis=1) & np.isfinite(u).all(axis=1) & np.isfinite(w).all(axis=1)
-    a = dvl_model(u[ok], w[ok]).reshape(-1, 7)
-    b = (v[ok] - u[ok]).ravel()
-    x, se, rms = least_squares(a, b)
+    x, se, rms, lags = serial_least_squares(dvl_model(u[ok], w[ok]), v[ok] - u[ok])
     k, m, lever = x[0], x[1:4], x[4:]
     turn = math.degrees(float(np.sqrt(np.mean(w[ok] ** 2))))
     rpy = np.degrees(m)
@@ -609,7 +642,8 @@ def dvl_calibration(u: np.ndarray, w: np.ndarray, v: np.ndarray
     found = [
         Finding("dvl scale", {"scale": 1 + k, "se": se[0]}, f"{1 + k:.5f}",
                 f"LS on v_dvl - C^T v_ref over {int(ok.sum())} pings, residual RMS "
-                f"{rms * 1e3:.1f} mm/s; SE {se[0]:.1e}", grade(se[0], 1e-3, 5e-3)),
+                f"{rms * 1e3:.1f} mm/s; SE {se[0]:.1e} (Newey-West over {lags} pings of the "
+                "residuals' correlation)", grade(se[0], 1e-3, 5e-3)),
         Finding("dvl mounting", {"rpy_deg": rpy.tolist(), "se_deg": np.degrees(se[1:4]).tolist()},
                 "[" + ", ".join(f"{a:+.3f}" for a in rpy) + "] deg",
                 "small-angle mounting m (DVL frame -> body, M ~ I + [m]x) from the same fit; "
@@ -951,6 +985,24 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
             attrs[f"{g}_time_offset_s"] = float(attrs[f"{g}_time_offset_s"]) + shift[g]
     attrs["check_log_json"] = json.dumps(report.to_json())
     return fields, attrs
+
+
+def applied_dvl_errors(attrs) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """How well a corrected mission's DVL mounting and lever arm are known: the standard
+    errors (deg, m; (3,) each) of the values ``corrected`` wrote into ``attrs``
+    (``dvl_mounting_rpy_deg``, ``dvl_position_body``), read from its ``check_log_json``;
+    None for each one it did not write (not observable, or no report)."""
+    if "check_log_json" not in attrs:
+        return None, None
+    found = {f["name"]: f for f in json.loads(attrs["check_log_json"])["findings"]}
+
+    def se(name: str, key: str) -> np.ndarray | None:
+        f = found.get(name)
+        if f is None or f["confidence"] == "not observable" or key not in f["value"]:
+            return None
+        return np.asarray(f["value"][key], dtype=float)
+
+    return se("dvl mounting", "se_deg"), se("dvl lever arm", "se_m")
 
 
 def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,

@@ -100,7 +100,12 @@ A recorded file from ``auvsim check-log --apply`` is read as it is: the IMU's dt
 times (``imu_rate_hz`` only sets the rounding's density), ``imu_position_body``,
 ``dvl_position_body``, ``dvl_mounting_rpy_deg``, ``latitude_deg``, ``height_m``,
 ``gravity`` and the instrument's attributes; the DVL's scale that check-log reports is not
-applied to the file, and is what the scale states are for. The filter integrates on
+applied to the file, and is what the scale states are for. The mounting and the lever
+arm it wrote are known to its standard errors (``applied_dvl_errors``), and the
+misalignment and lever-arm states start there instead of at an uncalibrated DVL's 0.5 deg
+and 0.1 m: a prior wider than the calibration lets the DVL's slow errors in the turns move
+the heading through the misalignment (on the six shared segments the filter's yaw
+misalignment wandered to 0.33 deg from a calibration known to 0.07). The filter integrates on
 whatever clock the file's stamps are: it cannot tell stretched stamps from physical
 seconds, and a stretch of e makes every integration (angles, velocity, distance) e too
 large. check-log therefore puts a file on the clock whose stamps keep their stated rate:
@@ -134,6 +139,7 @@ import numba
 import numpy as np
 
 from auvsim.data.beams import beam_matrix
+from auvsim.data.checklog import applied_dvl_errors
 from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import OMEGA
@@ -147,6 +153,16 @@ N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
+# How well an uncalibrated DVL's mounting is known, deg per axis: our choice for a DVL
+# mounted mechanically without an alignment calibration (at 0.5 deg a DVL track bends by
+# 0.9 % of the distance; Kinsey, Eustice & Whitcomb 2006, "A survey of underwater vehicle
+# navigation", IFAC MCMC, sec. 3.2, on why it matters).
+MISALIGNMENT_STD_DEG = 0.5
+# Likewise its lever arm from the IMU, m per axis: the accuracy ``auvsim check-log`` is to
+# find lever arms to. A vehicle rolling at 30 deg/s moves a DVL 1.8 m below its IMU at
+# 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's noise: the states
+# make it observable instead of gated.
+LEVER_ARM_STD = 0.1
 
 
 class NoImuError(DataError):
@@ -188,17 +204,16 @@ class FilterConfig:
             .navigator`` cites it).
         beam_bias_std: initial std of each bias, m/s: 1 mm/s, likewise.
         misalignment_std_deg: initial std of the DVL's mounting misalignment about each
-            of its axes, deg (with ``beam_states``): 0.5 deg, our choice for a DVL
-            mounted mechanically without an alignment calibration (at 0.5 deg a DVL
-            track bends by 0.9 % of the distance; Kinsey, Eustice & Whitcomb 2006, "A
-            survey of underwater vehicle navigation", IFAC MCMC, sec. 3.2, on why it
-            matters). The INS cannot tell a heading misalignment from its own heading on
-            a straight leg, so it is what makes the position's std grow with distance.
+            of its axes, deg (with ``beam_states``). None: how well the mounting is known,
+            the standard errors of a calibration where there is one (a file that ``auvsim
+            check-log --apply`` corrected: the mounting it found and wrote, per axis;
+            ``run_arrays``'s ``mounting_std_deg``), else ``MISALIGNMENT_STD_DEG``. The INS
+            cannot tell a heading misalignment from its own heading on a straight leg, so
+            this is what makes the position's std grow with distance, and what the DVL's
+            slow errors in the turns can move the heading by.
         lever_arm_std: initial std of the DVL's lever arm from the IMU, m per axis
-            (with ``beam_states``): 0.1 m, the accuracy ``auvsim check-log`` is to find
-            lever arms to. A vehicle rolling at 30 deg/s moves a DVL 1.8 m below its IMU
-            at 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's
-            noise: the states make it observable instead of gated.
+            (with ``beam_states``). None: a calibration's standard errors likewise (the
+            lever arm check-log found and wrote), else ``LEVER_ARM_STD``.
         bias_time: correlation time of those biases, s (first-order Gauss-Markov of std
             ``beam_bias_std`` with the instrument's slow error added); None: the
             instrument's slow-error time where it has one, else constant.
@@ -242,8 +257,8 @@ class FilterConfig:
     beam_states: bool | None = None
     beam_scale_std: float = 0.002
     beam_bias_std: float = 0.001
-    misalignment_std_deg: float = 0.5
-    lever_arm_std: float = 0.1
+    misalignment_std_deg: float | None = None
+    lever_arm_std: float | None = None
     bias_time: float | None = None
     gate_probability: float = 0.999
     beam_noise_std: float | None = None
@@ -261,6 +276,8 @@ class FilterConfig:
         for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std",
                      "misalignment_std_deg", "lever_arm_std"):
             value = getattr(self, name)
+            if value is None and name in ("misalignment_std_deg", "lever_arm_std"):
+                continue
             if not (_number(value) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
         if _number(self.attitude_std_deg):  # one std for all three axes
@@ -803,7 +820,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                instrument: Instrument, latitude_deg: float | None = None,
                height_m: float = 0.0, gravity: float | None = None,
                config: FilterConfig = FilterConfig(), truth_velocity_dvl=None,
-               ping_row=None, timing_std: float | None = None) -> FilterTrack:
+               ping_row=None, timing_std: float | None = None, mounting_std_deg=None,
+               dvl_position_std=None) -> FilterTrack:
     """Run the filter on arrays: no dataset needed.
 
     The streams keep their own clocks: each DVL ping is applied at the IMU sample at or
@@ -821,6 +839,10 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         beam_angle_deg: the beams' angle from the vertical (needed with ``beams``).
         mounting_rpy_deg: (3,) DVL frame -> body, deg. imu_position_body,
             dvl_position_body: (3,) m, FRD from the body origin (the reference point).
+        mounting_std_deg, dvl_position_std: (3,) deg and m, how well the mounting and
+            the DVL's position are known (a calibration's standard errors), where
+            ``config`` leaves them open (None there); None here: ``MISALIGNMENT_STD_DEG``
+            and ``LEVER_ARM_STD``.
         start: where and how sure the filter starts (``start_from_reference``,
             ``coarse_alignment``, or the truth).
         instrument: the IMU's and DVL's noise (``Instrument``).
@@ -907,8 +929,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         np.full(3, ins.accel_bias_std if cfg.accel_bias_std is None else cfg.accel_bias_std),
         np.full(3, ins.gyro_bias_std if cfg.gyro_bias_std is None else cfg.gyro_bias_std),
         np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std),
-        np.full(3, math.radians(cfg.misalignment_std_deg)),
-        np.full(3, cfg.lever_arm_std)])[:n]
+        np.radians(_known(cfg.misalignment_std_deg, mounting_std_deg, MISALIGNMENT_STD_DEG)),
+        _known(cfg.lever_arm_std, dvl_position_std, LEVER_ARM_STD)])[:n]
     P = np.diag(std**2)
     q = np.array([
         (ins.accel_noise_density if cfg.accel_noise_density is None
@@ -965,6 +987,15 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        misalignment_std=b[:, 31:34], lever_arm=b[:, 34:37],
                        lever_arm_std=b[:, 37:40],
                        quaternion=quaternion_of(rot))
+
+
+def _known(setting: float | None, calibrated, default: float) -> np.ndarray:
+    """(3,) std: the setting where given, else the calibration's, else the default."""
+    if setting is not None:
+        return np.full(3, float(setting))
+    if calibrated is not None:
+        return np.asarray(calibrated, dtype=float).reshape(3)
+    return np.full(3, default)
 
 
 def run_mission(mission, config: FilterConfig = FilterConfig(), *,
@@ -1085,6 +1116,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     # A file that states a slow DVL error needs the bias states to hold it.
     beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
     gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
+    mounting_std, position_std = applied_dvl_errors(a)
     return run_arrays(
         imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
         mounting_rpy_deg=np.asarray(a.get("dvl_mounting_rpy_deg", np.zeros(3)), float),
@@ -1094,7 +1126,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         height_m=float(a.get("height_m", 0.0)), gravity=gravity,
         config=dataclasses.replace(cfg, beam_states=beam_states),
         truth_velocity_dvl=truth_v, ping_row=ping_row,
-        timing_std=None if recorded else 0.0)
+        timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
+        dvl_position_std=position_std)
 
 
 def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: bool,
