@@ -446,6 +446,7 @@ def report(results: dict, setup: dict) -> str:
         f"{_fmt(100 * med[FILTER]['coverage_3sigma'], '.1f')} | {mtriple(by_reference)} | "
         f"{mtriple(by_filter)} | {_fmt(med[FILTER]['velocity_rmse'], '.4f')} | "
         f"{med[by_reference]['velocity_rmse']:.4f} |")
+    lines += ["", *_coverage_words(results)]
     failed: dict[tuple[str, str], list[str]] = {}  # (filter, why) -> segments
     for name, r in results.items():
         for label, why in r["scores"]["failed"].items():
@@ -457,6 +458,23 @@ def report(results: dict, setup: dict) -> str:
     lines += ["", "![each segment's track and every estimator's error along it](sea.png)",
               "", *_sim_to_real(results, setup, by_reference)]
     return "\n".join(lines) + "\n"
+
+
+def _coverage_words(results: dict) -> list[str]:
+    """The filter's 3-sigma coverage over every segment's pings together, and per
+    segment: the lowest, where it is under 90 %."""
+    rows = [(name, r["scores"][FILTER]["coverage_3sigma"], r["scores"]["pings"])
+            for name, r in results.items()
+            if "coverage_3sigma" in r["scores"].get(FILTER, {})]
+    if not rows:
+        return []
+    pooled = sum(c * n for _, c, n in rows) / sum(n for _, _, n in rows)
+    under = [f"{name} {100 * c:.1f} %" for name, c, _ in rows if c < 0.9]
+    return [f"Over every segment's pings together, the {FILTER} filter's horizontal error "
+            f"lies within its reported 3 sigma {100 * pooled:.1f} % of the time; per "
+            "segment, " + (f"under 90 % on {len(under)} of {len(rows)}: "
+                           + ", ".join(under) if under else "at least 90 % on every one")
+            + "."]
 
 
 def _corrections_table(corrections: dict) -> list[str]:
