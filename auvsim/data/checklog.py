@@ -596,8 +596,8 @@ def serial_least_squares(a: np.ndarray, b: np.ndarray
     1987: the Bartlett-weighted sum of the score's autocovariances between the OLS
     sandwich's bread) with Andrews's bandwidth for it (Econometrica 59, 1991, eq. 6.2 and
     the AR(1) plug-in of sec. 6: ``1.1447 (alpha T)^(1/3)``, one AR(1) per score
-    component, equally weighted). A DVL's slow error against a reference holds for tens of
-    pings, where the OLS standard error, which takes every ping as new information, is
+    component, equally weighted). A DVL's slow error against a reference holds for ten
+    pings or more, where the OLS standard error, which takes every ping as new information, is
     several times too small. Returns the solution, its standard errors, the residual RMS
     and the bandwidth (epochs)."""
     t, k, n = a.shape

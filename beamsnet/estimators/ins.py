@@ -104,13 +104,13 @@ applied to the file, and is what the scale states are for. The mounting and the 
 arm it wrote are known to its standard errors (``applied_dvl_errors``), and the
 misalignment and lever-arm states start there instead of at an uncalibrated DVL's 0.5 deg
 and 0.1 m: a prior wider than the calibration lets the DVL's slow errors in the turns move
-the heading through the misalignment (on the six shared segments the filter's yaw
-misalignment wandered to 0.33 deg from a calibration known to 0.07). The filter integrates on
-whatever clock the file's stamps are: it cannot tell stretched stamps from physical
-seconds, and a stretch of e makes every integration (angles, velocity, distance) e too
-large. check-log therefore puts a file on the clock whose stamps keep their stated rate:
-the A-KIT file on the IMU's (on the reference's it would have e = 0.25 % by the
-publication's stated rates).
+the heading through the misalignment (on the shared segment 4 the filter's yaw
+misalignment wandered to -0.33 deg, where check-log knew the mounting to 0.07). The filter
+integrates on whatever clock the file's stamps are: it cannot tell stretched stamps from
+physical seconds, and a stretch of e makes every integration (angles, velocity,
+distance) e too large. check-log therefore puts a file on the clock whose stamps keep
+their stated rate: the A-KIT file on the IMU's (on the reference's it would have e =
+0.25 % by the publication's stated rates).
 
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
 factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
