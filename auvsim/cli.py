@@ -104,16 +104,7 @@ def _parser() -> argparse.ArgumentParser:
     imp.add_argument("files", type=Path, nargs="+", metavar="FILE",
                      help=".npy of shape (3, N), or .csv of N rows vx,vy,vz; m/s in the DVL's "
                      "frame")
-    imp.add_argument("--rate", type=float, default=1.0, metavar="HZ",
-                     help="ping rate of the files, Hz (default: 1)")
-    imp.add_argument("--preset", default="paper-sim", metavar="NAME",
-                     help="whose DVL (beam angle, scale factor, bias, noise) to apply "
-                     "(default: paper-sim)")
-    imp.add_argument("--noise-std", type=float, metavar="X",
-                     help="beam noise std, m/s (default: the preset's)")
-    imp.add_argument("--seed", type=int, default=0, metavar="N",
-                     help="seed of the first file's errors and noise; the others follow "
-                     "(default: 0)")
+    _velocity_options(imp)
     imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
                      help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
     imp.add_argument("--out", type=Path, required=True, metavar="FILE",
@@ -139,6 +130,27 @@ def _parser() -> argparse.ArgumentParser:
 # ---- auvsim import: recorded logs (auvsim.data.recorded) and velocity streams ----------
 
 
+# import-velocity's options, and import's for --format velocity (None there until then).
+_VELOCITY_DEFAULTS = {"rate": 1.0, "preset": "paper-sim", "noise_std": None, "seed": 0}
+
+
+def _velocity_options(parser: argparse.ArgumentParser, *, only: str = "") -> None:
+    """--rate, --preset, --noise-std and --seed of a velocity import. With ``only`` (a
+    help prefix: the command takes other formats too) they default to None, so that
+    ``_import`` can tell one given with another format."""
+    default = dict.fromkeys(_VELOCITY_DEFAULTS) if only else _VELOCITY_DEFAULTS
+    parser.add_argument("--rate", type=float, default=default["rate"], metavar="HZ",
+                        help=f"{only}ping rate of the files, Hz (default: 1)")
+    parser.add_argument("--preset", default=default["preset"], metavar="NAME",
+                        help=f"{only}whose DVL (beam angle, scale factor, bias, noise) to "
+                        "apply (default: paper-sim)")
+    parser.add_argument("--noise-std", type=float, default=default["noise_std"], metavar="X",
+                        help=f"{only}beam noise std, m/s (default: the preset's)")
+    parser.add_argument("--seed", type=int, default=default["seed"], metavar="N",
+                        help=f"{only}seed of the first file's errors and noise; the others "
+                        "follow (default: 0)")
+
+
 def _import_parser(sub) -> None:
     imp = sub.add_parser(
         "import", help="make a dataset from a vehicle's recorded logs",
@@ -155,14 +167,7 @@ def _import_parser(sub) -> None:
                      help="the logs' layout (required; no default)")
     imp.add_argument("--description", type=Path, metavar="LOG.toml",
                      help="the log description (csv only; default: none, required there)")
-    imp.add_argument("--rate", type=float, default=1.0, metavar="HZ",
-                     help="velocity only: ping rate of the files, Hz (default: 1)")
-    imp.add_argument("--preset", default="paper-sim", metavar="NAME",
-                     help="velocity only: whose DVL error model to apply (default: paper-sim)")
-    imp.add_argument("--noise-std", type=float, metavar="X",
-                     help="velocity only: beam noise std, m/s (default: the preset's)")
-    imp.add_argument("--seed", type=int, default=0, metavar="N",
-                     help="velocity only: seed of the first file's errors (default: 0)")
+    _velocity_options(imp, only="velocity only: ")
     imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
                      help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
     imp.add_argument("--out", type=Path, required=True, metavar="FILE",
@@ -173,9 +178,15 @@ def _import(args: argparse.Namespace) -> None:
     if args.format == "velocity":
         if args.description is not None:
             raise ConfigError("--description: only for --format csv")
+        for key, default in _VELOCITY_DEFAULTS.items():
+            if getattr(args, key) is None:
+                setattr(args, key, default)
         args.files = args.sources
         _import_velocity(args)
         return
+    given = [key for key in _VELOCITY_DEFAULTS if getattr(args, key) is not None]
+    if given:
+        raise ConfigError(f"--{given[0].replace('_', '-')}: only for --format velocity")
     from auvsim.data.recorded import import_logs
 
     summary = import_logs(args.sources, args.out, format=args.format,
@@ -185,7 +196,6 @@ def _import(args: argparse.Namespace) -> None:
                                 for g, (rows, rate) in groups.items()) + ")"
         for name, groups in summary.items())
     print(f"wrote {args.out}: {missions}")
-
 
 
 # ---- auvsim check-log: what a recorded log does not document (auvsim.data.checklog) ----

@@ -11,6 +11,7 @@ from auvsim.physics.frames import (
     ned_from_mujoco,
     quat_to_rot,
     quaternion_from_euler,
+    quaternion_product,
     rotation_matrices,
     rotation_rpy,
 )
@@ -53,3 +54,16 @@ def test_mujoco_conversion_inverts():
     np.testing.assert_allclose(state["velocity_body"], v_body, atol=1e-15)
     np.testing.assert_allclose(state["velocity_ned"], quat_to_rot(q) @ v_body, atol=1e-15)
     np.testing.assert_array_equal(state["angular_rate"], [0.01, 0.02, -0.03])
+
+
+def test_quaternions_of_arrays_are_those_of_each_row():
+    rpy = np.random.default_rng(6).uniform(-4, 4, (200, 3))
+    rows = quaternion_from_euler(*rpy.T)
+    assert rows.shape == (200, 4) and quaternion_from_euler(*rpy[0]).shape == (4,)
+    np.testing.assert_array_equal(rows, [quaternion_from_euler(*r) for r in rpy])
+    # The Hamilton product composes the rotations, broadcast over rows.
+    a, b = _random_quaternions(50), _random_quaternions(50, seed=7)
+    np.testing.assert_allclose(rotation_matrices(quaternion_product(a, b)),
+                               rotation_matrices(a) @ rotation_matrices(b), atol=1e-12)
+    np.testing.assert_allclose(rotation_matrices(quaternion_product(a[0], b)),
+                               rotation_matrices(a[:1]) @ rotation_matrices(b), atol=1e-12)

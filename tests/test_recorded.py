@@ -89,6 +89,12 @@ def run(args: list[str]) -> tuple[int, str]:
     return code, err.getvalue()
 
 
+def run_csv(folder: Path, out: Path, description: str = "log.toml") -> tuple[int, str]:
+    """``run`` of ``auvsim import`` of a CSV log with its description (in the folder)."""
+    return run(["import", str(folder), "--format", "csv", "--description",
+                str(folder / description), "--out", str(out)])
+
+
 @pytest.fixture(scope="module")
 def akit(tmp_path_factory):
     folder = tmp_path_factory.mktemp("akit")
@@ -126,8 +132,11 @@ def test_akit_round_trip(akit):
         assert (m.attrs["latitude_deg"], m.attrs["longitude_deg"], m.attrs["height_m"]) == \
             pytest.approx((LAT0, LON0, H0))
         assert m.attrs["gravity"] == normal_gravity(LAT0, H0)
-        assert "not" not in m.attrs["reference_source"] and m.attrs["reference_source"]
-        assert m.attrs["log_description"] == AKIT_DESCRIPTION.replace("{k}", "3")
+        # What the reference is, as the layout states it: a navigation solution.
+        text = AKIT_DESCRIPTION.replace("{k}", "3")
+        assert m.attrs["reference_source"] == parse_description(text).reference_source
+        assert "navigation solution" in m.attrs["reference_source"]
+        assert m.attrs["log_description"] == text
         assert len(json.loads(m.attrs["source_sha256"])) == 3
         assert m.phases == []
         with pytest.raises(DatasetError, match=r"recorded missions have a reference, not a "
@@ -238,9 +247,7 @@ def _csv_log(folder: Path, *, yaw_enu_deg: float = 90.0) -> dict[str, np.ndarray
 def test_a_described_csv_log_in_auvsim_conventions(tmp_path):
     w = _csv_log(tmp_path / "dive")
     out = tmp_path / "dive.h5"
-    code, err = run(["import", str(tmp_path / "dive"), "--format", "csv", "--description",
-                     str(tmp_path / "dive" / "log.toml"), "--out", str(out)])
-    assert (code, err) == (0, "")
+    assert run_csv(tmp_path / "dive", out) == (0, "")
     with open_dataset(out, verify=True) as f:
         m = f.missions["dive"]
         assert m.groups == ["depth", "dvl", "imu", "reference"]
@@ -293,8 +300,7 @@ def test_a_reference_without_attitude_is_refused_where_one_is_needed(tmp_path):
         ",".join(line.split(",")[:7]) for line in (folder / "imu.csv").read_text().splitlines()))
     (folder / "log.toml").write_text(text)
     out = tmp_path / "noatt.h5"
-    assert run(["import", str(folder), "--format", "csv", "--description",
-                str(folder / "log.toml"), "--out", str(out)]) == (0, "")
+    assert run_csv(folder, out) == (0, "")
     with open_dataset(out) as f:
         m = f.missions["dive"]
         assert "quaternion" not in m.reference and "rpy_deg" not in m.reference
@@ -351,9 +357,14 @@ BAD_LOGS = {
                     "dvl.beam_angel_deg: unknown key"),
     "no_spec": (_edit("log.toml", lambda t: t.replace("noise_std = 0.003\n", "")),
                 "dvl.noise_std: missing; expected the instrument's figure"),
+    "one_row": (_edit("depth.csv", _lines(lambda ls: ls[:2])),
+                "depth.csv': 1 row(s) under the header; expected a stream of samples"),
+    "no_rows": (_edit("depth.csv", _lines(lambda ls: ls[:1])),
+                "depth.csv': 0 row(s) under the header; expected a stream of samples"),
 }
 
 
+@pytest.mark.filterwarnings("error")  # a warning would be a second line on stderr
 @pytest.mark.parametrize("case", sorted(BAD_LOGS))
 def test_bad_logs_are_refused_in_one_line(case, tmp_path):
     damage, message = BAD_LOGS[case]
@@ -361,12 +372,41 @@ def test_bad_logs_are_refused_in_one_line(case, tmp_path):
     _csv_log(folder)
     damage(folder)
     out = tmp_path / "out" / "x.h5"
-    code, err = run(["import", str(folder), "--format", "csv", "--description",
-                     str(folder / "log.toml"), "--out", str(out)])
+    code, err = run_csv(folder, out)
     assert code == 2
     assert err.count("\n") == 1 and err.startswith("auvsim: error: "), err
     assert message in err, err
     assert not out.exists() and not (tmp_path / "out").exists()
+
+
+def test_a_description_is_checked_before_any_file_is_read(tmp_path):
+    """A description without the IMU's specifications is refused naming the description
+    file, before the CSVs (absent here) are looked for."""
+    folder = tmp_path / "dive"
+    folder.mkdir()
+    (folder / "log.toml").write_text(
+        DESCRIPTION[:DESCRIPTION.index("[imu.noise]")] + DESCRIPTION[DESCRIPTION.index("[dvl]"):])
+    code, err = run_csv(folder, tmp_path / "x.h5")
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{folder / 'log.toml'}: imu.noise: missing" in err, err
+
+
+@pytest.mark.parametrize("layout", ["akit", "csv"])
+@pytest.mark.parametrize("option", [["--rate", "7"], ["--preset", "paper-sim"],
+                                    ["--noise-std", "0.01"], ["--seed", "3"]])
+def test_velocity_options_are_refused_with_another_format(layout, option, tmp_path):
+    folder = tmp_path / "logs"
+    if layout == "akit":
+        _akit(folder)
+    else:
+        _csv_log(folder)
+    out = tmp_path / "x.h5"
+    extra = ["--description", str(folder / "log.toml")] if layout == "csv" else []
+    code, err = run(["import", str(folder), "--format", layout, *extra, *option,
+                     "--out", str(out)])
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{option[0]}: only for --format velocity" in err, err
+    assert not out.exists()
 
 
 def test_a_lat_lon_in_radians_declared_degrees_disagrees_with_the_velocity(tmp_path):
@@ -382,8 +422,7 @@ def test_a_lat_lon_in_radians_declared_degrees_disagrees_with_the_velocity(tmp_p
         r[5] = repr(speed)
         r[1] = repr(math.radians(LAT0 + np.degrees(speed * k / radii(LAT0)[0])))
     nav.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
-    code, err = run(["import", str(folder), "--format", "csv", "--description",
-                     str(folder / "log.toml"), "--out", str(tmp_path / "x.h5")])
+    code, err = run_csv(folder, tmp_path / "x.h5")
     assert code == 2 and "the positions travel" in err and err.count("\n") == 1
     assert not (tmp_path / "x.h5").exists()
 
@@ -450,8 +489,7 @@ def test_every_group_is_optional(tmp_path, capsys):
     text = ('[log]\nname = "dvl_only"\norigin = [32.85, 34.89, -20.0]\n\n' + dvl)
     (folder / "only.toml").write_text(text)
     out = tmp_path / "only.h5"
-    assert run(["import", str(folder), "--format", "csv", "--description",
-                str(folder / "only.toml"), "--out", str(out)]) == (0, "")
+    assert run_csv(folder, out, "only.toml") == (0, "")
     with open_dataset(out) as f:
         m = f.missions["dvl_only"]
         assert m.groups == ["dvl"] and json.loads(m.attrs["groups"]) == ["dvl"]

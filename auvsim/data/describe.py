@@ -93,9 +93,8 @@ def _recorded(name: str, m: Mission) -> list[str]:
              f"there {a['gravity']:.5f} m/s^2"]
     for group in json.loads(a["groups"]):
         t = getattr(m, group).time
-        rate = a.get(f"{group}_rate_hz", float("nan"))
-        head = (f"    {group}: {len(t)} samples at {rate:.4g} Hz, {t[0]:g} to {t[-1]:g} s, "
-                f"time offset {a.get(f'{group}_time_offset_s', 0.0):g} s")
+        head = (f"    {group}: {len(t)} samples at {a[f'{group}_rate_hz']:.4g} Hz, {t[0]:g} to "
+                f"{t[-1]:g} s, time offset {a[f'{group}_time_offset_s']:g} s")
         if group == "imu":
             head += (f", at {_vec(a['imu_position_body'])} m (body); spec: accelerometer "
                      f"noise {a['imu_accel_noise_density']:.3g} m/s^2/sqrt(Hz), gyro noise "

@@ -33,11 +33,11 @@ from the mission origin (``auvsim.physics.earth.ned_from_geodetic``), and ``grav
 WGS-84 normal gravity there.
 
 A log the description does not fit is refused in one line, before anything is written
-(``ConfigError``): missing or extra columns, a row with another number of cells, time that
-runs backwards or repeats, a cell that is NaN or not a number, units that cannot be right
-(gyros beyond a turn per second where rad/s is declared, accelerometers that do not see
-gravity, angles beyond their range in rad, positions that disagree with the velocities),
-and streams that do not overlap in time.
+(``ConfigError``): missing or extra columns, a file of fewer than two rows, a row with
+another number of cells, time that runs backwards or repeats, a cell that is NaN or not a
+number, units that cannot be right (gyros beyond a turn per second where rad/s is declared,
+accelerometers that do not see gravity, angles beyond their range in rad, positions that
+disagree with the velocities), and streams that do not overlap in time.
 
 The built-in layout ``akit`` (``AKIT_DESCRIPTION``) is that of the Snapir AUV's logs
 published with A-KIT (N. Cohen and I. Klein, "Adaptive Kalman-Informed Transformer",
@@ -53,6 +53,7 @@ import math
 import os
 import re
 import sys
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,21 +64,20 @@ from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError
 from auvsim.physics.earth import ned_from_geodetic, normal_gravity
-from auvsim.physics.frames import euler_angles
+from auvsim.physics.frames import euler_angles, quaternion_from_euler, quaternion_product
+from auvsim.sensors.imu import G0
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-FORMATS = ("akit", "csv", "velocity")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-STANDARD_GRAVITY = 9.80665  # m/s^2, the unit "g" (CGPM 1901)
 _SPEED = {"m/s": 1.0, "mm/s": 1e-3}
 _ANGLE = {"rad": 1.0, "deg": math.pi / 180}
 # group -> field -> (number of columns, units and their factor to SI, required)
 FIELDS = {
-    "imu": {"specific_force": (3, {"m/s^2": 1.0, "g": STANDARD_GRAVITY}, True),
+    "imu": {"specific_force": (3, {"m/s^2": 1.0, "g": G0}, True),
             "angular_rate": (3, {"rad/s": 1.0, "deg/s": math.pi / 180}, True)},
     "dvl": {"velocity": (3, _SPEED, True), "beam_velocity": (4, _SPEED, False),
             "beam_range": (4, {"m": 1.0}, False), "error_velocity": (1, _SPEED, False),
@@ -191,7 +191,12 @@ class Stream:
         units: field -> factor to SI.
         axes: (3, 3) log axes -> body FRD (the axis map, then FLU -> FRD), or for the
             reference NED <- its frame.
-        settings: the stream's other keys (positions, specifications), as given.
+        body_flip: the reference's attitude is of an FLU body.
+        position_body: m, FRD, from the reference point (IMU and DVL).
+        mounting_rpy_deg: deg, ZYX, DVL frame -> body (DVL).
+        specs: the instrument's specifications by key (IMU: ``IMU_NOISE``; DVL:
+            ``beam_angle_deg``, ``noise_std``, ``velocity_accuracy``), SI units or deg.
+        invalid: the DVL's no-data value as logged, or None.
     """
 
     group: str
@@ -205,7 +210,10 @@ class Stream:
     ignore: tuple[str, ...] = ()
     delimiter: str = ","
     body_flip: bool = False
-    settings: dict = field(default_factory=dict)
+    position_body: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    specs: dict[str, float] = field(default_factory=dict)
+    invalid: float | None = None
 
 
 @dataclass(frozen=True)
@@ -248,9 +256,8 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
     if "reference" in streams and not isinstance(log.get("reference_source"), str):
         raise ConfigError(f"{where}: log.reference_source: expected a text saying what the "
                           "reference is (a navigation solution, say which)")
-    for key in ("name",):
-        if key in log and not isinstance(log[key], str):
-            raise ConfigError(f"{where}: log.{key}: expected a text, got {log[key]!r}")
+    if "name" in log and not isinstance(log["name"], str):
+        raise ConfigError(f"{where}: log.name: expected a text, got {log['name']!r}")
     return LogDescription(text, log.get("name"), log.get("reference_source"), origin, streams)
 
 
@@ -272,10 +279,10 @@ def _stream(where: str, group: str, table: object) -> Stream:
             raise ConfigError(f"{name}.{key}: expected a text (the "
                               f"{'CSV file' if key == 'file' else 'time column'}), got "
                               f"{table.get(key)!r}")
-    unit = table.get("time_unit", "s")
-    if unit not in TIME_UNITS:
+    time_unit = table.get("time_unit", "s")
+    if time_unit not in TIME_UNITS:
         raise ConfigError(f"{name}.time_unit: expected one of {', '.join(TIME_UNITS)}, got "
-                          f"{unit!r}")
+                          f"{time_unit!r}")
     offset = _number(where, f"{group}.time_offset_s", table.get("time_offset_s", 0.0))
     if "rate_hz" in table and not (_number(where, f"{group}.rate_hz", table["rate_hz"]) > 0):
         raise ConfigError(f"{name}.rate_hz: expected the instrument's stated rate, Hz > 0, "
@@ -335,9 +342,33 @@ def _stream(where: str, group: str, table: object) -> Stream:
             raise ConfigError(f"{name}.frame: expected FRD or FLU, got {frame!r}")
         if frame == "FLU":
             axes = np.diag([1.0, -1.0, -1.0]) @ axes
-    settings = {k: v for k, v in table.items() if k in _GROUP_KEYS[group]}
-    return Stream(group, table["file"], table["time"], TIME_UNITS[table.get("time_unit", "s")],
-                  offset, columns, units, axes, tuple(ignore), delimiter, flip, settings)
+    return Stream(group, table["file"], table["time"], TIME_UNITS[time_unit], offset, columns,
+                  units, axes, tuple(ignore), delimiter, flip, **_instrument(where, group, table))
+
+
+def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
+    """The ``Stream`` fields of where an instrument sits and its specifications, checked
+    (none for ``depth`` and ``reference``)."""
+    if group not in ("imu", "dvl"):
+        return {}
+    out: dict[str, object] = {"position_body": tuple(_numbers(
+        where, f"{group}.position_body", table.get("position_body", [0.0, 0.0, 0.0]), 3))}
+    if group == "imu":
+        noise = table.get("noise")
+        if not isinstance(noise, dict):
+            raise ConfigError(f"{where}: imu.noise: missing; expected a table of "
+                              f"{', '.join(IMU_NOISE)} (the IMU's datasheet, SI units)")
+        _keys(where, "imu.noise", noise, set(IMU_NOISE))
+        out["specs"] = {k: _spec(where, f"imu.noise.{k}", noise.get(k),
+                                 strict=k == "bias_correlation_time") for k in IMU_NOISE}
+        return out
+    out["mounting_rpy_deg"] = tuple(_numbers(
+        where, "dvl.mounting_rpy_deg", table.get("mounting_rpy_deg", [0.0, 0.0, 0.0]), 3))
+    out["specs"] = {k: _spec(where, f"dvl.{k}", table.get(k), strict=k == "beam_angle_deg")
+                    for k in ("beam_angle_deg", "noise_std", "velocity_accuracy")}
+    if "invalid" in table:
+        out["invalid"] = _number(where, "dvl.invalid", table["invalid"])
+    return out
 
 
 def _axis_map(where: str, group: str, value: object) -> np.ndarray:
@@ -401,8 +432,9 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
 
     Raises:
         ConfigError: the file is missing or unreadable; a described column is missing or a
-            column is neither described nor ignored; a row has another number of cells; a
-            cell is not a number or is NaN; time runs backwards or repeats.
+            column is neither described nor ignored; fewer than two rows; a row has another
+            number of cells; a cell is not a number or is NaN; time runs backwards or
+            repeats.
     """
     if not path.is_file():
         raise ConfigError(f"{str(path)!r}: no such file (the log description's "
@@ -426,12 +458,15 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
                           f"{stream.group}.ignore")
     use = sorted({header.index(c) for c in named})
     try:
-        array = np.loadtxt(path, delimiter=stream.delimiter, skiprows=1, usecols=use,
-                           ndmin=2, encoding="utf-8-sig")
+        with warnings.catch_warnings():  # a header alone: refused below, in one line
+            warnings.filterwarnings("ignore", "loadtxt: input contained no data")
+            array = np.loadtxt(path, delimiter=stream.delimiter, skiprows=1, usecols=use,
+                               ndmin=2, encoding="utf-8-sig")
     except ValueError:
         raise ConfigError(_bad_row(path, stream.delimiter, len(header))) from None
-    if array.shape[0] == 0:
-        raise ConfigError(f"{str(path)!r}: no rows under the header; expected samples")
+    if array.shape[0] < 2:
+        raise ConfigError(f"{str(path)!r}: {array.shape[0]} row(s) under the header; expected "
+                          "a stream of samples (at least 2)")
     # loadtxt takes a row of more cells when usecols is given: count them.
     _check_width(path, stream.delimiter, len(header), array.shape[0])
     bad = ~np.isfinite(array)
@@ -443,11 +478,9 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     column = {i: array[:, k] for k, i in enumerate(use)}
     out = {key: np.stack([column[header.index(c)] for c in cols], axis=1)
            for key, cols in stream.columns.items()}
-    marker = stream.settings.get("invalid")
-    if marker is not None:  # the instrument's no-data value, as logged: NaN from here on
-        marker = _number("log description", f"{stream.group}.invalid", marker)
+    if stream.invalid is not None:  # the instrument's no-data value, as logged: NaN from here on
         for v in out.values():
-            v[v == marker] = np.nan
+            v[v == stream.invalid] = np.nan
     out = {key: (v[:, 0] if v.shape[1] == 1 else v) * stream.units[key]
            for key, v in out.items()}
     t = column[header.index(stream.time)] * stream.scale
@@ -496,10 +529,11 @@ def _bad_row(path: Path, delimiter: str, width: int) -> str:
 
 @dataclass
 class Recording:
-    """One log, read and checked: its mission name, fields by path, attributes and the
-    files it came from."""
+    """One log, read and checked: its mission name, its groups (``RECORDED_GROUPS``
+    order), fields by path, attributes and the files it came from (one per group)."""
 
     name: str
+    groups: list[str]
     fields: dict[str, np.ndarray]
     attrs: dict[str, object]
     files: list[Path]
@@ -534,7 +568,6 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
         s = streams[g]
         t = table["time"] + (s.offset - t0)
         fields[f"{g}/time"] = t
-        rate = 1.0 / float(np.median(np.diff(t))) if len(t) > 1 else None
         if g == "reference":
             fields.update(_reference(table, s))
             attrs.update(reference_source=description.reference_source,
@@ -542,34 +575,21 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
         elif g == "imu":
             fields["imu/specific_force"] = table["specific_force"] @ s.axes.T
             fields["imu/angular_rate"] = table["angular_rate"] @ s.axes.T
-            noise = s.settings.get("noise")
-            if not isinstance(noise, dict):
-                raise ConfigError(f"log description: imu.noise: missing; expected a table of "
-                                  f"{', '.join(IMU_NOISE)} (the IMU's datasheet, SI units)")
-            _keys("log description", "imu.noise", noise, set(IMU_NOISE))
-            attrs.update({f"imu_{k}": _spec("log description", f"imu.noise.{k}", noise.get(k),
-                                            strict=k == "bias_correlation_time")
-                          for k in IMU_NOISE})
-            attrs.update(imu_position_body=_vector(s, "position_body"),
-                         imu_time_offset_s=s.offset)
+            attrs.update({f"imu_{k}": v for k, v in s.specs.items()},
+                         imu_position_body=np.array(s.position_body), imu_time_offset_s=s.offset)
         elif g == "dvl":
             fields.update(_dvl(table, s))
-            d = "log description"
-            attrs.update(beam_angle_deg=_spec(d, "dvl.beam_angle_deg",
-                                              s.settings.get("beam_angle_deg"), strict=True),
-                         dvl_position_body=_vector(s, "position_body"),
-                         dvl_mounting_rpy_deg=_vector(s, "mounting_rpy_deg"),
-                         dvl_noise_std=_spec(d, "dvl.noise_std", s.settings.get("noise_std")),
-                         dvl_velocity_accuracy=_spec(d, "dvl.velocity_accuracy",
-                                                     s.settings.get("velocity_accuracy")),
+            attrs.update(beam_angle_deg=s.specs["beam_angle_deg"],
+                         dvl_position_body=np.array(s.position_body),
+                         dvl_mounting_rpy_deg=np.array(s.mounting_rpy_deg),
+                         dvl_noise_std=s.specs["noise_std"],
+                         dvl_velocity_accuracy=s.specs["velocity_accuracy"],
                          dvl_time_offset_s=s.offset,
                          dvl_beams_derived=int("beam_velocity" not in table))
         else:
             fields["depth/depth"] = table["depth"]
             attrs["depth_time_offset_s"] = s.offset
-        if rate is None:
-            raise ConfigError(f"{where[g]}: one row; expected a stream of samples")
-        attrs[f"{g}_rate_hz"] = rate
+        attrs[f"{g}_rate_hz"] = 1.0 / float(np.median(np.diff(t)))
     if description.origin is not None:
         origin = description.origin
     elif "reference" in tables:
@@ -590,12 +610,7 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
                  height_m=origin[2], gravity=normal_gravity(origin[0], origin[2]),
                  log_time_origin_s=t0, duration_s=duration)
     files = [folder / streams[g].file for g in groups]
-    return Recording(name or description.name or folder.name, fields, attrs, files)
-
-
-def _vector(s: Stream, key: str) -> np.ndarray:
-    return np.array(_numbers("log description", f"{s.group}.{key}",
-                             s.settings.get(key, [0.0, 0.0, 0.0]), 3))
+    return Recording(name or description.name or folder.name, groups, fields, attrs, files)
 
 
 def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
@@ -616,34 +631,15 @@ def _reference(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]
            "reference/height_m": table["height"],
            "reference/velocity_ned": table["velocity"] @ s.axes.T}
     if "attitude" in table:
-        q = quaternions(table["attitude"])
-        if s.axes[0, 0] == 0:  # ENU: the frame's rotation first (ENU -> NED, 180 deg about
-            q = _multiply(np.array([0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0]), q)  # NE)
+        q = quaternion_from_euler(*table["attitude"].T)
+        if s.axes[0, 0] == 0:  # ENU: the frame's rotation first (ENU -> NED, 180 deg about NE)
+            q = quaternion_product(np.array([0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0]), q)
         if s.body_flip:  # FLU body: FRD -> FLU, 180 deg about x, then the attitude
-            q = _multiply(q, np.array([0.0, 1.0, 0.0, 0.0]))
+            q = quaternion_product(q, np.array([0.0, 1.0, 0.0, 0.0]))
         q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w >= 0: one of the two signs, always
         out["reference/quaternion"] = q
         out["reference/rpy_deg"] = np.degrees(euler_angles(q))
     return out
-
-
-def quaternions(rpy: np.ndarray) -> np.ndarray:
-    """(N, 4) unit quaternions [w, x, y, z] of (N, 3) ZYX roll, pitch, yaw (rad):
-    ``auvsim.physics.frames.quaternion_from_euler`` row by row."""
-    half = np.asarray(rpy, float) / 2
-    cr, cp, cy = np.cos(half).T
-    sr, sp, sy = np.sin(half).T
-    return np.stack([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy], axis=1)
-
-
-def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a b, broadcast over rows ([w, x, y, z])."""
-    aw, ax, ay, az = np.moveaxis(np.broadcast_to(a, np.broadcast_shapes(a.shape, b.shape)), -1, 0)
-    bw, bx, by, bz = np.moveaxis(np.broadcast_to(b, np.broadcast_shapes(a.shape, b.shape)), -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw],
-                    axis=-1)
 
 
 def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]) -> None:
@@ -657,7 +653,7 @@ def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]
                 "beyond a full turn per second; expected rad/s as declared (are the gyros in "
                 "deg/s? say imu.units.angular_rate = \"deg/s\")")
         force = float(np.median(np.linalg.norm(tables["imu"]["specific_force"], axis=1)))
-        if not STANDARD_GRAVITY / 2 < force < 2 * STANDARD_GRAVITY:
+        if not G0 / 2 < force < 2 * G0:
             raise ConfigError(
                 f"{where['imu']}: the specific force's median magnitude is {force:.4g} m/s^2 "
                 "in the declared unit; expected about gravity, 9.8 m/s^2 (is "
@@ -802,11 +798,10 @@ def import_logs(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
                 source_sha256=json.dumps([hashlib.sha256(p.read_bytes()).hexdigest()
                                           for p in recording.files]),
                 **recording.attrs)
-            groups = json.loads(attrs["groups"])
-            sink = writer.mission(recording.name, attrs,
-                                  rows={g: len(recording.fields[f"{g}/time"]) for g in groups})
+            rows = {g: len(recording.fields[f"{g}/time"]) for g in recording.groups}
+            sink = writer.mission(recording.name, attrs, rows=rows)
             sink.append(recording.fields)
             sink.flush()
-            summary[recording.name] = {g: (len(recording.fields[f"{g}/time"]),
-                                           attrs[f"{g}_rate_hz"]) for g in groups}
+            summary[recording.name] = {g: (rows[g], attrs[f"{g}_rate_hz"])
+                                       for g in recording.groups}
     return summary

@@ -293,10 +293,9 @@ def parse_phases(text: str) -> Phases:
 
 def schema(origin: str, version: int = FORMAT_VERSION) -> tuple[tuple[Field, ...],
                                                                  tuple[Attr, ...]]:
-    """The fields and attributes every mission of this origin holds in a file of this
-    format version (extra ones are allowed): the core's and the sensor plugins'. A
-    recorded mission's depend on its groups (``recorded_schema``): here, its common
-    attributes and no field."""
+    """The fields and attributes every mission of this origin (simulated or imported)
+    holds in a file of this format version (extra ones are allowed): the core's and the
+    sensor plugins'. A recorded mission's depend on its groups: ``recorded_schema``."""
     return _schema(origin, version, tuple(registry().values()))
 
 
@@ -308,8 +307,6 @@ def _schema(origin: str, version: int, plugins: tuple[type[Sensor], ...]
                    if f.since <= version)
     attrs = tuple(a for a in CORE_ATTRS + tuple(a for s in sensors for a in s.attributes)
                   if a.since <= version)
-    if origin == "recorded":
-        return (), RECORDED_ATTRS[""]
     if origin == "imported":
         return (tuple(f for f in fields if f.imported),
                 tuple(a for a in attrs if a.imported) + IMPORT_ATTRS)

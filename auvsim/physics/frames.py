@@ -72,13 +72,25 @@ def rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     ])
 
 
-def quaternion_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """(4,) unit quaternion [w, x, y, z] of ZYX Euler angles (rad)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+def quaternion_from_euler(roll, pitch, yaw) -> np.ndarray:
+    """Unit quaternions [w, x, y, z] of ZYX Euler angles (rad), shape (..., 4): (4,) of
+    three numbers, (N, 4) of three (N,) arrays (broadcast together)."""
+    half = [np.asarray(a, dtype=float) / 2 for a in (roll, pitch, yaw)]
+    cr, cp, cy = (np.cos(h) for h in half)
+    sr, sp, sy = (np.sin(h) for h in half)
+    return np.stack([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy], axis=-1)
+
+
+def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a b of quaternions [w, x, y, z], shape (..., 4), broadcast
+    together: b's rotation, then a's."""
+    shape = np.broadcast_shapes(np.shape(a), np.shape(b))
+    aw, ax, ay, az = np.moveaxis(np.broadcast_to(a, shape), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.broadcast_to(b, shape), -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw],
+                    axis=-1)
 
 
 def euler_angles(quaternion: np.ndarray) -> np.ndarray:
