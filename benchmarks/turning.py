@@ -44,7 +44,7 @@ import h5py
 import numpy as np
 import perf_page
 
-from auvsim.physics.frames import euler_angles, rotation_rpy
+from auvsim.physics.frames import euler_angles
 from auvsim.physics.vehicle import Vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -68,6 +68,22 @@ def read_segment(folder: Path) -> dict[str, np.ndarray]:
     return {"gt": load("GT"), "imu": load("IMU"), "dvl": load("DVL")}
 
 
+def body_velocity(gt: np.ndarray) -> np.ndarray:
+    """(N, 3) the reference's velocity in its body axes, C^T v, m/s: each row's NED
+    velocity (columns 4-6) turned by its roll, pitch and yaw (columns 7-9, rad; C body ->
+    NED, ZYX, as ``auvsim.physics.frames.rotation_rpy``)."""
+    v = gt[:, 4:7]
+    cr, sr = np.cos(gt[:, 7]), np.sin(gt[:, 7])
+    cp, sp = np.cos(gt[:, 8]), np.sin(gt[:, 8])
+    cy, sy = np.cos(gt[:, 9]), np.sin(gt[:, 9])
+    # The columns of C: the body's x, y and z axes in NED.
+    axes = np.stack([np.column_stack([cy * cp, sy * cp, -sp]),
+                     np.column_stack([cy * sp * sr - sy * cr, sy * sp * sr + cy * cr, cp * sr]),
+                     np.column_stack([cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr])],
+                    axis=1)
+    return np.einsum("nij,nj->ni", axes, v)
+
+
 def real_turns(seg: dict[str, np.ndarray], fin_lever: float, min_peak: float) -> list[dict]:
     """The turns of one segment whose |yaw rate| peaks above ``min_peak`` deg/s."""
     gt, imu = seg["gt"], seg["imu"]
@@ -81,7 +97,7 @@ def real_turns(seg: dict[str, np.ndarray], fin_lever: float, min_peak: float) ->
     speed = np.hypot(gt[:, 4], gt[:, 5])
     # The reference's velocity in body axes: its sway, less its mean before the turn (the
     # current's share, which turns with the heading only slowly), is the hull's sideslip.
-    sway = np.array([(rotation_rpy(*row[7:10]).T @ row[4:7])[1] for row in gt])
+    sway = body_velocity(gt)[:, 1]
     turns = []
     i = 0
     while i < len(r):
@@ -141,16 +157,16 @@ def real_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
     cos(psi) c_E + U sin(e), with e a yaw misalignment of the reference (least squares over
     the segment's headings; the turns between the legs make it well posed)."""
     gt, dvl = seg["gt"], seg["dvl"]
-    body = np.array([rotation_rpy(*row[7:10]).T @ row[4:7] for row in gt])
+    body = body_velocity(gt)
     psi, speed = gt[:, 9], np.hypot(gt[:, 4], gt[:, 5])
     a = np.column_stack([-np.sin(psi), np.cos(psi), speed])
     ok = straight(seg)
-    (c_n, c_e, _), *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    fit, *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    c_n, c_e, _ = fit
     through_water = body[:, 1] - a[:, :2] @ [c_n, c_e]
     return {"sway_dvl": dvl[:, 2].std(), "sway_ref": body[:, 1].std(),
             "sway_water": through_water.std(), "current": math.hypot(c_n, c_e),
-            "sway_straight": (body[ok, 1] - a[ok] @ np.linalg.lstsq(a[ok], body[ok, 1],
-                                                                    rcond=None)[0]).std(),
+            "sway_straight": (body[ok, 1] - a[ok] @ fit).std(),
             "roll": math.degrees(gt[:, 7].mean())}
 
 
