@@ -16,7 +16,10 @@ items 7 and 8).
 * **The model's full-rudder step**: the A18-D at the shaft speed of 2 m/s, depth held,
   rudder stepped to its limit for 60 s: peak and steady yaw rate (mean of the last 10 s),
   the speed loss and the flow angle at the peak.
-* **Hard turns of each ``--sim`` dataset**, with the same detector on its truth at 1 Hz.
+* **Hard turns of each ``--sim`` dataset**, with the same detector on its truth at 1 Hz;
+  with ``--rpm-alone``, also of the ``realistic-maneuvers`` preset generated here with the
+  heading PID throughout (``vehicle.heading_control = "pid"``: rpm held, no full-rudder
+  turns; 20 missions of 600 s, about half a minute), labelled ``rpm alone``.
 * **Sway, current and roll per mission**: the std of the body-frame sway (real: the DVL's
   Y; the reference's NED velocity in body axes, C^T v, over the ground; and through the
   water, less the current fitted on the straight stretches; simulated: the DVL's Y of the
@@ -30,14 +33,16 @@ items 7 and 8).
 * **The roll period**: the real roll-rate spectra's peak against the model's damped period.
 
     .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
-        [--sim LABEL=FILE.h5 ...] [--min-peak 8] [--infer]
+        [--sim LABEL=FILE.h5 ...] [--rpm-alone] [--min-peak 8] [--infer]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
+import tempfile
 from pathlib import Path
 
 import h5py
@@ -46,6 +51,8 @@ import perf_page
 
 from auvsim.physics.frames import euler_angles
 from auvsim.physics.vehicle import Vehicle
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import preset
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "snapir-akit"
@@ -277,6 +284,18 @@ def model_step(name: str = "auv", speed: float = 2.0, rudder_max: float | None =
             "fin_flow": flow(0.0), "fin_flow_slip": flow(traj.velocity_body[peak, 1])}
 
 
+def rpm_alone_missions() -> dict[str, dict[str, np.ndarray]]:
+    """``sim_missions`` of the ``realistic-maneuvers`` preset with the heading PID
+    throughout (rpm still held): what its full-rudder line turns add."""
+    config = preset("realistic-maneuvers")
+    config = dataclasses.replace(config, vehicle=dataclasses.replace(config.vehicle,
+                                                                     heading_control="pid"))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "rpm-alone.h5"
+        generate(config, path, workers=1, progress=False)
+        return sim_missions(path)
+
+
 def implied_limit(flow_deg: float, key: str = "fin_flow_slip") -> float:
     """The rudder limit (deg) at which the model's full-rudder step from 2 m/s has the fin
     flow angle ``flow_deg`` at its yaw-rate peak (``key``: with the sway, or from r |x_fin| / U
@@ -306,6 +325,9 @@ def main() -> None:
                         help="folder of TrajectoryK/ segments")
     parser.add_argument("--sim", action="append", default=[], metavar="LABEL=FILE.h5",
                         help="a simulated dataset to measure beside the real segments")
+    parser.add_argument("--rpm-alone", action="store_true",
+                        help="also generate and measure realistic-maneuvers with the heading "
+                        "PID in place of its full-rudder turns (about half a minute)")
     parser.add_argument("--min-peak", type=float, default=8.0,
                         help="deg/s: the smallest yaw-rate peak counted as a turn")
     parser.add_argument("--infer", action="store_true",
@@ -349,6 +371,8 @@ def main() -> None:
           "with the sway")
 
     missions = {label: sim_missions(path) for label, path in sims}
+    if args.rpm_alone:
+        missions["rpm alone"] = rpm_alone_missions()
     print("\nHard turns, real and simulated (the same detector on the truth at 1 Hz):")
     print(f"{'real':24s} {turn_summary(turns)}")
     for label, per in missions.items():
