@@ -41,6 +41,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from turning import body_velocity
 
 from auvsim.config import Config
 from auvsim.data.reader import open_dataset
@@ -103,11 +104,7 @@ def along_track_difference(folder: Path, k: int) -> np.ndarray:
     """(n,) DVL x minus the reference's body-frame x velocity, m/s, of segment k."""
     dvl = read_csv(folder / f"Trajectory{k}" / f"DVL_trajectory{k}.csv")
     ref = read_csv(folder / f"Trajectory{k}" / f"GT_trajectory{k}.csv")
-    pitch, yaw = ref[:, 8], ref[:, 9]  # the x axis does not depend on the roll
-    # x row of R^T (R body -> NED, ZYX): the body's x axis in NED.
-    x_axis = np.column_stack([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw),
-                              -np.sin(pitch)])
-    return dvl[:, 1] - np.einsum("ni,ni->n", x_axis, ref[:, 4:7])
+    return dvl[:, 1] - body_velocity(ref)[:, 0]
 
 
 def autocorrelation(x: np.ndarray, lag: int) -> float:

@@ -16,7 +16,10 @@ items 7 and 8).
 * **The model's full-rudder step**: the A18-D at the shaft speed of 2 m/s, depth held,
   rudder stepped to its limit for 60 s: peak and steady yaw rate (mean of the last 10 s),
   the speed loss and the flow angle at the peak.
-* **Hard turns of each ``--sim`` dataset**, with the same detector on its truth at 1 Hz.
+* **Hard turns of each ``--sim`` dataset**, with the same detector on its truth at 1 Hz;
+  with ``--rpm-alone``, also of the ``realistic-maneuvers`` preset generated here with the
+  heading PID throughout (``vehicle.heading_control = "pid"``: rpm held, no full-rudder
+  turns; 20 missions of 600 s, about half a minute), labelled ``rpm alone``.
 * **Sway, current and roll per mission**: the std of the body-frame sway (real: the DVL's
   Y; the reference's NED velocity in body axes, C^T v, over the ground; and through the
   water, less the current fitted on the straight stretches; simulated: the DVL's Y of the
@@ -30,22 +33,26 @@ items 7 and 8).
 * **The roll period**: the real roll-rate spectra's peak against the model's damped period.
 
     .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
-        [--sim LABEL=FILE.h5 ...] [--min-peak 8] [--infer]
+        [--sim LABEL=FILE.h5 ...] [--rpm-alone] [--min-peak 8] [--infer]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
+import tempfile
 from pathlib import Path
 
 import h5py
 import numpy as np
 import perf_page
 
-from auvsim.physics.frames import euler_angles, rotation_rpy
+from auvsim.physics.frames import euler_angles
 from auvsim.physics.vehicle import Vehicle
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import preset
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "snapir-akit"
@@ -68,6 +75,22 @@ def read_segment(folder: Path) -> dict[str, np.ndarray]:
     return {"gt": load("GT"), "imu": load("IMU"), "dvl": load("DVL")}
 
 
+def body_velocity(gt: np.ndarray) -> np.ndarray:
+    """(N, 3) the reference's velocity in its body axes, C^T v, m/s: each row's NED
+    velocity (columns 4-6) turned by its roll, pitch and yaw (columns 7-9, rad; C body ->
+    NED, ZYX, as ``auvsim.physics.frames.rotation_rpy``)."""
+    v = gt[:, 4:7]
+    cr, sr = np.cos(gt[:, 7]), np.sin(gt[:, 7])
+    cp, sp = np.cos(gt[:, 8]), np.sin(gt[:, 8])
+    cy, sy = np.cos(gt[:, 9]), np.sin(gt[:, 9])
+    # The columns of C: the body's x, y and z axes in NED.
+    axes = np.stack([np.column_stack([cy * cp, sy * cp, -sp]),
+                     np.column_stack([cy * sp * sr - sy * cr, sy * sp * sr + cy * cr, cp * sr]),
+                     np.column_stack([cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr])],
+                    axis=1)
+    return np.einsum("nij,nj->ni", axes, v)
+
+
 def real_turns(seg: dict[str, np.ndarray], fin_lever: float, min_peak: float) -> list[dict]:
     """The turns of one segment whose |yaw rate| peaks above ``min_peak`` deg/s."""
     gt, imu = seg["gt"], seg["imu"]
@@ -81,7 +104,7 @@ def real_turns(seg: dict[str, np.ndarray], fin_lever: float, min_peak: float) ->
     speed = np.hypot(gt[:, 4], gt[:, 5])
     # The reference's velocity in body axes: its sway, less its mean before the turn (the
     # current's share, which turns with the heading only slowly), is the hull's sideslip.
-    sway = np.array([(rotation_rpy(*row[7:10]).T @ row[4:7])[1] for row in gt])
+    sway = body_velocity(gt)[:, 1]
     turns = []
     i = 0
     while i < len(r):
@@ -141,16 +164,16 @@ def real_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
     cos(psi) c_E + U sin(e), with e a yaw misalignment of the reference (least squares over
     the segment's headings; the turns between the legs make it well posed)."""
     gt, dvl = seg["gt"], seg["dvl"]
-    body = np.array([rotation_rpy(*row[7:10]).T @ row[4:7] for row in gt])
+    body = body_velocity(gt)
     psi, speed = gt[:, 9], np.hypot(gt[:, 4], gt[:, 5])
     a = np.column_stack([-np.sin(psi), np.cos(psi), speed])
     ok = straight(seg)
-    (c_n, c_e, _), *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    fit, *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    c_n, c_e, _ = fit
     through_water = body[:, 1] - a[:, :2] @ [c_n, c_e]
     return {"sway_dvl": dvl[:, 2].std(), "sway_ref": body[:, 1].std(),
             "sway_water": through_water.std(), "current": math.hypot(c_n, c_e),
-            "sway_straight": (body[ok, 1] - a[ok] @ np.linalg.lstsq(a[ok], body[ok, 1],
-                                                                    rcond=None)[0]).std(),
+            "sway_straight": (body[ok, 1] - a[ok] @ fit).std(),
             "roll": math.degrees(gt[:, 7].mean())}
 
 
@@ -261,6 +284,18 @@ def model_step(name: str = "auv", speed: float = 2.0, rudder_max: float | None =
             "fin_flow": flow(0.0), "fin_flow_slip": flow(traj.velocity_body[peak, 1])}
 
 
+def rpm_alone_missions() -> dict[str, dict[str, np.ndarray]]:
+    """``sim_missions`` of the ``realistic-maneuvers`` preset with the heading PID
+    throughout (rpm still held): what its full-rudder line turns add."""
+    config = preset("realistic-maneuvers")
+    config = dataclasses.replace(config, vehicle=dataclasses.replace(config.vehicle,
+                                                                     heading_control="pid"))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "rpm-alone.h5"
+        generate(config, path, workers=1, progress=False)
+        return sim_missions(path)
+
+
 def implied_limit(flow_deg: float, key: str = "fin_flow_slip") -> float:
     """The rudder limit (deg) at which the model's full-rudder step from 2 m/s has the fin
     flow angle ``flow_deg`` at its yaw-rate peak (``key``: with the sway, or from r |x_fin| / U
@@ -290,6 +325,9 @@ def main() -> None:
                         help="folder of TrajectoryK/ segments")
     parser.add_argument("--sim", action="append", default=[], metavar="LABEL=FILE.h5",
                         help="a simulated dataset to measure beside the real segments")
+    parser.add_argument("--rpm-alone", action="store_true",
+                        help="also generate and measure realistic-maneuvers with the heading "
+                        "PID in place of its full-rudder turns (about half a minute)")
     parser.add_argument("--min-peak", type=float, default=8.0,
                         help="deg/s: the smallest yaw-rate peak counted as a turn")
     parser.add_argument("--infer", action="store_true",
@@ -333,6 +371,8 @@ def main() -> None:
           "with the sway")
 
     missions = {label: sim_missions(path) for label, path in sims}
+    if args.rpm_alone:
+        missions["rpm alone"] = rpm_alone_missions()
     print("\nHard turns, real and simulated (the same detector on the truth at 1 Hz):")
     print(f"{'real':24s} {turn_summary(turns)}")
     for label, per in missions.items():

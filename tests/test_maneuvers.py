@@ -103,6 +103,22 @@ def test_lawnmower_flies_legs_both_ways(vehicle):
     assert abs(yaw[np.searchsorted(t, legs[0].end - 1.0)]) < 1.0
 
 
+def test_lawnmower_refuses_legs_shorter_than_a_metre_zero_included():
+    """0 holds one heading for the manoeuvres flown on survey lines as an option; a
+    lawnmower has legs, so it refuses 0 (and a spacing of 0) as it does any leg below 1 m,
+    and flies a leg of exactly 1 m."""
+    for options, name in (({"leg_m": 0.0}, "leg_m"), ({"leg_m": 0.5}, "leg_m"),
+                          ({"leg_m": 0.0, "spacing_m": 0.0}, "leg_m"),
+                          ({"spacing_m": 0.0}, "spacing_m")):
+        with pytest.raises(ConfigError, match=f"scenario.options.{name}: expected at least 1 m"
+                           ) as caught:
+            make_maneuver(ScenarioConfig(name="lawnmower", duration=60.0, options=options))
+        assert "\n" not in str(caught.value)
+    m = make_maneuver(ScenarioConfig(name="lawnmower", duration=60.0,
+                                     options={"leg_m": 1.0, "spacing_m": 1.0}))
+    assert [p.label for p in m.phases()][:2] == ["survey leg", "cross leg"]
+
+
 def test_spiral_dive_turns_and_descends(vehicle):
     t, traj, yaw, _ = fly(vehicle, "spiral_dive", dive_m=20.0, descent_rate=0.1)
     assert np.all(np.diff(yaw[t > 30.0]) > 0)

@@ -11,7 +11,7 @@ import pytest
 
 from auvsim.config import ScenarioConfig
 from auvsim.data.reader import open_dataset
-from auvsim.physics.control import cruise_rpm
+from auvsim.physics.control import feedforward_rpm
 from auvsim.physics.frames import euler_angles
 from auvsim.physics.maneuvers import make_maneuver
 from auvsim.physics.vehicle import Vehicle
@@ -59,7 +59,7 @@ def test_the_paper_presets_keep_their_speed_loop_and_headings():
                    for m in config.missions)
 
 
-def test_cruise_rpm_holds_the_set_speed_in_straight_flight():
+def test_the_rpm_of_the_whole_drag_holds_the_set_speed_in_straight_flight():
     """The rpm of a speed table: thrust balances the whole surge drag, so a vehicle held
     at it flies the set speed, low speeds (where the linear damping counts) included."""
     for speed in (0.5, 0.8, 2.0):
@@ -68,7 +68,8 @@ def test_cruise_rpm_holds_the_set_speed_in_straight_flight():
         n = round(60.0 / vehicle.dt)
         traj = vehicle.run(np.tile([speed, 0.0, 20.0], (n, 1)), (True, True, True))
         assert traj.velocity_body[-1, 0] == pytest.approx(speed, rel=2e-3)
-        assert vehicle.actuators[0] == pytest.approx(cruise_rpm(vehicle.hydro, speed), rel=1e-3)
+        assert vehicle.actuators[0] == pytest.approx(
+            feedforward_rpm(vehicle.hydro, speed, linear_damping=True), rel=1e-3)
 
 
 def test_held_rpm_slows_in_a_turn_and_the_speed_loop_does_not():
@@ -84,7 +85,8 @@ def test_held_rpm_slows_in_a_turn_and_the_speed_loop_does_not():
         out[hold] = (np.linalg.norm(traj.velocity_body[-1]), traj.actuators[-1, 0])
     assert out[False][0] == pytest.approx(2.0, abs=0.05)
     assert out[True][0] < 0.85 * 2.0  # at least 15 % lost
-    assert out[True][1] == pytest.approx(cruise_rpm(Vehicle("auv").hydro, 2.0), rel=1e-3)
+    assert out[True][1] == pytest.approx(
+        feedforward_rpm(Vehicle("auv").hydro, 2.0, linear_damping=True), rel=1e-3)
     assert out[False][1] > 1.1 * out[True][1]
 
 

@@ -11,6 +11,7 @@ the equation of motion in auvsim/hydro.py's docstring, written in Fossen's matri
 
 from __future__ import annotations
 
+import importlib
 import math
 from pathlib import Path
 
@@ -948,49 +949,45 @@ def test_stern_plane_response_settles_where_the_righting_moment_can_hold_it(name
     assert pitch.min() < -45  # and still going (the figures are in the model card)
 
 
-def a18d_rudder_step(rudder_max=None):
-    """The A18-D from 2 m/s at its 2 m/s shaft speed, rudder stepped to ``rudder_max`` (rad;
-    the model's limit by default), depth held, 60 s."""
-    vehicle = Vehicle("auv")
-    if rudder_max is not None:
-        vehicle.hydro = vehicle.hydro._replace(rudder_max=rudder_max)
-    vehicle.reset(position_ned=(0.0, 0.0, 50.0), velocity_body=(2.0, 0.0, 0.0))
-    command = (vehicle.actuators[0], vehicle.hydro.rudder_max, 50.0)
-    return vehicle, vehicle.run(constant(command, 6000), closed_loop=(False, False, True))
+@pytest.fixture
+def turning(monkeypatch):
+    """benchmarks/turning.py (the model's full-rudder step and the real turns' analysis),
+    imported with benchmarks/ on the path for the test only."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    return importlib.import_module("turning")
 
 
-def test_a18d_full_rudder_yaw_rate_at_2_m_s_lies_within_the_real_12_to_18_deg_s():
+def test_a18d_full_rudder_yaw_rate_at_2_m_s_lies_within_the_real_12_to_18_deg_s(turning):
     # Target (issue 24): the real Snapir's yaw-rate peaks are 12 to 18 deg/s
     # (benchmarks/turning.py: 21 hard turns, median 16.5 deg/s, speed loss 9 to 47 %). The
-    # real turns last 10 to 20 s, so a full-rudder step's peak is the figure to compare.
-    vehicle, traj = a18d_rudder_step()
+    # real turns last 10 to 20 s, so a full-rudder step's peak is the figure to compare:
+    # the A18-D from 2 m/s at its 2 m/s shaft speed, rudder stepped to its limit, depth
+    # held, 60 s (turning.model_step; steady: the mean of the last 10 s).
+    step = turning.model_step()
+    vehicle = Vehicle("auv")
     h = vehicle.hydro
-    assert math.degrees(h.rudder_max) == pytest.approx(38.0, abs=0.01)  # models/README.md
-    r = traj.angular_rate[:, 2]
-    u = np.linalg.norm(traj.velocity_body, axis=1)
-    peak = int(np.argmax(r))
-    steady, speed = r[-1000:].mean(), u[-1000:].mean()
+    assert step["limit"] == pytest.approx(38.0, abs=0.01)  # models/README.md
     # The flow angle at the fins at the peak, with the sway: the fins still push there (their
     # angle of attack, the rudder less this angle, is positive), so it stays under the limit.
-    flow = math.atan((r[peak] * abs(h.fin_x) - traj.velocity_body[peak, 1]) / u[peak])
-    print(f"\nA18-D full rudder ({math.degrees(h.rudder_max):.0f} deg) at 2 m/s, depth held: "
-          f"peak {math.degrees(r[peak]):.2f} deg/s, steady {math.degrees(steady):.2f} deg/s, "
-          f"speed loss {100 * (1 - speed / 2):.1f} %, fin flow angle at the peak "
-          f"{math.degrees(flow):.1f} deg")
-    assert 12.0 < math.degrees(r[peak]) < 18.0  # measured 15.77: met
-    assert 0.0 < h.rudder_max - flow < math.radians(10.0)  # measured 38 - 29.5 deg
+    flow, steady = step["fin_flow_slip"], step["steady"]  # deg, deg/s
+    speed = 2.0 * (1.0 - step["loss_steady"])
+    print(f"\nA18-D full rudder ({step['limit']:.0f} deg) at 2 m/s, depth held: "
+          f"peak {step['peak']:.2f} deg/s, steady {steady:.2f} deg/s, "
+          f"speed loss {100 * step['loss_steady']:.1f} %, fin flow angle at the peak "
+          f"{flow:.1f} deg")
+    assert 12.0 < step["peak"] < 18.0  # measured 15.77: met
+    assert 0.0 < step["limit"] - flow < 10.0  # measured 38 - 29.5 deg
     # The real hard turns' flow angle at the peak (median 29.6 deg) is what set the limit.
-    assert math.degrees(flow) == pytest.approx(29.6, abs=0.5)
+    assert flow == pytest.approx(29.6, abs=0.5)
     # Steady: 10.75 deg/s and 35.9 % speed loss (inside the real turns' 9 to 47 %). The
     # stall bound holds: in a steady turn of this directionally stable hull the fins still
     # push, delta_max > atan((v + x_fin r) / u) > atan(|x_fin| r / u).
     bound = math.tan(h.rudder_max) * vehicle.length / abs(h.fin_x)
-    assert steady * vehicle.length / speed < bound
-    assert 10.5 < math.degrees(steady) < 11.0 and 0.34 < 1 - speed / 2 < 0.38
+    assert math.radians(steady) * vehicle.length / speed < bound
+    assert 10.5 < steady < 11.0 and 0.34 < step["loss_steady"] < 0.38
     # The v3 model's 15 deg cannot reach the real peaks (measured 8.1 deg/s), nor could the
     # 30 deg the earlier model card considered (13.4 deg/s, flow angle 25.4 deg).
-    _, old = a18d_rudder_step(math.radians(15.0))
-    assert math.degrees(old.angular_rate[:, 2].max()) < 12.0
+    assert turning.model_step(rudder_max=math.radians(15.0))["peak"] < 12.0
 
 
 def test_v3_model_files_differ_only_in_the_corrections_and_keep_their_behaviour():
@@ -1075,15 +1072,10 @@ SNAPIR_AKIT = Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir-
 
 
 @pytest.mark.skipif(not SNAPIR_AKIT.is_dir(), reason="no real Snapir segments beside the repo")
-def test_a18d_rudder_limit_is_the_one_the_real_turns_imply():
+def test_a18d_rudder_limit_is_the_one_the_real_turns_imply(turning):
     # The model's 38 deg rudder is inferred from the real hard turns (models/README.md): the
     # flow angle at the fins at their yaw-rate peak is the rudder at its stop less the
     # angle of attack the fins still hold, which the force model gives.
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    import turning
-
     lever = abs(Vehicle("auv").hydro.fin_x)
     segments = sorted(SNAPIR_AKIT.glob("Trajectory*"))
     assert len(segments) == 6

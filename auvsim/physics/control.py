@@ -31,9 +31,10 @@ class Gains(NamedTuple):
     pitch_p: float = 1.5  # rad of stern planes per rad of pitch error
     pitch_d: float = 1.5
     # True: the speed channel sets the shaft to the rpm that holds its reference in
-    # straight flight (``cruise_rpm``) and leaves it there, as a real AUV commands
-    # propeller rpm: the speed then drops in a turn as the hull's drag grows. False (the
-    # default): a speed loop raises the rpm to hold the speed through the water.
+    # straight flight (``feedforward_rpm`` with ``linear_damping``) and leaves it there, as
+    # a real AUV commands propeller rpm: the speed then drops in a turn as the hull's drag
+    # grows. False (the default): a speed loop raises the rpm to hold the speed through the
+    # water.
     hold_rpm: bool = False
     # True: a heading change larger than the PID's own braking point is flown at full
     # rudder (the rudder commanded past its limit, toward the new heading) until the
@@ -45,25 +46,19 @@ class Gains(NamedTuple):
 
 
 @numba.njit(cache=True)
-def feedforward_rpm(h: Hydro, speed: float) -> float:
-    """Shaft speed (rpm) at which thrust balances the quadratic hull drag at ``speed``."""
+def feedforward_rpm(h: Hydro, speed: float, linear_damping: bool = False) -> float:
+    """Shaft speed (rpm) at which thrust balances the quadratic hull drag at ``speed``.
+
+    With ``linear_damping`` it balances the whole surge drag in straight level flight: the
+    quadratic hull drag and the linear damping with its speed fade (``hydro``), the rpm a
+    vehicle's speed table gives (the speed channel's with ``Gains.hold_rpm``).
+    """
     k = (1.0 - h.thrust_deduction) * h.rho * h.prop_d**4
     a = k * h.prop_kt[0]
     b = k * h.prop_kt[1] * (1.0 - h.wake_fraction) * speed / h.prop_d
     c = h.axial_drag * speed * speed
-    n = (-b + math.sqrt(b * b + 4.0 * a * c)) / (2.0 * a)
-    return 60.0 * n
-
-
-@numba.njit(cache=True)
-def cruise_rpm(h: Hydro, speed: float) -> float:
-    """Shaft speed (rpm) at which thrust balances the whole surge drag in straight level
-    flight at ``speed``: the quadratic hull drag and the linear damping with its speed fade
-    (``hydro``), the rpm a vehicle's speed table gives."""
-    k = (1.0 - h.thrust_deduction) * h.rho * h.prop_d**4
-    a = k * h.prop_kt[0]
-    b = k * h.prop_kt[1] * (1.0 - h.wake_fraction) * speed / h.prop_d
-    c = h.axial_drag * speed * speed + h.linear_damping[0] * math.exp(-3.0 * speed) * speed
+    if linear_damping:
+        c = c + h.linear_damping[0] * math.exp(-3.0 * speed) * speed
     n = (-b + math.sqrt(b * b + 4.0 * a * c)) / (2.0 * a)
     return 60.0 * n
 
@@ -109,7 +104,8 @@ def autopilot_into(h, g, reference, closed_loop, integrals, u, depth, depth_rate
     speed = max(abs(u), 0.5)
     t_scale = g.length / speed
     if closed_loop[0] and g.hold_rpm:
-        cmd[0] = math.copysign(cruise_rpm(h, abs(reference[0])), reference[0])
+        cmd[0] = math.copysign(feedforward_rpm(h, abs(reference[0]), linear_damping=True),
+                               reference[0])
     elif closed_loop[0]:
         err = reference[0] - u
         integrals[0] = min(max(integrals[0] + err * dt, -2.0 * g.length), 2.0 * g.length)

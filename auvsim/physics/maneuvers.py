@@ -380,10 +380,12 @@ class Zigzag(Maneuver):
         return self._lead_then("zigzag")
 
 
-class Lawnmower(Maneuver):
+class Lawnmower(_OnSurveyLines):
     """Survey legs of ``leg_m`` alternating between the initial heading and its reverse,
     joined by cross legs of ``spacing_m`` to starboard; each leg is timed at the set
-    speed, and the heading autopilot turns at full rudder between them."""
+    speed, and the heading autopilot turns at full rudder between them. Unlike the
+    manoeuvres flown on survey lines as an option, ``leg_m`` 0 is refused: a lawnmower
+    has legs."""
 
     name = "lawnmower"
 
@@ -394,16 +396,10 @@ class Lawnmower(Maneuver):
 
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
-        _at_least("leg_m", self.options.leg_m, 1.0, "m")
-        _at_least("spacing_m", self.options.spacing_m, 1.0, "m")
-        o = self.options
-        self.legs = survey_legs(self.heading, self.speed, self.duration, o.leg_m, o.spacing_m)
+        _at_least("leg_m", self.options.leg_m, 1.0, "m")  # 0 passes _OnSurveyLines
 
     def schedule(self, t):
-        starts = np.array([leg[0] for leg in self.legs])
-        headings = np.array([leg[2] for leg in self.legs])
-        i = np.searchsorted(starts, t, side="right") - 1
-        return self._hold(len(t), heading=headings[i]), np.tile(ALL_CLOSED, (len(t), 1))
+        return self._hold(len(t), heading=self.headings(t)), np.tile(ALL_CLOSED, (len(t), 1))
 
     def phases(self):
         return [Phase(a, min(b, self.duration), label) for a, b, _, label in self.legs]

@@ -102,8 +102,8 @@ class MissionRun:
         sensed = {}
         for sensor in self.sensors:
             sensed.update(sensor.attrs())
-        # Gravity points down in every model auvsim loads (auvsim.physics.hydro checks it).
-        gravity = -float(self.vehicle.model.opt.gravity[2])
+        # The model's g (opt.gravity points down: auvsim.physics.hydro checks it).
+        gravity = self.vehicle.hydro.gravity
         place = self.config.location
         if place.given:  # the Earth's, at the origin on the surface (LocationConfig)
             sensed.update(latitude_deg=place.latitude_deg, longitude_deg=place.longitude_deg)
@@ -215,7 +215,7 @@ class MissionRun:
         return specific_force_on_earth(
             truth.specific_force, rot, v_imu, truth.position_ned[:, 2] + rot[:, 2] @ imu,
             latitude_deg=self.config.location.latitude_deg,
-            flat_gravity=-float(self.vehicle.model.opt.gravity[2]))
+            flat_gravity=self.vehicle.hydro.gravity)
 
     def _altitude(self, truth: Truth) -> np.ndarray:
         pos, t = truth.position_ned, truth.time

@@ -129,8 +129,9 @@ SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 # - It turns at the end of a line at full rudder (the Snapir's hard turns peak at 16.5
 #   deg/s, median of 21, where the A18-D's full-rudder step peaks at 15.8), where the
 #   heading PID's yaw-rate term backs the rudder off from the start of the turn (peaks
-#   of 12.4 deg/s in the survey turns): ``heading_control="full-rudder-turns"`` holds full
-#   rudder up to the PID's own braking point and hands over to the PID there.
+#   of 12.4 deg/s in the survey turns: benchmarks/turning.py --rpm-alone):
+#   ``heading_control="full-rudder-turns"`` holds full rudder up to the PID's own braking
+#   point and hands over to the PID there.
 REAL_VEHICLE = VehicleConfig(speed_control="rpm", heading_control="full-rudder-turns")
 # - It flies parallel survey lines joined by turns at their ends (the lawnmower pattern
 #   of bathymetric and side-scan surveys), and a depth, speed or straight-line test on a
@@ -197,7 +198,8 @@ def navigator() -> Config:
       the Navigator's long-term accuracy: averaged over T >> tau, dv leaves 18 mm/s
       sqrt(2 tau / T), 0.7 mm/s over an hour, within 0.2 % +/- 1 mm/s; and with dead
       reckoning, where it adds 18 mm/s sqrt(2 tau T) = 0.9 m per axis over 400 s, below
-      the 1.5 m median final error of the real segments' DVL dead reckoning (issue 24).
+      the 1.68 m median final error of the six real segments' DVL dead reckoning with the
+      reference's attitude (``benchmarks/sea_filter.py``; ``reports/sea.md``).
 
     The DVL loses lock and errs as an instrument does (``DvlConfig``):
 

@@ -44,6 +44,7 @@ from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.sensors import Attr, Field, Sensor, sample_rows, samples_in, shown
+from auvsim.sensors.gauss_markov import gauss_markov_rows
 
 
 def beam_matrix(beam_angle: float) -> np.ndarray:
@@ -264,7 +265,8 @@ def slow_velocity_error(state: np.ndarray, pings: int, *, std: float, time: floa
                         dt: float, rng: np.random.Generator) -> np.ndarray:
     """A time-correlated DVL velocity error, first-order Gauss-Markov per axis:
     ``dv[k + 1] = phi dv[k] + std sqrt(1 - phi^2) w[k]``, ``phi = exp(-dt / time)``,
-    ``w ~ N(0, 1)``; stationary std ``std``, autocorrelation ``exp(-lag / time)``.
+    ``w ~ N(0, 1)``; stationary std ``std``, autocorrelation ``exp(-lag / time)``
+    (``auvsim.sensors.gauss_markov``, the IMU's bias process too).
 
     Added to the beams as ``H dv``, it is a velocity error the four beams agree on (a
     sound-speed or scale error that drifts, a bias of the bottom's echo): averaging pings
@@ -281,14 +283,8 @@ def slow_velocity_error(state: np.ndarray, pings: int, *, std: float, time: floa
     Returns:
         (M, 3) dv at each ping, DVL frame, m/s.
     """
-    phi = math.exp(-dt / time)
-    drive_std = std * math.sqrt(-math.expm1(-2.0 * dt / time))  # 1 - phi^2 loses digits
-    drive = rng.standard_normal((pings, 3))
-    out = np.empty((pings, 3))
-    for k in range(pings):
-        out[k] = state
-        state[:] = phi * state + drive_std * drive[k]
-    return out
+    return gauss_markov_rows(state, rng.standard_normal((pings, 3)), std=std,
+                             dt_over_tau=dt / time)
 
 
 def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:

@@ -16,8 +16,9 @@ rad/s per m/s^2 of the true specific force. S, M and G are drawn once per missio
 N(0, std^2) per element (``draw_calibration``), and so are the turn-on biases,
 N(0, turn_on^2) per axis (``draw_biases``); b is a first-order Gauss-Markov process per
 axis (steady-state std sigma_b = ``*_bias_instability``, correlation time tau, one per
-triad: ``ImuConfig.accel_tau``, ``gyro_tau``), discretised exactly and started from its
-stationary distribution, b[0] ~ N(0, sigma_b^2); u, v ~ N(0, 1) white. There is no
+triad: ``ImuConfig.accel_tau``, ``gyro_tau``), discretised exactly
+(``auvsim.sensors.gauss_markov``) and started from its stationary distribution,
+b[0] ~ N(0, sigma_b^2); u, v ~ N(0, 1) white. There is no
 quantisation or saturation. With S, M and G zero (every config before them) the output is
 bitwise that of the additive model: the products are skipped, not multiplied by zero.
 
@@ -44,6 +45,7 @@ from auvsim.config import ImuConfig
 from auvsim.physics.earth import earth_rate_body
 from auvsim.physics.frames import rotation_matrices
 from auvsim.sensors import Attr, Field, Sensor, shown
+from auvsim.sensors.gauss_markov import gauss_markov_rows
 
 G0 = 9.80665  # m/s^2, standard gravity: the g of micro-g and mg in datasheets
 DEG = math.pi / 180.0  # rad per degree
@@ -292,10 +294,7 @@ class _Channel:
         self.biased = bool(np.any(bias))  # asked once: np.any costs as much as the sum
         self.noise_std = noise_std
         self.gm_std = gm_std
-        dt_over_tau = 1.0 / tau_rate
-        self.phi = math.exp(-dt_over_tau)
-        # sqrt(1 - phi^2) via expm1: 1 - phi^2 would lose digits as dt << tau sends phi -> 1.
-        self.drive_std = gm_std * math.sqrt(-math.expm1(-2.0 * dt_over_tau))
+        self.dt_over_tau = 1.0 / tau_rate
         self.noise_rng = noise_rng
         self.gm_rng = gm_rng
         # Transposed once, for row vectors: truth (N, 3) @ matrix.T is (matrix @ truth[k])_k.
@@ -342,8 +341,8 @@ class _Channel:
             noise = self.noise_rng.standard_normal((rows, 3))
             noise *= self.noise_std
         if self.gm_std:
-            _gauss_markov(gauss_markov, self.gm_rng.standard_normal((rows, 3)),
-                          self.gm_state, self.phi, self.drive_std)
+            gauss_markov = gauss_markov_rows(self.gm_state, self.gm_rng.standard_normal(
+                (rows, 3)), std=self.gm_std, dt_over_tau=self.dt_over_tau)
         left = slice(self.at, None)
         self.noise = np.concatenate([self.noise[left], noise])
         self.gauss_markov = np.concatenate([self.gauss_markov[left], gauss_markov])
@@ -375,22 +374,6 @@ def _add_terms(out, bias, noise, gauss_markov, at):
                 out[k, j] += noise[at + k, j]
             if gauss_markov.shape[0]:
                 out[k, j] += gauss_markov[at + k, j]
-
-
-@numba.njit(cache=True)
-def _gauss_markov(out, drive, state, phi, drive_std):
-    """The Gauss-Markov bias b[k] at each row of ``out``, advancing
-    b[k + 1] = phi b[k] + drive_std w[k].
-
-    Args:
-        out: (N, 3) array to write b[0], ..., b[N - 1] into.
-        drive: (N, 3) standard normal draws w.
-        state: (3,) b at the first row on entry, b after the last row on return.
-    """
-    for k in range(out.shape[0]):
-        for j in range(3):
-            out[k, j] = state[j]
-            state[j] = phi * state[j] + drive_std * drive[k, j]
 
 
 def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) -> np.ndarray:
