@@ -36,14 +36,7 @@ from beamsnet import metrics
 from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
-from beamsnet.navigation import (
-    dead_reckoning_error,
-    dead_reckoning_positions,
-    held,
-    own_position_error,
-    position_report,
-    truth_at_pings,
-)
+from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
 from beamsnet.training.train import predict
@@ -396,8 +389,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
              train: str | Path | None = None, filter_config=None) -> dict:
     """Run one model-based estimator over every ping of ``dataset`` and write its
     velocity (and position, for a filter) beside the truth: ``out/estimates.csv``, and
-    ``out/summary.json`` with its availability, vector RMSE and dead-reckoning error per
-    mission.
+    ``out/summary.json`` with its availability, vector RMSE and position scores per
+    mission (``navigation_scores``: its own position, or its velocity dead-reckoned; and
+    the dead-reckoning baselines).
 
     Args:
         name: the estimator's table name (``find_estimator``).
@@ -462,9 +456,6 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
-            row["dr_error"] = (own_position_error(windows, positions, truth, i)
-                               if positions is not None else
-                               dead_reckoning_error(windows, held(windows, pred), truth, i)[0])
             scores = navigation[mission]
             row["position"] = scores.pop(estimator.name)
             row["baselines"] = scores
