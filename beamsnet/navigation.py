@@ -144,18 +144,15 @@ def dead_reckoning_positions(windows: Windows, velocity: np.ndarray,
     to the origin, ``M v - w x L`` (``truth``'s mounting, body rate and the DVL's lever
     arm), rotated by ``truth["rotation"]`` (the reference's attitude, or another's put in
     its place), each held until the next ping and summed from ``truth["position"]`` at
-    the mission's first sample: a position solution in the frame of the reference's.
+    the mission's first sample (``dead_reckoning_track`` of the origin's velocity in the
+    DVL frame, ``v - M^T (w x L)``): a position solution in the frame of the reference's.
 
     Without the lever arm, the DVL's own track would stand L from the origin's, turned
     with the heading: 3.7 m apart after a half turn with the Snapir's DVL 1.85 m aft."""
-    mine = windows.mission == mission
-    v = held(windows, velocity)[mine]
-    body = np.einsum("sij,sj->si", truth["mounting"][mine], v) - np.cross(
-        truth["body_rate"][mine], truth["lever"][mine])
-    steps = np.einsum("sij,sj->si", truth["rotation"][mine][:-1], body[:-1]) * np.diff(
-        windows.time[mine])[:, None]
-    return truth["position"][mine][0] + np.concatenate([np.zeros((1, 3)),
-                                                        np.cumsum(steps, axis=0)])
+    origin = held(windows, velocity) - np.einsum(
+        "sji,sj->si", truth["mounting"], np.cross(truth["body_rate"], truth["lever"]))
+    start = truth["position"][windows.mission == mission][0]
+    return start + dead_reckoning_track(windows, origin, truth, mission)
 
 
 def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],
