@@ -75,6 +75,7 @@ DURATION = 300.0
 SEEDS = 3  # CorrectionNet seeds, every one scored
 FILTER = "INS/DVL"
 SIM_FILTER = "INS/DVL (simulated instrument's noise)"
+OTHERS = " (other segments)"  # the rows of estimators fitted on the other real segments
 LEARNED = {"CorrectionNet": ("corr", dict(model="corr"))}
 # The logs do not document the IMU's axes, the streams' clocks or the sensors' positions:
 # ``auvsim check-log`` finds them from the data and ``--apply`` writes a corrected file,
@@ -324,7 +325,7 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     for label, (key, _) in LEARNED.items():
         for run, model, checkpoint in nets[key]:
             predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
-    predictions.update({f"{b.name} (other segments)": b.predict(windows) for b in real})
+    predictions.update({f"{b.name}{OTHERS}": b.predict(windows) for b in real})
     positions, stds, rotations, failed = {}, {}, {}, {}
     needs = spec(FILTER).needs
     if needs.imu and not _has_imu(dataset, name):  # the registry says what it needs
@@ -341,7 +342,16 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
         except AuvsimError as e:  # said in the report, not hidden
             predictions.pop(label, None)
             failed[label] = str(e).strip().splitlines()[0]
-    navigation = navigation_scores(windows, predictions, truth, positions=positions,
+    # Each track once, for the scores and the figure: an estimator's own position, or its
+    # velocity dead-reckoned with the reference's attitude; none for a velocity it never
+    # gave (navigation_scores leaves it unscored), and the rows fitted on the other
+    # segments, which only their velocity RMSE reports, are dead-reckoned there.
+    tracks = {label: positions[label] if label in positions
+              else dead_reckoning_positions(windows, pred, truth, 0)
+              for label, pred in predictions.items()
+              if label in positions or (not label.endswith(OTHERS)
+                                        and np.isfinite(pred).any())}
+    navigation = navigation_scores(windows, predictions, truth, positions=tracks,
                                    stds=stds, rotations=rotations)[name]
     scores = {}
     for label, pred in predictions.items():
@@ -356,9 +366,6 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
             scores[label] = dict(navigation[label])
     scores[by_reference]["velocity_rmse"] = metrics.rmse_vector(
         windows.velocity_ls, windows.target)
-    tracks = {label: positions.get(label) if label in positions else
-              dead_reckoning_positions(windows, pred, truth, 0)
-              for label, pred in predictions.items()}
     tracks[by_reference] = dead_reckoning_positions(windows, windows.velocity_ls, truth, 0)
     return dict(scores=dict(scores, failed=failed, pings=len(windows.time),
                             against=windows.reference, derived=bool(windows.derived)),
@@ -493,7 +500,7 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     first = next(iter(results.values()))["scores"]
     skip = {"failed", "pings", "against", "derived", by_reference}
     labels = [k for k in first if k not in skip and not k.startswith("DR: ")]
-    sim = [k for k in labels if not k.endswith("(other segments)")]
+    sim = [k for k in labels if not k.endswith(OTHERS)]
     ls = _median(results, "LS", "velocity_rmse")
     noise = setup["noise"]
     lines = [
@@ -520,7 +527,7 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     ]
     for label in sim:
         v = _median(results, label, "velocity_rmse")
-        real = _median(results, f"{label} (other segments)", "velocity_rmse")
+        real = _median(results, f"{label}{OTHERS}", "velocity_rmse")
         lines.append(f"| {label} | {_fmt(v, '.4f')} | "
                      f"{_fmt(100 * (1 - v / ls) if ls > 0 else math.nan, '.1f')} | "
                      f"{_fmt(_median(results, label, 'final_m'))} | "
@@ -608,8 +615,6 @@ def _figure(results: dict, path: Path) -> None:
         ax_track.plot(reference[:, 1], reference[:, 0], color="black", lw=2,
                       label="reference")
         for label, track in r["tracks"].items():
-            if label.endswith("(other segments)"):
-                continue
             error = np.linalg.norm(track[:, :2] - reference[:, :2], axis=1)
             ax_error.plot(r["time"], error, label=label, **look[label].line())
             if label in (FILTER, "LS") or label.startswith("DR: "):
