@@ -49,7 +49,6 @@ from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows, split
-from beamsnet.estimators import spec
 from beamsnet.evaluate import (
     baseline_names,
     baselines,
@@ -270,13 +269,6 @@ def _logged_noise(dataset: Path) -> float:
                                 for m in f.missions.values()]))
 
 
-def _has_imu(dataset: Path, name: str) -> bool:
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return f.missions[name].has("imu")
-
-
 def simulated_noise(sim: Path) -> dict[str, float]:
     """The simulated instrument's noise settings, as its file records them (its first
     mission's attributes: every mission of a preset has one instrument): the DVL's white
@@ -327,12 +319,7 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
             predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
     predictions.update({f"{b.name}{OTHERS}": b.predict(windows) for b in real})
     positions, stds, rotations, failed = {}, {}, {}, {}
-    needs = spec(FILTER).needs
-    if needs.imu and not _has_imu(dataset, name):  # the registry says what it needs
-        failed = dict.fromkeys((FILTER, SIM_FILTER), f"n/a: {needs.text}")
     for label, estimator in _filters(dataset, noise).items():
-        if label in failed:
-            continue
         try:
             predictions[label] = estimator.predict(windows)
             positions[label] = estimator.positions(windows)
