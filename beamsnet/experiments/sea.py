@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.data.reader import Dataset, open_dataset
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
@@ -124,8 +125,10 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                        progress=progress, cluster=cluster)
     sim_train = split(load_windows(sim), training.train_fraction)[0]
     fitted = [b.fit(sim_train) for b in baselines()]
-    noise = simulated_noise(sim)
-    segments = _segments(dataset)
+    with open_dataset(sim) as f:  # each file opened once for what the report says of it
+        noise, sim_geometry = simulated_noise(f), _geometry(f)
+    with open_dataset(dataset) as f:
+        segments, geometry, logged_noise = list(f.missions), _geometry(f), _logged_noise(f)
     results = {}
     for name in segments:
         others = [s for s in segments if s != name]
@@ -136,8 +139,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     setup = dict(data=Path(data).name, dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
                  corrections=corrections,
-                 geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)},
-                 logged_noise=_logged_noise(dataset))
+                 geometry={"auvsim": sim_geometry, "logs": geometry},
+                 logged_noise=logged_noise)
     with staged_dir(out) as stage:  # the report, its data and its figure, or none
         write_text(stage / "sea.json", json.dumps(
             {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()}},
@@ -171,7 +174,6 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
         ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
     """
     from auvsim.data.checklog import apply, check_log
-    from auvsim.data.reader import open_dataset
     from auvsim.data.recorded import akit_segments, import_logs
 
     segments = akit_segments(data)
@@ -182,9 +184,10 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
         import_logs([data], logged, format="akit")
     with open_dataset(logged) as f:
         reports = [check_log(m) for m in f.missions.values()]
-    if not _imported_from(dataset, digests) or _findings(dataset) != _said(reports):
+    said = _said(reports)
+    if not _imported_from(dataset, digests, said):
         apply(logged, dataset, reports)
-    return dataset, _said(reports)
+    return dataset, said
 
 
 def _said(reports) -> dict:
@@ -192,22 +195,11 @@ def _said(reports) -> dict:
     return {r.mission: [[f.name, f.text, f.confidence] for f in r.findings] for r in reports}
 
 
-def _findings(dataset: Path) -> dict:
-    """The findings a corrected file records (``check_log_json``), per mission."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return {name: [[x["name"], x["text"], x["confidence"]]
-                       for x in json.loads(m.attrs.get("check_log_json", "{}"))
-                       .get("findings", [])]
-                for name, m in f.missions.items()}
-
-
-def _imported_from(dataset: Path, digests: list[str]) -> bool:
+def _imported_from(dataset: Path, digests: list[str], findings: dict | None = None) -> bool:
     """Whether ``dataset`` holds recorded missions imported from exactly these logs with
     this auvsim's built-in A-KIT description (its instrument specifications and stated
-    rates are what the estimators and check-log read)."""
-    from auvsim.data.reader import open_dataset
+    rates are what the estimators and check-log read) and, given ``findings`` (``_said``),
+    corrected by exactly those (its missions' ``check_log_json``)."""
     from auvsim.data.recorded import AKIT_DESCRIPTION
 
     if not dataset.exists():
@@ -220,28 +212,22 @@ def _imported_from(dataset: Path, digests: list[str]) -> bool:
                 m.attrs.get("log_description") == AKIT_DESCRIPTION.replace("{k}", k)
                 for k, m in ((name.removeprefix("trajectory"), m)
                              for name, m in f.missions.items()))
+            applied = {name: [[x["name"], x["text"], x["confidence"]]
+                              for x in json.loads(m.attrs.get("check_log_json", "{}"))
+                              .get("findings", [])]
+                       for name, m in f.missions.items()}
     except (AuvsimError, OSError, ValueError):
         return False
-    return found == digests and described
+    return found == digests and described and (findings is None or applied == findings)
 
 
-def _segments(dataset: Path) -> list[str]:
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return list(f.missions)
-
-
-def _geometry(path: Path) -> dict:
-    """The DVL geometry of a file's missions: their beam angles (deg) and mountings (roll,
-    pitch, yaw, deg), each mission's."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(path) as f:
-        return {"beam_angle_deg": sorted({float(m.attrs["beam_angle_deg"])
-                                          for m in f.missions.values()}),
-                "mounting_rpy_deg": [[float(x) for x in m.attrs["dvl_mounting_rpy_deg"]]
-                                     for m in f.missions.values()]}
+def _geometry(f: Dataset) -> dict:
+    """The DVL geometry of an open file's missions: their beam angles (deg) and mountings
+    (roll, pitch, yaw, deg), each mission's."""
+    return {"beam_angle_deg": sorted({float(m.attrs["beam_angle_deg"])
+                                      for m in f.missions.values()}),
+            "mounting_rpy_deg": [[float(x) for x in m.attrs["dvl_mounting_rpy_deg"]]
+                                 for m in f.missions.values()]}
 
 
 def _geometry_words(geometry: dict) -> str:
@@ -259,27 +245,20 @@ def _geometry_words(geometry: dict) -> str:
             f"mounted within {apart:.2g} deg of that on every axis")
 
 
-def _logged_noise(dataset: Path) -> float:
-    """The logged DVL's white beam noise, m/s: the median over the missions of their
-    ``dvl_noise_std`` (the instrument's specification the log description gives)."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return float(np.median([float(m.attrs["dvl_noise_std"])
-                                for m in f.missions.values()]))
+def _logged_noise(f: Dataset) -> float:
+    """The logged DVL's white beam noise, m/s: the median over an open file's missions of
+    their ``dvl_noise_std`` (the instrument's specification the log description gives)."""
+    return float(np.median([float(m.attrs["dvl_noise_std"]) for m in f.missions.values()]))
 
 
-def simulated_noise(sim: Path) -> dict[str, float]:
-    """The simulated instrument's noise settings, as its file records them (its first
-    mission's attributes: every mission of a preset has one instrument): the DVL's white
-    beam noise, the IMU's noise densities and the bias instabilities with their
-    correlation time; and from its config the spreads of the DVL's scale factor and bias
-    (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(sim) as f:
-        a = next(iter(f.missions.values())).attrs
-        dvl = json.loads(f.config_json or "{}").get("dvl", {})
+def simulated_noise(f: Dataset) -> dict[str, float]:
+    """The simulated instrument's noise settings, as its file (open, ``f``) records them
+    (its first mission's attributes: every mission of a preset has one instrument): the
+    DVL's white beam noise, the IMU's noise densities and the bias instabilities with
+    their correlation time; and from its config the spreads of the DVL's scale factor and
+    bias (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
+    a = next(iter(f.missions.values())).attrs
+    dvl = json.loads(f.config_json or "{}").get("dvl", {})
     keys = ("dvl_noise_std", "imu_accel_noise_density", "imu_gyro_noise_density",
             "imu_accel_bias_instability", "imu_gyro_bias_instability",
             "imu_bias_correlation_time")
