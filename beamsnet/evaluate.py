@@ -202,8 +202,7 @@ def filters(dataset: str | Path, *, strict: bool = False, filter_config=None) ->
                                 f"{s.name} filter integrates the IMU, so it cannot run on "
                                 "it")
             continue
-        out.append(s.make(dataset) if filter_config is None
-                   else s.make(dataset, filter_config))
+        out.append(s.make(dataset, filter_config))  # None: the filter's defaults
     return out
 
 
@@ -217,25 +216,22 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     ``positions``, a dict, receives the (S, 3) NED position of every estimator with a
     position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
     one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
-    out: dict[str, np.ndarray] = {}
-    for baseline in baselines() + ([] if dataset is None else filters(
-            dataset, filter_config=filter_config)):
+    out = {b.name: b.fit(train_w).predict(test_w) for b in baselines()}
+    for estimator in [] if dataset is None else filters(dataset, filter_config=filter_config):
         try:
-            out[baseline.name] = baseline.fit(train_w).predict(test_w)
+            out[estimator.name] = estimator.fit(train_w).predict(test_w)
         except AuvsimError as e:
-            if baseline.name not in {s.name for s in specs("filter")}:
-                raise
             # A filter the file cannot feed (a reference without attitude to start
             # from, say): its row is left out, and the warning says why.
-            warnings.warn(f"{baseline.name} left out on {dataset}: "
+            warnings.warn(f"{estimator.name} left out on {dataset}: "
                           f"{str(e).strip().splitlines()[0]}", FilterWarning, stacklevel=2)
             continue
-        if positions is not None and hasattr(baseline, "positions"):
-            positions[baseline.name] = baseline.positions(test_w)
+        if positions is not None and hasattr(estimator, "positions"):
+            positions[estimator.name] = estimator.positions(test_w)
         if stds is not None:
-            stds.update(reported_stds(baseline, test_w))
+            stds.update(reported_stds(estimator, test_w))
         if rotations is not None:
-            rotations.update(own_rotations(baseline, test_w))
+            rotations.update(own_rotations(estimator, test_w))
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
         out[name] = predict(model, trimmed(test_w, checkpoint))

@@ -53,3 +53,28 @@ def test_an_unknown_estimator_gets_one_line_and_exit_2(turning, tmp_path, capsys
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--estimator" in err and "'LS'" in err
     assert not out.exists()
+
+
+def test_a_filter_the_file_cannot_feed_is_left_out_with_a_warning(turning, monkeypatch):
+    """``evaluate.predictions``: a filter raising an ``AuvsimError`` loses its row and
+    says why in one line (``FilterWarning``); a baseline's error is never hidden."""
+    from beamsnet import evaluate
+    from beamsnet.data import DataError, load_windows, split
+
+    class Unfed:
+        name = "INS/DVL"
+
+        def fit(self, windows):
+            raise DataError("mission turn: no attitude to start from\nthe rest")
+
+    monkeypatch.setattr(evaluate, "filters", lambda dataset, **_: [Unfed()])
+    train_w, test_w = split(load_windows(turning))
+    with pytest.warns(evaluate.FilterWarning,
+                      match="^INS/DVL left out on .*: mission turn: no attitude to start from$"):
+        out = evaluate.predictions([], train_w, test_w, dataset=turning)
+    assert "INS/DVL" not in out and "LS" in out
+    unfed_ls = Unfed()
+    unfed_ls.name = "LS"
+    monkeypatch.setattr(evaluate, "baselines", lambda: [unfed_ls])
+    with pytest.raises(DataError, match="no attitude"):
+        evaluate.predictions([], train_w, test_w, dataset=turning)
