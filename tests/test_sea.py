@@ -392,7 +392,11 @@ def test_the_filter_on_a_recorded_mission_writes_its_own_track(tmp_path, capsys)
     assert float(first["north_m"]) == pytest.approx(north, abs=0.05)
     summary = json.loads((out / "summary.json").read_text())
     row = summary["missions"]["trajectory1"]
-    assert 0 <= row["position"]["coverage_3sigma"] <= 1
+    # A right covariance holds the horizontal error within 3 sqrt(sigma_N^2 + sigma_E^2)
+    # at least 98.9 % of the time; on this segment (an exact reference, a noise-free IMU,
+    # the DVL off by a steady 1 cm/s to starboard) it holds at every one of the 117 pings
+    # (measured): at most one may miss. (0 <= coverage <= 1 failed only on NaN.)
+    assert row["position"]["coverage_3sigma"] >= 0.99
     assert set(row["baselines"]) == {"DR: DVL + reference attitude",
                                      "DR: DVL + filter attitude"}
 
