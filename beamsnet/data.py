@@ -47,7 +47,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from auvsim.data.beams import beam_matrix
+from auvsim.data.beams import DvlGeometry, beam_matrix, usable_beams
 from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 
@@ -272,7 +272,7 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
     if n_pings <= first:
         raise DataError(f"mission {name}: {n_pings} DVL ping(s); a sample with n_past="
                         f"{n_past} needs at least {first + 1}")
-    valid = (m.dvl.valid if "valid" in m.dvl else np.isfinite(beams)) & np.isfinite(beams)
+    valid = usable_beams(m.dvl.valid if "valid" in m.dvl else np.isfinite(beams), beams)
     # Format v4 records the mode of each ping (0 bottom track, 1 water track, -1 none).
     mode = m.dvl.mode if "mode" in m.dvl else np.zeros(n_pings, dtype=np.int64)
     if every_ping:
@@ -352,7 +352,7 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
 
     ``C_ref^T v_ref`` (the reference's NED velocity in its body frame, with its attitude
     ``C_ref``, body -> NED) is formed at the reference's samples and interpolated linearly
-    in time; ``w`` is the body rate:
+    in time; ``w`` is the body rate (``recorded_body_rate``):
     the IMU's gyro interpolated at ``times`` where the mission has an IMU (the Earth's
     rate in it, 7e-5 rad/s, moves a 1 m lever by 0.07 mm/s), else the rate between the
     reference's attitudes. ``L`` is ``dvl_position_body``, the DVL's place from the
@@ -381,14 +381,22 @@ def reference_velocity(m, times: np.ndarray) -> np.ndarray:
     # NaN outside the reference's span: a ping it does not cover has no target.
     v_body = np.stack([np.interp(times, t, v_ref[:, i], left=np.nan, right=np.nan)
                        for i in range(3)], axis=1)
+    geometry = DvlGeometry(beam_matrix(math.radians(float(m.attrs["beam_angle_deg"]))),
+                           rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"])),
+                           np.asarray(m.attrs["dvl_position_body"], dtype=float))
+    return geometry.velocity(v_body, recorded_body_rate(m, times))
+
+
+def recorded_body_rate(m, times: np.ndarray) -> np.ndarray:
+    """(P, 3) body angular rate of a recorded mission at ``times`` (s), rad/s: its IMU's
+    gyro interpolated where it has an IMU, else the rate between its reference's
+    attitudes (``body_rate``)."""
     if m.has("imu"):
-        rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
+        return np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
                          for i in range(3)], axis=1)
-    else:
-        rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)
-    lever = np.asarray(m.attrs["dvl_position_body"], dtype=float)
-    mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
-    return (v_body + np.cross(rate, lever)) @ mounting  # M^T v for each row
+    ref = m.reference
+    return body_rate(np.asarray(ref.time, dtype=float), np.asarray(ref.quaternion, dtype=float),
+                     times)
 
 
 def quaternions_at(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarray:

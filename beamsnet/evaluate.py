@@ -36,14 +36,7 @@ from beamsnet import metrics
 from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
-from beamsnet.navigation import (
-    dead_reckoning_error,
-    dead_reckoning_positions,
-    held,
-    own_position_error,
-    position_report,
-    truth_at_pings,
-)
+from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
 from beamsnet.training.train import predict
@@ -209,8 +202,7 @@ def filters(dataset: str | Path, *, strict: bool = False, filter_config=None) ->
                                 f"{s.name} filter integrates the IMU, so it cannot run on "
                                 "it")
             continue
-        out.append(s.make(dataset) if filter_config is None
-                   else s.make(dataset, filter_config))
+        out.append(s.make(dataset, filter_config))  # None: the filter's defaults
     return out
 
 
@@ -224,25 +216,22 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     ``positions``, a dict, receives the (S, 3) NED position of every estimator with a
     position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
     one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
-    out: dict[str, np.ndarray] = {}
-    for baseline in baselines() + ([] if dataset is None else filters(
-            dataset, filter_config=filter_config)):
+    out = {b.name: b.fit(train_w).predict(test_w) for b in baselines()}
+    for estimator in [] if dataset is None else filters(dataset, filter_config=filter_config):
         try:
-            out[baseline.name] = baseline.fit(train_w).predict(test_w)
+            out[estimator.name] = estimator.fit(train_w).predict(test_w)
         except AuvsimError as e:
-            if baseline.name not in {s.name for s in specs("filter")}:
-                raise
             # A filter the file cannot feed (a reference without attitude to start
             # from, say): its row is left out, and the warning says why.
-            warnings.warn(f"{baseline.name} left out on {dataset}: "
+            warnings.warn(f"{estimator.name} left out on {dataset}: "
                           f"{str(e).strip().splitlines()[0]}", FilterWarning, stacklevel=2)
             continue
-        if positions is not None and hasattr(baseline, "positions"):
-            positions[baseline.name] = baseline.positions(test_w)
+        if positions is not None and hasattr(estimator, "positions"):
+            positions[estimator.name] = estimator.positions(test_w)
         if stds is not None:
-            stds.update(reported_stds(baseline, test_w))
+            stds.update(reported_stds(estimator, test_w))
         if rotations is not None:
-            rotations.update(own_rotations(baseline, test_w))
+            rotations.update(own_rotations(estimator, test_w))
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
         out[name] = predict(model, trimmed(test_w, checkpoint))
@@ -396,8 +385,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
              train: str | Path | None = None, filter_config=None) -> dict:
     """Run one model-based estimator over every ping of ``dataset`` and write its
     velocity (and position, for a filter) beside the truth: ``out/estimates.csv``, and
-    ``out/summary.json`` with its availability, vector RMSE and dead-reckoning error per
-    mission.
+    ``out/summary.json`` with its availability, vector RMSE and position scores per
+    mission (``navigation_scores``: its own position, or its velocity dead-reckoned; and
+    the dead-reckoning baselines).
 
     Args:
         name: the estimator's table name (``find_estimator``).
@@ -462,9 +452,6 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
-            row["dr_error"] = (own_position_error(windows, positions, truth, i)
-                               if positions is not None else
-                               dead_reckoning_error(windows, held(windows, pred), truth, i)[0])
             scores = navigation[mission]
             row["position"] = scores.pop(estimator.name)
             row["baselines"] = scores

@@ -16,7 +16,7 @@ import numpy as np
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet import metrics
-from beamsnet.data import DataError, Windows, body_rate, quaternions_at, reference_velocity
+from beamsnet.data import DataError, Windows, quaternions_at, recorded_body_rate
 
 
 def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.ndarray]:
@@ -39,7 +39,8 @@ def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.nd
             m = f.missions[name]
             mine = windows.mission == i
             if m.origin == "recorded":
-                for key, value in _reference_at(m, windows.time[mine]).items():
+                for key, value in _reference_at(m, windows.time[mine],
+                                                windows.target[mine]).items():
                     parts[key].append(value)
                 continue
             if not m.has("truth"):
@@ -63,17 +64,14 @@ def truth_at_pings(path: str | os.PathLike, windows: Windows) -> dict[str, np.nd
     return {k: np.concatenate(v) for k, v in parts.items()}
 
 
-def _reference_at(m, times: np.ndarray) -> dict[str, np.ndarray]:
-    """``truth_at_pings``'s fields for a recorded mission ``m`` at ``times`` (s)."""
+def _reference_at(m, times: np.ndarray, v_dvl: np.ndarray) -> dict[str, np.ndarray]:
+    """``truth_at_pings``'s fields for a recorded mission ``m`` at ``times`` (s), whose
+    reference velocity at the DVL (``v_dvl``, (P, 3) m/s DVL frame) ``load_windows``
+    made the target."""
     ref = m.reference
     t = np.asarray(ref.time, dtype=float)
     rotation = rotation_matrices(quaternions_at(t, require_attitude(m), times))
-    if m.has("imu"):
-        rate = np.stack([np.interp(times, m.imu.time, m.imu.angular_rate[:, i])
-                         for i in range(3)], axis=1)
-    else:
-        rate = body_rate(t, np.asarray(ref.quaternion, dtype=float), times)
-    v_dvl = reference_velocity(m, times)
+    rate = recorded_body_rate(m, times)
     step = np.diff(times, prepend=times[:1])
     change = np.linalg.norm(np.diff(v_dvl, axis=0, prepend=v_dvl[:1]), axis=1)
     mounting = rotation_rpy(*np.radians(m.attrs["dvl_mounting_rpy_deg"]))
@@ -146,18 +144,15 @@ def dead_reckoning_positions(windows: Windows, velocity: np.ndarray,
     to the origin, ``M v - w x L`` (``truth``'s mounting, body rate and the DVL's lever
     arm), rotated by ``truth["rotation"]`` (the reference's attitude, or another's put in
     its place), each held until the next ping and summed from ``truth["position"]`` at
-    the mission's first sample: a position solution in the frame of the reference's.
+    the mission's first sample (``dead_reckoning_track`` of the origin's velocity in the
+    DVL frame, ``v - M^T (w x L)``): a position solution in the frame of the reference's.
 
     Without the lever arm, the DVL's own track would stand L from the origin's, turned
     with the heading: 3.7 m apart after a half turn with the Snapir's DVL 1.85 m aft."""
-    mine = windows.mission == mission
-    v = held(windows, velocity)[mine]
-    body = np.einsum("sij,sj->si", truth["mounting"][mine], v) - np.cross(
-        truth["body_rate"][mine], truth["lever"][mine])
-    steps = np.einsum("sij,sj->si", truth["rotation"][mine][:-1], body[:-1]) * np.diff(
-        windows.time[mine])[:, None]
-    return truth["position"][mine][0] + np.concatenate([np.zeros((1, 3)),
-                                                        np.cumsum(steps, axis=0)])
+    origin = held(windows, velocity) - np.einsum(
+        "sji,sj->si", truth["mounting"], np.cross(truth["body_rate"], truth["lever"]))
+    start = truth["position"][windows.mission == mission][0]
+    return start + dead_reckoning_track(windows, origin, truth, mission)
 
 
 def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],

@@ -72,12 +72,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from auvsim.data.checklog import apply, check_log
 from auvsim.data.reader import open_dataset
-from auvsim.data.recorded import import_logs
 from beamsnet.data import load_windows
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
+from beamsnet.experiments.sea import sea_dataset
 from beamsnet.navigation import truth_at_pings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,17 +84,6 @@ DATA = ROOT / ".." / "shared" / "data" / "snapir-akit"
 FINAL_BOUND = 5.0  # m, every segment
 DR_RATIO = 1.2  # median final against DR-with-the-reference-attitude's median final
 COVERAGE = 0.9  # share of the time within the reported 3 sigma
-
-
-def corrected_file(data: Path, work: Path) -> Path:
-    """``auvsim import --format akit`` of ``data`` into ``work``, then ``auvsim check-log
-    --apply`` on every mission: the corrected file's path."""
-    imported, checked = work / "akit.h5", work / "akit-checked.h5"
-    import_logs([data], imported, format="akit")
-    with open_dataset(imported) as ds:
-        reports = [check_log(m) for m in ds.missions.values()]
-    apply(imported, checked, reports)
-    return checked
 
 
 def score(mission, config: ins.FilterConfig | None = None) -> dict:
@@ -164,9 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.work if args.work is not None else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        checked = work / "akit-checked.h5"
-        if not (args.work is not None and checked.exists()):
-            checked = corrected_file(args.data, work)
+        # auvsim import --format akit, then auvsim check-log --apply, as reproduce sea.
+        checked = sea_dataset(args.data, work)[0]
         with open_dataset(checked) as ds:
             rows = {name: score(m, config) for name, m in sorted(ds.missions.items())}
     print("\n".join(table(rows)))

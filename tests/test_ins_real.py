@@ -20,6 +20,7 @@ from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rota
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
 from beamsnet.estimators import ins
+from beamsnet.experiments.sea import sea_dataset
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import sea_filter  # noqa: E402  (the product path on the shared segments, and its scores)
@@ -244,11 +245,11 @@ SEGMENTS = tuple(range(1, 7))
 @pytest.fixture(scope="module")
 def akit_files(tmp_path_factory):
     """The six shared segments through the product's path: ``auvsim import --format
-    akit``, then ``auvsim check-log --apply`` (``sea_filter.corrected_file``). Returns
-    (imported, corrected)."""
+    akit``, then ``auvsim check-log --apply`` (``beamsnet.experiments.sea.sea_dataset``,
+    as ``reproduce sea`` and ``sea_filter`` make them). Returns (imported, corrected)."""
     work = tmp_path_factory.mktemp("akit")
-    checked = sea_filter.corrected_file(sea_filter.DATA, work)
-    return work / "akit.h5", checked
+    checked = sea_dataset(sea_filter.DATA, work)[0]
+    return work / "sea-logged.h5", checked
 
 
 @needs_akit

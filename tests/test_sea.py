@@ -99,7 +99,7 @@ def recorded_stub(t: np.ndarray, rate: float, speed: float, lever: np.ndarray,
                   mounting_yaw_deg: float, imu: bool) -> SimpleNamespace:
     """The parts of a recorded mission ``reference_velocity`` reads: a vehicle yawing at
     ``rate`` while flying forward at ``speed`` (body velocity (speed, 0, 0) at the
-    reference point), its DVL at ``lever`` and yawed ``mounting_yaw_deg``."""
+    reference point), its DVL at ``lever`` and yawed ``mounting_yaw_deg`` (30 deg beams)."""
     heading = rate * t
     imu_t = np.arange(0.0, t[-1], 0.01)
     groups = {"reference"} | ({"imu"} if imu else set())
@@ -109,7 +109,8 @@ def recorded_stub(t: np.ndarray, rate: float, speed: float, lever: np.ndarray,
             [speed * np.cos(heading), speed * np.sin(heading), 0 * t], axis=1)),
         imu=Fields(time=imu_t, angular_rate=np.tile([0, 0, rate], (len(imu_t), 1))),
         attrs={"dvl_position_body": lever,
-               "dvl_mounting_rpy_deg": np.array([0.0, 0.0, mounting_yaw_deg])})
+               "dvl_mounting_rpy_deg": np.array([0.0, 0.0, mounting_yaw_deg]),
+               "beam_angle_deg": 30.0})
 
 
 @pytest.mark.parametrize("imu", [True, False])
@@ -391,7 +392,11 @@ def test_the_filter_on_a_recorded_mission_writes_its_own_track(tmp_path, capsys)
     assert float(first["north_m"]) == pytest.approx(north, abs=0.05)
     summary = json.loads((out / "summary.json").read_text())
     row = summary["missions"]["trajectory1"]
-    assert 0 <= row["position"]["coverage_3sigma"] <= 1
+    # A right covariance holds the horizontal error within 3 sqrt(sigma_N^2 + sigma_E^2)
+    # at least 98.9 % of the time; on this segment (an exact reference, a noise-free IMU,
+    # the DVL off by a steady 1 cm/s to starboard) it holds at every one of the 117 pings
+    # (measured): at most one may miss. (0 <= coverage <= 1 failed only on NaN.)
+    assert row["position"]["coverage_3sigma"] >= 0.99
     assert set(row["baselines"]) == {"DR: DVL + reference attitude",
                                      "DR: DVL + filter attitude"}
 

@@ -45,11 +45,11 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.data.reader import Dataset, open_dataset
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows, split
-from beamsnet.estimators import spec
 from beamsnet.evaluate import (
     baseline_names,
     baselines,
@@ -75,6 +75,7 @@ DURATION = 300.0
 SEEDS = 3  # CorrectionNet seeds, every one scored
 FILTER = "INS/DVL"
 SIM_FILTER = "INS/DVL (simulated instrument's noise)"
+OTHERS = " (other segments)"  # the rows of estimators fitted on the other real segments
 LEARNED = {"CorrectionNet": ("corr", dict(model="corr"))}
 # The logs do not document the IMU's axes, the streams' clocks or the sensors' positions:
 # ``auvsim check-log`` finds them from the data and ``--apply`` writes a corrected file,
@@ -124,8 +125,10 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                        progress=progress, cluster=cluster)
     sim_train = split(load_windows(sim), training.train_fraction)[0]
     fitted = [b.fit(sim_train) for b in baselines()]
-    noise = simulated_noise(sim)
-    segments = _segments(dataset)
+    with open_dataset(sim) as f:  # each file opened once for what the report says of it
+        noise, sim_geometry = simulated_noise(f), _geometry(f)
+    with open_dataset(dataset) as f:
+        segments, geometry, logged_noise = list(f.missions), _geometry(f), _logged_noise(f)
     results = {}
     for name in segments:
         others = [s for s in segments if s != name]
@@ -136,8 +139,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     setup = dict(data=Path(data).name, dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
                  corrections=corrections,
-                 geometry={"auvsim": _geometry(sim), "logs": _geometry(dataset)},
-                 logged_noise=_logged_noise(dataset))
+                 geometry={"auvsim": sim_geometry, "logs": geometry},
+                 logged_noise=logged_noise)
     with staged_dir(out) as stage:  # the report, its data and its figure, or none
         write_text(stage / "sea.json", json.dumps(
             {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()}},
@@ -171,7 +174,6 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
         ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
     """
     from auvsim.data.checklog import apply, check_log
-    from auvsim.data.reader import open_dataset
     from auvsim.data.recorded import akit_segments, import_logs
 
     segments = akit_segments(data)
@@ -182,9 +184,10 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
         import_logs([data], logged, format="akit")
     with open_dataset(logged) as f:
         reports = [check_log(m) for m in f.missions.values()]
-    if not _imported_from(dataset, digests) or _findings(dataset) != _said(reports):
+    said = _said(reports)
+    if not _imported_from(dataset, digests, said):
         apply(logged, dataset, reports)
-    return dataset, _said(reports)
+    return dataset, said
 
 
 def _said(reports) -> dict:
@@ -192,22 +195,11 @@ def _said(reports) -> dict:
     return {r.mission: [[f.name, f.text, f.confidence] for f in r.findings] for r in reports}
 
 
-def _findings(dataset: Path) -> dict:
-    """The findings a corrected file records (``check_log_json``), per mission."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return {name: [[x["name"], x["text"], x["confidence"]]
-                       for x in json.loads(m.attrs.get("check_log_json", "{}"))
-                       .get("findings", [])]
-                for name, m in f.missions.items()}
-
-
-def _imported_from(dataset: Path, digests: list[str]) -> bool:
+def _imported_from(dataset: Path, digests: list[str], findings: dict | None = None) -> bool:
     """Whether ``dataset`` holds recorded missions imported from exactly these logs with
     this auvsim's built-in A-KIT description (its instrument specifications and stated
-    rates are what the estimators and check-log read)."""
-    from auvsim.data.reader import open_dataset
+    rates are what the estimators and check-log read) and, given ``findings`` (``_said``),
+    corrected by exactly those (its missions' ``check_log_json``)."""
     from auvsim.data.recorded import AKIT_DESCRIPTION
 
     if not dataset.exists():
@@ -220,28 +212,22 @@ def _imported_from(dataset: Path, digests: list[str]) -> bool:
                 m.attrs.get("log_description") == AKIT_DESCRIPTION.replace("{k}", k)
                 for k, m in ((name.removeprefix("trajectory"), m)
                              for name, m in f.missions.items()))
+            applied = {name: [[x["name"], x["text"], x["confidence"]]
+                              for x in json.loads(m.attrs.get("check_log_json", "{}"))
+                              .get("findings", [])]
+                       for name, m in f.missions.items()}
     except (AuvsimError, OSError, ValueError):
         return False
-    return found == digests and described
+    return found == digests and described and (findings is None or applied == findings)
 
 
-def _segments(dataset: Path) -> list[str]:
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return list(f.missions)
-
-
-def _geometry(path: Path) -> dict:
-    """The DVL geometry of a file's missions: their beam angles (deg) and mountings (roll,
-    pitch, yaw, deg), each mission's."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(path) as f:
-        return {"beam_angle_deg": sorted({float(m.attrs["beam_angle_deg"])
-                                          for m in f.missions.values()}),
-                "mounting_rpy_deg": [[float(x) for x in m.attrs["dvl_mounting_rpy_deg"]]
-                                     for m in f.missions.values()]}
+def _geometry(f: Dataset) -> dict:
+    """The DVL geometry of an open file's missions: their beam angles (deg) and mountings
+    (roll, pitch, yaw, deg), each mission's."""
+    return {"beam_angle_deg": sorted({float(m.attrs["beam_angle_deg"])
+                                      for m in f.missions.values()}),
+            "mounting_rpy_deg": [[float(x) for x in m.attrs["dvl_mounting_rpy_deg"]]
+                                 for m in f.missions.values()]}
 
 
 def _geometry_words(geometry: dict) -> str:
@@ -259,34 +245,20 @@ def _geometry_words(geometry: dict) -> str:
             f"mounted within {apart:.2g} deg of that on every axis")
 
 
-def _logged_noise(dataset: Path) -> float:
-    """The logged DVL's white beam noise, m/s: the median over the missions of their
-    ``dvl_noise_std`` (the instrument's specification the log description gives)."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return float(np.median([float(m.attrs["dvl_noise_std"])
-                                for m in f.missions.values()]))
+def _logged_noise(f: Dataset) -> float:
+    """The logged DVL's white beam noise, m/s: the median over an open file's missions of
+    their ``dvl_noise_std`` (the instrument's specification the log description gives)."""
+    return float(np.median([float(m.attrs["dvl_noise_std"]) for m in f.missions.values()]))
 
 
-def _has_imu(dataset: Path, name: str) -> bool:
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(dataset) as f:
-        return f.missions[name].has("imu")
-
-
-def simulated_noise(sim: Path) -> dict[str, float]:
-    """The simulated instrument's noise settings, as its file records them (its first
-    mission's attributes: every mission of a preset has one instrument): the DVL's white
-    beam noise, the IMU's noise densities and the bias instabilities with their
-    correlation time; and from its config the spreads of the DVL's scale factor and bias
-    (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
-    from auvsim.data.reader import open_dataset
-
-    with open_dataset(sim) as f:
-        a = next(iter(f.missions.values())).attrs
-        dvl = json.loads(f.config_json or "{}").get("dvl", {})
+def simulated_noise(f: Dataset) -> dict[str, float]:
+    """The simulated instrument's noise settings, as its file (open, ``f``) records them
+    (its first mission's attributes: every mission of a preset has one instrument): the
+    DVL's white beam noise, the IMU's noise densities and the bias instabilities with
+    their correlation time; and from its config the spreads of the DVL's scale factor and
+    bias (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
+    a = next(iter(f.missions.values())).attrs
+    dvl = json.loads(f.config_json or "{}").get("dvl", {})
     keys = ("dvl_noise_std", "imu_accel_noise_density", "imu_gyro_noise_density",
             "imu_accel_bias_instability", "imu_gyro_bias_instability",
             "imu_bias_correlation_time")
@@ -324,14 +296,9 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     for label, (key, _) in LEARNED.items():
         for run, model, checkpoint in nets[key]:
             predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
-    predictions.update({f"{b.name} (other segments)": b.predict(windows) for b in real})
+    predictions.update({f"{b.name}{OTHERS}": b.predict(windows) for b in real})
     positions, stds, rotations, failed = {}, {}, {}, {}
-    needs = spec(FILTER).needs
-    if needs.imu and not _has_imu(dataset, name):  # the registry says what it needs
-        failed = dict.fromkeys((FILTER, SIM_FILTER), f"n/a: {needs.text}")
     for label, estimator in _filters(dataset, noise).items():
-        if label in failed:
-            continue
         try:
             predictions[label] = estimator.predict(windows)
             positions[label] = estimator.positions(windows)
@@ -341,7 +308,16 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
         except AuvsimError as e:  # said in the report, not hidden
             predictions.pop(label, None)
             failed[label] = str(e).strip().splitlines()[0]
-    navigation = navigation_scores(windows, predictions, truth, positions=positions,
+    # Each track once, for the scores and the figure: an estimator's own position, or its
+    # velocity dead-reckoned with the reference's attitude; none for a velocity it never
+    # gave (navigation_scores leaves it unscored), and the rows fitted on the other
+    # segments, which only their velocity RMSE reports, are dead-reckoned there.
+    tracks = {label: positions[label] if label in positions
+              else dead_reckoning_positions(windows, pred, truth, 0)
+              for label, pred in predictions.items()
+              if label in positions or (not label.endswith(OTHERS)
+                                        and np.isfinite(pred).any())}
+    navigation = navigation_scores(windows, predictions, truth, positions=tracks,
                                    stds=stds, rotations=rotations)[name]
     scores = {}
     for label, pred in predictions.items():
@@ -356,9 +332,6 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
             scores[label] = dict(navigation[label])
     scores[by_reference]["velocity_rmse"] = metrics.rmse_vector(
         windows.velocity_ls, windows.target)
-    tracks = {label: positions.get(label) if label in positions else
-              dead_reckoning_positions(windows, pred, truth, 0)
-              for label, pred in predictions.items()}
     tracks[by_reference] = dead_reckoning_positions(windows, windows.velocity_ls, truth, 0)
     return dict(scores=dict(scores, failed=failed, pings=len(windows.time),
                             against=windows.reference, derived=bool(windows.derived)),
@@ -493,7 +466,7 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     first = next(iter(results.values()))["scores"]
     skip = {"failed", "pings", "against", "derived", by_reference}
     labels = [k for k in first if k not in skip and not k.startswith("DR: ")]
-    sim = [k for k in labels if not k.endswith("(other segments)")]
+    sim = [k for k in labels if not k.endswith(OTHERS)]
     ls = _median(results, "LS", "velocity_rmse")
     noise = setup["noise"]
     lines = [
@@ -520,7 +493,7 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     ]
     for label in sim:
         v = _median(results, label, "velocity_rmse")
-        real = _median(results, f"{label} (other segments)", "velocity_rmse")
+        real = _median(results, f"{label}{OTHERS}", "velocity_rmse")
         lines.append(f"| {label} | {_fmt(v, '.4f')} | "
                      f"{_fmt(100 * (1 - v / ls) if ls > 0 else math.nan, '.1f')} | "
                      f"{_fmt(_median(results, label, 'final_m'))} | "
@@ -608,8 +581,6 @@ def _figure(results: dict, path: Path) -> None:
         ax_track.plot(reference[:, 1], reference[:, 0], color="black", lw=2,
                       label="reference")
         for label, track in r["tracks"].items():
-            if label.endswith("(other segments)"):
-                continue
             error = np.linalg.norm(track[:, :2] - reference[:, :2], axis=1)
             ax_error.plot(r["time"], error, label=label, **look[label].line())
             if label in (FILTER, "LS") or label.startswith("DR: "):
