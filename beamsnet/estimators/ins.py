@@ -526,6 +526,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         k_ping += 1
     hrow = np.zeros(n)
     fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+    rate = np.zeros(3)
     c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(f.shape[0]):
         if i > 0:
@@ -542,10 +543,14 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 wb[r] = w[i, r] - bg[r]
             for r in range(3):
                 cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
-            if earth:
-                cor[:] = np.cross(omega_ie, v)
-                wb -= c.T @ omega_ie
-                cf -= 2.0 * cor
+            if earth:  # w_nb = w - C^T Omega_ie; C f less the Coriolis term 2 Omega_ie x v
+                cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
+                cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
+                cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
+                np.dot(c.T, omega_ie, rate)  # into a buffer; BLAS's rounding, as at pings
+                for r in range(3):
+                    wb[r] -= rate[r]
+                    cf[r] -= 2.0 * cor[r]
             cf[2] += g
             for r in range(3):
                 v[r] += h * cf[r]
@@ -554,7 +559,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 c_old[r, :] = c[r, :]
             cf[2] -= g  # C f (less the Coriolis term) is what the error dynamics see
             if earth:
-                cf += 2.0 * cor
+                for r in range(3):
+                    cf[r] += 2.0 * cor[r]
             _exp_into(dphi, rot)
             _matmul_into(c_old, rot, c)
             # Covariance: Phi P Phi^T (columns, then rows of the result), + Q dt.
