@@ -154,6 +154,51 @@ def test_the_dvl_calibration_prior_is_the_setting_else_the_calibrations_else_the
     np.testing.assert_allclose(hand.lever_arm_std[-1], np.full(3, 0.05))
 
 
+def same(a: ins.FilterTrack, b: ins.FilterTrack) -> bool:
+    """Whether two tracks have the very same velocity, position and stds."""
+    return all(np.array_equal(getattr(a, k), getattr(b, k), equal_nan=True)
+               for k in ("velocity_dvl", "velocity_cov", "position_ned", "position_std"))
+
+
+def test_run_arrays_takes_the_place_and_the_dvl_noise_from_its_settings(navigation):
+    """A setting wins over the argument it names: ``latitude_deg`` over the arrays',
+    ``beam_noise_std`` (at least the floor) and ``velocity_noise_std`` over the
+    instrument's, a beam noise reaching a velocity through the Janus geometry. Each run
+    is the very run given the value as an argument, and not the run without the
+    setting; an instrument that states no noise needs one."""
+    data = stationary(45.0, seconds=60.0)
+    config = ins.FilterConfig
+    at_45 = ins.run_arrays(**data, latitude_deg=45.0)
+    assert same(ins.run_arrays(**data, latitude_deg=10.0, config=config(latitude_deg=45.0)),
+                at_45)
+    assert not same(ins.run_arrays(**data, latitude_deg=10.0), at_45)
+
+    def stating(std) -> dict:
+        return {**data, "instrument": data["instrument"]._replace(measurement_std=std)}
+
+    for setting, stated in ((config(velocity_noise_std=0.05), np.full(3, 0.05)),
+                            (config(beam_noise_std=0.02), ins.janus_velocity_std(0.02, 30.0))):
+        by_setting = ins.run_arrays(**data, latitude_deg=45.0, beam_angle_deg=30.0,
+                                    config=setting)
+        assert same(by_setting, ins.run_arrays(**stating(stated), latitude_deg=45.0))
+        assert not same(by_setting, at_45)
+        unstated = ins.run_arrays(**stating(np.full(3, np.nan)), latitude_deg=45.0,
+                                  beam_angle_deg=30.0, config=setting)
+        assert same(unstated, by_setting)
+    with pytest.raises(ValueError, match="instrument.measurement_std: expected finite"):
+        ins.run_arrays(**stating(np.full(3, np.nan)), latitude_deg=45.0)
+
+    with open_dataset(navigation) as f:
+        beams = arrays_of(f.missions["zz"])
+    plain = ins.run_arrays(**beams)
+    for noise, stated in ((0.02, 0.02), (0.0, ins.BEAM_NOISE_FLOOR)):
+        setting = config(beam_states=False, beam_noise_std=noise)
+        by_setting = ins.run_arrays(**{**beams, "config": setting})
+        instrument = beams["instrument"]._replace(measurement_std=np.full(4, stated))
+        assert same(by_setting, ins.run_arrays(**{**beams, "instrument": instrument}))
+        assert not same(by_setting, plain)
+
+
 def test_the_divergence_watch_restarts_after_an_injected_transient(navigation):
     """A start 2 m/s off in north with a velocity std of 1 cm/s: every beam is gated out
     (innovations of 100 sigma). Without the watch the filter never recovers: it accepts

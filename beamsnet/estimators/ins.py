@@ -191,7 +191,8 @@ class FilterConfig:
         earth_rate: compensate the Earth's rotation at the latitude; None: whenever the
             latitude is known (a recorded log; a simulated mission with a geographic
             origin), off in auvsim's flat world that does not rotate.
-        latitude_deg: deg; None: the mission's ``latitude_deg`` attribute.
+        latitude_deg: deg; None: the mission's ``latitude_deg`` attribute (the arrays'
+            ``latitude_deg``).
         gravity: m/s^2 (down); None: the mission's ``gravity`` (the WGS-84 normal
             gravity at the latitude for a recorded log; the arrays': from the latitude).
         beam_states: estimate each measurement's scale factor and bias (8 more states:
@@ -219,11 +220,13 @@ class FilterConfig:
             instrument's slow-error time where it has one, else constant.
         gate_probability: chi-square (1 dof) gate on each measurement's normalised
             innovation; 0.999 rejects 0.1 % of good ones (3.29 sigma).
-        beam_noise_std: white noise of a beam, m/s; None: the mission's instrument
-            (``dvl_noise_std``, at least ``BEAM_NOISE_FLOOR``).
+        beam_noise_std: white noise of a beam, m/s (at least ``BEAM_NOISE_FLOOR``); None:
+            the mission's instrument (``dvl_noise_std``, at least the floor; the arrays'
+            ``instrument.measurement_std``).
         velocity_noise_std: white noise of each axis of a DVL velocity, m/s; None: the
-            beam noise through the Janus geometry (``janus_velocity_std``) if known, else
-            the mission's ``dvl_velocity_accuracy``.
+            beam noise (this setting's, else the instrument's) through the Janus geometry
+            (``janus_velocity_std``) if known, else the mission's
+            ``dvl_velocity_accuracy`` (the arrays' ``instrument.measurement_std``).
         dvl_updates: False: no measurement is used, pure inertial navigation.
         accel_noise_density: m/s^2/sqrt(Hz); None: the mission's, with a recorded log's
             quantisation added (``quantisation_density``).
@@ -815,6 +818,7 @@ class Instrument(NamedTuple):
     accel_bias_psd: float  # (m/s^2)^2/s
     gyro_bias_psd: float  # (rad/s)^2/s
     measurement_std: np.ndarray  # (K,) m/s, white noise of each beam or velocity axis
+    # (NaN: not stated; the settings' ``beam_noise_std`` or ``velocity_noise_std`` give it)
     slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
     slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
 
@@ -842,7 +846,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         velocity: (P, 3) m/s, the DVL's own velocity in its frame: one of the two.
         valid: (P, 4) or (P, 3) or (P,) bool, which measurements to use (default: the
             finite ones).
-        beam_angle_deg: the beams' angle from the vertical (needed with ``beams``).
+        beam_angle_deg: the beams' angle from the vertical (needed with ``beams``; with
+            a ``velocity``, turns ``config.beam_noise_std`` into its axes' noise).
         mounting_rpy_deg: (3,) DVL frame -> body, deg. imu_position_body,
             dvl_position_body: (3,) m, FRD from the body origin (the reference point).
         mounting_std_deg, dvl_position_std: (3,) deg and m, how well the mounting and
@@ -852,12 +857,14 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         start: where and how sure the filter starts (``start_from_reference``,
             ``coarse_alignment``, or the truth).
         instrument: the IMU's and DVL's noise (``Instrument``).
-        latitude_deg: the place; with it (unless ``config.earth_rate`` is False) the
-            Earth's rate is compensated and gravity is WGS-84's normal gravity there
-            (``auvsim.physics.earth``). None: a flat Earth that does not rotate.
+        latitude_deg: the place (``config.latitude_deg`` overrides it); with it (unless
+            ``config.earth_rate`` is False) the Earth's rate is compensated and gravity is
+            WGS-84's normal gravity there (``auvsim.physics.earth``). None: a flat Earth
+            that does not rotate.
         height_m: height for the normal gravity, m (negative under water).
         gravity: m/s^2, overrides both (``config.gravity`` overrides it).
-        config: settings; its instrument fields override ``instrument``'s.
+        config: settings; a setting wins over the argument it names (its instrument
+            fields, ``beam_noise_std`` and ``velocity_noise_std`` over ``instrument``'s).
         truth_velocity_dvl: (P, 3) m/s, for the NEES (NaN without).
         ping_row: (P,) the IMU sample of each ping, where a file states it (simulated
             missions' ``imu/index_of_dvl``); default from the times.
@@ -918,6 +925,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         raise ValueError("dvl_time: expected increasing times")
 
     cfg = config
+    if cfg.latitude_deg is not None:
+        latitude_deg = cfg.latitude_deg
     earth = (cfg.earth_rate if cfg.earth_rate is not None else latitude_deg is not None)
     if earth and latitude_deg is None:
         raise ValueError("latitude_deg: the Earth's rate needs the latitude")
@@ -945,8 +954,13 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
          else cfg.gyro_noise_density) ** 2,
         ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
         ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd])
-    r_meas = np.broadcast_to(np.asarray(ins.measurement_std, dtype=float),
+    r_meas = np.broadcast_to(_measurement_std(cfg, ins.measurement_std, beams=beams is not None,
+                                              beam_angle_deg=beam_angle_deg),
                              (len(dirs),)) ** 2
+    if not np.isfinite(r_meas).all():
+        raise ValueError("instrument.measurement_std: expected finite stds, or "
+                         "beam_noise_std / velocity_noise_std in config; got "
+                         f"{ins.measurement_std!r}")
     dt = np.concatenate([[0.0], np.diff(t[i0:])])
     # The measurement biases c_k: constant (``beam_bias_std``), or first-order Gauss-Markov
     # with the instrument's slow error (its std added, its correlation time) or
@@ -995,6 +1009,22 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        quaternion=quaternion_of(rot))
 
 
+def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
+                     beam_angle_deg: float | None) -> np.ndarray:
+    """(K,) m/s, each measurement's white noise: a setting wins (a beam's
+    ``beam_noise_std``, at least ``BEAM_NOISE_FLOOR``; a velocity axis's
+    ``velocity_noise_std``, else ``beam_noise_std`` through the Janus geometry where the
+    beams' angle is known), else ``stated``, the instrument's (NaN where it states none)."""
+    if beams and cfg.beam_noise_std is not None:
+        return np.full(4, max(float(cfg.beam_noise_std), BEAM_NOISE_FLOOR))
+    if not beams and cfg.velocity_noise_std is not None:
+        return np.full(3, float(cfg.velocity_noise_std))
+    if not beams and cfg.beam_noise_std is not None and beam_angle_deg is not None:
+        return np.maximum(janus_velocity_std(float(cfg.beam_noise_std), beam_angle_deg),
+                          BEAM_NOISE_FLOOR)
+    return np.asarray(stated, dtype=float)
+
+
 def _known(setting: float | None, calibrated, default: float) -> np.ndarray:
     """(3,) std: the setting where given, else the calibration's, else the default."""
     if setting is not None:
@@ -1039,8 +1069,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     rate = float(a["imu_rate_hz"]) if "imu_rate_hz" in a else 1.0 / float(
         np.median(np.diff(imu_time)))
     r_imu = np.asarray(a.get("imu_position_body", np.zeros(3)), dtype=float)
-    latitude = cfg.latitude_deg if cfg.latitude_deg is not None else a.get("latitude_deg")
-    latitude = None if latitude is None else float(latitude)
+    latitude = None if a.get("latitude_deg") is None else float(a["latitude_deg"])
 
     if recorded:
         start = _reference_start(mission, imu_time, w, cfg)
@@ -1067,28 +1096,27 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         return math.hypot(spec, quantisation_density(samples, rate))
 
     beam_angle = float(a["beam_angle_deg"]) if "beam_angle_deg" in a else None
-    beam_noise = (cfg.beam_noise_std if cfg.beam_noise_std is not None
-                  else float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None)
+    beam_noise = float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None
     use_beams = _holds(dvl, "beam_velocity") and not (
         recorded and a.get("dvl_beams_derived", False))
+    # The instrument's noise as the file states it (NaN where it does not); run_arrays
+    # applies the settings.
     if use_beams:
-        if beam_noise is None:
-            raise DataError(f"mission {mission.name}: no beam noise (dvl_noise_std); "
-                            "expected it, or beam_noise_std in the filter's settings")
-        measurement_std = np.full(4, max(beam_noise, BEAM_NOISE_FLOOR))
-    elif cfg.velocity_noise_std is not None:
-        measurement_std = np.full(3, cfg.velocity_noise_std)
+        measurement_std = np.full(4, math.nan if beam_noise is None
+                                  else max(beam_noise, BEAM_NOISE_FLOOR))
     elif beam_noise is not None and beam_angle is not None:
         measurement_std = np.maximum(janus_velocity_std(beam_noise, beam_angle),
                                      BEAM_NOISE_FLOOR)
-    elif "dvl_velocity_accuracy" in a:
-        measurement_std = np.full(3, float(a["dvl_velocity_accuracy"]))
     else:
-        raise DataError(f"mission {mission.name}: no DVL noise (dvl_noise_std or "
-                        "dvl_velocity_accuracy); expected one, or velocity_noise_std in the "
-                        "filter's settings")
-    slow_std, slow_time = _slow_error(a, measurement_std, recorded=recorded,
-                                      beams=use_beams, beam_angle=beam_angle)
+        measurement_std = np.full(3, float(a.get("dvl_velocity_accuracy", math.nan)))
+    white = _measurement_std(cfg, measurement_std, beams=use_beams, beam_angle_deg=beam_angle)
+    if not np.isfinite(white).all():
+        stated, setting = (("dvl_noise_std", "beam_noise_std") if use_beams else
+                           ("dvl_noise_std or dvl_velocity_accuracy", "velocity_noise_std"))
+        raise DataError(f"mission {mission.name}: no DVL noise ({stated}); expected it, or "
+                        f"{setting} in the filter's settings")
+    slow_std, slow_time = _slow_error(a, white, recorded=recorded, beams=use_beams,
+                                      beam_angle=beam_angle)
     instrument = Instrument(
         accel_noise_density=density("imu_accel_noise_density", f),
         gyro_noise_density=density("imu_gyro_noise_density", w),
@@ -1121,7 +1149,6 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
                 else None)
     # A file that states a slow DVL error needs the bias states to hold it.
     beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
-    gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
     mounting_std, position_std = applied_dvl_errors(a)
     return run_arrays(
         imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
@@ -1129,7 +1156,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         imu_position_body=r_imu,
         dvl_position_body=np.asarray(a.get("dvl_position_body", np.zeros(3)), float),
         start=start, instrument=instrument, latitude_deg=latitude,
-        height_m=float(a.get("height_m", 0.0)), gravity=gravity,
+        height_m=float(a.get("height_m", 0.0)), gravity=mission.gravity,
         config=dataclasses.replace(cfg, beam_states=beam_states),
         truth_velocity_dvl=truth_v, ping_row=ping_row,
         timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
