@@ -250,6 +250,12 @@ def test_estimate_reports_the_filters_accepted_pings_and_its_events(navigation, 
     ("gain = 3\n", "'gain', which is not a filter setting"),
     ("watch_share = 2.0\n", "watch_share: expected a share"),
     ("watch_pings = \n", "is not TOML"),
+    ('dvl_updates = "no"\n', "dvl_updates: expected true or false, got 'no'"),
+    ("earth_rate = 1\n", "earth_rate: expected true, false or None, got 1"),
+    ("bias_time = 0.0\n", "bias_time: expected a positive number or None, got 0.0"),
+    ("lever_arm_std = 0\n", "lever_arm_std: expected a positive number or None"),
+    ('initial_error_seed = "x"\n', "initial_error_seed: expected a whole number >= 0"),
+    ("initial_error_seed = 1.5\n", "initial_error_seed: expected a whole number >= 0"),
 ])
 def test_a_bad_filter_config_gets_one_line_and_exit_2(navigation, tmp_path, capsys, text,
                                                       said):

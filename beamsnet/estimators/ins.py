@@ -276,13 +276,29 @@ class FilterConfig:
     watch_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std",
-                     "misalignment_std_deg", "lever_arm_std"):
-            value = getattr(self, name)
-            if value is None and name in ("misalignment_std_deg", "lever_arm_std"):
-                continue
-            if not (_number(value) and value > 0):
+        for name in _POSITIVE:
+            if not (_number(value := getattr(self, name)) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
+        for name in _POSITIVE_OR_NONE:
+            if (value := getattr(self, name)) is not None and not (_number(value) and value > 0):
+                raise ValueError(f"FilterConfig.{name}: expected a positive number or None, "
+                                 f"got {value!r}")
+        for name in _AT_LEAST_ZERO_OR_NONE:
+            if (value := getattr(self, name)) is not None and not (_number(value)
+                                                                   and value >= 0):
+                raise ValueError(f"FilterConfig.{name}: expected a number >= 0 or None, "
+                                 f"got {value!r}")
+        for name in _BOOL_OR_NONE:
+            if not ((value := getattr(self, name)) is None or isinstance(value, bool)):
+                raise ValueError(f"FilterConfig.{name}: expected true, false or None, got "
+                                 f"{value!r}")
+        if not isinstance(self.dvl_updates, bool):
+            raise ValueError("FilterConfig.dvl_updates: expected true or false, got "
+                             f"{self.dvl_updates!r}")
+        seed = self.initial_error_seed
+        if seed is not None and not (_whole(seed) and seed >= 0):
+            raise ValueError("FilterConfig.initial_error_seed: expected a whole number >= 0 "
+                             f"or None, got {seed!r}")
         if _number(self.attitude_std_deg):  # one std for all three axes
             object.__setattr__(self, "attitude_std_deg", (float(self.attitude_std_deg),) * 2)
         att = self.attitude_std_deg
@@ -293,30 +309,31 @@ class FilterConfig:
         if not (_number(self.gate_probability) and 0 < self.gate_probability < 1):
             raise ValueError("FilterConfig.gate_probability: expected a probability in "
                              f"(0, 1), got {self.gate_probability!r}")
-        for name in ("beam_noise_std", "velocity_noise_std", "bias_time", "gravity",
-                     "accel_bias_std", "gyro_bias_std", "accel_noise_density",
-                     "gyro_noise_density", "accel_bias_psd", "gyro_bias_psd"):
-            value = getattr(self, name)
-            if value is not None and not (_number(value) and value >= 0):
-                raise ValueError(f"FilterConfig.{name}: expected a number >= 0 or None, "
-                                 f"got {value!r}")
-        for name in ("earth_rate", "beam_states"):
-            if getattr(self, name) not in (None, True, False):
-                raise ValueError(f"FilterConfig.{name}: expected true, false or None, got "
-                                 f"{getattr(self, name)!r}")
         if self.latitude_deg is not None and not (_number(self.latitude_deg)
                                                   and abs(self.latitude_deg) <= 90):
             raise ValueError("FilterConfig.latitude_deg: expected deg in [-90, 90], got "
                              f"{self.latitude_deg!r}")
         if not (_number(self.clock_std) and self.clock_std >= 0):
             raise ValueError(f"FilterConfig.clock_std: expected s >= 0, got {self.clock_std!r}")
-        if not (isinstance(self.watch_pings, int) and not isinstance(self.watch_pings, bool)
-                and self.watch_pings >= 0):
+        if not (_whole(self.watch_pings) and self.watch_pings >= 0):
             raise ValueError("FilterConfig.watch_pings: expected a whole number of pings "
                              f">= 0, got {self.watch_pings!r}")
         if not (_number(self.watch_share) and 0 < self.watch_share <= 1):
             raise ValueError("FilterConfig.watch_share: expected a share in (0, 1], got "
                              f"{self.watch_share!r}")
+
+
+# FilterConfig's fields by what they accept (the others are checked one by one).
+_POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std")
+_POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
+_AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
+                          "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
+                          "accel_bias_psd", "gyro_bias_psd")
+_BOOL_OR_NONE = ("earth_rate", "beam_states")
+
+
+def _whole(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _number(value) -> bool:
