@@ -424,7 +424,7 @@ class FilterTrack(NamedTuple):
     nees_velocity: np.ndarray  # (P,) e^T cov^-1 e against the true velocity (NaN: none)
     accepted: np.ndarray  # (P,) bool: the filter accepted a measurement of the ping
     events: tuple[Event, ...] = ()  # the divergence watch's restarts, in time order
-    quaternion: np.ndarray | None = None  # (P, 4) body -> NED [w, x, y, z], its attitude
+    rotation: np.ndarray | None = None  # (P, 3, 3) body -> NED, its attitude
     misalignment: np.ndarray | None = None  # (P, 3) rad, the DVL's, about its axes
     misalignment_std: np.ndarray | None = None  # (P, 3) rad
     lever_arm: np.ndarray | None = None  # (P, 3) m, the DVL's from the IMU, body
@@ -1022,8 +1022,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
                        accepted=used > 0, events=events, misalignment=b[:, 28:31],
                        misalignment_std=b[:, 31:34], lever_arm=b[:, 34:37],
-                       lever_arm_std=b[:, 37:40],
-                       quaternion=quaternion_of(rot))
+                       lever_arm_std=b[:, 37:40], rotation=rot)
 
 
 def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
@@ -1256,38 +1255,6 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
 def _chi2_1dof(probability: float) -> float:
     """Quantile of chi-square with 1 dof: the square of the normal's two-sided one."""
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
-
-
-def quaternion_of(rotation: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions [w, x, y, z], w >= 0, of rotation matrices (..., 3, 3):
-    Shepperd's method (1978, J. Guidance and Control 1(3)), from the largest of the four
-    squared components; NaN matrices give NaN."""
-    r = np.asarray(rotation, dtype=float)
-    t = np.stack([1 + r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2],
-                  1 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2],
-                  1 - r[..., 0, 0] + r[..., 1, 1] - r[..., 2, 2],
-                  1 - r[..., 0, 0] - r[..., 1, 1] + r[..., 2, 2]], axis=-1)
-    k = np.argmax(np.nan_to_num(t, nan=-1.0), axis=-1)
-    big = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], axis=-1)[..., 0],
-                             1e-300)) / 2
-    q = _shepperd(r, k, big)
-    q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def _shepperd(r: np.ndarray, k: np.ndarray, big: np.ndarray) -> np.ndarray:
-    """The quaternion from its largest component ``big`` (index k) and the matrix's
-    off-diagonal sums and differences (each 4 q_i q_j)."""
-    d = 4 * big
-    a = (r[..., 2, 1] - r[..., 1, 2]) / d
-    b = (r[..., 0, 2] - r[..., 2, 0]) / d
-    c = (r[..., 1, 0] - r[..., 0, 1]) / d
-    xy = (r[..., 0, 1] + r[..., 1, 0]) / d
-    xz = (r[..., 0, 2] + r[..., 2, 0]) / d
-    yz = (r[..., 1, 2] + r[..., 2, 1]) / d
-    cases = [np.stack([big, a, b, c], -1), np.stack([a, big, xy, xz], -1),
-             np.stack([b, xy, big, yz], -1), np.stack([c, xz, yz, big], -1)]
-    return np.take_along_axis(np.stack(cases, axis=-2), k[..., None, None], axis=-2)[..., 0, :]
 
 
 def rotation_vector_exp(phi: np.ndarray) -> np.ndarray:
