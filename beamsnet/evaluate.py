@@ -36,6 +36,7 @@ from beamsnet import metrics
 from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
+from beamsnet.estimators.ins import at_pings
 from beamsnet.navigation import (
     dead_reckoning_error,
     dead_reckoning_positions,
@@ -575,17 +576,7 @@ def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | Non
     tracks = estimator.tracks(windows)
     if any(getattr(t, field, None) is None for t in tracks.values()):
         return None
-    shape = np.shape(getattr(next(iter(tracks.values())), field))[1:]
-    out = np.full((len(windows.time), *shape), np.nan)
-    for i in np.unique(windows.mission):
-        track = tracks[windows.names[i]]
-        rows = np.flatnonzero(windows.mission == i)
-        k = np.minimum(np.searchsorted(track.ping_time, windows.time[rows]),
-                       len(track.ping_time) - 1)
-        hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
-            1.0, np.abs(windows.time[rows]))
-        out[rows[hit]] = np.asarray(getattr(track, field))[k[hit]]
-    return out
+    return at_pings(tracks, windows, field)
 
 
 def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:

@@ -9,7 +9,8 @@ mission's streams and attributes into ``run_arrays``), ``InsDvlFilter`` (the est
 of the tables). Settings: ``FilterConfig`` (``load_config`` reads one from TOML,
 ``beamsnet estimate/evaluate --filter-config``). Output: ``FilterTrack`` at every ping,
 with the position and its std, the attitude, the instrument states, ``accepted`` (a
-measurement of the ping was used), ``availability`` (their share) and ``events``.
+measurement of the ping was used), ``availability`` (their share) and ``events``;
+``at_pings`` reads any of its fields at the samples of a beamsnet ``Windows``.
 
 Conventions are auvsim's (NED world, FRD body, body -> NED rotation C, SI units). The
 mechanised point is the IMU; the DVL and the body origin (the reference point) are
@@ -1322,24 +1323,29 @@ class InsDvlFilter:
         """(S, 3) DVL-frame velocity, m/s, at each sample's ping: the track of mission
         ``windows.names[windows.mission]`` at the ping whose time is ``windows.time``
         (NaN if no ping has that time)."""
-        return self._at_pings(windows, "velocity_dvl")
+        return at_pings(self.tracks(windows), windows, "velocity_dvl")
 
     def positions(self, windows: Windows) -> np.ndarray:
         """(S, 3) estimated NED position of the body origin, m, at each sample's ping."""
-        return self._at_pings(windows, "position_ned")
+        return at_pings(self.tracks(windows), windows, "position_ned")
 
-    def _at_pings(self, windows: Windows, field: str) -> np.ndarray:
-        tracks = self.tracks(windows)
-        out = np.full((len(windows.time), 3), np.nan)
-        for i in np.unique(windows.mission):
-            track = tracks[windows.names[i]]
-            rows = np.flatnonzero(windows.mission == i)
-            k = np.searchsorted(track.ping_time, windows.time[rows])
-            k = np.minimum(k, len(track.ping_time) - 1)
-            hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
-                1.0, np.abs(windows.time[rows]))
-            out[rows[hit]] = getattr(track, field)[k[hit]]
-        return out
+
+def at_pings(tracks: dict, windows: Windows, field: str) -> np.ndarray:
+    """(S, ...) ``field`` (P, ...) of each mission's track at each sample's ping: the
+    track ``tracks[windows.names[windows.mission]]`` (a ``FilterTrack``, or anything with
+    ``ping_time`` and that field) at the ping whose time is ``windows.time`` (to 1e-9
+    relative); NaN where no ping has that time."""
+    shape = np.shape(getattr(next(iter(tracks.values())), field))[1:] if tracks else ()
+    out = np.full((len(windows.time), *shape), np.nan)
+    for i in np.unique(windows.mission):
+        track = tracks[windows.names[i]]
+        rows = np.flatnonzero(windows.mission == i)
+        k = np.minimum(np.searchsorted(track.ping_time, windows.time[rows]),
+                       len(track.ping_time) - 1)
+        hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
+            1.0, np.abs(windows.time[rows]))
+        out[rows[hit]] = np.asarray(getattr(track, field))[k[hit]]
+    return out
 
 
 ESTIMATORS = (
