@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import flat
+from conftest import Fields, flat
 from scipy.stats import chi2
 
 from auvsim.config import DvlConfig, ImuConfig, MissionConfig, ScenarioConfig
@@ -102,8 +102,6 @@ def test_earth_rate_compensation_undoes_an_earth_rate_put_into_noise_free_data(i
     error of at most sum dt |f| (that attitude error), and turns the DVL-frame velocity
     by it, |v| (that attitude error) more. Without it the uncompensated
     10 deg/h (1e-4 rad/s at the gyro) tilts the solution far off."""
-    from types import SimpleNamespace
-
     latitude = math.radians(45.0)
     omega = ins.EARTH_RATE * np.array([math.cos(latitude), 0.0, -math.sin(latitude)])
     with open_dataset(ideal) as f:
@@ -112,14 +110,13 @@ def test_earth_rate_compensation_undoes_an_earth_rate_put_into_noise_free_data(i
         c = rotation_matrices(m.truth.quaternion)
         w = m.truth.angular_rate
         v_imu = m.truth.velocity_ned + np.einsum("nij,nj->ni", c, np.cross(w, r))
-        imu = SimpleNamespace(
+        imu = Fields(
             angular_rate=m.imu.angular_rate + np.einsum("nji,j->ni", c, omega),
             specific_force=m.imu.specific_force
             + np.einsum("nji,nj->ni", c, 2.0 * np.cross(omega, v_imu)),
             index_of_dvl=m.imu.index_of_dvl)
-        rotating = SimpleNamespace(name=m.name, attrs=m.attrs, dataset=m.dataset, imu=imu,
-                                   truth=m.truth, dvl=m.dvl, has=m.has,
-                                   gravity=m.gravity)
+        rotating = Fields(name=m.name, origin=m.origin, attrs=m.attrs, dataset=m.dataset,
+                          imu=imu, truth=m.truth, dvl=m.dvl, has=m.has, gravity=m.gravity)
         config = ins.FilterConfig(dvl_updates=False, earth_rate=True, latitude_deg=45.0)
         compensated = ins.run_mission(rotating, config)
         plain = ins.run_mission(m, ins.FilterConfig(dvl_updates=False))

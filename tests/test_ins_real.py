@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import flat
+from conftest import Fields, flat
 
 from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
+from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rotation_rpy
 from auvsim.sensors.imu import IMU_GRADES
@@ -319,13 +320,6 @@ def test_the_filter_converges_on_each_shared_segment_with_its_defaults(akit_file
     assert result["restarts"] == 0 and result["availability"] > 0.95, result
 
 
-class _Group:
-    """A group view of plain arrays (fields as attributes, as ``Mission``'s groups)."""
-
-    def __init__(self, **fields) -> None:
-        self.__dict__.update(fields)
-
-
 def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotating_earth():
     """A recorded mission as the schema-7 contract has it (``origin = "recorded"``,
     ``reference/`` instead of ``truth/``, the DVL's own ``velocity_ls``, the instrument's
@@ -344,17 +338,17 @@ def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotati
                  dvl_rate_hz=1.0, beam_angle_deg=30.0, dvl_position_body=np.zeros(3),
                  dvl_mounting_rpy_deg=np.zeros(3), dvl_velocity_accuracy=0.02,
                  dvl_beams_derived=True)
-    mission = _Group(
+    mission = Fields(
         name="rest", origin="recorded", attrs=attrs, gravity=attrs["gravity"],
         has=lambda group: group in ("imu", "dvl", "reference"),
-        imu=_Group(time=data["imu_time"], specific_force=data["specific_force"],
+        imu=Fields(time=data["imu_time"], specific_force=data["specific_force"],
                    angular_rate=data["angular_rate"]),
-        dvl=_Group(time=data["dvl_time"], velocity_ls=data["velocity"]),
-        reference=_Group(time=np.arange(n_ref, dtype=float), position_ned=np.zeros((n_ref, 3)),
+        dvl=Fields(time=data["dvl_time"], velocity_ls=data["velocity"]),
+        reference=Fields(time=np.arange(n_ref, dtype=float), position_ned=np.zeros((n_ref, 3)),
                          velocity_ned=np.zeros((n_ref, 3)),
                          quaternion=np.tile(quaternion_from_euler(0.0, 0.0, math.radians(30)),
                                             (n_ref, 1))),
-        dataset=_Group(config_json=""))
+        dataset=Fields(config_json=""))
     np.testing.assert_allclose(rotation_matrices(mission.reference.quaternion[:1])[0], c,
                                atol=1e-12)
     track = ins.run_mission(mission)
@@ -363,6 +357,11 @@ def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotati
     assert np.isnan(track.nees_velocity).all()  # a reference is not a truth
     without = ins.run_mission(mission, ins.FilterConfig(earth_rate=False, dvl_updates=False))
     assert np.abs(without.position_ned[:60, :2]).max() > 1.0  # the Earth's rate mattered
+    no_attitude = Fields(time=mission.reference.time, position_ned=mission.reference.position_ned,
+                         velocity_ned=mission.reference.velocity_ned)
+    blind = Fields(**{**vars(mission), "reference": no_attitude, "_where": "mission rest"})
+    with pytest.raises(DatasetError, match="mission rest: its reference has no attitude"):
+        ins.run_mission(blind)  # require_attitude's refusal
 
 
 def test_coarse_alignment_levels_a_tilted_imu_at_rest():

@@ -141,7 +141,7 @@ import numpy as np
 
 from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_dvl_errors
-from auvsim.data.reader import open_dataset
+from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import OMEGA
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
@@ -1072,17 +1072,18 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
     Raises:
         NoImuError: the mission has no IMU record (an imported stream).
-        DataError: a recorded mission without a reference attitude to start from.
+        DatasetError: a recorded mission without a reference attitude to start from
+            (``auvsim.data.reader.require_attitude``'s one line).
     """
     if not mission.has("imu"):
         raise NoImuError(f"mission {mission.name} has no IMU record; the INS/DVL filter "
                          "integrates the IMU, so it is skipped")
     a, cfg = mission.attrs, config
-    recorded = getattr(mission, "origin", a.get("origin")) == "recorded"
+    recorded = mission.origin == "recorded"
     imu, dvl = mission.imu, mission.dvl
     f = np.asarray(imu.specific_force, dtype=float)
     w = np.asarray(imu.angular_rate, dtype=float)
-    imu_time = np.asarray(imu.time if _holds(imu, "time") else mission.truth.time, dtype=float)
+    imu_time = np.asarray(imu.time if "time" in imu else mission.truth.time, dtype=float)
     rate = float(a["imu_rate_hz"]) if "imu_rate_hz" in a else 1.0 / float(
         np.median(np.diff(imu_time)))
     r_imu = np.asarray(a.get("imu_position_body", np.zeros(3)), dtype=float)
@@ -1114,7 +1115,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
     beam_angle = float(a["beam_angle_deg"]) if "beam_angle_deg" in a else None
     beam_noise = float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None
-    use_beams = _holds(dvl, "beam_velocity") and not (
+    use_beams = "beam_velocity" in dvl and not (
         recorded and a.get("dvl_beams_derived", False))
     # The instrument's noise as the file states it (NaN where it does not); run_arrays
     # applies the settings.
@@ -1150,19 +1151,19 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         if beam_correction is not None:
             scale, bias = (np.asarray(x, dtype=float) for x in beam_correction)
             beams = (beams - bias) / (1.0 + scale)
-        mode = dvl.mode if _holds(dvl, "mode") else np.zeros(len(beams), dtype=np.int64)
+        mode = dvl.mode if "mode" in dvl else np.zeros(len(beams), dtype=np.int64)
         # A beam with bottom lock measures the velocity over ground whether or not the
         # ping has the 3 such beams an LS velocity needs (mode 0 or -1; ``valid`` is the
         # lock there); in water track (mode 1) ``valid`` means it measured the water.
         valid = np.asarray(dvl.valid, dtype=bool) & (np.asarray(mode) != 1)[:, None]
         measured = dict(beams=beams)
     else:
-        velocity = np.asarray(dvl.velocity_ls if _holds(dvl, "velocity_ls") else dvl.velocity,
+        velocity = np.asarray(dvl.velocity_ls if "velocity_ls" in dvl else dvl.velocity,
                               dtype=float)
-        valid = (np.asarray(dvl.mode) == 0) if _holds(dvl, "mode") else None
+        valid = (np.asarray(dvl.mode) == 0) if "mode" in dvl else None
         measured = dict(velocity=velocity)
-    truth_v = None if recorded or not _holds(dvl, "velocity") else np.asarray(dvl.velocity, float)
-    ping_row = (np.asarray(imu.index_of_dvl, dtype=np.int64) if _holds(imu, "index_of_dvl")
+    truth_v = None if recorded or "velocity" not in dvl else np.asarray(dvl.velocity, float)
+    ping_row = (np.asarray(imu.index_of_dvl, dtype=np.int64) if "index_of_dvl" in imu
                 else None)
     # A file that states a slow DVL error needs the bias states to hold it.
     beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
@@ -1201,15 +1202,6 @@ def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: 
     return slow, time
 
 
-def _holds(group, field: str) -> bool:
-    """Whether a group view (``field in group``), or any object with its fields as
-    attributes, has ``field``."""
-    try:
-        return field in group
-    except TypeError:  # no __contains__: fields as attributes
-        return hasattr(group, field)
-
-
 def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
     """A simulated mission's start: its truth at sample 0, or drawn around it."""
     truth = mission.truth
@@ -1236,16 +1228,14 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
 def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
                      cfg: FilterConfig) -> Start:
     """A recorded mission's start: its reference's first sample within the IMU's span."""
+    quaternion = require_attitude(mission)
     ref = mission.reference
-    if not _holds(ref, "quaternion"):
-        raise DataError(f"mission {mission.name}: its reference has no attitude; the "
-                        "filter starts from it (expected reference/quaternion)")
     t = np.asarray(ref.time, dtype=float)
     k = int(np.searchsorted(t, imu_time[0]))
     if k >= len(t):
         raise DataError(f"mission {mission.name}: its reference ends before the IMU starts")
     i = min(int(np.searchsorted(imu_time, t[k])), len(imu_time) - 1)
-    c = rotation_matrices(np.asarray(ref.quaternion[k:k + 1], dtype=float))[0]
+    c = rotation_matrices(np.asarray(quaternion[k:k + 1], dtype=float))[0]
     v = np.asarray(ref.velocity_ned, dtype=float)
     accel = (v[min(k + 1, len(t) - 1)] - v[max(k - 1, 0)]) / max(
         t[min(k + 1, len(t) - 1)] - t[max(k - 1, 0)], 1e-9)
