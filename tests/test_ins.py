@@ -12,6 +12,7 @@ from scipy.stats import chi2
 from auvsim.config import DvlConfig, ImuConfig, MissionConfig, ScenarioConfig
 from auvsim.data.importer import import_velocity
 from auvsim.data.reader import open_dataset
+from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import euler_angles, rotation_matrices, rotation_rpy
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.data import load_windows, split
@@ -102,8 +103,7 @@ def test_earth_rate_compensation_undoes_an_earth_rate_put_into_noise_free_data(i
     error of at most sum dt |f| (that attitude error), and turns the DVL-frame velocity
     by it, |v| (that attitude error) more. Without it the uncompensated
     10 deg/h (1e-4 rad/s at the gyro) tilts the solution far off."""
-    latitude = math.radians(45.0)
-    omega = ins.EARTH_RATE * np.array([math.cos(latitude), 0.0, -math.sin(latitude)])
+    omega = earth_rate_ned(45.0)
     with open_dataset(ideal) as f:
         m = f.missions["zz"]
         r = np.asarray(m.attrs["imu_position_body"])

@@ -115,8 +115,8 @@ def test_a_stationary_imu_at_a_latitude_stays_put_with_earth_rate_and_normal_gra
     data = stationary(45.0)
     pure = ins.FilterConfig(dvl_updates=False)
     still = ins.run_arrays(**data, latitude_deg=45.0, config=pure)
-    assert np.abs(still.position_ned).max() < 1e-6
-    assert np.abs(still.velocity_dvl).max() < 1e-8
+    assert np.abs(still.position_ned).max() < 1e-9
+    assert np.abs(still.velocity_dvl).max() < 1e-9
     heavy = ins.run_arrays(**data, latitude_deg=45.0, gravity=9.81, config=pure)
     t = still.ping_time[-1]
     fall = (9.81 - normal_gravity(45.0)) * t**2 / 2
@@ -127,11 +127,12 @@ def test_a_stationary_imu_at_a_latitude_stays_put_with_earth_rate_and_normal_gra
 
 def test_a_stationary_imu_with_a_dvl_at_rest_stays_within_its_own_three_sigma():
     """The same at 32.85 deg (the Snapir's) with the DVL reading zero: the position stays
-    within 3 sigma of the reported std and a few centimetres of the start."""
+    at the start to rounding (the ideal data hold it there exactly), within 3 sigma of the
+    reported std, and every ping is accepted."""
     data = stationary(32.85, seconds=300.0)
     track = ins.run_arrays(**data, latitude_deg=32.85)
     assert np.all(np.abs(track.position_ned) <= 3 * track.position_std)
-    assert np.abs(track.position_ned).max() < 0.05 and track.availability == 1.0
+    assert np.abs(track.position_ned).max() < 1e-9 and track.availability == 1.0
 
 
 def test_the_dvl_calibration_prior_is_the_setting_else_the_calibrations_else_the_default():
@@ -352,7 +353,7 @@ def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotati
     np.testing.assert_allclose(rotation_matrices(mission.reference.quaternion[:1])[0], c,
                                atol=1e-12)
     track = ins.run_mission(mission)
-    assert np.abs(track.position_ned).max() < 0.05 and track.availability == 1.0
+    assert np.abs(track.position_ned).max() < 1e-9 and track.availability == 1.0
     assert np.all(np.abs(track.position_ned) <= 3 * track.position_std)
     assert np.isnan(track.nees_velocity).all()  # a reference is not a truth
     without = ins.run_mission(mission, ins.FilterConfig(earth_rate=False, dvl_updates=False))

@@ -143,13 +143,12 @@ from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_dvl_errors
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
-from auvsim.physics.earth import OMEGA
+from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.data import DataError, Windows
 from beamsnet.estimators.baselines import BeamCalibration
 from beamsnet.estimators.registry import Needs, Spec
 
-EARTH_RATE = OMEGA  # rad/s, WGS-84 (auvsim.physics.earth)
 N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
@@ -895,8 +894,6 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     Raises:
         ValueError: an argument of the wrong shape, order or value, named.
     """
-    from auvsim.physics.earth import earth_rate_ned, normal_gravity
-
     t = np.asarray(imu_time, dtype=float)
     f = np.ascontiguousarray(specific_force, dtype=np.float64)
     w = np.ascontiguousarray(angular_rate, dtype=np.float64)
