@@ -81,7 +81,11 @@ from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
 from beamsnet.navigation import truth_at_pings
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / ".." / "shared" / "data" / "snapir-akit"
+# The shared real segments: ``shared/data/snapir-akit`` beside the repository (or beside a
+# folder of worktrees it sits in).
+DATA = next((up / "shared" / "data" / "snapir-akit" for up in ROOT.parents
+             if (up / "shared" / "data" / "snapir-akit").is_dir()),
+            ROOT.parent / "shared" / "data" / "snapir-akit")
 FINAL_BOUND = 5.0  # m, every segment
 DR_RATIO = 1.2  # median final against DR-with-the-reference-attitude's median final
 COVERAGE = 0.9  # share of the time within the reported 3 sigma

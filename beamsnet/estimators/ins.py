@@ -1213,7 +1213,7 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
         w0 = np.asarray(truth.angular_rate[0], dtype=float)
         p_imu = p0 + c0 @ r_imu + cfg.position_std * rng.standard_normal(3)
         v_imu = v0 + c0 @ np.cross(w0, r_imu) + cfg.velocity_std * rng.standard_normal(3)
-        c0 = rotation_vector_exp(att_std * rng.standard_normal(3)) @ c0
+        c0 = _exp(att_std * rng.standard_normal(3)) @ c0
         p0 = p_imu - c0 @ r_imu
         v0 = v_imu - c0 @ np.cross(w0, r_imu)
     return Start(time=float(truth.time[0]), position_ned=p0, velocity_ned=v0, rotation=c0,
@@ -1243,11 +1243,6 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
 def _chi2_1dof(probability: float) -> float:
     """Quantile of chi-square with 1 dof: the square of the normal's two-sided one."""
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
-
-
-def rotation_vector_exp(phi: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation matrix of a rotation vector (3,), rad (Rodrigues)."""
-    return _exp(np.asarray(phi, dtype=float))
 
 
 def run(path, mission_name: str, config: FilterConfig = FilterConfig()) -> FilterTrack:
