@@ -406,3 +406,21 @@ def test_run_mission_on_the_imported_and_the_corrected_segment(akit_files):
     assert result["final"] < 5.0 and result["coverage"] >= 0.9, result
     assert result["availability"] > 0.95
     assert len(raw.events) > 10 and raw.availability < 0.9
+
+
+@needs_akit
+def test_the_evidence_on_segment_4_is_what_the_benchmark_docstring_quotes(akit_files):
+    """``benchmarks/sea_filter.py --evidence`` on the corrected segment 4: the reference's
+    positions leave the integral of its velocities by 1.34 m within 50 s (1.83 m over the
+    segment), the gyros alone hold its heading to 0.03 deg (std), and the DVL's error
+    along x has a mean of 4.7 mm/s and a slow part that lasts (tau over 10 s)."""
+    with open_dataset(akit_files[1]) as f:
+        m = f.missions["trajectory4"]
+        drift, since = sea_filter.reference_drift(m)
+        heading = sea_filter.gyro_heading(m)
+        x = sea_filter.dvl_error(m)[0]
+    assert drift[since <= sea_filter.EARLY].max() == pytest.approx(1.34, abs=0.005)
+    assert drift.max() == pytest.approx(1.83, abs=0.005)
+    assert np.std(heading) < 0.03 and len(heading) > 390
+    assert 1e3 * x["mean"] == pytest.approx(4.7, abs=0.05)
+    assert 1e3 * x["slow"] == pytest.approx(9.4, abs=0.05) and x["tau"] > 10.0
