@@ -18,14 +18,13 @@ from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rotation_rpy
+from auvsim.runs.presets import PAPER_NOISE_CODE
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
 from beamsnet.estimators import ins
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import sea_filter  # noqa: E402  (the product path on the shared segments, and its scores)
-
-PAPER_NOISE = 0.042**2  # m/s, the paper-sim preset's beam noise
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +33,7 @@ def navigation(dataset_of):
     mission = MissionConfig(name="zz", seed=3, scenario=ScenarioConfig(name="zigzag",
                                                                        duration=90.0))
     return dataset_of(flat(mission, imu=IMU_GRADES["navigation"],
-                           dvl=DvlConfig(noise_std=PAPER_NOISE)), "navigation")
+                           dvl=DvlConfig(noise_std=PAPER_NOISE_CODE)), "navigation")
 
 
 def arrays_of(m) -> dict:

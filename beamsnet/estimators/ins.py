@@ -349,8 +349,6 @@ def load_config(path) -> FilterConfig:
         ConfigError: the file cannot be read or parsed, a key is not a field, or a value
             is refused (one line naming it).
     """
-    import dataclasses
-
     import tomllib
 
     from auvsim.errors import ConfigError
@@ -495,8 +493,8 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
-            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, watch,
-            timing_std):
+            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, window,
+            watch_share, timing_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
     (p, v, c, ba, bg, P); outputs per ping are returned.
 
@@ -512,10 +510,11 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         p, v, c, ba, bg: initial IMU-point position, velocity, rotation, biases.
         P: (n, n) initial covariance. q: (4,) PSDs (accel, gyro white noise; accel, gyro
             bias random walk). r_meas: (K,) measurement variances, (m/s)^2.
-        gate: chi-square threshold. n: states, 15 or 23.
+        gate: chi-square threshold. n: states, ``N_CORE`` (15) or ``N_BEAM`` (29).
         bias_decay: 1 / correlation time of the measurement biases c_k, 1/s (0: constant).
         bias_psd: their driving PSD, (m/s)^2/s.
-        watch: (window pings, rejected share) of the divergence watch; window 0: off.
+        window, watch_share: the divergence watch's window, pings (0: off), and the share
+            of its measurements the gate must have rejected.
         timing_std: s, the std of each ping's time on the IMU's clock: a measurement
             along b changes at b . du/dt, so it is uncertain by timing_std |b . du/dt|
             more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
@@ -531,7 +530,6 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
     reset = np.zeros(n_ping, dtype=np.bool_)
-    window = int(watch[0])
     ring_used = np.zeros(max(window, 1), dtype=np.int64)
     ring_rejected = np.zeros(max(window, 1), dtype=np.int64)
     attitude_prior = np.array([P[6, 6], P[7, 7], P[8, 8]])
@@ -666,7 +664,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 ring_rejected[slot] = rejected[k_ping]
                 offered = ring_used.sum()
                 if (rejected[k_ping] > 0 and offered >= window
-                        and ring_rejected.sum() >= watch[1] * offered):
+                        and ring_rejected.sum() >= watch_share * offered):
                     # The gate has rejected most measurements for a window: the state, not
                     # the instrument, is wrong. Restart the velocity from the measurements
                     # (its variance covers the worst innovation, uncorrelated), widen the
@@ -994,16 +992,14 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
         np.ascontiguousarray(r_meas), _chi2_1dof(cfg.gate_probability), n, decay,
         2.0 * bias_std**2 * decay,
-        np.array([float(cfg.watch_pings), float(cfg.watch_share)]),
+        cfg.watch_pings, float(cfg.watch_share),
         cfg.clock_std if timing_std is None else float(timing_std))
+    nees = np.full(len(tp), np.nan)
     if truth_velocity_dvl is not None:
         err = out_v - np.asarray(truth_velocity_dvl, dtype=float)
         ok = np.isfinite(err).all(axis=1)
-        nees = np.full(len(tp), np.nan)
         nees[ok] = np.einsum("pi,pi->p", err[ok],
                              np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
-    else:
-        nees = np.full(len(tp), np.nan)
     events = tuple(Event(int(k), float(tp[k]), "restart",
                          f"ping {k} at {tp[k]:.2f} s: the gate had rejected at least "
                          f"{100 * cfg.watch_share:.0f} % of the last {cfg.watch_pings} pings' "
