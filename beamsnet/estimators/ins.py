@@ -152,6 +152,12 @@ from beamsnet.estimators.registry import Needs, Spec
 N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
+# The error state's layout (the rows of P), by the FilterTrack field each part fills.
+_STATES = dict(position=slice(0, 3), velocity=slice(3, 6), attitude=slice(6, 9),
+              accel_bias=slice(9, 12), gyro_bias=slice(12, 15), beam_scale=slice(15, 19),
+              beam_bias=slice(19, 23), misalignment=slice(23, 26), lever_arm=slice(26, 29))
+_INSTRUMENT_STATES = ("accel_bias", "gyro_bias", "beam_scale", "beam_bias", "misalignment",
+                     "lever_arm")  # FilterTrack has each, and its std
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
 # How well an uncalibrated DVL's mounting is known, deg per axis: our choice for a DVL
 # mounted mechanically without an alignment calibration (at 0.5 deg a DVL track bends by
@@ -524,8 +530,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     out_v = np.full((n_ping, 3), np.nan)
     out_cov = np.full((n_ping, 3, 3), np.nan)
     out_p = np.full((n_ping, 3), np.nan)
-    out_pstd = np.full((n_ping, 3), np.nan)
-    out_b = np.full((n_ping, 40), np.nan)
+    out_x = np.full((n_ping, N_BEAM), np.nan)  # the instrument states, by _STATES
+    out_sd = np.full((n_ping, N_BEAM), np.nan)  # sqrt(diag P), by _STATES
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
@@ -701,27 +707,22 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
             out_p[k_ping] = p - c @ r_imu
             out_c[k_ping] = c
+            # The origin's position error adds theta x (C r_imu); r_imu is short, and its
+            # share is below the position std's first digit: the IMU point's std.
+            for j in range(n):
+                out_sd[k_ping, j] = math.sqrt(P[j, j])
             for r in range(3):
-                # The origin's position error adds theta x (C r_imu); r_imu is short, and
-                # its share is below the position std's first digit: the IMU point's std.
-                out_pstd[k_ping, r] = math.sqrt(P[r, r])
-                out_b[k_ping, r] = ba[r]
-                out_b[k_ping, 3 + r] = math.sqrt(P[9 + r, 9 + r])
-                out_b[k_ping, 6 + r] = bg[r]
-                out_b[k_ping, 9 + r] = math.sqrt(P[12 + r, 12 + r])
+                out_x[k_ping, 9 + r] = ba[r]
+                out_x[k_ping, 12 + r] = bg[r]
             if n > N_CORE:
                 for k in range(4):
-                    out_b[k_ping, 12 + k] = s[k]
-                    out_b[k_ping, 16 + k] = math.sqrt(P[15 + k, 15 + k])
-                    out_b[k_ping, 20 + k] = cb[k]
-                    out_b[k_ping, 24 + k] = math.sqrt(P[19 + k, 19 + k])
+                    out_x[k_ping, 15 + k] = s[k]
+                    out_x[k_ping, 19 + k] = cb[k]
                 for r in range(3):
-                    out_b[k_ping, 28 + r] = mis[r]
-                    out_b[k_ping, 31 + r] = math.sqrt(P[23 + r, 23 + r])
-                    out_b[k_ping, 34 + r] = lever[r]
-                    out_b[k_ping, 37 + r] = math.sqrt(P[26 + r, 26 + r])
+                    out_x[k_ping, 23 + r] = mis[r]
+                    out_x[k_ping, 26 + r] = lever[r]
             k_ping += 1
-    return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset, out_c
+    return out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c
 
 
 def _dataset_config(mission) -> dict:
@@ -985,7 +986,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if bias_time is not None and n > N_CORE:
         P[19:23, 19:23] = np.diag(np.full(4, bias_std**2))
     decay = 0.0 if bias_time is None else 1.0 / bias_time
-    out_v, cov, pos, pos_std, b, used, rejected, reset, rot = _filter(
+    out_v, cov, pos, x, sd, used, rejected, reset, rot = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
@@ -1008,15 +1009,12 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                    for k in np.flatnonzero(reset))
     return FilterTrack(ping_time=tp, velocity_dvl=out_v,
                        velocity_std=np.sqrt(np.diagonal(cov, axis1=1, axis2=2)),
-                       velocity_cov=cov, position_ned=pos, position_std=pos_std,
-                       accel_bias=b[:, 0:3], accel_bias_std=b[:, 3:6],
-                       gyro_bias=b[:, 6:9], gyro_bias_std=b[:, 9:12],
-                       beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
-                       beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
+                       velocity_cov=cov, position_ned=pos,
+                       position_std=sd[:, _STATES["position"]],
+                       **{name: x[:, _STATES[name]] for name in _INSTRUMENT_STATES},
+                       **{f"{name}_std": sd[:, _STATES[name]] for name in _INSTRUMENT_STATES},
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
-                       accepted=used > 0, events=events, misalignment=b[:, 28:31],
-                       misalignment_std=b[:, 31:34], lever_arm=b[:, 34:37],
-                       lever_arm_std=b[:, 37:40], rotation=rot)
+                       accepted=used > 0, events=events, rotation=rot)
 
 
 def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
