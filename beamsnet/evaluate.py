@@ -36,6 +36,7 @@ from beamsnet import metrics
 from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
+from beamsnet.estimators.ins import at_pings
 from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
@@ -547,21 +548,14 @@ def reported_stds(estimator, windows: Windows) -> dict[str, np.ndarray]:
 
 def own_rotations(estimator, windows: Windows) -> dict[str, np.ndarray]:
     """{name: (S, 3, 3) body -> NED, its attitude at each sample's ping} of an estimator
-    whose tracks carry an attitude (the INS/DVL filter's ``quaternion``); {} for the
+    whose tracks carry an attitude (the INS/DVL filter's ``rotation``); {} for the
     others (NaN where it has no ping at that time)."""
-    from auvsim.physics.frames import rotation_matrices
-
-    q = _track_at_pings(estimator, windows, "quaternion")
-    if q is None:
-        return {}
-    out = np.full((len(q), 3, 3), np.nan)
-    have = np.isfinite(q).all(axis=1)
-    out[have] = rotation_matrices(q[have])
-    return {estimator.name: out}
+    rotation = _track_at_pings(estimator, windows, "rotation")
+    return {} if rotation is None else {estimator.name: rotation}
 
 
 def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | None:
-    """(S, k) ``field`` of the estimator's per-mission tracks (``tracks(windows)``, each
+    """(S, ...) ``field`` of the estimator's per-mission tracks (``tracks(windows)``, each
     with ``ping_time``) at each sample's ping; None when it has no tracks or a track
     lacks the field."""
     if not hasattr(estimator, "tracks"):
@@ -569,17 +563,7 @@ def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | Non
     tracks = estimator.tracks(windows)
     if any(getattr(t, field, None) is None for t in tracks.values()):
         return None
-    width = np.shape(getattr(next(iter(tracks.values())), field))[1]
-    out = np.full((len(windows.time), width), np.nan)
-    for i in np.unique(windows.mission):
-        track = tracks[windows.names[i]]
-        rows = np.flatnonzero(windows.mission == i)
-        k = np.minimum(np.searchsorted(track.ping_time, windows.time[rows]),
-                       len(track.ping_time) - 1)
-        hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
-            1.0, np.abs(windows.time[rows]))
-        out[rows[hit]] = np.asarray(getattr(track, field))[k[hit]]
-    return out
+    return at_pings(tracks, windows, field)
 
 
 def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:

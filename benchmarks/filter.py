@@ -35,10 +35,12 @@ from pathlib import Path
 
 import numpy as np
 import perf_page
-from generation import cpu_seconds  # the sibling script (its directory is on sys.path)
+from generation import cpu_seconds  # the sibling scripts (their directory is on sys.path)
+from sea_filter import DATA
 
 from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
+from auvsim.physics.frames import rotation_rpy
 from auvsim.runs.generate import generate
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.estimators import ins
@@ -48,7 +50,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=600.0, help="mission length, s")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--akit", type=Path, default=_shared_akit(),
+    parser.add_argument("--akit", type=Path, default=DATA,
                         help="the shared real segments (skipped if absent)")
     perf_page.add_write_option(parser, "filter")
     args = parser.parse_args()
@@ -110,27 +112,17 @@ def main() -> None:
         print(f"recorded segment: {args.akit} absent, not measured")
 
 
-def _shared_akit() -> Path:
-    """``../shared/data/snapir-akit`` beside the repository (or beside the folder of
-    worktrees it sits in)."""
-    for up in (perf_page.ROOT.parent, perf_page.ROOT.parent.parent):
-        if (up / "shared" / "data" / "snapir-akit").is_dir():
-            return up / "shared" / "data" / "snapir-akit"
-    return perf_page.ROOT.parent / "shared" / "data" / "snapir-akit"
-
-
 def recorded(folder: Path, repeats: int) -> None:
-    """The filter's speed on a recorded segment (the A-KIT layout's Trajectory1)."""
-    from auvsim.sensors.imu import IMU_GRADES
-
+    """The filter's speed on a recorded segment (the A-KIT layout's Trajectory1), started
+    at its reference's first sample (position, velocity, roll, pitch and yaw)."""
     def load(kind: str) -> np.ndarray:
         return np.loadtxt(folder / f"{kind}_trajectory1.csv", delimiter=",", skiprows=1)
 
     imu, dvl, gt = load("IMU"), load("DVL"), load("GT")
     grade = IMU_GRADES["navigation"]
     start = ins.start_from_reference(
-        imu[0, 0], np.zeros(3), gt[0, 4:7], ins.rotation_vector_exp(np.array(
-            [0.0, 0.0, gt[0, 9]])), angular_rate=imu[0, 4:7])
+        imu[0, 0], np.zeros(3), gt[0, 4:7], rotation_rpy(*gt[0, 7:10]),
+        angular_rate=imu[0, 4:7])
     inputs = dict(imu_time=imu[:, 0], specific_force=imu[:, 1:4], angular_rate=imu[:, 4:7],
                   dvl_time=dvl[:, 0], velocity=dvl[:, 1:4], start=start,
                   instrument=ins.Instrument(grade.accel_noise_density,

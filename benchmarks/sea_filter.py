@@ -46,41 +46,53 @@ figure.
 What is still missed (measured on the IMU-clock files): segment 4's coverage. Its error is
 not the filter's alone: the dead reckoning with the reference's attitude is further from
 the reference (4.72 m final, 4.63 m RMSE) than the filter (3.40, 2.78), and the
-reference's positions move 1.4 m from the integral of its own velocities within the
-first 50 s (up to 1.8 m on segment 4, 5.5 m on segment 5: a post-processed INS whose
-positions were corrected by something other than its velocities), before the filter's
-3 sigma has grown past 1.1 m. The filter's heading is not the cause either: the gyros
-integrated alone from the start agree with the reference's heading at its own samples to
-0.03 deg (std over 400 s). The DVL's velocity against the reference's, per DVL axis, has
-a mean of -7 to +8 mm/s along x and a slow part of 4-12 mm/s whose autocorrelation holds
-at lag 3 s what it has at 1 s (a fit of r(k) = A exp(-k / tau) over k = 1..10 pings gives
-tau 11 to 50 s), where the filter's slow DVL error is 18 mm/s over 3 s
-(``auvsim.runs.presets.navigator``, measured with -1 / ln r(1) on a Navigator's error
-velocity, which assumes one exponential). Which of the two (DVL or reference) holds it
-the data cannot tell, and a longer correlation time in the filter (30 s) made every
-segment worse (median final 3.87 m) without covering segment 4 (49 %).
+reference's positions move 1.34 m from the integral of its own velocities within the
+first 50 s (1.83 m over segment 4, up to 5.50 m on segment 5: a post-processed INS whose
+positions were corrected by something other than its velocities), while the filter's
+3 sigma there is 1.56 m at 50 s. The filter's heading is not the cause either: the
+gyros integrated alone from the start agree with the reference's heading at its own
+samples to 0.03 deg (std over the segment: 0.012 to 0.029 deg; at most 0.14 deg). The
+DVL's velocity against the reference's, per DVL axis, has a mean of -7.7 to +6.6 mm/s
+along x (under 1 mm/s across and down) and a slow part of 3-12 mm/s along x and y
+whose autocorrelation decays over tens of pings (a fit of r(k) = A exp(-k / tau) over
+k = 1..10 pings gives tau 13 to 78 s along x, 25 to 106 s across), where the filter's
+slow DVL error is 18 mm/s over 3 s (``auvsim.runs.presets.navigator``, measured with
+-1 / ln r(1) on a Navigator's error velocity, which assumes one exponential). Which of
+the two (DVL or reference) holds it the data cannot tell, and a longer correlation time
+in the filter (``bias_time = 30`` in a ``--filter-config``) made five of the six
+segments worse (median final 3.13 m) without covering segment 4 (49 %). ``--evidence``
+prints these figures per segment after the table.
 
     .venv/bin/python benchmarks/sea_filter.py [--data ../shared/data/snapir-akit]
-        [--work DIR] [--filter-config FILE.toml]
+        [--work DIR] [--filter-config FILE.toml] [--evidence]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import sys
 import tempfile
 from pathlib import Path
 
-from auvsim.data.reader import open_dataset
-from beamsnet.data import load_windows
+import numpy as np
+
+from auvsim.data.reader import open_dataset, require_attitude
+from auvsim.physics.earth import earth_rate_ned
+from auvsim.physics.frames import rotation_matrices
+from beamsnet.data import load_windows, reference_velocity
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
 from beamsnet.experiments.sea import sea_dataset
 from beamsnet.navigation import truth_at_pings
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / ".." / "shared" / "data" / "snapir-akit"
+# The shared real segments: ``shared/data/snapir-akit`` beside the repository (or beside a
+# folder of worktrees it sits in).
+DATA = next((up / "shared" / "data" / "snapir-akit" for up in ROOT.parents
+             if (up / "shared" / "data" / "snapir-akit").is_dir()),
+            ROOT.parent / "shared" / "data" / "snapir-akit")
 FINAL_BOUND = 5.0  # m, every segment
 DR_RATIO = 1.2  # median final against DR-with-the-reference-attitude's median final
 COVERAGE = 0.9  # share of the time within the reported 3 sigma
@@ -137,6 +149,106 @@ def table(rows: dict[str, dict]) -> list[str]:
     return out
 
 
+LAGS = np.arange(1, 11)  # pings (1 s), the lags the DVL error's autocorrelation is fitted on
+EARLY = 50.0  # s, the start of a segment, before the filter's 3 sigma has grown
+
+
+def dvl_error(mission) -> list[dict]:
+    """Per DVL axis, the DVL's own velocity minus the reference's moved to the DVL
+    (``beamsnet.data.reference_velocity``, the target the tables score against) at the
+    pings: its mean (m/s), and for the rest its autocorrelation r(k) at lags ``LAGS``
+    fitted by r(k) = A exp(-k / tau) (least squares on log r, the lags where r > 0): tau
+    (s, at the DVL's rate) and the slow part sqrt(A) std (m/s), the std of the correlated
+    component that model holds."""
+    t = np.asarray(mission.dvl.time, dtype=float)
+    error = np.asarray(mission.dvl.velocity_ls, dtype=float) - reference_velocity(mission, t)
+    period = float(np.median(np.diff(t)))
+    out = []
+    for e in error.T:
+        mean = float(np.nanmean(e))
+        e = e - mean
+        var = float(np.nanmean(e**2))
+        r = np.array([np.nanmean(e[:-k] * e[k:]) / var for k in LAGS])
+        ok = np.isfinite(r) & (r > 0)
+        slope, log_a = np.polyfit(LAGS[ok], np.log(r[ok]), 1)
+        out.append(dict(mean=mean, slow=math.sqrt(math.exp(log_a) * var),
+                        tau=-period / slope if slope < 0 else math.inf))
+    return out
+
+
+def _exp(phi: np.ndarray) -> np.ndarray:
+    """(3, 3) the rotation of rotation vector ``phi`` (3,), rad (Rodrigues)."""
+    angle = float(np.linalg.norm(phi))
+    k = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    if angle < 1e-12:
+        return np.eye(3) + k
+    k /= angle
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+def gyro_heading(mission) -> np.ndarray:
+    """(R,) deg, the heading of the gyros integrated alone (the Earth's rate at the
+    mission's latitude removed, no bias) from the reference's first attitude within the
+    IMU's span, minus the reference's heading, at each of the reference's samples after
+    it (each reached with the rate of the IMU interval it falls in, as the filter's
+    mechanisation steps: C_i = C_{i-1} Exp(dt (w_i - C_{i-1}^T Omega_ie)))."""
+    imu_t = np.asarray(mission.imu.time, dtype=float)
+    w = np.asarray(mission.imu.angular_rate, dtype=float)
+    ref_t = np.asarray(mission.reference.time, dtype=float)
+    ref_c = rotation_matrices(np.asarray(require_attitude(mission), dtype=float))
+    omega = earth_rate_ned(float(mission.attrs["latitude_deg"]))
+    k0 = int(np.searchsorted(ref_t, imu_t[0]))
+    c, t = ref_c[k0], ref_t[k0]
+    i = int(np.searchsorted(imu_t, t, side="right"))
+    out = []
+    for k in range(k0 + 1, int(np.searchsorted(ref_t, imu_t[-1], side="right"))):
+        while imu_t[i] <= ref_t[k]:
+            c = c @ _exp((imu_t[i] - t) * (w[i] - c.T @ omega))
+            t = imu_t[i]
+            i += 1
+        at = c @ _exp((ref_t[k] - t) * (w[i] - c.T @ omega))
+        turn = math.atan2(at[1, 0], at[0, 0]) - math.atan2(ref_c[k][1, 0], ref_c[k][0, 0])
+        out.append(math.remainder(turn, 2 * math.pi))
+    return np.degrees(out)
+
+
+def reference_drift(mission) -> tuple[np.ndarray, np.ndarray]:
+    """(R,) m, how far the reference's horizontal position has moved from the integral of
+    its own NED velocity (trapezoids between its samples), from its first sample within
+    the IMU's span, at each sample from there; (R,) s, their times from that sample."""
+    ref = mission.reference
+    t = np.asarray(ref.time, dtype=float)
+    k0 = int(np.searchsorted(t, float(mission.imu.time[0])))
+    t, p = t[k0:], np.asarray(ref.position_ned, dtype=float)[k0:, :2]
+    v = np.asarray(ref.velocity_ned, dtype=float)[k0:, :2]
+    moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
+        0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
+    return np.linalg.norm(p - p[0] - moved, axis=1), t - t[0]
+
+
+def evidence(ds, rows: dict[str, dict]) -> list[str]:
+    """The figures the module docstring quotes about what the filter cannot fix, per
+    segment of the corrected file ``ds`` (``rows``: its scores, with the filter's track)."""
+    out = [f"DVL minus reference velocity per DVL axis: mean, slow part sqrt(A) std (mm/s), "
+           f"tau (s) of r(k) = A exp(-k / tau), k = {LAGS[0]}..{LAGS[-1]} pings; gyros "
+           "alone minus the reference's heading (deg); reference position minus the "
+           f"integral of its velocity, horizontal, max over the first {EARLY:g} s and "
+           f"over the segment, and the filter's 3 sigma_h at {EARLY:g} s (m)",
+           "segment        x: mean  slow   tau   y: mean  slow   tau   z: mean  slow   tau  "
+           "| heading std  max |.|  | drift 50 s  segment  3 sigma_h"]
+    for name, m in sorted(ds.missions.items()):
+        axes = "".join(f"   {1e3 * a['mean']:7.1f} {1e3 * a['slow']:5.1f} {a['tau']:5.1f}"
+                       for a in dvl_error(m))
+        heading = gyro_heading(m)
+        drift, since = reference_drift(m)
+        track = rows[name]["track"]
+        started = track.ping_time[np.isfinite(track.position_std[:, 0])][0]
+        early = 3 * track.horizontal_std[np.searchsorted(track.ping_time, started + EARLY)]
+        out.append(f"{name:<13}{axes}  |  {np.std(heading):10.3f} {np.abs(heading).max():8.3f}"
+                   f"  |  {drift[since <= EARLY].max():9.2f} {drift.max():8.2f} {early:10.2f}")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", type=Path, default=DATA,
@@ -146,6 +258,10 @@ def main(argv: list[str] | None = None) -> int:
                         "temporary folder)")
     parser.add_argument("--filter-config", type=Path, default=None,
                         help="filter settings (TOML); default: the filter's defaults")
+    parser.add_argument("--evidence", action="store_true",
+                        help="also print, per segment, the figures the module docstring "
+                        "quotes (the DVL's error against the reference, the gyros' heading, "
+                        "the reference's positions against its velocities)")
     args = parser.parse_args(argv)
     config = ins.FilterConfig() if args.filter_config is None else ins.load_config(
         args.filter_config)
@@ -156,7 +272,8 @@ def main(argv: list[str] | None = None) -> int:
         checked = sea_dataset(args.data, work)[0]
         with open_dataset(checked) as ds:
             rows = {name: score(m, config) for name, m in sorted(ds.missions.items())}
-    print("\n".join(table(rows)))
+            found = evidence(ds, rows) if args.evidence else []
+    print("\n".join(table(rows) + found))
     return 0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -68,6 +69,14 @@ kind = "procedural"
 depth = 60
 roughness = 3
 """
+
+
+class Fields(SimpleNamespace):
+    """A stand-in for a mission or one of its groups (``auvsim.data.reader.Group``): its
+    fields as attributes, and ``"field" in group``."""
+
+    def __contains__(self, field: str) -> bool:
+        return field in vars(self)
 
 
 class CountingBar:

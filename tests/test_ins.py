@@ -6,18 +6,18 @@ import math
 
 import numpy as np
 import pytest
-from conftest import flat
+from conftest import Fields, flat
 from scipy.stats import chi2
 
 from auvsim.config import DvlConfig, ImuConfig, MissionConfig, ScenarioConfig
 from auvsim.data.importer import import_velocity
 from auvsim.data.reader import open_dataset
+from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import euler_angles, rotation_matrices, rotation_rpy
+from auvsim.runs.presets import PAPER_NOISE_CODE
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.data import load_windows, split
 from beamsnet.estimators import ins
-
-PAPER_NOISE = 0.042**2  # m/s, the paper-sim preset's beam noise
 
 
 def zigzag(duration: float, seed: int = 0) -> MissionConfig:
@@ -102,24 +102,20 @@ def test_earth_rate_compensation_undoes_an_earth_rate_put_into_noise_free_data(i
     error of at most sum dt |f| (that attitude error), and turns the DVL-frame velocity
     by it, |v| (that attitude error) more. Without it the uncompensated
     10 deg/h (1e-4 rad/s at the gyro) tilts the solution far off."""
-    from types import SimpleNamespace
-
-    latitude = math.radians(45.0)
-    omega = ins.EARTH_RATE * np.array([math.cos(latitude), 0.0, -math.sin(latitude)])
+    omega = earth_rate_ned(45.0)
     with open_dataset(ideal) as f:
         m = f.missions["zz"]
         r = np.asarray(m.attrs["imu_position_body"])
         c = rotation_matrices(m.truth.quaternion)
         w = m.truth.angular_rate
         v_imu = m.truth.velocity_ned + np.einsum("nij,nj->ni", c, np.cross(w, r))
-        imu = SimpleNamespace(
+        imu = Fields(
             angular_rate=m.imu.angular_rate + np.einsum("nji,j->ni", c, omega),
             specific_force=m.imu.specific_force
             + np.einsum("nji,nj->ni", c, 2.0 * np.cross(omega, v_imu)),
             index_of_dvl=m.imu.index_of_dvl)
-        rotating = SimpleNamespace(name=m.name, attrs=m.attrs, dataset=m.dataset, imu=imu,
-                                   truth=m.truth, dvl=m.dvl, has=m.has,
-                                   gravity=m.gravity)
+        rotating = Fields(name=m.name, origin=m.origin, attrs=m.attrs, dataset=m.dataset,
+                          imu=imu, truth=m.truth, dvl=m.dvl, has=m.has, gravity=m.gravity)
         config = ins.FilterConfig(dvl_updates=False, earth_rate=True, latitude_deg=45.0)
         compensated = ins.run_mission(rotating, config)
         plain = ins.run_mission(m, ins.FilterConfig(dvl_updates=False))
@@ -190,7 +186,7 @@ def gyro_bias(dataset_of):
     """A constant gyro bias: a MEMS-class turn-on spread (10 deg/h), nothing else."""
     imu = ImuConfig(gyro_turn_on_bias=math.radians(10.0) / 3600.0)
     return dataset_of(flat(zigzag(200.0, seed=10), imu=imu,
-                           dvl=DvlConfig(noise_std=PAPER_NOISE)), "gyro_bias")
+                           dvl=DvlConfig(noise_std=PAPER_NOISE_CODE)), "gyro_bias")
 
 
 def test_a_constant_gyro_bias_is_estimated_within_three_sigma(gyro_bias):
@@ -217,7 +213,7 @@ def navigation(dataset_of):
                               scenario=ScenarioConfig(name="zigzag", duration=100.0))
                 for i in range(RUNS)]
     return dataset_of(flat(*missions, imu=IMU_GRADES["navigation"],
-                           dvl=DvlConfig(noise_std=PAPER_NOISE)), "navigation")
+                           dvl=DvlConfig(noise_std=PAPER_NOISE_CODE)), "navigation")
 
 
 def test_velocity_nees_is_consistent_with_the_chi_square_bounds(navigation):
@@ -246,7 +242,7 @@ def test_beam_scale_factors_and_biases_are_estimated_within_three_sigma(dataset_
     prior in 200 s: at one speed a beam's scale factor and bias look alike, and the INS
     tells either from a velocity only through the accelerometers), and the velocity is
     closer to the truth than without the states."""
-    dvl = DvlConfig(noise_std=PAPER_NOISE, scale_factor_std=0.005, bias_std=0.005)
+    dvl = DvlConfig(noise_std=PAPER_NOISE_CODE, scale_factor_std=0.005, bias_std=0.005)
     path = dataset_of(flat(zigzag(200.0, seed=11), imu=IMU_GRADES["navigation"], dvl=dvl),
                       "beam_states")
     config = ins.FilterConfig(beam_states=True, beam_scale_std=0.005, beam_bias_std=0.005)
@@ -268,7 +264,7 @@ def test_beam_scale_factors_and_biases_are_estimated_within_three_sigma(dataset_
 @pytest.fixture(scope="module")
 def two_beams(dataset_of):
     """Beams 2 and 3 dead all mission, and heavy-tailed outliers on 5 % of the rest."""
-    dvl = DvlConfig(noise_std=PAPER_NOISE, beam_failures=((2, 0.0, 1e6), (3, 0.0, 1e6)),
+    dvl = DvlConfig(noise_std=PAPER_NOISE_CODE, beam_failures=((2, 0.0, 1e6), (3, 0.0, 1e6)),
                     outlier_rate=0.05, outlier_std=1.0)
     return dataset_of(flat(zigzag(120.0, seed=7), imu=IMU_GRADES["navigation"], dvl=dvl),
                       "two_beams")

@@ -334,11 +334,12 @@ class OwnTrack:
 
     def __init__(self, dataset: Path, sigma: float) -> None:
         from auvsim.data.reader import open_dataset
+        from auvsim.physics.frames import rotation_matrices
 
         with open_dataset(dataset) as f:
             ref = f.missions["trajectory1"].reference
             self.track = SimpleNamespace(
-                ping_time=ref.time, quaternion=ref.quaternion,
+                ping_time=ref.time, rotation=rotation_matrices(ref.quaternion),
                 position_ned=ref.position_ned + [0.0, 1.0, 0.0],
                 position_std=np.full((len(ref.time), 3), sigma))
 

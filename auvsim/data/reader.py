@@ -676,7 +676,7 @@ def require_attitude(mission: Mission) -> np.ndarray:
     """
     if mission.has("truth"):
         return mission.truth.quaternion
-    if mission.has("reference") and "quaternion" in Group(mission, "reference"):
+    if mission.has("reference") and "quaternion" in mission.reference:
         return mission.reference.quaternion
     what = ("its reference has no attitude (reference/quaternion)" if mission.has("reference")
             else "it has neither a reference nor a truth")

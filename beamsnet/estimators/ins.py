@@ -9,7 +9,8 @@ mission's streams and attributes into ``run_arrays``), ``InsDvlFilter`` (the est
 of the tables). Settings: ``FilterConfig`` (``load_config`` reads one from TOML,
 ``beamsnet estimate/evaluate --filter-config``). Output: ``FilterTrack`` at every ping,
 with the position and its std, the attitude, the instrument states, ``accepted`` (a
-measurement of the ping was used), ``availability`` (their share) and ``events``.
+measurement of the ping was used), ``availability`` (their share) and ``events``;
+``at_pings`` reads any of its fields at the samples of a beamsnet ``Windows``.
 
 Conventions are auvsim's (NED world, FRD body, body -> NED rotation C, SI units). The
 mechanised point is the IMU; the DVL and the body origin (the reference point) are
@@ -140,18 +141,23 @@ import numpy as np
 
 from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_dvl_errors
-from auvsim.data.reader import open_dataset
+from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
-from auvsim.physics.earth import OMEGA
+from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.data import DataError, Windows
 from beamsnet.estimators.baselines import BeamCalibration
 from beamsnet.estimators.registry import Needs, Spec
 
-EARTH_RATE = OMEGA  # rad/s, WGS-84 (auvsim.physics.earth)
 N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
+# The error state's layout (the rows of P), by the FilterTrack field each part fills.
+_STATES = dict(position=slice(0, 3), velocity=slice(3, 6), attitude=slice(6, 9),
+              accel_bias=slice(9, 12), gyro_bias=slice(12, 15), beam_scale=slice(15, 19),
+              beam_bias=slice(19, 23), misalignment=slice(23, 26), lever_arm=slice(26, 29))
+_INSTRUMENT_STATES = ("accel_bias", "gyro_bias", "beam_scale", "beam_bias", "misalignment",
+                     "lever_arm")  # FilterTrack has each, and its std
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
 # How well an uncalibrated DVL's mounting is known, deg per axis: our choice for a DVL
 # mounted mechanically without an alignment calibration (at 0.5 deg a DVL track bends by
@@ -191,7 +197,8 @@ class FilterConfig:
         earth_rate: compensate the Earth's rotation at the latitude; None: whenever the
             latitude is known (a recorded log; a simulated mission with a geographic
             origin), off in auvsim's flat world that does not rotate.
-        latitude_deg: deg; None: the mission's ``latitude_deg`` attribute.
+        latitude_deg: deg; None: the mission's ``latitude_deg`` attribute (the arrays'
+            ``latitude_deg``).
         gravity: m/s^2 (down); None: the mission's ``gravity`` (the WGS-84 normal
             gravity at the latitude for a recorded log; the arrays': from the latitude).
         beam_states: estimate each measurement's scale factor and bias (8 more states:
@@ -219,11 +226,13 @@ class FilterConfig:
             instrument's slow-error time where it has one, else constant.
         gate_probability: chi-square (1 dof) gate on each measurement's normalised
             innovation; 0.999 rejects 0.1 % of good ones (3.29 sigma).
-        beam_noise_std: white noise of a beam, m/s; None: the mission's instrument
-            (``dvl_noise_std``, at least ``BEAM_NOISE_FLOOR``).
+        beam_noise_std: white noise of a beam, m/s (at least ``BEAM_NOISE_FLOOR``); None:
+            the mission's instrument (``dvl_noise_std``, at least the floor; the arrays'
+            ``instrument.measurement_std``).
         velocity_noise_std: white noise of each axis of a DVL velocity, m/s; None: the
-            beam noise through the Janus geometry (``janus_velocity_std``) if known, else
-            the mission's ``dvl_velocity_accuracy``.
+            beam noise (this setting's, else the instrument's) through the Janus geometry
+            (``janus_velocity_std``) if known, else the mission's
+            ``dvl_velocity_accuracy`` (the arrays' ``instrument.measurement_std``).
         dvl_updates: False: no measurement is used, pure inertial navigation.
         accel_noise_density: m/s^2/sqrt(Hz); None: the mission's, with a recorded log's
             quantisation added (``quantisation_density``).
@@ -273,13 +282,29 @@ class FilterConfig:
     watch_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std",
-                     "misalignment_std_deg", "lever_arm_std"):
-            value = getattr(self, name)
-            if value is None and name in ("misalignment_std_deg", "lever_arm_std"):
-                continue
-            if not (_number(value) and value > 0):
+        for name in _POSITIVE:
+            if not (_number(value := getattr(self, name)) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
+        for name in _POSITIVE_OR_NONE:
+            if (value := getattr(self, name)) is not None and not (_number(value) and value > 0):
+                raise ValueError(f"FilterConfig.{name}: expected a positive number or None, "
+                                 f"got {value!r}")
+        for name in _AT_LEAST_ZERO_OR_NONE:
+            if (value := getattr(self, name)) is not None and not (_number(value)
+                                                                   and value >= 0):
+                raise ValueError(f"FilterConfig.{name}: expected a number >= 0 or None, "
+                                 f"got {value!r}")
+        for name in _BOOL_OR_NONE:
+            if not ((value := getattr(self, name)) is None or isinstance(value, bool)):
+                raise ValueError(f"FilterConfig.{name}: expected true, false or None, got "
+                                 f"{value!r}")
+        if not isinstance(self.dvl_updates, bool):
+            raise ValueError("FilterConfig.dvl_updates: expected true or false, got "
+                             f"{self.dvl_updates!r}")
+        seed = self.initial_error_seed
+        if seed is not None and not (_whole(seed) and seed >= 0):
+            raise ValueError("FilterConfig.initial_error_seed: expected a whole number >= 0 "
+                             f"or None, got {seed!r}")
         if _number(self.attitude_std_deg):  # one std for all three axes
             object.__setattr__(self, "attitude_std_deg", (float(self.attitude_std_deg),) * 2)
         att = self.attitude_std_deg
@@ -290,30 +315,31 @@ class FilterConfig:
         if not (_number(self.gate_probability) and 0 < self.gate_probability < 1):
             raise ValueError("FilterConfig.gate_probability: expected a probability in "
                              f"(0, 1), got {self.gate_probability!r}")
-        for name in ("beam_noise_std", "velocity_noise_std", "bias_time", "gravity",
-                     "accel_bias_std", "gyro_bias_std", "accel_noise_density",
-                     "gyro_noise_density", "accel_bias_psd", "gyro_bias_psd"):
-            value = getattr(self, name)
-            if value is not None and not (_number(value) and value >= 0):
-                raise ValueError(f"FilterConfig.{name}: expected a number >= 0 or None, "
-                                 f"got {value!r}")
-        for name in ("earth_rate", "beam_states"):
-            if getattr(self, name) not in (None, True, False):
-                raise ValueError(f"FilterConfig.{name}: expected true, false or None, got "
-                                 f"{getattr(self, name)!r}")
         if self.latitude_deg is not None and not (_number(self.latitude_deg)
                                                   and abs(self.latitude_deg) <= 90):
             raise ValueError("FilterConfig.latitude_deg: expected deg in [-90, 90], got "
                              f"{self.latitude_deg!r}")
         if not (_number(self.clock_std) and self.clock_std >= 0):
             raise ValueError(f"FilterConfig.clock_std: expected s >= 0, got {self.clock_std!r}")
-        if not (isinstance(self.watch_pings, int) and not isinstance(self.watch_pings, bool)
-                and self.watch_pings >= 0):
+        if not (_whole(self.watch_pings) and self.watch_pings >= 0):
             raise ValueError("FilterConfig.watch_pings: expected a whole number of pings "
                              f">= 0, got {self.watch_pings!r}")
         if not (_number(self.watch_share) and 0 < self.watch_share <= 1):
             raise ValueError("FilterConfig.watch_share: expected a share in (0, 1], got "
                              f"{self.watch_share!r}")
+
+
+# FilterConfig's fields by what they accept (the others are checked one by one).
+_POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std")
+_POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
+_AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
+                          "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
+                          "accel_bias_psd", "gyro_bias_psd")
+_BOOL_OR_NONE = ("earth_rate", "beam_states")
+
+
+def _whole(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _number(value) -> bool:
@@ -329,8 +355,6 @@ def load_config(path) -> FilterConfig:
         ConfigError: the file cannot be read or parsed, a key is not a field, or a value
             is refused (one line naming it).
     """
-    import dataclasses
-
     import tomllib
 
     from auvsim.errors import ConfigError
@@ -404,7 +428,7 @@ class FilterTrack(NamedTuple):
     nees_velocity: np.ndarray  # (P,) e^T cov^-1 e against the true velocity (NaN: none)
     accepted: np.ndarray  # (P,) bool: the filter accepted a measurement of the ping
     events: tuple[Event, ...] = ()  # the divergence watch's restarts, in time order
-    quaternion: np.ndarray | None = None  # (P, 4) body -> NED [w, x, y, z], its attitude
+    rotation: np.ndarray | None = None  # (P, 3, 3) body -> NED, its attitude
     misalignment: np.ndarray | None = None  # (P, 3) rad, the DVL's, about its axes
     misalignment_std: np.ndarray | None = None  # (P, 3) rad
     lever_arm: np.ndarray | None = None  # (P, 3) m, the DVL's from the IMU, body
@@ -475,8 +499,8 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
-            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, watch,
-            timing_std):
+            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, window,
+            watch_share, timing_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
     (p, v, c, ba, bg, P); outputs per ping are returned.
 
@@ -492,10 +516,11 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         p, v, c, ba, bg: initial IMU-point position, velocity, rotation, biases.
         P: (n, n) initial covariance. q: (4,) PSDs (accel, gyro white noise; accel, gyro
             bias random walk). r_meas: (K,) measurement variances, (m/s)^2.
-        gate: chi-square threshold. n: states, 15 or 23.
+        gate: chi-square threshold. n: states, ``N_CORE`` (15) or ``N_BEAM`` (29).
         bias_decay: 1 / correlation time of the measurement biases c_k, 1/s (0: constant).
         bias_psd: their driving PSD, (m/s)^2/s.
-        watch: (window pings, rejected share) of the divergence watch; window 0: off.
+        window, watch_share: the divergence watch's window, pings (0: off), and the share
+            of its measurements the gate must have rejected.
         timing_std: s, the std of each ping's time on the IMU's clock: a measurement
             along b changes at b . du/dt, so it is uncertain by timing_std |b . du/dt|
             more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
@@ -505,13 +530,12 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     out_v = np.full((n_ping, 3), np.nan)
     out_cov = np.full((n_ping, 3, 3), np.nan)
     out_p = np.full((n_ping, 3), np.nan)
-    out_pstd = np.full((n_ping, 3), np.nan)
-    out_b = np.full((n_ping, 40), np.nan)
+    out_x = np.full((n_ping, N_BEAM), np.nan)  # the instrument states, by _STATES
+    out_sd = np.full((n_ping, N_BEAM), np.nan)  # sqrt(diag P), by _STATES
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
     reset = np.zeros(n_ping, dtype=np.bool_)
-    window = int(watch[0])
     ring_used = np.zeros(max(window, 1), dtype=np.int64)
     ring_rejected = np.zeros(max(window, 1), dtype=np.int64)
     attitude_prior = np.array([P[6, 6], P[7, 7], P[8, 8]])
@@ -526,6 +550,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         k_ping += 1
     hrow = np.zeros(n)
     fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+    rate = np.zeros(3)
     c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(f.shape[0]):
         if i > 0:
@@ -542,10 +567,14 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 wb[r] = w[i, r] - bg[r]
             for r in range(3):
                 cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
-            if earth:
-                cor[:] = np.cross(omega_ie, v)
-                wb -= c.T @ omega_ie
-                cf -= 2.0 * cor
+            if earth:  # w_nb = w - C^T Omega_ie; C f less the Coriolis term 2 Omega_ie x v
+                cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
+                cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
+                cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
+                np.dot(c.T, omega_ie, rate)  # into a buffer; BLAS's rounding, as at pings
+                for r in range(3):
+                    wb[r] -= rate[r]
+                    cf[r] -= 2.0 * cor[r]
             cf[2] += g
             for r in range(3):
                 v[r] += h * cf[r]
@@ -554,7 +583,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 c_old[r, :] = c[r, :]
             cf[2] -= g  # C f (less the Coriolis term) is what the error dynamics see
             if earth:
-                cf += 2.0 * cor
+                for r in range(3):
+                    cf[r] += 2.0 * cor[r]
             _exp_into(dphi, rot)
             _matmul_into(c_old, rot, c)
             # Covariance: Phi P Phi^T (columns, then rows of the result), + Q dt.
@@ -640,7 +670,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 ring_rejected[slot] = rejected[k_ping]
                 offered = ring_used.sum()
                 if (rejected[k_ping] > 0 and offered >= window
-                        and ring_rejected.sum() >= watch[1] * offered):
+                        and ring_rejected.sum() >= watch_share * offered):
                     # The gate has rejected most measurements for a window: the state, not
                     # the instrument, is wrong. Restart the velocity from the measurements
                     # (its variance covers the worst innovation, uncorrelated), widen the
@@ -677,27 +707,22 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
             out_p[k_ping] = p - c @ r_imu
             out_c[k_ping] = c
+            # The origin's position error adds theta x (C r_imu); r_imu is short, and its
+            # share is below the position std's first digit: the IMU point's std.
+            for j in range(n):
+                out_sd[k_ping, j] = math.sqrt(P[j, j])
             for r in range(3):
-                # The origin's position error adds theta x (C r_imu); r_imu is short, and
-                # its share is below the position std's first digit: the IMU point's std.
-                out_pstd[k_ping, r] = math.sqrt(P[r, r])
-                out_b[k_ping, r] = ba[r]
-                out_b[k_ping, 3 + r] = math.sqrt(P[9 + r, 9 + r])
-                out_b[k_ping, 6 + r] = bg[r]
-                out_b[k_ping, 9 + r] = math.sqrt(P[12 + r, 12 + r])
+                out_x[k_ping, 9 + r] = ba[r]
+                out_x[k_ping, 12 + r] = bg[r]
             if n > N_CORE:
                 for k in range(4):
-                    out_b[k_ping, 12 + k] = s[k]
-                    out_b[k_ping, 16 + k] = math.sqrt(P[15 + k, 15 + k])
-                    out_b[k_ping, 20 + k] = cb[k]
-                    out_b[k_ping, 24 + k] = math.sqrt(P[19 + k, 19 + k])
+                    out_x[k_ping, 15 + k] = s[k]
+                    out_x[k_ping, 19 + k] = cb[k]
                 for r in range(3):
-                    out_b[k_ping, 28 + r] = mis[r]
-                    out_b[k_ping, 31 + r] = math.sqrt(P[23 + r, 23 + r])
-                    out_b[k_ping, 34 + r] = lever[r]
-                    out_b[k_ping, 37 + r] = math.sqrt(P[26 + r, 26 + r])
+                    out_x[k_ping, 23 + r] = mis[r]
+                    out_x[k_ping, 26 + r] = lever[r]
             k_ping += 1
-    return out_v, out_cov, out_p, out_pstd, out_b, used, rejected, reset, out_c
+    return out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c
 
 
 def _dataset_config(mission) -> dict:
@@ -809,6 +834,7 @@ class Instrument(NamedTuple):
     accel_bias_psd: float  # (m/s^2)^2/s
     gyro_bias_psd: float  # (rad/s)^2/s
     measurement_std: np.ndarray  # (K,) m/s, white noise of each beam or velocity axis
+    # (NaN: not stated; the settings' ``beam_noise_std`` or ``velocity_noise_std`` give it)
     slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
     slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
 
@@ -836,7 +862,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         velocity: (P, 3) m/s, the DVL's own velocity in its frame: one of the two.
         valid: (P, 4) or (P, 3) or (P,) bool, which measurements to use (default: the
             finite ones).
-        beam_angle_deg: the beams' angle from the vertical (needed with ``beams``).
+        beam_angle_deg: the beams' angle from the vertical (needed with ``beams``; with
+            a ``velocity``, turns ``config.beam_noise_std`` into its axes' noise).
         mounting_rpy_deg: (3,) DVL frame -> body, deg. imu_position_body,
             dvl_position_body: (3,) m, FRD from the body origin (the reference point).
         mounting_std_deg, dvl_position_std: (3,) deg and m, how well the mounting and
@@ -846,12 +873,14 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         start: where and how sure the filter starts (``start_from_reference``,
             ``coarse_alignment``, or the truth).
         instrument: the IMU's and DVL's noise (``Instrument``).
-        latitude_deg: the place; with it (unless ``config.earth_rate`` is False) the
-            Earth's rate is compensated and gravity is WGS-84's normal gravity there
-            (``auvsim.physics.earth``). None: a flat Earth that does not rotate.
+        latitude_deg: the place (``config.latitude_deg`` overrides it); with it (unless
+            ``config.earth_rate`` is False) the Earth's rate is compensated and gravity is
+            WGS-84's normal gravity there (``auvsim.physics.earth``). None: a flat Earth
+            that does not rotate.
         height_m: height for the normal gravity, m (negative under water).
         gravity: m/s^2, overrides both (``config.gravity`` overrides it).
-        config: settings; its instrument fields override ``instrument``'s.
+        config: settings; a setting wins over the argument it names (its instrument
+            fields, ``beam_noise_std`` and ``velocity_noise_std`` over ``instrument``'s).
         truth_velocity_dvl: (P, 3) m/s, for the NEES (NaN without).
         ping_row: (P,) the IMU sample of each ping, where a file states it (simulated
             missions' ``imu/index_of_dvl``); default from the times.
@@ -864,8 +893,6 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     Raises:
         ValueError: an argument of the wrong shape, order or value, named.
     """
-    from auvsim.physics.earth import earth_rate_ned, normal_gravity
-
     t = np.asarray(imu_time, dtype=float)
     f = np.ascontiguousarray(specific_force, dtype=np.float64)
     w = np.ascontiguousarray(angular_rate, dtype=np.float64)
@@ -912,6 +939,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         raise ValueError("dvl_time: expected increasing times")
 
     cfg = config
+    if cfg.latitude_deg is not None:
+        latitude_deg = cfg.latitude_deg
     earth = (cfg.earth_rate if cfg.earth_rate is not None else latitude_deg is not None)
     if earth and latitude_deg is None:
         raise ValueError("latitude_deg: the Earth's rate needs the latitude")
@@ -939,8 +968,13 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
          else cfg.gyro_noise_density) ** 2,
         ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
         ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd])
-    r_meas = np.broadcast_to(np.asarray(ins.measurement_std, dtype=float),
+    r_meas = np.broadcast_to(_measurement_std(cfg, ins.measurement_std, beams=beams is not None,
+                                              beam_angle_deg=beam_angle_deg),
                              (len(dirs),)) ** 2
+    if not np.isfinite(r_meas).all():
+        raise ValueError("instrument.measurement_std: expected finite stds, or "
+                         "beam_noise_std / velocity_noise_std in config; got "
+                         f"{ins.measurement_std!r}")
     dt = np.concatenate([[0.0], np.diff(t[i0:])])
     # The measurement biases c_k: constant (``beam_bias_std``), or first-order Gauss-Markov
     # with the instrument's slow error (its std added, its correlation time) or
@@ -952,23 +986,21 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if bias_time is not None and n > N_CORE:
         P[19:23, 19:23] = np.diag(np.full(4, bias_std**2))
     decay = 0.0 if bias_time is None else 1.0 / bias_time
-    out_v, cov, pos, pos_std, b, used, rejected, reset, rot = _filter(
+    out_v, cov, pos, x, sd, used, rejected, reset, rot = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
         np.ascontiguousarray(r_meas), _chi2_1dof(cfg.gate_probability), n, decay,
         2.0 * bias_std**2 * decay,
-        np.array([float(cfg.watch_pings), float(cfg.watch_share)]),
+        cfg.watch_pings, float(cfg.watch_share),
         cfg.clock_std if timing_std is None else float(timing_std))
+    nees = np.full(len(tp), np.nan)
     if truth_velocity_dvl is not None:
         err = out_v - np.asarray(truth_velocity_dvl, dtype=float)
         ok = np.isfinite(err).all(axis=1)
-        nees = np.full(len(tp), np.nan)
         nees[ok] = np.einsum("pi,pi->p", err[ok],
                              np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
-    else:
-        nees = np.full(len(tp), np.nan)
     events = tuple(Event(int(k), float(tp[k]), "restart",
                          f"ping {k} at {tp[k]:.2f} s: the gate had rejected at least "
                          f"{100 * cfg.watch_share:.0f} % of the last {cfg.watch_pings} pings' "
@@ -977,16 +1009,28 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                    for k in np.flatnonzero(reset))
     return FilterTrack(ping_time=tp, velocity_dvl=out_v,
                        velocity_std=np.sqrt(np.diagonal(cov, axis1=1, axis2=2)),
-                       velocity_cov=cov, position_ned=pos, position_std=pos_std,
-                       accel_bias=b[:, 0:3], accel_bias_std=b[:, 3:6],
-                       gyro_bias=b[:, 6:9], gyro_bias_std=b[:, 9:12],
-                       beam_scale=b[:, 12:16], beam_scale_std=b[:, 16:20],
-                       beam_bias=b[:, 20:24], beam_bias_std=b[:, 24:28],
+                       velocity_cov=cov, position_ned=pos,
+                       position_std=sd[:, _STATES["position"]],
+                       **{name: x[:, _STATES[name]] for name in _INSTRUMENT_STATES},
+                       **{f"{name}_std": sd[:, _STATES[name]] for name in _INSTRUMENT_STATES},
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
-                       accepted=used > 0, events=events, misalignment=b[:, 28:31],
-                       misalignment_std=b[:, 31:34], lever_arm=b[:, 34:37],
-                       lever_arm_std=b[:, 37:40],
-                       quaternion=quaternion_of(rot))
+                       accepted=used > 0, events=events, rotation=rot)
+
+
+def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
+                     beam_angle_deg: float | None) -> np.ndarray:
+    """(K,) m/s, each measurement's white noise: a setting wins (a beam's
+    ``beam_noise_std``, at least ``BEAM_NOISE_FLOOR``; a velocity axis's
+    ``velocity_noise_std``, else ``beam_noise_std`` through the Janus geometry where the
+    beams' angle is known), else ``stated``, the instrument's (NaN where it states none)."""
+    if beams and cfg.beam_noise_std is not None:
+        return np.full(4, max(float(cfg.beam_noise_std), BEAM_NOISE_FLOOR))
+    if not beams and cfg.velocity_noise_std is not None:
+        return np.full(3, float(cfg.velocity_noise_std))
+    if not beams and cfg.beam_noise_std is not None and beam_angle_deg is not None:
+        return np.maximum(janus_velocity_std(float(cfg.beam_noise_std), beam_angle_deg),
+                          BEAM_NOISE_FLOOR)
+    return np.asarray(stated, dtype=float)
 
 
 def _known(setting: float | None, calibrated, default: float) -> np.ndarray:
@@ -1019,22 +1063,22 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
     Raises:
         NoImuError: the mission has no IMU record (an imported stream).
-        DataError: a recorded mission without a reference attitude to start from.
+        DatasetError: a recorded mission without a reference attitude to start from
+            (``auvsim.data.reader.require_attitude``'s one line).
     """
     if not mission.has("imu"):
         raise NoImuError(f"mission {mission.name} has no IMU record; the INS/DVL filter "
                          "integrates the IMU, so it is skipped")
     a, cfg = mission.attrs, config
-    recorded = getattr(mission, "origin", a.get("origin")) == "recorded"
+    recorded = mission.origin == "recorded"
     imu, dvl = mission.imu, mission.dvl
     f = np.asarray(imu.specific_force, dtype=float)
     w = np.asarray(imu.angular_rate, dtype=float)
-    imu_time = np.asarray(imu.time if _holds(imu, "time") else mission.truth.time, dtype=float)
+    imu_time = np.asarray(imu.time if "time" in imu else mission.truth.time, dtype=float)
     rate = float(a["imu_rate_hz"]) if "imu_rate_hz" in a else 1.0 / float(
         np.median(np.diff(imu_time)))
     r_imu = np.asarray(a.get("imu_position_body", np.zeros(3)), dtype=float)
-    latitude = cfg.latitude_deg if cfg.latitude_deg is not None else a.get("latitude_deg")
-    latitude = None if latitude is None else float(latitude)
+    latitude = None if a.get("latitude_deg") is None else float(a["latitude_deg"])
 
     if recorded:
         start = _reference_start(mission, imu_time, w, cfg)
@@ -1061,28 +1105,27 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         return math.hypot(spec, quantisation_density(samples, rate))
 
     beam_angle = float(a["beam_angle_deg"]) if "beam_angle_deg" in a else None
-    beam_noise = (cfg.beam_noise_std if cfg.beam_noise_std is not None
-                  else float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None)
-    use_beams = _holds(dvl, "beam_velocity") and not (
+    beam_noise = float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None
+    use_beams = "beam_velocity" in dvl and not (
         recorded and a.get("dvl_beams_derived", False))
+    # The instrument's noise as the file states it (NaN where it does not); run_arrays
+    # applies the settings.
     if use_beams:
-        if beam_noise is None:
-            raise DataError(f"mission {mission.name}: no beam noise (dvl_noise_std); "
-                            "expected it, or beam_noise_std in the filter's settings")
-        measurement_std = np.full(4, max(beam_noise, BEAM_NOISE_FLOOR))
-    elif cfg.velocity_noise_std is not None:
-        measurement_std = np.full(3, cfg.velocity_noise_std)
+        measurement_std = np.full(4, math.nan if beam_noise is None
+                                  else max(beam_noise, BEAM_NOISE_FLOOR))
     elif beam_noise is not None and beam_angle is not None:
         measurement_std = np.maximum(janus_velocity_std(beam_noise, beam_angle),
                                      BEAM_NOISE_FLOOR)
-    elif "dvl_velocity_accuracy" in a:
-        measurement_std = np.full(3, float(a["dvl_velocity_accuracy"]))
     else:
-        raise DataError(f"mission {mission.name}: no DVL noise (dvl_noise_std or "
-                        "dvl_velocity_accuracy); expected one, or velocity_noise_std in the "
-                        "filter's settings")
-    slow_std, slow_time = _slow_error(a, measurement_std, recorded=recorded,
-                                      beams=use_beams, beam_angle=beam_angle)
+        measurement_std = np.full(3, float(a.get("dvl_velocity_accuracy", math.nan)))
+    white = _measurement_std(cfg, measurement_std, beams=use_beams, beam_angle_deg=beam_angle)
+    if not np.isfinite(white).all():
+        stated, setting = (("dvl_noise_std", "beam_noise_std") if use_beams else
+                           ("dvl_noise_std or dvl_velocity_accuracy", "velocity_noise_std"))
+        raise DataError(f"mission {mission.name}: no DVL noise ({stated}); expected it, or "
+                        f"{setting} in the filter's settings")
+    slow_std, slow_time = _slow_error(a, white, recorded=recorded, beams=use_beams,
+                                      beam_angle=beam_angle)
     instrument = Instrument(
         accel_noise_density=density("imu_accel_noise_density", f),
         gyro_noise_density=density("imu_gyro_noise_density", w),
@@ -1099,23 +1142,22 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         if beam_correction is not None:
             scale, bias = (np.asarray(x, dtype=float) for x in beam_correction)
             beams = (beams - bias) / (1.0 + scale)
-        mode = dvl.mode if _holds(dvl, "mode") else np.zeros(len(beams), dtype=np.int64)
+        mode = dvl.mode if "mode" in dvl else np.zeros(len(beams), dtype=np.int64)
         # A beam with bottom lock measures the velocity over ground whether or not the
         # ping has the 3 such beams an LS velocity needs (mode 0 or -1; ``valid`` is the
         # lock there); in water track (mode 1) ``valid`` means it measured the water.
         valid = np.asarray(dvl.valid, dtype=bool) & (np.asarray(mode) != 1)[:, None]
         measured = dict(beams=beams)
     else:
-        velocity = np.asarray(dvl.velocity_ls if _holds(dvl, "velocity_ls") else dvl.velocity,
+        velocity = np.asarray(dvl.velocity_ls if "velocity_ls" in dvl else dvl.velocity,
                               dtype=float)
-        valid = (np.asarray(dvl.mode) == 0) if _holds(dvl, "mode") else None
+        valid = (np.asarray(dvl.mode) == 0) if "mode" in dvl else None
         measured = dict(velocity=velocity)
-    truth_v = None if recorded or not _holds(dvl, "velocity") else np.asarray(dvl.velocity, float)
-    ping_row = (np.asarray(imu.index_of_dvl, dtype=np.int64) if _holds(imu, "index_of_dvl")
+    truth_v = None if recorded or "velocity" not in dvl else np.asarray(dvl.velocity, float)
+    ping_row = (np.asarray(imu.index_of_dvl, dtype=np.int64) if "index_of_dvl" in imu
                 else None)
     # A file that states a slow DVL error needs the bias states to hold it.
     beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
-    gravity = cfg.gravity if cfg.gravity is not None else mission.gravity
     mounting_std, position_std = applied_dvl_errors(a)
     return run_arrays(
         imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
@@ -1123,7 +1165,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         imu_position_body=r_imu,
         dvl_position_body=np.asarray(a.get("dvl_position_body", np.zeros(3)), float),
         start=start, instrument=instrument, latitude_deg=latitude,
-        height_m=float(a.get("height_m", 0.0)), gravity=gravity,
+        height_m=float(a.get("height_m", 0.0)), gravity=mission.gravity,
         config=dataclasses.replace(cfg, beam_states=beam_states),
         truth_velocity_dvl=truth_v, ping_row=ping_row,
         timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
@@ -1151,15 +1193,6 @@ def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: 
     return slow, time
 
 
-def _holds(group, field: str) -> bool:
-    """Whether a group view (``field in group``), or any object with its fields as
-    attributes, has ``field``."""
-    try:
-        return field in group
-    except TypeError:  # no __contains__: fields as attributes
-        return hasattr(group, field)
-
-
 def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
     """A simulated mission's start: its truth at sample 0, or drawn around it."""
     truth = mission.truth
@@ -1174,7 +1207,7 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
         w0 = np.asarray(truth.angular_rate[0], dtype=float)
         p_imu = p0 + c0 @ r_imu + cfg.position_std * rng.standard_normal(3)
         v_imu = v0 + c0 @ np.cross(w0, r_imu) + cfg.velocity_std * rng.standard_normal(3)
-        c0 = rotation_vector_exp(att_std * rng.standard_normal(3)) @ c0
+        c0 = _exp(att_std * rng.standard_normal(3)) @ c0
         p0 = p_imu - c0 @ r_imu
         v0 = v_imu - c0 @ np.cross(w0, r_imu)
     return Start(time=float(truth.time[0]), position_ned=p0, velocity_ned=v0, rotation=c0,
@@ -1186,16 +1219,14 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
 def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
                      cfg: FilterConfig) -> Start:
     """A recorded mission's start: its reference's first sample within the IMU's span."""
+    quaternion = require_attitude(mission)
     ref = mission.reference
-    if not _holds(ref, "quaternion"):
-        raise DataError(f"mission {mission.name}: its reference has no attitude; the "
-                        "filter starts from it (expected reference/quaternion)")
     t = np.asarray(ref.time, dtype=float)
     k = int(np.searchsorted(t, imu_time[0]))
     if k >= len(t):
         raise DataError(f"mission {mission.name}: its reference ends before the IMU starts")
     i = min(int(np.searchsorted(imu_time, t[k])), len(imu_time) - 1)
-    c = rotation_matrices(np.asarray(ref.quaternion[k:k + 1], dtype=float))[0]
+    c = rotation_matrices(np.asarray(quaternion[k:k + 1], dtype=float))[0]
     v = np.asarray(ref.velocity_ned, dtype=float)
     accel = (v[min(k + 1, len(t) - 1)] - v[max(k - 1, 0)]) / max(
         t[min(k + 1, len(t) - 1)] - t[max(k - 1, 0)], 1e-9)
@@ -1206,43 +1237,6 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
 def _chi2_1dof(probability: float) -> float:
     """Quantile of chi-square with 1 dof: the square of the normal's two-sided one."""
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
-
-
-def quaternion_of(rotation: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions [w, x, y, z], w >= 0, of rotation matrices (..., 3, 3):
-    Shepperd's method (1978, J. Guidance and Control 1(3)), from the largest of the four
-    squared components; NaN matrices give NaN."""
-    r = np.asarray(rotation, dtype=float)
-    t = np.stack([1 + r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2],
-                  1 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2],
-                  1 - r[..., 0, 0] + r[..., 1, 1] - r[..., 2, 2],
-                  1 - r[..., 0, 0] - r[..., 1, 1] + r[..., 2, 2]], axis=-1)
-    k = np.argmax(np.nan_to_num(t, nan=-1.0), axis=-1)
-    big = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], axis=-1)[..., 0],
-                             1e-300)) / 2
-    q = _shepperd(r, k, big)
-    q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def _shepperd(r: np.ndarray, k: np.ndarray, big: np.ndarray) -> np.ndarray:
-    """The quaternion from its largest component ``big`` (index k) and the matrix's
-    off-diagonal sums and differences (each 4 q_i q_j)."""
-    d = 4 * big
-    a = (r[..., 2, 1] - r[..., 1, 2]) / d
-    b = (r[..., 0, 2] - r[..., 2, 0]) / d
-    c = (r[..., 1, 0] - r[..., 0, 1]) / d
-    xy = (r[..., 0, 1] + r[..., 1, 0]) / d
-    xz = (r[..., 0, 2] + r[..., 2, 0]) / d
-    yz = (r[..., 1, 2] + r[..., 2, 1]) / d
-    cases = [np.stack([big, a, b, c], -1), np.stack([a, big, xy, xz], -1),
-             np.stack([b, xy, big, yz], -1), np.stack([c, xz, yz, big], -1)]
-    return np.take_along_axis(np.stack(cases, axis=-2), k[..., None, None], axis=-2)[..., 0, :]
-
-
-def rotation_vector_exp(phi: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation matrix of a rotation vector (3,), rad (Rodrigues)."""
-    return _exp(np.asarray(phi, dtype=float))
 
 
 def run(path, mission_name: str, config: FilterConfig = FilterConfig()) -> FilterTrack:
@@ -1305,24 +1299,29 @@ class InsDvlFilter:
         """(S, 3) DVL-frame velocity, m/s, at each sample's ping: the track of mission
         ``windows.names[windows.mission]`` at the ping whose time is ``windows.time``
         (NaN if no ping has that time)."""
-        return self._at_pings(windows, "velocity_dvl")
+        return at_pings(self.tracks(windows), windows, "velocity_dvl")
 
     def positions(self, windows: Windows) -> np.ndarray:
         """(S, 3) estimated NED position of the body origin, m, at each sample's ping."""
-        return self._at_pings(windows, "position_ned")
+        return at_pings(self.tracks(windows), windows, "position_ned")
 
-    def _at_pings(self, windows: Windows, field: str) -> np.ndarray:
-        tracks = self.tracks(windows)
-        out = np.full((len(windows.time), 3), np.nan)
-        for i in np.unique(windows.mission):
-            track = tracks[windows.names[i]]
-            rows = np.flatnonzero(windows.mission == i)
-            k = np.searchsorted(track.ping_time, windows.time[rows])
-            k = np.minimum(k, len(track.ping_time) - 1)
-            hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
-                1.0, np.abs(windows.time[rows]))
-            out[rows[hit]] = getattr(track, field)[k[hit]]
-        return out
+
+def at_pings(tracks: dict, windows: Windows, field: str) -> np.ndarray:
+    """(S, ...) ``field`` (P, ...) of each mission's track at each sample's ping: the
+    track ``tracks[windows.names[windows.mission]]`` (a ``FilterTrack``, or anything with
+    ``ping_time`` and that field) at the ping whose time is ``windows.time`` (to 1e-9
+    relative); NaN where no ping has that time."""
+    shape = np.shape(getattr(next(iter(tracks.values())), field))[1:] if tracks else ()
+    out = np.full((len(windows.time), *shape), np.nan)
+    for i in np.unique(windows.mission):
+        track = tracks[windows.names[i]]
+        rows = np.flatnonzero(windows.mission == i)
+        k = np.minimum(np.searchsorted(track.ping_time, windows.time[rows]),
+                       len(track.ping_time) - 1)
+        hit = np.abs(track.ping_time[k] - windows.time[rows]) <= 1e-9 * np.maximum(
+            1.0, np.abs(windows.time[rows]))
+        out[rows[hit]] = np.asarray(getattr(track, field))[k[hit]]
+    return out
 
 
 ESTIMATORS = (
