@@ -568,13 +568,13 @@ def time_base(log: Log, imu_clock_found: Clock | None, reference: Finding) -> Fi
 # ---- lever arms, DVL calibration, gravity -------------------------------------------------
 
 
-def rates_at(times: np.ndarray, imu_time: np.ndarray | None, rate: np.ndarray | None,
+def rates_at(times: np.ndarray, imu_time: np.ndarray | None, rate_integral: np.ndarray | None,
              ref: Intervals, half: float = 0.1) -> np.ndarray:
     """(M, 3) body rates at ``times`` (reference clock): the gyro's mean over +- ``half``
-    when there is one, else the reference's attitude rate, interpolated."""
+    when there is one (``rate_integral`` (N, 3), rad: its running integral at
+    ``imu_time``, ``cumulative``), else the reference's attitude rate, interpolated."""
     if imu_time is not None:
-        integral = cumulative(imu_time, rate)
-        return window_means(imu_time, integral, times - half, times + half)
+        return window_means(imu_time, rate_integral, times - half, times + half)
     mid = (ref.start + ref.end) / 2
     return np.stack([np.interp(times, mid, ref.rate[:, d]) for d in range(3)], -1)
 
@@ -801,7 +801,7 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     report.findings.append(reference_clock(log))
     corrections: dict = {}
     p = np.eye(3)
-    imu_t = w = f = imu_clock_found = None
+    imu_t = w = w_int = f = imu_clock_found = None
     if log.imu_time is not None:
         p, found = imu_axes(log, ref)
         report.findings.append(found)
@@ -824,6 +824,7 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         imu_t = s + clock.offset + clock.rate_error * s
         imu_clock_found = clock
         w = np.asarray(log.angular_rate, float) @ p.T
+        w_int = cumulative(imu_t, w)  # once: every trial DVL offset reads its rates here
         f = np.asarray(log.specific_force, float) @ p.T
         corrections.update(imu_axis_map=axis_map_names(p), imu_axis_matrix=p.tolist(),
                            imu_time_offset_s=clock.offset, imu_rate_error=clock.rate_error)
@@ -843,13 +844,13 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         c = rotation_matrices(log.reference_quaternion)
         u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
         v = np.asarray(log.dvl_velocity, float)
-        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w, ref))
+        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w_int, ref))
         s = np.asarray(log.dvl_time, float)
         t = s + clock.offset + clock.rate_error * s
         u = np.stack([np.interp(t, log.reference_time, u_ref[:, d]) for d in range(3)], -1)
         inside = (t >= log.reference_time[0]) & (t <= log.reference_time[-1])
         u[~inside] = np.nan
-        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w, ref), v)
+        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w_int, ref), v)
         report.findings.append(clock_found)
         report.findings.extend(calibration)
         corrections.update(dvl_time_offset_s=clock.offset, dvl_rate_error=clock.rate_error,
