@@ -33,7 +33,6 @@ from auvsim.data.checklog import (
     check_arrays,
     fit_clock,
     least_squares,
-    rotation_vectors,
     scan,
     serial_least_squares,
 )
@@ -42,7 +41,6 @@ from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import radii
-from auvsim.physics.frames import rotation_rpy
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
 
@@ -70,17 +68,6 @@ def test_axis_maps_are_the_24_proper_signed_permutations():
     assert len({tuple(p.ravel()) for p in everything}) == 48
     assert axis_map_names(SWAP) == ["y", "x", "-z"]
     assert axis_map_names(np.diag([1.0, -1.0, -1.0])) == ["x", "-y", "-z"]
-
-
-def test_rotation_vectors_invert_a_rotation():
-    r = np.stack([rotation_rpy(0.1, -0.2, 0.3), rotation_rpy(0.0, 0.0, 1e-7), np.eye(3)])
-    v = rotation_vectors(r)
-    for rot, vec in zip(r, v, strict=True):  # Rodrigues' formula back
-        angle = np.linalg.norm(vec)
-        k = vec / angle if angle else vec
-        kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        back = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
-        np.testing.assert_allclose(back, rot, atol=1e-12)
 
 
 def test_scan_finds_a_minimum_between_grid_points():

@@ -20,10 +20,11 @@ from its positions against its velocities (``reference_clock``), as evidence.
   ``f_body = P f_log``: the 24 proper ones (det +1) and the 24 reflections, which no
   physical triad is but a log written through a wrong transformation holds (the A-KIT
   IMU files: ``[x, -y, z]``). Between reference samples k and k+1 the gyro's mean
-  rate must equal the reference's attitude change ``log(C_k^T C_k+1) / dt``, and the
-  accelerometers' mean must equal ``C^T (dv/dt - g n_down)`` (gravity levelled with the
-  reference's roll and pitch). Each candidate's residuals, normalised by the signals' RMS,
-  give its score; the winner's margin is the runner-up's score over the winner's.
+  rate must equal the reference's attitude change ``log(C_k^T C_k+1) / dt``
+  (``frames.attitude_rates``), and the accelerometers' mean must equal
+  ``C^T (dv/dt - g n_down)`` (gravity levelled with the reference's roll and pitch).
+  Each candidate's residuals, normalised by the signals' RMS, give its score; the
+  winner's margin is the runner-up's score over the winner's.
 * Clock offsets: the IMU's by the gyro's interval means against the reference's attitude
   rate, the DVL's by its velocity against the reference's velocity in the body,
   ``C^T v_ref``; a least-squares scan over the offset (the cross-correlation's equivalent
@@ -60,7 +61,7 @@ from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import rotation_matrices
+from auvsim.physics.frames import attitude_rates, rotation_matrices
 
 try:
     import tomllib
@@ -175,17 +176,6 @@ def skew(v: np.ndarray) -> np.ndarray:
                      np.stack([-y, x, z], -1)], -2)
 
 
-def rotation_vectors(r: np.ndarray) -> np.ndarray:
-    """(M, 3) rotation vectors (rad) of (M, 3, 3) rotation matrices (angles below pi)."""
-    cos = np.clip((np.trace(r, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
-    angle = np.arccos(cos)
-    vee = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0],
-                    r[:, 1, 0] - r[:, 0, 1]], axis=1) / 2
-    sin = np.sin(angle)
-    ratio = np.where(sin > 1e-9, angle / np.where(sin > 1e-9, sin, 1.0), 1.0)
-    return vee * ratio[:, None]
-
-
 def axis_maps(*, proper: bool = True) -> list[np.ndarray]:
     """The 24 proper signed permutations (det +1), (3, 3) each: ``body = P @ logged``;
     all 48 with ``proper=False``."""
@@ -230,7 +220,7 @@ def intervals(log: Log) -> Intervals:
     t = np.asarray(log.reference_time, float)
     c = rotation_matrices(log.reference_quaternion)
     dt = np.diff(t)
-    rate = rotation_vectors(np.einsum("kji,kjl->kil", c[:-1], c[1:])) / dt[:, None]
+    rate = attitude_rates(t, log.reference_quaternion)
     dv = np.diff(np.asarray(log.reference_velocity, float), axis=0)
     accel = dv / dt[:, None] - np.array([0.0, 0.0, log.gravity])
     mid = (c[:-1] + c[1:]) / 2  # the attitude halfway, to first order
