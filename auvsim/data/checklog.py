@@ -655,12 +655,13 @@ def grade(se: float, high: float, medium: float) -> str:
 
 
 @numba.njit(cache=True)
-def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
-               f: np.ndarray) -> np.ndarray:
-    """(N, 3) NED specific force C f at each IMU sample, the attitude C propagated with the
-    gyro from the reference's at the latest reference time before the sample (``start``
-    (K,) times, ``q0`` (K, 4) quaternions)."""
-    out = np.full((len(t), 3), np.nan)
+def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray
+               ) -> np.ndarray:
+    """(N, 4) body -> NED attitude quaternions [w, x, y, z] at each IMU sample (times
+    ``t`` (N,), body rates ``w`` (N, 3) rad/s), propagated with the gyro from the
+    reference's at the latest reference time before the sample (``start`` (K,) times,
+    ``q0`` (K, 4) quaternions); NaN before the first."""
+    out = np.full((len(t), 4), np.nan)
     k = -1
     q = np.zeros(4)
     last = 0.0
@@ -683,14 +684,7 @@ def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
             q[1] = a0 * dx + a1 * dw + a2 * dz - a3 * dy
             q[2] = a0 * dy - a1 * dz + a2 * dw + a3 * dx
             q[3] = a0 * dz + a1 * dy - a2 * dx + a3 * dw
-        w0, x, y, z = q[0], q[1], q[2], q[3]
-        fx, fy, fz = f[i, 0], f[i, 1], f[i, 2]
-        out[i, 0] = ((1 - 2 * (y * y + z * z)) * fx + 2 * (x * y - w0 * z) * fy
-                     + 2 * (x * z + w0 * y) * fz)
-        out[i, 1] = (2 * (x * y + w0 * z) * fx + (1 - 2 * (x * x + z * z)) * fy
-                     + 2 * (y * z - w0 * x) * fz)
-        out[i, 2] = (2 * (x * z - w0 * y) * fx + 2 * (y * z + w0 * x) * fy
-                     + (1 - 2 * (x * x + y * y)) * fz)
+        out[i] = q
     return out
 
 
@@ -730,9 +724,10 @@ def _lever_fit(log: Log, t: np.ndarray, f: np.ndarray, w: np.ndarray
     # Each term rotated into NED with the propagated attitude: C f, and C A for the lever
     # arm's design A = [dw/dt]x + [w]x^2 and the bias's A = I.
     design = skew(dwdt) + skew(w) @ skew(w)
-    terms = [f] + [design[:, :, j] for j in range(3)] \
-        + [np.tile(np.eye(3)[:, j], (len(t), 1)) for j in range(3)]
-    ned = [_propagate(q, t_ref, t, w, x) for x in terms]
+    c = rotation_matrices(_propagate(q, t_ref, t, w))  # (N, 3, 3), NaN before the first
+    c_design = c @ design
+    ned = [np.einsum("nij,nj->ni", c, f)] + [c_design[:, :, j] for j in range(3)] \
+        + [c[:, :, j] for j in range(3)]
     means = [window_means(t, cumulative(t, np.nan_to_num(x)), a, b) for x in ned]
     gravity = np.array([0.0, 0.0, log.gravity])
     accel = (v[k + 1] - v[k]) / (b - a)[:, None] - gravity
