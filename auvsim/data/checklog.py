@@ -345,12 +345,7 @@ def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
     s, o = np.asarray(stamps), np.asarray(offsets)
     windows = [[float(a), float(b)] for a, b in zip(s, o, strict=True)]
     if len(s) >= 3:
-        a = np.stack([np.ones_like(s), s], axis=1)
-        x, *_ = np.linalg.lstsq(a, o, rcond=None)
-        resid = o - a @ x
-        var = float(resid @ resid) / (len(s) - 2)
-        cov = var * np.linalg.inv(a.T @ a)
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        x, se, _ = least_squares(np.stack([np.ones_like(s), s], axis=1), o)
         critical = T_3SIGMA[min(len(s) - 2, len(T_3SIGMA)) - 1]
         drift = abs(x[1]) * float(s.max() - s.min())
         if abs(x[1]) > critical * max(se[1], 1e-12) and drift > CLOCK_PROBE:
