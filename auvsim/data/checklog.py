@@ -355,7 +355,7 @@ def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
     return Clock(whole, 0.0, float("nan"), float("nan"), windows)
 
 
-def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
+def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> Clock:
     """The IMU's clock: its gyro's interval means (axes ``p``) against the reference's
     attitude rate, in windows of ``OFFSET_WINDOW`` s."""
     t = np.asarray(log.imu_time, float)
@@ -381,9 +381,7 @@ def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
             centre = float(np.mean((ref.start[sel] + ref.end[sel]) / 2))
             stamps.append(centre - o)
             offsets.append(o)
-    clock = fit_clock(stamps, offsets, whole)
-    return clock, clock_finding("imu clock", clock, t, "gyro interval means against "
-                                "the reference's attitude rate")
+    return fit_clock(stamps, offsets, whole)
 
 
 def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
@@ -785,12 +783,12 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     if log.imu_time is not None:
         p, found = imu_axes(log, ref)
         report.findings.append(found)
-        clock, found = imu_clock(log, p, ref)
+        clock = imu_clock(log, p, ref)
         s = np.asarray(log.imu_time, float)
         # Once more on the corrected stamps: a window's own drift (0.25 s per 100 s at
         # 2500 ppm) blurs its offset in the first pass. The two maps compose.
-        again, _ = imu_clock(dataclasses.replace(log, imu_time=s + clock.offset
-                                                 + clock.rate_error * s), p, ref)
+        again = imu_clock(dataclasses.replace(log, imu_time=s + clock.offset
+                                              + clock.rate_error * s), p, ref)
         clock = dataclasses.replace(
             clock, offset=clock.offset * (1 + again.rate_error) + again.offset,
             rate_error=(1 + clock.rate_error) * (1 + again.rate_error) - 1,
