@@ -16,6 +16,7 @@ from auvsim.physics.frames import (
     quaternion_from_euler,
     rotation_matrices,
     rotation_rpy,
+    skew,
 )
 
 
@@ -59,6 +60,13 @@ def test_attitude_rates_invert_each_intervals_rotation():
         back = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
         np.testing.assert_allclose(back, c[k].T @ c[k + 1], atol=1e-12)
         np.testing.assert_allclose(back, rotation_rpy(*rpy), atol=1e-12)
+
+
+def test_skew_is_the_cross_product_for_one_vector_and_for_arrays():
+    v, a = np.random.default_rng(6).standard_normal((2, 5, 3))
+    np.testing.assert_allclose(skew(v) @ a[..., None], np.cross(v, a)[..., None], atol=1e-15)
+    np.testing.assert_array_equal(skew(v[0]), skew(v)[0])
+    np.testing.assert_array_equal(skew(v[0]), -skew(v[0]).T)
 
 
 def test_euler_round_trip_matches_the_zyx_rotation():

@@ -61,7 +61,7 @@ from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import attitude_rates, rotation_matrices
+from auvsim.physics.frames import attitude_rates, rotation_matrices, skew
 
 try:
     import tomllib
@@ -165,15 +165,6 @@ class Report:
 
 
 # ---- geometry ------------------------------------------------------------------------
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) matrices [v]x with [v]x a = v x a, of (..., 3) vectors."""
-    v = np.asarray(v, float)
-    z = np.zeros(v.shape[:-1])
-    x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
-                     np.stack([-y, x, z], -1)], -2)
 
 
 def axis_maps(*, proper: bool = True) -> list[np.ndarray]:

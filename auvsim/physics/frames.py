@@ -76,6 +76,15 @@ def attitude_rates(t: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
     return axis * (angle / np.diff(np.asarray(t, dtype=float)))[:, None]
 
 
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) matrices [v]x with [v]x a = v x a, of (..., 3) vectors."""
+    v = np.asarray(v, dtype=float)
+    z = np.zeros(v.shape[:-1])
+    x, y, w = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
+                     np.stack([-y, x, z], -1)], -2)
+
+
 def rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """(3, 3) rotation of ZYX Euler angles (rad): vectors in the rotated frame -> parent."""
     cr, sr = math.cos(roll), math.sin(roll)
