@@ -896,6 +896,12 @@ def check_log(mission) -> Report:
                         gravity_source="WGS-84 normal gravity at the origin")
 
 
+def fields_of(mission) -> dict[str, np.ndarray]:
+    """Every field of a mission, by path (``"imu/time"``, ...)."""
+    return {f"{g}/{name}": getattr(getattr(mission, g), name)
+            for g in mission.groups for name in getattr(mission, g)}
+
+
 def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str, object]]:
     """The mission's fields and attributes with ``report``'s corrections made:
 
@@ -916,8 +922,8 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     """
     c = report.corrections
     found = {f.name: f for f in report.findings}
-    fields = {f"{g}/{name}": getattr(getattr(mission, g), name)
-              for g in json.loads(mission.attrs["groups"]) for name in getattr(mission, g)}
+    groups = mission.groups
+    fields = fields_of(mission)
     attrs = dict(mission.attrs)
     maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
             "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
@@ -925,18 +931,17 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     # the time base: tau = (t - imu offset) / (1 + imu rate error).
     base_offset, base_rate = maps["imu"] if c.get("time_base") == "imu" else (0.0, 0.0)
     shift = {}
-    for g in json.loads(mission.attrs["groups"]):
+    for g in groups:
         offset, rate = maps.get(g, (0.0, 0.0))
         s = fields[f"{g}/time"]
         fields[f"{g}/time"] = (s + offset + rate * s - base_offset) / (1 + base_rate)
         shift[g] = (offset - base_offset) / (1 + base_rate)
-    start = min(float(fields[f"{g}/time"][0]) for g in json.loads(mission.attrs["groups"]))
-    for g in json.loads(mission.attrs["groups"]):
+    start = min(float(fields[f"{g}/time"][0]) for g in groups)
+    for g in groups:
         fields[f"{g}/time"] = fields[f"{g}/time"] - start
         attrs[f"{g}_rate_hz"] = 1.0 / float(np.median(np.diff(fields[f"{g}/time"])))
     attrs["log_time_origin_s"] = float(attrs.get("log_time_origin_s", 0.0)) + start
-    attrs["duration_s"] = max(float(fields[f"{g}/time"][-1])
-                              for g in json.loads(mission.attrs["groups"]))
+    attrs["duration_s"] = max(float(fields[f"{g}/time"][-1]) for g in groups)
     if "imu_axis_matrix" in c:
         p = np.asarray(c["imu_axis_matrix"])
         for name in ("specific_force", "angular_rate"):
@@ -990,10 +995,7 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
                 if name in by_name:
                     fields, attrs = corrected(mission, by_name[name])
                 else:
-                    groups = mission.groups
-                    fields = {f"{g}/{n}": getattr(getattr(mission, g), n)
-                              for g in groups for n in getattr(mission, g)}
-                    attrs = dict(mission.attrs)
+                    fields, attrs = fields_of(mission), dict(mission.attrs)
                 groups = sorted({p.split("/")[0] for p in fields})
                 sink = writer.mission(name, mission_attrs(**attrs),
                                       rows={g: len(fields[f"{g}/time"]) for g in groups
