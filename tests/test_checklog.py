@@ -31,6 +31,7 @@ from auvsim.data.checklog import (
     axis_map_names,
     axis_maps,
     check_arrays,
+    check_file,
     fit_clock,
     least_squares,
     scan,
@@ -39,7 +40,7 @@ from auvsim.data.checklog import (
 from auvsim.data.reader import open_dataset
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
-from auvsim.errors import DatasetError
+from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import radii
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
@@ -342,8 +343,10 @@ def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):
                                      imu_rate=0, dvl_offset=0))
     out = tmp_path / "out.h5"
     status, _, err = run(["check-log", str(raw), "--mission", "nope", "--apply", str(out)])
-    assert status == 2 and err.count("\n") == 1 and "'nope'" in err
+    assert status == 2 and err.count("\n") == 1 and "--mission: 'nope'" in err
     assert not out.exists()
+    with pytest.raises(ConfigError, match="missions: 'nope' is not in .*; expected one of sim"):
+        check_file(raw, ["nope"])
     status, _, err = run(["check-log", str(raw), "--apply", str(raw)])
     assert status == 2 and err.count("\n") == 1 and "is the log itself" in err
     status, _, err = run(["check-log", str(tmp_path / "missing.h5")])

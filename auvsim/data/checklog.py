@@ -5,7 +5,8 @@ up, where the sensors sit and how the DVL is mounted. Each is found here against
 reference navigation solution (position, NED velocity and attitude of the reference point),
 by a small pure function on arrays that returns a ``Finding``: the value, the evidence it
 rests on and a confidence. ``check_arrays`` runs them in order on a ``Log`` (arrays), and
-``check_log`` on a recorded mission; ``apply`` writes a corrected dataset.
+``check_log`` on a recorded mission (``check_file`` on each of a file's); ``apply``
+writes a corrected dataset.
 
 Models (auvsim's conventions: body FRD, world NED, C = body -> NED from the reference's
 quaternion, SI units). Times: a stream's stamp ``s`` happened at reference-clock time
@@ -59,7 +60,7 @@ import numpy as np
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
-from auvsim.errors import DatasetError
+from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import attitude_rates, rotation_matrices, skew
 
@@ -894,6 +895,24 @@ def check_log(mission) -> Report:
     """Every finding of one recorded mission (``check_arrays`` on ``log_of(mission)``)."""
     return check_arrays(log_of(mission), mission.name,
                         gravity_source="WGS-84 normal gravity at the origin")
+
+
+def check_file(path: str | os.PathLike, missions: list[str] | None = None) -> list[Report]:
+    """``check_log`` of each named mission of the dataset ``path`` (default: all, in
+    file order): the reports ``apply`` writes a corrected dataset from.
+
+    Raises:
+        ConfigError: a name in ``missions`` is not a mission of the dataset.
+        DatasetError: ``path`` is no dataset, or a mission cannot be checked
+            (``log_of``, ``check_arrays``).
+    """
+    with open_dataset(path) as ds:
+        names = list(ds.missions) if missions is None else list(missions)
+        unknown = [n for n in names if n not in ds.missions]
+        if unknown:
+            raise ConfigError(f": {unknown[0]!r} is not in {str(path)!r}; expected one of "
+                              f"{', '.join(ds.missions)}", argument="missions")
+        return [check_log(ds.missions[n]) for n in names]
 
 
 def fields_of(mission) -> dict[str, np.ndarray]:
