@@ -409,6 +409,8 @@ def test_a_dvl_that_seldom_has_a_velocity_is_not_observable_and_not_applied(simu
     assert found["dvl clock"].value == {"pings": 20}
     assert not any(k.startswith("dvl_") for k in report.corrections)
     assert "imu_axis_matrix" in report.corrections  # the IMU is still checked
+    # Nor does the filter's prior take anything of it from the corrected file.
+    assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)
 
 
 def test_serial_least_squares_errors_hold_for_residuals_correlated_over_pings():
@@ -456,7 +458,3 @@ def test_apply_records_how_well_it_knows_what_it_wrote(simulated):
     assert found["dvl mounting"].confidence == "not observable" and mounting is None
     assert found["dvl mounting"].value["se_deg"][0] > 0.3
     assert applied_dvl_errors({}) == (None, None)
-    sparse = np.full_like(log.dvl_velocity, np.nan)
-    sparse[100:120] = log.dvl_velocity[100:120]
-    report = check_arrays(dataclasses.replace(log, dvl_velocity=sparse), "sparse")
-    assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)

@@ -276,23 +276,22 @@ def imu_axes(log: Log, ref: Intervals) -> tuple[np.ndarray, Finding]:
     margin = s2 / max(s1, 1e-12)
     names = axis_map_names(p)
     reflection = np.linalg.det(p) < 0
+    sp, pp, gp, fp = proper[0]
     evidence = (f"gyro residual {math.degrees(g1):.3g} deg/s (reference rate RMS "
                 f"{math.degrees(rate_rms):.3g} deg/s), levelled gravity residual {f1:.3g} "
                 f"m/s^2, over {len(a)} intervals; runner-up {axis_map_names(p2)}: "
                 f"{math.degrees(g2):.3g} deg/s, {f2:.3g} m/s^2; margin {margin:.3g}x")
     if reflection:
-        sp, pp, gp, fp = proper[0]
         evidence += (f"; a REFLECTION (det -1): no physical triad is left-handed, the log's "
                      f"transformation is; best proper map {axis_map_names(pp)}: "
                      f"{math.degrees(gp):.3g} deg/s, {fp:.3g} m/s^2, {sp / s1:.3g}x worse")
     confidence = "high" if margin > 3 else "medium" if margin > 1.5 else "low"
-    best_proper = proper[0]
     return p, Finding("imu axes", {"axis_map": names, "matrix": p.tolist(),
                                    "determinant": int(round(np.linalg.det(p))),
                                    "score": s1, "runner_up": axis_map_names(p2),
                                    "runner_up_score": s2, "margin": margin,
-                                   "best_proper": axis_map_names(best_proper[1]),
-                                   "best_proper_score": best_proper[0]},
+                                   "best_proper": axis_map_names(pp),
+                                   "best_proper_score": sp},
                       f"[{', '.join(names)}]" + (" (reflection)" if reflection else ""),
                       evidence, confidence)
 
@@ -376,6 +375,16 @@ def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> Clock:
     return fit_clock(stamps, offsets, whole)
 
 
+def usable_pings(log: Log) -> np.ndarray:
+    """(P,) the DVL's pings a clock is fitted on: those with a velocity, stamped inside the
+    reference's span less ``MAX_OFFSET`` s at each end (every trial offset finds them a
+    reference)."""
+    s = np.asarray(log.dvl_time, float)
+    return (np.isfinite(np.asarray(log.dvl_velocity, float)).all(axis=1)
+            & (s - MAX_OFFSET >= log.reference_time[0])
+            & (s + MAX_OFFSET <= log.reference_time[-1]))
+
+
 def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
     """The DVL's clock: its velocity against the reference's velocity in the body
     ``ref_body`` (R, 3), in windows of ``OFFSET_WINDOW`` s. At each trial offset the DVL
@@ -386,7 +395,6 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
     t_ref = np.asarray(log.reference_time, float)
     s = np.asarray(log.dvl_time, float)
     v = np.asarray(log.dvl_velocity, float)
-    ok = np.isfinite(v).all(axis=1)
 
     def offset_of(sel: np.ndarray, centre: float, half: float) -> tuple[float, float]:
         def cost(o: float) -> float:
@@ -403,7 +411,7 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
             return float(r @ r) / len(t)
         return scan(cost, centre, half)
 
-    usable = ok & (s - MAX_OFFSET >= t_ref[0]) & (s + MAX_OFFSET <= t_ref[-1])
+    usable = usable_pings(log)
     whole, _ = offset_of(usable, 0.0, MAX_OFFSET)
     stamps, offsets = [], []
     for lo in np.arange(s[0], s[-1], OFFSET_WINDOW):
@@ -798,10 +806,7 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         f = np.asarray(log.specific_force, float) @ p.T
         corrections.update(imu_axis_map=axis_map_names(p), imu_axis_matrix=p.tolist(),
                            imu_time_offset_s=clock.offset, imu_rate_error=clock.rate_error)
-    dvl_pings = 0 if log.dvl_time is None else int(np.sum(
-        np.isfinite(np.asarray(log.dvl_velocity, float)).all(axis=1)
-        & (np.asarray(log.dvl_time, float) - MAX_OFFSET >= log.reference_time[0])
-        & (np.asarray(log.dvl_time, float) + MAX_OFFSET <= log.reference_time[-1])))
+    dvl_pings = 0 if log.dvl_time is None else int(usable_pings(log).sum())
     if log.dvl_time is not None and dvl_pings < MIN_DVL_PINGS:
         # Too few pings to fit a clock or a calibration on: every trial offset would cost
         # the same, and a fit on no rows would look exact. Nothing is applied.
