@@ -208,8 +208,9 @@ def test_gravity_on_the_straight_legs(simulated):
                                        dvl_offset=0.0), "lawnmower")
     g = findings(report)["gravity"].value
     assert g["quiet_intervals"] >= 20
-    # The simulated world's gravity (the model's 9.81): within 3 standard errors, and the
-    # vehicle's own accelerations on a straight leg (a few mm/s^2).
+    # The simulated world's gravity (the WGS-84 normal gravity at the preset's latitude,
+    # 9.7955 m/s^2): within 3 standard errors, and the vehicle's own accelerations on a
+    # straight leg (a few mm/s^2).
     assert abs(g["mean_specific_force"] - sim["gravity"]) < 3 * g["se"] + 5e-3
 
 
@@ -284,7 +285,7 @@ def test_check_log_apply_writes_a_file_that_checks_clean(simulated, tmp_path):
         assert m.attrs["imu_time_offset_s"] == pytest.approx(0.37, abs=OFFSET_TOL)
         assert m.attrs["dvl_time_offset_s"] == pytest.approx(-0.8, abs=OFFSET_TOL)
         # The IMU's triads are body FRD now: gravity levelled at the first sample.
-        assert m.imu.specific_force[:100, 2].mean() == pytest.approx(-9.81, abs=0.1)
+        assert m.imu.specific_force[:100, 2].mean() == pytest.approx(-log.gravity, abs=0.1)
         assert m.reference.time[0] >= 0 and m.imu.time[0] >= 0 and m.dvl.time[0] >= 0
     status, out, _ = run(["check-log", str(fixed), "--json"])
     assert status == 0
