@@ -221,27 +221,21 @@ def _check_log_parser(sub) -> None:
 
 
 def _check_log(args: argparse.Namespace) -> None:
-    from auvsim.data.checklog import apply, check_log, to_json
+    from auvsim.data.checklog import apply, check_file, to_json
     from auvsim.data.reader import open_dataset
 
     if args.apply is not None and args.apply.resolve() == args.file.resolve():
         raise ConfigError(f"--apply: {str(args.apply)!r} is the log itself; expected another "
                           "file (the log stays as recorded)")
-    with open_dataset(args.file) as ds:
-        others = len(ds.missions)
-        names = args.missions or list(ds.missions)
-        unknown = [n for n in names if n not in ds.missions]
-        if unknown:
-            raise ConfigError(f"--mission: {unknown[0]!r} is not in {str(args.file)!r}; "
-                              f"expected one of {', '.join(ds.missions)}")
-        reports = [check_log(ds.missions[n]) for n in names]
+    reports = check_file(args.file, args.missions)
     print(to_json(reports) if args.json else "\n\n".join(r.table() for r in reports))
     if args.apply is not None:
         apply(args.file, args.apply, reports)
         if not args.json:
+            with open_dataset(args.file) as ds:
+                others = len(ds.missions) - len(reports)
             print(f"\nwrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
-                  + (f", {others - len(reports)} other mission(s) as they were"
-                     if others > len(reports) else ""))
+                  + (f", {others} other mission(s) as they were" if others > 0 else ""))
 
 
 def _nameable(path: str) -> str:

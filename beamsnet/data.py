@@ -415,19 +415,11 @@ def quaternions_at(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarra
 
 def body_rate(t: np.ndarray, q: np.ndarray, times: np.ndarray) -> np.ndarray:
     """(P, 3) body angular rate, rad/s, at ``times`` from attitude samples ``q`` (R, 4)
-    at ``t`` (R,): the rotation vector of ``q_k^-1 q_{k+1}`` over ``t_{k+1} - t_k``,
-    interpolated between the steps' midpoints."""
-    a, b = q[:-1], q[1:]
-    # q_k^-1 q_{k+1} = conj(a) b (Hamilton product), on the short way round.
-    w = np.sum(a * b, axis=1)
-    v = (a[:, :1] * b[:, 1:] - b[:, :1] * a[:, 1:]
-         - np.cross(a[:, 1:], b[:, 1:]))
-    v *= np.sign(w + (w == 0))[:, None]
-    w = np.abs(w)
-    norm = np.linalg.norm(v, axis=1)
-    angle = 2.0 * np.arctan2(norm, w)
-    axis = np.divide(v, norm[:, None], out=np.zeros_like(v), where=norm[:, None] > 0)
-    rate = axis * (angle / np.diff(t))[:, None]
+    at ``t`` (R,): each interval's rate (``auvsim.physics.frames.attitude_rates``),
+    interpolated between the intervals' midpoints."""
+    from auvsim.physics.frames import attitude_rates
+
+    rate = attitude_rates(t, q)
     mid = 0.5 * (t[1:] + t[:-1])
     return np.stack([np.interp(times, mid, rate[:, i]) for i in range(3)], axis=1)
 

@@ -31,18 +31,17 @@ from auvsim.data.checklog import (
     axis_map_names,
     axis_maps,
     check_arrays,
+    check_file,
     fit_clock,
     least_squares,
-    rotation_vectors,
     scan,
     serial_least_squares,
 )
 from auvsim.data.reader import open_dataset
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
-from auvsim.errors import DatasetError
+from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import radii
-from auvsim.physics.frames import rotation_rpy
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
 
@@ -70,17 +69,6 @@ def test_axis_maps_are_the_24_proper_signed_permutations():
     assert len({tuple(p.ravel()) for p in everything}) == 48
     assert axis_map_names(SWAP) == ["y", "x", "-z"]
     assert axis_map_names(np.diag([1.0, -1.0, -1.0])) == ["x", "-y", "-z"]
-
-
-def test_rotation_vectors_invert_a_rotation():
-    r = np.stack([rotation_rpy(0.1, -0.2, 0.3), rotation_rpy(0.0, 0.0, 1e-7), np.eye(3)])
-    v = rotation_vectors(r)
-    for rot, vec in zip(r, v, strict=True):  # Rodrigues' formula back
-        angle = np.linalg.norm(vec)
-        k = vec / angle if angle else vec
-        kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        back = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
-        np.testing.assert_allclose(back, rot, atol=1e-12)
 
 
 def test_scan_finds_a_minimum_between_grid_points():
@@ -220,8 +208,9 @@ def test_gravity_on_the_straight_legs(simulated):
                                        dvl_offset=0.0), "lawnmower")
     g = findings(report)["gravity"].value
     assert g["quiet_intervals"] >= 20
-    # The simulated world's gravity (the model's 9.81): within 3 standard errors, and the
-    # vehicle's own accelerations on a straight leg (a few mm/s^2).
+    # The simulated world's gravity (the WGS-84 normal gravity at the preset's latitude,
+    # 9.7955 m/s^2): within 3 standard errors, and the vehicle's own accelerations on a
+    # straight leg (a few mm/s^2).
     assert abs(g["mean_specific_force"] - sim["gravity"]) < 3 * g["se"] + 5e-3
 
 
@@ -296,7 +285,7 @@ def test_check_log_apply_writes_a_file_that_checks_clean(simulated, tmp_path):
         assert m.attrs["imu_time_offset_s"] == pytest.approx(0.37, abs=OFFSET_TOL)
         assert m.attrs["dvl_time_offset_s"] == pytest.approx(-0.8, abs=OFFSET_TOL)
         # The IMU's triads are body FRD now: gravity levelled at the first sample.
-        assert m.imu.specific_force[:100, 2].mean() == pytest.approx(-9.81, abs=0.1)
+        assert m.imu.specific_force[:100, 2].mean() == pytest.approx(-log.gravity, abs=0.1)
         assert m.reference.time[0] >= 0 and m.imu.time[0] >= 0 and m.dvl.time[0] >= 0
     status, out, _ = run(["check-log", str(fixed), "--json"])
     assert status == 0
@@ -355,8 +344,10 @@ def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):
                                      imu_rate=0, dvl_offset=0))
     out = tmp_path / "out.h5"
     status, _, err = run(["check-log", str(raw), "--mission", "nope", "--apply", str(out)])
-    assert status == 2 and err.count("\n") == 1 and "'nope'" in err
+    assert status == 2 and err.count("\n") == 1 and "--mission: 'nope'" in err
     assert not out.exists()
+    with pytest.raises(ConfigError, match="missions: 'nope' is not in .*; expected one of sim"):
+        check_file(raw, ["nope"])
     status, _, err = run(["check-log", str(raw), "--apply", str(raw)])
     assert status == 2 and err.count("\n") == 1 and "is the log itself" in err
     status, _, err = run(["check-log", str(tmp_path / "missing.h5")])
@@ -419,6 +410,8 @@ def test_a_dvl_that_seldom_has_a_velocity_is_not_observable_and_not_applied(simu
     assert found["dvl clock"].value == {"pings": 20}
     assert not any(k.startswith("dvl_") for k in report.corrections)
     assert "imu_axis_matrix" in report.corrections  # the IMU is still checked
+    # Nor does the filter's prior take anything of it from the corrected file.
+    assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)
 
 
 def test_serial_least_squares_errors_hold_for_residuals_correlated_over_pings():
@@ -466,7 +459,3 @@ def test_apply_records_how_well_it_knows_what_it_wrote(simulated):
     assert found["dvl mounting"].confidence == "not observable" and mounting is None
     assert found["dvl mounting"].value["se_deg"][0] > 0.3
     assert applied_dvl_errors({}) == (None, None)
-    sparse = np.full_like(log.dvl_velocity, np.nan)
-    sparse[100:120] = log.dvl_velocity[100:120]
-    report = check_arrays(dataclasses.replace(log, dvl_velocity=sparse), "sparse")
-    assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)

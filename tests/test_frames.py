@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from auvsim.physics.frames import (
     FLIP,
+    attitude_rates,
     euler_angles,
     mujoco_from_ned,
     ned_from_mujoco,
@@ -14,6 +17,7 @@ from auvsim.physics.frames import (
     quaternion_product,
     rotation_matrices,
     rotation_rpy,
+    skew,
 )
 
 
@@ -30,6 +34,40 @@ def test_compiled_and_vectorised_rotations_agree_and_are_rotations():
     np.testing.assert_allclose(vectorised @ vectorised.transpose(0, 2, 1),
                                np.broadcast_to(np.eye(3), (50, 3, 3)), atol=1e-12)
     np.testing.assert_allclose(np.linalg.det(vectorised), 1.0, atol=1e-12)
+
+
+def test_attitude_rates_invert_each_intervals_rotation():
+    """Each interval's rate times its length is the rotation vector of ``C_k^T C_k+1``
+    (Rodrigues' formula gives the rotation back), a negated quaternion (the same attitude)
+    included, a rotation of 1e-7 rad and none at all too."""
+    def product(a, b):  # Hamilton product of [w, x, y, z] quaternions
+        return np.r_[a[0] * b[0] - a[1:] @ b[1:], a[0] * b[1:] + b[0] * a[1:]
+                     + np.cross(a[1:], b[1:])]
+
+    steps = [(0.1, -0.2, 0.3), (0.0, 0.0, 1e-7), (0.0, 0.0, 0.0), (-0.3, 0.05, -1.2)]
+    q = [quaternion_from_euler(0.2, 0.1, 2.5)]
+    for rpy in steps:
+        q.append(product(q[-1], quaternion_from_euler(*rpy)))
+    q[-1] = -q[-1]  # the short way round: -q is q's attitude
+    t = np.array([0.0, 2.0, 2.5, 4.0, 4.1])
+    rates = attitude_rates(t, np.array(q))
+    c = rotation_matrices(np.array(q))
+    assert rates.shape == (4, 3) and np.all(rates[2] == 0)
+    for k, rpy in enumerate(steps):
+        vec = rates[k] * (t[k + 1] - t[k])
+        angle = np.linalg.norm(vec)
+        u = vec / angle if angle else vec
+        kx = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+        back = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+        np.testing.assert_allclose(back, c[k].T @ c[k + 1], atol=1e-12)
+        np.testing.assert_allclose(back, rotation_rpy(*rpy), atol=1e-12)
+
+
+def test_skew_is_the_cross_product_for_one_vector_and_for_arrays():
+    v, a = np.random.default_rng(6).standard_normal((2, 5, 3))
+    np.testing.assert_allclose(skew(v) @ a[..., None], np.cross(v, a)[..., None], atol=1e-15)
+    np.testing.assert_array_equal(skew(v[0]), skew(v)[0])
+    np.testing.assert_array_equal(skew(v[0]), -skew(v[0]).T)
 
 
 def test_euler_round_trip_matches_the_zyx_rotation():

@@ -5,7 +5,8 @@ up, where the sensors sit and how the DVL is mounted. Each is found here against
 reference navigation solution (position, NED velocity and attitude of the reference point),
 by a small pure function on arrays that returns a ``Finding``: the value, the evidence it
 rests on and a confidence. ``check_arrays`` runs them in order on a ``Log`` (arrays), and
-``check_log`` on a recorded mission; ``apply`` writes a corrected dataset.
+``check_log`` on a recorded mission (``check_file`` on each of a file's); ``apply``
+writes a corrected dataset.
 
 Models (auvsim's conventions: body FRD, world NED, C = body -> NED from the reference's
 quaternion, SI units). Times: a stream's stamp ``s`` happened at reference-clock time
@@ -20,10 +21,11 @@ from its positions against its velocities (``reference_clock``), as evidence.
   ``f_body = P f_log``: the 24 proper ones (det +1) and the 24 reflections, which no
   physical triad is but a log written through a wrong transformation holds (the A-KIT
   IMU files: ``[x, -y, z]``). Between reference samples k and k+1 the gyro's mean
-  rate must equal the reference's attitude change ``log(C_k^T C_k+1) / dt``, and the
-  accelerometers' mean must equal ``C^T (dv/dt - g n_down)`` (gravity levelled with the
-  reference's roll and pitch). Each candidate's residuals, normalised by the signals' RMS,
-  give its score; the winner's margin is the runner-up's score over the winner's.
+  rate must equal the reference's attitude change ``log(C_k^T C_k+1) / dt``
+  (``frames.attitude_rates``), and the accelerometers' mean must equal
+  ``C^T (dv/dt - g n_down)`` (gravity levelled with the reference's roll and pitch).
+  Each candidate's residuals, normalised by the signals' RMS, give its score; the
+  winner's margin is the runner-up's score over the winner's.
 * Clock offsets: the IMU's by the gyro's interval means against the reference's attitude
   rate, the DVL's by its velocity against the reference's velocity in the body,
   ``C^T v_ref``; a least-squares scan over the offset (the cross-correlation's equivalent
@@ -58,9 +60,9 @@ import numpy as np
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
-from auvsim.errors import DatasetError
+from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import rotation_matrices
+from auvsim.physics.frames import attitude_rates, rotation_matrices, skew
 
 try:
     import tomllib
@@ -166,26 +168,6 @@ class Report:
 # ---- geometry ------------------------------------------------------------------------
 
 
-def skew(v: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) matrices [v]x with [v]x a = v x a, of (..., 3) vectors."""
-    v = np.asarray(v, float)
-    z = np.zeros(v.shape[:-1])
-    x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
-                     np.stack([-y, x, z], -1)], -2)
-
-
-def rotation_vectors(r: np.ndarray) -> np.ndarray:
-    """(M, 3) rotation vectors (rad) of (M, 3, 3) rotation matrices (angles below pi)."""
-    cos = np.clip((np.trace(r, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
-    angle = np.arccos(cos)
-    vee = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0],
-                    r[:, 1, 0] - r[:, 0, 1]], axis=1) / 2
-    sin = np.sin(angle)
-    ratio = np.where(sin > 1e-9, angle / np.where(sin > 1e-9, sin, 1.0), 1.0)
-    return vee * ratio[:, None]
-
-
 def axis_maps(*, proper: bool = True) -> list[np.ndarray]:
     """The 24 proper signed permutations (det +1), (3, 3) each: ``body = P @ logged``;
     all 48 with ``proper=False``."""
@@ -230,7 +212,7 @@ def intervals(log: Log) -> Intervals:
     t = np.asarray(log.reference_time, float)
     c = rotation_matrices(log.reference_quaternion)
     dt = np.diff(t)
-    rate = rotation_vectors(np.einsum("kji,kjl->kil", c[:-1], c[1:])) / dt[:, None]
+    rate = attitude_rates(t, log.reference_quaternion)
     dv = np.diff(np.asarray(log.reference_velocity, float), axis=0)
     accel = dv / dt[:, None] - np.array([0.0, 0.0, log.gravity])
     mid = (c[:-1] + c[1:]) / 2  # the attitude halfway, to first order
@@ -294,23 +276,22 @@ def imu_axes(log: Log, ref: Intervals) -> tuple[np.ndarray, Finding]:
     margin = s2 / max(s1, 1e-12)
     names = axis_map_names(p)
     reflection = np.linalg.det(p) < 0
+    sp, pp, gp, fp = proper[0]
     evidence = (f"gyro residual {math.degrees(g1):.3g} deg/s (reference rate RMS "
                 f"{math.degrees(rate_rms):.3g} deg/s), levelled gravity residual {f1:.3g} "
                 f"m/s^2, over {len(a)} intervals; runner-up {axis_map_names(p2)}: "
                 f"{math.degrees(g2):.3g} deg/s, {f2:.3g} m/s^2; margin {margin:.3g}x")
     if reflection:
-        sp, pp, gp, fp = proper[0]
         evidence += (f"; a REFLECTION (det -1): no physical triad is left-handed, the log's "
                      f"transformation is; best proper map {axis_map_names(pp)}: "
                      f"{math.degrees(gp):.3g} deg/s, {fp:.3g} m/s^2, {sp / s1:.3g}x worse")
     confidence = "high" if margin > 3 else "medium" if margin > 1.5 else "low"
-    best_proper = proper[0]
     return p, Finding("imu axes", {"axis_map": names, "matrix": p.tolist(),
                                    "determinant": int(round(np.linalg.det(p))),
                                    "score": s1, "runner_up": axis_map_names(p2),
                                    "runner_up_score": s2, "margin": margin,
-                                   "best_proper": axis_map_names(best_proper[1]),
-                                   "best_proper_score": best_proper[0]},
+                                   "best_proper": axis_map_names(pp),
+                                   "best_proper_score": sp},
                       f"[{', '.join(names)}]" + (" (reflection)" if reflection else ""),
                       evidence, confidence)
 
@@ -355,12 +336,7 @@ def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
     s, o = np.asarray(stamps), np.asarray(offsets)
     windows = [[float(a), float(b)] for a, b in zip(s, o, strict=True)]
     if len(s) >= 3:
-        a = np.stack([np.ones_like(s), s], axis=1)
-        x, *_ = np.linalg.lstsq(a, o, rcond=None)
-        resid = o - a @ x
-        var = float(resid @ resid) / (len(s) - 2)
-        cov = var * np.linalg.inv(a.T @ a)
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        x, se, _ = least_squares(np.stack([np.ones_like(s), s], axis=1), o)
         critical = T_3SIGMA[min(len(s) - 2, len(T_3SIGMA)) - 1]
         drift = abs(x[1]) * float(s.max() - s.min())
         if abs(x[1]) > critical * max(se[1], 1e-12) and drift > CLOCK_PROBE:
@@ -370,7 +346,7 @@ def fit_clock(stamps: list[float], offsets: list[float], whole: float) -> Clock:
     return Clock(whole, 0.0, float("nan"), float("nan"), windows)
 
 
-def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
+def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> Clock:
     """The IMU's clock: its gyro's interval means (axes ``p``) against the reference's
     attitude rate, in windows of ``OFFSET_WINDOW`` s."""
     t = np.asarray(log.imu_time, float)
@@ -396,9 +372,17 @@ def imu_clock(log: Log, p: np.ndarray, ref: Intervals) -> tuple[Clock, Finding]:
             centre = float(np.mean((ref.start[sel] + ref.end[sel]) / 2))
             stamps.append(centre - o)
             offsets.append(o)
-    clock = fit_clock(stamps, offsets, whole)
-    return clock, clock_finding("imu clock", clock, t, "gyro interval means against "
-                                "the reference's attitude rate")
+    return fit_clock(stamps, offsets, whole)
+
+
+def usable_pings(log: Log) -> np.ndarray:
+    """(P,) the DVL's pings a clock is fitted on: those with a velocity, stamped inside the
+    reference's span less ``MAX_OFFSET`` s at each end (every trial offset finds them a
+    reference)."""
+    s = np.asarray(log.dvl_time, float)
+    return (np.isfinite(np.asarray(log.dvl_velocity, float)).all(axis=1)
+            & (s - MAX_OFFSET >= log.reference_time[0])
+            & (s + MAX_OFFSET <= log.reference_time[-1]))
 
 
 def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
@@ -411,7 +395,6 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
     t_ref = np.asarray(log.reference_time, float)
     s = np.asarray(log.dvl_time, float)
     v = np.asarray(log.dvl_velocity, float)
-    ok = np.isfinite(v).all(axis=1)
 
     def offset_of(sel: np.ndarray, centre: float, half: float) -> tuple[float, float]:
         def cost(o: float) -> float:
@@ -428,7 +411,7 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
             return float(r @ r) / len(t)
         return scan(cost, centre, half)
 
-    usable = ok & (s - MAX_OFFSET >= t_ref[0]) & (s + MAX_OFFSET <= t_ref[-1])
+    usable = usable_pings(log)
     whole, _ = offset_of(usable, 0.0, MAX_OFFSET)
     stamps, offsets = [], []
     for lo in np.arange(s[0], s[-1], OFFSET_WINDOW):
@@ -568,13 +551,13 @@ def time_base(log: Log, imu_clock_found: Clock | None, reference: Finding) -> Fi
 # ---- lever arms, DVL calibration, gravity -------------------------------------------------
 
 
-def rates_at(times: np.ndarray, imu_time: np.ndarray | None, rate: np.ndarray | None,
+def rates_at(times: np.ndarray, imu_time: np.ndarray | None, rate_integral: np.ndarray | None,
              ref: Intervals, half: float = 0.1) -> np.ndarray:
     """(M, 3) body rates at ``times`` (reference clock): the gyro's mean over +- ``half``
-    when there is one, else the reference's attitude rate, interpolated."""
+    when there is one (``rate_integral`` (N, 3), rad: its running integral at
+    ``imu_time``, ``cumulative``), else the reference's attitude rate, interpolated."""
     if imu_time is not None:
-        integral = cumulative(imu_time, rate)
-        return window_means(imu_time, integral, times - half, times + half)
+        return window_means(imu_time, rate_integral, times - half, times + half)
     mid = (ref.start + ref.end) / 2
     return np.stack([np.interp(times, mid, ref.rate[:, d]) for d in range(3)], -1)
 
@@ -665,12 +648,13 @@ def grade(se: float, high: float, medium: float) -> str:
 
 
 @numba.njit(cache=True)
-def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
-               f: np.ndarray) -> np.ndarray:
-    """(N, 3) NED specific force C f at each IMU sample, the attitude C propagated with the
-    gyro from the reference's at the latest reference time before the sample (``start``
-    (K,) times, ``q0`` (K, 4) quaternions)."""
-    out = np.full((len(t), 3), np.nan)
+def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray
+               ) -> np.ndarray:
+    """(N, 4) body -> NED attitude quaternions [w, x, y, z] at each IMU sample (times
+    ``t`` (N,), body rates ``w`` (N, 3) rad/s), propagated with the gyro from the
+    reference's at the latest reference time before the sample (``start`` (K,) times,
+    ``q0`` (K, 4) quaternions); NaN before the first."""
+    out = np.full((len(t), 4), np.nan)
     k = -1
     q = np.zeros(4)
     last = 0.0
@@ -693,14 +677,7 @@ def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
             q[1] = a0 * dx + a1 * dw + a2 * dz - a3 * dy
             q[2] = a0 * dy - a1 * dz + a2 * dw + a3 * dx
             q[3] = a0 * dz + a1 * dy - a2 * dx + a3 * dw
-        w0, x, y, z = q[0], q[1], q[2], q[3]
-        fx, fy, fz = f[i, 0], f[i, 1], f[i, 2]
-        out[i, 0] = ((1 - 2 * (y * y + z * z)) * fx + 2 * (x * y - w0 * z) * fy
-                     + 2 * (x * z + w0 * y) * fz)
-        out[i, 1] = (2 * (x * y + w0 * z) * fx + (1 - 2 * (x * x + z * z)) * fy
-                     + 2 * (y * z - w0 * x) * fz)
-        out[i, 2] = (2 * (x * z - w0 * y) * fx + 2 * (y * z + w0 * x) * fy
-                     + (1 - 2 * (x * x + y * y)) * fz)
+        out[i] = q
     return out
 
 
@@ -740,9 +717,10 @@ def _lever_fit(log: Log, t: np.ndarray, f: np.ndarray, w: np.ndarray
     # Each term rotated into NED with the propagated attitude: C f, and C A for the lever
     # arm's design A = [dw/dt]x + [w]x^2 and the bias's A = I.
     design = skew(dwdt) + skew(w) @ skew(w)
-    terms = [f] + [design[:, :, j] for j in range(3)] \
-        + [np.tile(np.eye(3)[:, j], (len(t), 1)) for j in range(3)]
-    ned = [_propagate(q, t_ref, t, w, x) for x in terms]
+    c = rotation_matrices(_propagate(q, t_ref, t, w))  # (N, 3, 3), NaN before the first
+    c_design = c @ design
+    ned = [np.einsum("nij,nj->ni", c, f)] + [c_design[:, :, j] for j in range(3)] \
+        + [c[:, :, j] for j in range(3)]
     means = [window_means(t, cumulative(t, np.nan_to_num(x)), a, b) for x in ned]
     gravity = np.array([0.0, 0.0, log.gravity])
     accel = (v[k + 1] - v[k]) / (b - a)[:, None] - gravity
@@ -801,16 +779,16 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     report.findings.append(reference_clock(log))
     corrections: dict = {}
     p = np.eye(3)
-    imu_t = w = f = imu_clock_found = None
+    imu_t = w = w_int = f = imu_clock_found = None
     if log.imu_time is not None:
         p, found = imu_axes(log, ref)
         report.findings.append(found)
-        clock, found = imu_clock(log, p, ref)
+        clock = imu_clock(log, p, ref)
         s = np.asarray(log.imu_time, float)
         # Once more on the corrected stamps: a window's own drift (0.25 s per 100 s at
         # 2500 ppm) blurs its offset in the first pass. The two maps compose.
-        again, _ = imu_clock(dataclasses.replace(log, imu_time=s + clock.offset
-                                                 + clock.rate_error * s), p, ref)
+        again = imu_clock(dataclasses.replace(log, imu_time=s + clock.offset
+                                              + clock.rate_error * s), p, ref)
         clock = dataclasses.replace(
             clock, offset=clock.offset * (1 + again.rate_error) + again.offset,
             rate_error=(1 + clock.rate_error) * (1 + again.rate_error) - 1,
@@ -824,13 +802,11 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         imu_t = s + clock.offset + clock.rate_error * s
         imu_clock_found = clock
         w = np.asarray(log.angular_rate, float) @ p.T
+        w_int = cumulative(imu_t, w)  # once: every trial DVL offset reads its rates here
         f = np.asarray(log.specific_force, float) @ p.T
         corrections.update(imu_axis_map=axis_map_names(p), imu_axis_matrix=p.tolist(),
                            imu_time_offset_s=clock.offset, imu_rate_error=clock.rate_error)
-    dvl_pings = 0 if log.dvl_time is None else int(np.sum(
-        np.isfinite(np.asarray(log.dvl_velocity, float)).all(axis=1)
-        & (np.asarray(log.dvl_time, float) - MAX_OFFSET >= log.reference_time[0])
-        & (np.asarray(log.dvl_time, float) + MAX_OFFSET <= log.reference_time[-1])))
+    dvl_pings = 0 if log.dvl_time is None else int(usable_pings(log).sum())
     if log.dvl_time is not None and dvl_pings < MIN_DVL_PINGS:
         # Too few pings to fit a clock or a calibration on: every trial offset would cost
         # the same, and a fit on no rows would look exact. Nothing is applied.
@@ -843,13 +819,13 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         c = rotation_matrices(log.reference_quaternion)
         u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
         v = np.asarray(log.dvl_velocity, float)
-        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w, ref))
+        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w_int, ref))
         s = np.asarray(log.dvl_time, float)
         t = s + clock.offset + clock.rate_error * s
         u = np.stack([np.interp(t, log.reference_time, u_ref[:, d]) for d in range(3)], -1)
         inside = (t >= log.reference_time[0]) & (t <= log.reference_time[-1])
         u[~inside] = np.nan
-        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w, ref), v)
+        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w_int, ref), v)
         report.findings.append(clock_found)
         report.findings.extend(calibration)
         corrections.update(dvl_time_offset_s=clock.offset, dvl_rate_error=clock.rate_error,
@@ -926,6 +902,30 @@ def check_log(mission) -> Report:
                         gravity_source="WGS-84 normal gravity at the origin")
 
 
+def check_file(path: str | os.PathLike, missions: list[str] | None = None) -> list[Report]:
+    """``check_log`` of each named mission of the dataset ``path`` (default: all, in
+    file order): the reports ``apply`` writes a corrected dataset from.
+
+    Raises:
+        ConfigError: a name in ``missions`` is not a mission of the dataset.
+        DatasetError: ``path`` is no dataset, or a mission cannot be checked
+            (``log_of``, ``check_arrays``).
+    """
+    with open_dataset(path) as ds:
+        names = list(ds.missions) if missions is None else list(missions)
+        unknown = [n for n in names if n not in ds.missions]
+        if unknown:
+            raise ConfigError(f": {unknown[0]!r} is not in {str(path)!r}; expected one of "
+                              f"{', '.join(ds.missions)}", argument="missions")
+        return [check_log(ds.missions[n]) for n in names]
+
+
+def fields_of(mission) -> dict[str, np.ndarray]:
+    """Every field of a mission, by path (``"imu/time"``, ...)."""
+    return {f"{g}/{name}": getattr(getattr(mission, g), name)
+            for g in mission.groups for name in getattr(mission, g)}
+
+
 def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str, object]]:
     """The mission's fields and attributes with ``report``'s corrections made:
 
@@ -946,8 +946,8 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     """
     c = report.corrections
     found = {f.name: f for f in report.findings}
-    fields = {f"{g}/{name}": getattr(getattr(mission, g), name)
-              for g in json.loads(mission.attrs["groups"]) for name in getattr(mission, g)}
+    groups = mission.groups
+    fields = fields_of(mission)
     attrs = dict(mission.attrs)
     maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
             "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
@@ -955,18 +955,17 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     # the time base: tau = (t - imu offset) / (1 + imu rate error).
     base_offset, base_rate = maps["imu"] if c.get("time_base") == "imu" else (0.0, 0.0)
     shift = {}
-    for g in json.loads(mission.attrs["groups"]):
+    for g in groups:
         offset, rate = maps.get(g, (0.0, 0.0))
         s = fields[f"{g}/time"]
         fields[f"{g}/time"] = (s + offset + rate * s - base_offset) / (1 + base_rate)
         shift[g] = (offset - base_offset) / (1 + base_rate)
-    start = min(float(fields[f"{g}/time"][0]) for g in json.loads(mission.attrs["groups"]))
-    for g in json.loads(mission.attrs["groups"]):
+    start = min(float(fields[f"{g}/time"][0]) for g in groups)
+    for g in groups:
         fields[f"{g}/time"] = fields[f"{g}/time"] - start
         attrs[f"{g}_rate_hz"] = 1.0 / float(np.median(np.diff(fields[f"{g}/time"])))
     attrs["log_time_origin_s"] = float(attrs.get("log_time_origin_s", 0.0)) + start
-    attrs["duration_s"] = max(float(fields[f"{g}/time"][-1])
-                              for g in json.loads(mission.attrs["groups"]))
+    attrs["duration_s"] = max(float(fields[f"{g}/time"][-1]) for g in groups)
     if "imu_axis_matrix" in c:
         p = np.asarray(c["imu_axis_matrix"])
         for name in ("specific_force", "angular_rate"):
@@ -1020,10 +1019,7 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
                 if name in by_name:
                     fields, attrs = corrected(mission, by_name[name])
                 else:
-                    groups = mission.groups
-                    fields = {f"{g}/{n}": getattr(getattr(mission, g), n)
-                              for g in groups for n in getattr(mission, g)}
-                    attrs = dict(mission.attrs)
+                    fields, attrs = fields_of(mission), dict(mission.attrs)
                 groups = sorted({p.split("/")[0] for p in fields})
                 sink = writer.mission(name, mission_attrs(**attrs),
                                       rows={g: len(fields[f"{g}/time"]) for g in groups

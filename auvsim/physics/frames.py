@@ -60,6 +60,31 @@ def _rotation_rows(q: np.ndarray) -> np.ndarray:
     return out
 
 
+def attitude_rates(t: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
+    """(R-1, 3) body angular rates, rad/s, over each interval of attitude samples: the
+    rotation vector of ``q_k^-1 q_k+1`` (the short way round) over ``t_k+1 - t_k``, from
+    body -> NED unit quaternions [w, x, y, z] (R, 4) at times ``t`` (R,) s."""
+    q = np.asarray(quaternion, dtype=float)
+    a, b = q[:-1], q[1:]
+    # q_k^-1 q_k+1 = conj(a) b (Hamilton product), on the short way round.
+    w = np.sum(a * b, axis=1)
+    v = a[:, :1] * b[:, 1:] - b[:, :1] * a[:, 1:] - np.cross(a[:, 1:], b[:, 1:])
+    v *= np.sign(w + (w == 0))[:, None]
+    norm = np.linalg.norm(v, axis=1)
+    angle = 2.0 * np.arctan2(norm, np.abs(w))
+    axis = np.divide(v, norm[:, None], out=np.zeros_like(v), where=norm[:, None] > 0)
+    return axis * (angle / np.diff(np.asarray(t, dtype=float)))[:, None]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) matrices [v]x with [v]x a = v x a, of (..., 3) vectors."""
+    v = np.asarray(v, dtype=float)
+    z = np.zeros(v.shape[:-1])
+    x, y, w = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([np.stack([z, -w, y], -1), np.stack([w, z, -x], -1),
+                     np.stack([-y, x, z], -1)], -2)
+
+
 def rotation_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """(3, 3) rotation of ZYX Euler angles (rad): vectors in the rotated frame -> parent."""
     cr, sr = math.cos(roll), math.sin(roll)

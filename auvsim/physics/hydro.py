@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from auvsim.errors import ConfigError
-from auvsim.physics.frames import FLIP
+from auvsim.physics.frames import FLIP, skew
 
 # The model's actuators, in the order of the actuator commands (shaft rpm, rudder and
 # stern-plane angles): MuJoCo applies no force of theirs (their gain is 0), they carry the
@@ -85,11 +85,6 @@ class Hydro(NamedTuple):
     wake_fraction: float
     shaft_tau: float  # s
     rpm_max: float
-
-
-def skew(a: np.ndarray) -> np.ndarray:
-    """Return S(a), the (3, 3) matrix with S(a) b = a x b."""
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
 def lamb_k_factors(a: float, b: float) -> tuple[float, float, float]:
