@@ -173,7 +173,7 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
     Raises:
         ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
     """
-    from auvsim.data.checklog import apply, check_log
+    from auvsim.data.checklog import apply, check_file
     from auvsim.data.recorded import akit_segments, import_logs
 
     segments = akit_segments(data)
@@ -182,8 +182,7 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
     logged, dataset = datasets / "sea-logged.h5", datasets / "sea.h5"
     if not _imported_from(logged, digests):
         import_logs([data], logged, format="akit")
-    with open_dataset(logged) as f:
-        reports = [check_log(m) for m in f.missions.values()]
+    reports = check_file(logged)
     said = _said(reports)
     if not _imported_from(dataset, digests, said):
         apply(logged, dataset, reports)
