@@ -288,6 +288,7 @@ def _evaluate(args) -> None:
     for dataset, result in results.items():
         print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
         if "navigation" in result:
+            print()
             print(navigation_markdown(result["navigation"], result["against"]))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
 
