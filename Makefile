@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet --upgrade pip
 	# The CPU wheel of torch lies on this machine; a bare `torch` requirement would pull CUDA.
 	$(BIN)/pip install --quiet torch==2.13.0
-	$(BIN)/pip install --quiet -e '.[test,learn,cluster,docs]'
+	$(BIN)/pip install --quiet -e '.[test,learn,cluster,docs,io]'
 	touch $(STAMP)
 
 setup: $(STAMP)
