@@ -265,6 +265,8 @@ def _serve_parser(sub) -> None:
                        help="mission seconds per second (default: 1, real time)")
     serve.add_argument("--loop", action="store_true",
                        help="play the mission again from its start after its last ping")
+    serve.add_argument("--wait-for-client", action="store_true",
+                       help="start the mission's clock when the first client connects")
 
 
 def _serve(args: argparse.Namespace) -> None:
@@ -274,10 +276,13 @@ def _serve(args: argparse.Namespace) -> None:
         rate = 1e3 / float(pings.interval_ms[0])
         print(f"serving {pings.name} of {args.file} as a Water Linked DVL A50 (json_v3.1) on "
               f"{host}:{port}: {len(pings)} pings at {rate:g} Hz, {args.speed:g}x real time"
-              f"{', looping' if args.loop else ''}; Ctrl-C stops", flush=True)
+              f"{', looping' if args.loop else ''}"
+              f"{', from the first client' if args.wait_for_client else ''}; Ctrl-C stops",
+              flush=True)
 
     summary = serve(args.file, args.mission, host=args.host, port=args.port,
-                    speed=args.speed, loop=args.loop, ready=ready)
+                    speed=args.speed, loop=args.loop, wait_for_client=args.wait_for_client,
+                    ready=ready)
     print(f"served {summary['reports']} velocity reports of {summary['mission']} to "
           f"{summary['clients']} client(s)")
 

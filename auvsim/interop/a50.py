@@ -372,7 +372,7 @@ class _Client:
 
 def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0.0.1",
           port: int = PORT, speed: float = 1.0, loop: bool = False,
-          ready: Callable[[str, int, Pings], None] | None = None,
+          wait_for_client: bool = False, ready: Callable[[str, int, Pings], None] | None = None,
           stop: threading.Event | None = None) -> dict:
     """Play a simulated mission's DVL as a Water Linked A50 on TCP until its last ping
     (every lap of it with ``loop``), ``stop`` is set, or Ctrl-C; then close every
@@ -385,6 +385,8 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
         host, port: where to listen (port 0: any free port, ``ready`` says which).
         speed: the mission's seconds per wall-clock second, > 0.
         loop: play the mission again from its start after its last ping, until stopped.
+        wait_for_client: start the mission's clock when the first client connects, so
+            that it reads every ping (a real A50 pings whether anyone listens or not).
         ready: called with (host, port, pings) once listening.
         stop: set it (from another thread) to stop within 50 ms.
 
@@ -420,7 +422,13 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
         selector.register(listener, selectors.EVENT_READ)
         if ready is not None:
             ready(host, listener.getsockname()[1], pings)
-        return _play(pings, listener, selector, clients, speed=speed, loop=loop, stop=stop)
+        accepted, settings, dead_reckoning = 0, dict(SETTINGS), DeadReckoning()
+        while wait_for_client and not clients and (stop is None or not stop.is_set()):
+            accepted += _handle(selector, listener, clients, settings, dead_reckoning,
+                                timeout=0.05)
+        summary = _play(pings, listener, selector, clients, settings, dead_reckoning,
+                        speed=speed, loop=loop, stop=stop)
+        return {**summary, "clients": summary["clients"] + accepted}
     finally:
         for client in list(clients.values()):
             client.sock.close()
@@ -445,10 +453,10 @@ def _listen(host: str, port: int) -> socket.socket:
 
 
 def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelector,
-          clients: dict, *, speed: float, loop: bool, stop: threading.Event | None) -> dict:
+          clients: dict, settings: dict, dead_reckoning: DeadReckoning,
+          *, speed: float, loop: bool, stop: threading.Event | None) -> dict:
     t = pings.time
     period = t[-1] - t[0] + pings.interval_ms[0] / 1e3  # one lap, and the gap to the next
-    settings, dead_reckoning = dict(SETTINGS), DeadReckoning()
     start, start_us = time.monotonic(), time.time_ns() // 1000
     lateness: list[float] = []
     accepted, n, lap = 0, 0, 0
@@ -460,6 +468,10 @@ def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelecto
             accepted += _handle(selector, listener, clients, settings, dead_reckoning,
                                 timeout=min(wait - 0.001, 0.05))
             continue
+        # Commands and slow clients are served between pings even when pings come
+        # faster than the selector's resolution.
+        accepted += _handle(selector, listener, clients, settings, dead_reckoning, timeout=0)
+        wait = due - time.monotonic()
         if wait > 0:
             time.sleep(wait)
         validity = start_us + round(offset * 1e6)
