@@ -464,9 +464,9 @@ def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelecto
         offset = lap * period + (t[n] - t[0])  # mission seconds from the start
         due = start + offset / speed
         wait = due - time.monotonic()
-        if wait > 0.002:  # the selector's timeout is rounded to ms: wake 1 ms early
+        if wait > 0.003:  # the selector's timeout is rounded up to ms: wake >= 1 ms early
             accepted += _handle(selector, listener, clients, settings, dead_reckoning,
-                                timeout=min(wait - 0.001, 0.05))
+                                timeout=min(wait - 0.002, 0.05))
             continue
         # Commands and slow clients are served between pings even when pings come
         # faster than the selector's resolution.
