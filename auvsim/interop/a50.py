@@ -33,8 +33,8 @@ of one ping, ``mission_pings`` reads the arrays):
 - ``velocity_valid``: the ping is in bottom track (``dvl/mode`` 0). A water-track ping
   is sent as not valid: ``json_v3.1`` cannot say that a velocity is relative to the
   water (``json_v3.2`` adds ``tracking_mode`` for that). When not valid, ``vx vy vz``
-  are 0 and ``altitude`` is -1, the values the serial protocol's sections "Velocity
-  report, old format (wrx)" and "Transducer report (wru)" document for no lock.
+  are 0, and ``altitude`` is -1 when no beam has bottom lock: the values the serial
+  protocol's section "Velocity report, old format (wrx)" shows for no lock.
 - ``covariance``: the covariance of the error that the mission's noise model puts into
   ``velocity_ls``: the white beam noise through the least squares,
   ``P diag(sigma_k^2) P^T`` with ``P`` the pseudo-inverse of the rows of H of the beams
