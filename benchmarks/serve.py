@@ -108,7 +108,7 @@ def main() -> int:
             span = (reports[-1]["time_of_validity"] - reports[0]["time_of_validity"]) / 1e6
             wall = arrived[-1] - arrived[0]
             print(f"auvsim serve --dvl a50 --speed {speed:g}: {len(reports)} reports, "
-                  f"{span:.1f} s of mission in {wall:.3f} s: {span / wall:.0f}x real time")
+                  f"{span:.1f} s of mission in {wall:.3f} s: {span / wall:.1f}x real time")
     return 0
 
 
