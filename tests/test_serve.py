@@ -165,6 +165,34 @@ def test_every_report_holds_the_dataset(dataset):
     assert max(yaws) - min(yaws) > 10  # a zigzag: the attitude moved
 
 
+def test_several_clients_read_the_same_stream(dataset):
+    """Two clients connected before the first ping read the same bytes: every report,
+    written once for all."""
+    clients: queue.Queue = queue.Queue()
+
+    def connect(host, port, _):  # from the server's thread, before it plays
+        for _ in range(2):
+            clients.put(socket.create_connection((host, port), timeout=30))
+
+    thread = threading.Thread(target=serve, args=(dataset,), kwargs=dict(
+        port=0, speed=500.0, wait_for_client=True, ready=connect))
+    thread.start()
+    streams = [b"", b""]
+
+    def read(i: int, client: socket.socket) -> None:
+        with client:
+            while chunk := client.recv(1 << 20):
+                streams[i] += chunk
+
+    readers = [threading.Thread(target=read, args=(i, clients.get(timeout=30)))
+               for i in range(2)]
+    for reader in readers:
+        reader.start()
+    for reader in [*readers, thread]:
+        reader.join(timeout=30)
+    assert streams[0] == streams[1] and streams[0].count(b"\n") == 400  # 200 pings x 2
+
+
 def test_commands():
     settings, dr = dict(SETTINGS), DeadReckoning()
 

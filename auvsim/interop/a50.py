@@ -125,7 +125,7 @@ PORT = 16171  # "The DVL runs a TCP server on port 16171"
 FORMAT = "json_v3.1"
 RSSI_DBM = -50.0  # not simulated: see the module docstring
 NSD_DBM = -95.0
-# set_config's parameters: name -> (type check, what is expected); get_config's defaults.
+# get_config's values at the start; set_config checks a value against its default's type.
 SETTINGS = {"speed_of_sound": 1500.0, "mounting_rotation_offset": 0.0,
             "acoustic_enabled": True, "dark_mode_enabled": False, "range_mode": "auto",
             "periodic_cycling_enabled": True}
