@@ -94,8 +94,7 @@ def _time(f: Field, read: Callable[[str], np.ndarray], timedelta: bool) -> tuple
     attrs = {"description": f.doc, "field": f.path}
     if timedelta:
         # No units attribute: xarray encodes a timedelta's units itself when writing.
-        ns = np.rint(seconds * 1e9).astype(np.int64).view("timedelta64[ns]")
-        return "time", ns, {**attrs, "long_name": "time (s, rounded to the nanosecond)"}
+        return "time", np.rint(seconds * 1e9).astype(np.int64).view("timedelta64[ns]"), attrs
     return "time", seconds, {**attrs, "units": f.unit}
 
 
