@@ -1,9 +1,10 @@
 """``Mission.to_xarray``: every group an xarray Dataset on its own clock.
 
 Checked against the file itself, read with h5py (not through the reader): every field of a
-small simulated mission and of a recorded one (a CSV log of ``test_recorded``) comes back
-bit for bit on its own group's time, with the schema's units and descriptions; slicing by
-time and resampling give what numpy gives on the file's arrays.
+small simulated mission, of a recorded one (a CSV log of ``test_recorded``) and of an
+imported DVL stream comes back bit for bit on its own group's time, with the schema's
+units and descriptions; slicing by time and resampling give what numpy gives on the
+file's arrays.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import pytest
 from conftest import flat
 from test_recorded import _csv_log, run_csv
 
-from auvsim.config import MissionConfig, ScenarioConfig
+from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
+from auvsim.data.importer import import_velocity
 from auvsim.data.reader import open_dataset
 from auvsim.data.schema import recorded_schema, schema
 from auvsim.errors import AuvsimError
@@ -151,6 +153,19 @@ def test_a_recorded_mission_has_its_reference(recorded):
     assert list(reference.angle.values) == ["roll", "pitch", "yaw"]
     # Each stream on its own clock: the IMU at 100 Hz, the DVL at 2 Hz.
     assert len(views["imu"].time) == 200 and len(views["dvl"].time) == 4
+
+
+def test_an_imported_dvl_stream(tmp_path):
+    velocity = np.column_stack([np.linspace(1.0, 1.5, 50), np.full(50, -0.2), np.zeros(50)])
+    np.save(tmp_path / "V.npy", velocity.T)  # (3, n), the paper's layout
+    out = tmp_path / "imported.h5"
+    import_velocity([tmp_path / "V.npy"], out, dvl=DvlConfig())
+    arrays, attrs = file_fields(out, "V")
+    with open_dataset(out) as f:
+        views = f.missions["V"].to_xarray()
+    assert list(views) == ["dvl"]
+    assert_views_are_the_file(views, arrays, attrs, schema("imported")[0])
+    np.testing.assert_array_equal(views["dvl"].velocity.sel(axis="x"), velocity[:, 0])
 
 
 def test_without_xarray_one_line_names_the_extra(simulated, monkeypatch):
