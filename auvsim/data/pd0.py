@@ -156,7 +156,7 @@ def encode(pings: Pings, *, coordinates: str = "beam") -> bytes:
                           "times PD0's clock can hold", argument="dataset")
     ok = (pings.bottom[:, None] & np.isfinite(pings.beam_velocity)
           & np.isfinite(pings.beam_range))
-    beams = _mm(np.where(ok, pings.beam_velocity, np.nan))[:, AUVSIM_BEAM]
+    beams = _mm(np.where(ok, pings.beam_velocity, np.nan))[:, RDI_BEAM]
     if coordinates == "beam":
         velocity = beams
     else:
@@ -167,8 +167,8 @@ def encode(pings: Pings, *, coordinates: str = "beam") -> bytes:
         velocity[(velocity[:, :3] == BAD_VELOCITY).any(axis=1), :3] = BAD_VELOCITY
     cos = math.cos(math.radians(pings.beam_angle_deg))
     vertical = np.where(ok, np.round(pings.beam_range * cos * 100), 0)
-    ranges = np.clip(vertical, 0, 2**24 - 1).astype(np.int64)[:, AUVSIM_BEAM]
-    good = np.where(ok, 100, 0)[:, AUVSIM_BEAM]
+    ranges = np.clip(vertical, 0, 2**24 - 1).astype(np.int64)[:, RDI_BEAM]
+    good = np.where(ok, 100, 0)[:, RDI_BEAM]
     fixed = _fixed_leader(angle, coordinates)
     offsets = (12, 12 + _FIXED.size, 12 + _FIXED.size + _VARIABLE.size)
     length = offsets[-1] + _BOTTOM.size + 2  # the two reserved bytes before the checksum
@@ -251,7 +251,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
                                   "; a PD0 file holds one DVL's: name one", argument="mission")
             mission = names[0]
         if mission not in ds.missions:
-            raise ConfigError(f" {mission!r}: no such mission; the dataset has "
+            raise ConfigError(f"{mission!r}: no such mission; the dataset has "
                               f"{', '.join(names[:5])}", argument="mission")
         m = ds.missions[mission]
         if not m.has("dvl") or "beam_velocity" not in m.dvl:
@@ -465,22 +465,22 @@ def read_pd0(path: str | os.PathLike) -> Pd0Log:
                           "DVL's PD0")
     time = ds["time"].values.astype("datetime64[ns]").astype(np.int64) / 1e9
     vel = np.asarray(ds["vel_bt"].values, dtype=float).T  # (N, 4)
-    vel[vel <= BAD_VELOCITY / 1000 + 1e-9] = np.nan
+    vel[vel < (BAD_VELOCITY + 0.5) / 1000] = np.nan  # -32768 mm/s, in float32 m/s
     good = np.asarray(ds["prcnt_gd_bt"].values).T > 0
     vertical = np.asarray(ds["dist_bt"].values, dtype=float).T
     cos = math.cos(math.radians(found.beam_angle_deg))
     h = beam_matrix(math.radians(found.beam_angle_deg))
     if found.coordinates == "beam":
-        valid = (good & np.isfinite(vel) & (vertical > 0))[:, RDI_BEAM]
-        beams = np.where(valid, vel[:, RDI_BEAM], np.nan)
+        valid = (good & np.isfinite(vel) & (vertical > 0))[:, AUVSIM_BEAM]
+        beams = np.where(valid, vel[:, AUVSIM_BEAM], np.nan)
         velocity = least_squares(beams, h)
         error = error_velocity(beams, h)
     else:
-        valid = (good & (vertical > 0))[:, RDI_BEAM]
+        valid = (good & (vertical > 0))[:, AUVSIM_BEAM]
         beams = None
         velocity = -(vel[:, :3] @ RDI_FROM_DVL)  # R is orthogonal: R^-1 = R^T
         error = -vel[:, 3]
-    ranges = np.where(valid, vertical[:, RDI_BEAM] / cos, np.nan)
+    ranges = np.where(valid, vertical[:, AUVSIM_BEAM] / cos, np.nan)
     return Pd0Log(time, beams, ranges, velocity, error, valid, found)
 
 
