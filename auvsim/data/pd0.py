@@ -444,6 +444,9 @@ def read_pd0(path: str | os.PathLike) -> Pd0Log:
     except IsADirectoryError:
         raise ConfigError(f"{where}: a folder; expected a PD0 file") from None
     found = scan(data, where=where)
+    if len(found.ensembles) < 2:
+        raise ConfigError(f"{where}: {len(found.ensembles)} whole ensemble; expected a "
+                          "stream of pings (at least 2)")
     read_rdi = _dolfyn()
     with tempfile.TemporaryDirectory(prefix="auvsim-pd0-") as folder:
         clean = Path(folder) / "ensembles.pd0"
