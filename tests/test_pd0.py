@@ -300,3 +300,18 @@ def test_export_refuses_and_writes_nothing(dataset, tmp_path):
                        str(tmp_path / "y.h5"))
     assert code == 2 and "--description" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ranges_beyond_655_m_use_the_msb_byte(tmp_path):
+    from auvsim.data.pd0 import Pings, encode, read_pd0
+
+    n = 3
+    slant = np.array([[700.0, 12.34, 1000.0, 655.36]] * n)  # m: 606 m, 866 m vertical...
+    beams = np.tile([0.5, -0.5, 0.5, -0.5], (n, 1))
+    pings = Pings(np.arange(n, dtype=float), beams, slant, np.zeros((n, 3)), np.zeros(n),
+                  np.ones(n, dtype=bool), 30.0, 0.0)
+    path = tmp_path / "deep.pd0"
+    path.write_bytes(encode(pings))
+    log = read_pd0(path)
+    assert np.all(np.abs(log.beam_range - slant) <= CM / math.cos(math.radians(30)))
+    assert np.all(np.abs(log.beam_velocity - beams) <= MM)
