@@ -10,6 +10,7 @@ import contextlib
 import io
 import math
 import struct
+import sys
 import warnings
 
 import numpy as np
@@ -315,3 +316,10 @@ def test_ranges_beyond_655_m_use_the_msb_byte(tmp_path):
     log = read_pd0(path)
     assert np.all(np.abs(log.beam_range - slant) <= CM / math.cos(math.radians(30)))
     assert np.all(np.abs(log.beam_velocity - beams) <= MM)
+
+
+def test_without_mhkit_the_import_says_what_to_install(exported, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "mhkit.dolfyn.io.rdi", None)  # its import fails
+    (code, out, err), h5 = import_file(exported["beam"], tmp_path)
+    assert code == 2 and err.count("\n") == 1
+    assert "MHKiT" in err and "pip install 'auvsim[io]'" in err and not h5.exists()
