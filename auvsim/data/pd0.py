@@ -156,9 +156,8 @@ def encode(pings: Pings, *, coordinates: str = "beam") -> bytes:
                           "times PD0's clock can hold", argument="dataset")
     ok = (pings.bottom[:, None] & np.isfinite(pings.beam_velocity)
           & np.isfinite(pings.beam_range))
-    beams = _mm(np.where(ok, pings.beam_velocity, np.nan))[:, RDI_BEAM]
     if coordinates == "beam":
-        velocity = beams
+        velocity = _mm(np.where(ok, pings.beam_velocity, np.nan))[:, RDI_BEAM]
     else:
         v = np.where(pings.bottom[:, None], pings.velocity_ls, np.nan)
         rdi = -(v @ RDI_FROM_DVL.T)
