@@ -23,13 +23,15 @@ EXAMPLES = """examples:
   auvsim plot demo/straight.h5
   auvsim import DIR --format akit --out snapir.h5
   auvsim check-log snapir.h5 --apply snapir-checked.h5
+  auvsim export demo/straight.h5 --to pd0 --out demo/straight.pd0
 
 Each command has its own --help."""
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
          "workers": "--workers", "shards": "--shards", "cluster": "--cluster",
-         "description": "--description", "format": "--format", "sources": "SOURCE"}
+         "description": "--description", "format": "--format", "sources": "SOURCE",
+         "mission": "--mission", "coordinates": "--coordinates", "dataset": "DATASET"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -111,6 +113,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="HDF5 file to write")
     _import_parser(sub)
     _check_log_parser(sub)
+    _export_parser(sub)
     _serve_parser(sub)
     plot = sub.add_parser(
         "plot", help="draw each mission of a dataset to PNG",
@@ -159,15 +162,19 @@ def _import_parser(sub) -> None:
         "depth and a reference navigation solution, each on its own clock, nothing "
         "resampled. --format akit reads the A-KIT layout (TrajectoryK/{IMU,DVL,GT}_"
         "trajectoryK.csv, one mission per segment); --format csv reads a folder of CSV "
-        "files that a log description (TOML) explains; --format velocity is import-velocity "
+        "files that a log description (TOML) explains; --format pd0 reads a Teledyne RDI "
+        "Workhorse DVL's PD0 files (a mission of the DVL alone each; the description gives "
+        "the origin and the instrument's figures); --format velocity is import-velocity "
         "(recorded DVL velocities taken as the truth, beams synthesised).")
     imp.add_argument("sources", type=Path, nargs="+", metavar="SOURCE",
                      help="akit: the A-KIT folder or a TrajectoryK folder; csv: a log's "
-                     "folder; velocity: .npy (3, N) or .csv (N rows vx,vy,vz) files")
-    imp.add_argument("--format", choices=("akit", "csv", "velocity"), required=True,
+                     "folder; pd0: PD0 files; velocity: .npy (3, N) or .csv (N rows "
+                     "vx,vy,vz) files")
+    imp.add_argument("--format", choices=("akit", "csv", "pd0", "velocity"), required=True,
                      help="the logs' layout (required; no default)")
     imp.add_argument("--description", type=Path, metavar="LOG.toml",
-                     help="the log description (csv only; default: none, required there)")
+                     help="the log description (csv and pd0 only; default: none, required "
+                     "there)")
     _velocity_options(imp, only="velocity only: ")
     imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
                      help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
@@ -188,6 +195,9 @@ def _import(args: argparse.Namespace) -> None:
     given = [key for key in _VELOCITY_DEFAULTS if getattr(args, key) is not None]
     if given:
         raise ConfigError(f"--{given[0].replace('_', '-')}: only for --format velocity")
+    if args.format == "pd0":
+        _import_pd0(args)
+        return
     from auvsim.data.recorded import import_logs
 
     summary = import_logs(args.sources, args.out, format=args.format,
@@ -196,6 +206,18 @@ def _import(args: argparse.Namespace) -> None:
         f"{name} (" + ", ".join(f"{g} {rows} at {rate:.4g} Hz"
                                 for g, (rows, rate) in groups.items()) + ")"
         for name, groups in summary.items())
+    print(f"wrote {args.out}: {missions}")
+
+
+def _import_pd0(args: argparse.Namespace) -> None:
+    from auvsim.data.pd0 import import_pd0
+
+    summary = import_pd0(args.sources, args.out, description=args.description,
+                         compression=args.compression)
+    missions = "; ".join(
+        f"{name} (dvl {s['dvl'][0]} pings at {s['dvl'][1]:.4g} Hz, {s['coordinates']} "
+        f"coordinates; skipped: {s['bad_checksum']} ensemble(s) failing their checksum, "
+        f"{s['truncated']} cut off)" for name, s in summary.items())
     print(f"wrote {args.out}: {missions}")
 
 
@@ -237,6 +259,50 @@ def _check_log(args: argparse.Namespace) -> None:
                 others = len(ds.missions) - len(reports)
             print(f"\nwrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
                   + (f", {others} other mission(s) as they were" if others > 0 else ""))
+
+
+# ---- auvsim export: a mission in a format other tools read ------------------------------
+
+
+def _export_pd0(args: argparse.Namespace) -> None:
+    from auvsim.data.pd0 import export_pd0
+
+    done = export_pd0(args.dataset, args.out, mission=args.mission,
+                      coordinates=args.coordinates or "beam")
+    print(f"wrote {args.out}: mission {done['mission']}, {done['ensembles']} PD0 ensembles "
+          f"({done['bytes']} bytes), bottom track in {done['coordinates']} coordinates")
+
+
+# --to FORMAT -> the function that writes it (and the options only it takes).
+_EXPORTERS = {"pd0": _export_pd0}
+_EXPORT_ONLY = {"coordinates": "pd0"}
+
+
+def _export_parser(sub) -> None:
+    export = sub.add_parser(
+        "export", help="write a mission in a format other tools read",
+        description="Write a dataset's mission in a format other tools read. --to pd0: "
+        "the DVL's pings as a Teledyne RDI Workhorse DVL's PD0 ensembles (header, fixed "
+        "and variable leaders, bottom track with checksums), in beam or instrument "
+        "coordinates.")
+    export.add_argument("dataset", type=Path, metavar="DATASET",
+                        help="a dataset: an .h5 file, or a sharded dataset's index.h5")
+    export.add_argument("--to", choices=sorted(_EXPORTERS), required=True,
+                        help="the format (required; no default)")
+    export.add_argument("--mission", metavar="NAME",
+                        help="the mission to write (default: the dataset's only one)")
+    export.add_argument("--coordinates", choices=("beam", "instrument"),
+                        help="pd0 only: the bottom-track velocities' coordinates (default: "
+                        "beam)")
+    export.add_argument("--out", type=Path, required=True, metavar="FILE",
+                        help="the file to write")
+
+
+def _export(args: argparse.Namespace) -> None:
+    for key, only in _EXPORT_ONLY.items():
+        if getattr(args, key, None) is not None and args.to != only:
+            raise ConfigError(f"--{key}: only for --to {only}")
+    _EXPORTERS[args.to](args)
 
 
 # ---- auvsim serve: a mission played as a DVL on the network (auvsim.interop.a50) ------
@@ -437,7 +503,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
                "import-velocity": _import_velocity, "import": _import,
-               "check-log": _check_log, "plot": _plot, "serve": _serve}[args.command]
+               "check-log": _check_log, "export": _export, "plot": _plot,
+               "serve": _serve}[args.command]
     return run_command("auvsim", lambda: command(args), FLAGS)
 
 

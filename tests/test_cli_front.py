@@ -283,8 +283,8 @@ def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
 
 
 @pytest.mark.parametrize("command", ["", "generate", "presets", "inspect",
-                                     "import-velocity", "import", "check-log", "plot",
-                                     "serve"])
+                                     "import-velocity", "import", "check-log", "export",
+                                     "plot", "serve"])
 def test_help_is_for_users(command, capsys):
     from auvsim.runs.presets import DEFAULT_PRESET
 
@@ -293,11 +293,13 @@ def test_help_is_for_users(command, capsys):
     assert done.value.code == 0
     text = capsys.readouterr().out
     assert "``" not in text and "library" not in text and "thin shell" not in text
-    assert "{" not in text.replace("{lzf,gzip}", "").replace("{akit,csv,velocity}", "").replace(
-        "{IMU,DVL,GT}", "").replace("{a50}", "").replace(
-        "{" + ",".join(cli._parser()._subparsers._group_actions[0].choices) + "}",
-        "")  # no Python values (the commands' list is argparse's)
-    if command in ("generate", "import-velocity", "import"):
+    choices = ("{lzf,gzip}", "{akit,csv,pd0,velocity}", "{IMU,DVL,GT}", "{pd0}",
+               "{beam,instrument}", "{a50}",
+               "{" + ",".join(cli._parser()._subparsers._group_actions[0].choices) + "}")
+    for shown in choices:  # the commands' list is argparse's
+        text = text.replace(shown, "")
+    assert "{" not in text  # no Python values
+    if command in ("generate", "import-velocity", "import", "export"):
         options = [line.split()[0] for line in text.splitlines()
                    if line.startswith("  --") and "--out" not in line
                    and "--quiet" not in line and "--help" not in line]

@@ -11,6 +11,7 @@ import os
 from collections.abc import Iterator, Mapping
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
@@ -33,6 +34,9 @@ from auvsim.data.schema import (
 )
 from auvsim.errors import DatasetError
 from auvsim.sensors.dvl import usable_beams
+
+if TYPE_CHECKING:
+    import xarray
 
 
 class Block:
@@ -162,6 +166,32 @@ class Mission:
         if group.startswith("_") or not self.has(group):
             raise AttributeError(f"mission {self.name} has no group {group!r}")
         return Group(self, group)
+
+    def to_xarray(self, *, timedelta: bool = False) -> dict[str, xarray.Dataset]:
+        """Its groups as xarray Datasets, group name -> Dataset, every field of the
+        schema read whole (``auvsim.data.xarray_views.group_datasets``): each on its
+        group's own ``time`` coordinate (s), fields with ``units`` and ``description``
+        attributes and component coordinates (``axis`` x/y/z, ``ned`` N/E/D, ``component``
+        w/x/y/z, ``beam`` 1-4), the mission's attributes on each Dataset. A recorded
+        mission's ``reference`` says it is a reference. Needs xarray
+        (``pip install 'auvsim[io]'``).
+
+        Args:
+            timedelta: ``time`` as a ``timedelta64[ns]`` index (rounded to the
+                nanosecond), which ``resample`` needs; default the file's float seconds.
+
+        Raises:
+            AuvsimError: xarray is not installed.
+            DatasetError: a field is corrupt (``read``).
+        """
+        from auvsim.data.xarray_views import group_datasets
+
+        if self.origin == "recorded":
+            fields, _ = _recorded_fields(self._where, self._group)
+        else:
+            fields, _ = schema(self.origin, self.dataset.version)
+        attrs = {**self.attrs, "mission": self.name, "dataset": str(self.dataset.path)}
+        return group_datasets(fields, self.read, attrs, timedelta=timedelta)
 
     def read(self, path: str) -> np.ndarray:
         """One field, whole; a field that fails its checksum or cannot be decoded is
