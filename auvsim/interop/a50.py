@@ -3,8 +3,9 @@ over TCP (``auvsim serve DATASET --dvl a50``), so that a driver written for the 
 reads simulated data unchanged.
 
 The protocol is Water Linked's "DVL A50/A125 TCP JSON API" (docs.waterlinked.com, page
-"dvl/dvl-json-protocol"; the earlier page "dvl/dvl-protocol", section "JSON protocol
-(TCP)", gives the same ``json_v3.1``): a TCP server on port 16171, one JSON object per
+"dvl/dvl-json-protocol", source github.com/waterlinked/docs, docs/dvl/dvl-json-protocol.md;
+the earlier page "dvl/dvl-protocol", section "JSON protocol (TCP)", gives the same
+``json_v3.1``): a TCP server on port 16171, one JSON object per
 line, sent to every connected client. auvsim sends, per ping of the mission:
 
 - a *velocity-and-transducer report* (section "Velocity-and-transducer report"):
