@@ -114,6 +114,7 @@ def _parser() -> argparse.ArgumentParser:
     _import_parser(sub)
     _check_log_parser(sub)
     _export_parser(sub)
+    _serve_parser(sub)
     plot = sub.add_parser(
         "plot", help="draw each mission of a dataset to PNG",
         description="Draw each mission of a dataset to a PNG: track, depth over the "
@@ -304,6 +305,54 @@ def _export(args: argparse.Namespace) -> None:
     _EXPORTERS[args.to](args)
 
 
+# ---- auvsim serve: a mission played as a DVL on the network (auvsim.interop.a50) ------
+
+FLAGS.update({"mission": "--mission", "host": "--host", "port": "--port", "speed": "--speed"})
+
+
+def _serve_parser(sub) -> None:
+    serve = sub.add_parser(
+        "serve", help="play a mission as a Water Linked DVL A50 on TCP",
+        description="Play a simulated mission's DVL as a Water Linked DVL A50 plays on its "
+        "network: its TCP JSON API (json_v3.1), a velocity-and-transducer report and a "
+        "dead-reckoning report per ping, one JSON object per line, to every client; it "
+        "answers get_config, set_config, reset_dead_reckoning and calibrate_gyro. It stops "
+        "after the mission's last ping (unless --loop), or on Ctrl-C or SIGTERM.")
+    serve.add_argument("file", type=Path, help="a dataset of simulated missions")
+    serve.add_argument("--dvl", choices=("a50",), required=True,
+                       help="the instrument to play (required; a50: Water Linked DVL A50)")
+    serve.add_argument("--mission", metavar="NAME",
+                       help="the mission to play (default: the first)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="address to listen on (default: 127.0.0.1, this machine only)")
+    serve.add_argument("--port", type=int, default=16171,
+                       help="TCP port (default: 16171, the A50's; 0: any free port)")
+    serve.add_argument("--speed", type=float, default=1.0, metavar="X",
+                       help="mission seconds per second (default: 1, real time)")
+    serve.add_argument("--loop", action="store_true",
+                       help="play the mission again from its start after its last ping")
+    serve.add_argument("--wait-for-client", action="store_true",
+                       help="start the mission's clock when the first client connects")
+
+
+def _serve(args: argparse.Namespace) -> None:
+    from auvsim.interop.a50 import serve
+
+    def ready(host: str, port: int, pings) -> None:
+        rate = 1e3 / float(pings.interval_ms[0])
+        print(f"serving {pings.name} of {args.file} as a Water Linked DVL A50 (json_v3.1) on "
+              f"{host}:{port}: {len(pings)} pings at {rate:g} Hz, {args.speed:g}x real time"
+              f"{', looping' if args.loop else ''}"
+              f"{', from the first client' if args.wait_for_client else ''}; Ctrl-C stops",
+              flush=True)
+
+    summary = serve(args.file, args.mission, host=args.host, port=args.port,
+                    speed=args.speed, loop=args.loop, wait_for_client=args.wait_for_client,
+                    ready=ready)
+    print(f"served {summary['reports']} velocity reports of {summary['mission']} to "
+          f"{summary['clients']} client(s)")
+
+
 def _nameable(path: str) -> str:
     """A path the operating system can name (no component or whole too long for it)."""
     try:
@@ -454,7 +503,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
                "import-velocity": _import_velocity, "import": _import,
-               "check-log": _check_log, "export": _export, "plot": _plot}[args.command]
+               "check-log": _check_log, "export": _export, "plot": _plot,
+               "serve": _serve}[args.command]
     return run_command("auvsim", lambda: command(args), FLAGS)
 
 
