@@ -23,13 +23,15 @@ EXAMPLES = """examples:
   auvsim plot demo/straight.h5
   auvsim import DIR --format akit --out snapir.h5
   auvsim check-log snapir.h5 --apply snapir-checked.h5
+  auvsim export demo/straight.h5 --to mcap --out demo/straight.mcap
 
 Each command has its own --help."""
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
          "workers": "--workers", "shards": "--shards", "cluster": "--cluster",
-         "description": "--description", "format": "--format", "sources": "SOURCE"}
+         "description": "--description", "format": "--format", "sources": "SOURCE",
+         "mission": "--mission", "topics": "--topics", "source": "DATASET"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -111,6 +113,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="HDF5 file to write")
     _import_parser(sub)
     _check_log_parser(sub)
+    _export_parser(sub)
     plot = sub.add_parser(
         "plot", help="draw each mission of a dataset to PNG",
         description="Draw each mission of a dataset to a PNG: track, depth over the "
@@ -236,6 +239,61 @@ def _check_log(args: argparse.Namespace) -> None:
                 others = len(ds.missions) - len(reports)
             print(f"\nwrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
                   + (f", {others} other mission(s) as they were" if others > 0 else ""))
+
+
+# ---- auvsim export: a mission in another tool's format (auvsim.interop) -------------------
+
+
+def _export_parser(sub) -> None:
+    export = sub.add_parser(
+        "export", help="write a mission as a ROS 2 bag (MCAP)",
+        description="Write one mission of a dataset in another tool's format. --to mcap: a "
+        "ROS 2 bag in MCAP (IMU, DVL, depth, the truth or a recorded mission's reference as "
+        "odometry, the mountings on /tf_static), message definitions embedded, readable "
+        "without ROS. Needs auvsim[io].")
+    export.add_argument("source", type=Path, metavar="DATASET",
+                        help="a dataset: an .h5 file, or a sharded dataset's index.h5")
+    export.add_argument("--to", choices=("mcap",), required=True,
+                        help="the format (required; no default)")
+    export.add_argument("--out", type=Path, required=True, metavar="FILE",
+                        help="the file to write, in an existing folder")
+    export.add_argument("--mission", metavar="NAME",
+                        help="the mission to write (default: the dataset's only one)")
+    export.add_argument("--topics", type=Path, metavar="FILE.toml",
+                        help="topic names replacing the defaults, key = \"/name\" per line; "
+                        "keys: imu, dvl, depth, truth, reference, tf_static (default: "
+                        "/imu/data, /dvl/data, /depth/pose, /truth/odometry, "
+                        "/reference/odometry, /tf_static)")
+    export.add_argument("--compression", choices=("zstd", "lz4", "none"), default="zstd",
+                        help="the MCAP chunks' compression (default: zstd)")
+
+
+def _export(args: argparse.Namespace) -> None:
+    from auvsim.interop.ros2 import export_mcap
+
+    topics = None
+    if args.topics is not None:
+        topics = _load_toml_file(args.topics, "--topics")
+    counts = export_mcap(args.source, args.out, mission=args.mission, topics=topics,
+                         compression=args.compression)
+    print(f"wrote {args.out}: " + ", ".join(f"{topic} {n}" for topic, n in counts.items()))
+
+
+def _load_toml_file(path: Path, flag: str) -> dict:
+    """A TOML file's table, or ConfigError in one line naming ``flag``."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"{flag} {str(path)!r}: no such file") from None
+    except OSError as e:
+        raise ConfigError(f"{flag} {str(path)!r}: cannot read it ({e.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as e:
+        raise ConfigError(f"{flag} {str(path)!r}: not valid TOML ({e})") from None
 
 
 def _nameable(path: str) -> str:
@@ -388,7 +446,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     command = {"generate": _generate, "presets": _presets, "inspect": _inspect,
                "import-velocity": _import_velocity, "import": _import,
-               "check-log": _check_log, "plot": _plot}[args.command]
+               "check-log": _check_log, "export": _export, "plot": _plot}[args.command]
     return run_command("auvsim", lambda: command(args), FLAGS)
 
 
