@@ -102,8 +102,7 @@ class FixedLayout:
         out.view(np.uint8).reshape(n, self.size)[:] = self._template
         return out
 
-    def encode(self, messages: np.ndarray) -> list[bytes]:
-        """Each of ``messages`` (from ``empty``, filled) as its serialised bytes."""
-        blob = messages.tobytes()
-        size = self.size
-        return [blob[i:i + size] for i in range(0, len(blob), size)]
+    def encode(self, messages: np.ndarray) -> np.ndarray:
+        """(n, size) uint8: row i is message i (of ``messages``, from ``empty``, filled)
+        serialised."""
+        return np.ascontiguousarray(messages).view(np.uint8).reshape(len(messages), self.size)

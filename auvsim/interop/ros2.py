@@ -76,11 +76,13 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim import __version__
 from auvsim.data.beams import beam_matrix
 from auvsim.data.files import commit, temporary, writing
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
+from auvsim.interop.mcapfile import Stream, write_mcap
 from auvsim.physics.frames import quaternion_from_euler
 
 TOPICS = {"imu": "/imu/data", "dvl": "/dvl/data", "depth": "/depth/pose",
@@ -130,7 +132,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                           argument="compression")
     out = _output(out)
     try:
-        from mcap.writer import CompressionType, Writer
+        import mcap.records  # noqa: F401  (write_mcap's records)
         from mcap_ros2._dynamic import serialize_dynamic
     except ImportError as e:
         raise AuvsimError(f"writing MCAP needs the packages mcap and mcap-ros2-support "
@@ -143,33 +145,19 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     first = min((int(s[1][0]) for s in streams.values() if len(s[1])), default=0)
     tf = serialize_dynamic(TYPES["tf_static"], rosmsg.schema_text(TYPES["tf_static"]))[
         TYPES["tf_static"]](_tf_static(attrs, first))
-    streams["tf_static"] = (TYPES["tf_static"], np.array([first], dtype=np.int64), [tf])
 
+    streams["tf_static"] = (TYPES["tf_static"], np.array([first], dtype=np.int64),
+                            np.frombuffer(tf, dtype=np.uint8)[None, :])
+    schemas = {datatype: ("ros2msg", rosmsg.schema_text(datatype).encode())
+               for datatype, _, _ in streams.values()}
+    channels = [Stream(topic=names[key], schema=datatype, log_time=stamps, payloads=data,
+                       metadata={"offered_qos_profiles": ""})
+                for key, (datatype, stamps, data) in streams.items()]
     tmp = temporary(out)
     try:
         with writing(out), open(tmp, "wb") as f:
-            writer = Writer(f, compression=CompressionType[compression.upper()])
-            writer.start(profile="ros2", library="auvsim")
-            schemas: dict[str, int] = {}
-            times, channels, payloads, sequences = [], [], [], []
-            for key, (datatype, stamps, data) in streams.items():
-                if datatype not in schemas:
-                    schemas[datatype] = writer.register_schema(
-                        datatype, "ros2msg", rosmsg.schema_text(datatype).encode())
-                channel = writer.register_channel(
-                    names[key], "cdr", schemas[datatype], {"offered_qos_profiles": ""})
-                times.append(stamps)
-                channels.append(np.full(len(stamps), channel, dtype=np.int64))
-                sequences.append(np.arange(len(stamps), dtype=np.int64))
-                payloads += data
-            time, channel = np.concatenate(times), np.concatenate(channels)
-            order = np.lexsort((channel, time))  # time order; topics in turn at one time
-            add = writer.add_message
-            for c, t, s, i in zip(channel[order].tolist(), time[order].tolist(),
-                                  np.concatenate(sequences)[order].tolist(), order.tolist(),
-                                  strict=True):
-                add(c, t, payloads[i], t, s)
-            writer.finish()
+            write_mcap(f, profile="ros2", library=f"auvsim {__version__}", schemas=schemas,
+                       streams=channels, compression=compression)
         commit(tmp, out)
     finally:
         tmp.unlink(missing_ok=True)
