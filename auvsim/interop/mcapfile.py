@@ -205,7 +205,9 @@ def _compressor(name: str):
     if name == "zstd":
         import zstandard
 
-        compressor = zstandard.ZstdCompressor()
+        # Level 1, not the library's 3: on a 600 s navigator bag's chunks (70 MB) it
+        # compressed 6.8x in 0.048 CPU s against 3's 6.7x in 0.065 s (lz4: 5.7x, 0.034 s).
+        compressor = zstandard.ZstdCompressor(level=1)
         return lambda data: (compressor.compress(data), "zstd")
     if name == "lz4":
         import lz4.frame
