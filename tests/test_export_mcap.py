@@ -291,6 +291,16 @@ def test_bad_input_is_one_line_and_nothing_written(case, dataset, tmp_path):
         assert "imu_raw" in err and "expected keys among imu, dvl" in err
 
 
+def test_a_missing_package_is_named_with_its_extra(dataset, tmp_path, monkeypatch):
+    for name in ("mcap_ros2", "mcap_ros2._dynamic"):  # importing them fails
+        monkeypatch.setitem(sys.modules, name, None)
+    out = tmp_path / "x.mcap"
+    code, _, err = run(["export", str(dataset), "--to", "mcap", "--out", str(out)])
+    assert code == 2 and err.count("\n") == 1
+    assert "mcap-ros2-support is missing" in err and "pip install 'auvsim[io]'" in err
+    assert list(tmp_path.iterdir()) == []
+
+
 _KILLED = """
 import sys, time
 from pathlib import Path

@@ -135,8 +135,10 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         import mcap.records  # noqa: F401  (write_mcap's records)
         from mcap_ros2._dynamic import serialize_dynamic
     except ImportError as e:
+        package = {"mcap_ros2": "mcap-ros2-support"}.get(
+            (e.name or "mcap").split(".")[0], (e.name or "mcap").split(".")[0])
         raise AuvsimError(f"writing MCAP needs the packages mcap and mcap-ros2-support "
-                          f"({e.name} is missing): pip install 'auvsim[io]'") from None
+                          f"({package} is missing): pip install 'auvsim[io]'") from None
     from auvsim.data.reader import open_dataset
 
     with open_dataset(source) as dataset:
