@@ -7,7 +7,8 @@ export (``benchmarks/export.py``). Here the messages of a channel, all one size,
 out as records in one numpy array, chunks are cut from their time order and joined, and
 each chunk's message indexes are arrays too; the ``mcap`` package writes every other
 record (``mcap.records``: header, schemas, channels, chunks, chunk indexes, statistics,
-summary offsets).
+summary offsets). Messages come in blocks of time (a minute of the mission, say), so the
+memory is a block's, whatever the mission's length.
 
 The layout is the MCAP specification's (mcap.dev/spec): the magic, a Header, the data
 section (Schema and Channel records, then each Chunk followed by the Message Index records
@@ -26,7 +27,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import BinaryIO
 
@@ -39,27 +40,29 @@ CHUNK_SIZE = 1 << 20  # uncompressed bytes a chunk holds, about
 
 
 @dataclass
-class Stream:
-    """One channel's messages.
+class Topic:
+    """One channel of the file.
 
     Attributes:
         topic: the topic name.
         schema: the name of its schema (a key of ``write_mcap``'s ``schemas``).
-        log_time: (N,) int64, ns, in order.
-        payloads: (N, S) uint8, each row one message's bytes.
         metadata: the channel's metadata.
     """
 
     topic: str
     schema: str
-    log_time: np.ndarray
-    payloads: np.ndarray
     metadata: dict[str, str]
 
 
-def _records(channel: int, stream: Stream) -> list[bytes]:
-    """The stream's Message records, each as bytes."""
-    n, size = stream.payloads.shape
+# A block of messages: (channel position, log times (n,) int64 ns in order, payloads (n, S)
+# uint8, each row one message), for some of the channels.
+Block = Sequence[tuple[int, np.ndarray, np.ndarray]]
+
+
+def _records(channel: int, first: int, log_time: np.ndarray,
+             payloads: np.ndarray) -> list[bytes]:
+    """Message records of one channel (sequence numbers from ``first``), each as bytes."""
+    n, size = payloads.shape
     dtype = np.dtype({"names": ["op", "length", "channel", "sequence", "log", "publish",
                                 "data"],
                       "formats": ["u1", "<u8", "<u2", "<u4", "<u8", "<u8", ("u1", (size,))],
@@ -69,9 +72,9 @@ def _records(channel: int, stream: Stream) -> list[bytes]:
     rec["op"] = MESSAGE
     rec["length"] = _MESSAGE_HEADER - 9 + size
     rec["channel"] = channel
-    rec["sequence"] = np.arange(n)
-    rec["log"] = rec["publish"] = stream.log_time
-    rec["data"] = stream.payloads
+    rec["sequence"] = np.arange(first, first + n)
+    rec["log"] = rec["publish"] = log_time
+    rec["data"] = payloads
     blob, step = rec.tobytes(), dtype.itemsize
     return [blob[i:i + step] for i in range(0, len(blob), step)]
 
@@ -82,19 +85,26 @@ def _message_index(channel: int, times: np.ndarray, offsets: np.ndarray) -> byte
                        len(pairs)) + pairs
 
 
-def write_mcap(f: BinaryIO, *, profile: str, library: str, schemas: dict[str, tuple[str, bytes]],
-               streams: Sequence[Stream], compression: str = "zstd",
-               chunk_size: int = CHUNK_SIZE) -> None:
-    """Write an MCAP file of ``streams`` into ``f`` (at its start).
+def write_mcap(f: BinaryIO, *, profile: str, library: str,
+               schemas: dict[str, tuple[str, bytes]], topics: Sequence[Topic],
+               blocks: Iterable[Block], compression: str = "zstd",
+               chunk_size: int = CHUNK_SIZE) -> list[int]:
+    """Write an MCAP file into ``f`` (at its start), block by block, so that only one
+    block's messages are in memory at a time.
 
     Args:
         f: a binary file open for writing.
         profile: the Header's profile (``ros2``).
         library: the Header's library.
-        schemas: name -> (encoding, data) of each schema the streams name.
-        streams: the channels and their messages; channel ids are their positions + 1.
+        schemas: name -> (encoding, data) of each schema the topics name.
+        topics: the channels; channel ids are their positions + 1.
+        blocks: the messages, block after block in time order (no time in a block later
+            than one in the next); a chunk never spans two blocks.
         compression: ``zstd``, ``lz4`` or ``none``.
         chunk_size: the uncompressed size after which a chunk is closed, bytes.
+
+    Returns:
+        The number of messages of each topic.
     """
     from mcap.data_stream import RecordBuilder
     from mcap.opcode import Opcode
@@ -125,57 +135,60 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str, schemas: dict[str, tu
     schema_ids = {name: i + 1 for i, name in enumerate(schemas)}
     schema_records = [Schema(id=schema_ids[name], name=name, encoding=encoding, data=data)
                       for name, (encoding, data) in schemas.items()]
-    channel_records = [Channel(id=i + 1, topic=s.topic, message_encoding="cdr",
-                               metadata=s.metadata, schema_id=schema_ids[s.schema])
-                       for i, s in enumerate(streams)]
+    channel_records = [Channel(id=i + 1, topic=t.topic, message_encoding="cdr",
+                               metadata=t.metadata, schema_id=schema_ids[t.schema])
+                       for i, t in enumerate(topics)]
     put(*schema_records, *channel_records)
 
-    payloads: list[bytes] = []
-    for i, s in enumerate(streams):
-        payloads += _records(i + 1, s)
-    time = np.concatenate([s.log_time for s in streams]).astype(np.int64)
-    channel = np.concatenate([np.full(len(s.log_time), i + 1) for i, s in enumerate(streams)])
-    size = np.concatenate([np.full(len(s.log_time), _MESSAGE_HEADER + s.payloads.shape[1])
-                           for s in streams])
-    order = np.lexsort((channel, time))
-    time, channel, size = time[order], channel[order], size[order]
-    start = np.cumsum(size) - size
-    chunk_of = start // chunk_size
-    bounds = np.flatnonzero(np.diff(chunk_of)) + 1
+    counts = [0] * len(topics)
     chunk_indexes = []
-    for lo, hi in zip(np.r_[0, bounds], np.r_[bounds, len(order)], strict=True):
-        data = b"".join([payloads[k] for k in order[lo:hi].tolist()])
-        packed, name = compress(data)
-        t = time[lo:hi]
-        chunk = Chunk(compression=name, data=packed, message_start_time=int(t.min()),
-                      message_end_time=int(t.max()), uncompressed_crc=zlib.crc32(data),
-                      uncompressed_size=len(data))
-        chunk_start = put(chunk)
-        index_start = f.tell()
-        offsets, indexes = {}, []
-        at = index_start
-        for c in np.unique(channel[lo:hi]).tolist():
-            mine = channel[lo:hi] == c
-            record = _message_index(c, t[mine], start[lo:hi][mine] - start[lo])
-            offsets[c] = at
-            at += len(record)
-            indexes.append(record)
-        f.write(b"".join(indexes))
-        chunk_indexes.append(ChunkIndex(
-            message_start_time=chunk.message_start_time,
-            message_end_time=chunk.message_end_time, chunk_start_offset=chunk_start,
-            chunk_length=index_start - chunk_start, message_index_offsets=offsets,
-            message_index_length=at - index_start, compression=name,
-            compressed_size=len(packed), uncompressed_size=len(data)))
+    for block in blocks:
+        block = [(c, t, p) for c, t, p in block if len(t)]
+        if not block:
+            continue
+        payloads: list[bytes] = []
+        for c, t, p in block:
+            payloads += _records(c + 1, counts[c], t, p)
+            counts[c] += len(t)
+        time = np.concatenate([t for _, t, _ in block]).astype(np.int64)
+        channel = np.concatenate([np.full(len(t), c + 1) for c, t, _ in block])
+        size = np.concatenate([np.full(len(t), _MESSAGE_HEADER + p.shape[1])
+                               for _, t, p in block])
+        order = np.lexsort((channel, time))  # time order; channels in turn at one time
+        time, channel, size = time[order], channel[order], size[order]
+        start = np.cumsum(size) - size
+        bounds = np.flatnonzero(np.diff(start // chunk_size)) + 1
+        for lo, hi in zip(np.r_[0, bounds], np.r_[bounds, len(order)], strict=True):
+            data = b"".join([payloads[k] for k in order[lo:hi].tolist()])
+            packed, name = compress(data)
+            t = time[lo:hi]
+            chunk = Chunk(compression=name, data=packed, message_start_time=int(t[0]),
+                          message_end_time=int(t[-1]), uncompressed_crc=zlib.crc32(data),
+                          uncompressed_size=len(data))
+            chunk_start = put(chunk)
+            index_start = at = f.tell()
+            offsets, indexes = {}, []
+            for c in np.unique(channel[lo:hi]).tolist():
+                mine = channel[lo:hi] == c
+                record = _message_index(c, t[mine], start[lo:hi][mine] - start[lo])
+                offsets[c] = at
+                at += len(record)
+                indexes.append(record)
+            f.write(b"".join(indexes))
+            chunk_indexes.append(ChunkIndex(
+                message_start_time=chunk.message_start_time,
+                message_end_time=chunk.message_end_time, chunk_start_offset=chunk_start,
+                chunk_length=index_start - chunk_start, message_index_offsets=offsets,
+                message_index_length=at - index_start, compression=name,
+                compressed_size=len(packed), uncompressed_size=len(data)))
     put(DataEnd(data_section_crc=0))
 
-    counts = {i + 1: len(s.log_time) for i, s in enumerate(streams)}
     statistics = Statistics(
-        message_count=len(time), schema_count=len(schemas), channel_count=len(streams),
+        message_count=sum(counts), schema_count=len(schemas), channel_count=len(topics),
         attachment_count=0, metadata_count=0, chunk_count=len(chunk_indexes),
-        message_start_time=int(time.min()) if len(time) else 0,
-        message_end_time=int(time.max()) if len(time) else 0,
-        channel_message_counts=counts)
+        message_start_time=min((c.message_start_time for c in chunk_indexes), default=0),
+        message_end_time=max((c.message_end_time for c in chunk_indexes), default=0),
+        channel_message_counts={i + 1: n for i, n in enumerate(counts)})
     summary_start = f.tell()
     summary = bytearray()
 
@@ -199,6 +212,7 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str, schemas: dict[str, tu
     footer = struct.pack("<BQQQ", FOOTER, 8 + 8 + 4, summary_start, offsets_start)
     crc = zlib.crc32(footer, zlib.crc32(summary))
     f.write(bytes(summary) + footer + struct.pack("<I", crc) + MAGIC)
+    return counts
 
 
 def _compressor(name: str):

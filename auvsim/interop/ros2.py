@@ -82,7 +82,7 @@ from auvsim.data.files import commit, temporary, writing
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
-from auvsim.interop.mcapfile import Stream, write_mcap
+from auvsim.interop.mcapfile import Topic, write_mcap
 from auvsim.physics.frames import quaternion_from_euler
 
 TOPICS = {"imu": "/imu/data", "dvl": "/dvl/data", "depth": "/depth/pose",
@@ -106,7 +106,7 @@ _FLU_TO_FRD = (1.0, 0.0, 0.0, 0.0)
 
 def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                 mission: str | None = None, topics: Mapping[str, str] | None = None,
-                compression: str = "zstd") -> dict[str, int]:
+                compression: str = "zstd", block_s: float = 60.0) -> dict[str, int]:
     """Write one mission of a dataset as a ROS 2 bag in MCAP (see the module docstring).
 
     Args:
@@ -116,6 +116,9 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         mission: the mission's name; None for a dataset of one mission.
         topics: topic names by key of ``TOPICS``, replacing those defaults.
         compression: the chunks' compression, one of ``COMPRESSIONS``.
+        block_s: mission time encoded and written at once, s: what bounds the memory
+            (about 7 MB a minute of the ``navigator`` sensors); the file is the same
+            whatever it is, but for where chunks end.
 
     Returns:
         The number of messages written, by topic name.
@@ -131,6 +134,9 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         raise ConfigError(f"{compression!r}: expected one of {', '.join(COMPRESSIONS)}",
                           argument="compression")
     out = _output(out)
+    if not (isinstance(block_s, (int, float)) and block_s >= 1e-3 and math.isfinite(block_s)):
+        raise ConfigError(f"{block_s!r}: expected at least 0.001 s", argument="block_s")
+    step = round(block_s * 1e9)
     try:
         import mcap.records  # noqa: F401  (write_mcap's records)
         from mcap_ros2._dynamic import serialize_dynamic
@@ -141,29 +147,44 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                           f"({package} is missing): pip install 'auvsim[io]'") from None
     from auvsim.data.reader import open_dataset
 
+    if out.exists() and Path(source).exists() and out.samefile(source):
+        raise ConfigError(f"{str(out)!r}: is the dataset itself; expected another file",
+                          argument="out")
     with open_dataset(source) as dataset:
         chosen = _mission(dataset, mission)
         attrs, streams = chosen.attrs, _streams(chosen)
-    first = min((int(s[1][0]) for s in streams.values() if len(s[1])), default=0)
-    tf = serialize_dynamic(TYPES["tf_static"], rosmsg.schema_text(TYPES["tf_static"]))[
-        TYPES["tf_static"]](_tf_static(attrs, first))
+    first = min((int(m.ns[0]) for m in streams.values() if len(m.ns)), default=0)
+    last = max((int(m.ns[-1]) for m in streams.values() if len(m.ns)), default=0)
+    tf_type = TYPES["tf_static"]
+    tf = serialize_dynamic(tf_type, rosmsg.schema_text(tf_type))[tf_type](
+        _tf_static(attrs, first))
+    keys = [*streams, "tf_static"]
+    types = [*(m.datatype for m in streams.values()), tf_type]
+    schemas = {t: ("ros2msg", rosmsg.schema_text(t).encode()) for t in types}
+    topics = [Topic(names[key], datatype, {"offered_qos_profiles": ""})
+              for key, datatype in zip(keys, types, strict=True)]
 
-    streams["tf_static"] = (TYPES["tf_static"], np.array([first], dtype=np.int64),
-                            np.frombuffer(tf, dtype=np.uint8)[None, :])
-    schemas = {datatype: ("ros2msg", rosmsg.schema_text(datatype).encode())
-               for datatype, _, _ in streams.values()}
-    channels = [Stream(topic=names[key], schema=datatype, log_time=stamps, payloads=data,
-                       metadata={"offered_qos_profiles": ""})
-                for key, (datatype, stamps, data) in streams.items()]
+    def blocks():
+        yield [(len(streams), np.array([first]), np.frombuffer(tf, dtype=np.uint8)[None])]
+        done = dict.fromkeys(streams, 0)
+        for end in [*range(first + step, last + 1, step), last + 1]:
+            block = []
+            for i, (key, m) in enumerate(streams.items()):
+                hi = int(np.searchsorted(m.ns, end))
+                block.append((i, m.ns[done[key]:hi], m.encode(done[key], hi)))
+                done[key] = hi
+            yield block
+
     tmp = temporary(out)
     try:
         with writing(out), open(tmp, "wb") as f:
-            write_mcap(f, profile="ros2", library=f"auvsim {__version__}", schemas=schemas,
-                       streams=channels, compression=compression)
+            counts = write_mcap(f, profile="ros2", library=f"auvsim {__version__}",
+                                schemas=schemas, topics=topics, blocks=blocks(),
+                                compression=compression)
         commit(tmp, out)
     finally:
         tmp.unlink(missing_ok=True)
-    return {names[key]: len(s[1]) for key, s in streams.items()}
+    return {t.topic: n for t, n in zip(topics, counts, strict=True)}
 
 
 def _topics(topics: Mapping[str, str] | None) -> dict[str, str]:
@@ -221,16 +242,45 @@ def stamps_ns(time: np.ndarray) -> np.ndarray:
     return np.round(time * 1e9).astype(np.int64)
 
 
-def _stamp(messages: np.ndarray, ns: np.ndarray) -> None:
-    messages["header.stamp.sec"] = ns // 1_000_000_000
-    messages["header.stamp.nanosec"] = ns % 1_000_000_000
+class Messages:
+    """One topic's messages as columns, encoded a block of rows at a time.
+
+    Args:
+        datatype: the message type (``TYPES``).
+        strings: its string fields' values (``cdr.FixedLayout``).
+        ns: (N,) int64 stamps, ns.
+        columns: field path -> (N, ...) array, a value per message.
+        constants: field path -> the value of every message (a number or an array of
+            the field's shape).
+    """
+
+    def __init__(self, datatype: str, strings: Mapping[str, str], ns: np.ndarray,
+                 columns: Mapping[str, np.ndarray], constants: Mapping[str, object]) -> None:
+        self.datatype, self.ns = datatype, ns
+        self.columns, self.constants = dict(columns), dict(constants)
+        for path, values in self.columns.items():
+            if len(values) != len(ns):
+                raise ValueError(f"{datatype}.{path}: expected {len(ns)} rows, got "
+                                 f"{len(values)}")
+        self.layout = FixedLayout(datatype, strings)
+
+    def encode(self, lo: int, hi: int) -> np.ndarray:
+        """(hi - lo, size) uint8: messages lo..hi-1 serialised."""
+        m = self.layout.empty(hi - lo)
+        ns = self.ns[lo:hi]
+        m["header.stamp.sec"] = ns // 1_000_000_000
+        m["header.stamp.nanosec"] = ns % 1_000_000_000
+        for path, values in self.columns.items():
+            m[path] = values[lo:hi]
+        for path, value in self.constants.items():
+            m[path] = value
+        return self.layout.encode(m)
 
 
-def _streams(mission) -> dict:
-    """Every topic's (type, stamps ns (N,), payloads), by key of ``TOPICS``, for the
-    groups the mission has."""
+def _streams(mission) -> dict[str, Messages]:
+    """Every topic's messages, by key of ``TOPICS``, for the groups the mission has."""
     attrs = mission.attrs
-    out: dict = {}
+    out: dict[str, Messages] = {}
     if mission.has("imu") and "imu_rate_hz" in attrs:
         out["imu"] = _imu(mission, attrs)
     if mission.has("dvl"):
@@ -245,22 +295,28 @@ def _streams(mission) -> dict:
     return out
 
 
-def _imu(mission, attrs) -> tuple:
+def _xyz(name: str, values: np.ndarray, axes: str = "xyz") -> dict[str, np.ndarray]:
+    return {f"{name}.{axis}": values[:, k] for k, axis in enumerate(axes)}
+
+
+def _diagonal(variance: float, size: int = 3) -> np.ndarray:
+    """A (size * size,) row-major diagonal covariance."""
+    return np.diag(np.full(size, variance)).ravel()
+
+
+def _imu(mission, attrs) -> Messages:
     imu = mission.imu
-    ns = stamps_ns(imu.time)
-    layout = FixedLayout(TYPES["imu"], {"header.frame_id": IMU})
-    m = layout.empty(len(ns))
-    _stamp(m, ns)
     rate = float(attrs["imu_rate_hz"])
-    m["orientation_covariance"][:, 0] = -1.0  # no orientation (Imu.msg)
-    for name, field, density in (("angular_velocity", imu.angular_rate,
-                                  "imu_gyro_noise_density"),
-                                 ("linear_acceleration", imu.specific_force,
-                                  "imu_accel_noise_density")):
-        for k, axis in enumerate("xyz"):
-            m[f"{name}.{axis}"] = field[:, k]
-        m[f"{name}_covariance"][:, [0, 4, 8]] = float(attrs[density]) ** 2 * rate
-    return TYPES["imu"], ns, layout.encode(m)
+    unknown = np.zeros(9)
+    unknown[0] = -1.0  # no orientation (Imu.msg)
+    return Messages(TYPES["imu"], {"header.frame_id": IMU}, stamps_ns(imu.time), {
+        **_xyz("angular_velocity", imu.angular_rate),
+        **_xyz("linear_acceleration", imu.specific_force)}, {
+        "orientation_covariance": unknown,
+        "angular_velocity_covariance":
+            _diagonal(float(attrs["imu_gyro_noise_density"]) ** 2 * rate),
+        "linear_acceleration_covariance":
+            _diagonal(float(attrs["imu_accel_noise_density"]) ** 2 * rate)})
 
 
 def dvl_velocity_covariance(valid: np.ndarray, h: np.ndarray, noise_std: float) -> np.ndarray:
@@ -294,7 +350,7 @@ def dvl_altitude(ranges: np.ndarray, valid: np.ndarray, beam_angle: float) -> np
         return np.where(count > 0, math.cos(beam_angle) * total / count, np.nan)
 
 
-def _dvl(mission, attrs) -> tuple:
+def _dvl(mission, attrs) -> Messages:
     dvl = mission.dvl
     ns = stamps_ns(dvl.time)
     n = len(ns)
@@ -307,77 +363,64 @@ def _dvl(mission, attrs) -> tuple:
     angle = math.radians(float(attrs["beam_angle_deg"]))
     h = beam_matrix(angle)
     noise = float(attrs.get("dvl_noise_std", 0.0))
-    layout = FixedLayout(TYPES["dvl"], {"header.frame_id": DVL})
-    m = layout.empty(n)
-    _stamp(m, ns)
-    m["velocity_mode"] = np.select([mode == 0, mode == 1], [1, 2], 0)
-    m["dvl_type"] = 0  # DVL_TYPE_PISTON: a Janus array of four transducers
-    for k, axis in enumerate("xyz"):
-        m[f"velocity.{axis}"] = velocity[:, k]
     if mission.origin == "recorded" and "dvl_velocity_accuracy" in attrs:
-        cov = np.zeros((n, 9))
-        cov[:, [0, 4, 8]] = float(attrs["dvl_velocity_accuracy"]) ** 2
-        cov[~np.isfinite(velocity[:, 0])] = np.eye(1, 9).ravel() * -1
+        # the instrument's stated accuracy: a recorded log has no beam noise of its own
+        covariance = np.tile(_diagonal(float(attrs["dvl_velocity_accuracy"]) ** 2), (n, 1))
+        covariance[~np.isfinite(velocity[:, 0])] = -np.eye(1, 9).ravel()
     else:
-        cov = dvl_velocity_covariance(valid & np.isfinite(beams), h, noise)
-    m["velocity_covar"] = cov
-    m["altitude"] = (dvl.altitude if has("altitude") and mission.origin == "recorded"
-                     else dvl_altitude(ranges, valid, angle))
-    m["course_gnd"] = np.arctan2(velocity[:, 1], velocity[:, 0])
-    m["speed_gnd"] = np.hypot(velocity[:, 0], velocity[:, 1])
-    m["num_good_beams"] = valid.sum(axis=1)
-    m["sound_speed"] = np.nan
-    m["beam_ranges_valid"] = has("beam_range")
-    m["beam_velocities_valid"] = has("beam_velocity") and not int(
-        attrs.get("dvl_beams_derived", 0))
-    for i in range(4):
-        for k, axis in enumerate("xyz"):
-            m[f"beam_unit_vec.{i}.{axis}"] = h[i, k]
-    m["range"] = ranges
-    m["range_covar"] = -1.0
-    m["beam_quality"] = valid
-    m["beam_velocity"] = beams
-    m["beam_velocity_covar"] = np.where(valid, np.float32(noise ** 2), np.float32(-1.0))
-    return TYPES["dvl"], ns, layout.encode(m)
+        covariance = dvl_velocity_covariance(valid & np.isfinite(beams), h, noise)
+    altitude = (dvl.altitude if has("altitude") and mission.origin == "recorded"
+                else dvl_altitude(ranges, valid, angle))
+    return Messages(TYPES["dvl"], {"header.frame_id": DVL}, ns, {
+        "velocity_mode": np.select([mode == 0, mode == 1], [1, 2], 0),
+        **_xyz("velocity", velocity),
+        "velocity_covar": covariance,
+        "altitude": altitude,
+        "course_gnd": np.arctan2(velocity[:, 1], velocity[:, 0]),
+        "speed_gnd": np.hypot(velocity[:, 0], velocity[:, 1]),
+        "num_good_beams": valid.sum(axis=1),
+        "range": ranges,
+        "beam_quality": valid.astype(np.float32),
+        "beam_velocity": beams,
+        "beam_velocity_covar": np.where(valid, np.float32(noise ** 2), np.float32(-1.0))}, {
+        "dvl_type": 0,  # DVL_TYPE_PISTON: a Janus array of four transducers
+        "sound_speed": np.nan,
+        "beam_ranges_valid": has("beam_range"),
+        "beam_velocities_valid": has("beam_velocity")
+                                 and not int(attrs.get("dvl_beams_derived", 0)),
+        **{f"beam_unit_vec.{i}.{axis}": h[i, k] for i in range(4)
+           for k, axis in enumerate("xyz")},
+        "range_covar": -1.0})
 
 
-def _depth(mission, attrs) -> tuple:
+def _depth(mission, attrs) -> Messages:
     depth = mission.depth
-    ns = stamps_ns(depth.time)
-    layout = FixedLayout(TYPES["depth"], {"header.frame_id": WORLD})
-    m = layout.empty(len(ns))
-    _stamp(m, ns)
-    m["pose.pose.position.z"] = depth.depth
-    m["pose.pose.orientation.w"] = 1.0
-    m["pose.covariance"][:, 14] = (float(attrs.get("depth_noise_std", 0.0)) ** 2
-                                   + float(attrs.get("depth_resolution", 0.0)) ** 2 / 12)
-    return TYPES["depth"], ns, layout.encode(m)
+    covariance = np.zeros(36)
+    covariance[14] = (float(attrs.get("depth_noise_std", 0.0)) ** 2
+                      + float(attrs.get("depth_resolution", 0.0)) ** 2 / 12)
+    return Messages(TYPES["depth"], {"header.frame_id": WORLD}, stamps_ns(depth.time), {
+        "pose.pose.position.z": depth.depth}, {
+        "pose.pose.orientation.w": 1.0, "pose.covariance": covariance})
 
 
-def _odometry(group, *, reference: bool) -> tuple:
+def _odometry(group, *, reference: bool) -> Messages:
     ns = stamps_ns(group.time)
     n = len(ns)
-    layout = FixedLayout(TYPES["truth"], {"header.frame_id": WORLD, "child_frame_id": BODY})
-    m = layout.empty(n)
-    _stamp(m, ns)
-    position = group.position_ned
-    for k, axis in enumerate("xyz"):
-        m[f"pose.pose.position.{axis}"] = position[:, k]
+    unknown = np.zeros(36)
     if reference:
         quaternion = group.quaternion if "quaternion" in group else np.full((n, 4), np.nan)
         linear = body_velocity(quaternion, group.velocity_ned)
         angular = np.full((n, 3), np.nan)
-        m["pose.covariance"][:, 0] = -1.0
-        m["twist.covariance"][:, 0] = -1.0
+        unknown[0] = -1.0
     else:
         quaternion, linear, angular = (group.quaternion, group.velocity_body,
                                        group.angular_rate)
-    for k, axis in enumerate("wxyz"):
-        m[f"pose.pose.orientation.{axis}"] = quaternion[:, k]
-    for k, axis in enumerate("xyz"):
-        m[f"twist.twist.linear.{axis}"] = linear[:, k]
-        m[f"twist.twist.angular.{axis}"] = angular[:, k]
-    return TYPES["truth"], ns, layout.encode(m)
+    return Messages(TYPES["truth"], {"header.frame_id": WORLD, "child_frame_id": BODY}, ns, {
+        **_xyz("pose.pose.position", group.position_ned),
+        **_xyz("pose.pose.orientation", quaternion, "wxyz"),
+        **_xyz("twist.twist.linear", linear),
+        **_xyz("twist.twist.angular", angular)}, {
+        "pose.covariance": unknown, "twist.covariance": unknown})
 
 
 def body_velocity(quaternion: np.ndarray, velocity_ned: np.ndarray) -> np.ndarray:
