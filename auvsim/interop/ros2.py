@@ -1,17 +1,20 @@
 """A mission as a ROS 2 bag in MCAP, written without ROS (``auvsim export --to mcap``).
 
-Library: ``mcap`` writes the file (schemas, channels, chunks, indexes, summary) and
-``mcap-ros2-support`` encodes the one message of variable length (``/tf_static``); the
-messages sent many times (every topic below but ``/tf_static``) have a fixed layout once
-their frame ids are set, and ``auvsim.interop.cdr`` encodes them all at once with numpy
-(mcap_ros2's encoder, one Python call a message, takes ~45 us each: 30 s for a one-hour
-mission's 720k IMU and odometry messages). ``rosbags`` was the other candidate; it stays
-the independent reader the tests read the bags back with.
+Libraries: ``mcap`` (the format's reference Python package) serialises the file's
+records and ``mcap-ros2-support`` encodes the one message of variable length
+(``/tf_static``). Every other topic has a fixed layout once its frame ids are set, so
+``auvsim.interop.cdr`` encodes its messages all at once with numpy and
+``auvsim.interop.mcapfile`` lays them out in chunks as arrays: mcap_ros2's encoder and
+the mcap writer's ``add_message``, one Python call a message, take ~45 us and ~4.5 us a
+message, too slow for a one-hour mission's 760k messages (``benchmarks/export.py``).
+``rosbags`` was the other candidate; it stays the independent reader the tests read the
+bags back with. The mission is encoded and written a minute at a time (``block_s``).
 
 The file follows the MCAP specification's ``ros2`` profile ("Profiles", ROS 2): message
 encoding ``cdr``, schema encoding ``ros2msg`` with every definition the message needs
 embedded (``auvsim.interop.rosmsg``), and each channel's ``offered_qos_profiles``
-metadata (empty: the player's defaults). Chunks are zstd-compressed by default.
+metadata (empty: the player's defaults). Chunks are zstd-compressed (level 1) by
+default.
 
 Stamps are the mission clock: ``header.stamp`` (and each message's log and publish time)
 is the sample's time from the start of the mission, in whole nanoseconds (rounded), so
