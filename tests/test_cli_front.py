@@ -283,7 +283,8 @@ def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
 
 
 @pytest.mark.parametrize("command", ["", "generate", "presets", "inspect",
-                                     "import-velocity", "import", "check-log", "plot"])
+                                     "import-velocity", "import", "check-log", "export",
+                                     "plot"])
 def test_help_is_for_users(command, capsys):
     from auvsim.runs.presets import DEFAULT_PRESET
 
@@ -293,8 +294,9 @@ def test_help_is_for_users(command, capsys):
     text = capsys.readouterr().out
     assert "``" not in text and "library" not in text and "thin shell" not in text
     assert "{" not in text.replace("{lzf,gzip}", "").replace("{akit,csv,velocity}", "").replace(
-        "{IMU,DVL,GT}", "").replace(
-        "{generate,presets,inspect,import-velocity,import,check-log,plot}", "")  # no Python values
+        "{IMU,DVL,GT}", "").replace("{mcap}", "").replace("{zstd,lz4,none}", "").replace(
+        "{generate,presets,inspect,import-velocity,import,check-log,export,plot}", ""
+    )  # no Python values
     if command in ("generate", "import-velocity", "import"):
         options = [line.split()[0] for line in text.splitlines()
                    if line.startswith("  --") and "--out" not in line

@@ -30,6 +30,7 @@ from auvsim.data.beams import beam_matrix
 from auvsim.data.reader import open_dataset
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
+from auvsim.physics.frames import rotation_rpy
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
 
@@ -50,14 +51,15 @@ def run(args: list[str]) -> tuple[int, str, str]:
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
     """12 s of the navigator preset, its DVL at 5 Hz with many dropouts (beams and pings
-    that measured nothing, so validity and the no-velocity case are exercised)."""
+    that measured nothing, so validity and the no-velocity case are exercised) and
+    mounted turned 45 deg, as Janus DVLs often are."""
     config = preset("navigator")
     first = config.missions[0]
     config = dataclasses.replace(
         config, missions=(dataclasses.replace(first, scenario=dataclasses.replace(
             first.scenario, duration=12.0)),),
         dvl=dataclasses.replace(config.dvl, rate_hz=5.0, dropout_rate=0.3,
-                                ping_dropout_rate=0.1))
+                                ping_dropout_rate=0.1, mounting_rpy_deg=(0.0, 0.0, 45.0)))
     path = tmp_path_factory.mktemp("export") / "nav.h5"
     generate(config, path, workers=1, progress=False)
     return path
@@ -129,6 +131,9 @@ def test_every_message_is_the_dataset(dataset, bag):
         assert len(dvl) == len(d.time) and (~valid).any() and valid.any()
         np.testing.assert_array_equal([ns_of(x) for x in dvl], np.round(d.time * 1e9))
         np.testing.assert_array_equal(vec(x.velocity for x in dvl), d.velocity_ls)
+        v = d.velocity_ls
+        np.testing.assert_array_equal([x.course_gnd for x in dvl], np.arctan2(v[:, 1], v[:, 0]))
+        np.testing.assert_array_equal([x.speed_gnd for x in dvl], np.hypot(v[:, 0], v[:, 1]))
         np.testing.assert_array_equal([x.range for x in dvl], ranges)
         np.testing.assert_array_equal([x.beam_velocity for x in dvl],
                                       beams.astype(np.float32))
@@ -186,6 +191,11 @@ def test_every_message_is_the_dataset(dataset, bag):
                                       [a["imu_position_body"]])
         np.testing.assert_array_equal(vec([frames["base_link_frd", "dvl_link"].translation]),
                                       [a["dvl_position_body"]])
+        q = frames["base_link_frd", "dvl_link"].rotation
+        np.testing.assert_allclose(_rotation(q.w, q.x, q.y, q.z),
+                                   rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"])),
+                                   atol=1e-15)
+        assert list(a["dvl_mounting_rpy_deg"]) == [0, 0, 45]
         # odom_ned's north is odom's (ENU) y, its down odom's -z.
         q = frames["odom", "odom_ned"].rotation
         rot = _rotation(q.w, q.x, q.y, q.z)
