@@ -368,6 +368,9 @@ def test_a_killed_export_leaves_nothing_at_the_output(dataset, tmp_path):
             proc.kill()
     assert not out.exists()
     assert [p.name for p in tmp_path.iterdir() if ".auvsim-tmp." in p.name]  # it was writing
+    # the next export into the folder sweeps the dead one's temporaries, and writes whole
+    assert run(["export", str(dataset), "--to", "mcap", "--out", str(out)])[0] == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["killed.mcap", "started"]
 
 
 def _akit(folder: Path, seconds: int = 20) -> None:

@@ -81,7 +81,7 @@ import numpy as np
 
 from auvsim import __version__
 from auvsim.data.beams import beam_matrix
-from auvsim.data.files import commit, temporary, writing
+from auvsim.data.files import Claim, commit, writing
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
@@ -178,15 +178,21 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                 done[key] = hi
             yield block
 
-    tmp = temporary(out)
+    # A claim, as a dataset's: a killed export's temporary file (a long mission's is
+    # large) is swept by the next run that writes into this folder (files.sweep).
     try:
-        with writing(out), open(tmp, "wb") as f:
+        claim = Claim(out)
+    except OSError as e:
+        raise ConfigError(f"{str(out)!r}: cannot write there ({e.strerror or e}); expected "
+                          "a path in a writable folder", argument="out") from None
+    try:
+        with writing(out), open(claim.file, "wb") as f:
             counts = write_mcap(f, profile="ros2", library=f"auvsim {__version__}",
                                 schemas=schemas, topics=topics, blocks=blocks(),
                                 compression=compression)
-        commit(tmp, out)
+        commit(claim.file, out)
     finally:
-        tmp.unlink(missing_ok=True)
+        claim.release()
     return {t.topic: n for t, n in zip(topics, counts, strict=True)}
 
 
