@@ -30,7 +30,7 @@ from auvsim.data.beams import beam_matrix
 from auvsim.data.reader import open_dataset
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
-from auvsim.physics.frames import rotation_rpy
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
 
@@ -374,7 +374,8 @@ def test_a_killed_export_leaves_nothing_at_the_output(dataset, tmp_path):
 
 
 def _akit(folder: Path, seconds: int = 20) -> None:
-    """A tiny A-KIT log: IMU 100 Hz, DVL and reference 1 Hz, level, heading north."""
+    """A tiny A-KIT log: IMU 100 Hz, DVL and reference 1 Hz, level, heading 30 deg while
+    moving north."""
     seg = folder / "Trajectory1"
     seg.mkdir(parents=True)
     rng = np.random.default_rng(3)
@@ -399,7 +400,8 @@ def _akit(folder: Path, seconds: int = 20) -> None:
                                "Altitude [m]", "V North [m/s]", "V East [m/s]",
                                "V Down [m/s]", "Roll [rad]", "Pitch [rad]", "Yaw [rad]"],
         [t, np.full(len(t), np.radians(34.89)), lat, np.full(len(t), -20.0),
-         np.full(len(t), 1.5), np.zeros((len(t), 2)), np.zeros((len(t), 3))])
+         np.full(len(t), 1.5), np.zeros((len(t), 2)), np.zeros((len(t), 2)),
+         np.full(len(t), np.radians(30.0))])
 
 
 def test_a_recorded_mission_exports_its_reference_never_a_truth(tmp_path):
@@ -419,9 +421,12 @@ def test_a_recorded_mission_exports_its_reference_never_a_truth(tmp_path):
         np.testing.assert_array_equal(vec((x.pose.pose.orientation for x in ref), "wxyz"),
                                       m.reference.quaternion)
         assert all(x.pose.covariance[0] == -1 for x in ref)  # a reference's accuracy: unknown
-        # heading north, level: the body velocity is the NED one
-        np.testing.assert_allclose(vec(x.twist.twist.linear for x in ref),
-                                   m.reference.velocity_ned, atol=1e-12)
+        # the twist is in the body frame: C^T v
+        body = np.einsum("nji,nj->ni", rotation_matrices(m.reference.quaternion),
+                         m.reference.velocity_ned)
+        assert np.abs(body[:, 1]).min() > 0.7  # 30 deg off the velocity: a real rotation
+        np.testing.assert_allclose(vec(x.twist.twist.linear for x in ref), body, atol=1e-12)
+        assert all(np.isnan(vec([x.twist.twist.angular])).all() for x in ref)
         imu = [msg for _, msg in topics["/imu/data"]]
         np.testing.assert_array_equal(vec(x.angular_velocity for x in imu),
                                       m.imu.angular_rate)
