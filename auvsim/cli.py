@@ -24,6 +24,7 @@ EXAMPLES = """examples:
   auvsim import DIR --format akit --out snapir.h5
   auvsim check-log snapir.h5 --apply snapir-checked.h5
   auvsim export demo/straight.h5 --to pd0 --out demo/straight.pd0
+  auvsim export demo/straight.h5 --to mcap --out demo/straight.mcap
 
 Each command has its own --help."""
 
@@ -31,7 +32,8 @@ Each command has its own --help."""
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
          "workers": "--workers", "shards": "--shards", "cluster": "--cluster",
          "description": "--description", "format": "--format", "sources": "SOURCE",
-         "mission": "--mission", "coordinates": "--coordinates", "dataset": "DATASET"}
+         "mission": "--mission", "coordinates": "--coordinates", "dataset": "DATASET",
+         "topics": "--topics", "source": "DATASET"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -261,7 +263,7 @@ def _check_log(args: argparse.Namespace) -> None:
                   + (f", {others} other mission(s) as they were" if others > 0 else ""))
 
 
-# ---- auvsim export: a mission in a format other tools read ------------------------------
+# ---- auvsim export: a mission in another tool's format (auvsim.interop, auvsim.data.pd0) --
 
 
 def _export_pd0(args: argparse.Namespace) -> None:
@@ -273,29 +275,49 @@ def _export_pd0(args: argparse.Namespace) -> None:
           f"({done['bytes']} bytes), bottom track in {done['coordinates']} coordinates")
 
 
-# --to FORMAT -> the function that writes it (and the options only it takes).
-_EXPORTERS = {"pd0": _export_pd0}
-_EXPORT_ONLY = {"coordinates": "pd0"}
+def _export_mcap(args: argparse.Namespace) -> None:
+    from auvsim.interop.ros2 import export_mcap
+
+    topics = None
+    if args.topics is not None:
+        topics = _load_toml_file(args.topics, "--topics")
+    counts = export_mcap(args.dataset, args.out, mission=args.mission, topics=topics,
+                         compression=args.compression or "zstd")
+    print(f"wrote {args.out}: " + ", ".join(f"{topic} {n}" for topic, n in counts.items()))
+
+
+# --to FORMAT -> the function that writes it; the options only one format takes.
+_EXPORTERS = {"mcap": _export_mcap, "pd0": _export_pd0}
+_EXPORT_ONLY = {"coordinates": "pd0", "topics": "mcap", "compression": "mcap"}
 
 
 def _export_parser(sub) -> None:
     export = sub.add_parser(
         "export", help="write a mission in a format other tools read",
-        description="Write a dataset's mission in a format other tools read. --to pd0: "
-        "the DVL's pings as a Teledyne RDI Workhorse DVL's PD0 ensembles (header, fixed "
-        "and variable leaders, bottom track with checksums), in beam or instrument "
-        "coordinates.")
+        description="Write one mission of a dataset in another tool's format. --to mcap: a "
+        "ROS 2 bag in MCAP (IMU, DVL, depth, the truth or a recorded mission's reference as "
+        "odometry, the mountings on /tf_static), message definitions embedded, readable "
+        "without ROS. --to pd0: the DVL's pings as a Teledyne RDI Workhorse DVL's PD0 "
+        "ensembles (header, fixed and variable leaders, bottom track with checksums), in "
+        "beam or instrument coordinates. Needs auvsim[io].")
     export.add_argument("dataset", type=Path, metavar="DATASET",
                         help="a dataset: an .h5 file, or a sharded dataset's index.h5")
     export.add_argument("--to", choices=sorted(_EXPORTERS), required=True,
                         help="the format (required; no default)")
+    export.add_argument("--out", type=Path, required=True, metavar="FILE",
+                        help="the file to write, in an existing folder")
     export.add_argument("--mission", metavar="NAME",
                         help="the mission to write (default: the dataset's only one)")
+    export.add_argument("--topics", type=Path, metavar="FILE.toml",
+                        help="mcap only: topic names replacing the defaults, key = \"/name\" "
+                        "per line; keys: imu, dvl, depth, truth, reference, tf_static "
+                        "(default: /imu/data, /dvl/data, /depth/pose, /truth/odometry, "
+                        "/reference/odometry, /tf_static)")
+    export.add_argument("--compression", choices=("zstd", "lz4", "none"),
+                        help="mcap only: the chunks' compression (default: zstd)")
     export.add_argument("--coordinates", choices=("beam", "instrument"),
                         help="pd0 only: the bottom-track velocities' coordinates (default: "
                         "beam)")
-    export.add_argument("--out", type=Path, required=True, metavar="FILE",
-                        help="the file to write")
 
 
 def _export(args: argparse.Namespace) -> None:
@@ -303,6 +325,23 @@ def _export(args: argparse.Namespace) -> None:
         if getattr(args, key, None) is not None and args.to != only:
             raise ConfigError(f"--{key}: only for --to {only}")
     _EXPORTERS[args.to](args)
+
+
+def _load_toml_file(path: Path, flag: str) -> dict:
+    """A TOML file's table, or ConfigError in one line naming ``flag``."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"{flag} {str(path)!r}: no such file") from None
+    except OSError as e:
+        raise ConfigError(f"{flag} {str(path)!r}: cannot read it ({e.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as e:
+        raise ConfigError(f"{flag} {str(path)!r}: not valid TOML ({e})") from None
 
 
 # ---- auvsim serve: a mission played as a DVL on the network (auvsim.interop.a50) ------

@@ -293,8 +293,8 @@ def test_help_is_for_users(command, capsys):
     assert done.value.code == 0
     text = capsys.readouterr().out
     assert "``" not in text and "library" not in text and "thin shell" not in text
-    choices = ("{lzf,gzip}", "{akit,csv,pd0,velocity}", "{IMU,DVL,GT}", "{pd0}",
-               "{beam,instrument}", "{a50}",
+    choices = ("{lzf,gzip}", "{akit,csv,pd0,velocity}", "{IMU,DVL,GT}", "{mcap,pd0}",
+               "{zstd,lz4,none}", "{beam,instrument}", "{a50}",
                "{" + ",".join(cli._parser()._subparsers._group_actions[0].choices) + "}")
     for shown in choices:  # the commands' list is argparse's
         text = text.replace(shown, "")

@@ -217,9 +217,9 @@ def test_every_block_runs_or_says_why() -> None:
     print(f"code blocks: {counts}; skipped:\n  " + "\n  ".join(skips))
     assert not problems, "\n".join(problems)
     assert counts["run"] > 0
-    # Skips are for what cannot run here (an SSH cluster, Slurm, the Snapir data); if this
-    # grows, prefer a smaller example that runs.
-    assert counts["skip"] <= 10, skips
+    # Skips are for what cannot run here (an SSH cluster, Slurm, the Snapir data, a ROS 2
+    # installation); if this grows, prefer a smaller example that runs.
+    assert counts["skip"] <= 11, skips
 
 
 def test_pages_stay_inside_the_repository() -> None:
