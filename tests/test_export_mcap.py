@@ -324,7 +324,7 @@ def test_bad_input_is_one_line_and_nothing_written(case, dataset, tmp_path):
 
 
 def test_a_missing_package_is_named_with_its_extra(dataset, tmp_path, monkeypatch):
-    for name in ("mcap_ros2", "mcap_ros2._dynamic"):  # importing them fails
+    for name in ("mcap_ros2", "mcap_ros2.writer"):  # importing them fails
         monkeypatch.setitem(sys.modules, name, None)
     out = tmp_path / "x.mcap"
     code, _, err = run(["export", str(dataset), "--to", "mcap", "--out", str(out)])

@@ -142,7 +142,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     step = round(block_s * 1e9)
     try:
         import mcap.records  # noqa: F401  (write_mcap's records)
-        from mcap_ros2._dynamic import serialize_dynamic
+        import mcap_ros2.writer  # noqa: F401  (encodes /tf_static: encoded_once)
     except ImportError as e:
         package = {"mcap_ros2": "mcap-ros2-support"}.get(
             (e.name or "mcap").split(".")[0], (e.name or "mcap").split(".")[0])
@@ -159,8 +159,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     first = min((int(m.ns[0]) for m in streams.values() if len(m.ns)), default=0)
     last = max((int(m.ns[-1]) for m in streams.values() if len(m.ns)), default=0)
     tf_type = TYPES["tf_static"]
-    tf = serialize_dynamic(tf_type, rosmsg.schema_text(tf_type))[tf_type](
-        _tf_static(attrs, first))
+    tf = encoded_once(tf_type, _tf_static(attrs, first))
     keys = [*streams, "tf_static"]
     types = [*(m.datatype for m in streams.values()), tf_type]
     schemas = {t: ("ros2msg", rosmsg.schema_text(t).encode()) for t in types}
@@ -194,6 +193,24 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     finally:
         claim.release()
     return {t.topic: n for t, n in zip(topics, counts, strict=True)}
+
+
+def encoded_once(datatype: str, message: dict) -> bytes:
+    """One message's CDR payload, encoded by mcap-ros2-support's public writer (for the one
+    message of variable length, ``/tf_static``): written to an MCAP file in memory and read
+    back with ``mcap``'s reader."""
+    import io
+
+    from mcap.reader import make_reader
+    from mcap_ros2.writer import Writer
+
+    buffer = io.BytesIO()
+    writer = Writer(buffer)
+    schema = writer.register_msgdef(datatype, rosmsg.schema_text(datatype))
+    writer.write_message("/encode", schema, message, log_time=0)
+    writer.finish()
+    buffer.seek(0)
+    return next(iter(make_reader(buffer).iter_messages()))[2].data
 
 
 def _topics(topics: Mapping[str, str] | None) -> dict[str, str]:
