@@ -1,0 +1,426 @@
+"""A georeferenced bathymetry grid (GeoTIFF or NetCDF) as a heightmap on the mission's
+local NED grid.
+
+``seafloor.kind = "grid"`` reads the part of a survey or global grid (GEBCO, ETOPO, a
+multibeam survey) around the missions' geographic origin (``Config.location``), and hands
+``auvsim.world.seafloor.Seafloor`` a heightmap: depths, m, positive down, on a square
+lattice of north and east positions with a vertex at the origin. MuJoCo ray-casts it as
+any heightmap; nothing here casts rays.
+
+- **Georeference accepted**: geographic latitude and longitude on WGS-84, north up (the
+  CRS of GEBCO's and ETOPO's grids). A GeoTIFF's CRS is EPSG:4326 or OGC:CRS84 (another
+  datum, NAD83 included, or a projected CRS such as UTM is refused: reproject it with
+  ``rio warp in.tif out.tif --dst-crs EPSG:4326``); a NetCDF grid has 1-D latitude and
+  longitude coordinates as CF-1.11 sections 4.1 and 4.2 identify them (units
+  ``degrees_north``/``degrees_east``, or ``standard_name`` latitude/longitude) and, if its
+  variable names a ``grid_mapping``, a ``latitude_longitude`` one on the WGS-84 ellipsoid
+  (CF-1.11 appendix F). Either must be evenly spaced and may run either way.
+- **Values**: ``grid_positive = "up"`` reads elevations (GEBCO and ETOPO: positive up,
+  negative below sea level) and turns them into depths, ``"down"`` reads depths. The
+  depth is below the flat world's sea surface; the Earth's curvature (a sea surface
+  d^2 / 2R below the tangent plane, 2 m at 5 km) is left out, as the flat world leaves
+  it out everywhere.
+- **Placement**: vertex (i, j) of the heightmap is at NED north ``(i0 + i) * cell``, east
+  ``(j0 + j) * cell``, on the sea surface; its latitude and longitude are exactly
+  ``auvsim.physics.earth.geodetic_from_ned`` of that point, the inverse of the
+  ``ned_from_geodetic`` the recorded-log import places fixes with.
+- **Resolution**: the grid's own spacing at the origin (the finer of its north and east
+  spacings, in metres), coarsened only as far as a square of side ``extent`` needs to fit
+  in ``MAX_HEIGHTMAP_VERTICES`` (4096 a side: 24 m cells at 100 km), and at most
+  ``MAX_CELL_SIZE`` (1 km). The heightmap covers that square, cropped to the grid.
+- **Resampling**: bilinear between the four grid points around each vertex, in the
+  grid's latitude and longitude indices: a plane stays a plane, a step becomes a ramp
+  one grid spacing wide.
+- **Nodata**: a GeoTIFF's ``nodata`` value, a NetCDF variable's ``_FillValue`` or
+  ``missing_value`` (xarray masks them), and any non-finite value. Among the grid points
+  the heightmap uses, they are refused (``nodata = "refuse"``) or filled
+  (``"fill"``): ring by ring from a hole's edge inward, each takes the mean of its
+  4-neighbours that have values, so a hole one point wide takes its neighbours' mean and
+  a wide one grows inward from its rim (nearest-neighbour filling).
+
+rasterio reads GeoTIFF and xarray reads NetCDF (with whichever of the netCDF4 and
+h5netcdf engines is installed), both imported only here and only when a grid is read
+(``pip install 'auvsim[io]'``). Only the window of the grid the area needs is read, so a
+global GEBCO file (7 GB) costs what its few kilometres cost. A process keeps the last
+heightmaps it made (``_cached``), so the missions of a dataset read the grid once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import math
+import os
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from auvsim.config import MAX_CELL_SIZE, MAX_DEPTH, Config, SeafloorConfig
+from auvsim.errors import ConfigError
+from auvsim.physics.earth import geodetic_from_ned, ned_from_geodetic, radii
+
+MAX_SIDE = 4096  # heightmap vertices a side: auvsim.world.seafloor.MAX_HEIGHTMAP_VERTICES
+GEOTIFF = (".tif", ".tiff")
+NETCDF = (".nc", ".nc4", ".netcdf", ".grd")
+# The WGS-84 ellipsoid as a CF grid mapping names it (CF-1.11 appendix F).
+WGS84_AXIS, WGS84_INVERSE_FLATTENING = 6378137.0, 298.257223563
+# CF-1.11 sections 4.1 and 4.2: the units that make a coordinate latitude or longitude.
+LATITUDE_UNITS = {"degrees_north", "degree_north", "degree_n", "degrees_n", "degreen",
+                  "degreesn"}
+LONGITUDE_UNITS = {"degrees_east", "degree_east", "degree_e", "degrees_e", "degreee",
+                   "degreese"}
+REPROJECT = "reproject it, e.g. rio warp IN.tif OUT.tif --dst-crs EPSG:4326"
+
+
+class GridTerrain(NamedTuple):
+    """A grid's heightmap on the mission's local NED lattice."""
+
+    depths: np.ndarray  # (rows north, cols east) m, positive down; read-only
+    cell: float  # m, the lattice spacing
+    corner: tuple[float, float]  # NED north, east of depths[0, 0] (its south-west), m
+
+
+class _Raster(NamedTuple):
+    """An open grid: its evenly spaced axes and a reader of windows of it."""
+
+    shape: tuple[int, int]  # (latitude points, longitude points)
+    latitude: tuple[float, float]  # first point, step, deg
+    longitude: tuple[float, float]
+    read: Callable[[slice, slice], np.ndarray]  # float64 window, NaN where nodata
+
+
+def load_grid(config: SeafloorConfig, *, latitude_deg: float,
+              longitude_deg: float) -> GridTerrain:
+    """The heightmap of ``config.grid`` around a geographic origin (module docstring).
+
+    Args:
+        config: the seafloor settings, ``kind = "grid"``.
+        latitude_deg, longitude_deg: the missions' origin, deg (``Config.location``).
+
+    Raises:
+        ConfigError: the file is missing or unreadable, has no georeference or one this
+            module does not handle, does not reach the origin, holds nodata where the
+            mission area needs values (``nodata = "refuse"``) or depths beyond 11 km;
+            rasterio or xarray is not installed.
+    """
+    path = Path(config.grid or "")
+    if not path.is_file():
+        raise ConfigError(f"seafloor.grid {str(path)!r}: expected a GeoTIFF or NetCDF file, "
+                          "found no such file")
+    stat = path.stat()
+    return _cached(str(path.resolve()), stat.st_mtime_ns, stat.st_size, config.grid_variable,
+                   config.grid_positive, config.nodata, float(config.extent),
+                   float(latitude_deg), float(longitude_deg))
+
+
+@functools.lru_cache(maxsize=4)
+def _cached(path: str, mtime_ns: int, size: int, variable: str | None, positive: str,
+            nodata: str, extent: float, latitude_deg: float,
+            longitude_deg: float) -> GridTerrain:
+    """``load_grid``, kept per file version and settings (the heightmap is read-only)."""
+    name = f"seafloor.grid {path!r}"
+    with _open(Path(path), variable, name) as raster:
+        terrain = _resample(raster, name, positive, nodata, extent, latitude_deg,
+                            longitude_deg)
+    terrain.depths.flags.writeable = False
+    return terrain
+
+
+def grid_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 of a file, hex, read in 1 MiB chunks (a global grid is gigabytes)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def pin_grid(config: Config) -> Config:
+    """``config`` with ``seafloor.grid_sha256`` filled in from the grid file, so the config
+    a dataset stores names its grid by content; unchanged without a grid. The grid is also
+    read once here (``load_grid``), so a bad one is refused before anything is written.
+
+    Raises:
+        ConfigError: the file is missing, its SHA-256 is not the one the config gives, or
+            ``load_grid`` refuses it.
+    """
+    floor = config.seafloor
+    if floor.kind != "grid":
+        return config
+    if not Path(floor.grid).is_file():
+        raise ConfigError(f"seafloor.grid {floor.grid!r}: expected a GeoTIFF or NetCDF file, "
+                          "found no such file")
+    try:
+        digest = grid_sha256(floor.grid)
+    except OSError as e:
+        raise ConfigError(f"seafloor.grid {floor.grid!r}: expected a GeoTIFF or NetCDF file, "
+                          f"cannot read it ({e.strerror})") from None
+    if floor.grid_sha256 not in (None, digest):
+        raise ConfigError(f"seafloor.grid {floor.grid!r}: expected the file whose SHA-256 "
+                          f"is seafloor.grid_sha256 {floor.grid_sha256}, found {digest}")
+    load_grid(floor, latitude_deg=config.location.latitude_deg,
+              longitude_deg=config.location.longitude_deg)
+    return replace(config, seafloor=replace(floor, grid_sha256=digest))
+
+
+# -- reading ------------------------------------------------------------------------------
+
+def _open(path: Path, variable: str | None, name: str):
+    suffix = path.suffix.lower()
+    if suffix in GEOTIFF:
+        return _open_geotiff(path, name)
+    if suffix in NETCDF:
+        return _open_netcdf(path, variable, name)
+    raise ConfigError(f"{name}: expected a GeoTIFF ({', '.join(GEOTIFF)}) or NetCDF "
+                      f"({', '.join(NETCDF)}) file, found the suffix {suffix or 'none'!r}")
+
+
+def _need(module: str):
+    try:
+        return __import__(module)
+    except ImportError:
+        raise ConfigError(f"seafloor.grid: reading it needs {module}, which is not "
+                          "installed: pip install 'auvsim[io]'") from None
+
+
+@contextlib.contextmanager
+def _open_geotiff(path: Path, name: str) -> Iterator[_Raster]:
+    rasterio = _need("rasterio")
+    from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotGeoreferencedWarning)
+            ds = rasterio.open(path)
+    except RasterioIOError as e:
+        raise ConfigError(f"{name}: expected a GeoTIFF, found a file rasterio cannot read "
+                          f"({' '.join(str(e).split())[:200]})") from None
+    with ds:
+        t, crs = ds.transform, ds.crs
+        if crs is None or t.is_identity:
+            raise ConfigError(f"{name}: has no georeference (no CRS or no geotransform); "
+                              "expected a GeoTIFF on geographic WGS-84 (EPSG:4326)")
+        if not (crs.is_geographic and (crs.to_epsg() == 4326
+                                       or crs.to_string() == "OGC:CRS84")):
+            raise ConfigError(f"{name}: is in CRS {crs.to_string()!r}, which auvsim does not "
+                              f"handle; expected geographic WGS-84 (EPSG:4326): {REPROJECT}")
+        if t.b != 0 or t.d != 0:
+            raise ConfigError(f"{name}: is rotated or sheared (geotransform {tuple(t)[:6]}); "
+                              f"expected a north-up grid: {REPROJECT}")
+        nodata = ds.nodata
+
+        def read(rows: slice, cols: slice) -> np.ndarray:
+            window = ((rows.start, rows.stop), (cols.start, cols.stop))
+            values = ds.read(1, window=window).astype(float)
+            if nodata is not None:
+                values[values == nodata] = np.nan
+            values[~np.isfinite(values)] = np.nan
+            return values
+
+        # Pixel (row i, column j) has its centre at x = c + a (j + 0.5), y = f + e (i + 0.5).
+        yield _Raster((ds.height, ds.width), (t.f + t.e / 2, t.e), (t.c + t.a / 2, t.a), read)
+
+
+@contextlib.contextmanager
+def _open_netcdf(path: Path, variable: str | None, name: str) -> Iterator[_Raster]:
+    xr = _need("xarray")
+    try:
+        ds = xr.open_dataset(path, decode_times=False, mask_and_scale=True)
+    except ValueError as e:
+        if "engine" in str(e) or "backends" in str(e):
+            raise ConfigError(f"{name}: reading NetCDF needs netCDF4 or h5netcdf, neither "
+                              "is installed: pip install 'auvsim[io]'") from None
+        raise ConfigError(f"{name}: expected a NetCDF file, found one xarray cannot read "
+                          f"({' '.join(str(e).split())[:200]})") from None
+    except OSError as e:
+        raise ConfigError(f"{name}: expected a NetCDF file, found one xarray cannot read "
+                          f"({' '.join(str(e).split())[:200]})") from None
+    with ds:
+        lat, lon = (_cf_axis(ds, units, standard, name)
+                    for units, standard in ((LATITUDE_UNITS, "latitude"),
+                                            (LONGITUDE_UNITS, "longitude")))
+        candidates = [k for k, v in ds.data_vars.items()
+                      if v.ndim == 2 and set(v.dims) == {lat.dims[0], lon.dims[0]}]
+        if variable is None and len(candidates) != 1:
+            raise ConfigError(f"{name}: expected one 2-D variable on latitude and longitude "
+                              f"(or seafloor.grid_variable naming one), found "
+                              f"{candidates or 'none'}")
+        variable = variable or candidates[0]
+        if variable not in candidates:
+            raise ConfigError(f"seafloor.grid_variable {variable!r}: expected a 2-D variable "
+                              f"of {path.name} on latitude and longitude: one of {candidates}")
+        values = ds[variable].transpose(lat.dims[0], lon.dims[0])
+        _check_mapping(ds, values.attrs.get("grid_mapping"), name)
+        axes = [_even(np.asarray(c.values, dtype=float), c.name, name) for c in (lat, lon)]
+
+        def read(rows: slice, cols: slice) -> np.ndarray:
+            window = np.asarray(values[rows, cols].values, dtype=float)
+            window[~np.isfinite(window)] = np.nan
+            return window
+
+        yield _Raster(values.shape, axes[0], axes[1], read)
+
+
+def _cf_axis(ds, units: set[str], standard: str, name: str):
+    """The 1-D coordinate that CF identifies as latitude or longitude."""
+    for coord in ds.coords.values():
+        identified = (str(coord.attrs.get("units", "")).lower() in units
+                      or coord.attrs.get("standard_name") == standard)
+        if coord.ndim == 1 and identified:
+            return coord
+    raise ConfigError(f"{name}: has no georeference: found no 1-D {standard} coordinate "
+                      f"(CF units {sorted(units)[0]} or standard_name {standard}); expected "
+                      "a grid on geographic WGS-84 latitude and longitude")
+
+
+def _check_mapping(ds, mapping: str | None, name: str) -> None:
+    """Refuse a CF grid mapping other than latitude/longitude on WGS-84."""
+    if mapping is None:
+        return  # CF: latitude and longitude coordinates without a mapping are geographic
+    attrs = ds[mapping].attrs if mapping in ds.variables else {}
+    kind = attrs.get("grid_mapping_name")
+    axis = float(attrs.get("semi_major_axis", WGS84_AXIS))
+    inverse = float(attrs.get("inverse_flattening", WGS84_INVERSE_FLATTENING))
+    if kind != "latitude_longitude" or abs(axis - WGS84_AXIS) > 1e-3 \
+            or abs(inverse - WGS84_INVERSE_FLATTENING) > 1e-6:
+        raise ConfigError(f"{name}: has grid mapping {mapping!r} ({kind}, semi-major axis "
+                          f"{axis:g} m, inverse flattening {inverse:.9g}), which auvsim does "
+                          "not handle; expected latitude_longitude on WGS-84")
+
+
+def _even(values: np.ndarray, axis: str, name: str) -> tuple[float, float]:
+    """(first, step) of an evenly spaced axis of at least two points."""
+    if len(values) < 2 or not np.isfinite(values).all():
+        raise ConfigError(f"{name}: expected at least 2 finite {axis} values, found "
+                          f"{len(values)}")
+    step = (values[-1] - values[0]) / (len(values) - 1)
+    if step == 0 or np.abs(np.diff(values) - step).max() > 1e-6 * abs(step):
+        raise ConfigError(f"{name}: expected evenly spaced {axis} values, found steps from "
+                          f"{np.diff(values).min():g} to {np.diff(values).max():g} deg")
+    return float(values[0]), float(step)
+
+
+# -- resampling ---------------------------------------------------------------------------
+
+def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: float,
+              latitude_deg: float, longitude_deg: float) -> GridTerrain:
+    (lat0, dlat), (lon0, dlon) = raster.latitude, raster.longitude
+    m_radius, n_radius = radii(latitude_deg)
+    own = min(abs(math.radians(dlat)) * m_radius,
+              abs(math.radians(dlon)) * n_radius * math.cos(math.radians(latitude_deg)))
+    cell = min(max(own, extent / (MAX_SIDE - 1)), MAX_CELL_SIZE)
+    origin = (latitude_deg, longitude_deg, 0.0)
+
+    def indices(north: np.ndarray, east: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional (row, column) grid indices of NED points on the surface."""
+        place = geodetic_from_ned(np.stack([north, east, np.zeros_like(north)], -1), origin)
+        # Longitudes within half a turn of the grid's middle (a 0-360 grid, the antimeridian).
+        middle = lon0 + dlon * (raster.shape[1] - 1) / 2
+        lon = middle + (place[:, 1] - middle + 180.0) % 360.0 - 180.0
+        return (place[:, 0] - lat0) / dlat, (lon - lon0) / dlon
+
+    row, col = indices(np.zeros(1), np.zeros(1))
+    if not (0 <= row[0] <= raster.shape[0] - 1 and 0 <= col[0] <= raster.shape[1] - 1):
+        lats = sorted((lat0, lat0 + dlat * (raster.shape[0] - 1)))
+        lons = sorted((lon0, lon0 + dlon * (raster.shape[1] - 1)))
+        raise ConfigError(f"{name}: covers latitude {lats[0]:.6g} to {lats[1]:.6g} and "
+                          f"longitude {lons[0]:.6g} to {lons[1]:.6g} deg; expected it to "
+                          f"cover location ({latitude_deg:g}, {longitude_deg:g})")
+    # The lattice over the square, cut to the grid's extent along the axes through the
+    # origin, then trimmed, side by side, to the rows and columns whose every vertex the
+    # grid covers (its edges are curves in NED, a few cells off those axes' values).
+    k = math.floor(extent / 2 / cell + 1e-9)
+    lo, hi = [-k, -k], [k, k]  # north, east vertex index bounds
+    half_deg = (math.degrees(extent / m_radius),  # the area's side, deg: room to spare
+                math.degrees(extent / (n_radius * math.cos(math.radians(latitude_deg)))))
+    for a, ((first, step), size) in enumerate(zip((raster.latitude, raster.longitude),
+                                                  raster.shape, strict=True)):
+        # The grid's ends along this axis, as offsets from the origin, deg.
+        ends = (first - origin[a], first + step * (size - 1) - origin[a])
+        if a == 1:  # within half a turn, as ``indices`` reads longitudes
+            ends = tuple((end + 180.0) % 360.0 - 180.0 for end in ends)
+        for end in ends:
+            point = [latitude_deg, longitude_deg]
+            point[a] += min(max(end, -half_deg[a]), half_deg[a])
+            ned = float(ned_from_geodetic(np.array([point[0]]), np.array([point[1]]),
+                                          np.zeros(1), origin)[0, a])
+            if end < 0:
+                lo[a] = min(max(lo[a], math.ceil(ned / cell)), 0)
+            else:
+                hi[a] = max(min(hi[a], math.floor(ned / cell)), 0)
+    while True:
+        north, east = (np.arange(lo[a], hi[a] + 1) * cell for a in (0, 1))
+        nn, ee = np.meshgrid(north, east, indexing="ij")
+        row, col = indices(nn.ravel(), ee.ravel())
+        inside = ((row >= 0) & (row <= raster.shape[0] - 1) & (col >= 0)
+                  & (col <= raster.shape[1] - 1)).reshape(nn.shape)
+        if inside.all():
+            break
+        # Drop each outermost row or column that holds a vertex outside (never the
+        # origin's: it is inside).
+        for a, (first, last) in enumerate(((inside[0], inside[-1]),
+                                           (inside[:, 0], inside[:, -1]))):
+            if not first.all() and lo[a] < 0:
+                lo[a] += 1
+            if not last.all() and hi[a] > 0:
+                hi[a] -= 1
+    if min(hi[0] - lo[0], hi[1] - lo[1]) < 1:
+        raise ConfigError(f"{name}: covers less than one {cell:.4g} m cell around the "
+                          f"location; expected a grid and seafloor.extent ({extent:g} m) "
+                          "that give at least 2 x 2 points")
+    row, col = row.reshape(nn.shape), col.reshape(nn.shape)
+    r0, c0 = int(np.floor(row.min())), int(np.floor(col.min()))
+    r1 = min(int(np.floor(row.max())) + 2, raster.shape[0])
+    c1 = min(int(np.floor(col.max())) + 2, raster.shape[1])
+    values = raster.read(slice(r0, r1), slice(c0, c1))
+    holes = int(np.isnan(values).sum())
+    if holes and nodata == "refuse":
+        raise ConfigError(f"{name}: has {holes} nodata point(s) among the {values.size} the "
+                          f"mission area uses; expected none, or seafloor.nodata = \"fill\"")
+    if holes:
+        if holes == values.size:
+            raise ConfigError(f"{name}: has nodata at all {values.size} points the mission "
+                              "area uses; expected some values to fill from")
+        values = _fill(values)
+    depths = _bilinear(values, row - r0, col - c0)
+    if positive == "up":
+        depths = -depths
+    deepest = float(np.abs(depths).max())
+    if deepest > MAX_DEPTH:
+        raise ConfigError(f"{name}: expected depths within +/-{MAX_DEPTH:g} m (the deepest "
+                          f"ocean) in the mission area, found {deepest:g} m")
+    return GridTerrain(depths, cell, (lo[0] * cell, lo[1] * cell))
+
+
+def _bilinear(values: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+    """``values`` (R, C) interpolated bilinearly at fractional indices (any shape), each
+    within [0, R - 1] x [0, C - 1]."""
+    r = np.minimum(np.floor(row).astype(int), values.shape[0] - 2).clip(0)
+    c = np.minimum(np.floor(col).astype(int), values.shape[1] - 2).clip(0)
+    fr, fc = row - r, col - c
+    top = values[r, c] * (1 - fc) + values[r, np.minimum(c + 1, values.shape[1] - 1)] * fc
+    bottom = (values[np.minimum(r + 1, values.shape[0] - 1), c] * (1 - fc)
+              + values[np.minimum(r + 1, values.shape[0] - 1),
+                       np.minimum(c + 1, values.shape[1] - 1)] * fc)
+    return top * (1 - fr) + bottom * fr
+
+
+def _fill(values: np.ndarray) -> np.ndarray:
+    """``values`` with its NaNs filled ring by ring from each hole's edge inward: a NaN
+    with 4-neighbours that have values takes their mean (at least one value needed)."""
+    values = values.copy()
+    hole = np.isnan(values)
+    while hole.any():
+        known = np.pad(np.where(hole, 0.0, values), 1)
+        valid = np.pad(~hole, 1).astype(float)
+        total = known[:-2, 1:-1] + known[2:, 1:-1] + known[1:-1, :-2] + known[1:-1, 2:]
+        count = valid[:-2, 1:-1] + valid[2:, 1:-1] + valid[1:-1, :-2] + valid[1:-1, 2:]
+        ring = hole & (count > 0)
+        values[ring] = total[ring] / count[ring]
+        hole &= ~ring
+    return values
