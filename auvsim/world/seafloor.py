@@ -243,12 +243,17 @@ class Seafloor:
                                     **common)
             return
         rows, cols = self._tile_cells
+        # Heights are uploaded by bind(); MuJoCo wants data (or a file) to compile. One
+        # in-memory file of zeros in MuJoCo's binary hfield format (int32 nrow, int32 ncol,
+        # float32 data) serves every tile: passing each tile's zeros as userdata converts
+        # them element by element, 70 ms for a 1200 x 1200 heightmap against 10 ms.
+        blank = f"{NAME}_blank.bin"
+        spec.assets = {**spec.assets, blank: np.array([rows + 1, cols + 1], np.int32).tobytes()
+                       + bytes(4 * (rows + 1) * (cols + 1))}
         for a, b in np.ndindex(self._tiles):
             name = f"{NAME}_{a}_{b}"
-            # Heights are uploaded by bind(); MuJoCo wants data (or a file) to compile.
-            spec.add_hfield(name=name, nrow=rows + 1, ncol=cols + 1,
-                            size=[*self._half, float(self._elevation[a, b]), BASE],
-                            userdata=np.zeros((rows + 1) * (cols + 1), np.float32))
+            spec.add_hfield(name=name, file=blank,
+                            size=[*self._half, float(self._elevation[a, b]), BASE])
             spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_HFIELD,
                                     hfieldname=name, pos=self._tile_pos[a, b], **common)
 
