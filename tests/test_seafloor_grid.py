@@ -92,10 +92,13 @@ def write_geotiff(path, depth_of, *, step_deg=3 * ARCSEC, half_m=800.0, crs="EPS
 
 
 def write_netcdf(path, depth_of, *, step_deg=3 * ARCSEC, half_m=800.0, holes=(),
-                 lat_attrs=None, mapping=None):
-    """A CF NetCDF of elevations on latitude (south to north, as GEBCO's) and longitude."""
+                 lat_attrs=None, mapping=None, uneven=False):
+    """A CF NetCDF of elevations on latitude (south to north, as GEBCO's) and longitude;
+    ``uneven``: latitudes spaced unevenly, up to 30 % of a step off the even ones."""
     lats, lons, _, _ = grid_points(step_deg, half_m)
     lats = lats[::-1]
+    if uneven:
+        lats = lats + 0.3 * step_deg * np.sin(np.arange(len(lats)) * 1.3)
     elevation = -sample(depth_of, lats, lons)
     for r, c in holes:
         elevation[r, c] = np.nan
@@ -137,9 +140,12 @@ def test_geodetic_from_ned_inverts_ned_from_geodetic():
         assert np.abs(back - ned).max() < 1e-8
 
 
-@pytest.mark.parametrize("kind", ["tif", "nc"])
+@pytest.mark.parametrize("kind", ["tif", "nc", "uneven.nc"])
 def test_dvl_ranges_over_a_sloping_grid_are_the_planes(tmp_path, kind):
-    write = write_geotiff if kind == "tif" else write_netcdf
+    # A plane sampled at any points, and bilinear between them, is the plane: an unevenly
+    # spaced NetCDF axis (fractional indices linear between its points) keeps it too.
+    write = {"tif": write_geotiff, "nc": write_netcdf,
+             "uneven.nc": lambda *a: write_netcdf(*a, uneven=True)}[kind]
     grid = write(tmp_path / f"slope.{kind}", plane)
     out = tmp_path / "slope.h5"
     generate(grid_config(grid), out, workers=1, progress=False)

@@ -14,7 +14,8 @@ any heightmap; nothing here casts rays.
   longitude coordinates as CF-1.11 sections 4.1 and 4.2 identify them (units
   ``degrees_north``/``degrees_east``, or ``standard_name`` latitude/longitude) and, if its
   variable names a ``grid_mapping``, a ``latitude_longitude`` one on the WGS-84 ellipsoid
-  (CF-1.11 appendix F). Either must be evenly spaced and may run either way.
+  (CF-1.11 appendix F). Either may run either way; a NetCDF axis need only be monotonic
+  (fractional indices are linear between its points).
 - **Values**: ``grid_positive = "up"`` reads elevations (GEBCO and ETOPO: positive up,
   negative below sea level) and turns them into depths, ``"down"`` reads depths. The
   depth is below the flat world's sea surface; the Earth's curvature (a sea surface
@@ -92,11 +93,11 @@ class GridTerrain(NamedTuple):
 
 
 class _Raster(NamedTuple):
-    """An open grid: its evenly spaced axes and a reader of windows of it."""
+    """An open grid: its axes (pixel centres) and a reader of windows of it."""
 
     shape: tuple[int, int]  # (latitude points, longitude points)
-    latitude: tuple[float, float]  # first point, step, deg
-    longitude: tuple[float, float]
+    latitude: np.ndarray  # (rows,) deg, monotonic: the points' latitudes
+    longitude: np.ndarray  # (cols,) deg, monotonic
     read: Callable[[slice, slice], np.ndarray]  # float64 window, NaN where nodata
 
 
@@ -229,7 +230,8 @@ def _open_geotiff(path: Path, name: str) -> Iterator[_Raster]:
             return values
 
         # Pixel (row i, column j) has its centre at x = c + a (j + 0.5), y = f + e (i + 0.5).
-        yield _Raster((ds.height, ds.width), (t.f + t.e / 2, t.e), (t.c + t.a / 2, t.a), read)
+        yield _Raster((ds.height, ds.width), t.f + t.e * (np.arange(ds.height) + 0.5),
+                      t.c + t.a * (np.arange(ds.width) + 0.5), read)
 
 
 @contextlib.contextmanager
@@ -262,7 +264,8 @@ def _open_netcdf(path: Path, variable: str | None, name: str) -> Iterator[_Raste
                               f"of {path.name} on latitude and longitude: one of {candidates}")
         values = ds[variable].transpose(lat.dims[0], lon.dims[0])
         _check_mapping(ds, values.attrs.get("grid_mapping"), name)
-        axes = [_even(np.asarray(c.values, dtype=float), c.name, name) for c in (lat, lon)]
+        axes = [_monotonic(np.asarray(c.values, dtype=float), c.name, name)
+                for c in (lat, lon)]
 
         def read(rows: slice, cols: slice) -> np.ndarray:
             window = np.asarray(values[rows, cols].values, dtype=float)
@@ -299,24 +302,36 @@ def _check_mapping(ds, mapping: str | None, name: str) -> None:
                           "not handle; expected latitude_longitude on WGS-84")
 
 
-def _even(values: np.ndarray, axis: str, name: str) -> tuple[float, float]:
-    """(first, step) of an evenly spaced axis of at least two points."""
-    if len(values) < 2 or not np.isfinite(values).all():
-        raise ConfigError(f"{name}: expected at least 2 finite {axis} values, found "
-                          f"{len(values)}")
-    step = (values[-1] - values[0]) / (len(values) - 1)
-    if step == 0 or np.abs(np.diff(values) - step).max() > 1e-6 * abs(step):
-        raise ConfigError(f"{name}: expected evenly spaced {axis} values, found steps from "
-                          f"{np.diff(values).min():g} to {np.diff(values).max():g} deg")
-    return float(values[0]), float(step)
+def _monotonic(values: np.ndarray, axis: str, name: str) -> np.ndarray:
+    """An axis of at least two finite values, strictly increasing or decreasing."""
+    steps = np.diff(values)
+    if len(values) < 2 or not np.isfinite(values).all() \
+            or not ((steps > 0).all() or (steps < 0).all()):
+        raise ConfigError(f"{name}: expected at least 2 finite {axis} values, strictly "
+                          f"increasing or decreasing, found {len(values)} that are not")
+    return values
+
+
+def _fraction(axis: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Fractional indices of ``values`` on a monotonic ``axis``: linear between its
+    points, and beyond its ends at the end spacing (so outside is < 0 or > n - 1)."""
+    n = len(axis)
+    if axis[0] > axis[-1]:
+        return (n - 1) - _fraction(axis[::-1], values)
+    out = np.interp(values, axis, np.arange(n, dtype=float))
+    low, high = values < axis[0], values > axis[-1]
+    out[low] = (values[low] - axis[0]) / (axis[1] - axis[0])
+    out[high] = n - 1 + (values[high] - axis[-1]) / (axis[-1] - axis[-2])
+    return out
 
 
 # -- resampling ---------------------------------------------------------------------------
 
 def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: float,
               latitude_deg: float, longitude_deg: float) -> GridTerrain:
-    (lat0, dlat), (lon0, dlon) = raster.latitude, raster.longitude
+    lats, lons = raster.latitude, raster.longitude
     m_radius, n_radius = radii(latitude_deg)
+    dlat, dlon = ((axis[-1] - axis[0]) / (len(axis) - 1) for axis in (lats, lons))  # mean
     own = min(abs(math.radians(dlat)) * m_radius,
               abs(math.radians(dlon)) * n_radius * math.cos(math.radians(latitude_deg)))
     cell = min(max(own, extent / (MAX_SIDE - 1)), MAX_CELL_SIZE)
@@ -326,17 +341,17 @@ def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: fl
         """Fractional (row, column) grid indices of NED points on the surface."""
         place = geodetic_from_ned(np.stack([north, east, np.zeros_like(north)], -1), origin)
         # Longitudes within half a turn of the grid's middle (a 0-360 grid, the antimeridian).
-        middle = lon0 + dlon * (raster.shape[1] - 1) / 2
+        middle = (lons[0] + lons[-1]) / 2
         lon = middle + (place[:, 1] - middle + 180.0) % 360.0 - 180.0
-        return (place[:, 0] - lat0) / dlat, (lon - lon0) / dlon
+        return _fraction(lats, place[:, 0]), _fraction(lons, lon)
 
     row, col = indices(np.zeros(1), np.zeros(1))
     if not (0 <= row[0] <= raster.shape[0] - 1 and 0 <= col[0] <= raster.shape[1] - 1):
-        lats = sorted((lat0, lat0 + dlat * (raster.shape[0] - 1)))
-        lons = sorted((lon0, lon0 + dlon * (raster.shape[1] - 1)))
-        raise ConfigError(f"{name}: covers latitude {lats[0]:.6g} to {lats[1]:.6g} and "
-                          f"longitude {lons[0]:.6g} to {lons[1]:.6g} deg; expected it to "
-                          f"cover location ({latitude_deg:g}, {longitude_deg:g})")
+        raise ConfigError(f"{name}: covers latitude {min(lats[0], lats[-1]):.6g} to "
+                          f"{max(lats[0], lats[-1]):.6g} and longitude "
+                          f"{min(lons[0], lons[-1]):.6g} to {max(lons[0], lons[-1]):.6g} deg; "
+                          f"expected it to cover location ({latitude_deg:g}, "
+                          f"{longitude_deg:g})")
     # The lattice over the square, cut to the grid's extent along the axes through the
     # origin, then trimmed, side by side, to the rows and columns whose every vertex the
     # grid covers (its edges are curves in NED, a few cells off those axes' values).
@@ -344,10 +359,9 @@ def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: fl
     lo, hi = [-k, -k], [k, k]  # north, east vertex index bounds
     half_deg = (math.degrees(extent / m_radius),  # the area's side, deg: room to spare
                 math.degrees(extent / (n_radius * math.cos(math.radians(latitude_deg)))))
-    for a, ((first, step), size) in enumerate(zip((raster.latitude, raster.longitude),
-                                                  raster.shape, strict=True)):
+    for a, axis in enumerate((lats, lons)):
         # The grid's ends along this axis, as offsets from the origin, deg.
-        ends = (first - origin[a], first + step * (size - 1) - origin[a])
+        ends = (axis[0] - origin[a], axis[-1] - origin[a])
         if a == 1:  # within half a turn, as ``indices`` reads longitudes
             ends = tuple((end + 180.0) % 360.0 - 180.0 for end in ends)
         for end in ends:
