@@ -255,9 +255,11 @@ def test_same_config_and_seed_give_identical_data_and_record_the_grid(tmp_path):
             for field in getattr(ma, group):
                 np.testing.assert_array_equal(getattr(getattr(ma, group), field),
                                               getattr(getattr(mb, group), field))
-        stored = json.loads(a.config_json)["seafloor"]
+        text = a.config_json
+    stored = json.loads(text)["seafloor"]
     assert stored["grid"] == str(grid)
     assert stored["grid_sha256"] == hashlib.sha256(grid.read_bytes()).hexdigest()
+    assert Config.from_json(text).seafloor.grid_sha256 == stored["grid_sha256"]
 
 
 BAD = {
@@ -300,3 +302,19 @@ def test_a_grid_needs_a_location():
         Config(seafloor=SeafloorConfig(kind="grid", grid="g.tif"))
     with pytest.raises(ConfigError, match="seafloor.nodata"):
         SeafloorConfig(kind="grid", grid="g.tif", nodata="zero")
+
+
+def test_a_changed_grid_is_refused_by_the_config_that_pinned_it(tmp_path):
+    grid = write_geotiff(tmp_path / "g.tif", plane)
+    config = grid_config(grid, grid_sha256="0" * 64)
+    with pytest.raises(ConfigError, match="SHA-256"):
+        generate(config, tmp_path / "x.h5", workers=1, progress=False)
+    assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.parametrize("module,suffix", [("rasterio", "tif"), ("xarray", "nc")])
+def test_a_missing_reader_names_the_extra_to_install(tmp_path, monkeypatch, module, suffix):
+    grid = (write_geotiff if suffix == "tif" else write_netcdf)(tmp_path / f"g.{suffix}", plane)
+    monkeypatch.setitem(__import__("sys").modules, module, None)  # import fails
+    with pytest.raises(ConfigError, match=rf"needs {module}.*pip install 'auvsim\[io\]'"):
+        load_grid(grid_config(grid).seafloor, latitude_deg=HERE[0], longitude_deg=HERE[1])
