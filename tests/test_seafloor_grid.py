@@ -318,3 +318,18 @@ def test_a_missing_reader_names_the_extra_to_install(tmp_path, monkeypatch, modu
     monkeypatch.setitem(__import__("sys").modules, module, None)  # import fails
     with pytest.raises(ConfigError, match=rf"needs {module}.*pip install 'auvsim\[io\]'"):
         load_grid(grid_config(grid).seafloor, latitude_deg=HERE[0], longitude_deg=HERE[1])
+
+
+def test_an_area_across_a_global_grids_seam_is_cut_at_it(tmp_path):
+    # A grid registered on its lines, both -180 and 180 deg in it (GEBCO's one-minute one).
+    lons = np.linspace(-180.0, 180.0, 21601)
+    lats = np.linspace(-0.1, 0.1, 13)
+    xr.Dataset({"z": (("lat", "lon"), np.full((13, 21601), -60.0))},
+               coords={"lat": ("lat", lats, {"units": "degrees_north"}),
+                       "lon": ("lon", lons, {"units": "degrees_east"})}).to_netcdf(
+        tmp_path / "world.nc")
+    floor = grid_config(tmp_path / "world.nc", extent=4000.0).seafloor
+    # 0.001 deg (111 m) west of 180 deg: the heightmap (1 km cells) ends at the origin.
+    terrain = load_grid(floor, latitude_deg=0.0, longitude_deg=179.999)
+    assert terrain.corner[1] == -2000.0 and terrain.depths.shape == (5, 3)
+    np.testing.assert_allclose(terrain.depths, 60.0)

@@ -94,8 +94,9 @@ def geodetic_from_ned(ned: np.ndarray, origin: tuple[float, float, float]) -> np
         lat = np.arctan2(z + E2 * n * np.sin(lat), p)
     n = A / np.sqrt(1.0 - E2 * np.sin(lat) ** 2)
     # The height from whichever of p and z is better conditioned at this latitude.
-    height = np.where(np.abs(np.cos(lat)) > 0.5, p / np.cos(lat) - n,
-                      z / np.sin(lat) - n * (1.0 - E2))
+    steep = np.abs(np.cos(lat)) <= 0.5
+    height = np.where(steep, z / np.where(steep, np.sin(lat), 1.0) - n * (1.0 - E2),
+                      p / np.where(steep, 1.0, np.cos(lat)) - n)
     return np.stack([np.degrees(lat), np.degrees(np.arctan2(y, x)), height], axis=-1)
 
 

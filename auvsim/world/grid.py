@@ -395,6 +395,12 @@ def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: fl
                 lo[a] += 1
             if (not last.all() or not any_edge) and hi[a] > 0:
                 hi[a] -= 1
+    # Across the seam of a grid that goes round the Earth (-180 | 180 deg), the columns
+    # jump back: bilinear between knots on either side would sweep the whole grid.
+    if (np.diff(col, axis=1) * np.sign(dlon) <= 0).any():
+        raise ConfigError(f"{name}: the mission area crosses the grid's longitude seam "
+                          f"({min(lons[0], lons[-1]):.6g} | {max(lons[0], lons[-1]):.6g} deg); "
+                          "expected an area on one side of it (cut the grid there)")
     if min(hi[0] - lo[0], hi[1] - lo[1]) < 1:
         raise ConfigError(f"{name}: covers less than one {cell:.4g} m cell around the "
                           f"location; expected a grid and seafloor.extent ({extent:g} m) "
