@@ -422,14 +422,15 @@ def _load_toml(path: Path) -> Config:
         raise ConfigError(f"--config {str(path)!r}: not valid TOML (arrays or tables nested "
                           "too deeply to read)") from None
     floor = data.get("seafloor")
-    if isinstance(floor, dict) and isinstance(floor.get("heightmap"), str):
-        # A heightmap named in a config file is found next to that file.
+    for key, what in (("heightmap", "a .npy file"), ("grid", "a GeoTIFF or NetCDF file")):
+        if not (isinstance(floor, dict) and isinstance(floor.get(key), str)):
+            continue
+        # A heightmap or grid named in a config file is found next to that file.
         try:
-            floor["heightmap"] = str((path.parent / Path(floor["heightmap"]).expanduser())
-                                     .resolve())
+            floor[key] = str((path.parent / Path(floor[key]).expanduser()).resolve())
         except (RuntimeError, ValueError, OSError) as e:  # ~nobody, a NUL byte, a loop
-            raise ConfigError(f"seafloor.heightmap: expected a path to a .npy file, got "
-                              f"{floor['heightmap'][:200]!r} ({e})") from None
+            raise ConfigError(f"seafloor.{key}: expected a path to {what}, got "
+                              f"{floor[key][:200]!r} ({e})") from None
     try:
         return Config.from_dict(data)
     except RecursionError:  # a deep value in a field that Python walks (its repr, say)

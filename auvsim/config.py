@@ -18,7 +18,9 @@ from auvsim.physics.maneuvers import MANEUVERS, check_scenario
 from auvsim.sensors import registry
 
 SCENARIOS = tuple(MANEUVERS)  # the manoeuvres' registry is the one list of names
-SEAFLOORS = ("flat", "procedural", "heightmap")
+SEAFLOORS = ("flat", "procedural", "heightmap", "grid")
+GRID_NODATA = ("refuse", "fill")  # SeafloorConfig.nodata
+GRID_POSITIVE = ("up", "down")  # SeafloorConfig.grid_positive
 
 # Bounds that keep a config's run finite and its physics meaningful (a config beyond them
 # is refused, naming the field).
@@ -59,6 +61,11 @@ MAX_DEPTH = 11000.0  # m
 # (about 400 m); finer cells made a window the track outran.
 MAX_CELL_SIZE = 1000.0  # m
 MIN_PROCEDURAL_CELL_SIZE = 0.5  # m
+# A bathymetry grid's mission area is a square of at most 100 km a side around the
+# location: the flat world's north and east are read as arc lengths at the origin's radii
+# of curvature (auvsim.world.grid), which stray from the exact local NED frame by about
+# (d / R)^2 d: 2 mm at 5 km, 0.3 m at 50 km from the origin.
+MAX_GRID_EXTENT = 100_000.0  # m
 # Terrain features up to 1000 cells long: the procedural terrain is a field on a grid of
 # at most 2048 cells a side (auvsim.world.seafloor), and from about 24,000 cells on the filter
 # leaves it constant, whose unit std is 0 / 0 (NaN heights).
@@ -229,7 +236,8 @@ class SeafloorConfig:
 
     Attributes:
         kind: ``flat`` (a plane), ``procedural`` (seeded random terrain on a plane that may
-            slope) or ``heightmap`` (a user's grid of depths).
+            slope), ``heightmap`` (a user's grid of depths) or ``grid`` (a georeferenced
+            bathymetry grid, GeoTIFF or NetCDF).
         depth: depth of the plane at the mission start (0, 0), m.
         roughness: standard deviation of the terrain about the plane, m (procedural).
         correlation_length: horizontal scale of the terrain's features, m (procedural).
@@ -241,7 +249,26 @@ class SeafloorConfig:
         cell_size: grid spacing, m: of the heightmap, and of the terrain grid MuJoCo
             ray-casts against (procedural); at most ``MAX_CELL_SIZE`` (1 km), and for
             procedural terrain at least ``MIN_PROCEDURAL_CELL_SIZE`` (0.5 m) and
-            ``correlation_length / MAX_CORRELATION_CELLS``.
+            ``correlation_length / MAX_CORRELATION_CELLS``. Unused by a grid, whose
+            heightmap takes the grid's own spacing.
+        grid: path of a georeferenced bathymetry grid (grid): a GeoTIFF (``.tif``,
+            ``.tiff``, read with rasterio) or a NetCDF file (``.nc``, read with xarray), on
+            geographic WGS-84 latitude and longitude, north up. The missions are placed on
+            it by ``Config.location``; it is cropped to ``extent`` and resampled
+            (bilinearly) onto a heightmap at its own spacing (``auvsim.world.grid``).
+        grid_variable: the NetCDF variable holding the grid (None: the only 2-D variable
+            on latitude and longitude); unused for a GeoTIFF (band 1).
+        grid_positive: ``up`` (the grid holds elevations, negative below sea level, as
+            GEBCO and ETOPO do) or ``down`` (it holds depths, positive below sea level).
+        nodata: what a nodata cell of the grid within the mission area does: ``refuse``
+            (a config error naming how many) or ``fill`` (each takes the mean of its valid
+            4-neighbours, ring by ring inward from the hole's edge: nearest-neighbour
+            filling).
+        extent: side of the square mission area centred on the location, m, at most
+            ``MAX_GRID_EXTENT`` (100 km): the part of the grid the heightmap covers.
+        grid_sha256: SHA-256 of the grid file, hex; ``auvsim generate`` fills it in (and
+            refuses a file that no longer matches it), so the config stored in a dataset
+            names the grid by path and content.
 
     Depths (``depth``, and ``roughness``) are at most ``MAX_DEPTH`` (11 km, the deepest
     ocean); ``slope_heading_deg`` is in [-360, 360].
@@ -255,6 +282,12 @@ class SeafloorConfig:
     slope_heading_deg: float = 0.0
     heightmap: str | None = None
     cell_size: float = 2.0
+    grid: str | None = None
+    grid_variable: str | None = None
+    grid_positive: str = "up"
+    nodata: str = "refuse"
+    extent: float = 4000.0
+    grid_sha256: str | None = None
 
     def __post_init__(self) -> None:
         _check(self.kind in SEAFLOORS, "seafloor.kind", f"one of {', '.join(SEAFLOORS)}",
@@ -289,6 +322,23 @@ class SeafloorConfig:
                "a .npy path exactly when kind is heightmap", self.heightmap)
         _check(self.heightmap is None or isinstance(self.heightmap, str), "seafloor.heightmap",
                "a path to a .npy file", self.heightmap)
+        _check((self.kind == "grid") == (self.grid is not None), "seafloor.grid",
+               "a GeoTIFF or NetCDF path exactly when kind is grid", self.grid)
+        _check(self.grid is None or (isinstance(self.grid, str) and self.grid != ""),
+               "seafloor.grid", "a path to a GeoTIFF or NetCDF file", self.grid)
+        _check(self.grid_variable is None or (isinstance(self.grid_variable, str)
+                                              and self.grid_variable != ""),
+               "seafloor.grid_variable", "a NetCDF variable name", self.grid_variable)
+        _check(self.grid_positive in GRID_POSITIVE, "seafloor.grid_positive",
+               "up (elevations, as GEBCO's) or down (depths)", self.grid_positive)
+        _check(self.nodata in GRID_NODATA, "seafloor.nodata", "refuse or fill", self.nodata)
+        _finite("seafloor.extent", self.extent)
+        _check(0 < self.extent <= MAX_GRID_EXTENT, "seafloor.extent",
+               f"a side in (0, {MAX_GRID_EXTENT:g}] m", self.extent)
+        _check(self.grid_sha256 is None or (
+            isinstance(self.grid_sha256, str) and len(self.grid_sha256) == 64
+            and all(c in "0123456789abcdef" for c in self.grid_sha256)),
+            "seafloor.grid_sha256", "64 lowercase hex digits", self.grid_sha256)
 
 
 @dataclass(frozen=True)
@@ -843,7 +893,8 @@ class Config:
                self.compression)
         for sensor in registry().values():  # each plugin's checks against the others
             sensor.check(self)
-        if self.seafloor.kind != "heightmap":
+        # A heightmap's and a grid's depth is the terrain's own, not seafloor.depth.
+        if self.seafloor.kind not in ("heightmap", "grid"):
             for m in self.missions:
                 _check(m.scenario.depth < self.seafloor.depth, "depth",
                        f"a depth above the seafloor at {self.seafloor.depth:g} m",
@@ -852,9 +903,12 @@ class Config:
         moving = w.speed_max > 0 or w.speed_std > 0 or w.spatial_std > 0
         # The power law's H defaults to the seafloor plane's depth; a heightmap has none.
         _check(not (moving and w.profile == "power" and w.water_depth is None
-                    and self.seafloor.kind == "heightmap"), "water.water_depth",
-               "the water depth H of the power law (over a heightmap the seafloor gives no "
-               "single depth)", w.water_depth)
+                    and self.seafloor.kind in ("heightmap", "grid")), "water.water_depth",
+               "the water depth H of the power law (over a heightmap or a grid the seafloor "
+               "gives no single depth)", w.water_depth)
+        _check(self.seafloor.kind != "grid" or self.location.given, "location",
+               "latitude_deg and longitude_deg, which place the missions on seafloor.grid",
+               dataclasses.asdict(self.location))
         if moving:  # the constant current and the water's own, together
             worst = (math.hypot(*self.vehicle.current_ned) + w.speed_max
                      + 3.0 * (w.speed_std + w.spatial_std))

@@ -69,6 +69,7 @@ from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
 from auvsim.runs.cluster import check_address, lost_worker
 from auvsim.runs.mission import MissionRun, check_reachable
+from auvsim.world.grid import pin_grid
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
 POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
@@ -228,6 +229,7 @@ def _compile_clock() -> Iterator[Callable[[], float]]:
 def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
               executor: cf.Executor | None, cluster: str | None, shards: int | None,
               progress: bool) -> dict:
+    config = pin_grid(config)  # the stored config names a grid by its SHA-256 too
     with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
         check_reachable(config)
     for name, value in (("workers", workers), ("shards", shards)):

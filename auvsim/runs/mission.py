@@ -67,7 +67,8 @@ class MissionRun:
     def __init__(self, config: Config, mission: MissionConfig) -> None:
         self.config, self.mission = config, mission
         streams = mission_streams(mission.seed)
-        self.seafloor = Seafloor(config.seafloor, rng=streams["terrain"])
+        self.seafloor = Seafloor(config.seafloor, rng=streams["terrain"],
+                                 location=config.location)
         v = config.vehicle
         # The water is a pure function of time and place from here on (auvsim.physics.water).
         self.water = Water(config.water, streams["water"], duration=mission.scenario.duration,
@@ -234,7 +235,8 @@ class MissionRun:
              "terrain"),
             (pos[:, 2] < 0, "broke the surface", "a speed, buoyancy and current it can hold "
              "depth in"),
-            (np.isnan(altitude), "left the terrain", "a track that stays over the heightmap"),
+            (np.isnan(altitude), "left the terrain", "a track that stays over the heightmap "
+             "(a grid's: seafloor.extent around the location)"),
         )
         for bad, what, expected in problems:
             if bad.any():
