@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import flat
-from test_recorded import _csv_log, run_csv
+from test_recorded import csv_log, run_csv
 
 from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.importer import import_velocity
@@ -36,7 +36,7 @@ def simulated(dataset_of):
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     folder = tmp_path_factory.mktemp("xarray_rec")
-    _csv_log(folder / "dive")
+    csv_log(folder / "dive")
     out = folder / "dive.h5"
     assert run_csv(folder / "dive", out) == (0, "")
     return out
