@@ -15,7 +15,7 @@ from pathlib import Path
 import psutil
 import pytest
 from conftest import FAILING_TOML, CountingBar, flat, mission
-from test_kill import _running, _tree, _wait_for, as_from_a_terminal
+from test_kill import as_from_a_terminal, process_tree, still_running, wait_for
 from test_shards import assert_same_data
 
 from auvsim import cli
@@ -45,7 +45,7 @@ def no_process_left():
     """Every test's clusters, workers and children end with it."""
     before = _children()
     yield
-    _wait_for(lambda: not _children() - before, "the test's processes to end", timeout=20)
+    wait_for(lambda: not _children() - before, "the test's processes to end", timeout=20)
 
 
 def _cli(*args: str) -> subprocess.Popen:
@@ -92,16 +92,16 @@ def test_kill_9_of_the_client_resumes_to_the_same_data(tmp_path, reference):
     out = tmp_path / "rm"
     proc = _cli(*RUN, "--cluster", "local:2", "--out", f"{out}/")
     try:
-        _wait_for(lambda: proc.poll() is None and _shards_done(out) >= 1, "a first shard",
+        wait_for(lambda: proc.poll() is None and _shards_done(out) >= 1, "a first shard",
                   timeout=240)
-        tree = _tree(proc.pid)
+        tree = process_tree(proc.pid)
         assert len(tree) >= 3, tree  # the client and its two workers (and a tracker)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
     finally:
         proc.kill()
         proc.communicate()
-    _wait_for(lambda: not _running(tree), "the workers to end with their client", timeout=20)
+    wait_for(lambda: not still_running(tree), "the workers to end with their client", timeout=20)
     kept = _shards_done(out)
     assert 1 <= kept < 10 and not (out / INDEX).exists()
     said = _finished(*RUN, "--cluster", "local:2", "--out", f"{out}/")
@@ -124,7 +124,7 @@ def test_kill_9_of_a_worker_midway_retries_its_mission(tmp_path, reference):
             assert proc.poll() is None, proc.communicate()
             return bool(list(out.glob(".*.parts/*.progress"))) and len(_workers(proc.pid)) == 2
 
-        _wait_for(simulating, "a mission under way", timeout=240)
+        wait_for(simulating, "a mission under way", timeout=240)
         victim = _workers(proc.pid)[0]
         victim.kill()
         out_text, err = proc.communicate(timeout=300)
@@ -141,16 +141,16 @@ def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
     out = tmp_path / "rm"
     proc = _cli(*RUN, "--cluster", "local:2", "--out", f"{out}/")
     try:
-        _wait_for(lambda: proc.poll() is None and bool(list(out.glob(".*.parts/*.progress"))),
+        wait_for(lambda: proc.poll() is None and bool(list(out.glob(".*.parts/*.progress"))),
                   "a mission under way", timeout=240)
-        tree = _tree(proc.pid)
+        tree = process_tree(proc.pid)
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=60)
     finally:
         proc.kill()
     assert proc.returncode == 130, err
     assert err.splitlines() == ["auvsim: interrupted; nothing was written"]  # no worker's
-    _wait_for(lambda: not _running(tree), "the cluster to end", timeout=20)
+    wait_for(lambda: not still_running(tree), "the cluster to end", timeout=20)
     if out.exists():  # whole shards, kept for the next run, and nothing else
         assert [p.name for p in out.iterdir()] == [SHARDS]
         assert all(p.name.startswith("part-") for p in (out / SHARDS).iterdir())
@@ -235,8 +235,8 @@ def test_a_scheduler_of_ones_own_with_a_worker_elsewhere(tmp_path, reference):
                                         str(file)], cwd=there, start_new_session=True,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
-        _wait_for(file.exists, "the scheduler", timeout=60)
-        _wait_for(lambda: file.stat().st_size > 0, "the scheduler's file", timeout=10)
+        wait_for(file.exists, "the scheduler", timeout=60)
+        wait_for(lambda: file.stat().st_size > 0, "the scheduler's file", timeout=10)
         address = json.loads(file.read_text())["address"]
         started.append(subprocess.Popen(
             [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads",

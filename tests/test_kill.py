@@ -51,7 +51,7 @@ def _processes() -> dict[int, tuple[int, bytes, bytes]]:
     return table
 
 
-def _tree(pid: int) -> set[tuple[int, bytes]]:
+def process_tree(pid: int) -> set[tuple[int, bytes]]:
     """``pid`` and its descendants, as (pid, start time): a reused pid is another."""
     table = _processes()
     found, i = [pid], 0
@@ -61,14 +61,14 @@ def _tree(pid: int) -> set[tuple[int, bytes]]:
     return {(p, table[p][2]) for p in found if p in table}
 
 
-def _running(tree: set[tuple[int, bytes]]) -> set[int]:
+def still_running(tree: set[tuple[int, bytes]]) -> set[int]:
     """The processes of ``tree`` that have not ended (a zombie has)."""
     table = _processes()
     return {p for p, start in tree if p in table and table[p][2] == start
             and table[p][1] != b"Z"}
 
 
-def _wait_for(condition, what: str, timeout: float) -> None:
+def wait_for(condition, what: str, timeout: float) -> None:
     deadline = time.monotonic() + timeout
     while not condition():
         assert time.monotonic() < deadline, f"waited {timeout} s for {what}"
@@ -82,8 +82,8 @@ def _simulating(proc: subprocess.Popen, folder: Path) -> set[tuple[int, bytes]]:
         assert proc.poll() is None, proc.communicate()
         return any(folder.glob(f".*.{files.TAG}.*.parts/*.progress"))
 
-    _wait_for(progress, "a worker's progress", timeout=120)  # numba may compile first
-    tree = _tree(proc.pid)
+    wait_for(progress, "a worker's progress", timeout=120)  # numba may compile first
+    tree = process_tree(proc.pid)
     assert len(tree) >= 4, tree  # this process, its forkserver, two workers (and a tracker)
     return tree
 
@@ -105,7 +105,7 @@ def test_kill_9_ends_the_workers_and_the_next_run_cleans_up(tmp_path):
         tree = _simulating(proc, tmp_path)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
-        _wait_for(lambda: not _running(tree), "the run's processes to end", timeout=10)
+        wait_for(lambda: not still_running(tree), "the run's processes to end", timeout=10)
     # What a killed run can leave (a lost node's, say): its claim, pieces and all.
     dead = tmp_path / f".x.h5.{files.TAG}.{files.HOST}.999999999"
     (dead.parent / (dead.name + ".parts")).mkdir()
@@ -130,7 +130,7 @@ def test_an_interrupt_prints_one_line_and_leaves_nothing(tmp_path, sig, to_group
         assert proc.returncode == 130  # for SIGTERM too: tests/test_datasets.py
         assert err.splitlines() == [INTERRUPTED]
         assert list(tmp_path.iterdir()) == []
-        _wait_for(lambda: not _running(tree), "the run's processes to end", timeout=10)
+        wait_for(lambda: not still_running(tree), "the run's processes to end", timeout=10)
 
 
 def test_sweep_removes_the_temporaries_of_dead_claims_only(tmp_path):
@@ -167,7 +167,7 @@ def _claimed(proc: subprocess.Popen, folder: Path) -> None:
         assert proc.poll() is None, proc.communicate()
         return any(folder.glob(f".*.{files.TAG}.*.lock"))
 
-    _wait_for(claimed, "the run's claim", timeout=120)
+    wait_for(claimed, "the run's claim", timeout=120)
 
 
 def _hidden(folder: Path) -> list[str]:

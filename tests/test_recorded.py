@@ -216,7 +216,7 @@ units = {latitude = "deg", longitude = "deg", attitude = "deg"}
 """
 
 
-def _csv_log(folder: Path, *, yaw_enu_deg: float = 90.0) -> dict[str, np.ndarray]:
+def csv_log(folder: Path, *, yaw_enu_deg: float = 90.0) -> dict[str, np.ndarray]:
     """A log in other conventions than auvsim's, with a known meaning in auvsim's."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "log.toml").write_text(DESCRIPTION)
@@ -245,7 +245,7 @@ def _csv_log(folder: Path, *, yaw_enu_deg: float = 90.0) -> dict[str, np.ndarray
 
 
 def test_a_described_csv_log_in_auvsim_conventions(tmp_path):
-    w = _csv_log(tmp_path / "dive")
+    w = csv_log(tmp_path / "dive")
     out = tmp_path / "dive.h5"
     assert run_csv(tmp_path / "dive", out) == (0, "")
     with open_dataset(out, verify=True) as f:
@@ -272,7 +272,7 @@ def test_a_described_csv_log_in_auvsim_conventions(tmp_path):
                                    atol=1e-12)
         np.testing.assert_allclose(m.reference.position_ned[1], V_NED, atol=1e-6)
     east = tmp_path / "east"
-    _csv_log(east, yaw_enu_deg=0.0)  # heading east: NED yaw 90 deg
+    csv_log(east, yaw_enu_deg=0.0)  # heading east: NED yaw 90 deg
     recording = read_log(east, parse_description(DESCRIPTION))
     np.testing.assert_allclose(recording.fields["reference/rpy_deg"],
                                np.tile([0.0, 0.0, 90.0], (2, 1)), atol=1e-9)
@@ -291,7 +291,7 @@ def test_import_velocity_is_import_format_velocity(tmp_path):
 
 def test_a_reference_without_attitude_is_refused_where_one_is_needed(tmp_path):
     folder = tmp_path / "noatt"
-    _csv_log(folder)
+    csv_log(folder)
     text = DESCRIPTION.replace('columns.attitude = ["roll", "pitch", "yaw"]\n', "").replace(
         ', attitude = "deg"}', "}").replace('ignore = ["temperature"]', 'ignore = []')
     (folder / "nav.csv").write_text("\n".join(
@@ -369,7 +369,7 @@ BAD_LOGS = {
 def test_bad_logs_are_refused_in_one_line(case, tmp_path):
     damage, message = BAD_LOGS[case]
     folder = tmp_path / "dive"
-    _csv_log(folder)
+    csv_log(folder)
     damage(folder)
     out = tmp_path / "out" / "x.h5"
     code, err = run_csv(folder, out)
@@ -399,7 +399,7 @@ def test_velocity_options_are_refused_with_another_format(layout, option, tmp_pa
     if layout == "akit":
         _akit(folder)
     else:
-        _csv_log(folder)
+        csv_log(folder)
     out = tmp_path / "x.h5"
     extra = ["--description", str(folder / "log.toml")] if layout == "csv" else []
     code, err = run(["import", str(folder), "--format", layout, *extra, *option,
@@ -411,7 +411,7 @@ def test_velocity_options_are_refused_with_another_format(layout, option, tmp_pa
 
 def test_a_lat_lon_in_radians_declared_degrees_disagrees_with_the_velocity(tmp_path):
     folder = tmp_path / "dive"
-    _csv_log(folder)
+    csv_log(folder)
     nav = folder / "nav.csv"
     lines = nav.read_text().splitlines()
     rows = [line.split(",") for line in lines[1:]]
@@ -484,7 +484,7 @@ def test_every_group_is_optional(tmp_path, capsys):
     """A log of a DVL alone, its origin given by the description: imported, inspected
     and drawn."""
     folder = tmp_path / "dvl_only"
-    _csv_log(folder)
+    csv_log(folder)
     dvl = DESCRIPTION[DESCRIPTION.index("[dvl]"):DESCRIPTION.index("[depth]")]
     text = ('[log]\nname = "dvl_only"\norigin = [32.85, 34.89, -20.0]\n\n' + dvl)
     (folder / "only.toml").write_text(text)

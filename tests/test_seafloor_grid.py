@@ -40,7 +40,7 @@ from auvsim.errors import ConfigError  # noqa: E402
 from auvsim.physics.earth import geodetic_from_ned, ned_from_geodetic  # noqa: E402
 from auvsim.physics.frames import rotation_matrices, rotation_rpy  # noqa: E402
 from auvsim.runs.generate import generate  # noqa: E402
-from auvsim.world.grid import load_grid  # noqa: E402
+from auvsim.world.grid import clear_cache, load_grid  # noqa: E402
 from auvsim.world.seafloor import Seafloor  # noqa: E402
 
 HERE = (32.8498, 34.8922)  # latitude, longitude, deg: off Haifa
@@ -241,6 +241,18 @@ def test_the_heightmap_takes_the_grids_spacing_capped_by_the_area(tmp_path):
     coarse = load_grid(grid_config(fine, extent=20_000.0).seafloor, **location)
     assert coarse.cell == pytest.approx(20_000.0 / 4095)
     assert 140 < -coarse.corner[0] < 160 and coarse.depths.shape[0] < 70
+
+
+def test_a_process_keeps_a_heightmap_until_its_cache_is_cleared(tmp_path):
+    grid = write_geotiff(tmp_path / "g.tif", plane)
+    floor, location = grid_config(grid).seafloor, dict(latitude_deg=HERE[0],
+                                                         longitude_deg=HERE[1])
+    first = load_grid(floor, **location)
+    assert load_grid(floor, **location) is first  # kept: the grid is not read again
+    clear_cache()
+    again = load_grid(floor, **location)
+    assert again is not first  # read afresh, as a new process reads it
+    np.testing.assert_array_equal(again.depths, first.depths)
 
 
 def test_same_config_and_seed_give_identical_data_and_record_the_grid(tmp_path):

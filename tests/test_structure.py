@@ -132,6 +132,43 @@ def test_no_private_name_is_imported_from_another_module():
     assert private == []
 
 
+def _private_uses(path: Path, ours: set[str]) -> list[str]:
+    """A script's private names taken from modules of ``ours`` (module names): imported
+    (``from m import _x``) or reached through an imported module (``import m``, ``m._x``)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    aliases, found = {}, []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            aliases.update({(a.asname or a.name): a.name for a in node.names
+                            if a.name.split(".")[0] in ours})
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            if node.module.split(".")[0] not in ours:
+                continue
+            for a in node.names:
+                if a.name.startswith("_") and not a.name.startswith("__"):
+                    found.append(f"from {node.module} import {a.name}")
+                elif f"{node.module}.{a.name}" in MODULES:
+                    aliases[a.asname or a.name] = f"{node.module}.{a.name}"
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and node.value.id in aliases and node.attr.startswith("_")
+                and not node.attr.startswith("__")):
+            found.append(f"{aliases[node.value.id]}.{node.attr}")
+    return [f"{path.relative_to(ROOT)}: {use}" for use in found]
+
+
+def test_tests_and_benchmarks_share_no_private_name():
+    # A helper one test module (or benchmark) lends another is public, named without the
+    # underscore; a benchmark times auvsim through its public functions. (A test of a
+    # module may call that module's private helpers: it tests them.)
+    scripts = {folder: sorted((ROOT / folder).glob("*.py")) for folder in ("tests", "benchmarks")}
+    siblings = {p.stem for paths in scripts.values() for p in paths}
+    private = [use for folder, paths in scripts.items() for path in paths
+               for use in _private_uses(path, siblings | ({"auvsim"} if folder == "benchmarks"
+                                                          else set()))]
+    assert private == []
+
+
 def test_beamsnet_imports_only_the_dataset_api_and_the_runners_of_auvsim():
     taken = sorted({f"{name} -> {module}" for name in MODULES if name.startswith("beamsnet")
                     for module, _ in _imports(name)

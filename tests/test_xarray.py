@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import flat
-from test_recorded import _csv_log, run_csv
+from test_recorded import csv_log, run_csv
 
 from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.importer import import_velocity
@@ -36,7 +36,7 @@ def simulated(dataset_of):
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     folder = tmp_path_factory.mktemp("xarray_rec")
-    _csv_log(folder / "dive")
+    csv_log(folder / "dive")
     out = folder / "dive.h5"
     assert run_csv(folder / "dive", out) == (0, "")
     return out
@@ -91,15 +91,16 @@ def test_every_field_of_a_simulated_mission(simulated):
     # Components are labelled as the conventions name them.
     assert list(truth.ned.values) == ["N", "E", "D"]
     assert list(truth.component.values) == ["w", "x", "y", "z"]
-    assert list(truth.axis.values) == ["x", "y", "z"] and list(dvl.beam.values) == [1, 2, 3, 4]
+    assert list(truth.axis.values) == ["x", "y", "z"] and list(dvl.beam.values) == [0, 1, 2, 3]
     np.testing.assert_array_equal(truth.position_ned.sel(ned="D"),
                                   arrays["truth/position_ned"][:, 2])
     np.testing.assert_array_equal(truth.quaternion.sel(component="w"),
                                   arrays["truth/quaternion"][:, 0])
     np.testing.assert_array_equal(truth.angular_rate.sel(axis="z"),
                                   arrays["truth/angular_rate"][:, 2])
-    np.testing.assert_array_equal(dvl.beam_velocity.sel(beam=3),
-                                  arrays["dvl/beam_velocity"][:, 2])
+    for k in range(4):  # beam k is column k, as dvl.beam_failures names it
+        np.testing.assert_array_equal(dvl.beam_velocity.sel(beam=k),
+                                      arrays["dvl/beam_velocity"][:, k])
     assert truth.position_ned.attrs["units"] == "m" and dvl.valid.attrs["units"] == "-"
     assert views["control"].thrust.attrs["units"] == "N"
 
@@ -166,6 +167,16 @@ def test_an_imported_dvl_stream(tmp_path):
     assert list(views) == ["dvl"]
     assert_views_are_the_file(views, arrays, attrs, schema("imported")[0])
     np.testing.assert_array_equal(views["dvl"].velocity.sel(axis="x"), velocity[:, 0])
+
+
+def test_the_beam_dvl_beam_failures_names_is_the_beam_of_that_label(dataset_of):
+    dead = MissionConfig(name="mission_000", seed=3,
+                         scenario=ScenarioConfig(name="straight", duration=5.0))
+    path = dataset_of(flat(dead, dvl=DvlConfig(beam_failures=((2, 0.0, 10.0),))), "dead")
+    with open_dataset(path) as f:
+        dvl = f.missions["mission_000"].to_xarray()["dvl"]
+    assert not dvl.valid.sel(beam=2).any()
+    assert dvl.valid.drop_sel(beam=2).all()
 
 
 def test_without_xarray_one_line_names_the_extra(simulated, monkeypatch):

@@ -7,7 +7,8 @@ records (``auvsim.data.schema``): a field's unit and description, and its clock,
 field names of the conventions (``auvsim`` package docstring): ``*_ned`` vectors are
 ``ned`` = N, E, D; ``quaternion`` is ``component`` = w, x, y, z; ``rpy_deg`` is ``angle``
 = roll, pitch, yaw; other 3-vectors are ``axis`` = x, y, z (in the frame their
-description names); 4-vectors are ``beam`` = 1 to 4.
+description names); 4-vectors are ``beam`` = 0 to 3, their columns, as settings and
+reports name beams (``auvsim.sensors.dvl``).
 
 xarray is optional (``pip install 'auvsim[io]'``), imported here when a view is made.
 """
@@ -98,9 +99,10 @@ def _time(f: Field, read: Callable[[str], np.ndarray], timedelta: bool) -> tuple
     return "time", seconds, {**attrs, "units": f.unit}
 
 
-# Labels of a component axis by its dim (``_component_dim``).
+# Labels of a component axis by its dim (``_component_dim``). Beams by their column, 0 to 3,
+# as settings and reports name them (``auvsim.sensors.dvl``, ``DvlConfig.beam_failures``).
 LABELS = {"ned": ["N", "E", "D"], "component": ["w", "x", "y", "z"],
-          "angle": ["roll", "pitch", "yaw"], "axis": ["x", "y", "z"], "beam": [1, 2, 3, 4]}
+          "angle": ["roll", "pitch", "yaw"], "axis": ["x", "y", "z"], "beam": [0, 1, 2, 3]}
 
 
 def _component_dim(f: Field, k: int) -> str:

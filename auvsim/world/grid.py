@@ -41,9 +41,13 @@ any heightmap; nothing here casts rays.
 
 rasterio reads GeoTIFF and xarray reads NetCDF (with whichever of the netCDF4 and
 h5netcdf engines is installed), both imported only here and only when a grid is read
-(``pip install 'auvsim[io]'``). Only the window of the grid the area needs is read, so a
-global GEBCO file (7 GB) costs what its few kilometres cost. A process keeps the last
-heightmaps it made (``_cached``), so the missions of a dataset read the grid once.
+(``pip install 'auvsim[io]'``). Only the window of the grid the area needs is read into the
+heightmap, and a process keeps the last heightmaps it made (``clear_cache`` forgets them),
+so the missions of a dataset read the grid once. ``pin_grid`` hashes the whole file, on
+every ``generate``: the stored config names its grid by content, worth a read of the file
+at the hashing speed (about 1.5 GB/s from the page cache: 5 s for a 7 GB global GEBCO
+file; ``benchmarks/seafloor_grid.py`` measures it). The digest is not kept by path, size
+and time: those are what an edited file could keep.
 """
 
 from __future__ import annotations
@@ -138,6 +142,12 @@ def _cached(path: str, mtime_ns: int, size: int, variable: str | None, positive:
     return terrain
 
 
+def clear_cache() -> None:
+    """Forget the heightmaps this process has kept, so the next ``load_grid`` reads its
+    grid afresh, as a new process does (the grid benchmark times that)."""
+    _cached.cache_clear()
+
+
 def grid_sha256(path: str | os.PathLike) -> str:
     """SHA-256 of a file, hex, read in 1 MiB chunks (a global grid is gigabytes)."""
     digest = hashlib.sha256()
@@ -149,8 +159,9 @@ def grid_sha256(path: str | os.PathLike) -> str:
 
 def pin_grid(config: Config) -> Config:
     """``config`` with ``seafloor.grid_sha256`` filled in from the grid file, so the config
-    a dataset stores names its grid by content; unchanged without a grid. The grid is also
-    read once here (``load_grid``), so a bad one is refused before anything is written.
+    a dataset stores names its grid by content; unchanged without a grid. The whole file is
+    read for that, every time (module docstring: about 1.5 GB/s). The grid is also read
+    once here (``load_grid``), so a bad one is refused before anything is written.
 
     Raises:
         ConfigError: the file is missing, its SHA-256 is not the one the config gives, or
