@@ -61,6 +61,7 @@ def play(path: Path, commands: list[dict] = (), **options) -> tuple[list[dict], 
     objects read and the server's summary."""
     where: queue.Queue = queue.Queue()
     summary: dict = {}
+    options = {"mission": "a", **options}
     thread = threading.Thread(target=lambda: summary.update(serve(
         path, port=0, wait_for_client=True, ready=lambda h, p, _: where.put((h, p)),
         **options)))
@@ -174,7 +175,7 @@ def test_several_clients_read_the_same_stream(dataset):
         for _ in range(2):
             clients.put(socket.create_connection((host, port), timeout=30))
 
-    thread = threading.Thread(target=serve, args=(dataset,), kwargs=dict(
+    thread = threading.Thread(target=serve, args=(dataset, "a"), kwargs=dict(
         port=0, speed=500.0, wait_for_client=True, ready=connect))
     thread.start()
     streams = [b"", b""]
@@ -253,7 +254,7 @@ def test_stop_leaves_no_thread_and_no_port(dataset):
     before = threading.active_count()
     where: queue.Queue = queue.Queue()
     stop = threading.Event()
-    thread = threading.Thread(target=serve, args=(dataset,), kwargs=dict(
+    thread = threading.Thread(target=serve, args=(dataset, "a"), kwargs=dict(
         port=0, loop=True, stop=stop, speed=50.0, ready=lambda h, p, _: where.put((h, p))))
     thread.start()
     host, port = where.get(timeout=30)
@@ -276,7 +277,8 @@ def run_cli(*args: str, **popen) -> subprocess.Popen:
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_the_command_and_frees_the_port(dataset, signum):
-    process = run_cli("serve", str(dataset), "--dvl", "a50", "--port", "0", "--loop")
+    process = run_cli("serve", str(dataset), "--dvl", "a50", "--mission", "a", "--port", "0",
+                      "--loop")
     line = process.stdout.readline()
     port = int(line.split("127.0.0.1:")[1].split(":")[0])
     with socket.create_connection(("127.0.0.1", port), timeout=10) as client:
@@ -301,7 +303,8 @@ def test_the_command_ends_with_the_mission(dataset):
 def test_bad_input_one_line_exit_2(dataset, tmp_path):
     with socket.create_server(("127.0.0.1", 0)) as held:
         port = held.getsockname()[1]
-        process = run_cli("serve", str(dataset), "--dvl", "a50", "--port", str(port))
+        process = run_cli("serve", str(dataset), "--dvl", "a50", "--mission", "a", "--port",
+                          str(port))
         out, err = process.communicate(timeout=60)
         assert process.returncode == 2 and out == ""
         assert err.splitlines() == [f"auvsim: error: --port {port} is in use on 127.0.0.1; "
@@ -310,9 +313,10 @@ def test_bad_input_one_line_exit_2(dataset, tmp_path):
     text = tmp_path / "notes.h5"
     text.write_text("not a dataset")
     for args, says in (
-            (["--mission", "nope"], "--mission 'nope': not a mission of"),
-            (["--speed", "0"], "--speed expected a factor > 0"),
-            (["--port", "70000"], "--port expected a TCP port in [0, 65535]")):
+            (["--mission", "nope"], "--mission 'nope': no such mission; expected one of a, b"),
+            ([], "--mission: the dataset has 2 missions (a, b); expected one named"),
+            (["--mission", "a", "--speed", "0"], "--speed expected a factor > 0"),
+            (["--mission", "a", "--port", "70000"], "--port expected a TCP port in [0, 65535]")):
         process = run_cli("serve", str(dataset), "--dvl", "a50", *args)
         out, err = process.communicate(timeout=60)
         assert process.returncode == 2 and len(err.splitlines()) == 1 and says in err, err

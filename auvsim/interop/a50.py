@@ -173,10 +173,9 @@ def mission_pings(mission) -> Pings:
     Raises:
         DatasetError: the mission is not simulated, or has no pings.
     """
-    from auvsim.config import Config
-    from auvsim.data.beams import beam_matrix, usable_beams
+    from auvsim.interop.pings import ping_errors
     from auvsim.physics.frames import rotation_matrices, rotation_rpy
-    from auvsim.sensors.dvl import Mode, Status, beam_noise_std
+    from auvsim.sensors.dvl import Mode
 
     if mission.origin != "simulated" or not mission.has("truth"):
         raise DatasetError(f"mission {mission.name!r} is {mission.origin}; expected a "
@@ -186,30 +185,16 @@ def mission_pings(mission) -> Pings:
     t = np.asarray(dvl.time, dtype=float)
     if len(t) == 0:
         raise DatasetError(f"mission {mission.name!r} has no DVL pings")
-    h = beam_matrix(math.radians(float(a["beam_angle_deg"])))
     beams, ranges = np.asarray(dvl.beam_velocity), np.asarray(dvl.beam_range)
-    locked = usable_beams(dvl.valid, beams)
-    if "status" in dvl:
-        locked &= np.isin(np.asarray(dvl.status), (int(Status.OK), int(Status.OUTLIER)))
+    errors = ping_errors(mission)
+    locked = errors.locked
     velocity = np.asarray(dvl.velocity_ls, dtype=float)
-    valid = np.isfinite(velocity).all(axis=1) & (locked.sum(axis=1) >= 3)
+    # json_v3.1 has no word for water track: only a bottom-track velocity is valid
+    valid = np.isfinite(errors.covariance[:, 0, 0]) & (locked.sum(axis=1) >= 3)
     if "mode" in dvl:
         valid &= np.asarray(dvl.mode) == int(Mode.BOTTOM_TRACK)
-    with np.errstate(invalid="ignore"):
-        vertical = np.where(locked, ranges * h[:, 2], 0.0)
-        count = locked.sum(axis=1)
-        altitude = np.where(count > 0, vertical.sum(axis=1) / np.maximum(count, 1), -1.0)
-
-    config = Config.from_json(mission.dataset.config_json).dvl
-    speed = np.linalg.norm(np.asarray(dvl.velocity, dtype=float), axis=1)
-    sigma = beam_noise_std(np.where(np.isfinite(ranges), ranges, 0.0), speed, config)
-    slow = float(a.get("dvl_slow_error_std", 0.0))
-    covariance = np.full((len(t), 3, 3), np.nan)
-    for n in np.flatnonzero(valid):
-        use = locked[n]
-        p = np.linalg.pinv(h[use])
-        c = (p * sigma[n, use] ** 2) @ p.T + slow**2 * np.eye(3)
-        covariance[n] = (c + c.T) / 2  # symmetric to the last bit
+    altitude = np.where(np.isfinite(errors.altitude), errors.altitude, -1.0)
+    covariance = np.where(valid[:, None, None], errors.covariance, np.nan)
 
     mounting = rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"]))
     if "dvl_misalignment_rpy_deg" in a:  # true DVL frame -> nominal
@@ -382,7 +367,7 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
 
     Args:
         dataset: an auvsim dataset.
-        mission: its name (default: the first mission).
+        mission: its name; None for a dataset of one mission.
         host, port: where to listen (port 0: any free port, ``ready`` says which).
         speed: the mission's seconds per wall-clock second, > 0.
         loop: play the mission again from its start after its last ping, until stopped.
@@ -409,13 +394,7 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ConfigError(f"expected a TCP port in [0, 65535], got {port!r}", argument="port")
     with open_dataset(dataset) as ds:
-        names = list(ds.missions)
-        name = names[0] if mission is None else mission
-        if name not in ds.missions:
-            raise DatasetError(f"{name[:80]!r}: not a mission of {dataset}; expected one of "
-                               f"{', '.join(names[:10])}{' ...' if len(names) > 10 else ''}",
-                               argument="mission")
-        pings = mission_pings(ds.missions[name])
+        pings = mission_pings(ds.mission(mission))
     listener = _listen(host, port)
     selector = selectors.DefaultSelector()
     clients: dict[socket.socket, _Client] = {}
