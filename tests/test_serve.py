@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ from auvsim.data.reader import open_dataset
 from auvsim.interop.a50 import (
     SETTINGS,
     DeadReckoning,
+    Lateness,
     figure_of_merit,
     respond,
     rpy_deg,
@@ -231,6 +233,43 @@ def test_reset_over_the_socket_zeroes_the_dead_reckoning(dataset):
     # the attitude relative to itself: zero but for the rounding of R^T R
     assert [after["roll"], after["pitch"], after["yaw"]] == pytest.approx([0, 0, 0],
                                                                           abs=1e-12)
+
+
+def test_lateness_is_measured_once_the_lines_are_written(dataset, monkeypatch):
+    """Encoding a report's lines takes 2 x 4 ms here: the lateness counts it (it is
+    measured after the lines are written, not when the report is built)."""
+    dumps = json.dumps
+
+    def slow(*args, **kwargs):
+        end = time.monotonic() + 0.004
+        while time.monotonic() < end:
+            pass
+        return dumps(*args, **kwargs)
+
+    monkeypatch.setattr(json, "dumps", slow)
+    _, summary = play(dataset, speed=20.0)
+    lateness = summary["lateness"]
+    assert lateness.count == summary["reports"] == 200
+    assert lateness.median() >= 0.008 and lateness.largest >= 0.008
+    assert lateness.over == lateness.count  # all over 5 ms
+
+
+def test_lateness_statistics_keep_constant_memory():
+    """Over more reports than the reservoir holds: the count, the largest and the count
+    over 5 ms exact, the median from the sample within a few percentiles of the true
+    one, the memory the reservoir's."""
+    values = np.random.default_rng(1).exponential(0.002, 50_000)
+    lateness = Lateness()
+    for v in values[:100]:
+        lateness.add(float(v))
+    assert lateness.median() == np.median(values[:100])  # exact while the sample is all
+    for v in values[100:]:
+        lateness.add(float(v))
+    assert lateness.count == len(values) and lateness.largest == values.max()
+    assert lateness.over == int((values > 0.005).sum())
+    assert len(lateness.sample) == Lateness.RESERVOIR
+    rank = (values < lateness.median()).mean()
+    assert 0.47 < rank < 0.53  # the sample median's rank among all values
 
 
 def test_figure_of_merit_of_the_documents_example():

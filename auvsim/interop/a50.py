@@ -110,6 +110,7 @@ from __future__ import annotations
 import errno
 import json
 import math
+import random
 import selectors
 import socket
 import threading
@@ -349,6 +350,37 @@ def _setting_problem(name: str, value) -> str:
     return "" if isinstance(value, str) else f"{name}: expected a string"
 
 
+class Lateness:
+    """Running statistics of the reports' lateness, s, in constant memory (a server that
+    loops runs for days): the count, the largest, the count over 5 ms (the target), and
+    a uniform sample of at most ``RESERVOIR`` values (reservoir sampling, Vitter's
+    algorithm R, seeded: the same lateness gives the same sample) for the median, exact
+    while fewer values came."""
+
+    RESERVOIR = 4096
+    LIMIT_S = 0.005
+
+    def __init__(self) -> None:
+        self.count, self.largest, self.over = 0, 0.0, 0
+        self.sample: list[float] = []
+        self._rng = random.Random(0)
+
+    def add(self, seconds: float) -> None:
+        self.count += 1
+        self.largest = max(self.largest, seconds)
+        self.over += seconds > self.LIMIT_S
+        if len(self.sample) < self.RESERVOIR:
+            self.sample.append(seconds)
+        else:
+            k = self._rng.randrange(self.count)
+            if k < self.RESERVOIR:
+                self.sample[k] = seconds
+
+    def median(self) -> float:
+        """The sample's median, s (NaN before any report)."""
+        return float(np.median(self.sample)) if self.sample else math.nan
+
+
 class _Client:
     def __init__(self, sock: socket.socket) -> None:
         self.sock = sock
@@ -377,9 +409,10 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
         stop: set it (from another thread) to stop within 50 ms.
 
     Returns:
-        ``{"mission", "reports", "clients", "lateness_s"}``: the velocity reports sent,
-        the clients that connected, and each report's lateness, s (the monotonic clock
-        when it was written, minus when it was due).
+        ``{"mission", "reports", "clients", "lateness"}``: the velocity reports sent,
+        the clients that connected, and the reports' lateness (``Lateness``: the
+        monotonic clock once a ping's lines are written to every client's socket, minus
+        when the ping was due), in constant memory however long ``loop`` plays.
 
     Raises:
         ConfigError: a speed, port or host that cannot be used, or a port in use.
@@ -438,7 +471,7 @@ def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelecto
     t = pings.time
     period = t[-1] - t[0] + pings.interval_ms[0] / 1e3  # one lap, and the gap to the next
     start, start_us = time.monotonic(), time.time_ns() // 1000
-    lateness: list[float] = []
+    lateness = Lateness()
     accepted, n, lap = 0, 0, 0
     while stop is None or not stop.is_set():
         offset = lap * period + (t[n] - t[0])  # mission seconds from the start
@@ -455,21 +488,21 @@ def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelecto
         if wait > 0:
             time.sleep(wait)
         validity = start_us + round(offset * 1e6)
+        position = dead_reckoning.step(pings, n, validity / 1e6)
         report = velocity_report(pings, n, time_of_validity=validity,
                                  time_of_transmission=time.time_ns() // 1000)
-        lateness.append(time.monotonic() - due)
-        position = dead_reckoning.step(pings, n, validity / 1e6)
         line = (json.dumps(report) + "\n" + json.dumps(position) + "\n").encode()
         for client in list(clients.values()):
             _send(selector, clients, client, line)
+        lateness.add(time.monotonic() - due)  # once written to every client's socket
         n += 1
         if n == len(pings):
             if not loop:
                 break
             n, lap = 0, lap + 1
     _flush(selector, listener, clients, settings, dead_reckoning, seconds=1.0)
-    return {"mission": pings.name, "reports": len(lateness), "clients": accepted,
-            "lateness_s": np.asarray(lateness)}
+    return {"mission": pings.name, "reports": lateness.count, "clients": accepted,
+            "lateness": lateness}
 
 
 def _handle(selector, listener, clients, settings, dead_reckoning, *, timeout: float) -> int:
