@@ -7,7 +7,7 @@ each, the export/generate ratio, the file sizes, each compression's ratio (the
 uncompressed bag's size over the file's) and the messages written. Generation and
 exports alternate over ``--repeats`` rounds; medians are reported. Then:
 
-- the peak memory of an export: the largest resident set (``ru_maxrss``) of a fresh
+- the peak memory of an export: the peak resident set (``VmHWM``) of a fresh
   interpreter that exports the mission (default compression), and of one that only
   imports what the export imports (the difference is the export's own);
 - the chunk compressions on this bag's data: the uncompressed bag cut in 1 MiB pieces
@@ -94,7 +94,7 @@ def main() -> None:
         print(f"{'export ' + c:16s} {med[c]:8.2f} {med[c] / med['generate']:11.2f} "
               f"{med[c] / total * 1e6:11.2f} {sizes[c]:8.1f}  "
               f"{sizes['none'] / sizes[c]:.2f}x smaller than none")
-    print(f"peak memory (ru_maxrss) of an export (zstd) in a fresh interpreter: {peak:.0f} MB; "
+    print(f"peak memory (VmHWM) of an export (zstd) in a fresh interpreter: {peak:.0f} MB; "
           f"of one that only imports: {baseline:.0f} MB; the export's own: "
           f"{peak - baseline:.0f} MB")
     print("chunk compression of the uncompressed bag in 1 MiB pieces (ratio, CPU s):")
@@ -112,12 +112,14 @@ def main() -> None:
 
 
 def peak_rss_mb(h5: Path, out: Path) -> tuple[float, float]:
-    """The largest resident set, MB, of a fresh interpreter exporting ``h5`` (default
+    """The peak resident set, MB, of a fresh interpreter exporting ``h5`` (default
     compression), and of one that imports the same modules and does nothing: each child
-    prints its own ``ru_maxrss`` (KiB on Linux) at its end."""
-    imports = ("import resource, mcap.records, mcap_ros2.writer, zstandard, h5py, numpy; "
+    prints its ``VmHWM`` (/proc/self/status, kB) at its end. Not ``ru_maxrss``: Linux
+    keeps it across ``execve``, so a child would report this process's peak."""
+    imports = ("import mcap.records, mcap_ros2.writer, zstandard, h5py, numpy; "
                "from auvsim.interop.ros2 import export_mcap; ")
-    report = "; print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)"
+    report = ("; print(next(line.split()[1] for line in open('/proc/self/status') "
+              "if line.startswith('VmHWM')))")
     peaks = []
     for work in (f"export_mcap({str(h5)!r}, {str(out)!r})", "None"):
         done = subprocess.run([sys.executable, "-c", imports + work + report], check=True,

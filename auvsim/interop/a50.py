@@ -40,7 +40,8 @@ of one ping, ``mission_pings`` reads the arrays):
   ``velocity_ls``: the white beam noise through the least squares,
   ``P diag(sigma_k^2) P^T`` with ``P`` the pseudo-inverse of the rows of H of the beams
   used and ``sigma_k = noise_std + noise_range_coeff r_k + noise_speed_coeff |v|``
-  (``auvsim.sensors.dvl.beam_noise_std``, from the dataset's config), plus the shared
+  (``auvsim.interop.pings.ping_errors``, shared with the ROS 2 export; the dataset's
+  config), plus the shared
   Gauss-Markov velocity error's stationary variance ``dvl_slow_error_std^2 I``. Scale
   factors, biases, misalignment (systematic) and outliers (heavy-tailed) are not in it.
   -1 in every entry when the ping has no velocity (``velocity_valid`` false), as
@@ -52,8 +53,9 @@ of one ping, ``mission_pings`` reads the arrays):
   (``tests/test_serve.py`` checks it), where the largest diagonal entry gives 1.564e-4.
   -1 when the covariance is.
 - ``altitude``: "distance to the reflecting surface along the Z axis": the mean over
-  the bottom-locked beams of ``r_k cos(alpha)`` (the slant range's component on the DVL's
-  z axis; ``cos(alpha)`` is H's z column), -1 when no beam has bottom lock.
+  the bottom-locked beams (``ping_errors``) of ``r_k cos(alpha)`` (the slant range's
+  component on the DVL's z axis; ``cos(alpha)`` is H's z column), -1 when no beam has
+  bottom lock.
 - ``transducers[k]``: ``id`` k - 1 for auvsim's beam k (column k - 1 of the dataset's
   beam arrays); ``velocity`` ``dvl/beam_velocity``, ``distance`` ``dvl/beam_range``
   (along the beam), ``beam_valid`` the beam measured with bottom lock (``dvl/valid``,

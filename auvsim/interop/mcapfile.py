@@ -1,9 +1,9 @@
 """An MCAP file of many fixed-size messages, its chunks built with numpy.
 
-``mcap.writer.Writer.add_message`` costs about 4.5 us a message in Python (a record object,
-eight small writes, the statistics and the index, per message): 3.3 s for the 730k
-messages of a one-hour mission, more than the 2x-generation target leaves for the whole
-export (``benchmarks/export.py``). Here the messages of a channel, all one size, are laid
+``mcap.writer.Writer.add_message`` costs about 3.2 us a message in Python (a record object,
+eight small writes, the statistics and the index, per message): 2.4 s for the 760k
+messages of a one-hour mission, more than the generation's 1.8 CPU s (``benchmarks/export.py``
+prints both). Here the messages of a channel, all one size, are laid
 out as records in one numpy array, chunks are cut from their time order and joined, and
 each chunk's message indexes are arrays too; the ``mcap`` package writes every other
 record (``mcap.records``: header, schemas, channels, chunks, chunk indexes, statistics,
@@ -232,8 +232,9 @@ def compressor(name: str):
     if name == "zstd":
         import zstandard
 
-        # Level 1, not the library's 3: on a 600 s navigator bag's chunks (70 MB) it
-        # compressed 6.8x in 0.048 CPU s against 3's 6.7x in 0.065 s (lz4: 5.7x, 0.034 s).
+        # Level 1, not the library's 3: on a one-hour navigator bag's data in 1 MiB pieces
+        # it compressed 6.48x in 0.32 CPU s against 3's 6.50x in 0.44 s (lz4: 5.24x,
+        # 0.25 s; benchmarks/export.py).
         compressor = zstandard.ZstdCompressor(level=1)
         return lambda data: (compressor.compress(data), "zstd")
     if name == "lz4":

@@ -4,17 +4,28 @@ Libraries: ``mcap`` (the format's reference Python package) serialises the file'
 records and ``mcap-ros2-support`` encodes the one message of variable length
 (``/tf_static``). Every other topic has a fixed layout once its frame ids are set, so
 ``auvsim.interop.cdr`` encodes its messages all at once with numpy and
-``auvsim.interop.mcapfile`` lays them out in chunks as arrays: mcap_ros2's encoder and
-the mcap writer's ``add_message``, one Python call a message, take ~45 us and ~4.5 us a
-message, too slow for a one-hour mission's 760k messages (``benchmarks/export.py``).
+``auvsim.interop.mcapfile`` lays them out in chunks as arrays: mcap_ros2's
+``write_message`` (encode and write) and the mcap writer's ``add_message`` (write), one
+Python call a message, take ~27 us and ~3.2 us a message (``benchmarks/export.py``
+prints both): a one-hour mission's 760k messages would take ~11 times its generation.
 ``rosbags`` was the other candidate; it stays the independent reader the tests read the
 bags back with. The mission is encoded and written a minute at a time (``block_s``).
 
 The file follows the MCAP specification's ``ros2`` profile ("Profiles", ROS 2): message
 encoding ``cdr``, schema encoding ``ros2msg`` with every definition the message needs
 embedded (``auvsim.interop.rosmsg``), and each channel's ``offered_qos_profiles``
-metadata (empty: the player's defaults). Chunks are zstd-compressed (level 1) by
-default.
+metadata: empty (the player's defaults) but for ``/tf_static``, which offers what a
+latched topic's publisher offers (keep last 1, reliable, transient local), so that
+``ros2 bag play`` publishes it transient-local and late subscribers get it. The profile
+is written as rosbag2 writes it (rosbag2_storage, ``qos.cpp``, ``convert<Rosbag2QoS>``:
+a YAML list of ``history, depth, reliability, durability, deadline {sec, nsec},
+lifespan, liveliness, liveliness_lease_duration, avoid_ros_namespace_conventions``), with
+the policies as the rmw enums' numbers (rmw ``types.h``: KEEP_LAST 1, RELIABLE 1,
+TRANSIENT_LOCAL 1, AUTOMATIC 1), the form of bag metadata versions up to 8 (Humble).
+Later players read that form when the file has a ``rosbag2`` Metadata record without
+``serialized_metadata`` (rosbag2_storage_mcap, ``MCAPStorage::read_metadata``), so the
+bag has one, ``{"ROS_DISTRO": "humble"}`` as Humble's MCAP plugin writes it. Chunks are
+zstd-compressed (level 1) by default.
 
 Stamps are the mission clock: ``header.stamp`` (and each message's log and publish time)
 is the sample's time from the start of the mission, in whole nanoseconds (rounded), so
@@ -39,22 +50,32 @@ Topics (``TOPICS``; ``topics=`` renames them):
   is -1 (Imu.msg).
 - ``dvl``: ``marine_acoustic_msgs/msg/Dvl`` in ``dvl_link`` per ping. ``velocity`` =
   ``dvl/velocity_ls`` (the instrument's output, NaN with no velocity);
-  ``velocity_covar`` = noise_std^2 (H_v^T H_v)^-1 of the beams that measured (the white
-  beam noise alone; [0] = -1 with no velocity); ``velocity_mode`` 1 bottom track, 2 water
-  track (``dvl/mode`` 0, 1), 0 no velocity (not one of the message's values);
-  ``beam_unit_vec`` the rows of the beam matrix (``auvsim.data.beams``, DVL frame);
-  ``range`` = ``dvl/beam_range``; ``beam_velocity`` = ``dvl/beam_velocity`` (float32 in
-  the message); ``beam_quality`` 1 where ``dvl/valid`` (the beam measured), 0 where not;
-  ``beam_velocity_covar`` noise_std^2 where valid, -1 where not; ``num_good_beams`` the
-  valid beams; ``altitude`` cos(beam angle) x the mean range of the valid beams with a
-  range (Dvl.msg's formula); ``course_gnd``, ``speed_gnd`` from the velocity;
+  ``velocity_covar`` the covariance of the velocity's error under the mission's noise
+  model (``auvsim.interop.pings``: the beams' white noise, growing with speed in bottom
+  track, the water-track noise in water track, through the least squares of the beams
+  that measured, plus the slow error's variance; [0] = -1 with no velocity);
+  ``velocity_mode`` 1 bottom track, 2 water track (``dvl/mode`` 0, 1), 0 no velocity
+  (not one of the message's values); ``beam_unit_vec`` the rows of the beam matrix
+  (``auvsim.data.beams``, DVL frame); ``range`` = ``dvl/beam_range`` of the beams with
+  bottom lock (``pings``: measured, status OK or outlier), NaN for the others (a
+  water-track beam measured the water, not the seafloor); ``beam_velocity`` =
+  ``dvl/beam_velocity`` (float32 in the message); ``beam_quality`` 1 for a beam with
+  bottom lock, 0 otherwise; ``beam_velocity_covar`` each measured beam's error variance
+  (its white noise^2 + the slow error's), -1 where it did not measure;
+  ``num_good_beams`` the beams that measured (the velocity's); ``altitude`` cos(beam
+  angle) x the mean range of the beams with bottom lock (Dvl.msg's formula), NaN with
+  none; ``course_gnd``, ``speed_gnd`` from the velocity;
   ``range_covar`` -1 (unknown); ``sound_speed`` NaN (auvsim models the ratio of the speed
   of sound to the assumed one, not the speed); ``dvl_type`` piston. A recorded DVL
   without beams (``dvl_beams_derived``) says ``beam_velocities_valid`` false.
 - ``depth``: ``geometry_msgs/msg/PoseWithCovarianceStamped`` in ``odom_ned``, the depth
   as ``pose.position.z`` (positive down) and its variance (noise_std^2 +
-  resolution^2 / 12) at covariance[14]; every other entry is 0 and means nothing: fuse z
-  alone (robot_localization's usual way with a depth sensor). A pose, not
+  resolution^2 / 12) at covariance[14]. The sensor measures nothing else: x, y and the
+  orientation (identity) have variance ``UNMEASURED`` (1e9) on the diagonal, the
+  convention of a "massively inflated covariance" that makes a filter ignore a variable
+  (robot_localization, "Migrating from robot_pose_ekf", section "Covariances in Source
+  Messages"; PoseWithCovariance.msg defines no value for "unknown", and a 0 would say
+  "known exactly"); fuse z alone (robot_localization's usual way with a depth sensor). A pose, not
   ``sensor_msgs/msg/FluidPressure``: the sensor's output in the dataset is a depth, and a
   pressure would need a water density and an atmospheric pressure the mission does not
   have, so the value would no longer be the dataset's.
@@ -65,8 +86,8 @@ Topics (``TOPICS``; ``topics=`` renames them):
   ``angular_rate``. The truth's covariances are 0; the reference's are unknown
   (covariance[0] = -1 in both), its twist is C^T ``velocity_ned`` and its angular rate
   NaN (a reference has none), both NaN without attitude.
-- ``tf_static``: ``tf2_msgs/msg/TFMessage``, once, at the first stamp. A player must
-  offer it transient-local for late subscribers (``docs/guides/ros2.md``).
+- ``tf_static``: ``tf2_msgs/msg/TFMessage``, once, at the first stamp, offered
+  transient-local (above) for late subscribers (``docs/guides/ros2.md``).
 """
 
 from __future__ import annotations
