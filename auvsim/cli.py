@@ -361,7 +361,7 @@ def _serve_parser(sub) -> None:
     serve.add_argument("--dvl", choices=("a50",), required=True,
                        help="the instrument to play (required; a50: Water Linked DVL A50)")
     serve.add_argument("--mission", metavar="NAME",
-                       help="the mission to play (default: the first)")
+                       help="the mission to play (default: the dataset's only one)")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to listen on (default: 127.0.0.1, this machine only)")
     serve.add_argument("--port", type=int, default=16171,

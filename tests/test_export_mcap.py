@@ -28,7 +28,6 @@ import pytest
 from auvsim.cli import main
 from auvsim.data.beams import beam_matrix
 from auvsim.data.reader import open_dataset
-from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.runs.generate import generate
@@ -128,47 +127,42 @@ def test_every_message_is_the_dataset(dataset, bag):
         dvl = [msg for _, msg in topics["/dvl/data"]]
         d = m.dvl
         valid, beams, ranges, mode = d.valid, d.beam_velocity, d.beam_range, d.mode
+        measured = valid & np.isfinite(beams)
+        locked = measured & np.isin(d.status, (0, 9))  # Status.OK, OUTLIER: bottom lock
         assert len(dvl) == len(d.time) and (~valid).any() and valid.any()
         np.testing.assert_array_equal([ns_of(x) for x in dvl], np.round(d.time * 1e9))
         np.testing.assert_array_equal(vec(x.velocity for x in dvl), d.velocity_ls)
         v = d.velocity_ls
         np.testing.assert_array_equal([x.course_gnd for x in dvl], np.arctan2(v[:, 1], v[:, 0]))
         np.testing.assert_array_equal([x.speed_gnd for x in dvl], np.hypot(v[:, 0], v[:, 1]))
-        np.testing.assert_array_equal([x.range for x in dvl], ranges)
+        np.testing.assert_array_equal([x.range for x in dvl],
+                                      np.where(locked, ranges, np.nan))
         np.testing.assert_array_equal([x.beam_velocity for x in dvl],
                                       beams.astype(np.float32))
-        np.testing.assert_array_equal([x.beam_quality for x in dvl], valid.astype(float))
-        np.testing.assert_array_equal([x.num_good_beams for x in dvl], valid.sum(axis=1))
+        np.testing.assert_array_equal([x.beam_quality for x in dvl], locked.astype(float))
+        np.testing.assert_array_equal([x.num_good_beams for x in dvl], measured.sum(axis=1))
         expected_mode = np.select([mode == 0, mode == 1], [1, 2], 0)
         np.testing.assert_array_equal([x.velocity_mode for x in dvl], expected_mode)
         angle = math.radians(a["beam_angle_deg"])
         h = beam_matrix(angle)
         for x in dvl:
             np.testing.assert_array_equal(vec(x.beam_unit_vec), h)
-        good = valid & np.isfinite(ranges)
+        good = locked & np.isfinite(ranges)
         with np.errstate(invalid="ignore", divide="ignore"):
             altitude = math.cos(angle) * (np.where(good, ranges, 0).sum(axis=1)
                                           / good.sum(axis=1))
         np.testing.assert_allclose([x.altitude for x in dvl], altitude, rtol=1e-12)
-        sigma2 = a["dvl_noise_std"] ** 2
-        four = valid.all(axis=1)
-        assert four.any()
-        for x in np.array(dvl, dtype=object)[four]:
-            np.testing.assert_allclose(np.reshape(x.velocity_covar, (3, 3)),
-                                       sigma2 * np.linalg.inv(h.T @ h), rtol=1e-12,
-                                       atol=1e-20)
         none = ~np.isfinite(d.velocity_ls[:, 0])
         assert none.any()
         assert all(x.velocity_covar[0] == -1 for x in np.array(dvl, dtype=object)[none])
-        np.testing.assert_array_equal(
-            [x.beam_velocity_covar for x in dvl],
-            np.where(valid, np.float32(sigma2), np.float32(-1)))
 
         depth = [msg for _, msg in topics["/depth/pose"]]
         np.testing.assert_array_equal([ns_of(x) for x in depth], np.round(m.depth.time * 1e9))
         np.testing.assert_array_equal([x.pose.pose.position.z for x in depth], m.depth.depth)
-        assert depth[0].pose.covariance[14] == (a["depth_noise_std"] ** 2
-                                                + a["depth_resolution"] ** 2 / 12)
+        z = a["depth_noise_std"] ** 2 + a["depth_resolution"] ** 2 / 12
+        # only z is measured: every other pose component's variance is huge (unknown)
+        np.testing.assert_array_equal(np.reshape(depth[0].pose.covariance, (6, 6)),
+                                      np.diag([1e9, 1e9, z, 1e9, 1e9, 1e9]))
         assert depth[0].header.frame_id == "odom_ned"
 
         odom = [msg for _, msg in topics["/truth/odometry"]]
@@ -203,6 +197,79 @@ def test_every_message_is_the_dataset(dataset, bag):
         np.testing.assert_allclose(rot @ [0, 0, 1], [0, 0, -1], atol=1e-15)
 
 
+def _janus_covariance(sigma: float, slow: float, angle: float) -> np.ndarray:
+    """The covariance of the least squares of four Janus beams at ``angle`` from the z
+    axis, each with white noise ``sigma`` and all sharing a velocity error of std
+    ``slow`` per axis: H^T H = diag(2 sin^2, 2 sin^2, 4 cos^2) for beams at azimuths 90 deg
+    apart, so the white part is sigma^2 diag(1 / (2 sin^2), 1 / (2 sin^2), 1 / (4 cos^2)),
+    and the shared error passes through the least squares unchanged."""
+    white = sigma**2 * np.diag([1 / (2 * math.sin(angle) ** 2)] * 2
+                               + [1 / (4 * math.cos(angle) ** 2)])
+    return white + slow**2 * np.eye(3)
+
+
+def test_the_dvl_covariances_are_the_noise_models(dataset, bag):
+    """The velocity's and each beam's covariance from the config's noise settings, in
+    closed form on the pings of four beams: in bottom track the white beam noise grows
+    with the true speed (noise_std + noise_speed_coeff |v|), in water track it is
+    water_track_noise_std, and the Gauss-Markov slow error (slow_error_std per axis) adds
+    to both."""
+    from auvsim.config import Config
+
+    dvl = [msg for _, msg in read_bag(bag)["/dvl/data"]]
+    with open_dataset(dataset) as ds:
+        m = next(iter(ds.missions.values()))
+        c = Config.from_json(ds.config_json).dvl
+        d = m.dvl
+        measured = d.valid & np.isfinite(d.beam_velocity)
+        speed = np.linalg.norm(d.velocity, axis=1)
+        mode = d.mode
+    assert c.noise_speed_coeff > 0 and c.slow_error_std > 0 and c.water_track
+    assert c.noise_range_coeff == 0  # the navigator's: no range term
+    angle = math.radians(c.beam_angle_deg)
+    seen = set()
+    for n, x in enumerate(dvl):
+        if not measured[n].all() or mode[n] not in (0, 1):
+            continue
+        sigma = (c.noise_std + c.noise_speed_coeff * speed[n] if mode[n] == 0
+                 else c.water_track_noise_std)
+        np.testing.assert_allclose(np.reshape(x.velocity_covar, (3, 3)),
+                                   _janus_covariance(sigma, c.slow_error_std, angle),
+                                   rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(x.beam_velocity_covar,
+                                   np.float32(sigma**2 + c.slow_error_std**2), rtol=1e-6)
+        seen.add(int(mode[n]))
+    assert seen == {0, 1}  # bottom track and water track were both checked
+    for n, x in enumerate(dvl):
+        assert all((cov == -1) == (not used) for cov, used in
+                   zip(x.beam_velocity_covar, measured[n], strict=True))
+
+
+def test_water_track_beams_give_no_seafloor(dataset, bag):
+    """A water-track ping's beams measured the water: a beam without bottom lock gives
+    no range, no altitude and no beam quality, though ``dvl/valid`` flags it."""
+    dvl = [msg for _, msg in read_bag(bag)["/dvl/data"]]
+    with open_dataset(dataset) as ds:
+        d = next(iter(ds.missions.values())).dvl
+        measured = d.valid & np.isfinite(d.beam_velocity)
+        unlocked = measured & ~np.isin(d.status, (0, 9))
+        water = d.mode == 1
+        ranges = d.beam_range
+    # water-track pings with measured, unlocked beams that have a seafloor range
+    cases = np.flatnonzero(water & (unlocked & np.isfinite(ranges)).any(axis=1))
+    assert len(cases) > 0
+    for n in cases:
+        x = dvl[n]
+        assert x.velocity_mode == 2
+        for k in np.flatnonzero(unlocked[n]):
+            assert x.beam_quality[k] == 0 and math.isnan(x.range[k])
+        # the altitude: the locked beams' ranges alone (NaN with none)
+        locked = measured[n] & ~unlocked[n] & np.isfinite(ranges[n])
+        expected = (np.mean(ranges[n, locked]) * math.cos(math.radians(30.0))
+                    if locked.any() else math.nan)
+        np.testing.assert_allclose(x.altitude, expected, rtol=1e-12)
+
+
 def _rotation(w, x, y, z) -> np.ndarray:
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
@@ -224,8 +291,9 @@ def test_the_vectorised_bytes_are_mcap_ros2s(bag):
     """Sample messages of every topic, decoded by rosbags and encoded again by mcap_ros2's
     own (one message at a time) encoder, give the bag's bytes."""
     from mcap.reader import make_reader
-    from mcap_ros2._dynamic import serialize_dynamic
     from rosbags.highlevel import AnyReader
+
+    from auvsim.interop.ros2 import encoded_once  # mcap_ros2.writer.Writer's encoding
 
     raw: dict[str, list[bytes]] = {}
     with open(bag, "rb") as f:
@@ -237,11 +305,32 @@ def test_the_vectorised_bytes_are_mcap_ros2s(bag):
     with AnyReader([bag]) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
         for topic, payloads in raw.items():
-            encode = serialize_dynamic(types[topic], rosmsg.schema_text(types[topic]))[
-                types[topic]]
             for data in payloads[:: max(1, len(payloads) // 7)]:
                 message = reader.deserialize(data, types[topic])
-                assert encode(_plain(message)) == data, topic
+                assert encoded_once(types[topic], _plain(message)) == data, topic
+
+
+def test_tf_static_is_offered_latched_as_rosbag2_records_it(bag):
+    """/tf_static's channel offers one QoS profile, in rosbag2's YAML (rosbag2_storage,
+    qos.cpp, the integer form of metadata versions up to 8): keep last 1, reliable (1),
+    transient local (1), so that ``ros2 bag play`` latches it for late subscribers; the
+    other topics offer none (the player's defaults). The "rosbag2" Metadata record
+    without serialized metadata makes newer players read that integer form."""
+    import yaml
+    from mcap.reader import make_reader
+
+    with open(bag, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        channels = {c.topic: c.metadata for c in reader.get_summary().channels.values()}
+        records = {r.name: r.metadata for r in reader.iter_metadata()}
+    [profile] = yaml.safe_load(channels.pop("/tf_static")["offered_qos_profiles"])
+    assert profile == {"history": 1, "depth": 1, "reliability": 1, "durability": 1,
+                       "deadline": {"sec": 0, "nsec": 0}, "lifespan": {"sec": 0, "nsec": 0},
+                       "liveliness": 1,
+                       "liveliness_lease_duration": {"sec": 0, "nsec": 0},
+                       "avoid_ros_namespace_conventions": False}
+    assert all(m == {"offered_qos_profiles": ""} for m in channels.values())
+    assert "serialized_metadata" not in records["rosbag2"]
 
 
 def test_blocks_of_time_change_nothing_but_the_chunks(dataset, bag, tmp_path):
@@ -337,7 +426,7 @@ _KILLED = """
 import sys, time
 from pathlib import Path
 import auvsim.interop.mcapfile as mcapfile
-original = mcapfile._compressor
+original = mcapfile.compressor
 def slow(name):
     compress = original(name)
     def one(data):
@@ -345,7 +434,7 @@ def slow(name):
         time.sleep(60)
         return compress(data)
     return one
-mcapfile._compressor = slow
+mcapfile.compressor = slow
 from auvsim.cli import main
 sys.exit(main(["export", sys.argv[1], "--to", "mcap", "--out", sys.argv[2]]))
 """

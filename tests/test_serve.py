@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ from auvsim.data.reader import open_dataset
 from auvsim.interop.a50 import (
     SETTINGS,
     DeadReckoning,
+    Lateness,
     figure_of_merit,
     respond,
     rpy_deg,
@@ -61,6 +63,7 @@ def play(path: Path, commands: list[dict] = (), **options) -> tuple[list[dict], 
     objects read and the server's summary."""
     where: queue.Queue = queue.Queue()
     summary: dict = {}
+    options = {"mission": "a", **options}
     thread = threading.Thread(target=lambda: summary.update(serve(
         path, port=0, wait_for_client=True, ready=lambda h, p, _: where.put((h, p)),
         **options)))
@@ -174,7 +177,7 @@ def test_several_clients_read_the_same_stream(dataset):
         for _ in range(2):
             clients.put(socket.create_connection((host, port), timeout=30))
 
-    thread = threading.Thread(target=serve, args=(dataset,), kwargs=dict(
+    thread = threading.Thread(target=serve, args=(dataset, "a"), kwargs=dict(
         port=0, speed=500.0, wait_for_client=True, ready=connect))
     thread.start()
     streams = [b"", b""]
@@ -232,6 +235,43 @@ def test_reset_over_the_socket_zeroes_the_dead_reckoning(dataset):
                                                                           abs=1e-12)
 
 
+def test_lateness_is_measured_once_the_lines_are_written(dataset, monkeypatch):
+    """Encoding a report's lines takes 2 x 4 ms here: the lateness counts it (it is
+    measured after the lines are written, not when the report is built)."""
+    dumps = json.dumps
+
+    def slow(*args, **kwargs):
+        end = time.monotonic() + 0.004
+        while time.monotonic() < end:
+            pass
+        return dumps(*args, **kwargs)
+
+    monkeypatch.setattr(json, "dumps", slow)
+    _, summary = play(dataset, speed=20.0)
+    lateness = summary["lateness"]
+    assert lateness.count == summary["reports"] == 200
+    assert lateness.median() >= 0.008 and lateness.largest >= 0.008
+    assert lateness.over == lateness.count  # all over 5 ms
+
+
+def test_lateness_statistics_keep_constant_memory():
+    """Over more reports than the reservoir holds: the count, the largest and the count
+    over 5 ms exact, the median from the sample within a few percentiles of the true
+    one, the memory the reservoir's."""
+    values = np.random.default_rng(1).exponential(0.002, 50_000)
+    lateness = Lateness()
+    for v in values[:100]:
+        lateness.add(float(v))
+    assert lateness.median() == np.median(values[:100])  # exact while the sample is all
+    for v in values[100:]:
+        lateness.add(float(v))
+    assert lateness.count == len(values) and lateness.largest == values.max()
+    assert lateness.over == int((values > 0.005).sum())
+    assert len(lateness.sample) == Lateness.RESERVOIR
+    rank = (values < lateness.median()).mean()
+    assert 0.47 < rank < 0.53  # the sample median's rank among all values
+
+
 def test_figure_of_merit_of_the_documents_example():
     """The protocol document's example report: its covariance and its fom."""
     covariance = np.array([
@@ -253,7 +293,7 @@ def test_stop_leaves_no_thread_and_no_port(dataset):
     before = threading.active_count()
     where: queue.Queue = queue.Queue()
     stop = threading.Event()
-    thread = threading.Thread(target=serve, args=(dataset,), kwargs=dict(
+    thread = threading.Thread(target=serve, args=(dataset, "a"), kwargs=dict(
         port=0, loop=True, stop=stop, speed=50.0, ready=lambda h, p, _: where.put((h, p))))
     thread.start()
     host, port = where.get(timeout=30)
@@ -276,7 +316,8 @@ def run_cli(*args: str, **popen) -> subprocess.Popen:
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_the_command_and_frees_the_port(dataset, signum):
-    process = run_cli("serve", str(dataset), "--dvl", "a50", "--port", "0", "--loop")
+    process = run_cli("serve", str(dataset), "--dvl", "a50", "--mission", "a", "--port", "0",
+                      "--loop")
     line = process.stdout.readline()
     port = int(line.split("127.0.0.1:")[1].split(":")[0])
     with socket.create_connection(("127.0.0.1", port), timeout=10) as client:
@@ -301,7 +342,8 @@ def test_the_command_ends_with_the_mission(dataset):
 def test_bad_input_one_line_exit_2(dataset, tmp_path):
     with socket.create_server(("127.0.0.1", 0)) as held:
         port = held.getsockname()[1]
-        process = run_cli("serve", str(dataset), "--dvl", "a50", "--port", str(port))
+        process = run_cli("serve", str(dataset), "--dvl", "a50", "--mission", "a", "--port",
+                          str(port))
         out, err = process.communicate(timeout=60)
         assert process.returncode == 2 and out == ""
         assert err.splitlines() == [f"auvsim: error: --port {port} is in use on 127.0.0.1; "
@@ -310,9 +352,10 @@ def test_bad_input_one_line_exit_2(dataset, tmp_path):
     text = tmp_path / "notes.h5"
     text.write_text("not a dataset")
     for args, says in (
-            (["--mission", "nope"], "--mission 'nope': not a mission of"),
-            (["--speed", "0"], "--speed expected a factor > 0"),
-            (["--port", "70000"], "--port expected a TCP port in [0, 65535]")):
+            (["--mission", "nope"], "--mission 'nope': no such mission; expected one of a, b"),
+            ([], "--mission: the dataset has 2 missions (a, b); expected one named"),
+            (["--mission", "a", "--speed", "0"], "--speed expected a factor > 0"),
+            (["--mission", "a", "--port", "70000"], "--port expected a TCP port in [0, 65535]")):
         process = run_cli("serve", str(dataset), "--dvl", "a50", *args)
         out, err = process.communicate(timeout=60)
         assert process.returncode == 2 and len(err.splitlines()) == 1 and says in err, err

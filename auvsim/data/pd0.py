@@ -242,17 +242,8 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
         raise ConfigError(f": expected one of {', '.join(COORDINATES)}, got {coordinates!r}",
                           argument="coordinates")
     with open_dataset(dataset) as ds:
-        names = list(ds.missions)
-        if mission is None:
-            if len(names) != 1:
-                raise ConfigError(f": the dataset has {len(names)} missions ("
-                                  f"{', '.join(names[:5])}{', ...' if len(names) > 5 else ''})"
-                                  "; a PD0 file holds one DVL's: name one", argument="mission")
-            mission = names[0]
-        if mission not in ds.missions:
-            raise ConfigError(f"{mission!r}: no such mission; the dataset has "
-                              f"{', '.join(names[:5])}", argument="mission")
-        m = ds.missions[mission]
+        m = ds.mission(mission)  # a PD0 file holds one DVL's pings
+        mission = m.name
         if not m.has("dvl") or "beam_velocity" not in m.dvl:
             raise ConfigError(f"mission {mission!r} has no DVL beams (dvl/beam_velocity); "
                               "expected a mission with a DVL", argument="dataset")

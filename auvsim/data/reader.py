@@ -32,7 +32,7 @@ from auvsim.data.schema import (
     recorded_schema,
     schema,
 )
-from auvsim.errors import DatasetError
+from auvsim.errors import ConfigError, DatasetError
 from auvsim.sensors.dvl import usable_beams
 
 if TYPE_CHECKING:
@@ -238,6 +238,26 @@ class Dataset:
     @property
     def config_json(self) -> str:
         return str(self.attrs.get("config_json", ""))
+
+    def mission(self, name: str | None = None) -> Mission:
+        """The mission called ``name``; with None, the dataset's only mission (a command
+        that reads one mission never guesses which of several is meant).
+
+        Raises:
+            ConfigError: (``argument="mission"``) ``name`` is not a mission of the
+                dataset, or it is None and the dataset has several missions.
+        """
+        names = list(self.missions)
+        listed = f"{', '.join(names[:10])}{', ...' if len(names) > 10 else ''}"
+        if name is None:
+            if len(names) != 1:
+                raise ConfigError(f": the dataset has {len(names)} missions ({listed}); "
+                                  "expected one named", argument="mission")
+            name = names[0]
+        if name not in self.missions:
+            raise ConfigError(f"{str(name)[:80]!r}: no such mission; expected one of "
+                              f"{listed}", argument="mission")
+        return self.missions[name]
 
     def _derived_phases(self) -> dict[str, Phases]:
         """Every mission's phases rebuilt from the config (files before schema v6): its

@@ -40,7 +40,8 @@ of one ping, ``mission_pings`` reads the arrays):
   ``velocity_ls``: the white beam noise through the least squares,
   ``P diag(sigma_k^2) P^T`` with ``P`` the pseudo-inverse of the rows of H of the beams
   used and ``sigma_k = noise_std + noise_range_coeff r_k + noise_speed_coeff |v|``
-  (``auvsim.sensors.dvl.beam_noise_std``, from the dataset's config), plus the shared
+  (``auvsim.interop.pings.ping_errors``, shared with the ROS 2 export; the dataset's
+  config), plus the shared
   Gauss-Markov velocity error's stationary variance ``dvl_slow_error_std^2 I``. Scale
   factors, biases, misalignment (systematic) and outliers (heavy-tailed) are not in it.
   -1 in every entry when the ping has no velocity (``velocity_valid`` false), as
@@ -52,8 +53,9 @@ of one ping, ``mission_pings`` reads the arrays):
   (``tests/test_serve.py`` checks it), where the largest diagonal entry gives 1.564e-4.
   -1 when the covariance is.
 - ``altitude``: "distance to the reflecting surface along the Z axis": the mean over
-  the bottom-locked beams of ``r_k cos(alpha)`` (the slant range's component on the DVL's
-  z axis; ``cos(alpha)`` is H's z column), -1 when no beam has bottom lock.
+  the bottom-locked beams (``ping_errors``) of ``r_k cos(alpha)`` (the slant range's
+  component on the DVL's z axis; ``cos(alpha)`` is H's z column), -1 when no beam has
+  bottom lock.
 - ``transducers[k]``: ``id`` k - 1 for auvsim's beam k (column k - 1 of the dataset's
   beam arrays); ``velocity`` ``dvl/beam_velocity``, ``distance`` ``dvl/beam_range``
   (along the beam), ``beam_valid`` the beam measured with bottom lock (``dvl/valid``,
@@ -110,6 +112,7 @@ from __future__ import annotations
 import errno
 import json
 import math
+import random
 import selectors
 import socket
 import threading
@@ -173,10 +176,9 @@ def mission_pings(mission) -> Pings:
     Raises:
         DatasetError: the mission is not simulated, or has no pings.
     """
-    from auvsim.config import Config
-    from auvsim.data.beams import beam_matrix, usable_beams
+    from auvsim.interop.pings import ping_errors
     from auvsim.physics.frames import rotation_matrices, rotation_rpy
-    from auvsim.sensors.dvl import Mode, Status, beam_noise_std
+    from auvsim.sensors.dvl import Mode
 
     if mission.origin != "simulated" or not mission.has("truth"):
         raise DatasetError(f"mission {mission.name!r} is {mission.origin}; expected a "
@@ -186,30 +188,16 @@ def mission_pings(mission) -> Pings:
     t = np.asarray(dvl.time, dtype=float)
     if len(t) == 0:
         raise DatasetError(f"mission {mission.name!r} has no DVL pings")
-    h = beam_matrix(math.radians(float(a["beam_angle_deg"])))
     beams, ranges = np.asarray(dvl.beam_velocity), np.asarray(dvl.beam_range)
-    locked = usable_beams(dvl.valid, beams)
-    if "status" in dvl:
-        locked &= np.isin(np.asarray(dvl.status), (int(Status.OK), int(Status.OUTLIER)))
+    errors = ping_errors(mission)
+    locked = errors.locked
     velocity = np.asarray(dvl.velocity_ls, dtype=float)
-    valid = np.isfinite(velocity).all(axis=1) & (locked.sum(axis=1) >= 3)
+    # json_v3.1 has no word for water track: only a bottom-track velocity is valid
+    valid = np.isfinite(errors.covariance[:, 0, 0]) & (locked.sum(axis=1) >= 3)
     if "mode" in dvl:
         valid &= np.asarray(dvl.mode) == int(Mode.BOTTOM_TRACK)
-    with np.errstate(invalid="ignore"):
-        vertical = np.where(locked, ranges * h[:, 2], 0.0)
-        count = locked.sum(axis=1)
-        altitude = np.where(count > 0, vertical.sum(axis=1) / np.maximum(count, 1), -1.0)
-
-    config = Config.from_json(mission.dataset.config_json).dvl
-    speed = np.linalg.norm(np.asarray(dvl.velocity, dtype=float), axis=1)
-    sigma = beam_noise_std(np.where(np.isfinite(ranges), ranges, 0.0), speed, config)
-    slow = float(a.get("dvl_slow_error_std", 0.0))
-    covariance = np.full((len(t), 3, 3), np.nan)
-    for n in np.flatnonzero(valid):
-        use = locked[n]
-        p = np.linalg.pinv(h[use])
-        c = (p * sigma[n, use] ** 2) @ p.T + slow**2 * np.eye(3)
-        covariance[n] = (c + c.T) / 2  # symmetric to the last bit
+    altitude = np.where(np.isfinite(errors.altitude), errors.altitude, -1.0)
+    covariance = np.where(valid[:, None, None], errors.covariance, np.nan)
 
     mounting = rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"]))
     if "dvl_misalignment_rpy_deg" in a:  # true DVL frame -> nominal
@@ -364,6 +352,37 @@ def _setting_problem(name: str, value) -> str:
     return "" if isinstance(value, str) else f"{name}: expected a string"
 
 
+class Lateness:
+    """Running statistics of the reports' lateness, s, in constant memory (a server that
+    loops runs for days): the count, the largest, the count over 5 ms (the target), and
+    a uniform sample of at most ``RESERVOIR`` values (reservoir sampling, Vitter's
+    algorithm R, seeded: the same lateness gives the same sample) for the median, exact
+    while fewer values came."""
+
+    RESERVOIR = 4096
+    LIMIT_S = 0.005
+
+    def __init__(self) -> None:
+        self.count, self.largest, self.over = 0, 0.0, 0
+        self.sample: list[float] = []
+        self._rng = random.Random(0)
+
+    def add(self, seconds: float) -> None:
+        self.count += 1
+        self.largest = max(self.largest, seconds)
+        self.over += seconds > self.LIMIT_S
+        if len(self.sample) < self.RESERVOIR:
+            self.sample.append(seconds)
+        else:
+            k = self._rng.randrange(self.count)
+            if k < self.RESERVOIR:
+                self.sample[k] = seconds
+
+    def median(self) -> float:
+        """The sample's median, s (NaN before any report)."""
+        return float(np.median(self.sample)) if self.sample else math.nan
+
+
 class _Client:
     def __init__(self, sock: socket.socket) -> None:
         self.sock = sock
@@ -382,7 +401,7 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
 
     Args:
         dataset: an auvsim dataset.
-        mission: its name (default: the first mission).
+        mission: its name; None for a dataset of one mission.
         host, port: where to listen (port 0: any free port, ``ready`` says which).
         speed: the mission's seconds per wall-clock second, > 0.
         loop: play the mission again from its start after its last ping, until stopped.
@@ -392,9 +411,10 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
         stop: set it (from another thread) to stop within 50 ms.
 
     Returns:
-        ``{"mission", "reports", "clients", "lateness_s"}``: the velocity reports sent,
-        the clients that connected, and each report's lateness, s (the monotonic clock
-        when it was written, minus when it was due).
+        ``{"mission", "reports", "clients", "lateness"}``: the velocity reports sent,
+        the clients that connected, and the reports' lateness (``Lateness``: the
+        monotonic clock once a ping's lines are written to every client's socket, minus
+        when the ping was due), in constant memory however long ``loop`` plays.
 
     Raises:
         ConfigError: a speed, port or host that cannot be used, or a port in use.
@@ -409,13 +429,7 @@ def serve(dataset: str | Path, mission: str | None = None, *, host: str = "127.0
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ConfigError(f"expected a TCP port in [0, 65535], got {port!r}", argument="port")
     with open_dataset(dataset) as ds:
-        names = list(ds.missions)
-        name = names[0] if mission is None else mission
-        if name not in ds.missions:
-            raise DatasetError(f"{name[:80]!r}: not a mission of {dataset}; expected one of "
-                               f"{', '.join(names[:10])}{' ...' if len(names) > 10 else ''}",
-                               argument="mission")
-        pings = mission_pings(ds.missions[name])
+        pings = mission_pings(ds.mission(mission))
     listener = _listen(host, port)
     selector = selectors.DefaultSelector()
     clients: dict[socket.socket, _Client] = {}
@@ -459,7 +473,7 @@ def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelecto
     t = pings.time
     period = t[-1] - t[0] + pings.interval_ms[0] / 1e3  # one lap, and the gap to the next
     start, start_us = time.monotonic(), time.time_ns() // 1000
-    lateness: list[float] = []
+    lateness = Lateness()
     accepted, n, lap = 0, 0, 0
     while stop is None or not stop.is_set():
         offset = lap * period + (t[n] - t[0])  # mission seconds from the start
@@ -476,21 +490,21 @@ def _play(pings: Pings, listener: socket.socket, selector: selectors.BaseSelecto
         if wait > 0:
             time.sleep(wait)
         validity = start_us + round(offset * 1e6)
+        position = dead_reckoning.step(pings, n, validity / 1e6)
         report = velocity_report(pings, n, time_of_validity=validity,
                                  time_of_transmission=time.time_ns() // 1000)
-        lateness.append(time.monotonic() - due)
-        position = dead_reckoning.step(pings, n, validity / 1e6)
         line = (json.dumps(report) + "\n" + json.dumps(position) + "\n").encode()
         for client in list(clients.values()):
             _send(selector, clients, client, line)
+        lateness.add(time.monotonic() - due)  # once written to every client's socket
         n += 1
         if n == len(pings):
             if not loop:
                 break
             n, lap = 0, lap + 1
     _flush(selector, listener, clients, settings, dead_reckoning, seconds=1.0)
-    return {"mission": pings.name, "reports": len(lateness), "clients": accepted,
-            "lateness_s": np.asarray(lateness)}
+    return {"mission": pings.name, "reports": lateness.count, "clients": accepted,
+            "lateness": lateness}
 
 
 def _handle(selector, listener, clients, settings, dead_reckoning, *, timeout: float) -> int:

@@ -1,9 +1,9 @@
 """An MCAP file of many fixed-size messages, its chunks built with numpy.
 
-``mcap.writer.Writer.add_message`` costs about 4.5 us a message in Python (a record object,
-eight small writes, the statistics and the index, per message): 3.3 s for the 730k
-messages of a one-hour mission, more than the 2x-generation target leaves for the whole
-export (``benchmarks/export.py``). Here the messages of a channel, all one size, are laid
+``mcap.writer.Writer.add_message`` costs about 3.2 us a message in Python (a record object,
+eight small writes, the statistics and the index, per message): 2.4 s for the 760k
+messages of a one-hour mission, more than the generation's 1.8 CPU s (``benchmarks/export.py``
+prints both). Here the messages of a channel, all one size, are laid
 out as records in one numpy array, chunks are cut from their time order and joined, and
 each chunk's message indexes are arrays too; the ``mcap`` package writes every other
 record (``mcap.records``: header, schemas, channels, chunks, chunk indexes, statistics,
@@ -88,7 +88,8 @@ def _message_index(channel: int, times: np.ndarray, offsets: np.ndarray) -> byte
 def write_mcap(f: BinaryIO, *, profile: str, library: str,
                schemas: dict[str, tuple[str, bytes]], topics: Sequence[Topic],
                blocks: Iterable[Block], compression: str = "zstd",
-               chunk_size: int = CHUNK_SIZE) -> list[int]:
+               chunk_size: int = CHUNK_SIZE,
+               metadata: dict[str, dict[str, str]] | None = None) -> list[int]:
     """Write an MCAP file into ``f`` (at its start), block by block, so that only one
     block's messages are in memory at a time.
 
@@ -102,6 +103,8 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str,
             than one in the next); a chunk never spans two blocks.
         compression: ``zstd``, ``lz4`` or ``none``.
         chunk_size: the uncompressed size after which a chunk is closed, bytes.
+        metadata: Metadata records, name -> key/value pairs, written after the
+            channels and indexed in the summary.
 
     Returns:
         The number of messages of each topic.
@@ -114,12 +117,14 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str,
         ChunkIndex,
         DataEnd,
         Header,
+        Metadata,
+        MetadataIndex,
         Schema,
         Statistics,
         SummaryOffset,
     )
 
-    compress = _compressor(compression)
+    compress = compressor(compression)
     builder = RecordBuilder()
 
     def put(*records) -> int:
@@ -139,6 +144,11 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str,
                                metadata=t.metadata, schema_id=schema_ids[t.schema])
                        for i, t in enumerate(topics)]
     put(*schema_records, *channel_records)
+    metadata_indexes = []
+    for name, pairs in (metadata or {}).items():
+        start = put(Metadata(name=name, metadata=dict(pairs)))
+        metadata_indexes.append(MetadataIndex(offset=start, length=f.tell() - start,
+                                              name=name))
 
     counts = [0] * len(topics)
     chunk_indexes = []
@@ -185,7 +195,7 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str,
 
     statistics = Statistics(
         message_count=sum(counts), schema_count=len(schemas), channel_count=len(topics),
-        attachment_count=0, metadata_count=0, chunk_count=len(chunk_indexes),
+        attachment_count=0, metadata_count=len(metadata_indexes), chunk_count=len(chunk_indexes),
         message_start_time=min((c.message_start_time for c in chunk_indexes), default=0),
         message_end_time=max((c.message_end_time for c in chunk_indexes), default=0),
         channel_message_counts={i + 1: n for i, n in enumerate(counts)})
@@ -203,6 +213,7 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str,
     groups = []
     for opcode, records in ((Opcode.SCHEMA, schema_records), (Opcode.CHANNEL, channel_records),
                             (Opcode.STATISTICS, [statistics]),
+                            (Opcode.METADATA_INDEX, metadata_indexes),
                             (Opcode.CHUNK_INDEX, chunk_indexes)):
         if records:
             begin, length = add(*records)
@@ -215,12 +226,15 @@ def write_mcap(f: BinaryIO, *, profile: str, library: str,
     return counts
 
 
-def _compressor(name: str):
+def compressor(name: str):
+    """The function ``data -> (compressed, the Chunk's compression name)`` of a
+    compression, ``zstd``, ``lz4`` or ``none``."""
     if name == "zstd":
         import zstandard
 
-        # Level 1, not the library's 3: on a 600 s navigator bag's chunks (70 MB) it
-        # compressed 6.8x in 0.048 CPU s against 3's 6.7x in 0.065 s (lz4: 5.7x, 0.034 s).
+        # Level 1, not the library's 3: on a one-hour navigator bag's data in 1 MiB pieces
+        # it compressed 6.48x in 0.32 CPU s against 3's 6.50x in 0.44 s (lz4: 5.24x,
+        # 0.25 s; benchmarks/export.py).
         compressor = zstandard.ZstdCompressor(level=1)
         return lambda data: (compressor.compress(data), "zstd")
     if name == "lz4":

@@ -4,17 +4,28 @@ Libraries: ``mcap`` (the format's reference Python package) serialises the file'
 records and ``mcap-ros2-support`` encodes the one message of variable length
 (``/tf_static``). Every other topic has a fixed layout once its frame ids are set, so
 ``auvsim.interop.cdr`` encodes its messages all at once with numpy and
-``auvsim.interop.mcapfile`` lays them out in chunks as arrays: mcap_ros2's encoder and
-the mcap writer's ``add_message``, one Python call a message, take ~45 us and ~4.5 us a
-message, too slow for a one-hour mission's 760k messages (``benchmarks/export.py``).
+``auvsim.interop.mcapfile`` lays them out in chunks as arrays: mcap_ros2's
+``write_message`` (encode and write) and the mcap writer's ``add_message`` (write), one
+Python call a message, take ~27 us and ~3.2 us a message (``benchmarks/export.py``
+prints both): a one-hour mission's 760k messages would take ~11 times its generation.
 ``rosbags`` was the other candidate; it stays the independent reader the tests read the
 bags back with. The mission is encoded and written a minute at a time (``block_s``).
 
 The file follows the MCAP specification's ``ros2`` profile ("Profiles", ROS 2): message
 encoding ``cdr``, schema encoding ``ros2msg`` with every definition the message needs
 embedded (``auvsim.interop.rosmsg``), and each channel's ``offered_qos_profiles``
-metadata (empty: the player's defaults). Chunks are zstd-compressed (level 1) by
-default.
+metadata: empty (the player's defaults) but for ``/tf_static``, which offers what a
+latched topic's publisher offers (keep last 1, reliable, transient local), so that
+``ros2 bag play`` publishes it transient-local and late subscribers get it. The profile
+is written as rosbag2 writes it (rosbag2_storage, ``qos.cpp``, ``convert<Rosbag2QoS>``:
+a YAML list of ``history, depth, reliability, durability, deadline {sec, nsec},
+lifespan, liveliness, liveliness_lease_duration, avoid_ros_namespace_conventions``), with
+the policies as the rmw enums' numbers (rmw ``types.h``: KEEP_LAST 1, RELIABLE 1,
+TRANSIENT_LOCAL 1, AUTOMATIC 1), the form of bag metadata versions up to 8 (Humble).
+Later players read that form when the file has a ``rosbag2`` Metadata record without
+``serialized_metadata`` (rosbag2_storage_mcap, ``MCAPStorage::read_metadata``), so the
+bag has one, ``{"ROS_DISTRO": "humble"}`` as Humble's MCAP plugin writes it. Chunks are
+zstd-compressed (level 1) by default.
 
 Stamps are the mission clock: ``header.stamp`` (and each message's log and publish time)
 is the sample's time from the start of the mission, in whole nanoseconds (rounded), so
@@ -39,22 +50,32 @@ Topics (``TOPICS``; ``topics=`` renames them):
   is -1 (Imu.msg).
 - ``dvl``: ``marine_acoustic_msgs/msg/Dvl`` in ``dvl_link`` per ping. ``velocity`` =
   ``dvl/velocity_ls`` (the instrument's output, NaN with no velocity);
-  ``velocity_covar`` = noise_std^2 (H_v^T H_v)^-1 of the beams that measured (the white
-  beam noise alone; [0] = -1 with no velocity); ``velocity_mode`` 1 bottom track, 2 water
-  track (``dvl/mode`` 0, 1), 0 no velocity (not one of the message's values);
-  ``beam_unit_vec`` the rows of the beam matrix (``auvsim.data.beams``, DVL frame);
-  ``range`` = ``dvl/beam_range``; ``beam_velocity`` = ``dvl/beam_velocity`` (float32 in
-  the message); ``beam_quality`` 1 where ``dvl/valid`` (the beam measured), 0 where not;
-  ``beam_velocity_covar`` noise_std^2 where valid, -1 where not; ``num_good_beams`` the
-  valid beams; ``altitude`` cos(beam angle) x the mean range of the valid beams with a
-  range (Dvl.msg's formula); ``course_gnd``, ``speed_gnd`` from the velocity;
+  ``velocity_covar`` the covariance of the velocity's error under the mission's noise
+  model (``auvsim.interop.pings``: the beams' white noise, growing with speed in bottom
+  track, the water-track noise in water track, through the least squares of the beams
+  that measured, plus the slow error's variance; [0] = -1 with no velocity);
+  ``velocity_mode`` 1 bottom track, 2 water track (``dvl/mode`` 0, 1), 0 no velocity
+  (not one of the message's values); ``beam_unit_vec`` the rows of the beam matrix
+  (``auvsim.data.beams``, DVL frame); ``range`` = ``dvl/beam_range`` of the beams with
+  bottom lock (``pings``: measured, status OK or outlier), NaN for the others (a
+  water-track beam measured the water, not the seafloor); ``beam_velocity`` =
+  ``dvl/beam_velocity`` (float32 in the message); ``beam_quality`` 1 for a beam with
+  bottom lock, 0 otherwise; ``beam_velocity_covar`` each measured beam's error variance
+  (its white noise^2 + the slow error's), -1 where it did not measure;
+  ``num_good_beams`` the beams that measured (the velocity's); ``altitude`` cos(beam
+  angle) x the mean range of the beams with bottom lock (Dvl.msg's formula), NaN with
+  none; ``course_gnd``, ``speed_gnd`` from the velocity;
   ``range_covar`` -1 (unknown); ``sound_speed`` NaN (auvsim models the ratio of the speed
   of sound to the assumed one, not the speed); ``dvl_type`` piston. A recorded DVL
   without beams (``dvl_beams_derived``) says ``beam_velocities_valid`` false.
 - ``depth``: ``geometry_msgs/msg/PoseWithCovarianceStamped`` in ``odom_ned``, the depth
   as ``pose.position.z`` (positive down) and its variance (noise_std^2 +
-  resolution^2 / 12) at covariance[14]; every other entry is 0 and means nothing: fuse z
-  alone (robot_localization's usual way with a depth sensor). A pose, not
+  resolution^2 / 12) at covariance[14]. The sensor measures nothing else: x, y and the
+  orientation (identity) have variance ``UNMEASURED`` (1e9) on the diagonal, the
+  convention of a "massively inflated covariance" that makes a filter ignore a variable
+  (robot_localization, "Migrating from robot_pose_ekf", section "Covariances in Source
+  Messages"; PoseWithCovariance.msg defines no value for "unknown", and a 0 would say
+  "known exactly"); fuse z alone (robot_localization's usual way with a depth sensor). A pose, not
   ``sensor_msgs/msg/FluidPressure``: the sensor's output in the dataset is a depth, and a
   pressure would need a water density and an atmospheric pressure the mission does not
   have, so the value would no longer be the dataset's.
@@ -65,8 +86,8 @@ Topics (``TOPICS``; ``topics=`` renames them):
   ``angular_rate``. The truth's covariances are 0; the reference's are unknown
   (covariance[0] = -1 in both), its twist is C^T ``velocity_ned`` and its angular rate
   NaN (a reference has none), both NaN without attitude.
-- ``tf_static``: ``tf2_msgs/msg/TFMessage``, once, at the first stamp. A player must
-  offer it transient-local for late subscribers (``docs/guides/ros2.md``).
+- ``tf_static``: ``tf2_msgs/msg/TFMessage``, once, at the first stamp, offered
+  transient-local (above) for late subscribers (``docs/guides/ros2.md``).
 """
 
 from __future__ import annotations
@@ -86,7 +107,8 @@ from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
 from auvsim.interop.mcapfile import Topic, write_mcap
-from auvsim.physics.frames import quaternion_from_euler
+from auvsim.interop.pings import ping_errors
+from auvsim.physics.frames import quaternion_from_euler, rotation_matrices
 
 TOPICS = {"imu": "/imu/data", "dvl": "/dvl/data", "depth": "/depth/pose",
           "truth": "/truth/odometry", "reference": "/reference/odometry",
@@ -97,6 +119,19 @@ TYPES = {"imu": "sensor_msgs/msg/Imu", "dvl": "marine_acoustic_msgs/msg/Dvl",
          "tf_static": "tf2_msgs/msg/TFMessage"}
 WORLD, BODY, IMU, DVL = "odom_ned", "base_link_frd", "imu_link", "dvl_link"
 COMPRESSIONS = ("zstd", "lz4", "none")
+# The variance of a pose component the depth sensor does not measure (m^2, rad^2): huge,
+# so that a filter that fuses the whole pose gives it no weight (module docstring).
+UNMEASURED = 1e9
+# /tf_static's offered QoS, as rosbag2 records a latched topic (module docstring): one
+# profile, keep last 1, reliable, transient local, automatic liveliness, durations unset.
+LATCHED_QOS = ("- history: 1\n  depth: 1\n  reliability: 1\n  durability: 1\n"
+               "  deadline:\n    sec: 0\n    nsec: 0\n"
+               "  lifespan:\n    sec: 0\n    nsec: 0\n  liveliness: 1\n"
+               "  liveliness_lease_duration:\n    sec: 0\n    nsec: 0\n"
+               "  avoid_ros_namespace_conventions: false\n")
+# The bag's "rosbag2" Metadata record, as rosbag2's MCAP plugin writes it in Humble: its
+# presence without "serialized_metadata" makes later players read the QoS's numbers.
+ROSBAG2_METADATA = {"rosbag2": {"ROS_DISTRO": "humble"}}
 # A ROS 2 topic name: absolute, tokens of letters, digits and underscores, not starting
 # with a digit (ROS 2 design, "Topic and Service name mapping to DDS").
 _TOPIC = re.compile(r"/[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
@@ -154,7 +189,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         raise ConfigError(f"{str(out)!r}: is the dataset itself; expected another file",
                           argument="out")
     with open_dataset(source) as dataset:
-        chosen = _mission(dataset, mission)
+        chosen = dataset.mission(mission)
         attrs, streams = chosen.attrs, _streams(chosen)
     first = min((int(m.ns[0]) for m in streams.values() if len(m.ns)), default=0)
     last = max((int(m.ns[-1]) for m in streams.values() if len(m.ns)), default=0)
@@ -163,7 +198,8 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     keys = [*streams, "tf_static"]
     types = [*(m.datatype for m in streams.values()), tf_type]
     schemas = {t: ("ros2msg", rosmsg.schema_text(t).encode()) for t in types}
-    topics = [Topic(names[key], datatype, {"offered_qos_profiles": ""})
+    topics = [Topic(names[key], datatype,
+                    {"offered_qos_profiles": LATCHED_QOS if key == "tf_static" else ""})
               for key, datatype in zip(keys, types, strict=True)]
 
     def blocks():
@@ -188,7 +224,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         with writing(out), open(claim.file, "wb") as f:
             counts = write_mcap(f, profile="ros2", library=f"auvsim {__version__}",
                                 schemas=schemas, topics=topics, blocks=blocks(),
-                                compression=compression)
+                                compression=compression, metadata=ROSBAG2_METADATA)
         commit(claim.file, out)
     finally:
         claim.release()
@@ -239,20 +275,6 @@ def _output(out: str | os.PathLike) -> Path:
         raise ConfigError(f"{str(out)!r}: the folder {str(folder)!r} does not exist; "
                           "expected a file in an existing folder", argument="out")
     return out
-
-
-def _mission(dataset, name: str | None):
-    missions = dataset.missions
-    if name is None:
-        if len(missions) != 1:
-            raise ConfigError(f"the dataset has {len(missions)} missions ("
-                              f"{', '.join(list(missions)[:5])}{'...' if len(missions) > 5 else ''}"
-                              "); expected one named", argument="mission")
-        return next(iter(missions.values()))
-    if name not in missions:
-        raise ConfigError(f"{name!r}: no such mission; expected one of "
-                          f"{', '.join(list(missions)[:10])}", argument="mission")
-    return missions[name]
 
 
 def stamps_ns(time: np.ndarray) -> np.ndarray:
@@ -345,37 +367,6 @@ def _imu(mission, attrs) -> Messages:
             _diagonal(float(attrs["imu_accel_noise_density"]) ** 2 * rate)})
 
 
-def dvl_velocity_covariance(valid: np.ndarray, h: np.ndarray, noise_std: float) -> np.ndarray:
-    """(M, 9) row-major covariance of the least-squares velocity of each ping's valid
-    beams, noise_std^2 (H_v^T H_v)^-1, m^2/s^2; [0] = -1 (unknown) where fewer than 3
-    beams are valid.
-
-    Args:
-        valid: (M, 4) bool, the beams that measured.
-        h: (4, 3) beam matrix, DVL frame.
-        noise_std: the beams' white noise std, m/s.
-    """
-    out = np.zeros((len(valid), 9))
-    out[:, 0] = -1.0
-    code = valid.astype(np.int64) @ (1 << np.arange(4))
-    for mask in np.unique(code):
-        use = (mask >> np.arange(4)) & 1 == 1
-        if use.sum() >= 3:
-            rows = h[use]
-            out[code == mask] = (noise_std ** 2 * np.linalg.inv(rows.T @ rows)).ravel()
-    return out
-
-
-def dvl_altitude(ranges: np.ndarray, valid: np.ndarray, beam_angle: float) -> np.ndarray:
-    """(M,) altitude, m: cos(beam angle) x the mean range of the valid beams with a range
-    (Dvl.msg's definition); NaN with none."""
-    good = valid & np.isfinite(ranges)
-    count = good.sum(axis=1)
-    total = np.where(good, ranges, 0.0).sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(count > 0, math.cos(beam_angle) * total / count, np.nan)
-
-
 def _dvl(mission, attrs) -> Messages:
     dvl = mission.dvl
     ns = stamps_ns(dvl.time)
@@ -384,31 +375,23 @@ def _dvl(mission, attrs) -> Messages:
     has = dvl.__contains__
     beams = dvl.beam_velocity if has("beam_velocity") else np.full((n, 4), np.nan)
     ranges = dvl.beam_range if has("beam_range") else np.full((n, 4), np.nan)
-    valid = (dvl.valid if has("valid") else np.isfinite(beams)).astype(bool)
     mode = dvl.mode if has("mode") else np.where(np.isfinite(velocity[:, 0]), 0, -1)
-    angle = math.radians(float(attrs["beam_angle_deg"]))
-    h = beam_matrix(angle)
-    noise = float(attrs.get("dvl_noise_std", 0.0))
-    if mission.origin == "recorded" and "dvl_velocity_accuracy" in attrs:
-        # the instrument's stated accuracy: a recorded log has no beam noise of its own
-        covariance = np.tile(_diagonal(float(attrs["dvl_velocity_accuracy"]) ** 2), (n, 1))
-        covariance[~np.isfinite(velocity[:, 0])] = -np.eye(1, 9).ravel()
-    else:
-        covariance = dvl_velocity_covariance(valid & np.isfinite(beams), h, noise)
-    altitude = (dvl.altitude if has("altitude") and mission.origin == "recorded"
-                else dvl_altitude(ranges, valid, angle))
+    h = beam_matrix(math.radians(float(attrs["beam_angle_deg"])))
+    errors = ping_errors(mission)
+    covariance = errors.covariance.reshape(n, 9)
+    covariance[~np.isfinite(covariance[:, 0])] = -np.eye(1, 9).ravel()  # unknown (Dvl.msg)
     return Messages(TYPES["dvl"], {"header.frame_id": DVL}, ns, {
         "velocity_mode": np.select([mode == 0, mode == 1], [1, 2], 0),
         **_xyz("velocity", velocity),
         "velocity_covar": covariance,
-        "altitude": altitude,
+        "altitude": errors.altitude,
         "course_gnd": np.arctan2(velocity[:, 1], velocity[:, 0]),
         "speed_gnd": np.hypot(velocity[:, 0], velocity[:, 1]),
-        "num_good_beams": valid.sum(axis=1),
-        "range": ranges,
-        "beam_quality": valid.astype(np.float32),
+        "num_good_beams": errors.measured.sum(axis=1),
+        "range": np.where(errors.locked, ranges, np.nan),
+        "beam_quality": errors.locked.astype(np.float32),
         "beam_velocity": beams,
-        "beam_velocity_covar": np.where(valid, np.float32(noise ** 2), np.float32(-1.0))}, {
+        "beam_velocity_covar": np.where(errors.measured, errors.beam_variance, -1.0)}, {
         "dvl_type": 0,  # DVL_TYPE_PISTON: a Janus array of four transducers
         "sound_speed": np.nan,
         "beam_ranges_valid": has("beam_range"),
@@ -421,7 +404,7 @@ def _dvl(mission, attrs) -> Messages:
 
 def _depth(mission, attrs) -> Messages:
     depth = mission.depth
-    covariance = np.zeros(36)
+    covariance = np.diag(np.full(6, UNMEASURED)).ravel()
     covariance[14] = (float(attrs.get("depth_noise_std", 0.0)) ** 2
                       + float(attrs.get("depth_resolution", 0.0)) ** 2 / 12)
     return Messages(TYPES["depth"], {"header.frame_id": WORLD}, stamps_ns(depth.time), {
@@ -452,12 +435,7 @@ def _odometry(group, *, reference: bool) -> Messages:
 def body_velocity(quaternion: np.ndarray, velocity_ned: np.ndarray) -> np.ndarray:
     """(N, 3) body-frame velocity C^T v of (N, 4) quaternions [w, x, y, z] (body -> NED)
     and (N, 3) NED velocities, m/s (NaN where the quaternion is)."""
-    w, x, y, z = (quaternion[:, i, None] for i in range(4))
-    q = quaternion[:, 1:]
-    v = velocity_ned
-    # C^T v = v + 2 q x (q x v) - 2 w (q x v): the conjugate's rotation.
-    qv = np.cross(q, v)
-    return v - 2 * w * qv + 2 * np.cross(q, qv)
+    return np.einsum("nji,nj->ni", rotation_matrices(quaternion), velocity_ned)
 
 
 def _transform(parent: str, child: str, ns: int, translation, rotation_xyzw) -> dict:
