@@ -19,9 +19,9 @@ from conftest import flat, mission
 
 from auvsim.cli import main
 from auvsim.config import DvlConfig
+from auvsim.data.beams import beam_matrix
 from auvsim.data.pd0 import RDI_BEAM, RDI_FROM_DVL, scan
 from auvsim.data.reader import open_dataset
-from auvsim.sensors.dvl import beam_matrix
 
 pytest.importorskip("mhkit.dolfyn")
 

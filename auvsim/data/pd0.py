@@ -21,7 +21,7 @@ Calculations" (P/N 951-6079-00, 2010), sections 4 and 5.3 (instrument X from bea
 beam 2, Y from beam 4 to beam 3, Z toward the face; a beam velocity is positive toward
 the transducer).
 
-auvsim's DVL frame (``auvsim.sensors.dvl.beam_matrix``: x forward, z down, beams k = 0..3
+auvsim's DVL frame (``auvsim.data.beams.beam_matrix``: x forward, z down, beams k = 0..3
 at azimuths 45 + 90 k deg) is the Navigator's mounted so: RDI beam 3 is auvsim's beam 0
 (forward-starboard), beam 2 its beam 1, beam 4 its beam 2, beam 1 its beam 3. The
 velocity of the DVL over ground along a beam's outward direction (auvsim's beam
@@ -29,7 +29,7 @@ velocity) is the bottom's velocity toward the transducer (RDI's), so beam veloci
 their sign. In instrument coordinates the bottom-track velocity is the bottom's relative
 to the instrument, X, Y, Z, error: ``-R v`` with ``R`` auvsim's DVL frame -> RDI's
 (``RDI_FROM_DVL``), and RDI's error velocity is minus auvsim's (whose beam pairs are
-numbered the other way: ``auvsim.sensors.dvl.error_velocity``).
+numbered the other way: ``auvsim.data.beams.error_velocity``).
 
 What is written: the simulated-data flag set; 600 kHz, convex, down-facing, 4-beam Janus,
 the mission's beam angle; no water profile (0 cells), bottom track only; no attitude,
@@ -68,12 +68,12 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.data.beams import beam_matrix, error_velocity, least_squares
 from auvsim.data.files import written_whole
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError
 from auvsim.physics.earth import normal_gravity
-from auvsim.sensors.dvl import beam_matrix, error_velocity, least_squares
 
 if sys.version_info >= (3, 11):
     import tomllib
