@@ -58,7 +58,6 @@ import json
 import math
 import os
 import struct
-import sys
 import tempfile
 import warnings
 from collections.abc import Sequence
@@ -70,15 +69,11 @@ import numpy as np
 
 from auvsim.data.beams import beam_matrix, error_velocity, least_squares
 from auvsim.data.files import written_whole
+from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError
 from auvsim.physics.earth import normal_gravity
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 COORDINATES = ("beam", "instrument")
 HEADER_ID = b"\x7f\x7f"
@@ -504,10 +499,7 @@ def parse_description(text: str, *, where: str) -> dict:
     Raises:
         ConfigError: not TOML, or a key missing, unknown or of the wrong kind.
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{where}: not valid TOML ({e})") from None
+    data = load_toml(text, where=where)
     for table in data:
         if table not in DESCRIPTION_KEYS or not isinstance(data[table], dict):
             raise ConfigError(f"{where}: unknown table [{table}]; a PD0 log description "
@@ -518,10 +510,10 @@ def parse_description(text: str, *, where: str) -> dict:
                               f"{', '.join(sorted(DESCRIPTION_KEYS[table]))}")
     log, dvl = data.get("log", {}), data.get("dvl", {})
     out = {"name": log.get("name"),
-           "origin": _numbers(where, "log.origin", log.get("origin"), 3),
-           "position_body": _numbers(where, "dvl.position_body",
+           "origin": finite_numbers(where, "log.origin", log.get("origin"), 3),
+           "position_body": finite_numbers(where, "dvl.position_body",
                                      dvl.get("position_body", [0.0] * 3), 3),
-           "mounting_rpy_deg": _numbers(where, "dvl.mounting_rpy_deg",
+           "mounting_rpy_deg": finite_numbers(where, "dvl.mounting_rpy_deg",
                                         dvl.get("mounting_rpy_deg", [0.0] * 3), 3)}
     if out["name"] is not None and not isinstance(out["name"], str):
         raise ConfigError(f"{where}: log.name: expected a text, got {out['name']!r}")
@@ -533,14 +525,6 @@ def parse_description(text: str, *, where: str) -> dict:
                               f">= 0 (auvsim invents none), got {value!r}")
         out[key] = float(value)
     return out
-
-
-def _numbers(where: str, key: str, value: object, n: int) -> list[float]:
-    if not (isinstance(value, list) and len(value) == n and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            for v in value)):
-        raise ConfigError(f"{where}: {key}: expected {n} finite numbers, got {value!r}")
-    return [float(v) for v in value]
 
 
 def import_pd0(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
@@ -559,11 +543,7 @@ def import_pd0(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
         raise ConfigError(": missing; --format pd0 needs a log description (TOML: [log] "
                           "origin, [dvl] noise_std and velocity_accuracy)",
                           argument="description")
-    try:
-        text = Path(description).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{str(description)!r}: cannot read it ({e})",
-                          argument="description") from None
+    text = read_description(description)
     spec = parse_description(text, where=str(description))
     logs = [(Path(s), read_pd0(s)) for s in sources]
     names = [spec["name"] if spec["name"] and len(sources) == 1 else p.stem for p, _ in logs]
