@@ -303,6 +303,17 @@ def test_export_refuses_and_writes_nothing(dataset, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_description_nested_too_deeply_is_refused_in_one_line(exported, tmp_path):
+    description = tmp_path / "deep.toml"
+    description.write_text("[log]\norigin = " + "[" * 3000 + "]" * 3000 + "\n")
+    out = tmp_path / "x.h5"
+    code, stdout, err = run("import", str(exported["beam"]), "--format", "pd0",
+                            "--description", str(description), "--out", str(out))
+    assert code == 2 and stdout == "" and err.count("\n") == 1, err
+    assert "not valid TOML (arrays or tables nested too deeply to read)" in err
+    assert not out.exists()
+
+
 def test_ranges_beyond_655_m_use_the_msb_byte(tmp_path):
     from auvsim.data.pd0 import Pings, encode, read_pd0
 

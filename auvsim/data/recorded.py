@@ -233,12 +233,15 @@ def load_toml(text: str, *, where: str) -> dict:
     """A log description's TOML text as tables (``auvsim.data.pd0``'s too).
 
     Raises:
-        ConfigError: not TOML, in one line.
+        ConfigError: not TOML, or nested too deeply to read, in one line.
     """
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{where}: not valid TOML ({e})") from None
+    except RecursionError:  # the parser recurses once per level of arrays or tables
+        raise ConfigError(f"{where}: not valid TOML (arrays or tables nested too deeply to "
+                          "read)") from None
 
 
 def parse_description(text: str, *, where: str = "log description") -> LogDescription:
