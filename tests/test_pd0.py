@@ -314,6 +314,22 @@ def test_a_description_nested_too_deeply_is_refused_in_one_line(exported, tmp_pa
     assert not out.exists()
 
 
+def test_export_refuses_to_write_over_its_dataset(dataset, tmp_path):
+    """--out naming the dataset, or a link to it, is refused before anything is written:
+    the dataset is left as it was."""
+    before = dataset.read_bytes()
+    copy = tmp_path / "copy.h5"  # the module's dataset stays whole if the export is not refused
+    copy.write_bytes(before)
+    link = tmp_path / "link.h5"
+    link.symlink_to(copy)
+    for out in (copy, link):
+        code, stdout, err = run("export", str(copy), "--to", "pd0", "--out", str(out))
+        assert code == 2 and stdout == "" and err.count("\n") == 1, err
+        assert f"--out {str(out)!r}: is the dataset itself; expected another file" in err
+    assert copy.read_bytes() == before and link.is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["copy.h5", "link.h5"]
+
+
 def test_ranges_beyond_655_m_use_the_msb_byte(tmp_path):
     from auvsim.data.pd0 import Pings, encode, read_pd0
 

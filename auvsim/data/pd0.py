@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.beams import beam_matrix, error_velocity, least_squares
-from auvsim.data.files import written_whole
+from auvsim.data.files import check_not_source, written_whole
 from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
@@ -233,6 +233,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
     """
     from auvsim.data.reader import open_dataset
 
+    check_not_source(out, dataset)
     if coordinates not in COORDINATES:
         raise ConfigError(f": expected one of {', '.join(COORDINATES)}, got {coordinates!r}",
                           argument="coordinates")
