@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.beams import beam_matrix, error_velocity, least_squares
-from auvsim.data.files import check_not_source, written_whole
+from auvsim.data.files import check_not_source, write_bytes
 from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
@@ -245,8 +245,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
                               "expected a mission with a DVL", argument="dataset")
         pings = _pings(m)
     data = encode(pings, coordinates=coordinates)
-    with written_whole(Path(out)) as tmp:
-        tmp.write_bytes(data)
+    write_bytes(out, data)
     return {"mission": mission, "ensembles": len(pings.time), "bytes": len(data),
             "coordinates": coordinates}
 
