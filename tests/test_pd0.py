@@ -229,6 +229,48 @@ def test_bad_checksum_is_skipped_and_counted(exported, hdf5, tmp_path):
     assert np.all(np.abs(dvl["beam_velocity"] - hdf5["beam_velocity"][keep])[measured] <= MM)
 
 
+@pytest.mark.parametrize("length_msb, where", [(0xFF, "past the end of the file"),
+                                                (0x02, "inside the file")])
+def test_a_corrupt_length_loses_only_its_ensemble(exported, hdf5, tmp_path, length_msb, where):
+    """An ensemble whose length is corrupt is counted bad, and framing resumes at the next
+    header that frames a whole ensemble: every later ensemble is read, none is cut off."""
+    k = 5
+
+    def lengthen(data, spans):
+        start = spans[k][0]
+        assert data[start + 3] == 0
+        data[start + 3] = length_msb  # the length, 223 B, becomes 65 kB or 735 B
+        end = start + int.from_bytes(data[start + 2:start + 4], "little") + 2
+        assert (end > len(data)) == (where == "past the end of the file")
+
+    ((code, out, err), h5), spans = corrupt_and_import(exported, hdf5, tmp_path, lengthen)
+    assert code == 0, err
+    assert "skipped: 1 ensemble(s) failing their checksum, 0 cut off" in out
+    found = scan((tmp_path / "bad.pd0").read_bytes())
+    assert found.ensembles == spans[:k] + spans[k + 1:]
+    assert (found.bad_checksum, found.truncated) == (1, 0)
+    dvl, _ = read_dvl(h5)
+    keep = np.arange(len(hdf5["time"])) != k
+    np.testing.assert_allclose(dvl["time"], hdf5["time"][keep] - hdf5["time"][0], atol=0.01)
+    measured = hdf5["measured"][keep]
+    np.testing.assert_array_equal(dvl["valid"], measured)
+    assert np.all(np.abs(dvl["beam_velocity"] - hdf5["beam_velocity"][keep])[measured] <= MM)
+
+
+def test_failures_are_counted_each_and_a_cut_off_tail_once(exported):
+    data = bytearray(exported["beam"].read_bytes())
+    spans = scan(bytes(data)).ensembles
+    data[spans[5][0] + 3] = 0xFF  # a length past the end of the file
+    data[spans[6][0] + 100] ^= 0x5A  # a checksum that fails
+    found = scan(bytes(data))
+    assert (found.bad_checksum, found.truncated) == (2, 0)
+    assert found.ensembles == spans[:5] + spans[7:]
+    cut = bytes(data[:spans[-1][0] + 100])  # and the file ends inside the last
+    found = scan(cut)
+    assert (found.bad_checksum, found.truncated) == (2, 1)
+    assert found.ensembles == spans[:5] + spans[7:-1]
+
+
 def test_truncated_file_skips_the_cut_ensemble(exported, hdf5, tmp_path):
     def cut(data, spans):
         del data[spans[-1][0] + 100:]

@@ -45,7 +45,10 @@ Reading: ``scan`` frames the file itself (every ensemble's length and checksum, 
 types and fixed leader) and refuses, in one line, a file that is not PD0 or is another
 instrument's (no bottom track, not a 4-beam Janus Workhorse DVL looking down, coordinates
 other than beam or instrument); ensembles that fail their checksum or are cut off are
-skipped and counted, never read. The ensembles that passed go to MHKiT's copy of dolfyn
+skipped and counted, never read. After an ensemble that fails (its checksum, or a length
+that a corrupt byte sends elsewhere, past the end of the file even), framing resumes at the
+next header that frames a whole ensemble with a good checksum; an ensemble is cut off only
+where no whole one follows it. The ensembles that passed go to MHKiT's copy of dolfyn
 (``mhkit.dolfyn.io.rdi.read_rdi``), a maintained reader, which decodes them.
 """
 
@@ -282,7 +285,9 @@ class Scan:
     Attributes:
         ensembles: (start, end) byte spans of the ensembles that passed (checksum
             included), in file order.
-        bad_checksum: ensembles skipped for a checksum that does not match.
+        bad_checksum: ensembles skipped for a checksum that does not match where their
+            length puts it, or a length past the end of the file that a whole ensemble
+            follows (a corrupt length).
         truncated: 1 if the file ends inside an ensemble (skipped), else 0.
         skipped_bytes: bytes outside any ensemble that passed.
         coordinates: beam or instrument, from the fixed leader.
@@ -308,28 +313,31 @@ def scan(data: bytes, *, where: str = "PD0 file") -> Scan:
         raise ConfigError(f"{where}: starts with {data[:4].hex() or 'nothing'}, not PD0's "
                           "header 7f7f; expected a Teledyne RDI PD0 file")
     good: list[tuple[int, int]] = []
-    bad = truncated = 0
+    bad = 0
     failed_until = pos = 0
+    # The bad count before the first ensemble since the last good one that runs past the
+    # end: its length is corrupt if a good ensemble follows, else the file is cut off there.
+    cut: int | None = None
     while (pos := data.find(HEADER_ID, pos)) >= 0:
-        if pos + 4 > len(data):
-            truncated = 1
-            break
         length = int.from_bytes(data[pos + 2:pos + 4], "little")
         end = pos + length + 2
-        if end > len(data):
-            truncated = 1
-            break
-        checksum = int.from_bytes(data[end - 2:end], "little")
-        if length < 6 or sum(data[pos:pos + length]) & 0xFFFF != checksum:
-            if pos >= failed_until:  # a header inside a failed ensemble is not another
-                bad += 1
-                failed_until = end if length >= 6 else pos + 2
-            pos += 2
+        within = pos + 4 <= len(data) and end <= len(data)
+        if within and length >= 6 and (sum(data[pos:pos + length]) & 0xFFFF
+                                        == int.from_bytes(data[end - 2:end], "little")):
+            good.append((pos, end))
+            pos, cut = end, None
             continue
-        good.append((pos, end))
-        pos = end
+        if pos >= failed_until:  # a header inside a failed ensemble is not another
+            if not within and cut is None:
+                cut = bad
+            bad += 1
+            failed_until = end if within and length >= 6 else pos + 2
+        pos += 2
+    truncated = int(cut is not None)
+    if cut is not None:  # what failed from there on is the cut-off ensemble's
+        bad = cut
     if not good:
-        what = "is cut off" if truncated else "fails its checksum"
+        what = "fails its checksum" if bad else "is cut off"
         raise ConfigError(f"{where}: no whole ensemble (its first {what}); expected a "
                           "Teledyne RDI PD0 file")
     kinds = {_check_ensemble(data, span, where) for span in good}
