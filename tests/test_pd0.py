@@ -150,6 +150,25 @@ def test_beam_numbering_agrees_with_dolfyns_transformation(exported, hdf5):
     np.testing.assert_allclose(vel[four], direct["vel_bt"].values.T[four], atol=3 * MM)
 
 
+@pytest.mark.parametrize("motion, ahead", [((1.0, 0.0, 0.0), (1, 3)), ((0.0, 1.0, 0.0), (3, 2))])
+def test_forward_lies_between_rdi_beams_3_and_1(tmp_path, motion, ahead):
+    """A Navigator mounted with beam 3 45 deg to starboard of forward: moving forward, RDI
+    beams 1 and 3 see the bottom come toward them (positive, RDI's sign), 2 and 4 recede;
+    moving to starboard, beams 3 and 2 do. Read back by dolfyn, which numbers them as RDI."""
+    from auvsim.data.pd0 import Pings, encode
+
+    n, angle = 3, 30.0
+    beams = np.tile(beam_matrix(math.radians(angle)) @ np.array(motion), (n, 1))
+    pings = Pings(np.arange(n, dtype=float), beams, np.full((n, 4), 40.0),
+                  np.tile(motion, (n, 1)), np.zeros(n), np.ones(n, dtype=bool), angle)
+    path = tmp_path / "motion.pd0"
+    path.write_bytes(encode(pings))
+    vel = read_dolfyn(path)["vel_bt"].values.T.astype(float)  # (N, 4), RDI beams 1-4
+    toward = math.sin(math.radians(angle)) * math.sqrt(0.5)  # m/s along each beam
+    expected = [toward if b in ahead else -toward for b in (1, 2, 3, 4)]
+    np.testing.assert_allclose(vel, np.tile(expected, (len(vel), 1)), atol=MM)
+
+
 def import_file(path, tmp_path, name="out.h5"):
     description = tmp_path / "log.toml"
     description.write_text(DESCRIPTION)
