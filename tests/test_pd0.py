@@ -19,9 +19,9 @@ from conftest import flat, mission
 
 from auvsim.cli import main
 from auvsim.config import DvlConfig
+from auvsim.data.beams import beam_matrix
 from auvsim.data.pd0 import RDI_BEAM, RDI_FROM_DVL, scan
 from auvsim.data.reader import open_dataset
-from auvsim.sensors.dvl import beam_matrix
 
 pytest.importorskip("mhkit.dolfyn")
 
@@ -150,6 +150,25 @@ def test_beam_numbering_agrees_with_dolfyns_transformation(exported, hdf5):
     np.testing.assert_allclose(vel[four], direct["vel_bt"].values.T[four], atol=3 * MM)
 
 
+@pytest.mark.parametrize("motion, ahead", [((1.0, 0.0, 0.0), (1, 3)), ((0.0, 1.0, 0.0), (3, 2))])
+def test_forward_lies_between_rdi_beams_3_and_1(tmp_path, motion, ahead):
+    """A Navigator mounted with beam 3 45 deg to starboard of forward: moving forward, RDI
+    beams 1 and 3 see the bottom come toward them (positive, RDI's sign), 2 and 4 recede;
+    moving to starboard, beams 3 and 2 do. Read back by dolfyn, which numbers them as RDI."""
+    from auvsim.data.pd0 import Pings, encode
+
+    n, angle = 3, 30.0
+    beams = np.tile(beam_matrix(math.radians(angle)) @ np.array(motion), (n, 1))
+    pings = Pings(np.arange(n, dtype=float), beams, np.full((n, 4), 40.0),
+                  np.tile(motion, (n, 1)), np.zeros(n), np.ones(n, dtype=bool), angle)
+    path = tmp_path / "motion.pd0"
+    path.write_bytes(encode(pings))
+    vel = read_dolfyn(path)["vel_bt"].values.T.astype(float)  # (N, 4), RDI beams 1-4
+    toward = math.sin(math.radians(angle)) * math.sqrt(0.5)  # m/s along each beam
+    expected = [toward if b in ahead else -toward for b in (1, 2, 3, 4)]
+    np.testing.assert_allclose(vel, np.tile(expected, (len(vel), 1)), atol=MM)
+
+
 def import_file(path, tmp_path, name="out.h5"):
     description = tmp_path / "log.toml"
     description.write_text(DESCRIPTION)
@@ -229,6 +248,48 @@ def test_bad_checksum_is_skipped_and_counted(exported, hdf5, tmp_path):
     assert np.all(np.abs(dvl["beam_velocity"] - hdf5["beam_velocity"][keep])[measured] <= MM)
 
 
+@pytest.mark.parametrize("length_msb, where", [(0xFF, "past the end of the file"),
+                                                (0x02, "inside the file")])
+def test_a_corrupt_length_loses_only_its_ensemble(exported, hdf5, tmp_path, length_msb, where):
+    """An ensemble whose length is corrupt is counted bad, and framing resumes at the next
+    header that frames a whole ensemble: every later ensemble is read, none is cut off."""
+    k = 5
+
+    def lengthen(data, spans):
+        start = spans[k][0]
+        assert data[start + 3] == 0
+        data[start + 3] = length_msb  # the length, 223 B, becomes 65 kB or 735 B
+        end = start + int.from_bytes(data[start + 2:start + 4], "little") + 2
+        assert (end > len(data)) == (where == "past the end of the file")
+
+    ((code, out, err), h5), spans = corrupt_and_import(exported, hdf5, tmp_path, lengthen)
+    assert code == 0, err
+    assert "skipped: 1 ensemble(s) failing their checksum, 0 cut off" in out
+    found = scan((tmp_path / "bad.pd0").read_bytes())
+    assert found.ensembles == spans[:k] + spans[k + 1:]
+    assert (found.bad_checksum, found.truncated) == (1, 0)
+    dvl, _ = read_dvl(h5)
+    keep = np.arange(len(hdf5["time"])) != k
+    np.testing.assert_allclose(dvl["time"], hdf5["time"][keep] - hdf5["time"][0], atol=0.01)
+    measured = hdf5["measured"][keep]
+    np.testing.assert_array_equal(dvl["valid"], measured)
+    assert np.all(np.abs(dvl["beam_velocity"] - hdf5["beam_velocity"][keep])[measured] <= MM)
+
+
+def test_failures_are_counted_each_and_a_cut_off_tail_once(exported):
+    data = bytearray(exported["beam"].read_bytes())
+    spans = scan(bytes(data)).ensembles
+    data[spans[5][0] + 3] = 0xFF  # a length past the end of the file
+    data[spans[6][0] + 100] ^= 0x5A  # a checksum that fails
+    found = scan(bytes(data))
+    assert (found.bad_checksum, found.truncated) == (2, 0)
+    assert found.ensembles == spans[:5] + spans[7:]
+    cut = bytes(data[:spans[-1][0] + 100])  # and the file ends inside the last
+    found = scan(cut)
+    assert (found.bad_checksum, found.truncated) == (2, 1)
+    assert found.ensembles == spans[:5] + spans[7:-1]
+
+
 def test_truncated_file_skips_the_cut_ensemble(exported, hdf5, tmp_path):
     def cut(data, spans):
         del data[spans[-1][0] + 100:]
@@ -301,6 +362,33 @@ def test_export_refuses_and_writes_nothing(dataset, tmp_path):
                        str(tmp_path / "y.h5"))
     assert code == 2 and "--description" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_description_nested_too_deeply_is_refused_in_one_line(exported, tmp_path):
+    description = tmp_path / "deep.toml"
+    description.write_text("[log]\norigin = " + "[" * 3000 + "]" * 3000 + "\n")
+    out = tmp_path / "x.h5"
+    code, stdout, err = run("import", str(exported["beam"]), "--format", "pd0",
+                            "--description", str(description), "--out", str(out))
+    assert code == 2 and stdout == "" and err.count("\n") == 1, err
+    assert "not valid TOML (arrays or tables nested too deeply to read)" in err
+    assert not out.exists()
+
+
+def test_export_refuses_to_write_over_its_dataset(dataset, tmp_path):
+    """--out naming the dataset, or a link to it, is refused before anything is written:
+    the dataset is left as it was."""
+    before = dataset.read_bytes()
+    copy = tmp_path / "copy.h5"  # the module's dataset stays whole if the export is not refused
+    copy.write_bytes(before)
+    link = tmp_path / "link.h5"
+    link.symlink_to(copy)
+    for out in (copy, link):
+        code, stdout, err = run("export", str(copy), "--to", "pd0", "--out", str(out))
+        assert code == 2 and stdout == "" and err.count("\n") == 1, err
+        assert f"--out {str(out)!r}: is the dataset itself; expected another file" in err
+    assert copy.read_bytes() == before and link.is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["copy.h5", "link.h5"]
 
 
 def test_ranges_beyond_655_m_use_the_msb_byte(tmp_path):

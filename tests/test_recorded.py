@@ -361,6 +361,9 @@ BAD_LOGS = {
                 "depth.csv': 1 row(s) under the header; expected a stream of samples"),
     "no_rows": (_edit("depth.csv", _lines(lambda ls: ls[:1])),
                 "depth.csv': 0 row(s) under the header; expected a stream of samples"),
+    # tomllib recurses once per level: Python's recursion limit, not a TOML error
+    "nested_too_deeply": (_edit("log.toml", lambda t: "deep = " + "[" * 3000 + "]" * 3000
+                                + "\n" + t), "not valid TOML (arrays or tables nested too deeply"),
 }
 
 

@@ -396,6 +396,19 @@ def written_whole(path: Path) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
+def check_not_source(out: str | os.PathLike, source: str | os.PathLike) -> None:
+    """Refuse an output ``out`` that is the dataset ``source`` it is written from, by
+    whatever name (a symbolic or hard link too): writing it would destroy the dataset.
+
+    Raises:
+        ConfigError: ``out`` is ``source`` (argument ``out``).
+    """
+    out = Path(out)
+    if out.exists() and Path(source).exists() and out.samefile(source):
+        raise ConfigError(f"{str(out)!r}: is the dataset itself; expected another file",
+                          argument="out")
+
+
 def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically.
 

@@ -21,7 +21,7 @@ Calculations" (P/N 951-6079-00, 2010), sections 4 and 5.3 (instrument X from bea
 beam 2, Y from beam 4 to beam 3, Z toward the face; a beam velocity is positive toward
 the transducer).
 
-auvsim's DVL frame (``auvsim.sensors.dvl.beam_matrix``: x forward, z down, beams k = 0..3
+auvsim's DVL frame (``auvsim.data.beams.beam_matrix``: x forward, z down, beams k = 0..3
 at azimuths 45 + 90 k deg) is the Navigator's mounted so: RDI beam 3 is auvsim's beam 0
 (forward-starboard), beam 2 its beam 1, beam 4 its beam 2, beam 1 its beam 3. The
 velocity of the DVL over ground along a beam's outward direction (auvsim's beam
@@ -29,7 +29,7 @@ velocity) is the bottom's velocity toward the transducer (RDI's), so beam veloci
 their sign. In instrument coordinates the bottom-track velocity is the bottom's relative
 to the instrument, X, Y, Z, error: ``-R v`` with ``R`` auvsim's DVL frame -> RDI's
 (``RDI_FROM_DVL``), and RDI's error velocity is minus auvsim's (whose beam pairs are
-numbered the other way: ``auvsim.sensors.dvl.error_velocity``).
+numbered the other way: ``auvsim.data.beams.error_velocity``).
 
 What is written: the simulated-data flag set; 600 kHz, convex, down-facing, 4-beam Janus,
 the mission's beam angle; no water profile (0 cells), bottom track only; no attitude,
@@ -45,7 +45,10 @@ Reading: ``scan`` frames the file itself (every ensemble's length and checksum, 
 types and fixed leader) and refuses, in one line, a file that is not PD0 or is another
 instrument's (no bottom track, not a 4-beam Janus Workhorse DVL looking down, coordinates
 other than beam or instrument); ensembles that fail their checksum or are cut off are
-skipped and counted, never read. The ensembles that passed go to MHKiT's copy of dolfyn
+skipped and counted, never read. After an ensemble that fails (its checksum, or a length
+that a corrupt byte sends elsewhere, past the end of the file even), framing resumes at the
+next header that frames a whole ensemble with a good checksum; an ensemble is cut off only
+where no whole one follows it. The ensembles that passed go to MHKiT's copy of dolfyn
 (``mhkit.dolfyn.io.rdi.read_rdi``), a maintained reader, which decodes them.
 """
 
@@ -58,7 +61,6 @@ import json
 import math
 import os
 import struct
-import sys
 import tempfile
 import warnings
 from collections.abc import Sequence
@@ -68,17 +70,13 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import written_whole
+from auvsim.data.beams import beam_matrix, error_velocity, least_squares
+from auvsim.data.files import check_not_source, write_bytes
+from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError
 from auvsim.physics.earth import normal_gravity
-from auvsim.sensors.dvl import beam_matrix, error_velocity, least_squares
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 COORDINATES = ("beam", "instrument")
 HEADER_ID = b"\x7f\x7f"
@@ -238,6 +236,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
     """
     from auvsim.data.reader import open_dataset
 
+    check_not_source(out, dataset)
     if coordinates not in COORDINATES:
         raise ConfigError(f": expected one of {', '.join(COORDINATES)}, got {coordinates!r}",
                           argument="coordinates")
@@ -249,8 +248,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
                               "expected a mission with a DVL", argument="dataset")
         pings = _pings(m)
     data = encode(pings, coordinates=coordinates)
-    with written_whole(Path(out)) as tmp:
-        tmp.write_bytes(data)
+    write_bytes(out, data)
     return {"mission": mission, "ensembles": len(pings.time), "bytes": len(data),
             "coordinates": coordinates}
 
@@ -287,7 +285,9 @@ class Scan:
     Attributes:
         ensembles: (start, end) byte spans of the ensembles that passed (checksum
             included), in file order.
-        bad_checksum: ensembles skipped for a checksum that does not match.
+        bad_checksum: ensembles skipped for a checksum that does not match where their
+            length puts it, or a length past the end of the file that a whole ensemble
+            follows (a corrupt length).
         truncated: 1 if the file ends inside an ensemble (skipped), else 0.
         skipped_bytes: bytes outside any ensemble that passed.
         coordinates: beam or instrument, from the fixed leader.
@@ -313,28 +313,31 @@ def scan(data: bytes, *, where: str = "PD0 file") -> Scan:
         raise ConfigError(f"{where}: starts with {data[:4].hex() or 'nothing'}, not PD0's "
                           "header 7f7f; expected a Teledyne RDI PD0 file")
     good: list[tuple[int, int]] = []
-    bad = truncated = 0
+    bad = 0
     failed_until = pos = 0
+    # The bad count before the first ensemble since the last good one that runs past the
+    # end: its length is corrupt if a good ensemble follows, else the file is cut off there.
+    cut: int | None = None
     while (pos := data.find(HEADER_ID, pos)) >= 0:
-        if pos + 4 > len(data):
-            truncated = 1
-            break
         length = int.from_bytes(data[pos + 2:pos + 4], "little")
         end = pos + length + 2
-        if end > len(data):
-            truncated = 1
-            break
-        checksum = int.from_bytes(data[end - 2:end], "little")
-        if length < 6 or sum(data[pos:pos + length]) & 0xFFFF != checksum:
-            if pos >= failed_until:  # a header inside a failed ensemble is not another
-                bad += 1
-                failed_until = end if length >= 6 else pos + 2
-            pos += 2
+        within = pos + 4 <= len(data) and end <= len(data)
+        if within and length >= 6 and (sum(data[pos:pos + length]) & 0xFFFF
+                                        == int.from_bytes(data[end - 2:end], "little")):
+            good.append((pos, end))
+            pos, cut = end, None
             continue
-        good.append((pos, end))
-        pos = end
+        if pos >= failed_until:  # a header inside a failed ensemble is not another
+            if not within and cut is None:
+                cut = bad
+            bad += 1
+            failed_until = end if within and length >= 6 else pos + 2
+        pos += 2
+    truncated = int(cut is not None)
+    if cut is not None:  # what failed from there on is the cut-off ensemble's
+        bad = cut
     if not good:
-        what = "is cut off" if truncated else "fails its checksum"
+        what = "fails its checksum" if bad else "is cut off"
         raise ConfigError(f"{where}: no whole ensemble (its first {what}); expected a "
                           "Teledyne RDI PD0 file")
     kinds = {_check_ensemble(data, span, where) for span in good}
@@ -504,10 +507,7 @@ def parse_description(text: str, *, where: str) -> dict:
     Raises:
         ConfigError: not TOML, or a key missing, unknown or of the wrong kind.
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{where}: not valid TOML ({e})") from None
+    data = load_toml(text, where=where)
     for table in data:
         if table not in DESCRIPTION_KEYS or not isinstance(data[table], dict):
             raise ConfigError(f"{where}: unknown table [{table}]; a PD0 log description "
@@ -518,10 +518,10 @@ def parse_description(text: str, *, where: str) -> dict:
                               f"{', '.join(sorted(DESCRIPTION_KEYS[table]))}")
     log, dvl = data.get("log", {}), data.get("dvl", {})
     out = {"name": log.get("name"),
-           "origin": _numbers(where, "log.origin", log.get("origin"), 3),
-           "position_body": _numbers(where, "dvl.position_body",
+           "origin": finite_numbers(where, "log.origin", log.get("origin"), 3),
+           "position_body": finite_numbers(where, "dvl.position_body",
                                      dvl.get("position_body", [0.0] * 3), 3),
-           "mounting_rpy_deg": _numbers(where, "dvl.mounting_rpy_deg",
+           "mounting_rpy_deg": finite_numbers(where, "dvl.mounting_rpy_deg",
                                         dvl.get("mounting_rpy_deg", [0.0] * 3), 3)}
     if out["name"] is not None and not isinstance(out["name"], str):
         raise ConfigError(f"{where}: log.name: expected a text, got {out['name']!r}")
@@ -533,14 +533,6 @@ def parse_description(text: str, *, where: str) -> dict:
                               f">= 0 (auvsim invents none), got {value!r}")
         out[key] = float(value)
     return out
-
-
-def _numbers(where: str, key: str, value: object, n: int) -> list[float]:
-    if not (isinstance(value, list) and len(value) == n and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            for v in value)):
-        raise ConfigError(f"{where}: {key}: expected {n} finite numbers, got {value!r}")
-    return [float(v) for v in value]
 
 
 def import_pd0(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
@@ -559,11 +551,7 @@ def import_pd0(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
         raise ConfigError(": missing; --format pd0 needs a log description (TOML: [log] "
                           "origin, [dvl] noise_std and velocity_accuracy)",
                           argument="description")
-    try:
-        text = Path(description).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{str(description)!r}: cannot read it ({e})",
-                          argument="description") from None
+    text = read_description(description)
     spec = parse_description(text, where=str(description))
     logs = [(Path(s), read_pd0(s)) for s in sources]
     names = [spec["name"] if spec["name"] and len(sources) == 1 else p.stem for p, _ in logs]

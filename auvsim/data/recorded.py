@@ -229,6 +229,21 @@ class LogDescription:
     streams: dict[str, Stream]
 
 
+def load_toml(text: str, *, where: str) -> dict:
+    """A log description's TOML text as tables (``auvsim.data.pd0``'s too).
+
+    Raises:
+        ConfigError: not TOML, or nested too deeply to read, in one line.
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{where}: not valid TOML ({e})") from None
+    except RecursionError:  # the parser recurses once per level of arrays or tables
+        raise ConfigError(f"{where}: not valid TOML (arrays or tables nested too deeply to "
+                          "read)") from None
+
+
 def parse_description(text: str, *, where: str = "log description") -> LogDescription:
     """A log description (TOML text; see the module docstring), checked.
 
@@ -236,10 +251,7 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
         ConfigError: not TOML, or a key missing, unknown or of the wrong kind, in one line
             naming it.
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{where}: not valid TOML ({e})") from None
+    data = load_toml(text, where=where)
     unknown = sorted(set(data) - {"log", *RECORDED_GROUPS})
     if unknown:
         raise ConfigError(f"{where}: unknown table [{unknown[0]}]; expected [log], "
@@ -248,7 +260,7 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
     _keys(where, "log", log, {"name", "reference_source", "origin"})
     origin = log.get("origin")
     if origin is not None:
-        origin = tuple(_numbers(where, "log.origin", origin, 3))
+        origin = tuple(finite_numbers(where, "log.origin", origin, 3))
     streams = {g: _stream(where, g, data[g]) for g in RECORDED_GROUPS if g in data}
     if not streams:
         raise ConfigError(f"{where}: no stream; expected at least one of "
@@ -351,7 +363,7 @@ def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
     (none for ``depth`` and ``reference``)."""
     if group not in ("imu", "dvl"):
         return {}
-    out: dict[str, object] = {"position_body": tuple(_numbers(
+    out: dict[str, object] = {"position_body": tuple(finite_numbers(
         where, f"{group}.position_body", table.get("position_body", [0.0, 0.0, 0.0]), 3))}
     if group == "imu":
         noise = table.get("noise")
@@ -362,7 +374,7 @@ def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
         out["specs"] = {k: _spec(where, f"imu.noise.{k}", noise.get(k),
                                  strict=k == "bias_correlation_time") for k in IMU_NOISE}
         return out
-    out["mounting_rpy_deg"] = tuple(_numbers(
+    out["mounting_rpy_deg"] = tuple(finite_numbers(
         where, "dvl.mounting_rpy_deg", table.get("mounting_rpy_deg", [0.0, 0.0, 0.0]), 3))
     out["specs"] = {k: _spec(where, f"dvl.{k}", table.get(k), strict=k == "beam_angle_deg")
                     for k in ("beam_angle_deg", "noise_std", "velocity_accuracy")}
@@ -405,7 +417,12 @@ def _number(where: str, key: str, value: object) -> float:
     return float(value)
 
 
-def _numbers(where: str, key: str, value: object, n: int) -> list[float]:
+def finite_numbers(where: str, key: str, value: object, n: int) -> list[float]:
+    """``value`` checked to be a list of ``n`` finite numbers, as floats (``key`` names it).
+
+    Raises:
+        ConfigError: it is not.
+    """
     if not (isinstance(value, list) and len(value) == n):
         raise ConfigError(f"{where}: {key}: expected {n} numbers, got {value!r}")
     return [_number(where, key, v) for v in value]

@@ -102,7 +102,7 @@ import numpy as np
 
 from auvsim import __version__
 from auvsim.data.beams import beam_matrix
-from auvsim.data.files import Claim, commit, writing
+from auvsim.data.files import Claim, check_not_source, commit, writing
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
@@ -185,9 +185,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                           f"({package} is missing): pip install 'auvsim[io]'") from None
     from auvsim.data.reader import open_dataset
 
-    if out.exists() and Path(source).exists() and out.samefile(source):
-        raise ConfigError(f"{str(out)!r}: is the dataset itself; expected another file",
-                          argument="out")
+    check_not_source(out, source)
     with open_dataset(source) as dataset:
         chosen = dataset.mission(mission)
         attrs, streams = chosen.attrs, _streams(chosen)
