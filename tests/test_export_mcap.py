@@ -522,3 +522,14 @@ def test_a_recorded_mission_exports_its_reference_never_a_truth(tmp_path):
         dvl = [msg for _, msg in topics["/dvl/data"]]
         np.testing.assert_array_equal(vec(x.velocity for x in dvl), m.dvl.velocity_ls)
         assert not dvl[0].beam_velocities_valid  # A-KIT logs no beams
+
+
+@pytest.mark.parametrize("to, option, value", [("mcap", "--coordinates", "beam"),
+                                                ("pd0", "--topics", "t.toml"),
+                                                ("pd0", "--compression", "lz4")])
+def test_an_option_of_the_other_format_is_refused(to, option, value, dataset, tmp_path):
+    out = tmp_path / f"x.{to}"
+    code, _, err = run(["export", str(dataset), "--to", to, option, value, "--out", str(out)])
+    only = "pd0" if to == "mcap" else "mcap"
+    assert code == 2 and err == f"auvsim: error: {option}: only for --to {only}\n"
+    assert list(tmp_path.iterdir()) == []
