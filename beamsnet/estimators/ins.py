@@ -83,26 +83,32 @@ Adaptive measurement noise (``adaptive = "innovation"``, the estimator ``INS/DVL
 (IAE) after Mohamed & Schwarz 1999, "Adaptive Kalman filtering for INS/GPS", Journal of
 Geodesy 73, 193-203, sec. 4: the innovations' covariance estimated over a sliding window
 of N of them, C_v = (1/N) sum_j v_j v_j^T, and the measurement noise R = C_v - H P^- H^T.
-Here each scalar measurement k (a beam, or a DVL axis) keeps its own window of the
-innovations the gate accepted, and its white-noise variance is::
+Here R keeps the stated shape (the beams' equal noise, or a velocity's Janus axes) and
+its size is estimated, R = lambda R_stated, from the last N scalar innovations nu_j of
+the DVL's measurements (each with its predicted h_j P_j h_j^T, what the ping's earlier
+measurements left, and the timing term t_j)::
 
-    r_k = (1/N) sum_j (nu_j^2 / kappa - h_j P_j^- h_j^T - (timing_std rate_j)^2)
+    lambda = (1/N) sum_j (min(nu_j^2, gate S_j) / kappa - h_j P_j h_j^T - t_j) / r_j
 
-with kappa = 0.988 the share of a normal's variance the 3.29-sigma gate keeps (a
-consistent filter's accepted innovations are truncated: without it r_k would settle
-1.2 % low), used from the measurement's next update on, after ``ADAPTIVE_START``
-innovations (the window then grows to N), and clipped to ``adaptive_range`` times the
-stated std (0.5 to 10): a diagonal R with every variance at least a quarter of the
-stated one, so positive definite by construction. Only R is adapted: the DVL's noise is
-what changes with the bottom, the altitude and the water (a ping's scatter), and the
-innovations see it directly, one scalar each, while Q's IMU densities come from the
-instrument's datasheet and the quantisation (Mohamed & Schwarz adapt Q through K C_v K^T,
-which moves every state's noise at once from the same few innovations). The filter
-stays the Kalman filter above: every measurement is gated against its innovation
-variance with the adapted r_k and counted, a rejected one is not in the window (so
-outliers do not inflate r_k), and the divergence watch is unchanged (its restart
-still uses the stated noise). With ``adaptive = "none"`` the loop does the fixed filter's
-arithmetic exactly: its outputs are bit-identical to the filter without the setting.
+with r_j the stated variance of measurement j, S_j its innovation variance and kappa =
+0.998 what winsorising at the gate keeps of a normal's variance (an outlier moves lambda
+by at most gate S / (N r), and a filter told too little noise, whose gate rejects good
+measurements, still sees them). lambda is used from the next ping on, once
+``ADAPTIVE_START`` innovations are in (the window then grows to N), clipped to the squares
+of ``adaptive_range`` (0.5 to 10 times the stated std), so R stays diagonal with every
+variance at least a quarter of the stated one: positive definite by construction. One
+lambda for the four beams, not one each: with sequential scalar updates a beam's
+innovation is what the ping's earlier beams left, and per-beam windows drifted apart
+(on a 120 s zigzag whose beams were 3x noisier than stated, three beams fell to the
+floor and the last took the noise; pooled, lambda came within 3 % of 9). Only R is
+adapted: the DVL's noise is what changes with the bottom, the altitude and the water,
+and the innovations see it directly, while Q's IMU densities come from the instrument's
+datasheet and the quantisation (Mohamed & Schwarz adapt Q through K C_v K^T, which moves
+every state's noise at once from the same few innovations). The filter stays the Kalman
+filter above: every measurement is gated against its innovation variance with the
+adapted R and counted, and the divergence watch is unchanged (its restart still uses the
+stated noise). With ``adaptive = "none"`` the loop does the fixed filter's arithmetic
+exactly: its outputs are bit-identical to the filter's before the setting existed.
 
 Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
 the mission's attributes (a simulated file's turn-on spread from its config, where the
@@ -279,11 +285,11 @@ class FilterConfig:
             measurements (8 or more) has a binomial probability below 1e-15, and a real
             DVL's outliers (0.2 % to a few per cent of pings) stay well below it.
         adaptive: ``"none"``: the measurement noise is the stated one throughout (the
-            fixed filter); ``"innovation"``: each measurement's (beam's, or DVL axis's)
-            white-noise variance is estimated from its own recent innovations (Mohamed
-            & Schwarz 1999; the module docstring's "Adaptive measurement noise"). Only R
+            fixed filter); ``"innovation"``: the stated white noise of the beams (or DVL
+            axes) scaled by a factor estimated from the recent innovations (Mohamed &
+            Schwarz 1999; the module docstring's "Adaptive measurement noise"). Only R
             is adapted, never Q.
-        adaptive_window: N, the accepted innovations per measurement the estimate
+        adaptive_window: N, the innovations (of all the DVL's measurements) the estimate
             averages (a sliding window; the first estimate after ``ADAPTIVE_START``).
         adaptive_range: (floor, ceiling), the adapted std's bounds as multiples of the
             stated one (``beam_noise_std``, the instrument's): 0.5 to 10 by default.
@@ -381,8 +387,8 @@ class FilterConfig:
 # The measurement-noise adaptation: none (the fixed filter), or the innovation-based
 # estimate of each measurement's white-noise variance (``FilterConfig.adaptive``).
 ADAPTIVE = ("none", "innovation")
-# An adapted variance is used once its measurement has this many accepted innovations
-# (or the whole window, if shorter); before, the stated noise.
+# The adapted noise is used once this many innovations are in (or the whole window, if
+# shorter); before, the stated noise.
 ADAPTIVE_START = 10
 
 # FilterConfig's fields by what they accept (the others are checked one by one).
@@ -489,8 +495,8 @@ class FilterTrack(NamedTuple):
     misalignment_std: np.ndarray | None = None  # (P, 3) rad
     lever_arm: np.ndarray | None = None  # (P, 3) m, the DVL's from the IMU, body
     lever_arm_std: np.ndarray | None = None  # (P, 3) m
-    measurement_std: np.ndarray | None = None  # (P, K) m/s, the white noise each beam
-    # (or DVL axis) had after the ping: the stated one, or the adapted (``adaptive``)
+    measurement_std: np.ndarray | None = None  # (P, K) m/s, the white noise of each beam
+    # (or DVL axis) for the next ping: the stated one, or the adapted (``adaptive``)
 
     @property
     def availability(self) -> float:
@@ -584,8 +590,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
         adapt_window: N accepted innovations per measurement for the innovation-based
             estimate of its variance (0: the fixed filter, ``r_meas`` throughout).
-        r_low, r_high: (K,) the adapted variances' bounds, (m/s)^2.
-        kappa: E[nu^2 | accepted] / S of a consistent filter's gated innovations.
+        r_low, r_high: the bounds of the adapted variances' ratio to ``r_meas``.
+        kappa: E[min(nu^2, gate S)] / S of a consistent filter's innovations.
     """
     n_ping = ping_row.shape[0]
     n_dir = dirs.shape[0]
@@ -600,9 +606,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     reset = np.zeros(n_ping, dtype=np.bool_)
     out_r = np.full((n_ping, n_dir), np.nan)  # the variance each measurement had, (m/s)^2
     r_use = r_meas.copy()  # the variances in use: r_meas, or adapted
-    ring_nu2 = np.zeros((n_dir, max(adapt_window, 1)))  # accepted innovations squared
-    ring_hph = np.zeros((n_dir, max(adapt_window, 1)))  # their S less the white noise
-    ring_n = np.zeros(n_dir, dtype=np.int64)
+    ring = np.zeros(max(adapt_window, 1))  # the last innovations' white-noise ratios
+    ring_n = 0
     adapt_start = min(adapt_window, ADAPTIVE_START)
     ring_used = np.zeros(max(window, 1), dtype=np.int64)
     ring_rejected = np.zeros(max(window, 1), dtype=np.int64)
@@ -713,24 +718,19 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 hph = hrow @ ph
                 s_inn = hph + r_use[k] + (timing_std * rate_k) ** 2
                 nu = meas[k_ping, k] - y_hat
+                if adapt_window > 0:
+                    # This innovation's share of the window (the module docstring): nu^2
+                    # winsorised at the gate, less its predicted h P h^T, per stated
+                    # variance.
+                    ring[ring_n % adapt_window] = (
+                        min(nu * nu, gate * s_inn) / kappa - hph
+                        - (timing_std * rate_k) ** 2) / r_meas[k]
+                    ring_n += 1
                 if nu * nu > gate * s_inn:
                     rejected[k_ping] += 1
                     worst = max(worst, abs(nu))
                     continue
                 used[k_ping] += 1
-                if adapt_window > 0:
-                    # Innovation-based R (the module docstring): the window's mean nu^2, corrected
-                    # for the gate's truncation, less its mean predicted H P H^T (with the
-                    # timing term); for this measurement's next update, bounded.
-                    slot = ring_n[k] % adapt_window
-                    ring_nu2[k, slot] = nu * nu
-                    ring_hph[k, slot] = hph + (timing_std * rate_k) ** 2
-                    ring_n[k] += 1
-                    held = min(ring_n[k], adapt_window)
-                    if held >= adapt_start:
-                        r_hat = (ring_nu2[k, :held].sum() / kappa
-                                 - ring_hph[k, :held].sum()) / held
-                        r_use[k] = min(max(r_hat, r_low[k]), r_high[k])
                 gain = ph / s_inn
                 dx = gain * nu
                 P -= np.outer(gain, ph)
@@ -746,6 +746,13 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     cb += dx[19:23]
                     mis += dx[23:26]
                     lever += dx[26:29]
+            held = min(ring_n, adapt_window)
+            if adapt_window > 0 and held >= adapt_start:
+                # Innovation-based R (the module docstring), for the next ping's updates:
+                # the stated variances times the window's mean ratio, bounded.
+                ratio = min(max(ring[:held].sum() / held, r_low), r_high)
+                for k in range(n_dir):
+                    r_use[k] = ratio * r_meas[k]
             if window > 0:
                 slot = k_ping % window
                 ring_used[slot] = used[k_ping] + rejected[k_ping]
@@ -1080,7 +1087,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         cfg.watch_pings, float(cfg.watch_share),
         cfg.clock_std if timing_std is None else float(timing_std),
         cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
-        np.ascontiguousarray(floor**2 * r_meas), np.ascontiguousarray(ceiling**2 * r_meas),
+        float(floor**2), float(ceiling**2),
         _gated_variance_share(cfg.gate_probability))
     nees = np.full(len(tp), np.nan)
     if truth_velocity_dvl is not None:
@@ -1323,14 +1330,14 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
 
 
 def _gated_variance_share(probability: float) -> float:
-    """kappa = E[nu^2 | |nu| <= c sqrt(S)] / S for a normal innovation of variance S
-    gated at c^2 = ``_chi2_1dof(probability)``: the variance of a normal truncated at
-    +-c sigma, 1 - 2 c phi(c) / (2 Phi(c) - 1) (Johnson, Kotz & Balakrishnan 1994,
-    "Continuous Univariate Distributions" vol. 1, 2nd ed., sec. 10.1, the doubly
-    truncated normal); 0.988 at the default gate."""
+    """kappa = E[min(nu^2, c^2 S)] / S for a normal innovation nu of variance S and the
+    gate c^2 = ``_chi2_1dof(probability)``: the second moment of a standard normal
+    winsorised at +-c, integrated by parts, (2 Phi(c) - 1) - 2 c phi(c) + 2 c^2 (1 - Phi(c));
+    0.998 at the default gate."""
     normal = statistics.NormalDist()
     c = math.sqrt(_chi2_1dof(probability))
-    return 1.0 - 2.0 * c * normal.pdf(c) / (2.0 * normal.cdf(c) - 1.0)
+    tail = 1.0 - normal.cdf(c)
+    return (1.0 - 2.0 * tail) - 2.0 * c * normal.pdf(c) + 2.0 * c * c * tail
 
 
 def _chi2_1dof(probability: float) -> float:
