@@ -100,11 +100,12 @@ variance at least a quarter of the stated one: positive definite by construction
 lambda for the four beams, not one each: with sequential scalar updates a beam's
 innovation is what the ping's earlier beams left, and per-beam windows drifted apart
 (on a 120 s zigzag whose beams were 3x noisier than stated, three beams fell to the
-floor and the last took the noise; pooled, lambda came within 3 % of 9). Only R is
-adapted: the DVL's noise is what changes with the bottom, the altitude and the water,
-and the innovations see it directly, while Q's IMU densities come from the instrument's
-datasheet and the quantisation (Mohamed & Schwarz adapt Q through K C_v K^T, which moves
-every state's noise at once from the same few innovations). The filter stays the Kalman
+floor and the last took the noise; pooled, lambda came within 6 % of 9, and within
+3 % over 200 s). Only R is adapted: the DVL's noise is what changes with the bottom,
+the altitude and the water, and the innovations see it directly, while Q's IMU
+densities come from the instrument's datasheet and the quantisation (Mohamed & Schwarz
+adapt Q through K C_v K^T, which moves every state's noise at once from the same few
+innovations). The filter stays the Kalman
 filter above: every measurement is gated against its innovation variance with the
 adapted R and counted, and the divergence watch is unchanged (its restart still uses the
 stated noise). With ``adaptive = "none"`` the loop does the fixed filter's arithmetic
