@@ -81,7 +81,7 @@ by ``beamsnet estimate``.
 Adaptive measurement noise (``adaptive = "innovation"``, the estimator ``INS/DVL
 (adaptive)``): the model-based adaptive baseline, innovation-based adaptive estimation
 (IAE) after Mohamed & Schwarz 1999, "Adaptive Kalman filtering for INS/GPS", Journal of
-Geodesy 73, 193-203, sec. 4: the innovations' covariance estimated over a sliding window
+Geodesy 73, 193-203 (their IAE): the innovations' covariance estimated over a sliding window
 of N of them, C_v = (1/N) sum_j v_j v_j^T, and the measurement noise R = C_v - H P^- H^T.
 Here R keeps the stated shape (the beams' equal noise, or a velocity's Janus axes) and
 its size is estimated, R = lambda R_stated, from the last N scalar innovations nu_j of
@@ -105,11 +105,11 @@ floor and the last took the noise; pooled, lambda came within 6 % of 9, and with
 the altitude and the water, and the innovations see it directly, while Q's IMU
 densities come from the instrument's datasheet and the quantisation (Mohamed & Schwarz
 adapt Q through K C_v K^T, which moves every state's noise at once from the same few
-innovations). The filter stays the Kalman
-filter above: every measurement is gated against its innovation variance with the
-adapted R and counted, and the divergence watch is unchanged (its restart still uses the
-stated noise). With ``adaptive = "none"`` the loop does the fixed filter's arithmetic
-exactly: its outputs are bit-identical to the filter's before the setting existed.
+innovations). The filter stays the Kalman filter above: every measurement is gated
+against its innovation variance with the adapted R and counted, and the divergence
+watch is unchanged (its restart still uses the stated noise). With ``adaptive =
+"none"`` the loop does the fixed filter's arithmetic exactly: its outputs are
+bit-identical to the filter's before the setting existed.
 
 Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
 the mission's attributes (a simulated file's turn-on spread from its config, where the
@@ -386,7 +386,7 @@ class FilterConfig:
 
 
 # The measurement-noise adaptation: none (the fixed filter), or the innovation-based
-# estimate of each measurement's white-noise variance (``FilterConfig.adaptive``).
+# estimate of the scale of the measurements' white noise (``FilterConfig.adaptive``).
 ADAPTIVE = ("none", "innovation")
 # The adapted noise is used once this many innovations are in (or the whole window, if
 # shorter); before, the stated noise.
@@ -589,8 +589,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         timing_std: s, the std of each ping's time on the IMU's clock: a measurement
             along b changes at b . du/dt, so it is uncertain by timing_std |b . du/dt|
             more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
-        adapt_window: N accepted innovations per measurement for the innovation-based
-            estimate of its variance (0: the fixed filter, ``r_meas`` throughout).
+        adapt_window: N, the last innovations (of all the measurements, gated or not)
+            whose mean gives the noise's scale (0: the fixed filter, ``r_meas``
+            throughout).
         r_low, r_high: the bounds of the adapted variances' ratio to ``r_meas``.
         kappa: E[min(nu^2, gate S)] / S of a consistent filter's innovations.
     """
