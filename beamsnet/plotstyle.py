@@ -23,11 +23,13 @@ MARKERS = ("o", "s", "^", "D")
 HATCHES = ("", "//", "..", "xx")
 PAIRS = len(COLOURS) * len(LINESTYLES)
 # The estimators in the order of their pairs: the model-based ones, the filter, the
-# networks. Names not here (a new estimator) take a free pair after these, by a hash of
-# the name, so that they keep it from figure to figure too.
+# networks, then those added later (at the end, so that the others keep their pairs; a
+# name here is its own, not a run of the name before its brackets). Names not here (a
+# new estimator) take a free pair after these, by a hash of the name, so that they keep
+# it from figure to figure too.
 KNOWN = ("LS", "Affine", "Beam calibration", "LS scale+offset", "KF", "KF (beam calibration)",
          "Missing-beam LS", "INS/DVL", "BeamsNetV1", "BeamsNetV2", "BeamsNetV2M",
-         "CorrectionNet")
+         "CorrectionNet", "INS/DVL (adaptive)")
 
 
 @dataclass(frozen=True)

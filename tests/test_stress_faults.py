@@ -192,7 +192,8 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
     assert dead["LS"]["availability"] == 1 and dead["Affine"]["availability"] == 0
     assert "n/a: needs 4 beams |" in report and "n/a: needs 4 beams on 4 pings" in report
     worst = summary["sweeps"]["dropout"][-1]["estimators"]
-    bridging = {"KF", "KF (beam calibration)", "Missing-beam LS", "INS/DVL"}  # no gaps
+    bridging = {"KF", "KF (beam calibration)", "Missing-beam LS"} | {
+        s.name for s in specs("filter")}  # no gaps
     assert all(c["availability"] < 1 for n, c in worst.items() if n not in bridging)
     assert all(worst[n]["availability"] > worst["LS"]["availability"] for n in bridging)
     assert worst["BeamsNetV2 (v2)"]["availability"] <= worst["LS"]["availability"]
