@@ -276,11 +276,13 @@ def _export_pd0(args: argparse.Namespace) -> None:
 
 
 def _export_mcap(args: argparse.Namespace) -> None:
+    from auvsim.data.recorded import load_toml, read_description
     from auvsim.interop.ros2 import export_mcap
 
     topics = None
     if args.topics is not None:
-        topics = _load_toml_file(args.topics, "--topics")
+        text = read_description(args.topics, argument="topics")
+        topics = load_toml(text, where=f"--topics {str(args.topics)!r}")
     counts = export_mcap(args.dataset, args.out, mission=args.mission, topics=topics,
                          compression=args.compression or "zstd")
     print(f"wrote {args.out}: " + ", ".join(f"{topic} {n}" for topic, n in counts.items()))
@@ -325,23 +327,6 @@ def _export(args: argparse.Namespace) -> None:
         if getattr(args, key, None) is not None and args.to != only:
             raise ConfigError(f"--{key}: only for --to {only}")
     _EXPORTERS[args.to](args)
-
-
-def _load_toml_file(path: Path, flag: str) -> dict:
-    """A TOML file's table, or ConfigError in one line naming ``flag``."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-    try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
-    except FileNotFoundError:
-        raise ConfigError(f"{flag} {str(path)!r}: no such file") from None
-    except OSError as e:
-        raise ConfigError(f"{flag} {str(path)!r}: cannot read it ({e.strerror})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as e:
-        raise ConfigError(f"{flag} {str(path)!r}: not valid TOML ({e})") from None
 
 
 # ---- auvsim serve: a mission played as a DVL on the network (auvsim.interop.a50) ------

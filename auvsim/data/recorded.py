@@ -739,8 +739,9 @@ def akit_segments(source: Path) -> list[tuple[Path, int]]:
     return found
 
 
-def read_description(path: str | os.PathLike) -> str:
-    """The text of a log description file.
+def read_description(path: str | os.PathLike, *, argument: str = "description") -> str:
+    """The text of a log description file (or any small TOML file a command names: the
+    error names ``argument``, the library argument that gave it).
 
     Raises:
         ConfigError: the file is missing or cannot be read as text.
@@ -749,10 +750,9 @@ def read_description(path: str | os.PathLike) -> str:
     try:
         return path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ConfigError(f"{str(path)!r}: no such file", argument="description") from None
+        raise ConfigError(f"{str(path)!r}: no such file", argument=argument) from None
     except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{str(path)!r}: cannot read it ({e})",
-                          argument="description") from None
+        raise ConfigError(f"{str(path)!r}: cannot read it ({e})", argument=argument) from None
 
 
 def import_logs(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
