@@ -70,7 +70,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.beams import beam_matrix, error_velocity, least_squares
+from auvsim.data.beams import Mode, beam_matrix, error_velocity, least_squares
 from auvsim.data.files import check_not_source, write_bytes
 from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
@@ -265,14 +265,15 @@ def _pings(m) -> Pings:
               else np.full((n, 4), np.nan))
     angle = float(m.attrs["beam_angle_deg"])
     h = beam_matrix(math.radians(angle))
+    bottom, none = int(Mode.BOTTOM_TRACK), int(Mode.NO_VELOCITY)
     mode = (np.asarray(dvl.mode) if "dvl/mode" in fields
-            else np.where(np.isfinite(beams).sum(axis=1) >= 3, 0, -1))
+            else np.where(np.isfinite(beams).sum(axis=1) >= 3, bottom, none))
     velocity = (np.asarray(dvl.velocity_ls, dtype=float) if "dvl/velocity_ls" in fields
                 else least_squares(beams, h))
     error = (np.asarray(dvl.error_velocity, dtype=float) if "dvl/error_velocity" in fields
              else error_velocity(beams, h))
     return Pings(np.asarray(dvl.time, dtype=float), beams, ranges, velocity, error,
-                 mode == 0, angle, float(m.attrs.get("dvl_max_range", 0.0)))
+                 mode == bottom, angle, float(m.attrs.get("dvl_max_range", 0.0)))
 
 
 # ---- reading -------------------------------------------------------------------------
