@@ -15,6 +15,7 @@ from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import FilterWarning, SensorSetupWarning, UnseenMissionWarning
+from beamsnet.experiments.adaptive import DURATION as ADAPTIVE_DURATION
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
 from beamsnet.experiments.sea import DEFAULT_SEA
@@ -146,21 +147,26 @@ def _parser() -> argparse.ArgumentParser:
         "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
         "the Snapir sea data's Table 3", formatter_class=_Defaults)
     rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real",
-                                           "sea"),
+                                           "sea", "adaptive"),
                     metavar="EXPERIMENT",
                     help="paper-sim: the paper's simulation (Table 1); paper-sim-text: the "
                     "same with its text's beam noise; snapir: the Snapir sea data (Table 3); "
                     "sim2real: train every estimator on auvsim data only, test on the "
                     "Snapir streams; sea: every estimator on recorded IMU, DVL and "
-                    "reference logs, scored against the reference, with sim-to-real rows")
+                    "reference logs, scored against the reference, with sim-to-real rows; "
+                    "adaptive: the INS/DVL filter with a noise network trained on auvsim "
+                    "data, beside the model-based adaptive and the fixed filters, on "
+                    "held-out simulated missions and on recorded logs")
     rp.add_argument("--data", type=Path, metavar="PATH",
                     help="paper-sim: use this dataset instead of generating one; snapir, "
                     "sim2real: the folder with V.npy and V_test.npy (default "
-                    f"{DEFAULT_SNAPIR}); sea: a folder of A-KIT logs (default {DEFAULT_SEA})")
+                    f"{DEFAULT_SNAPIR}); sea, adaptive: a folder of A-KIT logs (default "
+                    f"{DEFAULT_SEA})")
     rp.add_argument("--duration", type=float, metavar="SECONDS",
                     help="s per speed of paper-sim (default 7200), s per manoeuvre of "
                     f"sim2real's training sets (default {SIM2REAL_DURATION:g}) and of sea's "
-                    f"(default {SEA_DURATION:g})")
+                    f"(default {SEA_DURATION:g}) and adaptive's (default "
+                    f"{ADAPTIVE_DURATION:g})")
     rp.add_argument("--seeds", type=int, metavar="N",
                     help="snapir, sim2real, sea: seeds per network, every one scored (default "
                     + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
@@ -342,8 +348,23 @@ def _filter_config(path: Path | None):
 
 
 def _reproduce(args) -> None:
+    from beamsnet.experiments.adaptive import adaptive
     from beamsnet.experiments.reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
     from beamsnet.experiments.sea import sea
+
+    if args.experiment == "adaptive":
+        # Its network has its own training (noisenet): the paper's settings do not apply.
+        for name in ("seeds", "epochs", "lr", "average_epochs", "restarts"):
+            if getattr(args, name) is not None:
+                raise ConfigError("is not used by adaptive, whose noise network trains "
+                                  "with its own settings (beamsnet.estimators.noisenet); "
+                                  "expected --data, --duration, --out", argument=name)
+        args.out = report_dir(args.out, args.refresh_reports, args.experiment)
+        report = adaptive(DEFAULT_SEA if args.data is None else args.data, out=args.out,
+                          duration=ADAPTIVE_DURATION if args.duration is None
+                          else args.duration, progress=not args.quiet, cluster=args.cluster)
+        print(f"wrote {report}")
+        return
 
     # sim2real and sea test on sea data: they train with the paper's sea-data settings.
     profile = PROFILES["snapir" if args.experiment in ("sim2real", "sea")

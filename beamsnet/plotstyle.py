@@ -29,7 +29,7 @@ PAIRS = len(COLOURS) * len(LINESTYLES)
 # it from figure to figure too.
 KNOWN = ("LS", "Affine", "Beam calibration", "LS scale+offset", "KF", "KF (beam calibration)",
          "Missing-beam LS", "INS/DVL", "BeamsNetV1", "BeamsNetV2", "BeamsNetV2M",
-         "CorrectionNet", "INS/DVL (adaptive)")
+         "CorrectionNet", "INS/DVL (adaptive)", "INS/DVL (learned noise)")
 
 
 @dataclass(frozen=True)

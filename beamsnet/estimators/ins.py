@@ -185,6 +185,7 @@ from beamsnet.estimators.registry import Needs, Spec
 N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
+N_FEATURES = 8  # what the loop records of each ping for a learned noise model (noisenet)
 # The error state's layout (the rows of P), by the FilterTrack field each part fills.
 _STATES = dict(position=slice(0, 3), velocity=slice(3, 6), attitude=slice(6, 9),
               accel_bias=slice(9, 12), gyro_bias=slice(12, 15), beam_scale=slice(15, 19),
@@ -294,6 +295,11 @@ class FilterConfig:
             averages (a sliding window; the first estimate after ``ADAPTIVE_START``).
         adaptive_range: (floor, ceiling), the adapted std's bounds as multiples of the
             stated one (``beam_noise_std``, the instrument's): 0.5 to 10 by default.
+            ``"learned"``: the stated white noise scaled by a small network's output
+            from the recent IMU samples and innovations (``beamsnet.estimators
+            .noisenet``, trained on auvsim data; its own bounds apply).
+        noise_model: the learned noise model's file (``beamsnet reproduce adaptive``
+            writes one), for ``adaptive = "learned"`` where no model is given directly.
     """
 
     position_std: float = 0.1
@@ -325,6 +331,7 @@ class FilterConfig:
     adaptive: str = "none"
     adaptive_window: int = 30
     adaptive_range: tuple[float, float] = (0.5, 10.0)
+    noise_model: str | None = None
 
     def __post_init__(self) -> None:
         for name in _POSITIVE:
@@ -378,6 +385,9 @@ class FilterConfig:
         if not (_whole(self.adaptive_window) and self.adaptive_window >= 2):
             raise ValueError("FilterConfig.adaptive_window: expected a whole number of "
                              f"innovations >= 2, got {self.adaptive_window!r}")
+        if self.noise_model is not None and not isinstance(self.noise_model, str):
+            raise ValueError("FilterConfig.noise_model: expected a file's path or None, "
+                             f"got {self.noise_model!r}")
         bounds = self.adaptive_range
         if not (isinstance(bounds, tuple) and len(bounds) == 2
                 and all(_number(x) for x in bounds) and 0 < bounds[0] <= 1 <= bounds[1]):
@@ -387,7 +397,10 @@ class FilterConfig:
 
 # The measurement-noise adaptation: none (the fixed filter), or the innovation-based
 # estimate of the scale of the measurements' white noise (``FilterConfig.adaptive``).
-ADAPTIVE = ("none", "innovation")
+ADAPTIVE = ("none", "innovation", "learned")
+# No learned noise model: the loop's arguments for one (window 0) that it never reads.
+_NO_NET = (0, np.zeros((1, 1)), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1),
+           np.ones(1))
 # The adapted noise is used once this many innovations are in (or the whole window, if
 # shorter); before, the stated noise.
 ADAPTIVE_START = 10
@@ -498,6 +511,17 @@ class FilterTrack(NamedTuple):
     lever_arm_std: np.ndarray | None = None  # (P, 3) m
     measurement_std: np.ndarray | None = None  # (P, K) m/s, the white noise of each beam
     # (or DVL axis) for the next ping: the stated one, or the adapted (``adaptive``)
+    features: np.ndarray | None = None  # (P, N_FEATURES) what a learned noise model reads
+    # of each ping (``beamsnet.estimators.noisenet.FEATURES``)
+    innovation: np.ndarray | None = None  # (P, K) m/s, each measurement's innovation
+    # (NaN: not offered)
+    innovation_hph: np.ndarray | None = None  # (P, K) (m/s)^2, its predicted h P h^T
+    # (with the timing term): the innovation variance less the measurement noise
+    stated_std: np.ndarray | None = None  # (K,) m/s, each measurement's stated white noise
+    slow_drive: np.ndarray | None = None  # (P,) (m/s)^2, the variance the slow error's
+    # drive put into each measurement's bias since the previous ping, as stated (0: none)
+    noise_scale: np.ndarray | None = None  # (P,) the scale of the DVL's noise (white and
+    # slow drive) at each ping: 1, or the learned one (the model-based one scales R only)
 
     @property
     def availability(self) -> float:
@@ -565,7 +589,8 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
             p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, window,
-            watch_share, timing_std, adapt_window, r_low, r_high, kappa):
+            watch_share, timing_std, adapt_window, r_low, r_high, kappa,
+            net_window, net_w1, net_b1, net_w2, net_b2, feat_mean, feat_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
     (p, v, c, ba, bg, P); outputs per ping are returned.
 
@@ -594,6 +619,12 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             throughout).
         r_low, r_high: the bounds of the adapted variances' ratio to ``r_meas``.
         kappa: E[min(nu^2, gate S)] / S of a consistent filter's innovations.
+        net_window: W, the pings of features the learned noise model reads (0: no
+            model). net_w1 (H, W F), net_b1 (H,), net_w2 (H,), net_b2 (1,): its layers;
+            feat_mean, feat_std (W F,): its inputs' normalisation
+            (``beamsnet.estimators.noisenet``). With it, the measurements' variances and
+            the biases' drive are r_meas and bias_psd times its output from the next ping
+            on (``adapt_window`` must be 0).
     """
     n_ping = ping_row.shape[0]
     n_dir = dirs.shape[0]
@@ -607,6 +638,19 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     rejected = np.zeros(n_ping, dtype=np.int64)
     reset = np.zeros(n_ping, dtype=np.bool_)
     out_r = np.full((n_ping, n_dir), np.nan)  # the variance each measurement had, (m/s)^2
+    out_feat = np.full((n_ping, N_FEATURES), np.nan)  # the noise model's inputs, per ping
+    out_nu = np.full((n_ping, n_dir), np.nan)  # each measurement's innovation, m/s
+    out_hph = np.full((n_ping, n_dir), np.nan)  # its h P h^T + timing term, (m/s)^2
+    # The IMU since the last ping, for the features: sum |w|, sum (|f| - g), its squares.
+    acc_w, acc_f, acc_f2, acc_n = 0.0, 0.0, 0.0, 0
+    # The slow error's drive into each bias c_k since the last ping, unscaled, (m/s)^2;
+    # the drive in use (bias_psd, or scaled by the noise model), and the scale in use.
+    drive, bias_psd_use, scale_used = 0.0, bias_psd, 1.0
+    out_drive = np.full(n_ping, np.nan)
+    out_scale = np.full(n_ping, np.nan)
+    feat_ring = np.zeros((max(net_window, 1), N_FEATURES))
+    feat_n = 0
+    hidden = np.zeros(net_b1.shape[0])
     r_use = r_meas.copy()  # the variances in use: r_meas, or adapted
     ring = np.zeros(max(adapt_window, 1))  # the last innovations' white-noise ratios
     ring_n = 0
@@ -657,6 +701,11 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 dphi[r] = h * wb[r]
                 c_old[r, :] = c[r, :]
             cf[2] -= g  # C f (less the Coriolis term) is what the error dynamics see
+            acc_w += math.sqrt(wb[0] * wb[0] + wb[1] * wb[1] + wb[2] * wb[2])
+            excess = math.sqrt(fb[0] * fb[0] + fb[1] * fb[1] + fb[2] * fb[2]) - g
+            acc_f += excess
+            acc_f2 += excess * excess
+            acc_n += 1
             if earth:
                 for r in range(3):
                     cf[r] += 2.0 * cor[r]
@@ -683,7 +732,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     cb[k] *= decay
                     P[19 + k, :] *= decay
                     P[:, 19 + k] *= decay
-                    P[19 + k, 19 + k] += bias_psd * h
+                    P[19 + k, 19 + k] += bias_psd_use * h
+                drive = drive * decay * decay + bias_psd * h
         while k_ping < n_ping and ping_row[k_ping] == i:
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
             wb = w[i] - bg - c.T @ omega_ie
@@ -720,6 +770,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 hph = hrow @ ph
                 s_inn = hph + r_use[k] + (timing_std * rate_k) ** 2
                 nu = meas[k_ping, k] - y_hat
+                out_nu[k_ping, k] = nu
+                out_hph[k_ping, k] = hph + (timing_std * rate_k) ** 2
                 if adapt_window > 0:
                     # This innovation's share of the window (the module docstring): nu^2
                     # winsorised at the gate, less its predicted h P h^T, per stated
@@ -755,6 +807,54 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 ratio = min(max(ring[:held].sum() / held, r_low), r_high)
                 for k in range(n_dir):
                     r_use[k] = ratio * r_meas[k]
+            # The noise model's features of this ping (``noisenet.FEATURES``), and its
+            # scale for the next ping's measurements.
+            out_drive[k_ping] = drive
+            out_scale[k_ping] = scale_used
+            offered, nis_sum, share_sum = 0, 0.0, 0.0
+            for k in range(n_dir):
+                if usable[k_ping, k]:
+                    offered += 1
+                    nu2 = out_nu[k_ping, k] ** 2
+                    s_k = out_hph[k_ping, k] + r_use[k]
+                    nis_sum += min(nu2, gate * s_k) / s_k
+                    share_sum += min(scale_used * (r_meas[k] + drive) / s_k, 1.0)
+            drive = 0.0
+            mean_w = acc_w / acc_n if acc_n > 0 else 0.0
+            mean_f = acc_f / acc_n if acc_n > 0 else 0.0
+            var_f = max(acc_f2 / acc_n - mean_f * mean_f, 0.0) if acc_n > 0 else 0.0
+            acc_w, acc_f, acc_f2, acc_n = 0.0, 0.0, 0.0, 0
+            feat = out_feat[k_ping]
+            feat[0] = math.log(mean_w + 1e-3)
+            feat[1] = math.log(math.sqrt(var_f + mean_f * mean_f) + 1e-3)
+            feat[2] = math.log(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.1)
+            feat[3] = math.log(nis_sum / offered + 0.01) if offered > 0 else math.log(0.01)
+            feat[4] = share_sum / offered if offered > 0 else 0.0
+            feat[5] = math.log(scale_used)
+            feat[6] = rejected[k_ping] / offered if offered > 0 else 0.0
+            feat[7] = offered / n_dir
+            if net_window > 0:
+                if feat_n == 0:  # the first ping's features fill the window
+                    for j in range(net_window):
+                        feat_ring[j] = feat
+                feat_ring[feat_n % net_window] = feat
+                feat_n += 1
+                z = net_b2[0]
+                for h_ in range(hidden.shape[0]):
+                    acc = net_b1[h_]
+                    for j in range(net_window):  # newest first
+                        row = feat_ring[(feat_n - 1 - j) % net_window]
+                        for m_ in range(N_FEATURES):
+                            col = j * N_FEATURES + m_
+                            acc += net_w1[h_, col] * (row[m_] - feat_mean[col]) / feat_std[col]
+                    hidden[h_] = math.tanh(acc)
+                    z += net_w2[h_] * hidden[h_]
+                # Bounded by construction: log lambda in (log r_low, log r_high).
+                lo, hi = math.log(r_low), math.log(r_high)
+                scale_used = math.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * math.tanh(z))
+                for k in range(n_dir):
+                    r_use[k] = scale_used * r_meas[k]
+                bias_psd_use = scale_used * bias_psd
             if window > 0:
                 slot = k_ping % window
                 ring_used[slot] = used[k_ping] + rejected[k_ping]
@@ -814,7 +914,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     out_x[k_ping, 23 + r] = mis[r]
                     out_x[k_ping, 26 + r] = lever[r]
             k_ping += 1
-    return out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c, out_r
+    return (out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c, out_r,
+            out_feat, out_nu, out_hph, out_drive, out_scale)
 
 
 def _dataset_config(mission) -> dict:
@@ -939,7 +1040,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                height_m: float = 0.0, gravity: float | None = None,
                config: FilterConfig = FilterConfig(), truth_velocity_dvl=None,
                ping_row=None, timing_std: float | None = None, mounting_std_deg=None,
-               dvl_position_std=None) -> FilterTrack:
+               dvl_position_std=None, noise_model=None) -> FilterTrack:
     """Run the filter on arrays: no dataset needed.
 
     The streams keep their own clocks: each DVL ping is applied at the IMU sample at or
@@ -978,6 +1079,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
             missions' ``imu/index_of_dvl``); default from the times.
         timing_std: s, how uncertain each ping's time is on the IMU's clock; None:
             ``config.clock_std`` (0 for a simulated mission, whose clocks are exact).
+        noise_model: with ``config.adaptive = "learned"``, the learned noise model
+            (``beamsnet.estimators.noisenet.NoiseModel``); None: read from
+            ``config.noise_model``.
 
     Returns:
         The track at every ping.
@@ -1079,7 +1183,20 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         P[19:23, 19:23] = np.diag(np.full(4, bias_std**2))
     decay = 0.0 if bias_time is None else 1.0 / bias_time
     floor, ceiling = cfg.adaptive_range
-    out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used = _filter(
+    if cfg.adaptive == "learned" and noise_model is None:
+        from beamsnet.estimators.noisenet import load_noise_model
+
+        if cfg.noise_model is None:
+            raise DataError("FilterConfig.noise_model: expected the learned noise model's "
+                            "file with adaptive = \"learned\" (beamsnet reproduce adaptive "
+                            "writes one)")
+        noise_model = load_noise_model(cfg.noise_model)
+    net = (noise_model.arrays() if cfg.adaptive == "learned" and noise_model is not None
+           else _NO_NET)
+    if cfg.adaptive == "learned":
+        floor, ceiling = noise_model.bounds
+    (out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used, features, innovations,
+     hph, drive, scale) = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
@@ -1090,7 +1207,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         cfg.clock_std if timing_std is None else float(timing_std),
         cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
         float(floor**2), float(ceiling**2),
-        _gated_variance_share(cfg.gate_probability))
+        _gated_variance_share(cfg.gate_probability), *net)
     nees = np.full(len(tp), np.nan)
     if truth_velocity_dvl is not None:
         err = out_v - np.asarray(truth_velocity_dvl, dtype=float)
@@ -1111,7 +1228,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        **{f"{name}_std": sd[:, _STATES[name]] for name in _INSTRUMENT_STATES},
                        beams_used=used, beams_rejected=rejected, nees_velocity=nees,
                        accepted=used > 0, events=events, rotation=rot,
-                       measurement_std=np.sqrt(r_used))
+                       measurement_std=np.sqrt(r_used), features=features,
+                       innovation=innovations, innovation_hph=hph,
+                       stated_std=np.sqrt(r_meas), slow_drive=drive, noise_scale=scale)
 
 
 def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
@@ -1140,7 +1259,8 @@ def _known(setting: float | None, calibrated, default: float) -> np.ndarray:
 
 
 def run_mission(mission, config: FilterConfig = FilterConfig(), *,
-                beam_correction: tuple[np.ndarray, np.ndarray] | None = None) -> FilterTrack:
+                beam_correction: tuple[np.ndarray, np.ndarray] | None = None,
+                noise_model=None, measurements: str = "auto") -> FilterTrack:
     """Run the filter over one mission (``run_arrays`` on its streams).
 
     A simulated mission starts at its truth (or, with ``initial_error_seed``, drawn
@@ -1154,6 +1274,11 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         beam_correction: per-beam (scale factors s, biases b (m/s)), each (4,), known from
             a calibration (``beamsnet.estimators.baselines.BeamCalibration``): every beam is
             used as ``(y - b) / (1 + s)``. None: the beams as measured.
+        noise_model: a learned noise model, for ``config.adaptive = "learned"``
+            (``run_arrays``).
+        measurements: ``"auto"``: the beams where the file has measured ones, else the
+            DVL's velocity; ``"velocity"``: the DVL's velocity (its LS solution on a
+            simulated file) even where beams are measured.
 
     Returns:
         The track at every DVL ping.
@@ -1203,8 +1328,10 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
     beam_angle = float(a["beam_angle_deg"]) if "beam_angle_deg" in a else None
     beam_noise = float(a["dvl_noise_std"]) if "dvl_noise_std" in a else None
+    if measurements not in ("auto", "velocity"):
+        raise ValueError(f"measurements: expected 'auto' or 'velocity', got {measurements!r}")
     use_beams = "beam_velocity" in dvl and not (
-        recorded and a.get("dvl_beams_derived", False))
+        recorded and a.get("dvl_beams_derived", False)) and measurements == "auto"
     # The instrument's noise as the file states it (NaN where it does not); run_arrays
     # applies the settings.
     if use_beams:
@@ -1266,7 +1393,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         config=dataclasses.replace(cfg, beam_states=beam_states),
         truth_velocity_dvl=truth_v, ping_row=ping_row,
         timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
-        dvl_position_std=position_std)
+        dvl_position_std=position_std, noise_model=noise_model)
 
 
 def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: bool,
@@ -1383,6 +1510,7 @@ class InsDvlFilter:
         if not calibrate:
             self.name = "INS/DVL (raw beams)"
         self.correction: tuple[np.ndarray, np.ndarray] | None = None
+        self.noise_model = None  # a learned noise model (``adaptive = "learned"``)
         self._tracks: dict[str, FilterTrack] = {}
 
     def fit(self, train: Windows) -> InsDvlFilter:
@@ -1400,7 +1528,8 @@ class InsDvlFilter:
             with open_dataset(self.dataset) as f:
                 for name in missing:
                     self._tracks[name] = run_mission(f.missions[name], self.config,
-                                                     beam_correction=self.correction)
+                                                     beam_correction=self.correction,
+                                                     noise_model=self.noise_model)
         return {name: self._tracks[name] for name in wanted}
 
     def predict(self, windows: Windows) -> np.ndarray:

@@ -1,0 +1,404 @@
+"""The INS/DVL filter with a learned DVL noise (``FilterConfig.adaptive = "learned"``, the
+estimator ``INS/DVL (learned noise)``): a small network reads a window of the recent
+pings' IMU and innovation features and scales the DVL's noise, its white part and its slow
+part's drive together.
+
+**Which noise, and why.** The DVL's, as a whole: one scale lambda multiplies the
+measurements' white variances (R = lambda R_stated, one lambda for the beams or the DVL's
+axes, for the reasons the model-based adaptive filter gives in ``ins``) and the driving
+PSD of the measurement biases c_k, the Gauss-Markov states that hold the instrument's
+slow error (a process noise of the filter's augmented state). Not the IMU's Q: between
+two pings of a 1 Hz DVL, a navigation-grade IMU's white noise adds h Q h^T of order
+(0.0002 m/s^2/sqrt(Hz))^2 x 1 s = 4e-8 (m/s)^2 to an innovation's variance, against 1e-6
+to 1e-5 (m/s)^2 for the beams' white noise (1.2 to 3.6 mm/s): the innovations, all a
+filter at sea sees of its own errors, cannot tell a Q ten times larger from the stated.
+And not R alone: with the slow error as states, h P h^T is 40 to 150 times the stated
+white variance (measured, ``beamsnet reproduce adaptive``'s inputs table on the Snapir
+segments and auvsim's missions), so R alone moves the innovation variance by a few per
+cent whatever its scale. A-KIT (Cohen & Klein 2025, "Adaptive Kalman-informed
+transformer", EAAI) adapts the IMU's process noise instead, trained on real segments with
+a reference.
+
+**Features** (``FEATURES``; the loop computes them at every ping, after its updates, from
+the IMU samples since the previous ping and the ping's own innovations; ratios and
+logarithms, so that neither the IMU's rate nor the instrument's stated noise sets their
+scale): the log mean rotation rate, the log r.m.s. of |f| - g, the log speed, the log
+mean normalised innovation squared (nu^2 / S, winsorised at the gate: about 1 for a
+consistent filter), the share of S that the scaled noise makes (lambda (r + q) / S, q the
+drive since the last ping), the log scale in use, the share of the offered measurements
+the gate rejected and the share offered. The network reads the last ``WINDOW`` pings'
+features (the first ping's fill the window at the start), normalised by the training
+data's mean and std.
+
+**Network.** W F inputs, ``HIDDEN`` tanh units, one output z; log lambda =
+(log a + log b) / 2 + (log b - log a) / 2 tanh(z) for the variance bounds (a, b) =
+(floor^2, ceiling^2) of ``BOUNDS`` (std 0.5 to 10 times the stated, as the model-based
+filter's ``adaptive_range``). So R is diagonal with every variance in [a r, b r] and the
+drive in [a q, b q]: positive definite and bounded by construction, the
+bounded-exponential form of AI-IMU's learned covariances (Brossard, Barrau & Bonnabel
+2020, "AI-IMU dead-reckoning", IEEE T-IV 5(4), 585-595). The filter stays the Kalman
+filter: every measurement is gated against its innovation variance and counted, and the
+divergence watch is unchanged. lambda is used from the next ping on, as the model-based
+one.
+
+**Loss.** The negative log-likelihood of the innovations, the likelihood of a Kalman
+filter's output (Schweppe 1965, "Evaluation of likelihood functions for Gaussian
+signals", IEEE Trans. Inf. Theory 11(1), 61-70; used to identify noise variances by Mehra
+1970, "On the identification of variances and adaptive Kalman filtering", IEEE TAC 15(2),
+175-184): per measurement, 0.5 (log S + nu^2 / S) with S(lambda) = (h P h^T - lambda_0 q)
++ lambda (r + q), where h P h^T (with the timing term), the drive q and the scale
+lambda_0 are a recorded run's: the drive enters a bias's variance, whose h is 1, once per
+ping. The loss is so in closed form and needs no differentiable filter; as the scale
+changes P beyond one ping, the network is trained again (from its seeded start, with
+its inputs normalised afresh) on the filter's run with the learned scale (``ROUNDS``:
+first on the fixed filter's run, then on the learned one's). nu^2 is
+winsorised at the gate (min(nu^2, gate S_0)), as in the model-based filter: a gated
+outlier counts as a large innovation, not an unbounded one. The loss needs no truth: what
+the network is fitted to is what the filter sees.
+
+**Training data** (``training_records``): auvsim missions only. Each runs in both of the
+filter's measurement forms (the beams, and the DVL's LS velocity, the form a log without
+beams gives) and with the stated noise multiplied by each of ``STATED_FACTORS``: a real
+instrument's stated noise is not the simulated one's, so the network must read the scale
+from the innovations rather than learn the simulated instrument's (domain randomisation,
+Tobin et al. 2017, "Domain randomization for transferring deep neural networks from
+simulation to the real world", IROS).
+
+The model's file (``save_noise_model``, ``load_noise_model``) is an ``.npz`` of its
+arrays and a JSON header with ``NOISE_MODEL_FORMAT``, the features, window, bounds and
+what it was trained on; any other file is refused in one line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import math
+import zipfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from auvsim.errors import AuvsimError
+from beamsnet.data import Windows
+from beamsnet.estimators.ins import FilterConfig, InsDvlFilter
+from beamsnet.estimators.registry import Needs, Spec
+
+FEATURES = ("log rotation rate", "log rms |f| - g", "log speed", "log NIS",
+            "scaled noise share", "log scale in use", "rejected share", "offered share")
+WINDOW = 30  # pings of features the network reads (the model-based filter's window)
+HIDDEN = 16  # tanh units
+BOUNDS = (0.5, 10.0)  # the scaled std's bounds, multiples of the stated one
+ROUNDS = 2  # training on the fixed filter's run, then on the learned filter's
+STATED_FACTORS = (0.5, 1.0, 2.0)  # the stated noise's multiples in the training runs
+FORMS = ("auto", "velocity")  # the measurement forms of the training runs
+EPOCHS = 300
+LR = 0.01
+NOISE_MODEL_FORMAT = "beamsnet-noise-model"
+NOISE_MODEL_VERSION = 1
+
+
+class NoiseModelError(AuvsimError):
+    """A file that is not a beamsnet noise model, or one that cannot be read."""
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """A trained noise network: its layers, inputs' normalisation, bounds and provenance."""
+
+    w1: np.ndarray  # (HIDDEN, WINDOW F)
+    b1: np.ndarray  # (HIDDEN,)
+    w2: np.ndarray  # (HIDDEN,)
+    b2: float
+    mean: np.ndarray  # (WINDOW F,)
+    std: np.ndarray  # (WINDOW F,)
+    window: int = WINDOW
+    bounds: tuple[float, float] = BOUNDS
+    trained_on: dict = dataclasses.field(default_factory=dict)
+
+    def arrays(self) -> tuple:
+        """The filter loop's arguments (``ins._filter``'s ``net_window`` to ``feat_std``)."""
+        return (self.window, *(np.ascontiguousarray(a, dtype=float) for a in (
+            self.w1, self.b1, self.w2, np.array([self.b2]), self.mean, self.std)))
+
+    def scale(self, inputs: np.ndarray) -> np.ndarray:
+        """(N,) lambda, the variance scale, for (N, WINDOW F) inputs (``windows``): the
+        loop's arithmetic in numpy."""
+        hidden = np.tanh(((inputs - self.mean) / self.std) @ self.w1.T + self.b1)
+        lo, hi = (2 * math.log(b) for b in self.bounds)
+        return np.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * np.tanh(hidden @ self.w2 + self.b2))
+
+
+def windows(features: np.ndarray, window: int = WINDOW) -> np.ndarray:
+    """(P, window F) the network's input after each ping: its features and the previous
+    pings', newest first, the first ping's repeated before the start (as the loop fills
+    its window). ``features``: (P, F), the started pings only."""
+    p = len(features)
+    rows = np.arange(p)[:, None] - np.arange(window)[None, :]
+    return features[np.maximum(rows, 0)].reshape(p, -1)
+
+
+@dataclass(frozen=True)
+class Records:
+    """What a training run of the filter gives the loss, one row per ping with a
+    previous ping: the network's input after the previous ping, and this ping's
+    measurements (up to 4; ``mask`` says which were offered)."""
+
+    inputs: np.ndarray  # (N, WINDOW F)
+    nu2: np.ndarray  # (N, 4) squared innovations, winsorised at the gate, (m/s)^2
+    hph: np.ndarray  # (N, 4) h P h^T with the timing term, less the scaled drive, (m/s)^2
+    r: np.ndarray  # (N, 4) the stated variances plus the drive, (m/s)^2
+    mask: np.ndarray  # (N, 4) bool
+    group: np.ndarray  # (N,) int, the mission each row is from (for the validation split)
+
+    @staticmethod
+    def concatenate(parts: Sequence[Records]) -> Records:
+        return Records(*(np.concatenate([getattr(p, f.name) for p in parts])
+                         for f in dataclasses.fields(Records)))
+
+
+def records(track, gate: float, group: int = 0, *, until: float = math.inf,
+            window: int = WINDOW) -> Records:
+    """The loss's rows of one filter ``track`` (``ins.FilterTrack``) with the gate
+    ``gate`` (chi-square threshold), from pings up to time ``until``."""
+    started = np.flatnonzero(np.isfinite(track.features).all(axis=1)
+                             & (track.ping_time <= until))
+    x = windows(track.features[started], window)
+    k = track.innovation.shape[1]
+    r_stated = np.asarray(track.stated_std, dtype=float) ** 2
+    now = started[1:]
+    scale, drive = track.noise_scale[now, None], track.slow_drive[now, None]
+    nu = track.innovation[now]
+    hph = np.nan_to_num(track.innovation_hph[now])
+    mask = np.isfinite(nu) & np.isfinite(track.innovation_hph[now])
+    pad = ((0, 0), (0, 4 - k))
+    nu2 = np.minimum(np.nan_to_num(nu) ** 2, gate * (hph + scale * r_stated))
+    return Records(inputs=x[:-1], nu2=np.pad(nu2, pad),
+                   hph=np.pad(np.maximum(hph - scale * drive, 0.0), pad),
+                   r=np.pad(r_stated + drive, pad, constant_values=1.0),
+                   mask=np.pad(mask, pad), group=np.full(len(now), group))
+
+
+def training_records(dataset, missions: Sequence[str], config=None, model=None, *,
+                     until: dict[str, float] | None = None, beam_correction=None,
+                     progress: Callable[[int], None] | None = None) -> Records:
+    """The loss's rows of every mission of ``dataset`` in both measurement forms and at
+    every stated-noise factor (the module docstring's "Training data"), run with the
+    fixed filter (``model`` None) or the learned one; ``until``: the last time of each
+    mission to use (the training split's), default all; ``beam_correction``: the beams'
+    calibration (``ins.run_mission``)."""
+    from auvsim.data.reader import open_dataset
+    from beamsnet.estimators.ins import _chi2_1dof, run_mission
+
+    config = config if config is not None else FilterConfig()
+    gate = _chi2_1dof(config.gate_probability)
+    parts = []
+    with open_dataset(dataset) as f:
+        for g, name in enumerate(missions):
+            m = f.missions[name]
+            stated = float(m.attrs["dvl_noise_std"])
+            for form in FORMS:
+                for factor in STATED_FACTORS:
+                    cfg = dataclasses.replace(
+                        config, beam_noise_std=factor * stated,
+                        adaptive="none" if model is None else "learned")
+                    track = run_mission(m, cfg, noise_model=model, measurements=form,
+                                        beam_correction=beam_correction)
+                    parts.append(records(track, gate, g, until=(until or {}).get(
+                        name, math.inf)))
+                    if progress is not None:
+                        progress(1)
+    return Records.concatenate(parts)
+
+
+def _nll(torch, net, bounds, rec):
+    lo, hi = (2 * math.log(b) for b in bounds)
+    z = net(rec["inputs"])[:, 0]
+    log_scale = 0.5 * (lo + hi) + 0.5 * (hi - lo) * torch.tanh(z)
+    s = rec["hph"] + torch.exp(log_scale)[:, None] * rec["r"]
+    terms = 0.5 * (torch.log(s) + rec["nu2"] / s)
+    return (terms * rec["mask"]).sum() / rec["mask"].sum()
+
+
+def fit(rec: Records, *, seed: int = 0, epochs: int = EPOCHS, lr: float = LR,
+        bounds: tuple[float, float] = BOUNDS, trained_on: dict | None = None) -> NoiseModel:
+    """Fit the network to ``rec`` by the innovations' negative log-likelihood (full
+    batch, Adam, from a seeded start). Every fifth mission (``group``) is held out to
+    choose the epoch; the inputs are normalised by the training rows' mean and std (a
+    constant input by 1)."""
+    import torch
+
+    torch.manual_seed(seed)
+    held = rec.group % 5 == 4
+    if held.all() or not held.any():
+        held = np.arange(len(rec.group)) % 5 == 4
+    train, valid = ~held, held
+    mean = rec.inputs[train].mean(axis=0)
+    std = rec.inputs[train].std(axis=0)
+    std[std < 1e-6] = 1.0
+    d = rec.inputs.shape[1]
+    net = torch.nn.Sequential(torch.nn.Linear(d, HIDDEN, dtype=torch.float64), torch.nn.Tanh(),
+                              torch.nn.Linear(HIDDEN, 1, dtype=torch.float64))
+
+    def tensors(rows):
+        return {"inputs": torch.from_numpy((rec.inputs[rows] - mean) / std),
+                "nu2": torch.from_numpy(rec.nu2[rows]), "hph": torch.from_numpy(rec.hph[rows]),
+                "r": torch.from_numpy(rec.r[rows]),
+                "mask": torch.from_numpy(rec.mask[rows].astype(float))}
+
+    t, v = tensors(train), tensors(valid)
+    opt = torch.optim.Adam(net.parameters(), lr=lr)
+    best, best_state = math.inf, None
+    for _ in range(epochs):
+        opt.zero_grad()
+        loss = _nll(torch, net, bounds, t)
+        loss.backward()
+        opt.step()
+        with torch.no_grad():
+            score = float(_nll(torch, net, bounds, v))
+        if score < best:
+            best, best_state = score, [p.detach().clone() for p in net.parameters()]
+    w1, b1, w2, b2 = (p.numpy() for p in best_state)
+    return NoiseModel(w1=w1.copy(), b1=b1.copy(), w2=w2[0].copy(), b2=float(b2[0]),
+                      mean=np.asarray(mean, dtype=float), std=np.asarray(std, dtype=float),
+                      bounds=bounds, trained_on=dict(trained_on or {}, validation_nll=best))
+
+
+def train_noise_model(dataset, missions: Sequence[str] | None = None, *, seed: int = 0,
+                      rounds: int = ROUNDS, epochs: int = EPOCHS, config=None,
+                      until: dict[str, float] | None = None, beam_correction=None,
+                      progress: bool = False) -> NoiseModel:
+    """Train the noise network on the missions of an auvsim ``dataset`` (default all):
+    ``rounds`` fits, each on the filter's runs with the previous round's model (the first
+    on the fixed filter's). The model records what it was trained on."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        if missions is None:
+            missions = list(f.missions)
+        recorded = [n for n in missions if f.missions[n].origin == "recorded"]
+    if recorded:
+        raise NoiseModelError(f"missions: expected auvsim's simulated missions, got the "
+                              f"recorded {recorded[0]!r}: the noise model trains on "
+                              "simulated data only")
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=rounds * len(missions) * len(FORMS) * len(STATED_FACTORS),
+                   desc="noise model", unit="run")
+    model = None
+    try:
+        for _ in range(rounds):
+            rec = training_records(dataset, missions, config, model, until=until,
+                                   beam_correction=beam_correction,
+                                   progress=None if bar is None else bar.update)
+            size = dict(dataset=str(dataset), missions=len(missions), pings=len(rec.group),
+                        measurements=int(rec.mask.sum()), rounds=rounds, epochs=epochs,
+                        seed=seed, forms=list(FORMS), stated_factors=list(STATED_FACTORS))
+            model = fit(rec, seed=seed, epochs=epochs, trained_on=size)
+    finally:
+        if bar is not None:
+            bar.close()
+    return model
+
+
+def save_noise_model(model: NoiseModel, path) -> None:
+    """Write ``model`` to ``path`` (``.npz``) whole or not at all."""
+    from auvsim.data.files import write_bytes
+
+    header = dict(format=NOISE_MODEL_FORMAT, version=NOISE_MODEL_VERSION,
+                  features=list(FEATURES), window=model.window, bounds=list(model.bounds),
+                  b2=model.b2, trained_on=model.trained_on)
+    buffer = io.BytesIO()
+    np.savez(buffer, header=np.array(json.dumps(header, default=float)), w1=model.w1,
+             b1=model.b1, w2=model.w2, mean=model.mean, std=model.std)
+    write_bytes(path, buffer.getvalue())
+
+
+def load_noise_model(path) -> NoiseModel:
+    """The model in ``path``.
+
+    Raises:
+        NoiseModelError: the file cannot be read, or is not a beamsnet noise model of this
+            version whose arrays fit its features and window (one line).
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            header = json.loads(str(z["header"]))
+            arrays = {k: np.asarray(z[k], dtype=float) for k in ("w1", "b1", "w2", "mean", "std")}
+    except OSError as e:
+        raise NoiseModelError(f"noise_model: cannot read {str(path)!r} "
+                              f"({e.strerror or e})") from None
+    except (ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError, EOFError):
+        raise NoiseModelError(f"noise_model: {str(path)!r} is not a beamsnet noise model "
+                              "(expected the .npz that beamsnet reproduce adaptive "
+                              "writes)") from None
+    if not isinstance(header, dict) or header.get("format") != NOISE_MODEL_FORMAT:
+        raise NoiseModelError(f"noise_model: {str(path)!r} is not a beamsnet noise model "
+                              "(expected the .npz that beamsnet reproduce adaptive writes)")
+    if header.get("version") != NOISE_MODEL_VERSION or header.get("features") != list(FEATURES):
+        raise NoiseModelError(f"noise_model: {str(path)!r} is a noise model of another "
+                              f"version ({header.get('version')!r}); expected version "
+                              f"{NOISE_MODEL_VERSION} with features {', '.join(FEATURES)}")
+    window = header.get("window")
+    d = len(FEATURES) * window if isinstance(window, int) else -1
+    shapes_ok = (arrays["w1"].ndim == 2 and arrays["w1"].shape[1] == d
+                 and arrays["b1"].shape == arrays["w2"].shape == (arrays["w1"].shape[0],)
+                 and arrays["mean"].shape == arrays["std"].shape == (d,)
+                 and (arrays["std"] > 0).all()
+                 and all(np.isfinite(a).all() for a in arrays.values()))
+    bounds = header.get("bounds")
+    if not (shapes_ok and isinstance(bounds, list) and len(bounds) == 2
+            and 0 < bounds[0] <= 1 <= bounds[1]):
+        raise NoiseModelError(f"noise_model: {str(path)!r} has arrays or bounds that do not "
+                              "fit its features and window; expected a file written by "
+                              "beamsnet reproduce adaptive")
+    return NoiseModel(**arrays, b2=float(header["b2"]), window=window,
+                      bounds=(float(bounds[0]), float(bounds[1])),
+                      trained_on=header.get("trained_on", {}))
+
+
+class LearnedInsDvlFilter(InsDvlFilter):
+    """The INS/DVL filter with the learned noise as a beamsnet estimator: ``fit`` calibrates
+    the beams as ``InsDvlFilter`` does and, unless a model was given (``model``, or the
+    settings' ``noise_model`` file), trains one on the training split's pings of the
+    file's own missions, which must be simulated (``train_noise_model``)."""
+
+    name = "INS/DVL (learned noise)"
+
+    def __init__(self, dataset, config: FilterConfig | None = None, *,
+                 calibrate: bool = True, model: NoiseModel | None = None) -> None:
+        config = dataclasses.replace(config if config is not None else FilterConfig(),
+                                     adaptive="learned")
+        super().__init__(dataset, config, calibrate=calibrate)
+        if not calibrate:
+            self.name = "INS/DVL (learned noise, raw beams)"
+        self.given = model is not None or config.noise_model is not None
+        self.noise_model = (model if model is not None or config.noise_model is None
+                            else load_noise_model(config.noise_model))
+
+    def fit(self, train: Windows) -> LearnedInsDvlFilter:
+        super().fit(train)
+        if not self.given:
+            missions = np.unique(train.mission)
+            self.noise_model = train_noise_model(
+                self.dataset, [train.names[i] for i in missions],
+                until={train.names[i]: float(train.time[train.mission == i].max())
+                       for i in missions},
+                beam_correction=self.correction)
+        return self
+
+
+ESTIMATORS = (
+    Spec("INS/DVL (learned noise)", "INS/DVL filter whose beam noise a small network sets "
+         "from the recent IMU samples and innovations, trained on auvsim data", "filter",
+         make=LearnedInsDvlFilter, order=12,
+         needs=Needs(beams=0, imu=True, text="needs the IMU record"),
+         why="its noise network learned auvsim's instrument and manoeuvres; where the real "
+             "ones differ, its scale is an extrapolation"),
+)

@@ -1,0 +1,416 @@
+"""``beamsnet reproduce adaptive``: the INS/DVL filter whose measurement noise a small
+network sets (``beamsnet.estimators.noisenet``), trained on auvsim data only, beside the
+model-based adaptive filter (innovation-based, Mohamed & Schwarz 1999) and the fixed
+filter.
+
+* **Training**: the ``realistic-maneuvers`` preset (the navigator's DVL with every failure,
+  its calibrated IMU, the rotating Earth off Haifa, the real turning envelope), generated
+  here at ``duration`` s per manoeuvre (the file ``reproduce sea`` trains on too); the
+  model goes to ``runs/adaptive/noise-model.npz``.
+* **Held-out simulated missions**: the same manoeuvres with other seeds (every mission's
+  seed + ``HELD_OUT_SEED``: other currents, noise, failures' draws), scored against their
+  truth.
+* **Recorded segments** of a folder (default the Snapir AUV's six A-KIT segments),
+  imported and corrected by ``check-log --apply`` as ``reproduce sea`` does, scored
+  against their reference, never a truth.
+
+Every filter runs on the beams as measured (no calibration: a segment has no split of
+its own), from its start to the last ping; the scores are ``reproduce sea``'s, from each
+mission's fourth ping. The report gives, per mission and as medians, the final and RMSE
+horizontal error, the velocity RMSE and the 3-sigma coverage; the targets; a figure of
+the learned noise over time beside the manoeuvre and the innovations; and where the
+learned filter does worse at sea than the fixed one, which of its inputs moved between
+the simulated and the recorded data (their histograms and a two-sample
+Kolmogorov-Smirnov distance).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
+from auvsim.data.reader import open_dataset
+from auvsim.errors import ConfigError
+from auvsim.runs.cluster import check_address
+from beamsnet import metrics
+from beamsnet.data import load_windows
+from beamsnet.evaluate import navigation_scores, reported_stds
+from beamsnet.experiments.runner import ensure_dataset
+from beamsnet.experiments.sea import DEFAULT_SEA, sea_dataset
+from beamsnet.navigation import truth_at_pings
+
+DURATION = 300.0  # s per manoeuvre of the training and held-out sets
+SEED = 0
+HELD_OUT_SEED = 1000  # added to each mission's seed for the held-out simulated set
+FIXED, MODEL_BASED, LEARNED = "INS/DVL", "INS/DVL (adaptive)", "INS/DVL (learned noise)"
+FILTERS = (FIXED, MODEL_BASED, LEARNED)
+# The targets on the recorded segments (the learned filter against the fixed one).
+TARGET_GAIN = 0.30  # median final at least 30 % below
+TARGET_WORSE = 0.10  # no segment's final more than 10 % worse
+TARGET_COVERAGE = 0.90
+
+
+def held_out(duration: float = DURATION):
+    """``realistic-maneuvers`` with every mission's seed moved by ``HELD_OUT_SEED``."""
+    from auvsim.runs.presets import realistic_maneuvers
+
+    config = realistic_maneuvers(duration)
+    return dataclasses.replace(config, missions=tuple(
+        dataclasses.replace(m, seed=m.seed + HELD_OUT_SEED) for m in config.missions))
+
+
+def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
+             seed: int = SEED, runs: Path = Path("runs"), datasets: Path = Path("datasets"),
+             progress: bool = True, cluster: str | None = None) -> Path:
+    """Train the noise model on auvsim data, score the three filters on held-out
+    simulated missions and on the recorded segments of ``data``; write ``out/adaptive.md``,
+    ``adaptive.json``, ``adaptive.png`` (the noise over time) and
+    ``adaptive-features.png`` (the inputs, simulated against recorded).
+
+    Raises:
+        ConfigError: ``duration`` out of range, ``data`` not a folder of A-KIT segments,
+            and what the import refuses of a log (one line each).
+    """
+    from auvsim.runs.presets import realistic_maneuvers
+    from beamsnet.estimators.noisenet import save_noise_model, train_noise_model
+
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
+            math.isfinite(duration) and duration > 0):
+        raise ConfigError(f": expected a positive number of seconds per manoeuvre, got "
+                          f"{duration!r}", argument="duration")
+    check_out_dir(out)
+    if cluster is not None:
+        check_address(cluster)
+    real, corrections = sea_dataset(Path(data), datasets)
+    train = ensure_dataset(realistic_maneuvers(duration),
+                           datasets / f"sea-train_{duration:g}s.h5", progress=progress,
+                           cluster=cluster)
+    test = ensure_dataset(held_out(duration), datasets / f"adaptive-test_{duration:g}s.h5",
+                          progress=progress, cluster=cluster)
+    model = train_noise_model(train, seed=seed, progress=progress)
+    model_path = Path(runs) / "adaptive" / "noise-model.npz"
+    model_path.parent.mkdir(parents=True, exist_ok=True)
+    save_noise_model(model, model_path)
+    sim = {name: _mission(test, name, model) for name in _names(test)}
+    sea = {name: _mission(real, name, model) for name in _names(real)}
+    features = dict(simulated=_features(test, model), recorded=np.concatenate(
+        [r["track"].features[np.isfinite(r["track"].features).all(axis=1)]
+         for r in sea.values()]))
+    setup = dict(data=Path(data).name, train=str(train), test=str(test), real=str(real),
+                 duration=duration, seed=seed, model=str(model_path),
+                 trained_on=model.trained_on, corrections=corrections)
+    with staged_dir(out) as stage:
+        write_text(stage / "adaptive.json", json.dumps(
+            {"setup": setup, "simulated": {n: r["scores"] for n, r in sim.items()},
+             "recorded": {n: r["scores"] for n, r in sea.items()},
+             "features": _shift(features)}, indent=1, default=float))
+        _noise_figure(sim, sea, stage / "adaptive.png")
+        _feature_figure(features, stage / "adaptive-features.png")
+        write_text(stage / "adaptive.md", report(sim, sea, features, setup))
+    return Path(out) / "adaptive.md"
+
+
+def _names(dataset: Path) -> list[str]:
+    with open_dataset(dataset) as f:
+        return list(f.missions)
+
+
+def _filters(dataset: Path, model) -> dict:
+    from beamsnet.estimators.ins import AdaptiveInsDvlFilter, InsDvlFilter
+    from beamsnet.estimators.noisenet import LearnedInsDvlFilter
+
+    out = {FIXED: InsDvlFilter(dataset, calibrate=False),
+           MODEL_BASED: AdaptiveInsDvlFilter(dataset, calibrate=False),
+           LEARNED: LearnedInsDvlFilter(dataset, calibrate=False, model=model)}
+    for label, estimator in out.items():
+        estimator.name = label
+    return out
+
+
+def _mission(dataset: Path, name: str, model) -> dict:
+    """The three filters on mission ``name``: their scores against its truth or
+    reference, and each filter's track (for the figures)."""
+    windows = load_windows(dataset, missions=[name])
+    truth = truth_at_pings(dataset, windows)
+    predictions, positions, stds, tracks = {}, {}, {}, {}
+    for label, estimator in _filters(dataset, model).items():
+        predictions[label] = estimator.predict(windows)
+        positions[label] = estimator.positions(windows)
+        stds.update(reported_stds(estimator, windows))
+        tracks[label] = estimator.tracks(windows)[name]
+    navigation = navigation_scores(windows, predictions, truth, positions=positions,
+                                   stds=stds)[name]
+    scores = {}
+    for label, pred in predictions.items():
+        have = np.isfinite(pred).all(axis=1)
+        scores[label] = dict(velocity_rmse=metrics.rmse_vector(pred[have],
+                                                               windows.target[have]),
+                             **navigation[label])
+    return dict(scores=dict(scores, against=windows.reference), time=windows.time,
+                track=tracks[LEARNED], model_based=tracks[MODEL_BASED])
+
+
+def _features(dataset: Path, model) -> np.ndarray:
+    """The learned filter's inputs on every mission of a simulated ``dataset``, in both
+    measurement forms (as it was trained)."""
+    from beamsnet.estimators.ins import FilterConfig, run_mission
+
+    parts = []
+    with open_dataset(dataset) as f:
+        for m in f.missions.values():
+            for form in ("auto", "velocity"):
+                x = run_mission(m, FilterConfig(adaptive="learned"), noise_model=model,
+                                measurements=form).features
+                parts.append(x[np.isfinite(x).all(axis=1)])
+    return np.concatenate(parts)
+
+
+def ks_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """The two-sample Kolmogorov-Smirnov statistic: the largest gap between the empirical
+    distribution functions of ``a`` and ``b``."""
+    a, b = np.sort(a), np.sort(b)
+    x = np.concatenate([a, b])
+    return float(np.abs(np.searchsorted(a, x, side="right") / len(a)
+                        - np.searchsorted(b, x, side="right") / len(b)).max())
+
+
+def _shift(features: dict) -> dict:
+    """Per input: the simulated and recorded medians and 5-95 % ranges, the share of
+    recorded pings outside the simulated 1-99 % range, and the KS distance."""
+    from beamsnet.estimators.noisenet import FEATURES
+
+    sim, real = features["simulated"], features["recorded"]
+    out = {}
+    for j, name in enumerate(FEATURES):
+        lo, hi = np.percentile(sim[:, j], [1, 99])
+        out[name] = dict(simulated=np.percentile(sim[:, j], [5, 50, 95]).tolist(),
+                         recorded=np.percentile(real[:, j], [5, 50, 95]).tolist(),
+                         outside=float(((real[:, j] < lo) | (real[:, j] > hi)).mean()),
+                         ks=ks_distance(sim[:, j], real[:, j]))
+    return out
+
+
+def _median(results: dict, label: str, key: str) -> float:
+    values = [r["scores"][label].get(key, math.nan) for r in results.values()]
+    return float(np.nanmedian(values)) if values else math.nan
+
+
+def _pooled_coverage(results: dict, label: str) -> float:
+    """The share over every mission's pings (each mission's coverage by its pings)."""
+    shares = [(r["scores"][label]["coverage_3sigma"], len(r["time"])) for r in results.values()
+              if "coverage_3sigma" in r["scores"][label]]
+    return sum(c * n for c, n in shares) / sum(n for _, n in shares) if shares else math.nan
+
+
+def _table(results: dict, against: str) -> list[str]:
+    head = ("| mission | " + " | ".join(
+        f"{label}: final / RMSE (m), velocity RMSE (m/s), within 3 sigma (%)"
+        for label in FILTERS) + " |")
+    lines = [f"Horizontal position error against {against}: final / RMSE, m; velocity "
+             "RMSE (vector, DVL frame), m/s; the share of pings whose horizontal error lies "
+             "within the filter's reported 3 sigma, %.", "", head,
+             "|---|" + "---|" * len(FILTERS)]
+
+    def cell(s: dict) -> str:
+        return (f"{s['final_m']:.2f} / {s['rmse_m']:.2f}, {s['velocity_rmse']:.4f}, "
+                f"{100 * s.get('coverage_3sigma', math.nan):.1f}")
+
+    for name, r in results.items():
+        lines.append(f"| {name} | " + " | ".join(cell(r["scores"][label]) for label in FILTERS)
+                     + " |")
+    lines.append("| **median** | " + " | ".join(
+        f"{_median(results, label, 'final_m'):.2f} / {_median(results, label, 'rmse_m'):.2f}, "
+        f"{_median(results, label, 'velocity_rmse'):.4f}, "
+        f"{100 * _median(results, label, 'coverage_3sigma'):.1f}"
+        for label in FILTERS) + " |")
+    lines.append("")
+    lines.append("Over every mission's pings together, within 3 sigma: " + ", ".join(
+        f"{label} {100 * _pooled_coverage(results, label):.1f} %" for label in FILTERS) + ".")
+    return lines
+
+
+def _against(results: dict) -> str:
+    return next(iter(results.values()))["scores"]["against"]
+
+
+def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
+    """The report's Markdown."""
+    from beamsnet.estimators.noisenet import BOUNDS, FEATURES, HIDDEN, WINDOW
+
+    t = setup["trained_on"]
+    lines = [
+        "# adaptive: a filter that learns its noise in simulation, at sea", "",
+        f"Made by `beamsnet reproduce adaptive --data DIR` (DIR: a folder of A-KIT logs; by "
+        f"default the Snapir AUV's six segments; here `{setup['data']}`).", "",
+        "Three INS/DVL filters, each on the beams as measured (no calibration), from its "
+        "start to the last ping, scored from each mission's fourth ping:", "",
+        f"- **{FIXED}**: the stated noise throughout;",
+        f"- **{MODEL_BASED}**: the model-based adaptive baseline, the stated beam noise "
+        "scaled by an innovation-based estimate (Mohamed & Schwarz 1999);",
+        f"- **{LEARNED}**: the stated beam noise scaled by a small network (the last "
+        f"{WINDOW} pings' {len(FEATURES)} features, {HIDDEN} tanh units, the std bounded "
+        f"to {BOUNDS[0]:g}-{BOUNDS[1]:g} times the stated) fitted by the innovations' "
+        "negative log-likelihood, **trained only on auvsim data**: the "
+        f"`realistic-maneuvers` preset at {setup['duration']:g} s per manoeuvre, "
+        f"{t['missions']} missions, each run in both measurement forms (beams, DVL velocity) "
+        f"and at {len(t['stated_factors'])} stated-noise factors "
+        f"({', '.join(f'{x:g}' for x in t['stated_factors'])}): {t['pings']:,} pings, "
+        f"{t['measurements']:,} measurements per round, {t['rounds']} rounds of "
+        f"{t['epochs']} epochs (seed {t['seed']}). The model: `{setup['model']}`.", "",
+        f"## Held-out simulated missions (against {_against(sim)})", "",
+        f"The `realistic-maneuvers` manoeuvres again, every mission's seed + "
+        f"{HELD_OUT_SEED} (other currents, noise and failures), {len(sim)} missions.", "",
+        *_table(sim, _against(sim)), "",
+        f"## Recorded segments (against {_against(sea)})", "",
+        "Every segment imported with `auvsim import --format akit` and corrected by "
+        "`auvsim check-log --apply`, as `beamsnet reproduce sea` does; a segment's beams "
+        "are derived from the DVL's velocity, so the filters use that velocity.", "",
+        *_table(sea, _against(sea)), "",
+        *_targets(sea), "",
+        "![the learned noise over time, beside the manoeuvre and the innovations]"
+        "(adaptive.png)", "",
+        "## Where the learned filter does worse at sea, and why", "",
+        *_failures(sea, features), "",
+        "![the learned filter's inputs, simulated against recorded](adaptive-features.png)",
+        ""]
+    return "\n".join(lines)
+
+
+def _targets(sea: dict) -> list[str]:
+    fixed, learned = (_median(sea, label, "final_m") for label in (FIXED, LEARNED))
+    gain = 1 - learned / fixed
+    worst_name, worst = max(((n, r["scores"][LEARNED]["final_m"] / r["scores"][FIXED]["final_m"]
+                              - 1) for n, r in sea.items()), key=lambda x: x[1])
+    pooled = _pooled_coverage(sea, LEARNED)
+    least = min(sea, key=lambda n: sea[n]["scores"][LEARNED].get("coverage_3sigma", math.nan))
+    least_share = sea[least]["scores"][LEARNED].get("coverage_3sigma", math.nan)
+
+    def met(ok: bool) -> str:
+        return "met" if ok else "**missed**"
+
+    return [
+        "Targets on the recorded segments, the learned filter against the fixed one:", "",
+        f"- median final horizontal error at least {100 * TARGET_GAIN:.0f} % below the "
+        f"fixed filter's: {learned:.2f} m against {fixed:.2f} m, {100 * gain:+.1f} % "
+        f"below; {met(gain >= TARGET_GAIN)};",
+        f"- no segment's final error more than {100 * TARGET_WORSE:.0f} % worse: the worst, "
+        f"{worst_name}, {100 * worst:+.1f} %; {met(worst <= TARGET_WORSE)};",
+        f"- 3-sigma coverage at least {100 * TARGET_COVERAGE:.0f} %: {100 * pooled:.1f} % "
+        f"over every segment's pings, {met(pooled >= TARGET_COVERAGE)}; per segment the "
+        f"least {least}'s {100 * least_share:.1f} %, "
+        f"{met(least_share >= TARGET_COVERAGE)}."]
+
+
+def _failures(sea: dict, features: dict) -> list[str]:
+    from beamsnet.estimators.noisenet import FEATURES
+
+    lines = []
+    worse = {n: r["scores"] for n, r in sea.items()
+             if r["scores"][LEARNED]["final_m"] > r["scores"][FIXED]["final_m"]
+             or r["scores"][LEARNED]["rmse_m"] > r["scores"][FIXED]["rmse_m"]}
+    for name, s in worse.items():
+        a, b = s[FIXED], s[LEARNED]
+        lines.append(f"- {name}: final {b['final_m']:.2f} m against the fixed filter's "
+                     f"{a['final_m']:.2f} m ({100 * (b['final_m'] / a['final_m'] - 1):+.1f} %), "
+                     f"RMSE {b['rmse_m']:.2f} against {a['rmse_m']:.2f} m "
+                     f"({100 * (b['rmse_m'] / a['rmse_m'] - 1):+.1f} %).")
+    if not worse:
+        lines.append("- On no segment is the learned filter worse than the fixed one, by "
+                     "final or RMSE error.")
+    scales = {n: _scale(r["track"]) for n, r in sea.items()}
+    lines += ["", "The learned std scale (the noise's std over the stated) per segment, "
+              "median (5-95 %): " + "; ".join(
+                  f"{n} {np.median(s):.2f} ({np.percentile(s, 5):.2f}-"
+                  f"{np.percentile(s, 95):.2f})" for n, s in scales.items()) + ".", ""]
+    shift = _shift(features)
+    lines += ["Its inputs, simulated (the held-out missions, both measurement forms) "
+              "against recorded (every segment): median (5-95 %), the share of recorded "
+              "pings outside the simulated 1-99 % range, and the two-sample "
+              "Kolmogorov-Smirnov distance (0: the same distribution, 1: disjoint):", "",
+              "| input | simulated | recorded | recorded outside the simulated range (%) | "
+              "KS distance |", "|---|---|---|---|---|"]
+    for name in sorted(FEATURES, key=lambda n: -shift[n]["ks"]):
+        s = shift[name]
+        lines.append(f"| {name} | {_range(s['simulated'])} | {_range(s['recorded'])} | "
+                     f"{100 * s['outside']:.1f} | {s['ks']:.2f} |")
+    moved = [n for n in FEATURES if shift[n]["ks"] >= 0.5]
+    lines += ["", "Moved most (KS distance at least 0.5): " + (
+        ", ".join(f"{n} ({shift[n]['ks']:.2f})" for n in moved) if moved else "none") + "."]
+    return lines
+
+
+def _range(q: list[float]) -> str:
+    return f"{q[1]:.2f} ({q[0]:.2f} to {q[2]:.2f})"
+
+
+def _scale(track) -> np.ndarray:
+    """(P,) the learned std over the stated at the track's started pings."""
+    s = np.asarray(track.measurement_std)[:, 0] / np.asarray(track.stated_std)[0]
+    return s[np.isfinite(s)]
+
+
+def _noise_figure(sim: dict, sea: dict, path: Path) -> None:
+    """Per column (the held-out mission and the recorded segment where the learned
+    filter's final error differs most from the fixed one's): the rotation rate and speed,
+    the innovations' RMS over the stated noise, and the learned and model-based std
+    scales, over time."""
+    import matplotlib.pyplot as plt
+
+    def pick(results):
+        return max(results, key=lambda n: abs(
+            results[n]["scores"][LEARNED]["final_m"] - results[n]["scores"][FIXED]["final_m"]))
+
+    columns = [("simulated", n := pick(sim), sim[n]), ("recorded", m := pick(sea), sea[m])]
+    fig, axes = plt.subplots(3, 2, figsize=(11, 7.5), sharex="col")
+    for c, (kind, name, r) in enumerate(columns):
+        track, adaptive_track = r["track"], r["model_based"]
+        t = track.ping_time
+        x = track.features
+        rate = np.degrees(np.exp(x[:, 0]) - 1e-3)
+        ax = axes[0, c]
+        ax.plot(t, rate, color="tab:blue", lw=0.8)
+        ax.set_ylabel("rotation rate (deg/s)")
+        ax.set_title(f"{kind}: {name}")
+        twin = ax.twinx()
+        twin.plot(t, np.exp(x[:, 2]) - 0.1, color="tab:gray", lw=0.8)
+        twin.set_ylabel("speed (m/s)", color="tab:gray")
+        offered = np.isfinite(track.innovation)
+        rms = np.sqrt((np.where(offered, track.innovation, 0.0) ** 2).sum(axis=1) / np.maximum(
+            offered.sum(axis=1), 1)) / np.asarray(track.stated_std).max()
+        rms[~offered.any(axis=1)] = np.nan
+        axes[1, c].semilogy(t, rms, color="tab:purple", lw=0.6)
+        axes[1, c].set_ylabel("innovation RMS / stated std")
+        for tr, label, style in ((track, LEARNED, "-"), (adaptive_track, MODEL_BASED, "--")):
+            scale = np.asarray(tr.measurement_std)[:, 0] / np.asarray(tr.stated_std)[0]
+            axes[2, c].plot(t, scale, style, lw=1.0, label=label)
+        axes[2, c].set_ylabel("noise std / stated")
+        axes[2, c].set_xlabel("time (s)")
+        axes[2, c].legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def _feature_figure(features: dict, path: Path) -> None:
+    """One histogram per input, simulated against recorded (densities)."""
+    import matplotlib.pyplot as plt
+
+    from beamsnet.estimators.noisenet import FEATURES
+
+    sim, real = features["simulated"], features["recorded"]
+    fig, axes = plt.subplots(2, 4, figsize=(13, 5.5))
+    for j, name in enumerate(FEATURES):
+        ax = axes.flat[j]
+        both = np.concatenate([sim[:, j], real[:, j]])
+        lo, hi = np.percentile(both, [0.5, 99.5])
+        bins = np.linspace(lo, hi, 40) if hi > lo else np.linspace(lo - 0.5, lo + 0.5, 11)
+        ax.hist(sim[:, j], bins=bins, density=True, alpha=0.5, label="simulated")
+        ax.hist(real[:, j], bins=bins, density=True, alpha=0.5, label="recorded")
+        ax.set_title(name, fontsize=9)
+    axes.flat[0].legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)

@@ -1,0 +1,221 @@
+"""The INS/DVL filter with a learned DVL noise (``FilterConfig.adaptive = "learned"``,
+``beamsnet.estimators.noisenet``): a small training run on a generated mission, known
+answers for what it learns, the network's bounds, its file, and ``beamsnet reproduce
+adaptive`` at a tiny size."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+from conftest import flat
+
+from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
+from auvsim.data.reader import open_dataset
+from auvsim.sensors.imu import IMU_GRADES
+from beamsnet.cli import main
+from beamsnet.estimators import ins, noisenet, spec
+
+NOISE = 0.01  # m/s, the beams' true white noise (and what the file states)
+WARM_UP = 1 / 3  # the share of the pings left out of the statistics (the window filling)
+D = noisenet.WINDOW * len(noisenet.FEATURES)  # the network's inputs
+
+
+@pytest.fixture(scope="module")
+def noisy(dataset_of):
+    """200 s of zigzag, a navigation-grade IMU, beams of white noise ``NOISE`` at 1 Hz, no
+    slow error (so the scale is R's alone)."""
+    mission = MissionConfig(name="zz", seed=3, scenario=ScenarioConfig(name="zigzag",
+                                                                       duration=200.0))
+    return dataset_of(flat(mission, imu=IMU_GRADES["navigation"],
+                           dvl=DvlConfig(noise_std=NOISE)), "noisy")
+
+
+@pytest.fixture(scope="module")
+def trained(noisy):
+    return noisenet.train_noise_model(noisy, seed=0)
+
+
+def run(path, model, **settings) -> tuple[ins.FilterTrack, np.ndarray]:
+    with open_dataset(path) as f:
+        m = f.missions["zz"]
+        track = ins.run_mission(m, ins.FilterConfig(**settings), noise_model=model)
+        return track, np.asarray(m.dvl.velocity)
+
+
+def later(x: np.ndarray) -> np.ndarray:
+    return x[round(WARM_UP * len(x)):]
+
+
+def coverage(track: ins.FilterTrack, truth: np.ndarray) -> float:
+    return float(np.mean(np.abs(track.velocity_dvl - truth) < 3 * track.velocity_std))
+
+
+def constant(z: float) -> noisenet.NoiseModel:
+    """A model whose output is tanh-bounded z whatever its inputs."""
+    return noisenet.NoiseModel(w1=np.zeros((4, D)), b1=np.zeros(4), w2=np.zeros(4), b2=z,
+                               mean=np.zeros(D), std=np.ones(D))
+
+
+@pytest.mark.parametrize("told, ratio", [(0.5, 4.0), (1.0, 1.0), (1 / 1.5, 2.25)])
+def test_it_learns_the_noise_the_innovations_show(noisy, trained, told, ratio):
+    """Trained with the stated noise at 0.5, 1 and 2 times the true one, the network sets
+    the variance scale to (true / told)^2 within 30 %: 4 told half, 1 told right, and
+    2.25 told 1/1.5 of it, a factor it never trained at."""
+    track, _ = run(noisy, trained, adaptive="learned", beam_noise_std=told * NOISE)
+    assert np.median(later(track.noise_scale)) == pytest.approx(ratio, rel=0.3)
+
+
+def test_told_half_the_noise_it_covers_the_truth_where_the_fixed_filter_does_not(
+        noisy, trained):
+    fixed, truth = run(noisy, None, beam_noise_std=NOISE / 2)
+    learned, _ = run(noisy, trained, adaptive="learned", beam_noise_std=NOISE / 2)
+    assert coverage(learned, truth) > 0.98 > coverage(fixed, truth) + 0.03
+    # Still a Kalman filter: every offered measurement is used or gated, and counted.
+    offered = np.isfinite(truth).all(axis=1).sum() * 4
+    assert learned.beams_used.sum() + learned.beams_rejected.sum() == offered
+
+
+def test_the_loop_runs_the_network_as_numpy_does(noisy, trained):
+    """The compiled loop's scale after each ping (used at the next) is the numpy
+    forward pass on the same features, windowed as ``noisenet.windows`` does."""
+    track, _ = run(noisy, trained, adaptive="learned")
+    expected = trained.scale(noisenet.windows(track.features))
+    np.testing.assert_allclose(track.noise_scale[1:], expected[:-1], rtol=1e-9)
+    assert track.noise_scale[0] == 1.0  # the stated noise until the network has spoken
+    np.testing.assert_allclose(track.measurement_std,
+                               np.sqrt(expected)[:, None] * track.stated_std, rtol=1e-9)
+
+
+@pytest.mark.parametrize("z, variance", [(50.0, 100.0), (-50.0, 0.25)])
+def test_the_scale_is_bounded_by_construction(noisy, z, variance):
+    """However large the network's output, the variance scale stays within the squares of
+    the std bounds (0.5 and 10): R diagonal and positive."""
+    track, _ = run(noisy, constant(z), adaptive="learned")
+    assert track.noise_scale[1:] == pytest.approx(variance, rel=1e-12)
+    rng = np.random.default_rng(0)
+    wild = noisenet.NoiseModel(**{**vars(constant(0.0)),
+                                  "w1": 1e3 * rng.standard_normal((4, D)),
+                                  "w2": 1e3 * rng.standard_normal(4)})
+    track, _ = run(noisy, wild, adaptive="learned")
+    assert (track.noise_scale >= 0.25 * (1 - 1e-12)).all()
+    assert (track.noise_scale <= 100 * (1 + 1e-12)).all()
+
+
+def test_a_constant_scale_scales_the_white_noise_from_the_second_ping(noisy):
+    """With no slow error, a constant scale lambda is the fixed filter told sqrt(lambda)
+    times the noise, from the second ping on (the first uses the stated)."""
+    z = 0.3
+    model = constant(z)
+    lam = float(model.scale(np.zeros((1, D)))[0])
+    learned, _ = run(noisy, model, adaptive="learned")
+    np.testing.assert_allclose(learned.measurement_std, math.sqrt(lam) * NOISE, rtol=1e-12)
+    fixed, _ = run(noisy, None, beam_noise_std=math.sqrt(lam) * NOISE)
+    assert np.abs(learned.velocity_dvl - fixed.velocity_dvl)[-50:].max() < 1e-3
+
+
+def test_the_model_file_round_trips_and_foreign_files_are_refused(trained, tmp_path):
+    path = tmp_path / "noise.npz"
+    noisenet.save_noise_model(trained, path)
+    back = noisenet.load_noise_model(path)
+    for name in ("w1", "b1", "w2", "mean", "std"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(trained, name))
+    assert back.b2 == trained.b2 and back.trained_on["missions"] == 1
+    text = tmp_path / "notes.npz"
+    text.write_text("not a model\n")
+    other = tmp_path / "other.npz"
+    np.savez(other, w1=np.zeros(3))
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(path.read_bytes()[:200])
+    for bad in (text, other, cut):
+        with pytest.raises(noisenet.NoiseModelError, match="is not a beamsnet noise model"):
+            noisenet.load_noise_model(bad)
+    with pytest.raises(noisenet.NoiseModelError, match="cannot read"):
+        noisenet.load_noise_model(tmp_path / "missing.npz")
+
+
+def test_the_command_line_refuses_a_foreign_model_in_one_line(noisy, tmp_path, capsys):
+    bad = tmp_path / "bad.npz"
+    bad.write_text("not a model\n")
+    settings = tmp_path / "filter.toml"
+    settings.write_text(f'adaptive = "learned"\nnoise_model = "{bad}"\n')
+    code = main(["estimate", str(noisy), "--estimator", "INS/DVL", "--filter-config",
+                 str(settings), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "is not a beamsnet noise model" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_learned_without_a_model_says_what_it_needs(noisy):
+    with pytest.raises(ins.DataError, match="^FilterConfig.noise_model: expected"):
+        run(noisy, None, adaptive="learned")
+
+
+def test_it_is_registered_and_trains_on_the_training_split(noisy):
+    from beamsnet.data import load_windows, split
+
+    s = spec("INS/DVL (learned noise)")
+    assert s.kind == "filter" and s.needs.imu
+    train, test = split(load_windows(noisy))
+    made = s.make(noisy, None).fit(train)
+    assert made.config.adaptive == "learned"
+    # Trained on the training split's pings only: 6 runs (2 forms x 3 factors) of the
+    # pings up to the split, less each run's first.
+    assert made.noise_model.trained_on["pings"] == 6 * (
+        int(np.sum(np.asarray(made.tracks(train)["zz"].ping_time) <= train.time.max())) - 1)
+    assert np.isfinite(made.predict(test)).all()
+
+
+def test_it_trains_on_simulated_missions_only(tmp_path):
+    from test_sea import write_akit
+
+    from auvsim.data.recorded import import_logs
+
+    write_akit(tmp_path / "logs", 1, surge=0.0)
+    import_logs([tmp_path / "logs"], tmp_path / "sea.h5", format="akit")
+    with pytest.raises(noisenet.NoiseModelError, match="simulated data only"):
+        noisenet.train_noise_model(tmp_path / "sea.h5")
+
+
+@pytest.mark.parametrize("flag", [["--seeds", "2"], ["--epochs", "3"]])
+def test_reproduce_adaptive_refuses_the_networks_settings(flag, tmp_path, capsys):
+    code = main(["reproduce", "adaptive", *flag, "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and re.search("is not used by adaptive", err[0])
+
+
+@pytest.mark.slow
+def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
+    """Two weaving segments the test writes, a tiny training set (20 s per manoeuvre):
+    every filter scored on every held-out mission against the truth and every segment
+    against the reference, the targets stated met or missed, the figures and the model."""
+    from test_sea import write_akit
+
+    logs = tmp_path / "logs"
+    for k in (1, 2):
+        write_akit(logs, k, sway_bias=0.0, scale=0.01 * k, weave_deg_s=3.0)
+    monkeypatch.chdir(tmp_path)
+    assert main(["reproduce", "adaptive", "--data", str(logs), "--duration", "20",
+                 "--out", "report", "--quiet"]) == 0
+    results = json.loads((tmp_path / "report" / "adaptive.json").read_text())
+    assert list(results["recorded"]) == ["trajectory1", "trajectory2"]
+    assert len(results["simulated"]) == 20
+    for part in ("simulated", "recorded"):
+        for scores in results[part].values():
+            for label in ("INS/DVL", "INS/DVL (adaptive)", "INS/DVL (learned noise)"):
+                row = scores[label]
+                assert all(np.isfinite(row[k]) for k in (
+                    "final_m", "rmse_m", "velocity_rmse", "coverage_3sigma"))
+    assert set(results["features"]) == set(noisenet.FEATURES)
+    report = (tmp_path / "report" / "adaptive.md").read_text()
+    recorded = report[report.index("## Recorded"):]
+    assert "truth" not in recorded.split("## Where")[0]
+    assert len(re.findall(r"(?:\bmet|\*\*missed\*\*)[;.]", report)) == 4
+    assert report.count("| **median** |") == 2
+    for figure in ("adaptive.png", "adaptive-features.png"):
+        assert (tmp_path / "report" / figure).stat().st_size > 10_000
+    model = noisenet.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")
+    assert model.trained_on["missions"] == 20
