@@ -207,6 +207,26 @@ def filters(dataset: str | Path, *, strict: bool = False, filter_config=None) ->
     return out
 
 
+def fit_filters(dataset: str | Path, train_w: Windows, *, filter_config=None) -> list:
+    """The registry's filters on ``dataset`` (``filters``), each fitted on ``train_w``;
+    one that cannot be (the learned noise, given windows of another file) is left out,
+    with a ``FilterWarning`` saying why."""
+    out = []
+    for estimator in filters(dataset, filter_config=filter_config):
+        try:
+            out.append(estimator.fit(train_w))
+        except AuvsimError as e:
+            _left_out(estimator, dataset, e)
+    return out
+
+
+def _left_out(estimator, dataset, error: AuvsimError) -> None:
+    """A filter the file cannot feed (a reference without attitude to start from, say)
+    or that cannot be fitted: its row is left out, and the warning says why."""
+    warnings.warn(f"{estimator.name} left out on {dataset}: "
+                  f"{str(error).strip().splitlines()[0]}", FilterWarning, stacklevel=3)
+
+
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
                 test_w: Windows, *, dataset: str | Path | None = None,
                 positions: dict | None = None, stds: dict | None = None,
@@ -218,14 +238,12 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
     one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
     out = {b.name: b.fit(train_w).predict(test_w) for b in baselines()}
-    for estimator in [] if dataset is None else filters(dataset, filter_config=filter_config):
+    own = [] if dataset is None else fit_filters(dataset, train_w, filter_config=filter_config)
+    for estimator in own:
         try:
-            out[estimator.name] = estimator.fit(train_w).predict(test_w)
+            out[estimator.name] = estimator.predict(test_w)
         except AuvsimError as e:
-            # A filter the file cannot feed (a reference without attitude to start
-            # from, say): its row is left out, and the warning says why.
-            warnings.warn(f"{estimator.name} left out on {dataset}: "
-                          f"{str(e).strip().splitlines()[0]}", FilterWarning, stacklevel=2)
+            _left_out(estimator, dataset, e)
             continue
         if positions is not None and hasattr(estimator, "positions"):
             positions[estimator.name] = estimator.positions(test_w)

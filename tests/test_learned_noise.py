@@ -17,11 +17,11 @@ from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
-from beamsnet.estimators import ins, noisenet, spec
+from beamsnet.estimators import ins, noisemodel, noisenet, spec
 
 NOISE = 0.01  # m/s, the beams' true white noise (and what the file states)
 WARM_UP = 1 / 3  # the share of the pings left out of the statistics (the window filling)
-D = noisenet.WINDOW * len(noisenet.FEATURES)  # the network's inputs
+D = noisemodel.WINDOW * len(noisemodel.FEATURES)  # the network's inputs
 
 
 @pytest.fixture(scope="module")
@@ -54,9 +54,9 @@ def coverage(track: ins.FilterTrack, truth: np.ndarray) -> float:
     return float(np.mean(np.abs(track.velocity_dvl - truth) < 3 * track.velocity_std))
 
 
-def constant(z: float) -> noisenet.NoiseModel:
+def constant(z: float) -> noisemodel.NoiseModel:
     """A model whose output is tanh-bounded z whatever its inputs."""
-    return noisenet.NoiseModel(w1=np.zeros((4, D)), b1=np.zeros(4), w2=np.zeros(4), b2=z,
+    return noisemodel.NoiseModel(w1=np.zeros((4, D)), b1=np.zeros(4), w2=np.zeros(4), b2=z,
                                mean=np.zeros(D), std=np.ones(D))
 
 
@@ -81,9 +81,9 @@ def test_told_half_the_noise_it_covers_the_truth_where_the_fixed_filter_does_not
 
 def test_the_loop_runs_the_network_as_numpy_does(noisy, trained):
     """The compiled loop's scale after each ping (used at the next) is the numpy
-    forward pass on the same features, windowed as ``noisenet.windows`` does."""
+    forward pass on the same features, windowed as ``noisemodel.windows`` does."""
     track, _ = run(noisy, trained, adaptive="learned")
-    expected = trained.scale(noisenet.windows(track.features))
+    expected = trained.scale(noisemodel.windows(track.features))
     np.testing.assert_allclose(track.noise_scale[1:], expected[:-1], rtol=1e-9)
     assert track.noise_scale[0] == 1.0  # the stated noise until the network has spoken
     np.testing.assert_allclose(track.measurement_std,
@@ -97,7 +97,7 @@ def test_the_scale_is_bounded_by_construction(noisy, z, variance):
     track, _ = run(noisy, constant(z), adaptive="learned")
     assert track.noise_scale[1:] == pytest.approx(variance, rel=1e-12)
     rng = np.random.default_rng(0)
-    wild = noisenet.NoiseModel(**{**vars(constant(0.0)),
+    wild = noisemodel.NoiseModel(**{**vars(constant(0.0)),
                                   "w1": 1e3 * rng.standard_normal((4, D)),
                                   "w2": 1e3 * rng.standard_normal(4)})
     track, _ = run(noisy, wild, adaptive="learned")
@@ -119,8 +119,8 @@ def test_a_constant_scale_scales_the_white_noise_from_the_second_ping(noisy):
 
 def test_the_model_file_round_trips_and_foreign_files_are_refused(trained, tmp_path):
     path = tmp_path / "noise.npz"
-    noisenet.save_noise_model(trained, path)
-    back = noisenet.load_noise_model(path)
+    noisemodel.save_noise_model(trained, path)
+    back = noisemodel.load_noise_model(path)
     for name in ("w1", "b1", "w2", "mean", "std"):
         np.testing.assert_array_equal(getattr(back, name), getattr(trained, name))
     assert back.b2 == trained.b2 and back.trained_on["missions"] == 1
@@ -131,10 +131,10 @@ def test_the_model_file_round_trips_and_foreign_files_are_refused(trained, tmp_p
     cut = tmp_path / "cut.npz"
     cut.write_bytes(path.read_bytes()[:200])
     for bad in (text, other, cut):
-        with pytest.raises(noisenet.NoiseModelError, match="is not a beamsnet noise model"):
-            noisenet.load_noise_model(bad)
-    with pytest.raises(noisenet.NoiseModelError, match="cannot read"):
-        noisenet.load_noise_model(tmp_path / "missing.npz")
+        with pytest.raises(noisemodel.NoiseModelError, match="is not a beamsnet noise model"):
+            noisemodel.load_noise_model(bad)
+    with pytest.raises(noisemodel.NoiseModelError, match="cannot read"):
+        noisemodel.load_noise_model(tmp_path / "missing.npz")
 
 
 def test_the_command_line_refuses_a_foreign_model_in_one_line(noisy, tmp_path, capsys):
@@ -176,7 +176,7 @@ def test_it_trains_on_simulated_missions_only(tmp_path):
 
     write_akit(tmp_path / "logs", 1, surge=0.0)
     import_logs([tmp_path / "logs"], tmp_path / "sea.h5", format="akit")
-    with pytest.raises(noisenet.NoiseModelError, match="simulated data only"):
+    with pytest.raises(noisemodel.NoiseModelError, match="simulated data only"):
         noisenet.train_noise_model(tmp_path / "sea.h5")
 
 
@@ -209,7 +209,7 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
                 row = scores[label]
                 assert all(np.isfinite(row[k]) for k in (
                     "final_m", "rmse_m", "velocity_rmse", "coverage_3sigma"))
-    assert set(results["features"]) == set(noisenet.FEATURES)
+    assert set(results["features"]) == set(noisemodel.FEATURES)
     report = (tmp_path / "report" / "adaptive.md").read_text()
     recorded = report[report.index("## Recorded"):]
     assert "truth" not in recorded.split("## Where")[0]
@@ -217,5 +217,5 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
     assert report.count("| **median** |") == 2
     for figure in ("adaptive.png", "adaptive-features.png"):
         assert (tmp_path / "report" / figure).stat().st_size > 10_000
-    model = noisenet.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")
+    model = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")
     assert model.trained_on["missions"] == 20

@@ -15,6 +15,10 @@ from beamsnet.estimators import specs
 from beamsnet.evaluate import baselines
 from beamsnet.navigation import dead_reckoning_error
 
+# A filter that trains on the missions of the file it runs on: the test data here are
+# another file than the training data, so it is left out (with a warning saying why).
+FILTERS = {s.name for s in specs("filter")} - {"INS/DVL (learned noise)"}
+
 
 @pytest.mark.slow
 def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monkeypatch):
@@ -26,7 +30,7 @@ def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monk
     rows = json.loads((tmp_path / "reports" / "stress.json").read_text())
     assert list(rows) == [name for name, _, _ in MANEUVER_MISSIONS]
     for name, row in rows.items():
-        assert set(row) == {b.name for b in baselines()} | {s.name for s in specs("filter")} | {
+        assert set(row) == {b.name for b in baselines()} | FILTERS | {
             "BeamsNetV1 (v1)", "BeamsNetV2 (v2)", "BeamsNetV2M (v2m)", "CorrectionNet (corr)"}
         assert all(np.isfinite(c["rmse_vector"]) and np.isfinite(c["dr_error"])
                    for c in row.values())

@@ -111,6 +111,15 @@ watch is unchanged (its restart still uses the stated noise). With ``adaptive =
 "none"`` the loop does the fixed filter's arithmetic exactly: its outputs are
 bit-identical to the filter's before the setting existed.
 
+Learned DVL noise (``adaptive = "learned"``, the estimator ``INS/DVL (learned noise)``):
+at every ping the loop records eight features of the IMU since the previous ping and of
+the ping's innovations and runs a small network (``beamsnet.estimators.noisemodel``, its
+arrays handed to the loop) whose bounded output scales the DVL's white variances and the
+drive of the bias states c_k from the next ping on; ``beamsnet.estimators.noisenet``
+gives the reasons, the loss and the training. The track records what the training reads
+(``features``, ``innovation``, ``innovation_hph``, ``slow_drive``, ``noise_scale``). The
+fixed filter's arithmetic does not change.
+
 Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
 the mission's attributes (a simulated file's turn-on spread from its config, where the
 attributes hold the drawn value), with a recorded log's rounding added
@@ -290,14 +299,14 @@ class FilterConfig:
             fixed filter); ``"innovation"``: the stated white noise of the beams (or DVL
             axes) scaled by a factor estimated from the recent innovations (Mohamed &
             Schwarz 1999; the module docstring's "Adaptive measurement noise"). Only R
-            is adapted, never Q.
+            is adapted, never Q. ``"learned"``: the DVL's noise (its white R and the
+            drive of its slow error's bias states) scaled by a small network's output
+            from the recent IMU samples and innovations (``beamsnet.estimators
+            .noisenet``, trained on auvsim data; the model's own bounds apply).
         adaptive_window: N, the innovations (of all the DVL's measurements) the estimate
             averages (a sliding window; the first estimate after ``ADAPTIVE_START``).
         adaptive_range: (floor, ceiling), the adapted std's bounds as multiples of the
             stated one (``beam_noise_std``, the instrument's): 0.5 to 10 by default.
-            ``"learned"``: the stated white noise scaled by a small network's output
-            from the recent IMU samples and innovations (``beamsnet.estimators
-            .noisenet``, trained on auvsim data; its own bounds apply).
         noise_model: the learned noise model's file (``beamsnet reproduce adaptive``
             writes one), for ``adaptive = "learned"`` where no model is given directly.
     """
@@ -512,7 +521,7 @@ class FilterTrack(NamedTuple):
     measurement_std: np.ndarray | None = None  # (P, K) m/s, the white noise of each beam
     # (or DVL axis) for the next ping: the stated one, or the adapted (``adaptive``)
     features: np.ndarray | None = None  # (P, N_FEATURES) what a learned noise model reads
-    # of each ping (``beamsnet.estimators.noisenet.FEATURES``)
+    # of each ping (``beamsnet.estimators.noisemodel.FEATURES``)
     innovation: np.ndarray | None = None  # (P, K) m/s, each measurement's innovation
     # (NaN: not offered)
     innovation_hph: np.ndarray | None = None  # (P, K) (m/s)^2, its predicted h P h^T
@@ -807,7 +816,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 ratio = min(max(ring[:held].sum() / held, r_low), r_high)
                 for k in range(n_dir):
                     r_use[k] = ratio * r_meas[k]
-            # The noise model's features of this ping (``noisenet.FEATURES``), and its
+            # The noise model's features of this ping (``noisemodel.FEATURES``), and its
             # scale for the next ping's measurements.
             out_drive[k_ping] = drive
             out_scale[k_ping] = scale_used
@@ -1184,7 +1193,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     decay = 0.0 if bias_time is None else 1.0 / bias_time
     floor, ceiling = cfg.adaptive_range
     if cfg.adaptive == "learned" and noise_model is None:
-        from beamsnet.estimators.noisenet import load_noise_model
+        from beamsnet.estimators.noisemodel import load_noise_model
 
         if cfg.noise_model is None:
             raise DataError("FilterConfig.noise_model: expected the learned noise model's "
@@ -1201,7 +1210,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
-        np.ascontiguousarray(r_meas), _chi2_1dof(cfg.gate_probability), n, decay,
+        np.ascontiguousarray(r_meas), chi2_1dof(cfg.gate_probability), n, decay,
         2.0 * bias_std**2 * decay,
         cfg.watch_pings, float(cfg.watch_share),
         cfg.clock_std if timing_std is None else float(timing_std),
@@ -1460,16 +1469,16 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
 
 def _gated_variance_share(probability: float) -> float:
     """kappa = E[min(nu^2, c^2 S)] / S for a normal innovation nu of variance S and the
-    gate c^2 = ``_chi2_1dof(probability)``: the second moment of a standard normal
+    gate c^2 = ``chi2_1dof(probability)``: the second moment of a standard normal
     winsorised at +-c, integrated by parts, (2 Phi(c) - 1) - 2 c phi(c) + 2 c^2 (1 - Phi(c));
     0.998 at the default gate."""
     normal = statistics.NormalDist()
-    c = math.sqrt(_chi2_1dof(probability))
+    c = math.sqrt(chi2_1dof(probability))
     tail = 1.0 - normal.cdf(c)
     return (1.0 - 2.0 * tail) - 2.0 * c * normal.pdf(c) + 2.0 * c * c * tail
 
 
-def _chi2_1dof(probability: float) -> float:
+def chi2_1dof(probability: float) -> float:
     """Quantile of chi-square with 1 dof: the square of the normal's two-sided one."""
     return statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability) ** 2
 

@@ -64,81 +64,37 @@ from the innovations rather than learn the simulated instrument's (domain random
 Tobin et al. 2017, "Domain randomization for transferring deep neural networks from
 simulation to the real world", IROS).
 
-The model's file (``save_noise_model``, ``load_noise_model``) is an ``.npz`` of its
-arrays and a JSON header with ``NOISE_MODEL_FORMAT``, the features, window, bounds and
-what it was trained on; any other file is refused in one line.
+The model itself (its features' names, arrays, bounds and file) is
+``beamsnet.estimators.noisemodel``, which the filter's loop reads without this module.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import io
-import json
 import math
-import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from auvsim.errors import AuvsimError
 from beamsnet.data import Windows
 from beamsnet.estimators.ins import FilterConfig, InsDvlFilter
+from beamsnet.estimators.noisemodel import (
+    BOUNDS,
+    HIDDEN,
+    WINDOW,
+    NoiseModel,
+    NoiseModelError,
+    load_noise_model,
+    windows,
+)
 from beamsnet.estimators.registry import Needs, Spec
 
-FEATURES = ("log rotation rate", "log rms |f| - g", "log speed", "log NIS",
-            "scaled noise share", "log scale in use", "rejected share", "offered share")
-WINDOW = 30  # pings of features the network reads (the model-based filter's window)
-HIDDEN = 16  # tanh units
-BOUNDS = (0.5, 10.0)  # the scaled std's bounds, multiples of the stated one
 ROUNDS = 2  # training on the fixed filter's run, then on the learned filter's
 STATED_FACTORS = (0.5, 1.0, 2.0)  # the stated noise's multiples in the training runs
 FORMS = ("auto", "velocity")  # the measurement forms of the training runs
 EPOCHS = 300
 LR = 0.01
-NOISE_MODEL_FORMAT = "beamsnet-noise-model"
-NOISE_MODEL_VERSION = 1
-
-
-class NoiseModelError(AuvsimError):
-    """A file that is not a beamsnet noise model, or one that cannot be read."""
-
-
-@dataclass(frozen=True)
-class NoiseModel:
-    """A trained noise network: its layers, inputs' normalisation, bounds and provenance."""
-
-    w1: np.ndarray  # (HIDDEN, WINDOW F)
-    b1: np.ndarray  # (HIDDEN,)
-    w2: np.ndarray  # (HIDDEN,)
-    b2: float
-    mean: np.ndarray  # (WINDOW F,)
-    std: np.ndarray  # (WINDOW F,)
-    window: int = WINDOW
-    bounds: tuple[float, float] = BOUNDS
-    trained_on: dict = dataclasses.field(default_factory=dict)
-
-    def arrays(self) -> tuple:
-        """The filter loop's arguments (``ins._filter``'s ``net_window`` to ``feat_std``)."""
-        return (self.window, *(np.ascontiguousarray(a, dtype=float) for a in (
-            self.w1, self.b1, self.w2, np.array([self.b2]), self.mean, self.std)))
-
-    def scale(self, inputs: np.ndarray) -> np.ndarray:
-        """(N,) lambda, the variance scale, for (N, WINDOW F) inputs (``windows``): the
-        loop's arithmetic in numpy."""
-        hidden = np.tanh(((inputs - self.mean) / self.std) @ self.w1.T + self.b1)
-        lo, hi = (2 * math.log(b) for b in self.bounds)
-        return np.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * np.tanh(hidden @ self.w2 + self.b2))
-
-
-def windows(features: np.ndarray, window: int = WINDOW) -> np.ndarray:
-    """(P, window F) the network's input after each ping: its features and the previous
-    pings', newest first, the first ping's repeated before the start (as the loop fills
-    its window). ``features``: (P, F), the started pings only."""
-    p = len(features)
-    rows = np.arange(p)[:, None] - np.arange(window)[None, :]
-    return features[np.maximum(rows, 0)].reshape(p, -1)
 
 
 @dataclass(frozen=True)
@@ -191,10 +147,10 @@ def training_records(dataset, missions: Sequence[str], config=None, model=None, 
     mission to use (the training split's), default all; ``beam_correction``: the beams'
     calibration (``ins.run_mission``)."""
     from auvsim.data.reader import open_dataset
-    from beamsnet.estimators.ins import _chi2_1dof, run_mission
+    from beamsnet.estimators.ins import chi2_1dof, run_mission
 
     config = config if config is not None else FilterConfig()
-    gate = _chi2_1dof(config.gate_probability)
+    gate = chi2_1dof(config.gate_probability)
     parts = []
     with open_dataset(dataset) as f:
         for g, name in enumerate(missions):
@@ -306,63 +262,6 @@ def train_noise_model(dataset, missions: Sequence[str] | None = None, *, seed: i
     return model
 
 
-def save_noise_model(model: NoiseModel, path) -> None:
-    """Write ``model`` to ``path`` (``.npz``) whole or not at all."""
-    from auvsim.data.files import write_bytes
-
-    header = dict(format=NOISE_MODEL_FORMAT, version=NOISE_MODEL_VERSION,
-                  features=list(FEATURES), window=model.window, bounds=list(model.bounds),
-                  b2=model.b2, trained_on=model.trained_on)
-    buffer = io.BytesIO()
-    np.savez(buffer, header=np.array(json.dumps(header, default=float)), w1=model.w1,
-             b1=model.b1, w2=model.w2, mean=model.mean, std=model.std)
-    write_bytes(path, buffer.getvalue())
-
-
-def load_noise_model(path) -> NoiseModel:
-    """The model in ``path``.
-
-    Raises:
-        NoiseModelError: the file cannot be read, or is not a beamsnet noise model of this
-            version whose arrays fit its features and window (one line).
-    """
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            header = json.loads(str(z["header"]))
-            arrays = {k: np.asarray(z[k], dtype=float) for k in ("w1", "b1", "w2", "mean", "std")}
-    except OSError as e:
-        raise NoiseModelError(f"noise_model: cannot read {str(path)!r} "
-                              f"({e.strerror or e})") from None
-    except (ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError, EOFError):
-        raise NoiseModelError(f"noise_model: {str(path)!r} is not a beamsnet noise model "
-                              "(expected the .npz that beamsnet reproduce adaptive "
-                              "writes)") from None
-    if not isinstance(header, dict) or header.get("format") != NOISE_MODEL_FORMAT:
-        raise NoiseModelError(f"noise_model: {str(path)!r} is not a beamsnet noise model "
-                              "(expected the .npz that beamsnet reproduce adaptive writes)")
-    if header.get("version") != NOISE_MODEL_VERSION or header.get("features") != list(FEATURES):
-        raise NoiseModelError(f"noise_model: {str(path)!r} is a noise model of another "
-                              f"version ({header.get('version')!r}); expected version "
-                              f"{NOISE_MODEL_VERSION} with features {', '.join(FEATURES)}")
-    window = header.get("window")
-    d = len(FEATURES) * window if isinstance(window, int) else -1
-    shapes_ok = (arrays["w1"].ndim == 2 and arrays["w1"].shape[1] == d
-                 and arrays["b1"].shape == arrays["w2"].shape == (arrays["w1"].shape[0],)
-                 and arrays["mean"].shape == arrays["std"].shape == (d,)
-                 and (arrays["std"] > 0).all()
-                 and all(np.isfinite(a).all() for a in arrays.values()))
-    bounds = header.get("bounds")
-    if not (shapes_ok and isinstance(bounds, list) and len(bounds) == 2
-            and 0 < bounds[0] <= 1 <= bounds[1]):
-        raise NoiseModelError(f"noise_model: {str(path)!r} has arrays or bounds that do not "
-                              "fit its features and window; expected a file written by "
-                              "beamsnet reproduce adaptive")
-    return NoiseModel(**arrays, b2=float(header["b2"]), window=window,
-                      bounds=(float(bounds[0]), float(bounds[1])),
-                      trained_on=header.get("trained_on", {}))
-
-
 class LearnedInsDvlFilter(InsDvlFilter):
     """The INS/DVL filter with the learned noise as a beamsnet estimator: ``fit`` calibrates
     the beams as ``InsDvlFilter`` does and, unless a model was given (``model``, or the
@@ -383,8 +282,16 @@ class LearnedInsDvlFilter(InsDvlFilter):
                             else load_noise_model(config.noise_model))
 
     def fit(self, train: Windows) -> LearnedInsDvlFilter:
+        """Calibrate the beams and, unless a model was given, train one on the
+        training split's pings.
+
+        Raises:
+            NoiseModelError: the training windows are not of this filter's file (their
+                missions, times or beams differ), so it has no training run of its own.
+        """
         super().fit(train)
         if not self.given:
+            _check_windows_of(self.dataset, train)
             missions = np.unique(train.mission)
             self.noise_model = train_noise_model(
                 self.dataset, [train.names[i] for i in missions],
@@ -392,6 +299,32 @@ class LearnedInsDvlFilter(InsDvlFilter):
                        for i in missions},
                 beam_correction=self.correction)
         return self
+
+
+def _check_windows_of(dataset, windows: Windows) -> None:
+    """Refuse windows that are not of ``dataset``: each of their missions must be there
+    with a ping at each of their times, beams equal where both are finite."""
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        for i in np.unique(windows.mission):
+            name, rows = windows.names[i], windows.mission == i
+            same = name in f.missions
+            if same:
+                dvl = f.missions[name].dvl
+                t = np.asarray(dvl.time, dtype=float)
+                k = np.minimum(np.searchsorted(t, windows.time[rows]), len(t) - 1)
+                theirs = np.asarray(dvl.beam_velocity, dtype=float)[k]
+                both = np.isfinite(theirs) & np.isfinite(windows.beams[rows])
+                same = (np.allclose(t[k], windows.time[rows], rtol=1e-9, atol=1e-9)
+                        and np.allclose(theirs[both], windows.beams[rows][both], rtol=1e-6,
+                                        atol=1e-9))
+            if not same:
+                raise NoiseModelError(
+                    f"the learned noise trains on the filter's own file ({dataset}), and the "
+                    f"training windows' mission {name!r} is not its; expected training "
+                    "windows of that file, or a trained model (noise_model in "
+                    "--filter-config)")
 
 
 ESTIMATORS = (

@@ -53,7 +53,7 @@ from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import Windows, load_windows, select
 from beamsnet.estimators import short_name, spec
-from beamsnet.evaluate import baselines, filters, trimmed
+from beamsnet.evaluate import baselines, fit_filters, trimmed
 from beamsnet.experiments.runner import ensure_dataset
 from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import dead_reckoning_error, held, own_position_error, truth_at_pings
@@ -250,7 +250,7 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 windows = load_windows(path, n_past=n_past, missions=list(missions),
                                        every_ping=True)
                 truth = truth_at_pings(path, windows)
-                own = [f.fit(train_w) for f in filters(path)]
+                own = fit_filters(path, train_w)
                 estimates = _estimates(fitted + own, models, windows)
                 positions = {f.name: f.positions(windows) for f in own}
                 scored[str(path)] = {name: _score(windows, pred, truth,
