@@ -253,7 +253,8 @@ def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
         f"- **{FIXED}**: the stated noise throughout;",
         f"- **{MODEL_BASED}**: the model-based adaptive baseline, the stated beam noise "
         "scaled by an innovation-based estimate (Mohamed & Schwarz 1999);",
-        f"- **{LEARNED}**: the stated beam noise scaled by a small network (the last "
+        f"- **{LEARNED}**: the stated DVL noise (its white part and its slow error's "
+        f"drive) scaled by a small network (the last "
         f"{WINDOW} pings' {len(FEATURES)} features, {HIDDEN} tanh units, the std bounded "
         f"to {BOUNDS[0]:g}-{BOUNDS[1]:g} times the stated) fitted by the innovations' "
         "negative log-likelihood, **trained only on auvsim data**: the "
