@@ -106,11 +106,11 @@ def pytest_collection_modifyitems(config, items) -> None:
 
 @pytest.fixture(autouse=True)
 def _default_interrupts():
-    """Every test starts with Python's own SIGINT and SIGTERM handling, as a fresh
-    process has. A test worker has been seen ignoring SIGINT when a test began (twice in
-    a full run, after different tests; the set that left it was not caught), and an
-    ignored signal is inherited by every process a test starts, so the signal tests
-    failed after it."""
+    """Every test starts with Python's own SIGINT and SIGTERM handling, as a command
+    started from a terminal has. A test run started in the background of a shell without
+    job control inherits SIGINT ignored (a POSIX shell ignores it for asynchronous
+    commands), Python then leaves it ignored, and so do the processes a test starts: the
+    Ctrl-C tests would test nothing."""
     import signal
 
     signal.signal(signal.SIGINT, signal.default_int_handler)

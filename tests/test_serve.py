@@ -318,12 +318,17 @@ def run_cli(*args: str, **popen) -> subprocess.Popen:
 def test_a_signal_stops_the_command_and_frees_the_port(dataset, signum):
     process = run_cli("serve", str(dataset), "--dvl", "a50", "--mission", "a", "--port", "0",
                       "--loop")
-    line = process.stdout.readline()
-    port = int(line.split("127.0.0.1:")[1].split(":")[0])
-    with socket.create_connection(("127.0.0.1", port), timeout=10) as client:
-        client.makefile().readline()  # it serves
-        process.send_signal(signum)
-        out, err = process.communicate(timeout=20)
+    try:
+        line = process.stdout.readline()
+        port = int(line.split("127.0.0.1:")[1].split(":")[0])
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as client:
+            client.makefile().readline()  # it serves
+            process.send_signal(signum)
+            out, err = process.communicate(timeout=20)
+    finally:  # a server that ignored the signal is not left serving
+        if process.poll() is None:
+            process.kill()
+            process.wait()
     assert process.returncode == 130
     assert err.strip().splitlines() == ["auvsim: interrupted; nothing was written"]
     assert free_to_bind("127.0.0.1", port)
