@@ -32,6 +32,17 @@ def flat(*missions: MissionConfig, dvl: DvlConfig | None = None, imu: ImuConfig 
                   imu=ImuConfig() if imu is None else imu, **changes)
 
 
+def zigzag(noise_std: float, duration: float) -> Config:
+    """A zigzag of ``duration`` s (mission ``zz``, seed 3) over the flat floor with a
+    navigation-grade IMU and beams of white noise ``noise_std`` at 1 Hz: the INS/DVL
+    filters' test mission."""
+    from auvsim.sensors.imu import IMU_GRADES
+
+    return flat(MissionConfig(name="zz", seed=3, scenario=ScenarioConfig(
+                    name="zigzag", duration=duration)),
+                imu=IMU_GRADES["navigation"], dvl=DvlConfig(noise_std=noise_std))
+
+
 def write(config: Config, path: Path) -> Path:
     """``config`` generated into ``path`` in this process, quietly."""
     generate(config, path, workers=1, progress=False)

@@ -9,12 +9,10 @@ import re
 
 import numpy as np
 import pytest
-from conftest import flat
+from conftest import zigzag
 
-from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
 from auvsim.errors import ConfigError
-from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
 from beamsnet.estimators import ins, spec
 
@@ -25,10 +23,7 @@ WARM_UP = 1 / 3  # the share of the pings left out of the statistics (the window
 @pytest.fixture(scope="module")
 def noisy(dataset_of):
     """200 s of zigzag, a navigation-grade IMU, beams of white noise ``NOISE`` at 1 Hz."""
-    mission = MissionConfig(name="zz", seed=3, scenario=ScenarioConfig(name="zigzag",
-                                                                       duration=200.0))
-    return dataset_of(flat(mission, imu=IMU_GRADES["navigation"],
-                           dvl=DvlConfig(noise_std=NOISE)), "noisy")
+    return dataset_of(zigzag(NOISE, 200.0), "noisy")
 
 
 def run(path, **settings) -> tuple[ins.FilterTrack, np.ndarray]:

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import Fields, flat
+from conftest import Fields, zigzag
 
-from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
@@ -31,10 +30,7 @@ import sea_filter  # noqa: E402  (the product path on the shared segments, and i
 @pytest.fixture(scope="module")
 def navigation(dataset_of):
     """A 90 s zigzag: the navigation-grade IMU, the paper's beam noise."""
-    mission = MissionConfig(name="zz", seed=3, scenario=ScenarioConfig(name="zigzag",
-                                                                       duration=90.0))
-    return dataset_of(flat(mission, imu=IMU_GRADES["navigation"],
-                           dvl=DvlConfig(noise_std=PAPER_NOISE_CODE)), "navigation")
+    return dataset_of(zigzag(PAPER_NOISE_CODE, 90.0), "navigation")
 
 
 def arrays_of(m) -> dict:

@@ -11,11 +11,9 @@ import re
 
 import numpy as np
 import pytest
-from conftest import flat
+from conftest import zigzag
 
-from auvsim.config import DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
-from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
 from beamsnet.estimators import ins, noisemodel, noisenet, spec
 
@@ -28,10 +26,7 @@ D = noisemodel.WINDOW * len(noisemodel.FEATURES)  # the network's inputs
 def noisy(dataset_of):
     """200 s of zigzag, a navigation-grade IMU, beams of white noise ``NOISE`` at 1 Hz, no
     slow error (so the scale is R's alone)."""
-    mission = MissionConfig(name="zz", seed=3, scenario=ScenarioConfig(name="zigzag",
-                                                                       duration=200.0))
-    return dataset_of(flat(mission, imu=IMU_GRADES["navigation"],
-                           dvl=DvlConfig(noise_std=NOISE)), "noisy")
+    return dataset_of(zigzag(NOISE, 200.0), "noisy")
 
 
 @pytest.fixture(scope="module")

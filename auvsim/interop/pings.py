@@ -57,15 +57,6 @@ class PingErrors:
     covariance: np.ndarray
 
 
-@dataclass(frozen=True)
-class _Noise:
-    noise_std: float = 0.0
-    noise_range_coeff: float = 0.0
-    noise_speed_coeff: float = 0.0
-    water_track_noise_std: float = 0.0
-    slow_error_std: float = 0.0
-
-
 def ping_errors(mission) -> PingErrors:
     """The pings of a mission (``auvsim.data.reader.Mission`` with a ``dvl`` group) as the
     module docstring defines them."""
@@ -109,7 +100,8 @@ def ping_errors(mission) -> PingErrors:
                                                                   ranges, 0.0)
              + noise.noise_speed_coeff * speed[:, None])
     water = mode == int(Mode.WATER_TRACK)
-    sigma = np.where(water[:, None], noise.water_track_noise_std, sigma)
+    sigma = np.where(water[:, None], noise.water_track_noise_std if noise.water_track else 0.0,
+                     sigma)
     slow2 = noise.slow_error_std ** 2
     beam_variance = np.where(measured, sigma**2 + slow2, np.nan)
 
@@ -117,23 +109,26 @@ def ping_errors(mission) -> PingErrors:
     if mission.origin == "recorded" and "dvl_velocity_accuracy" in a:
         covariance[has_velocity] = float(a["dvl_velocity_accuracy"]) ** 2 * np.eye(3)
     else:
+        pinv = {}  # one pseudo-inverse per set of beams used (at most 5 sets of 3 or 4)
         for n in np.flatnonzero(has_velocity):
             use = measured[n]
-            p = np.linalg.pinv(h[use])
+            key = use.tobytes()
+            if key not in pinv:
+                pinv[key] = np.linalg.pinv(h[use])
+            p = pinv[key]
             c = (p * sigma[n, use] ** 2) @ p.T + slow2 * np.eye(3)
             covariance[n] = (c + c.T) / 2  # symmetric to the last bit
     return PingErrors(measured, locked, altitude, beam_variance, covariance)
 
 
-def _noise(mission) -> _Noise:
-    """The noise model's coefficients: the config's for a simulated mission, else what the
-    mission's attributes say."""
+def _noise(mission):
+    """The noise model's coefficients as an ``auvsim.config.DvlConfig``: the dataset's for
+    a simulated mission, else one holding what the mission's attributes say (the other
+    coefficients at their defaults, 0)."""
+    from auvsim.config import Config, DvlConfig
+
     a = mission.attrs
     if mission.origin == "simulated" and mission.dataset.config_json:
-        from auvsim.config import Config
-
-        c = Config.from_json(mission.dataset.config_json).dvl
-        return _Noise(c.noise_std, c.noise_range_coeff, c.noise_speed_coeff,
-                      c.water_track_noise_std if c.water_track else 0.0, c.slow_error_std)
-    return _Noise(noise_std=float(a.get("dvl_noise_std", 0.0)),
-                  slow_error_std=float(a.get("dvl_slow_error_std", 0.0)))
+        return Config.from_json(mission.dataset.config_json).dvl
+    return DvlConfig(noise_std=float(a.get("dvl_noise_std", 0.0)),
+                     slow_error_std=float(a.get("dvl_slow_error_std", 0.0)))

@@ -41,7 +41,7 @@ from beamsnet import metrics
 from beamsnet.data import load_windows
 from beamsnet.evaluate import navigation_scores, reported_stds
 from beamsnet.experiments.runner import ensure_dataset
-from beamsnet.experiments.sea import DEFAULT_SEA, sea_dataset
+from beamsnet.experiments.sea import DEFAULT_SEA, median_score, pooled_coverage, sea_dataset
 from beamsnet.navigation import truth_at_pings
 
 DURATION = 300.0  # s per manoeuvre of the training and held-out sets
@@ -99,9 +99,10 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     save_noise_model(model, model_path)
     sim = {name: _mission(test, name, model) for name in _names(test)}
     sea = {name: _mission(real, name, model) for name in _names(real)}
-    features = dict(simulated=_features(test, model), recorded=np.concatenate(
-        [r["track"].features[np.isfinite(r["track"].features).all(axis=1)]
-         for r in sea.values()]))
+    features = dict(
+        simulated=np.concatenate([_started(r["track"].features) for r in sim.values()]
+                                 + _velocity_features(test, model)),
+        recorded=np.concatenate([_started(r["track"].features) for r in sea.values()]))
     setup = dict(data=Path(data).name, train=str(train), test=str(test), real=str(real),
                  duration=duration, seed=seed, model=str(model_path),
                  trained_on=model.trained_on, corrections=corrections)
@@ -152,23 +153,26 @@ def _mission(dataset: Path, name: str, model) -> dict:
         scores[label] = dict(velocity_rmse=metrics.rmse_vector(pred[have],
                                                                windows.target[have]),
                              **navigation[label])
-    return dict(scores=dict(scores, against=windows.reference), time=windows.time,
+    return dict(scores=dict(scores, against=windows.reference, pings=len(windows.time)),
+                time=windows.time,
                 track=tracks[LEARNED], model_based=tracks[MODEL_BASED])
 
 
-def _features(dataset: Path, model) -> np.ndarray:
-    """The learned filter's inputs on every mission of a simulated ``dataset``, in both
-    measurement forms (as it was trained)."""
+def _started(features: np.ndarray) -> np.ndarray:
+    """A track's features at the pings after its start."""
+    return features[np.isfinite(features).all(axis=1)]
+
+
+def _velocity_features(dataset: Path, model) -> list[np.ndarray]:
+    """The learned filter's inputs on every mission of a simulated ``dataset`` with the
+    DVL's velocity as its measurements (the scoring ran it on the beams; it trained on
+    both forms)."""
     from beamsnet.estimators.ins import FilterConfig, run_mission
 
-    parts = []
     with open_dataset(dataset) as f:
-        for m in f.missions.values():
-            for form in ("auto", "velocity"):
-                x = run_mission(m, FilterConfig(adaptive="learned"), noise_model=model,
-                                measurements=form).features
-                parts.append(x[np.isfinite(x).all(axis=1)])
-    return np.concatenate(parts)
+        return [_started(run_mission(m, FilterConfig(adaptive="learned"), noise_model=model,
+                                     measurements="velocity").features)
+                for m in f.missions.values()]
 
 
 def ks_distance(a: np.ndarray, b: np.ndarray) -> float:
@@ -196,18 +200,6 @@ def _shift(features: dict) -> dict:
     return out
 
 
-def _median(results: dict, label: str, key: str) -> float:
-    values = [r["scores"][label].get(key, math.nan) for r in results.values()]
-    return float(np.nanmedian(values)) if values else math.nan
-
-
-def _pooled_coverage(results: dict, label: str) -> float:
-    """The share over every mission's pings (each mission's coverage by its pings)."""
-    shares = [(r["scores"][label]["coverage_3sigma"], len(r["time"])) for r in results.values()
-              if "coverage_3sigma" in r["scores"][label]]
-    return sum(c * n for c, n in shares) / sum(n for _, n in shares) if shares else math.nan
-
-
 def _table(results: dict, against: str) -> list[str]:
     head = ("| mission | " + " | ".join(
         f"{label}: final / RMSE (m), velocity RMSE (m/s), within 3 sigma (%)"
@@ -224,14 +216,12 @@ def _table(results: dict, against: str) -> list[str]:
     for name, r in results.items():
         lines.append(f"| {name} | " + " | ".join(cell(r["scores"][label]) for label in FILTERS)
                      + " |")
+    keys = ("final_m", "rmse_m", "velocity_rmse", "coverage_3sigma")
     lines.append("| **median** | " + " | ".join(
-        f"{_median(results, label, 'final_m'):.2f} / {_median(results, label, 'rmse_m'):.2f}, "
-        f"{_median(results, label, 'velocity_rmse'):.4f}, "
-        f"{100 * _median(results, label, 'coverage_3sigma'):.1f}"
-        for label in FILTERS) + " |")
+        cell({k: median_score(results, label, k) for k in keys}) for label in FILTERS) + " |")
     lines.append("")
     lines.append("Over every mission's pings together, within 3 sigma: " + ", ".join(
-        f"{label} {100 * _pooled_coverage(results, label):.1f} %" for label in FILTERS) + ".")
+        f"{label} {100 * pooled_coverage(results, label):.1f} %" for label in FILTERS) + ".")
     return lines
 
 
@@ -284,11 +274,11 @@ def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
 
 
 def _targets(sea: dict) -> list[str]:
-    fixed, learned = (_median(sea, label, "final_m") for label in (FIXED, LEARNED))
+    fixed, learned = (median_score(sea, label, "final_m") for label in (FIXED, LEARNED))
     gain = 1 - learned / fixed
     worst_name, worst = max(((n, r["scores"][LEARNED]["final_m"] / r["scores"][FIXED]["final_m"]
                               - 1) for n, r in sea.items()), key=lambda x: x[1])
-    pooled = _pooled_coverage(sea, LEARNED)
+    pooled = pooled_coverage(sea, LEARNED)
     least = min(sea, key=lambda n: sea[n]["scores"][LEARNED].get("coverage_3sigma", math.nan))
     least_share = sea[least]["scores"][LEARNED].get("coverage_3sigma", math.nan)
 

@@ -337,10 +337,21 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
                 time=windows.time, reference=truth["position"], tracks=tracks)
 
 
-def _median(results: dict, label: str, key: str) -> float:
+def median_score(results: dict, label: str, key: str) -> float:
+    """The median over the missions of ``results`` ({mission: {"scores": {row: {key:
+    value}}}}, as ``reproduce sea`` and ``reproduce adaptive`` keep them) of row ``label``'s
+    ``key``, over the missions that have it; NaN if none does."""
     values = [r["scores"][label][key] for r in results.values()
               if label in r["scores"] and key in r["scores"][label]]
     return float(np.median(values)) if values else math.nan
+
+
+def pooled_coverage(results: dict, label: str) -> float:
+    """Row ``label``'s 3-sigma coverage over every mission's pings together (each
+    mission's share weighted by its ``pings``); NaN if no mission has one."""
+    rows = [(r["scores"][label]["coverage_3sigma"], r["scores"]["pings"])
+            for r in results.values() if "coverage_3sigma" in r["scores"].get(label, {})]
+    return sum(c * n for c, n in rows) / sum(n for _, n in rows) if rows else math.nan
 
 
 def _fmt(value: float, spec: str = ".2f") -> str:
@@ -402,7 +413,7 @@ def report(results: dict, setup: dict) -> str:
             f"{triple(s[by_reference])} | {triple(s.get(by_filter))} | "
             f"{_fmt(f.get('velocity_rmse', math.nan), '.4f')} | "
             f"{s[by_reference]['velocity_rmse']:.4f} |")
-    med = {label: {k: _median(results, label, k) for k in
+    med = {label: {k: median_score(results, label, k) for k in
                    ("final_m", "rmse_m", "final_percent", "velocity_rmse", "coverage_3sigma",
                     "distance_m")}
            for label in (FILTER, by_reference, by_filter)}
@@ -435,13 +446,13 @@ def report(results: dict, setup: dict) -> str:
 def _coverage_words(results: dict) -> list[str]:
     """The filter's 3-sigma coverage over every segment's pings together, and per
     segment: the lowest, where it is under 90 %."""
-    rows = [(name, r["scores"][FILTER]["coverage_3sigma"], r["scores"]["pings"])
+    rows = [(name, r["scores"][FILTER]["coverage_3sigma"])
             for name, r in results.items()
             if "coverage_3sigma" in r["scores"].get(FILTER, {})]
     if not rows:
         return []
-    pooled = sum(c * n for _, c, n in rows) / sum(n for _, _, n in rows)
-    under = [f"{name} {100 * c:.1f} %" for name, c, _ in rows if c < 0.9]
+    pooled = pooled_coverage(results, FILTER)
+    under = [f"{name} {100 * c:.1f} %" for name, c in rows if c < 0.9]
     return [f"Over every segment's pings together, the {FILTER} filter's horizontal error "
             f"lies within its reported 3 sigma {100 * pooled:.1f} % of the time; per "
             "segment, " + (f"under 90 % on {len(under)} of {len(rows)}: "
@@ -466,7 +477,7 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     skip = {"failed", "pings", "against", "derived", by_reference}
     labels = [k for k in first if k not in skip and not k.startswith("DR: ")]
     sim = [k for k in labels if not k.endswith(OTHERS)]
-    ls = _median(results, "LS", "velocity_rmse")
+    ls = median_score(results, "LS", "velocity_rmse")
     noise = setup["noise"]
     lines = [
         "## Sim-to-real: trained on auvsim, run on the real segments",
@@ -491,12 +502,12 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
         "|---|---|---|---|---|---|",
     ]
     for label in sim:
-        v = _median(results, label, "velocity_rmse")
-        real = _median(results, f"{label}{OTHERS}", "velocity_rmse")
+        v = median_score(results, label, "velocity_rmse")
+        real = median_score(results, f"{label}{OTHERS}", "velocity_rmse")
         lines.append(f"| {label} | {_fmt(v, '.4f')} | "
                      f"{_fmt(100 * (1 - v / ls) if ls > 0 else math.nan, '.1f')} | "
-                     f"{_fmt(_median(results, label, 'final_m'))} | "
-                     f"{_fmt(_median(results, label, 'rmse_m'))} | {_fmt(real, '.4f')} |")
+                     f"{_fmt(median_score(results, label, 'final_m'))} | "
+                     f"{_fmt(median_score(results, label, 'rmse_m'))} | {_fmt(real, '.4f')} |")
     lines += ["", "### What transfers, and why", "",
               *_transfers(results, sim, ls, noise, setup["logged_noise"])]
     return lines
@@ -508,7 +519,7 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
     real segments, which lose, and the filter's two noise settings."""
     derived = next(iter(results.values()))["scores"]["derived"]
     def v(label):
-        return _median(results, label, "velocity_rmse")
+        return median_score(results, label, "velocity_rmse")
 
     def said(labels):
         return ", ".join(f"{k} ({100 * (1 - v(k) / ls):+.1f} %)" for k in labels) or "none"
@@ -543,7 +554,7 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
            "random walk, CorrectionNet's past pings) smooths the real velocity's changes "
            "instead, which the real DVL, quieter, did not need: that is how we read the "
            "rows worse than LS." if ratio > 2 and worse else ""))
-    f, s = _median(results, FILTER, "final_m"), _median(results, SIM_FILTER, "final_m")
+    f, s = median_score(results, FILTER, "final_m"), median_score(results, SIM_FILTER, "final_m")
     if math.isfinite(f) and math.isfinite(s):
         lines.append(
             f"- The filter with the simulated instrument's noise settings ends {_fmt(s)} m "
@@ -559,7 +570,7 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
 
 
 def _coverage(results: dict, label: str) -> str:
-    return _fmt(100 * _median(results, label, "coverage_3sigma"), ".1f")
+    return _fmt(100 * median_score(results, label, "coverage_3sigma"), ".1f")
 
 
 def _figure(results: dict, path: Path) -> None:
