@@ -49,6 +49,9 @@ MAX_CURRENT = 3.0  # m/s
 # time); from about 1e6 N on the REMUS 100 (1e8 N on the A18-D) MuJoCo's integration
 # blows up, and it resets the vehicle to rest.
 MAX_NET_BUOYANCY = 1000.0  # N
+# A sensor's offset from the body origin, per axis: the vehicles auvsim models are at most
+# 5.5 m long (the A18-D), so 10 m holds any sensor on them and on a vehicle twice as long.
+MAX_SENSOR_OFFSET = 10.0  # m
 SPEED_CONTROLS = ("speed", "rpm")  # VehicleConfig.speed_control
 HEADING_CONTROLS = ("pid", "full-rudder-turns")  # VehicleConfig.heading_control
 # Depths of the water, the seafloor and the terrain: the deepest ocean, the Challenger
@@ -133,6 +136,11 @@ class VehicleConfig:
             term backs the rudder off as a turn builds) or ``full-rudder-turns`` (a heading
             change beyond the PID's braking point flown at full rudder, as a survey AUV
             turns at the end of its lines; ``Gains.full_rudder_turns``).
+        imu_position, dvl_position: where the IMU and the DVL sit, m, body FRD from the
+            body origin (the centre of buoyancy), each axis within ``MAX_SENSOR_OFFSET``
+            (10 m) either way; ``None`` (the default) takes the model's ``imu`` and ``dvl``
+            sites. The IMU measures the specific force and the DVL the velocity at its own
+            position, so in a turn each sees ``omega x position`` more than the origin.
     """
 
     model: str = "auv"
@@ -140,6 +148,8 @@ class VehicleConfig:
     current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
     speed_control: str = "speed"
     heading_control: str = "pid"
+    imu_position: tuple[float, float, float] | None = None
+    dvl_position: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         _check(isinstance(self.model, str) and self.model != "", "vehicle.model",
@@ -154,6 +164,14 @@ class VehicleConfig:
                "minus weight)", self.net_buoyancy)
         object.__setattr__(self, "current_ned",
                            _vector("vehicle.current_ned", self.current_ned, 3))
+        for name in ("imu_position", "dvl_position"):
+            value = getattr(self, name)
+            if value is not None:
+                value = _vector(f"vehicle.{name}", value, 3)
+                _check(all(abs(v) <= MAX_SENSOR_OFFSET for v in value), f"vehicle.{name}",
+                       f"an offset of at most {MAX_SENSOR_OFFSET:g} m on each axis (a "
+                       "sensor on the vehicle)", value)
+                object.__setattr__(self, name, value)
         speed = math.hypot(*self.current_ned)
         if speed > MAX_CURRENT:
             raise ConfigError(f"vehicle.current_ned: expected a current of at most "

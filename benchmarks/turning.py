@@ -28,17 +28,22 @@ items 7 and 8).
   segments and each ``--sim`` dataset (e.g. ``auvsim generate --preset
   realistic-maneuvers`` before a change and after), and for the simulated missions that
   turn at least as much as every real segment.
+  Beside them, the DVL's Y of the Snapir's long logs (``--logs``: about 11 h of its
+  Navigator's output, ``log_windows``) in windows of a simulated mission's length: many
+  more missions of the same vehicle than the six segments, with no reference.
   Then, for each source, whether issue 24's bounds hold: the median over missions of each
   sway std within ``SWAY_BOUNDS`` and every mission's |mean roll| within ``ROLL_BOUND``.
 * **The roll period**: the real roll-rate spectra's peak against the model's damped period.
 
     .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
-        [--sim LABEL=FILE.h5 ...] [--rpm-alone] [--min-peak 8] [--infer]
+        [--logs ../shared/data/snapir-missbeamnet] [--sim LABEL=FILE.h5 ...] [--rpm-alone]
+        [--min-peak 8] [--infer]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import math
 import sys
@@ -56,6 +61,12 @@ from auvsim.runs.presets import preset
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "snapir-akit"
+DEFAULT_LOGS = ROOT.parent / "shared" / "data" / "snapir-missbeamnet"
+# The long logs' files that hold distinct pings: 9,129 of the test file's rows repeat the
+# training file's (its README), so it is left out.
+LOG_FILES = ("train_data.csv", "validation_data.csv")
+WINDOW = 600  # pings of the long logs per window: about 600 s, a simulated mission's length
+UNDERWAY = 0.5  # m/s: a window counts when its median speed is at least this (MIN_SPEED)
 START = 2.0  # deg/s: a turn starts where the yaw rate passes this on the way to its peak
 BEFORE = 5.0  # s of speed before the turn's start: the speed the turn began from
 AFTER = 15.0  # s past the peak in which the lowest speed is sought
@@ -209,6 +220,27 @@ def heading_change(seg: dict[str, np.ndarray]) -> float:
     return math.degrees(np.abs(step[turning]).sum())
 
 
+def log_windows(folder: Path) -> list[dict[str, float]]:
+    """The per-window sway of the Snapir's long DVL logs (MissBeamNet's, about 11 h of the
+    Navigator's own velocity output, ``x/y/z speed`` in the body axes, at about 1 Hz):
+    each file cut into consecutive windows of ``WINDOW`` valid pings (every velocity
+    component finite and below 10 m/s: 32.768 marks an invalid ping), kept where the
+    vehicle is underway (median horizontal speed at least ``UNDERWAY``). Per window: the
+    std of the DVL's Y (``sway_dvl``) and its median speed (``speed``)."""
+    out = []
+    for name in LOG_FILES:
+        with open(folder / name, newline="") as f:
+            v = np.array([[float(row[f"{axis} speed"]) for axis in "xyz"]
+                          for row in csv.DictReader(f)])
+        v = v[np.all(np.isfinite(v) & (np.abs(v) < 10.0), axis=1)]
+        for start in range(0, len(v) - WINDOW + 1, WINDOW):
+            w = v[start:start + WINDOW]
+            speed = float(np.median(np.hypot(w[:, 0], w[:, 1])))
+            if speed >= UNDERWAY:
+                out.append({"sway_dvl": float(w[:, 1].std()), "speed": speed})
+    return out
+
+
 def sim_missions(path: Path) -> dict[str, dict[str, np.ndarray]]:
     """Each mission of a simulated dataset (one HDF5 file) laid out as a real segment: its
     truth sampled at 1 Hz as the reference (time, three unused columns, NED velocity,
@@ -333,6 +365,10 @@ def main() -> None:
     parser.add_argument("--infer", action="store_true",
                         help="also find the rudder limit the hard turns imply (a bisection "
                         "of model runs, about a minute)")
+    parser.add_argument("--logs", type=Path, default=DEFAULT_LOGS,
+                        help="folder of the Snapir's long DVL logs (MissBeamNet's "
+                        "train_data.csv, validation_data.csv), measured beside the segments "
+                        "when present")
     perf_page.add_write_option(parser, "turning")
     args = parser.parse_args()
     segments = sorted(args.data.glob("Trajectory*"), key=lambda p: int(p.name[10:]))
@@ -379,7 +415,8 @@ def main() -> None:
         sim_turns = [t for seg in per.values()
                      for t in real_turns(seg, fin_lever, args.min_peak)]
         print(f"{label:24s} {turn_summary(sim_turns)}")
-    print_sway_roll(data, missions)
+    present = all((args.logs / name).is_file() for name in LOG_FILES)
+    print_sway_roll(data, missions, log_windows(args.logs) if present else [])
 
     periods = [roll_period(s) for s in data.values()]
     print(f"\nRoll period: real (roll-rate spectrum peak) median {np.median(periods):.2f} s "
@@ -423,11 +460,12 @@ def _sway_inside(per: dict, key: str) -> bool:
     return SWAY_BOUNDS[0] <= median <= SWAY_BOUNDS[1]
 
 
-def print_sway_roll(data: dict, missions: dict) -> None:
+def print_sway_roll(data: dict, missions: dict, windows: list[dict]) -> None:
     """The per-mission sway and roll table: real segments, each simulated dataset, and its
     missions that turn at least as much as every real segment (like with like: a mission's
     sway std grows with its heading changes, as the current's cross component turns with
-    the heading and every turn slips)."""
+    the heading and every turn slips); then the DVL's Y of the long logs' ``windows``
+    (``log_windows``), and which simulated medians lie within their 10-90 % range."""
     least = min(heading_change(s) for s in data.values())
     rows = {"real": {n: real_sway_roll(s) | {"turned": heading_change(s)}
                      for n, s in data.items()}}
@@ -451,6 +489,16 @@ def print_sway_roll(data: dict, missions: dict) -> None:
         print(f"{label:24s} {len(per):3d} "
               + " ".join(f"{summary(figures[key]):>26s}" for key, _ in columns)
               + f" {max(abs(x) for x in figures['roll']):15.2f}")
+    if windows:
+        sway = np.array([w["sway_dvl"] for w in windows])
+        low, high = np.percentile(sway, [10, 90])
+        print(f"{'real, long logs':24s} {len(sway):3d} {summary(sway):>26s} (the DVL's Y of "
+              f"{WINDOW}-ping windows underway; 10-90 %: {low:.3f} to {high:.3f}; median "
+              f"speed {np.median([w['speed'] for w in windows]):.2f} m/s)")
+        for label in missions:
+            median = float(np.median([m["sway_dvl"] for m in rows[label].values()]))
+            print(f"  {label}: sway, DVL Y median {median:.3f} m/s, within the long logs' "
+                  f"10-90 % range: {_verdict(low <= median <= high)}")
     print(f"\nIssue 24's bounds (from the real segments): per-mission sway std median in "
           f"{SWAY_BOUNDS[0]:g}-{SWAY_BOUNDS[1]:g} m/s, every |mean roll| <= {ROLL_BOUND:g} deg")
     for label in rows:

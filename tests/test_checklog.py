@@ -43,13 +43,13 @@ from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import radii
 from auvsim.runs.generate import generate
-from auvsim.runs.presets import preset
+from auvsim.runs.presets import SNAPIR_DVL_POSITION, SNAPIR_IMU_POSITION, preset
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = next((p / "shared/data/snapir-akit" for p in REPO.parents
                if (p / "shared/data/snapir-akit").is_dir()), None)
-IMU_SITE = np.array([0.5, 0.0, 0.0])  # m FRD, models/auv.xml site "imu"
-DVL_SITE = np.array([1.0, 0.0, 0.23])  # m FRD, site "dvl" (MuJoCo z up -> FRD z down)
+IMU_SITE = np.array(SNAPIR_IMU_POSITION)  # m FRD: the navigator preset's, the Snapir's
+DVL_SITE = np.array(SNAPIR_DVL_POSITION)
 OFFSET_TOL = 0.05  # s, the target
 LEVER_TOL = 0.1  # m, the target
 # A proper map that swaps and flips (det +1) and a reflection (det -1).
@@ -156,7 +156,7 @@ def findings(report) -> dict:
 ])
 def test_injected_faults_are_recovered(simulated, axes, imu_offset, imu_rate, dvl_offset):
     sim = simulated["zigzag"]
-    np.testing.assert_array_equal(sim["imu_site"], IMU_SITE)  # what the answers rest on
+    np.testing.assert_allclose(sim["imu_site"], IMU_SITE, atol=1e-12)  # what the answers rest on
     np.testing.assert_allclose(sim["dvl_site"], DVL_SITE, atol=1e-12)
     log = recorded_log(sim, axes=axes, imu_offset=imu_offset, imu_rate=imu_rate,
                        dvl_offset=dvl_offset)

@@ -204,6 +204,8 @@ BAD_FILES = [
     ("[[missions]]\n[missions.scenario]\nduration = 9223372036854775808\n", {}, "duration"),
     ("[vehicle]\ncurrent_ned = [1e6, 0, 0]\n" + SHORT, {}, "vehicle.current_ned"),
     ("[vehicle]\nnet_buoyancy = -9223372036854775808\n" + SHORT, {}, "vehicle.net_buoyancy"),
+    ("[vehicle]\ndvl_position = [-1.85, 0]\n" + SHORT, {}, "vehicle.dvl_position"),
+    ("[vehicle]\nimu_position = [1e3, 0, 0]\n" + SHORT, {}, "vehicle.imu_position"),
     ("[seafloor]\nkind = \"heightmap\"\nheightmap = \"map.npy\"\n" + SHORT,
      {"map.npy": b""}, "map.npy"),
     ("[seafloor]\nkind = \"heightmap\"\nheightmap = \"map.npy\"\n" + SHORT,

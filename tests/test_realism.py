@@ -4,19 +4,27 @@ on survey lines with turns, at a held shaft speed (issue 24, item 8)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
+import h5py
 import numpy as np
 import pytest
 
-from auvsim.config import ScenarioConfig
+from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
 from auvsim.physics.control import feedforward_rpm
 from auvsim.physics.frames import euler_angles
 from auvsim.physics.maneuvers import make_maneuver
 from auvsim.physics.vehicle import Vehicle
 from auvsim.runs.generate import generate
-from auvsim.runs.presets import TURN_TRACK_M, preset, realistic_maneuvers
+from auvsim.runs.presets import (
+    SNAPIR_DVL_POSITION,
+    SNAPIR_IMU_POSITION,
+    TURN_TRACK_M,
+    preset,
+    realistic_maneuvers,
+)
 
 
 def turns(scenario: ScenarioConfig) -> bool:
@@ -43,6 +51,35 @@ def test_real_presets_fly_in_the_shelf_current_at_a_held_rpm(name):
     assert config.water.speed_std == 0.03
     assert config.vehicle.speed_control == "rpm"
     assert config.vehicle.heading_control == "full-rudder-turns"
+
+
+def test_the_real_presets_carry_the_snapirs_sensors_where_its_logs_put_them(tmp_path):
+    """The IMU and the DVL sit where check-log finds the Snapir's (presets.REAL_VEHICLE),
+    and a mission measures there: its DVL's true velocity is the body's plus omega x the
+    DVL's position, and the paper presets keep the model's sites."""
+    for name in ("navigator", "realistic-maneuvers", "sim2real"):
+        v = preset(name).vehicle
+        assert (v.imu_position, v.dvl_position) == (SNAPIR_IMU_POSITION, SNAPIR_DVL_POSITION)
+    assert preset("paper-sim").vehicle.dvl_position is None
+    sites = Vehicle("auv")
+    assert sites.dvl_position == pytest.approx([1.0, 0.0, 0.23])  # models/auv.xml, FRD
+    # The navigator's vehicle with an error-free DVL: its velocity is the point's.
+    config = dataclasses.replace(preset("navigator"), dvl=DvlConfig(max_range=90.0),
+                                 missions=(MissionConfig(seed=5, scenario=ScenarioConfig(
+                                     name="zigzag", duration=60.0)),))
+    assert Config.from_json(config.to_json()) == config
+    generate(config, tmp_path / "z.h5", workers=1, progress=False)
+    with h5py.File(tmp_path / "z.h5", "r") as f:
+        m = next(iter(f["missions"].values()))
+        np.testing.assert_array_equal(m.attrs["dvl_position_body"], SNAPIR_DVL_POSITION)
+        np.testing.assert_array_equal(m.attrs["imu_position_body"], SNAPIR_IMU_POSITION)
+        at = m["imu/index_of_dvl"][:]
+        point = m["truth/velocity_body"][at] + np.cross(m["truth/angular_rate"][at],
+                                                         SNAPIR_DVL_POSITION)
+        velocity = m["dvl/velocity"][:]
+        ok = np.all(np.isfinite(velocity), axis=1)
+        assert ok.mean() > 0.9
+        np.testing.assert_allclose(velocity[ok], point[ok], atol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["navigator", "realistic-maneuvers"])
@@ -139,15 +176,21 @@ def test_turning_circle_ends_after_turn_s_and_returns_to_its_heading():
 @pytest.mark.slow
 def test_realistic_maneuvers_sway_and_roll_lie_in_the_real_ranges(tmp_path):
     """A short run of the preset (200 s a mission, half of a real segment): the median
-    per-mission std of the body sway and every mission's mean roll inside the real Snapir
-    segments' ranges stated in issue 24 (sway std 0.03-0.44 m/s, |mean roll| <= 2.3 deg;
-    benchmarks/turning.py measures them on the real logs)."""
+    per-mission std of the body sway (at the origin and at the DVL, the real logs'
+    measure) and every mission's mean roll inside the real Snapir segments' ranges stated
+    in issue 24 (sway std 0.03-0.44 m/s, |mean roll| <= 2.3 deg; benchmarks/turning.py
+    measures them on the real logs)."""
     path = tmp_path / "realistic.h5"
     generate(realistic_maneuvers(duration=200.0), path, workers=1)
-    sway, roll = [], []
+    sway, sway_dvl, roll = [], [], []
     with open_dataset(path) as ds:
         for mission in ds.missions.values():
             sway.append(float(np.std(mission.truth.velocity_body[:, 1])))
+            dvl = mission.dvl.velocity[:, 1]
+            sway_dvl.append(float(np.std(dvl[np.isfinite(dvl)])))
             roll.append(math.degrees(float(np.mean(euler_angles(mission.truth.quaternion)[:, 0]))))
     assert 0.03 <= float(np.median(sway)) <= 0.44
+    assert 0.03 <= float(np.median(sway_dvl)) <= 0.44
+    # The DVL sits aft of the hull's pivot point, so it sways more than the origin in turns.
+    assert np.median(sway_dvl) > np.median(sway)
     assert max(abs(r) for r in roll) <= 2.3

@@ -251,13 +251,16 @@ class Vehicle:
             straight flight instead of holding the speed (``control.Gains.hold_rpm``).
         full_rudder_turns: large heading changes at full rudder up to the PID's braking
             point (``control.Gains.full_rudder_turns``).
+        imu_position, dvl_position: where the IMU and the DVL sit, m, FRD from the body
+            origin; None for the model's ``imu`` and ``dvl`` sites.
     """
 
     def __init__(self, vehicle: str = "auv", *, net_buoyancy: float = 0.0,
                  current_ned: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  seafloor=None, water: Water | None = None,
                  disturbance: Disturbance | None = None, hold_rpm: bool = False,
-                 full_rudder_turns: bool = False) -> None:
+                 full_rudder_turns: bool = False, imu_position=None,
+                 dvl_position=None) -> None:
         self.name = vehicle
         path = model_path(vehicle)
         try:
@@ -289,8 +292,11 @@ class Vehicle:
         self.disturbance = disturbance if disturbance is not None and disturbance.active \
             else None
         self.step = 0  # physics steps since the last reset: the clock of water and jitter
-        self.imu_position = np.array(self.model.site("imu").pos) * FLIP  # FRD, m
-        self.dvl_position = np.array(self.model.site("dvl").pos) * FLIP  # FRD, m
+        # FRD, m: where the sensors sit (the model's sites unless given)
+        self.imu_position = (np.array(self.model.site("imu").pos) * FLIP if imu_position is None
+                             else np.array(imu_position, dtype=float))
+        self.dvl_position = (np.array(self.model.site("dvl").pos) * FLIP if dvl_position is None
+                             else np.array(dvl_position, dtype=float))
         self.dt = float(self.model.opt.timestep)
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)

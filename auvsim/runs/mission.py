@@ -77,7 +77,8 @@ class MissionRun:
                                seafloor=self.seafloor, water=self.water,
                                disturbance=Disturbance(config.water, streams["disturbance"]),
                                hold_rpm=v.speed_control == "rpm",
-                               full_rudder_turns=v.heading_control == "full-rudder-turns")
+                               full_rudder_turns=v.heading_control == "full-rudder-turns",
+                               imu_position=v.imu_position, dvl_position=v.dvl_position)
         self.ray_data = self.vehicle.ray_data()
         self.seafloor.bind(self.vehicle.model, self.ray_data)
         dt = self.vehicle.dt

@@ -132,7 +132,22 @@ SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 #   of 12.4 deg/s in the survey turns: benchmarks/turning.py --rpm-alone):
 #   ``heading_control="full-rudder-turns"`` holds full rudder up to the PID's own braking
 #   point and hands over to the PID there.
-REAL_VEHICLE = VehicleConfig(speed_control="rpm", heading_control="full-rudder-turns")
+# - Its IMU and DVL sit where the Snapir's do, not at the A18-D model's generic sites (0.5
+#   and 1.0 m forward of the centre of buoyancy). ``auvsim check-log`` measures them on
+#   each of the six real segments (reports/sea.md, "dvl lever arm", "imu lever arm"; least
+#   squares on the velocity and specific-force differences in turns), from the
+#   reference's point, within 0.05 m of one another in x: the medians, DVL (-1.85, -0.03,
+#   +0.13) m and IMU (-1.77, -0.01, -0.14) m FRD, both 1.8 m aft, side by side. That point
+#   is taken as the model's origin: at the hard turns' yaw-rate peak the reference's
+#   sideslip (0.30 m/s at 16.5 deg/s, median of 21) puts the hull's pivot point 1.04 m
+#   ahead of it, and the model's sideslip (0.31 m/s at 15.8 deg/s, models/README.md) puts
+#   it 1.12 m ahead of the origin: the two points agree within about 0.1 m. A DVL aft of
+#   the pivot sees the turn's r x more sway; at 1.0 m forward it saw less.
+SNAPIR_IMU_POSITION = (-1.77, -0.01, -0.14)  # m, FRD from the body origin
+SNAPIR_DVL_POSITION = (-1.85, -0.03, 0.13)  # m, FRD from the body origin
+REAL_VEHICLE = VehicleConfig(speed_control="rpm", heading_control="full-rudder-turns",
+                             imu_position=SNAPIR_IMU_POSITION,
+                             dvl_position=SNAPIR_DVL_POSITION)
 # - It flies parallel survey lines joined by turns at their ends (the lawnmower pattern
 #   of bathymetric and side-scan surveys), and a depth, speed or straight-line test on a
 #   survey is flown along those lines, not on one endless heading: the lawnmower's own
