@@ -177,8 +177,8 @@ def _as_flown(kind: str, speed: float, options: dict) -> dict:
 def navigator() -> Config:
     """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
     A18-D over gently rough terrain, with a navigation-grade IMU, flying survey lines
-    (``SURVEY_LINES``) at a held shaft speed (``REAL_VEHICLE``) in the shelf current
-    (``NAVIGATOR_WATER``).
+    (``SURVEY_LINES``) at a held shaft speed, with its IMU and DVL where the Snapir's sit
+    (``REAL_VEHICLE``), in the shelf current (``NAVIGATOR_WATER``).
 
     Figures of the Teledyne RDI Workhorse Navigator (its published specification): 30 deg
     Janus beams; bottom track about 0.7 to 90 m; long-term accuracy about 0.2 % of speed
