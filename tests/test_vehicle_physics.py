@@ -652,6 +652,26 @@ def test_specific_force_is_imu_acceleration_minus_gravity(manoeuvre):
     assert np.abs(np.diff(lever, axis=0) / DT).max() > 20 * bound
 
 
+def test_an_imu_placed_elsewhere_measures_there(manoeuvre):
+    """``imu_position`` moves the IMU, not the vehicle: the same commands give the same
+    motion, and the specific force is that of the new place (the finite difference above,
+    within its bound), far from the site's in a turn."""
+    site, traj = manoeuvre
+    r_imu = np.array([-1.77, -0.01, -0.14])  # the realistic presets' (the Snapir's)
+    vehicle = Vehicle("auv", imu_position=r_imu)
+    vehicle.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(2.0, 0.0, 0.0))
+    moved = vehicle.run(constant((vehicle.actuators[0], 0.15, 0.05), 6000), closed_loop=OPEN)
+    np.testing.assert_array_equal(moved.quaternion, traj.quaternion)
+    np.testing.assert_array_equal(moved.velocity_ned, traj.velocity_ned)
+    rot = np.array([rotation(q) for q in traj.quaternion])
+    lever = np.einsum("kij,kj->ki", rot, np.cross(traj.angular_rate, r_imu))
+    expected = np.einsum("kji,kj->ki", rot[:-1],
+                         np.diff(traj.velocity_ned + lever, axis=0) / DT - G_NED)
+    bound = 0.5 * DT * np.abs(np.diff(lever, 2, axis=0)).max() / DT**2
+    assert np.abs(moved.specific_force[:-1] - expected).max() < bound
+    assert np.abs(moved.specific_force - traj.specific_force).max() > 20 * bound
+
+
 def test_specific_force_matches_mujoco_site_acceleration():
     # MuJoCo's own accelerometer computation, without adding a sensor to the model: restore
     # the state of the last recorded step (its applied wrench stays in qfrc_applied),

@@ -136,7 +136,7 @@ SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 #   and 1.0 m forward of the centre of buoyancy). ``auvsim check-log`` measures them on
 #   each of the six real segments (reports/sea.md, "dvl lever arm", "imu lever arm"; least
 #   squares on the velocity and specific-force differences in turns), from the
-#   reference's point, within 0.05 m of one another in x: the medians, DVL (-1.85, -0.03,
+#   reference's point, within 0.1 m of one another in x: the medians, DVL (-1.85, -0.03,
 #   +0.13) m and IMU (-1.77, -0.01, -0.14) m FRD, both 1.8 m aft, side by side. That point
 #   is taken as the model's origin: at the hard turns' yaw-rate peak the reference's
 #   sideslip (0.30 m/s at 16.5 deg/s, median of 21) puts the hull's pivot point 1.04 m
