@@ -138,9 +138,11 @@ class VehicleConfig:
             turns at the end of its lines; ``Gains.full_rudder_turns``).
         imu_position, dvl_position: where the IMU and the DVL sit, m, body FRD from the
             body origin (the centre of buoyancy), each axis within ``MAX_SENSOR_OFFSET``
-            (10 m) either way; ``None`` (the default) takes the model's ``imu`` and ``dvl``
-            sites. The IMU measures the specific force and the DVL the velocity at its own
-            position, so in a turn each sees ``omega x position`` more than the origin.
+            (10 m) either way, on the hull or off it (a towed or pole-mounted sensor);
+            ``None`` (the default) takes the model's ``imu`` and ``dvl`` sites. Each
+            measures at its own position: in a turn the DVL sees ``omega x r`` more velocity
+            than the origin, the IMU ``d omega/dt x r + omega x (omega x r)`` more specific
+            force.
     """
 
     model: str = "auv"

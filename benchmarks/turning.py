@@ -28,7 +28,7 @@ items 7 and 8).
   segments and each ``--sim`` dataset (e.g. ``auvsim generate --preset
   realistic-maneuvers`` before a change and after), and for the simulated missions that
   turn at least as much as every real segment.
-  Beside them, the DVL's Y of the Snapir's long logs (``--logs``: about 11 h of its
+  Beside them, the DVL's Y of the Snapir's long logs (``--logs``: about 8 h of its
   Navigator's output, ``log_windows``) in windows of a simulated mission's length: many
   more missions of the same vehicle than the six segments, with no reference.
   Then, for each source, whether issue 24's bounds hold: the median over missions of each
@@ -221,8 +221,9 @@ def heading_change(seg: dict[str, np.ndarray]) -> float:
 
 
 def log_windows(folder: Path) -> list[dict[str, float]]:
-    """The per-window sway of the Snapir's long DVL logs (MissBeamNet's, about 11 h of the
-    Navigator's own velocity output, ``x/y/z speed`` in the body axes, at about 1 Hz):
+    """The per-window sway of the Snapir's long DVL logs (MissBeamNet's ``LOG_FILES``, about
+    8 h of the Navigator's own velocity output, ``x/y/z speed`` in the body axes, at about
+    1 Hz):
     each file cut into consecutive windows of ``WINDOW`` valid pings (every velocity
     component finite and below 10 m/s: 32.768 marks an invalid ping), kept where the
     vehicle is underway (median horizontal speed at least ``UNDERWAY``). Per window: the
@@ -365,10 +366,10 @@ def main() -> None:
     parser.add_argument("--infer", action="store_true",
                         help="also find the rudder limit the hard turns imply (a bisection "
                         "of model runs, about a minute)")
-    parser.add_argument("--logs", type=Path, default=DEFAULT_LOGS,
+    parser.add_argument("--logs", type=Path, default=None,
                         help="folder of the Snapir's long DVL logs (MissBeamNet's "
                         "train_data.csv, validation_data.csv), measured beside the segments "
-                        "when present")
+                        f"(default: {DEFAULT_LOGS}, skipped when absent)")
     perf_page.add_write_option(parser, "turning")
     args = parser.parse_args()
     segments = sorted(args.data.glob("Trajectory*"), key=lambda p: int(p.name[10:]))
@@ -415,8 +416,12 @@ def main() -> None:
         sim_turns = [t for seg in per.values()
                      for t in real_turns(seg, fin_lever, args.min_peak)]
         print(f"{label:24s} {turn_summary(sim_turns)}")
-    present = all((args.logs / name).is_file() for name in LOG_FILES)
-    print_sway_roll(data, missions, log_windows(args.logs) if present else [])
+    logs = args.logs or DEFAULT_LOGS
+    present = all((logs / name).is_file() for name in LOG_FILES)
+    if args.logs is not None and not present:
+        parser.error(f"--logs: expected a folder holding {' and '.join(LOG_FILES)}, got "
+                     f"{args.logs}")
+    print_sway_roll(data, missions, log_windows(logs) if present else [])
 
     periods = [roll_period(s) for s in data.values()]
     print(f"\nRoll period: real (roll-rate spectrum peak) median {np.median(periods):.2f} s "

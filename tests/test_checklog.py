@@ -3,11 +3,11 @@
 Known answers from simulated missions: the simulator's truth, sampled at 1 Hz, becomes
 the reference (its point: the body origin), and its IMU and DVL become recorded streams
 with injected faults: an axis map, clock offsets of either sign, a clock-rate error. The
-lever arms are the model's own sites (``models/auv.xml``: IMU at (0.5, 0, 0) m, DVL at
-(1.0, 0, 0.23) m FRD), which the simulated sensors measure at. The issue's targets: the
-axis map exactly, each clock offset within 0.05 s with its sign, the lever arms within
-0.1 m. The shared A-KIT segments, where ``../shared/data/snapir-akit`` exists, must come
-out of ``--apply`` self-consistent.
+lever arms are the ``navigator`` preset's sensor positions (the Snapir's: IMU at (-1.77,
+-0.01, -0.14) m, DVL at (-1.85, -0.03, 0.13) m FRD), which the simulated sensors measure
+at. The issue's targets: the axis map exactly, each clock offset within 0.05 s with its
+sign, the lever arms within 0.1 m. The shared A-KIT segments, where
+``../shared/data/snapir-akit`` exists, must come out of ``--apply`` self-consistent.
 """
 
 from __future__ import annotations

@@ -5,14 +5,15 @@ on survey lines with turns, at a held shaft speed (issue 24, item 8)."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
-import h5py
 import numpy as np
 import pytest
 
 from auvsim.config import Config, DvlConfig, MissionConfig, ScenarioConfig
 from auvsim.data.reader import open_dataset
+from auvsim.errors import ConfigError
 from auvsim.physics.control import feedforward_rpm
 from auvsim.physics.frames import euler_angles
 from auvsim.physics.maneuvers import make_maneuver
@@ -60,26 +61,39 @@ def test_the_real_presets_carry_the_snapirs_sensors_where_its_logs_put_them(tmp_
     for name in ("navigator", "realistic-maneuvers", "sim2real"):
         v = preset(name).vehicle
         assert (v.imu_position, v.dvl_position) == (SNAPIR_IMU_POSITION, SNAPIR_DVL_POSITION)
-    assert preset("paper-sim").vehicle.dvl_position is None
-    sites = Vehicle("auv")
-    assert sites.dvl_position == pytest.approx([1.0, 0.0, 0.23])  # models/auv.xml, FRD
+    for name in ("paper-sim", "paper-sim-text", "maneuvers"):
+        v = preset(name).vehicle
+        assert (v.imu_position, v.dvl_position) == (None, None)
+    sites = Vehicle("auv")  # models/auv.xml's sites, FRD
+    assert sites.imu_position == pytest.approx([0.5, 0.0, 0.0])
+    assert sites.dvl_position == pytest.approx([1.0, 0.0, 0.23])
+    # A config_json written before the keys existed reads as the model's sites.
+    older = json.loads(preset("navigator").to_json())
+    del older["vehicle"]["imu_position"], older["vehicle"]["dvl_position"]
+    assert Config.from_dict(older).vehicle.dvl_position is None
     # The navigator's vehicle with an error-free DVL: its velocity is the point's.
-    config = dataclasses.replace(preset("navigator"), dvl=DvlConfig(max_range=90.0),
+    config = dataclasses.replace(preset("navigator"), dvl=DvlConfig(),
                                  missions=(MissionConfig(seed=5, scenario=ScenarioConfig(
                                      name="zigzag", duration=60.0)),))
     assert Config.from_json(config.to_json()) == config
     generate(config, tmp_path / "z.h5", workers=1, progress=False)
-    with h5py.File(tmp_path / "z.h5", "r") as f:
-        m = next(iter(f["missions"].values()))
+    with open_dataset(tmp_path / "z.h5") as ds:
+        m = ds.missions["mission_000"]
         np.testing.assert_array_equal(m.attrs["dvl_position_body"], SNAPIR_DVL_POSITION)
         np.testing.assert_array_equal(m.attrs["imu_position_body"], SNAPIR_IMU_POSITION)
-        at = m["imu/index_of_dvl"][:]
-        point = m["truth/velocity_body"][at] + np.cross(m["truth/angular_rate"][at],
-                                                         SNAPIR_DVL_POSITION)
-        velocity = m["dvl/velocity"][:]
-        ok = np.all(np.isfinite(velocity), axis=1)
-        assert ok.mean() > 0.9
-        np.testing.assert_allclose(velocity[ok], point[ok], atol=1e-12)
+        at = m.imu.index_of_dvl
+        point = m.truth.velocity_body[at] + np.cross(m.truth.angular_rate[at],
+                                                     SNAPIR_DVL_POSITION)
+        velocity = m.dvl.velocity
+    ok = np.all(np.isfinite(velocity), axis=1)
+    assert ok.mean() > 0.9
+    np.testing.assert_allclose(velocity[ok], point[ok], atol=1e-12)
+
+
+@pytest.mark.parametrize("position", [(1.0, 0.0), (1.0, math.nan, 0.0), "aft"])
+def test_a_vehicle_refuses_a_sensor_position_that_is_not_three_numbers(position):
+    with pytest.raises(ConfigError, match="dvl_position: expected 3 finite numbers"):
+        Vehicle("auv", dvl_position=position)
 
 
 @pytest.mark.parametrize("name", ["navigator", "realistic-maneuvers"])

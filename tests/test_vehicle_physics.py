@@ -23,6 +23,7 @@ from scipy.optimize import brentq
 
 from auvsim.physics.hydro import FLIP, lamb_k_factors, load_hydro, water_wrench
 from auvsim.physics.vehicle import _UNUSED, VEHICLES, Vehicle, model_path
+from auvsim.runs.presets import SNAPIR_IMU_POSITION
 
 DT = 0.01
 OPEN = (False, False, False)
@@ -656,8 +657,8 @@ def test_an_imu_placed_elsewhere_measures_there(manoeuvre):
     """``imu_position`` moves the IMU, not the vehicle: the same commands give the same
     motion, and the specific force is that of the new place (the finite difference above,
     within its bound), far from the site's in a turn."""
-    site, traj = manoeuvre
-    r_imu = np.array([-1.77, -0.01, -0.14])  # the realistic presets' (the Snapir's)
+    _, traj = manoeuvre
+    r_imu = np.array(SNAPIR_IMU_POSITION)
     vehicle = Vehicle("auv", imu_position=r_imu)
     vehicle.reset(position_ned=(0.0, 0.0, 20.0), velocity_body=(2.0, 0.0, 0.0))
     moved = vehicle.run(constant((vehicle.actuators[0], 0.15, 0.05), 6000), closed_loop=OPEN)

@@ -233,6 +233,21 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
         servo(h, actuators, cmd, dt)
 
 
+def _sensor_position(model: mujoco.MjModel, site: str, position) -> np.ndarray:
+    """Where a sensor sits, m, FRD: ``position`` (three finite numbers), or the model's
+    site of that name when None."""
+    if position is None:
+        return np.array(model.site(site).pos) * FLIP
+    try:
+        out = np.array(position, dtype=float)
+    except (TypeError, ValueError):
+        out = np.array([])
+    if out.shape != (3,) or not np.all(np.isfinite(out)):
+        raise ConfigError(f"{site}_position: expected 3 finite numbers (m, FRD), got "
+                          f"{position!r}")
+    return out
+
+
 class Vehicle:
     """A torpedo AUV in MuJoCo with its hydrodynamics, autopilots and servos.
 
@@ -292,11 +307,8 @@ class Vehicle:
         self.disturbance = disturbance if disturbance is not None and disturbance.active \
             else None
         self.step = 0  # physics steps since the last reset: the clock of water and jitter
-        # FRD, m: where the sensors sit (the model's sites unless given)
-        self.imu_position = (np.array(self.model.site("imu").pos) * FLIP if imu_position is None
-                             else np.array(imu_position, dtype=float))
-        self.dvl_position = (np.array(self.model.site("dvl").pos) * FLIP if dvl_position is None
-                             else np.array(dvl_position, dtype=float))
+        self.imu_position = _sensor_position(self.model, "imu", imu_position)
+        self.dvl_position = _sensor_position(self.model, "dvl", dvl_position)
         self.dt = float(self.model.opt.timestep)
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)

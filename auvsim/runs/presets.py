@@ -137,12 +137,13 @@ SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 #   each of the six real segments (reports/sea.md, "dvl lever arm", "imu lever arm"; least
 #   squares on the velocity and specific-force differences in turns), from the
 #   reference's point, within 0.1 m of one another in x: the medians, DVL (-1.85, -0.03,
-#   +0.13) m and IMU (-1.77, -0.01, -0.14) m FRD, both 1.8 m aft, side by side. That point
-#   is taken as the model's origin: at the hard turns' yaw-rate peak the reference's
-#   sideslip (0.30 m/s at 16.5 deg/s, median of 21) puts the hull's pivot point 1.04 m
-#   ahead of it, and the model's sideslip (0.31 m/s at 15.8 deg/s, models/README.md) puts
-#   it 1.12 m ahead of the origin: the two points agree within about 0.1 m. A DVL aft of
-#   the pivot sees the turn's r x more sway; at 1.0 m forward it saw less.
+#   +0.13) m and IMU (-1.77, -0.01, -0.14) m FRD, both 1.8 m aft, the IMU 0.27 m above
+#   the DVL. That point is taken as the model's origin: at the hard turns' yaw-rate peak
+#   the reference's sideslip (medians of 21: 0.30 m/s at 16.5 deg/s) puts the hull's
+#   pivot point 1.04 m ahead of it, and the model's sideslip (0.31 m/s at 15.8 deg/s,
+#   models/README.md) puts it 1.12 m ahead of the origin: the two points agree within
+#   about 0.1 m. A DVL aft of the pivot sees the turn's r x more sway; at 1.0 m forward
+#   it saw less.
 SNAPIR_IMU_POSITION = (-1.77, -0.01, -0.14)  # m, FRD from the body origin
 SNAPIR_DVL_POSITION = (-1.85, -0.03, 0.13)  # m, FRD from the body origin
 REAL_VEHICLE = VehicleConfig(speed_control="rpm", heading_control="full-rudder-turns",
