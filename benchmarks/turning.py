@@ -61,7 +61,7 @@ from auvsim.runs.presets import preset
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "snapir-akit"
-DEFAULT_LOGS = ROOT.parent / "shared" / "data" / "snapir-missbeamnet"
+DEFAULT_LOGS = DEFAULT_DATA.parent / "snapir-missbeamnet"
 # The long logs' files that hold distinct pings: 9,129 of the test file's rows repeat the
 # training file's (its README), so it is left out.
 LOG_FILES = ("train_data.csv", "validation_data.csv")
@@ -220,26 +220,28 @@ def heading_change(seg: dict[str, np.ndarray]) -> float:
     return math.degrees(np.abs(step[turning]).sum())
 
 
-def log_windows(folder: Path) -> list[dict[str, float]]:
+def log_windows(folder: Path) -> tuple[list[dict[str, float]], int]:
     """The per-window sway of the Snapir's long DVL logs (MissBeamNet's ``LOG_FILES``, about
     8 h of the Navigator's own velocity output, ``x/y/z speed`` in the body axes, at about
     1 Hz):
     each file cut into consecutive windows of ``WINDOW`` valid pings (every velocity
     component finite and below 10 m/s: 32.768 marks an invalid ping), kept where the
     vehicle is underway (median horizontal speed at least ``UNDERWAY``). Per window: the
-    std of the DVL's Y (``sway_dvl``) and its median speed (``speed``)."""
-    out = []
+    std of the DVL's Y (``sway_dvl``) and its median speed (``speed``). Returns the
+    windows and the number of valid pings in the files."""
+    out, pings = [], 0
     for name in LOG_FILES:
         with open(folder / name, newline="") as f:
             v = np.array([[float(row[f"{axis} speed"]) for axis in "xyz"]
                           for row in csv.DictReader(f)])
         v = v[np.all(np.isfinite(v) & (np.abs(v) < 10.0), axis=1)]
+        pings += len(v)
         for start in range(0, len(v) - WINDOW + 1, WINDOW):
             w = v[start:start + WINDOW]
             speed = float(np.median(np.hypot(w[:, 0], w[:, 1])))
             if speed >= UNDERWAY:
                 out.append({"sway_dvl": float(w[:, 1].std()), "speed": speed})
-    return out
+    return out, pings
 
 
 def sim_missions(path: Path) -> dict[str, dict[str, np.ndarray]]:
@@ -421,7 +423,7 @@ def main() -> None:
     if args.logs is not None and not present:
         parser.error(f"--logs: expected a folder holding {' and '.join(LOG_FILES)}, got "
                      f"{args.logs}")
-    print_sway_roll(data, missions, log_windows(logs) if present else [])
+    print_sway_roll(data, missions, *(log_windows(logs) if present else ([], 0)))
 
     periods = [roll_period(s) for s in data.values()]
     print(f"\nRoll period: real (roll-rate spectrum peak) median {np.median(periods):.2f} s "
@@ -465,12 +467,13 @@ def _sway_inside(per: dict, key: str) -> bool:
     return SWAY_BOUNDS[0] <= median <= SWAY_BOUNDS[1]
 
 
-def print_sway_roll(data: dict, missions: dict, windows: list[dict]) -> None:
+def print_sway_roll(data: dict, missions: dict, windows: list[dict], pings: int) -> None:
     """The per-mission sway and roll table: real segments, each simulated dataset, and its
     missions that turn at least as much as every real segment (like with like: a mission's
     sway std grows with its heading changes, as the current's cross component turns with
     the heading and every turn slips); then the DVL's Y of the long logs' ``windows``
-    (``log_windows``), and which simulated medians lie within their 10-90 % range."""
+    (``log_windows``, of ``pings`` valid pings), and which simulated medians lie within
+    their 10-90 % range."""
     least = min(heading_change(s) for s in data.values())
     rows = {"real": {n: real_sway_roll(s) | {"turned": heading_change(s)}
                      for n, s in data.items()}}
@@ -499,7 +502,8 @@ def print_sway_roll(data: dict, missions: dict, windows: list[dict]) -> None:
         low, high = np.percentile(sway, [10, 90])
         print(f"{'real, long logs':24s} {len(sway):3d} {summary(sway):>26s} (the DVL's Y of "
               f"{WINDOW}-ping windows underway; 10-90 %: {low:.3f} to {high:.3f}; median "
-              f"speed {np.median([w['speed'] for w in windows]):.2f} m/s)")
+              f"speed {np.median([w['speed'] for w in windows]):.2f} m/s; of {pings} valid "
+              f"pings, {pings / 3600:.1f} h at 1 Hz)")
         for label in missions:
             median = float(np.median([m["sway_dvl"] for m in rows[label].values()]))
             print(f"  {label}: sway, DVL Y median {median:.3f} m/s, within the long logs' "

@@ -48,8 +48,8 @@ from auvsim.runs.presets import SNAPIR_DVL_POSITION, SNAPIR_IMU_POSITION, preset
 REPO = Path(__file__).resolve().parents[1]
 SHARED = next((p / "shared/data/snapir-akit" for p in REPO.parents
                if (p / "shared/data/snapir-akit").is_dir()), None)
-IMU_SITE = np.array(SNAPIR_IMU_POSITION)  # m FRD: the navigator preset's, the Snapir's
-DVL_SITE = np.array(SNAPIR_DVL_POSITION)
+IMU_POSITION = np.array(SNAPIR_IMU_POSITION)  # m FRD: the navigator preset's, the Snapir's
+DVL_POSITION = np.array(SNAPIR_DVL_POSITION)
 OFFSET_TOL = 0.05  # s, the target
 LEVER_TOL = 0.1  # m, the target
 # A proper map that swaps and flips (det +1) and a reflection (det -1).
@@ -156,8 +156,8 @@ def findings(report) -> dict:
 ])
 def test_injected_faults_are_recovered(simulated, axes, imu_offset, imu_rate, dvl_offset):
     sim = simulated["zigzag"]
-    np.testing.assert_allclose(sim["imu_site"], IMU_SITE, atol=1e-12)  # what the answers rest on
-    np.testing.assert_allclose(sim["dvl_site"], DVL_SITE, atol=1e-12)
+    np.testing.assert_array_equal(sim["imu_site"], IMU_POSITION)  # what the answers rest on
+    np.testing.assert_allclose(sim["dvl_site"], DVL_POSITION, atol=1e-12)
     log = recorded_log(sim, axes=axes, imu_offset=imu_offset, imu_rate=imu_rate,
                        dvl_offset=dvl_offset)
     report = check_arrays(log, "zigzag")
@@ -171,8 +171,8 @@ def test_injected_faults_are_recovered(simulated, axes, imu_offset, imu_rate, dv
     assert c["imu_rate_error"] == pytest.approx(imu_rate, abs=3e-4)
     assert c["dvl_time_offset_s"] == pytest.approx(dvl_offset, abs=OFFSET_TOL)
     assert c["dvl_rate_error"] == 0.0
-    np.testing.assert_allclose(c["dvl_position_body"], DVL_SITE, atol=LEVER_TOL)
-    np.testing.assert_allclose(c["imu_position_body"], IMU_SITE, atol=LEVER_TOL)
+    np.testing.assert_allclose(c["dvl_position_body"], DVL_POSITION, atol=LEVER_TOL)
+    np.testing.assert_allclose(c["imu_position_body"], IMU_POSITION, atol=LEVER_TOL)
     # Over the whole log the IMU's corrected clock agrees with the reference's within
     # the target, at its first and its last sample.
     s = log.imu_time[[0, -1]]
@@ -280,8 +280,8 @@ def test_check_log_apply_writes_a_file_that_checks_clean(simulated, tmp_path):
         m = ds.missions["sim"]
         report = json.loads(m.attrs["check_log_json"])
         assert report["corrections"]["imu_axis_map"] == ["y", "x", "-z"]
-        np.testing.assert_allclose(m.attrs["dvl_position_body"], DVL_SITE, atol=LEVER_TOL)
-        np.testing.assert_allclose(m.attrs["imu_position_body"], IMU_SITE, atol=LEVER_TOL)
+        np.testing.assert_allclose(m.attrs["dvl_position_body"], DVL_POSITION, atol=LEVER_TOL)
+        np.testing.assert_allclose(m.attrs["imu_position_body"], IMU_POSITION, atol=LEVER_TOL)
         assert m.attrs["imu_time_offset_s"] == pytest.approx(0.37, abs=OFFSET_TOL)
         assert m.attrs["dvl_time_offset_s"] == pytest.approx(-0.8, abs=OFFSET_TOL)
         # The IMU's triads are body FRD now: gravity levelled at the first sample.

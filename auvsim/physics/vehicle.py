@@ -20,6 +20,7 @@ import numba
 import numpy as np
 from numba import types
 
+from auvsim.config import VehicleConfig
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.control import Gains, autopilot_into, feedforward_rpm, max_speed, servo
 from auvsim.physics.frames import (
@@ -234,18 +235,11 @@ def _run(mptr, dptr, qpos, qvel, qfrc, h, g, references, closed_loop, actuators,
 
 
 def _sensor_position(model: mujoco.MjModel, site: str, position) -> np.ndarray:
-    """Where a sensor sits, m, FRD: ``position`` (three finite numbers), or the model's
-    site of that name when None."""
+    """Where a sensor sits, m, FRD: ``position`` (checked), or the model's site of that
+    name when None."""
     if position is None:
         return np.array(model.site(site).pos) * FLIP
-    try:
-        out = np.array(position, dtype=float)
-    except (TypeError, ValueError):
-        out = np.array([])
-    if out.shape != (3,) or not np.all(np.isfinite(out)):
-        raise ConfigError(f"{site}_position: expected 3 finite numbers (m, FRD), got "
-                          f"{position!r}")
-    return out
+    return np.array(position, dtype=float)
 
 
 class Vehicle:
@@ -307,8 +301,10 @@ class Vehicle:
         self.disturbance = disturbance if disturbance is not None and disturbance.active \
             else None
         self.step = 0  # physics steps since the last reset: the clock of water and jitter
-        self.imu_position = _sensor_position(self.model, "imu", imu_position)
-        self.dvl_position = _sensor_position(self.model, "dvl", dvl_position)
+        # The config's own check of the positions (three finite numbers, within reach).
+        sensors = VehicleConfig(imu_position=imu_position, dvl_position=dvl_position)
+        self.imu_position = _sensor_position(self.model, "imu", sensors.imu_position)
+        self.dvl_position = _sensor_position(self.model, "dvl", sensors.dvl_position)
         self.dt = float(self.model.opt.timestep)
         self.max_speed = max_speed(self.hydro)
         self.actuators = np.zeros(3)  # shaft rpm, rudder, stern planes (rad)
