@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import suppress
 from pathlib import Path
 
 import psutil
@@ -145,15 +146,57 @@ def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
                   "a mission under way", timeout=240)
         tree = process_tree(proc.pid)
         os.killpg(proc.pid, signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
+        try:
+            _, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            alive = []
+            for pid in still_running(tree):
+                with suppress(psutil.Error):
+                    alive.append(" ".join(psutil.Process(pid).cmdline())[:120])
+            pytest.fail(f"the run did not end within 60 s of Ctrl-C; still running: {alive}")
     finally:
-        proc.kill()
+        with suppress(ProcessLookupError):  # the whole group, so nothing outlives a failure
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
     assert proc.returncode == 130, err
     assert err.splitlines() == ["auvsim: interrupted; nothing was written"]  # no worker's
     wait_for(lambda: not still_running(tree), "the cluster to end", timeout=20)
     if out.exists():  # whole shards, kept for the next run, and nothing else
         assert [p.name for p in out.iterdir()] == [SHARDS]
         assert all(p.name.startswith("part-") for p in (out / SHARDS).iterdir())
+
+
+def test_a_local_cluster_that_does_not_close_in_time_has_its_workers_killed(monkeypatch):
+    """A worker that never answers its nanny (here: the close itself gives up at once) must
+    neither hold up the end of the run nor outlive it."""
+    import distributed
+
+    from auvsim.runs import cluster as cluster_module
+
+    made = []
+    real_local = cluster_module._local
+
+    def local(*args):
+        client, cluster = real_local(*args)
+        made.append(cluster)
+        monkeypatch.setattr(cluster, "close", _give_up)
+        return client, cluster
+
+    def _give_up(timeout=None):
+        assert timeout == cluster_module.CLOSE_S
+        raise TimeoutError
+
+    monkeypatch.setattr(cluster_module, "_local", local)
+    try:
+        with cluster_module.executor("local:1") as jobs:
+            assert jobs.submit(sum, [1, 2]).result(timeout=60) == 3
+            workers = [w.pid for w in made[0].workers.values()]
+        assert len(workers) == 1
+        wait_for(lambda: not psutil.pid_exists(workers[0])
+                 or psutil.Process(workers[0]).status() == psutil.STATUS_ZOMBIE,
+                 "the worker to be killed", timeout=10)
+    finally:
+        distributed.LocalCluster.close(made[0])  # its scheduler lives in this process
 
 
 def test_the_first_failure_stops_the_run(tmp_path, capsys):

@@ -6,7 +6,8 @@ Dask distributed is the engine (optional: ``pip install 'auvsim[cluster]'``). It
 built-in process pool and for a cluster; this module only opens and closes the cluster.
 
 ``local:N`` starts a ``LocalCluster`` of N worker processes (nannied, so a killed worker is
-restarted and its task run again) with ``THREADS`` threads each, and stops it at the end;
+restarted and its task run again) with ``THREADS`` threads each, and stops it at the end
+(killing its workers if it does not stop within ``CLOSE_S``);
 its workers end with this process however it ends (each holds a pipe to its nanny, which
 lives in this process). Any other address is a running scheduler (``tcp://host:8786``,
 ``dask ssh``, ``dask-jobqueue``): it must answer within ``CONNECT_TIMEOUT_S``, and its
@@ -18,16 +19,18 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import logging
+import os
 import re
 import signal
 import threading
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 
 from auvsim.data.files import interrupt_handler
 from auvsim.errors import ConfigError, SimulationError
 
 CONNECT_TIMEOUT_S = 10.0
+CLOSE_S = 30.0  # a local cluster's shutdown; past it, its workers are killed
 HANDSHAKE_S = 5.0  # beyond the connect timeout, for a peer that connects but never answers
 THREADS = 2  # per local worker: two missions in flight, as the built-in pool's process
 # A local cluster's settings, each measured by benchmarks/cluster.py against the built-in
@@ -96,9 +99,27 @@ def executor(address: str, *, threads: int = THREADS,
     try:
         yield client.get_executor(pure=False)
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if cluster is None:
+            client.close()
+        else:
+            _stop_local(client, cluster)
+
+
+def _stop_local(client, cluster) -> None:
+    """Close the client and the local cluster, each within ``CLOSE_S``; if either does not,
+    kill the cluster's worker processes: a worker busy in a job (or starved of CPU) that
+    does not answer its nanny in time must neither hold up the end of the run nor outlive
+    it."""
+    pids = [w.pid for w in cluster.workers.values() if getattr(w, "pid", None)]
+    closed = True
+    for stop in (client.close, cluster.close):
+        try:
+            stop(timeout=CLOSE_S)
+        except Exception:  # a timeout, or its loop gone: the workers are killed below
+            closed = False
+    for pid in [] if closed else pids:
+        with suppress(OSError):  # ended meanwhile
+            os.kill(pid, signal.SIGKILL)
 
 
 def _local(dask, distributed, n: int, threads: int, timeout: float):
