@@ -33,11 +33,15 @@ items 7 and 8).
   more missions of the same vehicle than the six segments, with no reference.
   Then, for each source, whether issue 24's bounds hold: the median over missions of each
   sway std within ``SWAY_BOUNDS`` and every mission's |mean roll| within ``ROLL_BOUND``.
+* **The model flown through each real segment's own manoeuvres** (``--replay``, a few
+  seconds): ``replay`` gives the model each turn of the reference as a survey autopilot is
+  given one, in the segment's current; its sway per segment and its hard turns beside the
+  segment's own, like with like (the preset's missions turn less often than the segments).
 * **The roll period**: the real roll-rate spectra's peak against the model's damped period.
 
     .venv/bin/python benchmarks/turning.py [--data ../shared/data/snapir-akit]
         [--logs ../shared/data/snapir-missbeamnet] [--sim LABEL=FILE.h5 ...] [--rpm-alone]
-        [--min-peak 8] [--infer]
+        [--min-peak 8] [--infer] [--replay]
 """
 
 from __future__ import annotations
@@ -55,9 +59,9 @@ import numpy as np
 import perf_page
 
 from auvsim.physics.frames import euler_angles
-from auvsim.physics.vehicle import Vehicle
+from auvsim.physics.vehicle import MIN_SPEED, Vehicle
 from auvsim.runs.generate import generate
-from auvsim.runs.presets import preset
+from auvsim.runs.presets import SNAPIR_DVL_POSITION, SNAPIR_IMU_POSITION, preset
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "snapir-akit"
@@ -74,6 +78,7 @@ STEP_S = 60.0  # s of the model's full-rudder step
 STEADY_S = 10.0  # s at its end that make the steady yaw rate
 HARD = 12.0  # deg/s: a hard turn's peak, the lower end of the issue's 12-18 deg/s
 STRAIGHT, STRAIGHT_S = 1.5, 5.0  # deg/s, s: straight flight, |r| below this so long
+HOLD_S = 3.0  # s before a replayed turn whose speed through the water sets its rpm
 SWAY_BOUNDS = (0.03, 0.44)  # m/s: issue 24's range of the real per-segment sway std
 ROLL_BOUND = 2.3  # deg: issue 24's largest real per-segment |mean roll|
 
@@ -176,16 +181,68 @@ def real_sway_roll(seg: dict[str, np.ndarray]) -> dict[str, float]:
     the segment's headings; the turns between the legs make it well posed)."""
     gt, dvl = seg["gt"], seg["dvl"]
     body = body_velocity(gt)
-    psi, speed = gt[:, 9], np.hypot(gt[:, 4], gt[:, 5])
-    a = np.column_stack([-np.sin(psi), np.cos(psi), speed])
-    ok = straight(seg)
-    fit, *_ = np.linalg.lstsq(a[ok], body[ok, 1], rcond=None)
+    a, ok, fit = _current_fit(seg)
     c_n, c_e, _ = fit
     through_water = body[:, 1] - a[:, :2] @ [c_n, c_e]
     return {"sway_dvl": dvl[:, 2].std(), "sway_ref": body[:, 1].std(),
             "sway_water": through_water.std(), "current": math.hypot(c_n, c_e),
             "sway_straight": (body[ok, 1] - a[ok] @ fit).std(),
             "roll": math.degrees(gt[:, 7].mean())}
+
+
+def _current_fit(seg: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``real_sway_roll``'s fit: its design matrix (N, 3), the straight samples it is
+    fitted on, and (c_N, c_E, e)."""
+    gt = seg["gt"]
+    psi, speed = gt[:, 9], np.hypot(gt[:, 4], gt[:, 5])
+    a = np.column_stack([-np.sin(psi), np.cos(psi), speed])
+    ok = straight(seg)
+    fit, *_ = np.linalg.lstsq(a[ok], body_velocity(gt)[ok, 1], rcond=None)
+    return a, ok, fit
+
+
+def replay(seg: dict[str, np.ndarray], name: str = "auv") -> dict[str, np.ndarray]:
+    """The model flown through a real segment's own manoeuvres, laid out as
+    ``sim_missions`` lays out a simulated mission (its DVL: the truth at the Snapir's DVL
+    position, v + w x r, at 1 Hz, without the instrument's errors).
+
+    It flies as ``presets.REAL_VEHICLE`` does (rpm held, full-rudder turns), in the
+    segment's current (``_current_fit``, constant), at the reference's depth. Each turn of
+    the reference (the samples whose |yaw rate| exceeds ``START`` deg/s) becomes what a
+    survey autopilot is given: from the turn's start, the heading the turn ends on, and the
+    shaft held at the rpm of the speed through the water of the ``HOLD_S`` s before it;
+    between turns, the reference's heading and speed through the water. How fast it turns,
+    how far it slips and how much speed it loses are then the model's own."""
+    gt = seg["gt"]
+    t = gt[:, 0] - gt[0, 0]
+    yaw = np.unwrap(gt[:, 9])
+    _, _, (c_n, c_e, _) = _current_fit(seg)
+    through = np.hypot(gt[:, 4] - c_n, gt[:, 5] - c_e)
+    heading, speed = yaw.copy(), through.copy()
+    turning = np.abs(np.degrees(np.gradient(yaw, t))) > START
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], turning.astype(int), [0]])))
+    for start, end in zip(edges[::2], edges[1::2], strict=True):
+        heading[start:end] = yaw[end - 1]
+        before = through[max(0, start - round(HOLD_S)):start]
+        speed[start:end] = before.mean() if len(before) else through[end - 1]
+    vehicle = Vehicle(name, current_ned=(c_n, c_e, 0.0), hold_rpm=True,
+                      full_rudder_turns=True, imu_position=SNAPIR_IMU_POSITION,
+                      dvl_position=SNAPIR_DVL_POSITION)
+    vehicle.reset(position_ned=(0.0, 0.0, -gt[0, 3]), yaw=yaw[0],
+                  velocity_body=(through[0], 0.0, 0.0))
+    ts = vehicle.dt * np.arange(round(t[-1] / vehicle.dt))
+    refs = np.column_stack([np.maximum(np.interp(ts, t, speed), MIN_SPEED),
+                            np.interp(ts, t, heading), np.interp(ts, t, -gt[:, 3])])
+    traj = vehicle.run(refs)
+    every = round(1.0 / vehicle.dt)
+    euler = euler_angles(traj.quaternion)
+    at_dvl = traj.velocity_body + np.cross(traj.angular_rate, vehicle.dvl_position)
+    return {"gt": np.column_stack([ts, np.zeros((len(ts), 3)), traj.velocity_ned,
+                                   euler])[::every],
+            "imu": np.column_stack([ts, np.zeros((len(ts), 3)), traj.angular_rate]),
+            "dvl": np.column_stack([ts, at_dvl])[::every],
+            "velocity_body": traj.velocity_body, "roll": euler[:, 0],
+            "velocity_water_body": traj.velocity_water_body, "current": traj.current_ned}
 
 
 def roll_period(seg: dict[str, np.ndarray]) -> float:
@@ -368,6 +425,9 @@ def main() -> None:
     parser.add_argument("--infer", action="store_true",
                         help="also find the rudder limit the hard turns imply (a bisection "
                         "of model runs, about a minute)")
+    parser.add_argument("--replay", action="store_true",
+                        help="also fly the model through each real segment's own "
+                        "manoeuvres and compare its sway and turns (a few seconds)")
     parser.add_argument("--logs", type=Path, default=None,
                         help="folder of the Snapir's long DVL logs (MissBeamNet's "
                         "train_data.csv, validation_data.csv), measured beside the segments "
@@ -400,6 +460,9 @@ def main() -> None:
               f"its peak: {limits[0]:.1f} deg (quartiles {limits[1]:.1f} to {limits[2]:.1f}); "
               f"from r |x_fin| / U alone (no sway, so no reference point): "
               f"{implied_limit(alone, 'fin_flow'):.1f} deg")
+
+    if args.replay:
+        print_replay(data, fin_lever, args.min_peak)
 
     step = model_step()
     print(f"\nModel A18-D, full rudder ({step['limit']:.1f} deg) from 2 m/s, depth held, "
@@ -455,6 +518,33 @@ def print_real_turns(data: dict, fin_lever: float, min_peak: float, folder: Path
           f"{max(largest):.1f} deg/s; speed loss median {np.median(losses):.0f} % "
           f"({losses.min():.0f} to {losses.max():.0f} %)")
     return turns
+
+
+def print_replay(data: dict, fin_lever: float, min_peak: float) -> None:
+    """Each real segment beside the model flown through its own manoeuvres (``replay``):
+    the sway std per segment and its hard turns, like with like."""
+    print(f"\nThe model flown through each real segment's own manoeuvres (replay): real / "
+          f"model; hard turns: |r| peak >= {HARD:g} deg/s")
+    print(f"{'segment':13s} {'sway, DVL Y':>13s} {'over ground':>13s} {'through water':>13s} "
+          f"{'hard turns':>10s} {'largest |r| peak':>16s} {'hard speed loss':>15s}")
+    figures = {key: ([], []) for key in ("sway_dvl", "sway_ref", "sway_water")}
+    for name, seg in data.items():
+        real, model = real_sway_roll(seg), sim_sway_roll(flown := replay(seg))
+        for key, (reals, models) in figures.items():
+            reals.append(real[key])
+            models.append(model[key])
+        turns = [[t for t in real_turns(s, fin_lever, min_peak) if abs(t["peak"]) >= HARD]
+                 for s in (seg, flown)]
+        peak = [max((abs(t["peak"]) for t in ts), default=math.nan) for ts in turns]
+        loss = [100 * np.median([t["loss"] for t in ts]) if ts else math.nan for ts in turns]
+        print(f"{name:13s} " + " ".join(f"{real[k]:6.3f}/{model[k]:.3f}" for k in figures)
+              + f" {len(turns[0]):>6d}/{len(turns[1]):<3d} {peak[0]:9.1f}/{peak[1]:<6.1f} "
+              f"{loss[0]:8.0f}/{loss[1]:.0f} %")
+    reals, models = figures["sway_dvl"]
+    ratio = np.array(models) / np.array(reals)
+    print(f"{'median':13s} " + " ".join(f"{np.median(r):6.3f}/{np.median(m):.3f}"
+                                        for r, m in figures.values())
+          + f"; sway, DVL Y, model / real per segment {ratio.min():.2f} to {ratio.max():.2f}")
 
 
 def _verdict(ok: bool) -> str:
