@@ -16,6 +16,7 @@ from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import FilterWarning, SensorSetupWarning, UnseenMissionWarning
 from beamsnet.experiments.adaptive import DURATION as ADAPTIVE_DURATION
+from beamsnet.experiments.adaptive import SEEDS as ADAPTIVE_SEEDS
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
 from beamsnet.experiments.sea import DEFAULT_SEA
@@ -168,9 +169,11 @@ def _parser() -> argparse.ArgumentParser:
                     f"(default {SEA_DURATION:g}) and adaptive's (default "
                     f"{ADAPTIVE_DURATION:g})")
     rp.add_argument("--seeds", type=int, metavar="N",
-                    help="snapir, sim2real, sea: seeds per network, every one scored (default "
+                    help="snapir, sim2real, sea, adaptive: seeds per network, every one "
+                    "scored (default "
                     + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
-                    + f" in snapir; {SIM_SEEDS} in sim2real; {SEA_SEEDS} in sea)")
+                    + f" in snapir; {SIM_SEEDS} in sim2real; {SEA_SEEDS} in sea; "
+                    f"{ADAPTIVE_SEEDS} noise models in adaptive)")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))
     rp.add_argument("--lr", type=float,
@@ -354,15 +357,18 @@ def _reproduce(args) -> None:
 
     if args.experiment == "adaptive":
         # Its network has its own training (noisenet): the paper's settings do not apply.
-        for name in ("seeds", "epochs", "lr", "average_epochs", "restarts"):
+        for name in ("epochs", "lr", "average_epochs", "restarts"):
             if getattr(args, name) is not None:
                 raise ConfigError("is not used by adaptive, whose noise network trains "
                                   "with its own settings (beamsnet.estimators.noisenet); "
-                                  "expected --data, --duration, --out", argument=name)
+                                  "expected --data, --duration, --seeds, --out",
+                                  argument=name)
         args.out = report_dir(args.out, args.refresh_reports, args.experiment)
         report = adaptive(DEFAULT_SEA if args.data is None else args.data, out=args.out,
                           duration=ADAPTIVE_DURATION if args.duration is None
-                          else args.duration, progress=not args.quiet, cluster=args.cluster)
+                          else args.duration,
+                          seeds=ADAPTIVE_SEEDS if args.seeds is None else args.seeds,
+                          progress=not args.quiet, cluster=args.cluster)
         print(f"wrote {report}")
         return
 

@@ -175,11 +175,14 @@ def test_it_trains_on_simulated_missions_only(tmp_path):
         noisenet.train_noise_model(tmp_path / "sea.h5")
 
 
-@pytest.mark.parametrize("flag", [["--seeds", "2"], ["--epochs", "3"]])
-def test_reproduce_adaptive_refuses_the_networks_settings(flag, tmp_path, capsys):
+@pytest.mark.parametrize("flag, said", [
+    (["--lr", "0.1"], "is not used by adaptive"), (["--epochs", "3"], "is not used by adaptive"),
+    (["--seeds", "0"], "--seeds: expected a whole number of seeds, at least 1, got 0")])
+def test_reproduce_adaptive_refuses_the_networks_settings(flag, said, tmp_path, capsys):
     code = main(["reproduce", "adaptive", *flag, "--out", str(tmp_path / "r")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and re.search("is not used by adaptive", err[0])
+    assert code == 2 and len(err) == 1 and said in err[0], err
+    assert not (tmp_path / "r").exists()
 
 
 @pytest.mark.slow
@@ -194,7 +197,7 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
         write_akit(logs, k, sway_bias=0.0, scale=0.01 * k, weave_deg_s=3.0)
     monkeypatch.chdir(tmp_path)
     assert main(["reproduce", "adaptive", "--data", str(logs), "--duration", "20",
-                 "--out", "report", "--quiet"]) == 0
+                 "--seeds", "2", "--out", "report", "--quiet"]) == 0
     results = json.loads((tmp_path / "report" / "adaptive.json").read_text())
     assert list(results["recorded"]) == ["trajectory1", "trajectory2"]
     assert len(results["simulated"]) == 20
@@ -205,7 +208,17 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
                 assert all(np.isfinite(row[k]) for k in (
                     "final_m", "rmse_m", "velocity_rmse", "coverage_3sigma"))
     assert set(results["features"]) == set(noisemodel.FEATURES)
+    # Every seed's model scored on every mission; the first's are the tables'.
+    assert list(results["seeds"]) == ["0", "1"]
+    for part in ("simulated", "recorded"):
+        first = results["seeds"]["0"][part]
+        assert {n: r["scores"]["INS/DVL (learned noise)"] for n, r in first.items()} == {
+            n: s["INS/DVL (learned noise)"] for n, s in results[part].items()}
+        assert list(results["seeds"]["1"][part]) == list(results[part])
     report = (tmp_path / "report" / "adaptive.md").read_text()
+    seeds = report[report.index("## Every seed"):report.index("## Where")]
+    assert [line.split("|")[1].strip() for line in seeds.splitlines()
+            if re.match(r"\| \d", line)] == ["0", "1"]
     recorded = report[report.index("## Recorded"):]
     assert "truth" not in recorded.split("## Where")[0]
     assert len(re.findall(r"(?:\bmet|\*\*missed\*\*)[;.]", report)) == 4
@@ -214,3 +227,6 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
         assert (tmp_path / "report" / figure).stat().st_size > 10_000
     model = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")
     assert model.trained_on["missions"] == 20
+    other = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" /
+                                        "noise-model-seed1.npz")
+    assert other.trained_on["seed"] == 1 and not np.array_equal(other.w1, model.w1)

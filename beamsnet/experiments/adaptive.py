@@ -5,8 +5,11 @@ filter.
 
 * **Training**: the ``realistic-maneuvers`` preset (the navigator's DVL with every failure,
   its calibrated IMU, the rotating Earth off Haifa, the real turning envelope), generated
-  here at ``duration`` s per manoeuvre (the file ``reproduce sea`` trains on too); the
-  model goes to ``runs/adaptive/noise-model.npz``.
+  here at ``duration`` s per manoeuvre (the file ``reproduce sea`` trains on too), one
+  model per seed (``seeds`` of them from ``seed``); the first goes to
+  ``runs/adaptive/noise-model.npz`` and is the one the tables and figures show, the others
+  to ``noise-model-seedK.npz``, each scored on the same missions (the report's "Every
+  seed": how much of a result is the seed's).
 * **Held-out simulated missions**: the same manoeuvres with other seeds (every mission's
   seed + ``HELD_OUT_SEED``: other currents, noise, failures' draws), scored against their
   truth.
@@ -46,6 +49,7 @@ from beamsnet.navigation import truth_at_pings
 
 DURATION = 300.0  # s per manoeuvre of the training and held-out sets
 SEED = 0
+SEEDS = 3  # noise models trained, each from its own seed, every one scored
 HELD_OUT_SEED = 1000  # added to each mission's seed for the held-out simulated set
 FIXED, MODEL_BASED, LEARNED = "INS/DVL", "INS/DVL (adaptive)", "INS/DVL (learned noise)"
 FILTERS = (FIXED, MODEL_BASED, LEARNED)
@@ -65,16 +69,18 @@ def held_out(duration: float = DURATION):
 
 
 def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
-             seed: int = SEED, runs: Path = Path("runs"), datasets: Path = Path("datasets"),
-             progress: bool = True, cluster: str | None = None) -> Path:
-    """Train the noise model on auvsim data, score the three filters on held-out
-    simulated missions and on the recorded segments of ``data``; write ``out/adaptive.md``,
-    ``adaptive.json``, ``adaptive.png`` (the noise over time) and
+             seed: int = SEED, seeds: int = SEEDS, runs: Path = Path("runs"),
+             datasets: Path = Path("datasets"), progress: bool = True,
+             cluster: str | None = None) -> Path:
+    """Train the noise model on auvsim data (``seeds`` models, from seeds ``seed``,
+    ``seed + 1``, ...), score the three filters on held-out simulated missions and on the
+    recorded segments of ``data`` (the learned one with every model); write
+    ``out/adaptive.md``, ``adaptive.json``, ``adaptive.png`` (the noise over time) and
     ``adaptive-features.png`` (the inputs, simulated against recorded).
 
     Raises:
-        ConfigError: ``duration`` out of range, ``data`` not a folder of A-KIT segments,
-            and what the import refuses of a log (one line each).
+        ConfigError: ``duration`` or ``seeds`` out of range, ``data`` not a folder of
+            A-KIT segments, and what the import refuses of a log (one line each).
     """
     from auvsim.runs.presets import realistic_maneuvers
     from beamsnet.estimators.noisemodel import save_noise_model
@@ -84,6 +90,9 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
             math.isfinite(duration) and duration > 0):
         raise ConfigError(f": expected a positive number of seconds per manoeuvre, got "
                           f"{duration!r}", argument="duration")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f": expected a whole number of seeds, at least 1, got {seeds!r}",
+                          argument="seeds")
     check_out_dir(out)
     if cluster is not None:
         check_address(cluster)
@@ -93,33 +102,50 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                            cluster=cluster)
     test = ensure_dataset(held_out(duration), datasets / f"adaptive-test_{duration:g}s.h5",
                           progress=progress, cluster=cluster)
-    model = train_noise_model(train, seed=seed, progress=progress)
-    model_path = Path(runs) / "adaptive" / "noise-model.npz"
+    models = [train_noise_model(train, seed=seed + k, progress=progress)
+              for k in range(seeds)]
+    model, model_path = models[0], Path(runs) / "adaptive" / "noise-model.npz"
     model_path.parent.mkdir(parents=True, exist_ok=True)
-    save_noise_model(model, model_path)
+    for k, each in enumerate(models):
+        save_noise_model(each, model_path if k == 0 else
+                         model_path.with_name(f"noise-model-seed{seed + k}.npz"))
     sim = {name: _mission(test, name, model) for name in _names(test)}
     sea = {name: _mission(real, name, model) for name in _names(real)}
+    every = {seed: dict(simulated={n: _learned_of(r) for n, r in sim.items()},
+                        recorded={n: _learned_of(r) for n, r in sea.items()})}
+    for k, each in enumerate(models[1:], start=1):
+        every[seed + k] = {
+            part: {n: _learned_of(_mission(dataset, n, each, labels=(LEARNED,)))
+                   for n in _names(dataset)}
+            for part, dataset in (("simulated", test), ("recorded", real))}
     features = dict(
         simulated=np.concatenate([_started(r["track"].features) for r in sim.values()]
                                  + _velocity_features(test, model)),
         recorded=np.concatenate([_started(r["track"].features) for r in sea.values()]))
     setup = dict(data=Path(data).name, train=str(train), test=str(test), real=str(real),
-                 duration=duration, seed=seed, model=str(model_path),
+                 duration=duration, seed=seed, seeds=seeds, model=str(model_path),
                  trained_on=model.trained_on, corrections=corrections)
     with staged_dir(out) as stage:
         write_text(stage / "adaptive.json", json.dumps(
             {"setup": setup, "simulated": {n: r["scores"] for n, r in sim.items()},
              "recorded": {n: r["scores"] for n, r in sea.items()},
-             "features": _shift(features)}, indent=1, default=float))
+             "seeds": every, "features": _shift(features)}, indent=1, default=float))
         _noise_figure(sim, sea, stage / "adaptive.png")
         _feature_figure(features, stage / "adaptive-features.png")
-        write_text(stage / "adaptive.md", report(sim, sea, features, setup))
+        write_text(stage / "adaptive.md", report(sim, sea, features, setup, every))
     return Path(out) / "adaptive.md"
 
 
 def _names(dataset: Path) -> list[str]:
     with open_dataset(dataset) as f:
         return list(f.missions)
+
+
+def _learned_of(result: dict) -> dict:
+    """A ``_mission`` result's learned filter alone, in the same shape (for
+    ``median_score`` and ``pooled_coverage``)."""
+    scores = result["scores"]
+    return dict(scores={LEARNED: scores[LEARNED], "pings": scores["pings"]})
 
 
 def _filters(dataset: Path, model) -> dict:
@@ -134,13 +160,15 @@ def _filters(dataset: Path, model) -> dict:
     return out
 
 
-def _mission(dataset: Path, name: str, model) -> dict:
-    """The three filters on mission ``name``: their scores against its truth or
-    reference, and each filter's track (for the figures)."""
+def _mission(dataset: Path, name: str, model, labels: tuple[str, ...] = FILTERS) -> dict:
+    """The filters ``labels`` (default the three) on mission ``name``: their scores
+    against its truth or reference, and each filter's track (for the figures)."""
     windows = load_windows(dataset, missions=[name])
     truth = truth_at_pings(dataset, windows)
     predictions, positions, stds, tracks = {}, {}, {}, {}
     for label, estimator in _filters(dataset, model).items():
+        if label not in labels:
+            continue
         predictions[label] = estimator.predict(windows)
         positions[label] = estimator.positions(windows)
         stds.update(reported_stds(estimator, windows))
@@ -155,7 +183,7 @@ def _mission(dataset: Path, name: str, model) -> dict:
                              **navigation[label])
     return dict(scores=dict(scores, against=windows.reference, pings=len(windows.time)),
                 time=windows.time,
-                track=tracks[LEARNED], model_based=tracks[MODEL_BASED])
+                track=tracks.get(LEARNED), model_based=tracks.get(MODEL_BASED))
 
 
 def _started(features: np.ndarray) -> np.ndarray:
@@ -229,7 +257,7 @@ def _against(results: dict) -> str:
     return next(iter(results.values()))["scores"]["against"]
 
 
-def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
+def report(sim: dict, sea: dict, features: dict, setup: dict, every: dict) -> str:
     """The report's Markdown."""
     from beamsnet.estimators.noisemodel import BOUNDS, FEATURES, HIDDEN, WINDOW
 
@@ -253,7 +281,8 @@ def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
         f"and at {len(t['stated_factors'])} stated-noise factors "
         f"({', '.join(f'{x:g}' for x in t['stated_factors'])}): {t['pings']:,} pings, "
         f"{t['measurements']:,} measurements per round, {t['rounds']} rounds of "
-        f"{t['epochs']} epochs (seed {t['seed']}). The model: `{setup['model']}`.", "",
+        f"{t['epochs']} epochs (seed {t['seed']}; {len(every)} models in all, one per "
+        f"seed, all scored under \"Every seed\"). The model: `{setup['model']}`.", "",
         f"## Held-out simulated missions (against {_against(sim)})", "",
         f"The `realistic-maneuvers` manoeuvres again, every mission's seed + "
         f"{HELD_OUT_SEED} (other currents, noise and failures), {len(sim)} missions.", "",
@@ -263,9 +292,10 @@ def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
         "`auvsim check-log --apply`, as `beamsnet reproduce sea` does; a segment's beams "
         "are derived from the DVL's velocity, so the filters use that velocity.", "",
         *_table(sea, _against(sea)), "",
-        *_targets(sea), "",
+        *_targets(sea, every), "",
         "![the learned noise over time, beside the manoeuvre and the innovations]"
         "(adaptive.png)", "",
+        *_seeds(sim, sea, every), "",
         "## Where the learned filter does worse at sea, and why", "",
         *_failures(sea, features), "",
         "![the learned filter's inputs, simulated against recorded](adaptive-features.png)",
@@ -273,29 +303,85 @@ def report(sim: dict, sea: dict, features: dict, setup: dict) -> str:
     return "\n".join(lines)
 
 
-def _targets(sea: dict) -> list[str]:
-    fixed, learned = (median_score(sea, label, "final_m") for label in (FIXED, LEARNED))
-    gain = 1 - learned / fixed
-    worst_name, worst = max(((n, r["scores"][LEARNED]["final_m"] / r["scores"][FIXED]["final_m"]
-                              - 1) for n, r in sea.items()), key=lambda x: x[1])
-    pooled = pooled_coverage(sea, LEARNED)
-    least = min(sea, key=lambda n: sea[n]["scores"][LEARNED].get("coverage_3sigma", math.nan))
-    least_share = sea[least]["scores"][LEARNED].get("coverage_3sigma", math.nan)
+def _against_fixed(sea: dict, recorded: dict) -> dict:
+    """The learned filter's figures for the targets, with one model's scores on the
+    recorded segments (``every[seed]["recorded"]``) against the fixed filter's (``sea``):
+    the gain of the median final, the worst segment's final against the fixed filter's,
+    and the coverage over every ping and on the least-covered segment."""
+    fixed = median_score(sea, FIXED, "final_m")
+    worse = {n: r["scores"][LEARNED]["final_m"] / sea[n]["scores"][FIXED]["final_m"] - 1
+             for n, r in recorded.items()}
+    covered = {n: r["scores"][LEARNED].get("coverage_3sigma", math.nan)
+               for n, r in recorded.items()}
+    worst, least = max(worse, key=worse.get), min(covered, key=covered.get)
+    return dict(final=median_score(recorded, LEARNED, "final_m"), fixed=fixed,
+                gain=1 - median_score(recorded, LEARNED, "final_m") / fixed,
+                worst=worst, worse=worse[worst], pooled=pooled_coverage(recorded, LEARNED),
+                least=least, least_share=covered[least])
 
-    def met(ok: bool) -> str:
-        return "met" if ok else "**missed**"
+
+def _targets(sea: dict, every: dict) -> list[str]:
+    """The targets with the first seed's model, and whether every seed's meets them."""
+    figures = [_against_fixed(sea, parts["recorded"]) for parts in every.values()]
+    first = figures[0]
+    seeds = list(every)
+    tests = dict(gain=lambda f: f["gain"] >= TARGET_GAIN,
+                 worse=lambda f: f["worse"] <= TARGET_WORSE,
+                 pooled=lambda f: f["pooled"] >= TARGET_COVERAGE,
+                 least=lambda f: f["least_share"] >= TARGET_COVERAGE)
+
+    def met(key: str, spread: str) -> str:
+        ok = sum(tests[key](f) for f in figures)
+        said = f" (every seed's model, {seeds[0]} to {seeds[-1]}: {spread})" \
+            if len(figures) > 1 else ""
+        if ok == len(figures):
+            return f"{said}; met"
+        return f"{said}; **missed**" if ok == 0 else \
+            f"{said}; met by {ok} of {len(figures)} models, **missed**"
+
+    def spread(key: str, scale: float = 100, spec: str = ".1f") -> str:
+        values = [scale * f[key] for f in figures]
+        return f"{min(values):{spec}} to {max(values):{spec}}"
 
     return [
-        "Targets on the recorded segments, the learned filter against the fixed one:", "",
+        "Targets on the recorded segments, the learned filter against the fixed one (the "
+        "model of the tables; every seed's model in brackets, and a target is met only if "
+        "every model meets it):", "",
         f"- median final horizontal error at least {100 * TARGET_GAIN:.0f} % below the "
-        f"fixed filter's: {learned:.2f} m against {fixed:.2f} m, {100 * abs(gain):.1f} % "
-        f"{'below' if gain >= 0 else 'above'}; {met(gain >= TARGET_GAIN)};",
+        f"fixed filter's: {first['final']:.2f} m against {first['fixed']:.2f} m, "
+        f"{100 * abs(first['gain']):.1f} % {'below' if first['gain'] >= 0 else 'above'}"
+        f"{met('gain', spread('gain') + ' % below')};",
         f"- no segment's final error more than {100 * TARGET_WORSE:.0f} % worse: the worst, "
-        f"{worst_name}, {100 * worst:+.1f} %; {met(worst <= TARGET_WORSE)};",
-        f"- 3-sigma coverage at least {100 * TARGET_COVERAGE:.0f} %: {100 * pooled:.1f} % "
-        f"over every segment's pings, {met(pooled >= TARGET_COVERAGE)}; per segment the "
-        f"least {least}'s {100 * least_share:.1f} %, "
-        f"{met(least_share >= TARGET_COVERAGE)}."]
+        f"{first['worst']}, {100 * first['worse']:+.1f} %"
+        f"{met('worse', 'the worst ' + spread('worse', spec='+.1f') + ' %')};",
+        f"- 3-sigma coverage at least {100 * TARGET_COVERAGE:.0f} %: "
+        f"{100 * first['pooled']:.1f} % over every segment's pings"
+        f"{met('pooled', spread('pooled') + ' %')}; per segment the least "
+        f"{first['least']}'s {100 * first['least_share']:.1f} %"
+        f"{met('least', spread('least_share') + ' %')}."]
+
+
+def _seeds(sim: dict, sea: dict, every: dict) -> list[str]:
+    """The learned filter with every seed's model: medians held out and at sea."""
+    lines = [
+        "## Every seed", "",
+        f"The learned filter with each of the {len(every)} noise models, trained on the "
+        "same data from their own seeds (the tables above show the first). Beside them, the "
+        f"fixed filter's median final: {median_score(sim, FIXED, 'final_m'):.2f} m held out, "
+        f"{median_score(sea, FIXED, 'final_m'):.2f} m at sea.", "",
+        "| seed | held out: median final / RMSE (m) | at sea: median final / RMSE (m) | at "
+        "sea: median final below the fixed filter's (%) | at sea: worst segment's final "
+        "against the fixed filter's (%) | at sea: within 3 sigma, every ping / least "
+        "segment (%) |", "|---|---|---|---|---|---|"]
+    for seed, parts in every.items():
+        held, f = parts["simulated"], _against_fixed(sea, parts["recorded"])
+        lines.append(
+            f"| {seed} | {median_score(held, LEARNED, 'final_m'):.2f} / "
+            f"{median_score(held, LEARNED, 'rmse_m'):.2f} | {f['final']:.2f} / "
+            f"{median_score(parts['recorded'], LEARNED, 'rmse_m'):.2f} | "
+            f"{100 * f['gain']:.1f} | {100 * f['worse']:+.1f} ({f['worst']}) | "
+            f"{100 * f['pooled']:.1f} / {100 * f['least_share']:.1f} ({f['least']}) |")
+    return lines
 
 
 def _failures(sea: dict, features: dict) -> list[str]:
