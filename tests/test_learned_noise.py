@@ -74,6 +74,18 @@ def test_told_half_the_noise_it_covers_the_truth_where_the_fixed_filter_does_not
     assert learned.beams_used.sum() + learned.beams_rejected.sum() == offered
 
 
+def test_models_of_several_seeds_are_those_of_one_call_each(noisy, trained):
+    """``train_noise_models`` makes the fixed filter's first-round runs once for every
+    seed; the models are still each seed's own, array for array."""
+    models = noisenet.train_noise_models(noisy, seeds=(0, 1))
+    alone = noisenet.train_noise_model(noisy, seed=1)
+    for got, want in ((models[0], trained), (models[1], alone)):
+        for name in ("w1", "b1", "w2", "mean", "std"):
+            assert np.array_equal(getattr(got, name), getattr(want, name)), name
+        assert got.b2 == want.b2 and got.trained_on == want.trained_on
+    assert not np.array_equal(models[0].w1, models[1].w1)
+
+
 def test_the_loop_runs_the_network_as_numpy_does(noisy, trained):
     """The compiled loop's scale after each ping (used at the next) is the numpy
     forward pass on the same features, windowed as ``noisemodel.windows`` does."""

@@ -230,6 +230,18 @@ def train_noise_model(dataset, missions: Sequence[str] | None = None, *, seed: i
     """Train the noise network on the missions of an auvsim ``dataset`` (default all):
     ``rounds`` fits, each on the filter's runs with the previous round's model (the first
     on the fixed filter's). The model records what it was trained on."""
+    return train_noise_models(dataset, missions, seeds=(seed,), rounds=rounds, epochs=epochs,
+                              config=config, until=until, beam_correction=beam_correction,
+                              progress=progress)[0]
+
+
+def train_noise_models(dataset, missions: Sequence[str] | None = None, *,
+                       seeds: Sequence[int] = (0,), rounds: int = ROUNDS,
+                       epochs: int = EPOCHS, config=None,
+                       until: dict[str, float] | None = None, beam_correction=None,
+                       progress: bool = False) -> list[NoiseModel]:
+    """``train_noise_model`` for each of ``seeds``, the same models as one call each: the
+    first round's runs (the fixed filter's, which no seed changes) are made once."""
     from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
@@ -244,22 +256,32 @@ def train_noise_model(dataset, missions: Sequence[str] | None = None, *, seed: i
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=rounds * len(missions) * len(FORMS) * len(STATED_FACTORS),
-                   desc="noise model", unit="run")
-    model = None
+        runs = (1 + len(seeds) * (rounds - 1)) * len(missions) * len(FORMS)
+        bar = tqdm(total=runs * len(STATED_FACTORS), desc="noise model", unit="run")
+
+    def records_with(model):
+        return training_records(dataset, missions, config, model, until=until,
+                                beam_correction=beam_correction,
+                                progress=None if bar is None else bar.update)
+
+    models = []
     try:
-        for _ in range(rounds):
-            rec = training_records(dataset, missions, config, model, until=until,
-                                   beam_correction=beam_correction,
-                                   progress=None if bar is None else bar.update)
-            size = dict(dataset=str(dataset), missions=len(missions), pings=len(rec.group),
-                        measurements=int(rec.mask.sum()), rounds=rounds, epochs=epochs,
-                        seed=seed, forms=list(FORMS), stated_factors=list(STATED_FACTORS))
-            model = fit(rec, seed=seed, epochs=epochs, trained_on=size)
+        first = records_with(None)
+        for seed in seeds:
+            model, rec = None, first
+            for k in range(rounds):
+                if k > 0:
+                    rec = records_with(model)
+                size = dict(dataset=str(dataset), missions=len(missions),
+                            pings=len(rec.group), measurements=int(rec.mask.sum()),
+                            rounds=rounds, epochs=epochs, seed=seed, forms=list(FORMS),
+                            stated_factors=list(STATED_FACTORS))
+                model = fit(rec, seed=seed, epochs=epochs, trained_on=size)
+            models.append(model)
     finally:
         if bar is not None:
             bar.close()
-    return model
+    return models
 
 
 class LearnedInsDvlFilter(InsDvlFilter):

@@ -84,7 +84,7 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     """
     from auvsim.runs.presets import realistic_maneuvers
     from beamsnet.estimators.noisemodel import save_noise_model
-    from beamsnet.estimators.noisenet import train_noise_model
+    from beamsnet.estimators.noisenet import train_noise_models
 
     if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
             math.isfinite(duration) and duration > 0):
@@ -102,8 +102,7 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                            cluster=cluster)
     test = ensure_dataset(held_out(duration), datasets / f"adaptive-test_{duration:g}s.h5",
                           progress=progress, cluster=cluster)
-    models = [train_noise_model(train, seed=seed + k, progress=progress)
-              for k in range(seeds)]
+    models = train_noise_models(train, seeds=range(seed, seed + seeds), progress=progress)
     model, model_path = models[0], Path(runs) / "adaptive" / "noise-model.npz"
     model_path.parent.mkdir(parents=True, exist_ok=True)
     for k, each in enumerate(models):
