@@ -115,6 +115,21 @@ def test_a_shard_not_sealed_by_this_config_is_refused_by_the_index(sharded):
         open_dataset(sharded)
 
 
+def test_a_shard_changed_after_its_index_was_checked_is_checked_again(sharded):
+    """An index that was checked whole (its shards quiet) is known while it and every
+    shard stay as they were: a shard changed since is checked again (reader._CHECKED)."""
+    import os
+
+    for path in [sharded / INDEX, *(sharded / SHARDS).iterdir()]:
+        old = path.stat().st_mtime - 60.0
+        os.utime(path, (old, old))
+    open_dataset(sharded).close()  # checked whole, and kept
+    with h5py.File(sharded / SHARDS / "part-00002.h5", "r+") as f:
+        del f["missions/c/dvl/velocity"]
+    with pytest.raises(DatasetError, match="lacks dvl/velocity"):
+        open_dataset(sharded)
+
+
 def test_values_edited_through_hdf5_are_refused_not_read_as_data(sharded, capsys, tmp_path):
     """HDF5 recomputes a field's Fletcher-32 when a value is edited through it: the shard's
     seal (its data digest) is what tells, at the first read from that shard."""

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from collections.abc import Iterator, Mapping
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -63,6 +64,17 @@ class _BlockGroup:
 
 
 _KINDS = {"f": "float", "b": "bool", "i": "integer"}
+# The files this process has checked whole, by what identifies their contents (``_identity``:
+# the same inode, size and modification time), each with its shards' identities: opened
+# again unchanged, a file skips the per-mission schema check, which reads every mission's
+# clocks and indices (a tool that opens its file once per mission would otherwise check
+# every mission each time). Only files left alone for ``QUIET_S`` before the check are
+# kept: the kernel stamps modification times at its clock tick (a few ms), so a file
+# changed in place within a tick of its check could keep its time and size; one changed
+# later gets a later time. Forgotten beyond ``CHECKED_FILES``.
+_CHECKED: dict[tuple, tuple[tuple, ...]] = {}
+CHECKED_FILES = 256
+QUIET_S = 1.0
 
 
 class Group:
@@ -105,8 +117,14 @@ class Mission:
         self.origin = origin
         self._group = group
         self._where = _where(Path(group.file.filename), name, origin)  # a shard's, if one
-        self.attrs = _plain(group.attrs)
-        self.attrs.setdefault("origin", origin)
+
+    @cached_property
+    def attrs(self) -> dict:
+        """Its attributes as plain values (read when first asked for: a dataset of many
+        missions is often opened for one)."""
+        attrs = _plain(self._group.attrs)
+        attrs.setdefault("origin", self.origin)
+        return attrs
 
     @property
     def groups(self) -> list[str]:
@@ -360,7 +378,7 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     except OSError as e:
         raise DatasetError(f"{path}: not an HDF5 file, or corrupt ({_reason(e)})") from None
     try:
-        dataset = _checked(path, f)
+        dataset = _checked(path, f, _identity(path))
         if verify:
             dataset.verify()
     except DatasetError:
@@ -372,7 +390,24 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     return dataset
 
 
-def _checked(path: Path, f: h5py.File) -> Dataset:
+def _identity(path: Path) -> tuple:
+    """What tells the file at ``path`` from any other, and from itself changed."""
+    s = path.stat()
+    return (str(path.resolve()), s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns)
+
+
+def _unchanged(key: tuple) -> bool:
+    """Whether ``key``'s file was checked whole and it and its shards are as they were."""
+    shards = _CHECKED.get(key)
+    if shards is None:
+        return False
+    try:
+        return all(_identity(Path(shard[0])) == shard for shard in shards)
+    except OSError:
+        return False
+
+
+def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
     if "format" not in f.attrs:
         raise DatasetError(f"{path}: not an auvsim dataset (no format attribute; expected "
                            f"{FORMAT!r})")
@@ -400,7 +435,15 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
                            "'file' or 'index'")
     records = _index_records(path, f) if layout == "index" else None
     try:
-        _check_missions(path, f, dataset, records, version)
+        known = _unchanged(key)
+        _check_missions(path, f, dataset, records, version, whole=not known)
+        if not known:
+            shards = tuple(_identity(shard) for shard in dataset.shards)
+            quiet = time.time_ns() - int(QUIET_S * 1e9)
+            if all(k[4] < quiet for k in (key, *shards)):
+                if len(_CHECKED) >= CHECKED_FILES:
+                    _CHECKED.clear()
+                _CHECKED[key] = shards
     except BaseException:
         for shard in dataset._shard_files.values():
             shard.close()
@@ -409,7 +452,10 @@ def _checked(path: Path, f: h5py.File) -> Dataset:
 
 
 def _check_missions(path: Path, f: h5py.File, dataset: Dataset,
-                    records: dict[str, Shard] | None, version: int) -> None:
+                    records: dict[str, Shard] | None, version: int, *,
+                    whole: bool = True) -> None:
+    """Check each mission's group and origin, and with ``whole`` its fields and attributes
+    (``_check_mission``), and add it to ``dataset``."""
     for name in f["missions"]:
         group = (f["missions"][name] if records is None
                  else _shard_group(path, f, name, records, dataset))
@@ -423,7 +469,8 @@ def _check_missions(path: Path, f: h5py.File, dataset: Dataset,
                 origin == "recorded" and version < RECORDED_SINCE):
             raise DatasetError(f"{path}: mission {name} has origin {_show(origin)}; "
                                f"{expected}")
-        _check_mission(path, name, group, origin, version)
+        if whole:
+            _check_mission(path, name, group, origin, version)
         dataset.missions[name] = Mission(dataset, name, group, origin)
 
 
