@@ -75,6 +75,7 @@ _KINDS = {"f": "float", "b": "bool", "i": "integer"}
 _CHECKED: dict[tuple, tuple[tuple, ...]] = {}
 CHECKED_FILES = 256
 QUIET_S = 1.0
+REMEMBER_CHECKED = True  # False: check every mission at every open
 
 
 class Group:
@@ -435,7 +436,7 @@ def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
                            "'file' or 'index'")
     records = _index_records(path, f) if layout == "index" else None
     try:
-        known = _unchanged(key)
+        known = REMEMBER_CHECKED and _unchanged(key)
         _check_missions(path, f, dataset, records, version, whole=not known)
         if not known:
             shards = tuple(_identity(shard) for shard in dataset.shards)
