@@ -27,7 +27,11 @@ test: $(STAMP)
 	# The site first: a broken link, include or API reference fails here (site/ is ignored).
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 	# Two workers, one a core of the 2-core CI machine; the ten slowest tests named at the end.
-	$(BIN)/pytest -q -n 2 --dist worksteal --durations=10
+	# One thread per numerical library in every test process (and what it starts), so
+	# that the two workers do not oversubscribe the cores (OpenMP threads that wait by
+	# spinning slow everything down).
+	OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+		$(BIN)/pytest -q -n 2 --dist worksteal --durations=10
 
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve
