@@ -142,9 +142,10 @@ def _names(dataset: Path) -> list[str]:
 
 def _learned_of(result: dict) -> dict:
     """A ``_mission`` result's learned filter alone, in the same shape (for
-    ``median_score`` and ``pooled_coverage``)."""
+    ``median_score`` and ``pooled_coverage``), with the median of its std scale."""
     scores = result["scores"]
-    return dict(scores={LEARNED: scores[LEARNED], "pings": scores["pings"]})
+    return dict(scores={LEARNED: scores[LEARNED], "pings": scores["pings"]},
+                scale=float(np.median(_scale(result["track"]))))
 
 
 def _filters(dataset: Path, model) -> dict:
@@ -371,7 +372,9 @@ def _seeds(sim: dict, sea: dict, every: dict) -> list[str]:
         "| seed | held out: median final / RMSE (m) | at sea: median final / RMSE (m) | at "
         "sea: median final below the fixed filter's (%) | at sea: worst segment's final "
         "against the fixed filter's (%) | at sea: within 3 sigma, every ping / least "
-        "segment (%) |", "|---|---|---|---|---|---|"]
+        "segment (%) | at sea: learned std over the stated, median per segment (in the "
+        "table's order) |",
+        "|---|---|---|---|---|---|---|"]
     for seed, parts in every.items():
         held, f = parts["simulated"], _against_fixed(sea, parts["recorded"])
         lines.append(
@@ -379,7 +382,8 @@ def _seeds(sim: dict, sea: dict, every: dict) -> list[str]:
             f"{median_score(held, LEARNED, 'rmse_m'):.2f} | {f['final']:.2f} / "
             f"{median_score(parts['recorded'], LEARNED, 'rmse_m'):.2f} | "
             f"{100 * f['gain']:.1f} | {100 * f['worse']:+.1f} ({f['worst']}) | "
-            f"{100 * f['pooled']:.1f} / {100 * f['least_share']:.1f} ({f['least']}) |")
+            f"{100 * f['pooled']:.1f} / {100 * f['least_share']:.1f} ({f['least']}) | "
+            + ", ".join(f"{r['scale']:.2f}" for r in parts["recorded"].values()) + " |")
     return lines
 
 
