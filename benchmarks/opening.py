@@ -4,7 +4,7 @@
 indices) before it hands the file over. A file opened again unchanged in the same process
 skips that check (``auvsim.data.reader.REMEMBER_CHECKED``, on by default). Side by side in
 one run, on the ``realistic-maneuvers`` preset at ``--duration`` s per manoeuvre (20
-missions), its file left alone for a minute first:
+missions), its file left alone for ``reader.QUIET_S`` first:
 
 * one ``open_dataset`` and close, checked every time and known;
 * what ``beamsnet reproduce adaptive`` does per mission: ``load_windows`` of that mission
@@ -18,7 +18,6 @@ Each figure is the median of ``--repeats`` runs, CPU seconds of this process.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
 import tempfile
@@ -61,8 +60,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "rm.h5"
         generate(realistic_maneuvers(args.duration), path, progress=False)
-        old = path.stat().st_mtime - 60.0
-        os.utime(path, (old, old))
+        time.sleep(reader.QUIET_S + 0.1)  # a file is remembered once it has been quiet
         with open_dataset(path) as f:
             names = list(f.missions)
 

@@ -222,8 +222,8 @@ def replay(seg: dict[str, np.ndarray], name: str = "auv") -> dict[str, np.ndarra
     turning = np.abs(np.degrees(np.gradient(yaw, t))) > START
     edges = np.flatnonzero(np.diff(np.concatenate([[0], turning.astype(int), [0]])))
     for start, end in zip(edges[::2], edges[1::2], strict=True):
-        heading[start:end] = yaw[end - 1]
-        before = through[max(0, start - round(HOLD_S)):start]
+        heading[start:end] = yaw[min(end, len(yaw) - 1)]  # the first sample past the turn
+        before = through[(t >= t[start] - HOLD_S) & (t < t[start])]
         speed[start:end] = before.mean() if len(before) else through[end - 1]
     vehicle = Vehicle(name, current_ned=(c_n, c_e, 0.0), hold_rpm=True,
                       full_rudder_turns=True, imu_position=SNAPIR_IMU_POSITION,

@@ -76,8 +76,19 @@ def _same_runs(here, there, summaries_here, summaries_there, names) -> None:
         assert mine["history"] == theirs["history"]
 
 
+@pytest.fixture
+def two_threads():
+    """This process trains with two torch threads, as it does on two or more cores where
+    nothing limits it (``make test`` runs its workers with one), so that a job given the
+    cluster's one thread in place of this process's own is seen."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    yield
+    torch.set_num_threads(previous)
+
+
 @pytest.mark.slow
-def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path):
+def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path, two_threads):
     """Two jobs trained one after the other in this process, with its torch threads, and
     the same two jobs on a one-worker cluster: the same weights and summaries, exactly.
     This holds only because each job sets the thread count the local run had: Dask's
@@ -122,7 +133,7 @@ def test_cli_train_runs_its_jobs_on_the_cluster(data, tmp_path, monkeypatch, cap
     assert load(run)[1]["train_config"]["epochs"] == 1
 
 
-def test_on_a_cluster_each_job_gets_the_threads_it_would_get_here(monkeypatch):
+def test_on_a_cluster_each_job_gets_the_threads_it_would_get_here(monkeypatch, two_threads):
     """One process here trains with this process's threads, N processes with a share of
     the cores each: on a cluster every job is given that same number."""
     seen = []

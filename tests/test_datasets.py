@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import time
 
 import h5py
 import numpy as np
@@ -247,12 +248,6 @@ def test_reader_refuses_a_mission_missing_a_field(tmp_path, ideal_file):
     assert main(["inspect", str(broken)]) == 2
 
 
-def _quiet(path) -> None:
-    """Set ``path``'s modification time a minute back: a file left alone since."""
-    old = path.stat().st_mtime - 60.0
-    os.utime(path, (old, old))
-
-
 def test_a_file_opened_again_unchanged_is_not_checked_again(tmp_path, ideal_file, monkeypatch):
     """The per-mission check runs once per file as long as the file stays as it was (and
     was quiet when checked); changed in place, it is checked again and refused."""
@@ -263,17 +258,20 @@ def test_a_file_opened_again_unchanged_is_not_checked_again(tmp_path, ideal_file
     monkeypatch.setattr(reader, "_check_mission", lambda *a: checks.append(a[1]) or real(*a))
     copy = tmp_path / "copy.h5"
     copy.write_bytes(ideal_file.read_bytes())
-    for _ in range(2):  # just written: checked both times
+    for _ in range(2):  # just written (within QUIET_S): checked both times
         with open_dataset(copy) as f:
             assert list(f.missions) == ["mission_000"]
     assert checks == ["mission_000"] * 2
-    _quiet(copy)
+    monkeypatch.setattr(reader, "QUIET_S", 0.05)
+    time.sleep(0.1)
     for _ in range(3):  # quiet: checked once, then known
         with open_dataset(copy) as f:
             assert f.missions["mission_000"].attrs["origin"] == "simulated"
     assert len(checks) == 3
     with h5py.File(copy, "r+") as f:
         del f["missions/mission_000/dvl/velocity"]
+    old = copy.stat().st_mtime - 60.0
+    os.utime(copy, (old, old))  # its modification time set back: its ctime still tells
     with pytest.raises(DatasetError, match="lacks dvl/velocity"):
         open_dataset(copy)
     assert len(checks) == 4

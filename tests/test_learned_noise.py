@@ -242,3 +242,8 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
     other = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" /
                                         "noise-model-seed1.npz")
     assert other.trained_on["seed"] == 1 and not np.array_equal(other.w1, model.w1)
+    # Run again with one seed: the earlier run's second model does not stay beside it.
+    assert main(["reproduce", "adaptive", "--data", str(logs), "--duration", "20",
+                 "--seeds", "1", "--out", "again", "--quiet"]) == 0
+    assert sorted(p.name for p in (tmp_path / "runs" / "adaptive").iterdir()) == [
+        "noise-model.npz"]

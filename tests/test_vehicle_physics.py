@@ -1159,8 +1159,8 @@ def test_the_model_replaying_its_own_turns_sways_as_it_did(turning):
 @pytest.mark.skipif(not SNAPIR_AKIT.is_dir(), reason="no real Snapir segments beside the repo")
 def test_the_model_replaying_the_real_segments_sways_as_the_snapir(turning):
     # Like with like (models/README.md, "The sensors where the Snapir carries them"): flown
-    # through each real segment's own manoeuvres, the model's DVL sways by 0.83 to 1.00
-    # times the segment's own (measured; turning.py --replay), median 0.272 against 0.279.
+    # through each real segment's own manoeuvres, the model's DVL sways by 0.83 to 1.01
+    # times the segment's own (measured; turning.py --replay), median 0.273 against 0.279.
     ratios = []
     for path in sorted(SNAPIR_AKIT.glob("Trajectory*")):
         segment = turning.read_segment(path)

@@ -10,7 +10,7 @@ import json
 import os
 import time
 from collections.abc import Iterator, Mapping
-from functools import cached_property, lru_cache
+from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -65,13 +65,15 @@ class _BlockGroup:
 
 _KINDS = {"f": "float", "b": "bool", "i": "integer"}
 # The files this process has checked whole, by what identifies their contents (``_identity``:
-# the same inode, size and modification time), each with its shards' identities: opened
-# again unchanged, a file skips the per-mission schema check, which reads every mission's
-# clocks and indices (a tool that opens its file once per mission would otherwise check
-# every mission each time). Only files left alone for ``QUIET_S`` before the check are
-# kept: the kernel stamps modification times at its clock tick (a few ms), so a file
-# changed in place within a tick of its check could keep its time and size; one changed
-# later gets a later time. Forgotten beyond ``CHECKED_FILES``.
+# the same inode, size, modification and status-change times), each with its shards'
+# identities: opened again unchanged, a file skips the per-mission schema check, which
+# reads every mission's clocks and indices (a tool that opens its file once per mission
+# would otherwise check every mission each time). The status-change time (ctime) moves with
+# any change of the file, and no one can set it back (a modification time can be). Only a
+# file whose ctime is ``QUIET_S`` old at its check, and which is still the same file after
+# it, is kept: the kernel stamps these times at its clock tick (a few ms), so a file
+# changed in place within a tick of its check could keep them; one changed later gets a
+# later ctime. Forgotten beyond ``CHECKED_FILES``.
 _CHECKED: dict[tuple, tuple[tuple, ...]] = {}
 CHECKED_FILES = 256
 QUIET_S = 1.0
@@ -118,14 +120,8 @@ class Mission:
         self.origin = origin
         self._group = group
         self._where = _where(Path(group.file.filename), name, origin)  # a shard's, if one
-
-    @cached_property
-    def attrs(self) -> dict:
-        """Its attributes as plain values (read when first asked for: a dataset of many
-        missions is often opened for one)."""
-        attrs = _plain(self._group.attrs)
-        attrs.setdefault("origin", self.origin)
-        return attrs
+        self.attrs = _plain(group.attrs)
+        self.attrs.setdefault("origin", origin)
 
     @property
     def groups(self) -> list[str]:
@@ -372,6 +368,7 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
         raise DatasetError(f"{path}: not a regular file; expected an auvsim dataset file")
     try:
         open(path, "rb").close()  # plain open: its OSError says what is wrong
+        key = _identity(path)  # before the file is opened: what is checked is this file
     except OSError as e:
         raise DatasetError(f"{path}: cannot read it ({e.strerror or _reason(e)})") from None
     try:
@@ -379,7 +376,7 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     except OSError as e:
         raise DatasetError(f"{path}: not an HDF5 file, or corrupt ({_reason(e)})") from None
     try:
-        dataset = _checked(path, f, _identity(path))
+        dataset = _checked(path, f, key)
         if verify:
             dataset.verify()
     except DatasetError:
@@ -392,9 +389,13 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
 
 
 def _identity(path: Path) -> tuple:
-    """What tells the file at ``path`` from any other, and from itself changed."""
+    """What tells the file at ``path`` from any other, and from itself changed: its path,
+    device, inode, size, modification and status-change (``CTIME``) times."""
     s = path.stat()
-    return (str(path.resolve()), s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns)
+    return (str(path.resolve()), s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns, s.st_ctime_ns)
+
+
+CTIME = 5  # the status-change time's place in an ``_identity``
 
 
 def _unchanged(key: tuple) -> bool:
@@ -406,6 +407,22 @@ def _unchanged(key: tuple) -> bool:
         return all(_identity(Path(shard[0])) == shard for shard in shards)
     except OSError:
         return False
+
+
+def _remember(path: Path, key: tuple, shards: list[Path]) -> None:
+    """Record ``path`` (``key``, taken before it was opened) as checked whole, if it is
+    still that file, and it and its ``shards`` were quiet for ``QUIET_S``."""
+    try:
+        if _identity(path) != key:
+            return
+        known = tuple(_identity(shard) for shard in shards)
+    except OSError:
+        return
+    quiet = time.time_ns() - int(QUIET_S * 1e9)
+    if all(k[CTIME] < quiet for k in (key, *known)):
+        if len(_CHECKED) >= CHECKED_FILES:
+            _CHECKED.clear()
+        _CHECKED[key] = known
 
 
 def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
@@ -439,12 +456,7 @@ def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
         known = REMEMBER_CHECKED and _unchanged(key)
         _check_missions(path, f, dataset, records, version, whole=not known)
         if not known:
-            shards = tuple(_identity(shard) for shard in dataset.shards)
-            quiet = time.time_ns() - int(QUIET_S * 1e9)
-            if all(k[4] < quiet for k in (key, *shards)):
-                if len(_CHECKED) >= CHECKED_FILES:
-                    _CHECKED.clear()
-                _CHECKED[key] = shards
+            _remember(path, key, dataset.shards)
     except BaseException:
         for shard in dataset._shard_files.values():
             shard.close()

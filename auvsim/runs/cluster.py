@@ -7,7 +7,7 @@ built-in process pool and for a cluster; this module only opens and closes the c
 
 ``local:N`` starts a ``LocalCluster`` of N worker processes (nannied, so a killed worker is
 restarted and its task run again) with ``THREADS`` threads each, and stops it at the end
-(killing its workers if it does not stop within ``CLOSE_S``);
+(killing its workers if the cluster does not stop within ``CLOSE_S``);
 its workers end with this process however it ends (each holds a pipe to its nanny, which
 lives in this process). Any other address is a running scheduler (``tcp://host:8786``,
 ``dask ssh``, ``dask-jobqueue``): it must answer within ``CONNECT_TIMEOUT_S``, and its
@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import logging
-import os
 import re
 import signal
 import threading
@@ -106,20 +105,25 @@ def executor(address: str, *, threads: int = THREADS,
 
 
 def _stop_local(client, cluster) -> None:
-    """Close the client and the local cluster, each within ``CLOSE_S``; if either does not,
-    kill the cluster's worker processes: a worker busy in a job (or starved of CPU) that
-    does not answer its nanny in time must neither hold up the end of the run nor outlive
-    it."""
-    pids = [w.pid for w in cluster.workers.values() if getattr(w, "pid", None)]
-    closed = True
-    for stop in (client.close, cluster.close):
-        try:
-            stop(timeout=CLOSE_S)
-        except Exception:  # a timeout, or its loop gone: the workers are killed below
-            closed = False
-    for pid in [] if closed else pids:
-        with suppress(OSError):  # ended meanwhile
-            os.kill(pid, signal.SIGKILL)
+    """Close the client and the local cluster, each within ``CLOSE_S``; if the cluster does
+    not close in time, kill its worker processes: a worker busy in a job (or starved of CPU)
+    that does not answer its nanny in time must neither hold up the end of the run nor
+    outlive it. The workers are known as processes (``psutil``, which refuses a pid that a
+    new process has taken since), not as bare pids."""
+    import psutil  # Dask distributed's own dependency
+
+    workers = []
+    for worker in cluster.workers.values():
+        with suppress(psutil.Error, TypeError):  # ended, or never started
+            workers.append(psutil.Process(worker.pid))
+    with suppress(TimeoutError, OSError):  # the cluster is what holds the workers
+        client.close(timeout=CLOSE_S)
+    try:
+        cluster.close(timeout=CLOSE_S)
+    except (TimeoutError, OSError):
+        for process in workers:
+            with suppress(psutil.Error):  # ended meanwhile
+                process.kill()
 
 
 def _local(dask, distributed, n: int, threads: int, timeout: float):

@@ -105,9 +105,12 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     models = train_noise_models(train, seeds=range(seed, seed + seeds), progress=progress)
     model, model_path = models[0], Path(runs) / "adaptive" / "noise-model.npz"
     model_path.parent.mkdir(parents=True, exist_ok=True)
-    for k, each in enumerate(models):
-        save_noise_model(each, model_path if k == 0 else
-                         model_path.with_name(f"noise-model-seed{seed + k}.npz"))
+    paths = [model_path, *(model_path.with_name(f"noise-model-seed{seed + k}.npz")
+                           for k in range(1, seeds))]
+    for stale in set(model_path.parent.glob("noise-model-seed*.npz")) - set(paths):
+        stale.unlink()  # an earlier run's, with more seeds: not this run's models
+    for each, path in zip(models, paths, strict=True):
+        save_noise_model(each, path)
     sim = {name: _mission(test, name, model) for name in _names(test)}
     sea = {name: _mission(real, name, model) for name in _names(real)}
     every = {seed: dict(simulated={n: _learned_of(r) for n, r in sim.items()},
