@@ -233,14 +233,24 @@ def replay(seg: dict[str, np.ndarray], name: str = "auv") -> dict[str, np.ndarra
     ts = vehicle.dt * np.arange(round(t[-1] / vehicle.dt))
     refs = np.column_stack([np.maximum(np.interp(ts, t, speed), MIN_SPEED),
                             np.interp(ts, t, heading), np.interp(ts, t, -gt[:, 3])])
-    traj = vehicle.run(refs)
-    every = round(1.0 / vehicle.dt)
+    return segment_of(vehicle.run(refs), vehicle.dt, vehicle.dvl_position)
+
+
+def segment_of(traj, dt: float, dvl_position) -> dict[str, np.ndarray]:
+    """A simulated run (a ``Trajectory`` at the physics step ``dt``) laid out as a real
+    segment (``read_segment``) and as ``sim_missions`` lays out a simulated mission: the
+    reference at 1 Hz (time, two unused columns, altitude, NED velocity, roll, pitch,
+    yaw), the gyro at the physics rate, the DVL as the truth at ``dvl_position`` (v + w x
+    r, without the instrument's errors) at 1 Hz, and the truth's body velocities, roll and
+    current."""
+    every = round(1.0 / dt)
+    t = dt * np.arange(len(traj.angular_rate))
     euler = euler_angles(traj.quaternion)
-    at_dvl = traj.velocity_body + np.cross(traj.angular_rate, vehicle.dvl_position)
-    return {"gt": np.column_stack([ts, np.zeros((len(ts), 3)), traj.velocity_ned,
-                                   euler])[::every],
-            "imu": np.column_stack([ts, np.zeros((len(ts), 3)), traj.angular_rate]),
-            "dvl": np.column_stack([ts, at_dvl])[::every],
+    at_dvl = traj.velocity_body + np.cross(traj.angular_rate, dvl_position)
+    return {"gt": np.column_stack([t, np.zeros((len(t), 2)), -traj.position_ned[:, 2],
+                                   traj.velocity_ned, euler])[::every],
+            "imu": np.column_stack([t, np.zeros((len(t), 3)), traj.angular_rate]),
+            "dvl": np.column_stack([t, at_dvl])[::every],
             "velocity_body": traj.velocity_body, "roll": euler[:, 0],
             "velocity_water_body": traj.velocity_water_body, "current": traj.current_ned}
 

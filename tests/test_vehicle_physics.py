@@ -21,7 +21,6 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from auvsim.physics.frames import euler_angles
 from auvsim.physics.hydro import FLIP, lamb_k_factors, load_hydro, water_wrench
 from auvsim.physics.vehicle import _UNUSED, VEHICLES, Vehicle, model_path
 from auvsim.runs.presets import SNAPIR_IMU_POSITION
@@ -1116,19 +1115,6 @@ def test_a18d_rudder_limit_is_the_one_the_real_turns_imply(turning):
     assert peaks.min() < step["peak"] < peaks.max()
 
 
-def _segment_of(traj, dt: float, dvl_position) -> dict[str, np.ndarray]:
-    """A simulated run laid out as a real A-KIT segment at 1 Hz: the reference (time, two
-    unused columns, altitude, NED velocity, roll, pitch, yaw), the gyro at the physics
-    rate, and an error-free DVL at its position."""
-    every = round(1.0 / dt)
-    t = dt * np.arange(1, len(traj.angular_rate) + 1)
-    gt = np.column_stack([t, np.zeros((len(t), 2)), -traj.position_ned[:, 2],
-                          traj.velocity_ned, euler_angles(traj.quaternion)])[every - 1::every]
-    at_dvl = traj.velocity_body + np.cross(traj.angular_rate, dvl_position)
-    return {"gt": gt, "imu": np.column_stack([t, np.zeros((len(t), 3)), traj.angular_rate]),
-            "dvl": np.column_stack([t, at_dvl])[every - 1::every]}
-
-
 def test_the_model_replaying_its_own_turns_sways_as_it_did(turning):
     """``turning.replay`` flies the model through a segment's own manoeuvres (its turns as
     heading steps at full rudder, its speed, depth and fitted current). Given a segment the
@@ -1145,7 +1131,7 @@ def test_the_model_replaying_its_own_turns_sways_as_it_did(turning):
     legs = [0.0, 120.0, 0.0, -90.0, 60.0, -120.0, 0.0, 180.0]  # deg, 50 s each
     steps = round(50.0 / vehicle.dt)
     refs = np.concatenate([np.tile([2.0, math.radians(h), 20.0], (steps, 1)) for h in legs])
-    segment = _segment_of(vehicle.run(refs), vehicle.dt, vehicle.dvl_position)
+    segment = turning.segment_of(vehicle.run(refs), vehicle.dt, vehicle.dvl_position)
     flown = turning.replay(segment)
     real, model = turning.real_sway_roll(segment), turning.sim_sway_roll(flown)
     print(f"\nsway std, DVL Y: flown {real['sway_dvl']:.3f}, replayed {model['sway_dvl']:.3f} "

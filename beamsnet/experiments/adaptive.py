@@ -111,15 +111,13 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         stale.unlink()  # an earlier run's, with more seeds: not this run's models
     for each, path in zip(models, paths, strict=True):
         save_noise_model(each, path)
-    sim = {name: _mission(test, name, model) for name in _names(test)}
-    sea = {name: _mission(real, name, model) for name in _names(real)}
-    every = {seed: dict(simulated={n: _learned_of(r) for n, r in sim.items()},
-                        recorded={n: _learned_of(r) for n, r in sea.items()})}
-    for k, each in enumerate(models[1:], start=1):
-        every[seed + k] = {
-            part: {n: _learned_of(_mission(dataset, n, each, labels=(LEARNED,)))
-                   for n in _names(dataset)}
-            for part, dataset in (("simulated", test), ("recorded", real))}
+    sim = {name: _mission(test, name, model, models[1:]) for name in _names(test)}
+    sea = {name: _mission(real, name, model, models[1:]) for name in _names(real)}
+    every = {seed + k: dict(simulated={n: _learned_of(([r] + r["others"])[k])
+                                       for n, r in sim.items()},
+                            recorded={n: _learned_of(([r] + r["others"])[k])
+                                      for n, r in sea.items()})
+             for k in range(seeds)}
     features = dict(
         simulated=np.concatenate([_started(r["track"].features) for r in sim.values()]
                                  + _velocity_features(test, model)),
@@ -151,27 +149,36 @@ def _learned_of(result: dict) -> dict:
                 scale=float(np.median(_scale(result["track"]))))
 
 
-def _filters(dataset: Path, model) -> dict:
+def _filters(dataset: Path, model, labels: tuple[str, ...] = FILTERS) -> dict:
+    """The filters ``labels`` (default the three), the learned one with ``model``."""
     from beamsnet.estimators.ins import AdaptiveInsDvlFilter, InsDvlFilter
     from beamsnet.estimators.noisenet import LearnedInsDvlFilter
 
-    out = {FIXED: InsDvlFilter(dataset, calibrate=False),
-           MODEL_BASED: AdaptiveInsDvlFilter(dataset, calibrate=False),
-           LEARNED: LearnedInsDvlFilter(dataset, calibrate=False, model=model)}
+    make = {FIXED: lambda: InsDvlFilter(dataset, calibrate=False),
+            MODEL_BASED: lambda: AdaptiveInsDvlFilter(dataset, calibrate=False),
+            LEARNED: lambda: LearnedInsDvlFilter(dataset, calibrate=False, model=model)}
+    out = {label: make[label]() for label in labels}
     for label, estimator in out.items():
         estimator.name = label
     return out
 
 
-def _mission(dataset: Path, name: str, model, labels: tuple[str, ...] = FILTERS) -> dict:
-    """The filters ``labels`` (default the three) on mission ``name``: their scores
-    against its truth or reference, and each filter's track (for the figures)."""
+def _mission(dataset: Path, name: str, model, others=()) -> dict:
+    """The three filters on mission ``name``: their scores against its truth or
+    reference, and each filter's track (for the figures); ``others``: the learned filter
+    with each of these models too (``_scored``'s, in ``"others"``), on the same windows."""
     windows = load_windows(dataset, missions=[name])
     truth = truth_at_pings(dataset, windows)
+    return dict(_scored(name, windows, truth, _filters(dataset, model)),
+                others=[_scored(name, windows, truth, _filters(dataset, other, (LEARNED,)))
+                        for other in others])
+
+
+def _scored(name: str, windows, truth, filters: dict) -> dict:
+    """``filters`` (label: estimator) on mission ``name``'s ``windows``: their scores
+    against ``truth`` and the learned and model-based filters' tracks (None without)."""
     predictions, positions, stds, tracks = {}, {}, {}, {}
-    for label, estimator in _filters(dataset, model).items():
-        if label not in labels:
-            continue
+    for label, estimator in filters.items():
         predictions[label] = estimator.predict(windows)
         positions[label] = estimator.positions(windows)
         stds.update(reported_stds(estimator, windows))
