@@ -86,6 +86,13 @@ def test_models_of_several_seeds_are_those_of_one_call_each(noisy, trained):
     assert not np.array_equal(models[0].w1, models[1].w1)
 
 
+@pytest.mark.parametrize("settings", [dict(rounds=0), dict(epochs=0), dict(seeds=())])
+def test_training_without_a_round_epoch_or_seed_is_refused(noisy, settings):
+    """No round, epoch or seed would return untrained (or no) models: refused."""
+    with pytest.raises(ValueError, match="at least one round, epoch and seed"):
+        noisenet.train_noise_models(noisy, **settings)
+
+
 def test_the_loop_runs_the_network_as_numpy_does(noisy, trained):
     """The compiled loop's scale after each ping (used at the next) is the numpy
     forward pass on the same features, windowed as ``noisemodel.windows`` does."""
