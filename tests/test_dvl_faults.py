@@ -452,6 +452,33 @@ def test_inspect_shows_the_calibration_the_lost_lock_and_the_modes(tmp_path, cap
     assert "DVL modes: no velocity 25.0 %, bottom track 75.0 %, water track 0.0 %" in text
 
 
+def test_inspect_gives_the_error_velocity_of_the_pings_without_an_outlier(tmp_path, capsys):
+    """Beside the rms over every four-beam ping, which one outlier sets, inspect gives the
+    rms over the bottom-track pings whose beams hold no outlier: what an instrument's own
+    error velocity is compared with. Computed here from the file's own columns."""
+    from conftest import write
+
+    from auvsim.cli import main
+    from auvsim.data.reader import open_dataset
+
+    dvl = DvlConfig(noise_std=0.002, outlier_rate=0.05, outlier_std=0.5)
+    path = write(flat(mission(duration=60.0), dvl=dvl), tmp_path / "f.h5")
+    assert main(["inspect", str(path)]) == 0
+    text = capsys.readouterr().out
+    with open_dataset(path) as f:
+        d = f.missions[next(iter(f.missions))].dvl
+        e, mode, status = d.error_velocity, d.mode, d.status
+    clean = (np.isfinite(e) & (mode == Mode.BOTTOM_TRACK)
+             & ~(status == Status.OUTLIER).any(axis=1))
+    assert 0 < clean.sum() < np.isfinite(e).sum()  # outliers there, and pings without
+    every = np.sqrt(np.mean(e[np.isfinite(e)] ** 2))
+    rms = np.sqrt(np.mean(e[clean] ** 2))
+    assert rms < every / 3  # the outliers set the first figure, not the second
+    assert (f"error velocity rms {every:.3g} m/s over {np.isfinite(e).sum()} four-beam pings "
+            f"({rms:.3g} m/s over the {clean.sum()} bottom-track pings without an outlier)"
+            ) in text
+
+
 # -- bad settings -----------------------------------------------------------------------
 
 

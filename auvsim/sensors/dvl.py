@@ -846,6 +846,14 @@ def describe_mission(mission) -> list[str]:
         rms = f"{np.sqrt(np.mean(finite**2)):.3g} m/s" if finite.size else "none"
         lines.append(f"    DVL modes: {shares}; error velocity rms {rms} over "
                      f"{finite.size} four-beam pings")
+        if "status" in dvl:
+            # What an instrument's own error velocity is compared with: bottom-track pings
+            # whose four beams are not outliers (one outlier sets the rms above).
+            clean = (np.isfinite(error) & (mode == Mode.BOTTOM_TRACK)
+                     & ~(dvl.status == Status.OUTLIER).any(axis=1))
+            if clean.any():
+                lines[-1] += (f" ({np.sqrt(np.mean(error[clean] ** 2)):.3g} m/s over the "
+                              f"{int(clean.sum())} bottom-track pings without an outlier)")
     return lines
 
 
