@@ -33,7 +33,7 @@ FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "-
          "workers": "--workers", "shards": "--shards", "cluster": "--cluster",
          "description": "--description", "format": "--format", "sources": "SOURCE",
          "mission": "--mission", "coordinates": "--coordinates", "dataset": "DATASET",
-         "topics": "--topics", "source": "DATASET"}
+         "topics": "--topics", "source": "DATASET", "apply": "--apply"}
 
 _SCENARIO_FLAGS = {  # flag -> (ScenarioConfig field, help)
     "scenario": ("name", f"one of: {', '.join(SCENARIOS)}"),
@@ -111,7 +111,7 @@ def _parser() -> argparse.ArgumentParser:
     _velocity_options(imp)
     imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
                      help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
-    imp.add_argument("--out", type=Path, required=True, metavar="FILE",
+    imp.add_argument("--out", type=_file_out, required=True, metavar="FILE",
                      help="HDF5 file to write")
     _import_parser(sub)
     _check_log_parser(sub)
@@ -180,7 +180,7 @@ def _import_parser(sub) -> None:
     _velocity_options(imp, only="velocity only: ")
     imp.add_argument("--compression", choices=("lzf", "gzip"), default="lzf",
                      help="lzf is fast; gzip is read by every HDF5 tool (default: lzf)")
-    imp.add_argument("--out", type=Path, required=True, metavar="FILE",
+    imp.add_argument("--out", type=_file_out, required=True, metavar="FILE",
                      help="HDF5 file to write")
 
 
@@ -240,7 +240,7 @@ def _check_log_parser(sub) -> None:
                        help="check this mission only (repeatable; default: all)")
     check.add_argument("--json", action="store_true",
                        help="print the findings as JSON instead of tables")
-    check.add_argument("--apply", type=Path, metavar="OUT.h5",
+    check.add_argument("--apply", type=_file_out, metavar="OUT.h5",
                        help="write the dataset corrected by the findings to this file "
                        "(default: none)")
 
@@ -387,6 +387,14 @@ def _nameable(path: str) -> str:
     except ValueError as e:  # a NUL byte, from a caller of main() (a shell cannot pass one)
         raise argparse.ArgumentTypeError(f"{path[:80]!r}: {e}") from None
     return path
+
+
+def _file_out(path: str) -> Path:
+    """An output file's path: nameable, and not a folder's (a trailing /)."""
+    if _nameable(path).endswith((os.sep, "/")):
+        raise argparse.ArgumentTypeError(f"{path!r} ends in /, a folder; expected the file "
+                                         "to write")
+    return Path(path)
 
 
 def _load_toml(path: Path) -> Config:

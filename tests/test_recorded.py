@@ -361,6 +361,32 @@ BAD_LOGS = {
                 "depth.csv': 1 row(s) under the header; expected a stream of samples"),
     "no_rows": (_edit("depth.csv", _lines(lambda ls: ls[:1])),
                 "depth.csv': 0 row(s) under the header; expected a stream of samples"),
+    "stamps_off_the_stated_rate": (_edit("log.toml", lambda t: t.replace(
+        'time_unit = "ms"\nframe = "FLU"', 'time_unit = "ms"\nrate_hz = 1.0\nframe = "FLU"')),
+        "its stamps come at 100 Hz, the log description's imu.rate_hz says 1 Hz"),
+    "name_with_a_slash": (_edit("log.toml", lambda t: t.replace('name = "dive"',
+                                                                'name = "a/b"')),
+                          "log.name: expected a name without '/'"),
+    "beam_angle_beyond_90": (_edit("log.toml", lambda t: t.replace("beam_angle_deg = 30.0",
+                                                                   "beam_angle_deg = 95.0")),
+                             "dvl.beam_angle_deg: expected the beams' angle"),
+    "origin_beyond_the_poles": (_edit("log.toml", lambda t: t.replace(
+        'name = "dive"', 'name = "dive"\norigin = [200.0, 34.9, -20.0]')),
+        "log.origin: expected [latitude deg in -90..90"),
+    "one_column_two_fields": (_edit("log.toml", lambda t: t.replace('altitude = "alt"',
+                                                                    'altitude = "err"')),
+                              "dvl.columns.altitude: column 'err' is also the stream's "
+                              "error_velocity"),
+    "header_names_a_column_twice": (_edit("depth.csv", _lines(lambda ls: [
+        x + ("," + x.split(",")[1]) if i else x + ",depth" for i, x in enumerate(ls)])),
+        "column 'depth' appears 2 times in the header"),
+    "comment_row": (_edit("depth.csv", _lines(lambda ls: ls[:3] + ["# a note"] + ls[3:])),
+                    "line 4: 1 cells, the header has 2"),
+    "empty_file": (_edit("depth.csv", lambda t: ""), "depth.csv': empty; expected a header"),
+    "file_is_a_folder": (_edit("log.toml", lambda t: t.replace('file = "depth.csv"',
+                                                               'file = "."')),
+                         "is a folder; expected the CSV file of the log description's "
+                         "depth.file"),
     # tomllib recurses once per level: Python's recursion limit, not a TOML error
     "nested_too_deeply": (_edit("log.toml", lambda t: "deep = " + "[" * 3000 + "]" * 3000
                                 + "\n" + t), "not valid TOML (arrays or tables nested too deeply"),
@@ -380,6 +406,45 @@ def test_bad_logs_are_refused_in_one_line(case, tmp_path):
     assert err.count("\n") == 1 and err.startswith("auvsim: error: "), err
     assert message in err, err
     assert not out.exists() and not (tmp_path / "out").exists()
+
+
+def test_the_output_is_never_a_file_it_would_destroy(tmp_path):
+    """The import refuses to write over one of the log's own files, over a file that is
+    not HDF5, into a path under a file, or to a folder's path (a trailing /): one line,
+    exit 2, and the file there as it was."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    (tmp_path / "notes.txt").write_text("mine\n")
+    cases = {folder / "imu.csv": "is one of the log's own files",
+             folder / "log.toml": "is one of the log's own files",
+             tmp_path / "notes.txt": "a file that is not HDF5 is there",
+             tmp_path / "notes.txt" / "x.h5": "is a file, not a folder"}
+    for out, message in cases.items():
+        before = {p: p.read_bytes() for p in (*folder.iterdir(), tmp_path / "notes.txt")}
+        code, err = run_csv(folder, out)
+        assert code == 2 and err.count("\n") == 1 and message in err, err
+        assert {p: p.read_bytes() for p in before} == before
+    err = io.StringIO()
+    with pytest.raises(SystemExit) as exit_, contextlib.redirect_stderr(err):
+        main(["import", str(folder), "--format", "csv", "--description",
+              str(folder / "log.toml"), "--out", f"{tmp_path / 'new'}/"])  # the parser's
+    assert exit_.value.code == 2 and err.getvalue().count("\n") == 1
+    assert "ends in /, a folder; expected the file to write" in err.getvalue()
+    assert not (tmp_path / "new").exists()
+
+
+def test_a_log_named_by_its_folder_as_dot(tmp_path, monkeypatch):
+    """Run from inside the log's folder (``auvsim import .``), the mission is named by the
+    folder, as from outside; a description with a byte-order mark reads as without."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    (folder / "log.toml").write_text("\ufeff" + DESCRIPTION.replace('name = "dive"\n', ""),
+                                     encoding="utf-8")
+    monkeypatch.chdir(folder)
+    assert run(["import", ".", "--format", "csv", "--description", "log.toml", "--out",
+                str(tmp_path / "x.h5")]) == (0, "")
+    with open_dataset(tmp_path / "x.h5") as f:
+        assert list(f.missions) == ["dive"]
 
 
 def test_a_description_is_checked_before_any_file_is_read(tmp_path):

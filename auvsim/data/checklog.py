@@ -861,8 +861,11 @@ def log_of(mission) -> Log:
         DatasetError: the mission is not a recorded one with a reference and its attitude,
             or has neither an IMU nor a DVL to check.
     """
-    if mission.origin != "recorded" or not mission.has("reference"):
+    if mission.origin != "recorded":
         raise DatasetError(f"mission {mission.name!r} is {mission.origin}; expected a recorded "
+                           "mission with a reference to check the log against")
+    if not mission.has("reference"):
+        raise DatasetError(f"mission {mission.name!r} has no reference; expected a recorded "
                            "mission with a reference to check the log against")
     quaternion = require_attitude(mission)
     if not (mission.has("imu") or mission.has("dvl")):
@@ -1014,7 +1017,8 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
         config = json.dumps({"check_log": {"source": str(path),
                                            "missions": sorted(by_name)},
                              "source_config": ds.config_json})
-        with DatasetWriter(out, config_json=config, compression=compression) as writer:
+        with DatasetWriter(out, config_json=config, compression=compression,
+                           argument="apply") as writer:
             for name, mission in ds.missions.items():
                 if name in by_name:
                     fields, attrs = corrected(mission, by_name[name])

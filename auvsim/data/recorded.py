@@ -33,11 +33,15 @@ from the mission origin (``auvsim.physics.earth.ned_from_geodetic``), and ``grav
 WGS-84 normal gravity there.
 
 A log the description does not fit is refused in one line, before anything is written
-(``ConfigError``): missing or extra columns, a file of fewer than two rows, a row with
-another number of cells, time that runs backwards or repeats, a cell that is NaN or not a
-number, units that cannot be right (gyros beyond a turn per second where rad/s is declared,
-accelerometers that do not see gravity, angles beyond their range in rad, positions that
-disagree with the velocities), and streams that do not overlap in time.
+(``ConfigError``): missing, extra or repeated columns (or one mapped to two fields), an
+empty file, a file of fewer than two rows, a row with another number of cells (a ``#``
+comment too), time that runs backwards or repeats, stamps at another rate than the
+stated one (``RATE_RANGE``), a cell that is NaN or not a number, units that cannot be
+right (gyros beyond a turn per second where rad/s is declared, accelerometers that do not
+see gravity, angles beyond their range in rad, positions that disagree with the
+velocities), streams that do not overlap in time, and a mission name that is not a
+group's (``auvsim.data.writer.check_mission_name``). The dataset is never written over one
+of the log's own files.
 
 The built-in layout ``akit`` (``AKIT_DESCRIPTION``) is that of the Snapir AUV's logs
 published with A-KIT (N. Cohen and I. Klein, "Adaptive Kalman-Informed Transformer",
@@ -61,7 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
-from auvsim.data.writer import DatasetWriter
+from auvsim.data.writer import DatasetWriter, check_mission_name
 from auvsim.errors import ConfigError
 from auvsim.physics.earth import ned_from_geodetic, normal_gravity
 from auvsim.physics.frames import euler_angles, quaternion_from_euler, quaternion_product
@@ -197,6 +201,7 @@ class Stream:
         specs: the instrument's specifications by key (IMU: ``IMU_NOISE``; DVL:
             ``beam_angle_deg``, ``noise_std``, ``velocity_accuracy``), SI units or deg.
         invalid: the DVL's no-data value as logged, or None.
+        rate_hz: the rate the instrument states, Hz, or None.
     """
 
     group: str
@@ -214,6 +219,7 @@ class Stream:
     mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     specs: dict[str, float] = field(default_factory=dict)
     invalid: float | None = None
+    rate_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -261,6 +267,9 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
     origin = log.get("origin")
     if origin is not None:
         origin = tuple(finite_numbers(where, "log.origin", origin, 3))
+        if not (-90 <= origin[0] <= 90 and -180 <= origin[1] <= 360):
+            raise ConfigError(f"{where}: log.origin: expected [latitude deg in -90..90, "
+                              f"longitude deg in -180..360, height m], got {list(origin)}")
     streams = {g: _stream(where, g, data[g]) for g in RECORDED_GROUPS if g in data}
     if not streams:
         raise ConfigError(f"{where}: no stream; expected at least one of "
@@ -268,8 +277,8 @@ def parse_description(text: str, *, where: str = "log description") -> LogDescri
     if "reference" in streams and not isinstance(log.get("reference_source"), str):
         raise ConfigError(f"{where}: log.reference_source: expected a text saying what the "
                           "reference is (a navigation solution, say which)")
-    if "name" in log and not isinstance(log["name"], str):
-        raise ConfigError(f"{where}: log.name: expected a text, got {log['name']!r}")
+    if "name" in log:
+        check_mission_name(log["name"], f"{where}: log.name")
     return LogDescription(text, log.get("name"), log.get("reference_source"), origin, streams)
 
 
@@ -296,9 +305,12 @@ def _stream(where: str, group: str, table: object) -> Stream:
         raise ConfigError(f"{name}.time_unit: expected one of {', '.join(TIME_UNITS)}, got "
                           f"{time_unit!r}")
     offset = _number(where, f"{group}.time_offset_s", table.get("time_offset_s", 0.0))
-    if "rate_hz" in table and not (_number(where, f"{group}.rate_hz", table["rate_hz"]) > 0):
-        raise ConfigError(f"{name}.rate_hz: expected the instrument's stated rate, Hz > 0, "
-                          f"got {table['rate_hz']!r}")
+    rate = None
+    if "rate_hz" in table:
+        rate = _number(where, f"{group}.rate_hz", table["rate_hz"])
+        if not rate > 0:
+            raise ConfigError(f"{name}.rate_hz: expected the instrument's stated rate, Hz > 0, "
+                              f"got {table['rate_hz']!r}")
     specs = FIELDS[group]
     columns_in = table.get("columns")
     if not isinstance(columns_in, dict):
@@ -354,8 +366,16 @@ def _stream(where: str, group: str, table: object) -> Stream:
             raise ConfigError(f"{name}.frame: expected FRD or FLU, got {frame!r}")
         if frame == "FLU":
             axes = np.diag([1.0, -1.0, -1.0]) @ axes
+    mapped: dict[str, str] = {table["time"]: "time"}
+    for key, cols in columns.items():
+        for c in cols:
+            if c in mapped:
+                raise ConfigError(f"{name}.columns.{key}: column {c!r} is also the stream's "
+                                  f"{mapped[c]}; expected each column of the file once")
+            mapped[c] = key
     return Stream(group, table["file"], table["time"], TIME_UNITS[time_unit], offset, columns,
-                  units, axes, tuple(ignore), delimiter, flip, **_instrument(where, group, table))
+                  units, axes, tuple(ignore), delimiter, flip, rate_hz=rate,
+                  **_instrument(where, group, table))
 
 
 def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
@@ -378,6 +398,10 @@ def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
         where, "dvl.mounting_rpy_deg", table.get("mounting_rpy_deg", [0.0, 0.0, 0.0]), 3))
     out["specs"] = {k: _spec(where, f"dvl.{k}", table.get(k), strict=k == "beam_angle_deg")
                     for k in ("beam_angle_deg", "noise_std", "velocity_accuracy")}
+    if not out["specs"]["beam_angle_deg"] < 90:
+        raise ConfigError(f"{where}: dvl.beam_angle_deg: expected the beams' angle from the "
+                          f"DVL's axis, deg in (0, 90) (a Janus DVL's: 20 to 30), got "
+                          f"{table['beam_angle_deg']!r}")
     if "invalid" in table:
         out["invalid"] = _number(where, "dvl.invalid", table["invalid"])
     return out
@@ -453,6 +477,9 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
             number of cells; a cell is not a number or is NaN; time runs backwards or
             repeats.
     """
+    if path.is_dir():
+        raise ConfigError(f"{str(path)!r}: is a folder; expected the CSV file of the log "
+                          f"description's {stream.group}.file")
     if not path.is_file():
         raise ConfigError(f"{str(path)!r}: no such file (the log description's "
                           f"{stream.group}.file)")
@@ -461,6 +488,13 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
             header = [c.strip() for c in f.readline().rstrip("\r\n").split(stream.delimiter)]
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError(f"{str(path)!r}: cannot read it as text ({e})") from None
+    if header == [""]:
+        raise ConfigError(f"{str(path)!r}: empty; expected a header line naming the columns, "
+                          "then rows of numbers")
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if twice:
+        raise ConfigError(f"{str(path)!r}: column {twice[0]!r} appears {header.count(twice[0])} "
+                          "times in the header; expected each column once")
     wanted = {"time": (stream.time,), **stream.columns}
     named = [c for cols in wanted.values() for c in cols]
     for c in named:
@@ -478,7 +512,7 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
         with warnings.catch_warnings():  # a header alone: refused below, in one line
             warnings.filterwarnings("ignore", "loadtxt: input contained no data")
             array = np.loadtxt(path, delimiter=stream.delimiter, skiprows=1, usecols=use,
-                               ndmin=2, encoding="utf-8-sig")
+                               ndmin=2, encoding="utf-8-sig", comments=None)
     except ValueError:
         raise ConfigError(_bad_row(path, stream.delimiter, len(header))) from None
     if array.shape[0] < 2:
@@ -565,9 +599,12 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
             streams do not overlap in time (one line each).
     """
     folder = Path(folder)
+    name = name or description.name or folder.resolve().name
+    check_mission_name(name, f"{str(folder)!r}: the mission's name (log.name, or the folder's)")
     tables = {g: read_table(folder / s.file, s) for g, s in description.streams.items()}
     streams = description.streams
     where = {g: repr(str(folder / s.file)) for g, s in streams.items()}
+    _check_rates(tables, streams, where)
     _check_units(tables, where)
     starts = {g: t["time"][0] + streams[g].offset for g, t in tables.items()}
     ends = {g: t["time"][-1] + streams[g].offset for g, t in tables.items()}
@@ -627,7 +664,26 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
                  height_m=origin[2], gravity=normal_gravity(origin[0], origin[2]),
                  log_time_origin_s=t0, duration_s=duration)
     files = [folder / streams[g].file for g in groups]
-    return Recording(name or description.name or folder.name, groups, fields, attrs, files)
+    return Recording(name, groups, fields, attrs, files)
+
+
+RATE_RANGE = (0.5, 2.0)  # the stamps' median rate over the stated one that a log may have
+
+
+def _check_rates(tables: dict[str, dict[str, np.ndarray]], streams: dict[str, Stream],
+                 where: dict[str, str]) -> None:
+    """Each stream's stamps at its stated rate (``rate_hz``), within ``RATE_RANGE``: wider
+    than any clock's error or a log's dropped samples, narrower than a time column in
+    another unit (ms read as s: a thousandth of the rate)."""
+    for g, s in streams.items():
+        if s.rate_hz is None:
+            continue
+        rate = 1.0 / float(np.median(np.diff(tables[g]["time"])))
+        if not RATE_RANGE[0] <= rate / s.rate_hz <= RATE_RANGE[1]:
+            raise ConfigError(f"{where[g]}: its stamps come at {rate:.4g} Hz, the log "
+                              f"description's {g}.rate_hz says {s.rate_hz:g} Hz; expected "
+                              f"the time column in {g}.time_unit (s, ms, us or ns) and the "
+                              "instrument's stated rate")
 
 
 def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
@@ -727,7 +783,7 @@ def akit_segments(source: Path) -> list[tuple[Path, int]]:
     if not source.is_dir():
         raise ConfigError(f"{str(source)!r}: not a folder; expected an A-KIT folder "
                           "(TrajectoryK/ subfolders) or one TrajectoryK folder")
-    match = AKIT_SEGMENT.fullmatch(source.name)
+    match = AKIT_SEGMENT.fullmatch(source.resolve().name)
     if match:
         return [(source, int(match[1]))]
     found = sorted(((p, int(m[1])) for p in source.iterdir()
@@ -748,9 +804,12 @@ def read_description(path: str | os.PathLike, *, argument: str = "description") 
     """
     path = Path(path)
     try:
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise ConfigError(f"{str(path)!r}: no such file", argument=argument) from None
+    except IsADirectoryError:
+        raise ConfigError(f"{str(path)!r}: is a folder; expected a TOML file",
+                          argument=argument) from None
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError(f"{str(path)!r}: cannot read it ({e})", argument=argument) from None
 
@@ -797,11 +856,18 @@ def import_logs(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
                 raise ConfigError(f"{str(source)!r}: not a folder; expected the folder of a "
                                   "log's CSV files")
             logs.append((Path(source), parsed,
-                         None if len(sources) == 1 else Path(source).name))
+                         None if len(sources) == 1 else Path(source).resolve().name))
     recordings = [read_log(folder, d, name=name) for folder, d, name in logs]
     names = [r.name for r in recordings]
     if len(set(names)) != len(names):
         raise ConfigError(f"mission names must differ, got {names}; rename a folder")
+    read = [p for r in recordings for p in r.files] + ([] if description is None
+                                                       else [Path(description)])
+    for p in read:
+        if Path(out).exists() and Path(out).samefile(p):
+            raise ConfigError(f"{str(out)!r}: is one of the log's own files; expected a new "
+                              "path for the dataset (the log stays as recorded)",
+                              argument="out")
     settings = dict(format=format, sources=[str(s) for s in sources],
                     description=None if description is None else str(description))
     summary: dict[str, dict] = {}

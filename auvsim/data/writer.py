@@ -29,31 +29,59 @@ COMPRESSION = {"lzf": dict(compression="lzf", shuffle=True, fletcher32=True),
                             fletcher32=True)}
 
 
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def check_mission_name(name: object, where: str) -> None:
+    """A mission's name is a group's name in the file: a text, not empty, without "/",
+    and not "." or "..".
+
+    Raises:
+        ConfigError: it is not (``where`` names what gave it).
+    """
+    if not (isinstance(name, str) and name.strip() and "/" not in name
+            and name not in (".", "..")):
+        raise ConfigError(f"{where}: expected a name without '/' (not empty, '.' or '..'), "
+                          f"got {name!r}")
+
+
 class DatasetWriter:
     """Writes a dataset file; use as a context manager.
 
     Args:
-        path: the final file name; the work happens in a temporary file beside it.
+        path: the final file name; the work happens in a temporary file beside it. An
+            existing file there is replaced only if it is an HDF5 file.
         config_json: the resolved configuration, stored in the root attributes.
         compression: a key of ``COMPRESSION``.
+        argument: the argument that gave ``path``, which its errors name (``--out``).
     """
 
     def __init__(self, path: str | os.PathLike, *, config_json: str,
-                 compression: str = "lzf") -> None:
+                 compression: str = "lzf", argument: str = "out") -> None:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
         try:
             if self.path.is_dir():
                 raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name "
                                   f"(or {os.path.join(str(self.path), '')!r}, with a trailing "
-                                  "/, for a sharded dataset)", argument="out")
+                                  "/, for a sharded dataset)", argument=argument)
+            if self.path.exists():
+                with open(self.path, "rb") as f:
+                    if f.read(len(HDF5_SIGNATURE)) != HDF5_SIGNATURE:
+                        raise ConfigError(f"{str(self.path)!r}: a file that is not HDF5 is "
+                                          "there; expected a new path, or a dataset to "
+                                          "replace", argument=argument)
+            above = next((p for p in self.path.parents if p.exists()), None)
+            if above is not None and not above.is_dir():
+                raise ConfigError(f"{str(self.path)!r}: {str(above)!r} is a file, not a "
+                                  "folder; expected a path in a folder", argument=argument)
             self.path.parent.mkdir(parents=True, exist_ok=True)
             # Temporaries of killed runs in this folder go first (``files.sweep``).
             self.claim = Claim(self.path)
         except OSError as e:
             raise ConfigError(
                 f"{str(self.path)!r}: cannot write there ({e.strerror or e}); "
-                "expected a path in a writable directory", argument="out") from None
+                "expected a path in a writable directory", argument=argument) from None
         self.tmp = self.claim.file
         try:
             # No chunk cache: whole chunks are written at once, so caching them would only
@@ -85,6 +113,7 @@ class DatasetWriter:
             links: fields to write as hard links to another (``imu/time`` ->
                 ``truth/time``).
         """
+        check_mission_name(name, "mission name")
         group = self.file["missions"].create_group(name)
         group.attrs.update(attrs)
         sink = MissionWriter(group, self.filters, rows)
