@@ -420,6 +420,23 @@ def test_a_dvl_that_seldom_has_a_velocity_is_not_observable_and_not_applied(simu
     assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)
 
 
+@pytest.mark.parametrize("factor", [0.0, 0.5])
+def test_a_dvl_far_off_the_reference_is_no_calibration(simulated, factor):
+    """A DVL whose velocity is half the reference's, or none (zeros), fits "exactly" with
+    a scale no sound speed gives: its scale, mounting and lever arm are reported not
+    observable, saying why, and none is applied."""
+    log = recorded_log(simulated["zigzag"], axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
+                       dvl_offset=0.0)
+    report = check_arrays(dataclasses.replace(log, dvl_velocity=factor * log.dvl_velocity),
+                          "off")
+    found = findings(report)
+    assert abs(found["dvl scale"].value["scale"] - factor) < 0.01
+    for name in ("dvl scale", "dvl mounting", "dvl lever arm"):
+        assert found[name].confidence == "not observable"
+        assert "beyond any DVL's calibration" in found[name].evidence
+    assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)
+
+
 def test_serial_least_squares_errors_hold_for_residuals_correlated_over_pings():
     """Known answer by Monte Carlo: a slowly varying design (a velocity that turns, as the
     DVL calibration's is) with AR(1) residuals of 0.9 per ping (a slow error over about

@@ -85,6 +85,9 @@ QUIET_RATE = math.radians(0.5)  # rad/s: an interval turning less is "quiet" for
 CLOCK_PROBE = 0.01  # s: the clock error an IMU lever arm's sensitivity is shown for
 QUIET_ACCEL = 0.02  # m/s^2: and accelerating less
 AXES = "xyz"
+# A DVL's scale error beyond this is not a calibration's: the speed of sound in sea water
+# spans about 1450 to 1550 m/s, so an instrument that assumes 1500 is off by at most ~3 %.
+SCALE_PLAUSIBLE = 0.05
 # A stream's stamps "agree with its stated rate" within this: quartz oscillators, which
 # clock loggers and sensors, are specified to tens of ppm (e.g. +-20 to +-100 ppm
 # frequency tolerance), and a stretch of stamps that matters here is thousands.
@@ -638,6 +641,12 @@ def dvl_calibration(u: np.ndarray, w: np.ndarray, v: np.ndarray
                 + ", ".join(f"{a:.3f}" for a in lever_se) + "] m",
                 grade(float(lever_se.max()), 0.03, 0.1)),
     ]
+    if abs(k) > SCALE_PLAUSIBLE:
+        why = (f"the DVL's velocity is x{1 + k:.5f} the reference's, beyond any DVL's "
+               f"calibration (within {100 * SCALE_PLAUSIBLE:g} %): the DVL's velocity or the "
+               "reference is wrong, and nothing of this fit is applied; ")
+        found = [dataclasses.replace(f, evidence=why + f.evidence, confidence="not observable")
+                 for f in found]
     return x, found
 
 
