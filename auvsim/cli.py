@@ -477,9 +477,10 @@ def _generate(args: argparse.Namespace) -> None:
     sharded = "" if "shards" not in summary else (
         f" in {summary['shards']} shard(s), {summary['kept']} kept from an earlier run "
         f"(index {summary['out']})")
+    simulated = summary["simulated_s"]
+    rate = f" ({simulated / summary['wall_s']:.0f}x real time)" if simulated > 0 else ""
     print(f"wrote {args.out}: {summary['missions']} mission(s){sharded}, "
-          f"{summary['simulated_s']:g} s simulated in {summary['wall_s']:.1f} s "
-          f"({summary['simulated_s'] / summary['wall_s']:.0f}x real time)")
+          f"{simulated:g} s simulated in {summary['wall_s']:.1f} s{rate}")
 
 
 def _presets(args: argparse.Namespace) -> None:

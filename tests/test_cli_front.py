@@ -94,7 +94,9 @@ def test_full_disk_as_the_index_is_written(tmp_path, capsys, monkeypatch):
         "shards", "shards/part-00000.h5"]
     monkeypatch.undo()
     assert cli.main(["generate", *SHORT, "--out", f"{out}/"]) == 0
-    assert "1 kept from an earlier run" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "1 kept from an earlier run" in said
+    assert "0 s simulated in" in said and "real time" not in said  # the kept one is not
 
 
 def test_full_disk_import_velocity(tmp_path, capsys, monkeypatch):

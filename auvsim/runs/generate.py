@@ -203,10 +203,10 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
         progress: show a progress bar on a terminal.
 
     Returns:
-        A summary: number of missions, simulated seconds, wall seconds, the seconds this
-        process spent compiling the physics (``compile_s``: a first run's, 0 once numba's
-        cache has it); for a sharded dataset also its shards and how many were kept from
-        an earlier run.
+        A summary: number of missions, seconds simulated by this run (not a kept
+        shard's), wall seconds, the seconds this process spent compiling the physics
+        (``compile_s``: a first run's, 0 once numba's cache has it); for a sharded dataset
+        also its shards and how many were kept from an earlier run.
     """
     with _compile_clock() as compiling:
         summary = _generate(config, out, workers=workers, executor=executor,
@@ -352,7 +352,9 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
     for stale in (folder / SHARDS).glob("part-*.h5"):
         if stale.name not in planned:
             stale.unlink()
-    return dict(out=str(index), shards=len(plan), kept=len(plan) - len(todo))
+    return dict(out=str(index), shards=len(plan), kept=len(plan) - len(todo),
+                simulated_s=sum(config.missions[i].scenario.duration
+                                for k in todo for i in plan[k][1]))
 
 
 @contextmanager
