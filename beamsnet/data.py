@@ -58,8 +58,12 @@ class DataError(DatasetError, ValueError):
     boundary catches it with the others."""
 
 
-# What a simulated mission's target is; a recorded mission's is its reference.
+# What a simulated mission's target is; an imported velocity stream's (``auvsim import
+# --format velocity``: real velocities, synthetic beams) is that stream, the truth by the
+# paper's protocol; a recorded mission's is its reference.
 TRUTH = "the simulator's truth"
+IMPORTED = "the imported velocity, the truth by the paper's protocol"
+TRUTHS = (TRUTH, IMPORTED)  # targets that are the truth by construction
 
 
 class Windows(NamedTuple):
@@ -252,7 +256,7 @@ def check_truth(windows: Windows, dataset: str | os.PathLike) -> None:
     bad = ~np.isfinite(windows.target).all(axis=1)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
-        what = ("true" if windows.reference == TRUTH else "reference")
+        what = ("true" if windows.reference in TRUTHS else "reference")
         raise DataError(f"{dataset}: the {what} DVL velocity holds NaN or inf in "
                         f"{int(bad.sum())} of {len(bad)} samples (the first in mission "
                         f"{windows.names[windows.mission[first]]} at "
@@ -321,7 +325,8 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
         target = reference_velocity(m, m.dvl.time[ks])
         reference = f"the reference: {m.attrs.get('reference_source', 'unnamed')}"
     else:
-        target, reference = m.dvl.velocity[ks], TRUTH
+        target = m.dvl.velocity[ks]
+        reference = TRUTH if m.origin == "simulated" else IMPORTED
     return dict(
         beams=beams[ks],
         past_beams=beams[ks[:, None] + np.arange(-n_past, 0)],

@@ -33,7 +33,7 @@ import numpy as np
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import AuvsimError, ConfigError
 from beamsnet import metrics
-from beamsnet.data import TRUTH, DataError, Windows, check_truth, load_windows, split
+from beamsnet.data import TRUTHS, DataError, Windows, check_truth, load_windows, split
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
 from beamsnet.estimators.ins import at_pings
@@ -479,7 +479,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         tracks = estimator.tracks(windows)
         summary["availability"] = float(np.mean(np.concatenate(
             [t.accepted for t in tracks.values()])))
-    target = "true" if windows.reference == TRUTH else "reference"
+    target = "true" if windows.reference in TRUTHS else "reference"
     columns = ["mission", "time", "vx", "vy", "vz", f"{target}_vx", f"{target}_vy",
                f"{target}_vz"]
     table = [windows.names[m] for m in windows.mission], windows.time, *pred.T, \
@@ -502,7 +502,7 @@ def baseline_names(reference: str) -> tuple[str, str]:
     """The two dead-reckoning baselines' row names, for windows whose target is
     ``reference`` (``Windows.reference``): the DVL's own velocity integrated with the
     reference's (or the truth's) attitude, and with the filter's own attitude."""
-    whose = "true" if reference == TRUTH else "reference"
+    whose = "true" if reference in TRUTHS else "reference"
     return f"DR: DVL + {whose} attitude", "DR: DVL + filter attitude"
 
 

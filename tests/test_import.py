@@ -118,6 +118,18 @@ def test_v1_on_a_file_without_imu_gives_one_line_and_exit_2(npy, tmp_path, capsy
     assert not (tmp_path / "run").exists()
 
 
+def test_an_imported_stream_is_scored_against_itself_not_a_simulator(npy, tmp_path, capsys):
+    """An imported velocity stream is the truth by the paper's protocol, and scores say
+    so: not "the simulator's truth", which it never had."""
+    out = tmp_path / "v.h5"
+    import_velocity([npy], out, dvl=DvlConfig(beam_angle_deg=20.0))
+    assert beamsnet_main(["estimate", str(out), "--estimator", "LS", "--out",
+                          str(tmp_path / "est")]) == 0
+    said = capsys.readouterr().out
+    assert "scored against the imported velocity, the truth by the paper's protocol" in said
+    assert "simulator" not in said
+
+
 @pytest.mark.parametrize("name,content,message", [
     ("wide.npy", np.zeros((500, 3)), "expected a numeric array of shape (3, N)"),
     ("bad.csv", "1,2,3\n4,5\n", "line 2: expected three columns"),
