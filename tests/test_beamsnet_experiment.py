@@ -138,3 +138,9 @@ def test_the_paper_sim_report_lists_a_diverged_seed(tmp_path, monkeypatch):
             assert f"| {speed} m/s | {model} |" in report
     assert report.count("seed_1 diverged") == 6 and report.count("seed_0 ") == 6
     assert "each model trained from 2 seeds" in report
+    assert "paper-sim_60s.h5`, 60 s per speed" in report
+    # Given a file, the report says the file's own length, not the --duration default's.
+    again = paper_sim("paper-sim", data=tmp_path / "datasets" / "paper-sim_60s.h5",
+                      duration=7200.0, out=tmp_path / "again", training=TrainConfig(epochs=1),
+                      restarts=2, workers=1, progress=False).read_text()
+    assert "paper-sim_60s.h5`, 60 s per speed" in again and "7200" not in again

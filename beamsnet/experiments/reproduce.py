@@ -80,6 +80,7 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
     Returns:
         The report's path.
     """
+    from auvsim.data.reader import open_dataset
     from auvsim.runs.presets import preset
 
     training, restarts = settings(experiment, training, restarts, out=out, cluster=cluster)
@@ -121,8 +122,10 @@ def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,
             for model, k in ours.items()}
         by_model["floor"] = _noise_floor(data, mission.name)
         summary.append((speed, by_model))
+    with open_dataset(data) as f:  # the file's own length, which --duration need not be
+        lengths = {float(f.missions[m.name].attrs["duration_s"]) for m in config.missions}
     with staged_dir(out) as stage:  # the report and its figure, or neither
-        write_text(stage / f"{experiment}.md", _report(experiment, data, duration, training,
+        write_text(stage / f"{experiment}.md", _report(experiment, data, lengths, training,
                                                        restarts, summary, sections))
         _figure(summary, stage / f"{experiment}.png")
     return Path(out) / f"{experiment}.md"
@@ -249,12 +252,13 @@ def _imported_from(dataset: Path, digests: list[str], open_dataset) -> bool:
     return found == digests
 
 
-def _report(experiment, data, duration, training: TrainConfig, restarts, summary,
-            sections) -> str:
+def _report(experiment, data, lengths: set[float], training: TrainConfig, restarts,
+            summary, sections) -> str:
+    per = " to ".join(f"{x:g}" for x in sorted({min(lengths), max(lengths)}))
     lines = [
         f"# {experiment}: the BeamsNet paper's simulation, reproduced",
         "",
-        f"Made by `beamsnet reproduce {experiment}` (dataset `{data}`, {duration:g} s per "
+        f"Made by `beamsnet reproduce {experiment}` (dataset `{data}`, {per} s per "
         f"speed; RMSprop, batch {training.batch_size}, lr {training.lr:g} decaying "
         f"x{training.lr_gamma:g} every {training.lr_step} epochs, "
         f"{count(training.epochs, 'epoch')}, "
