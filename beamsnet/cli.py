@@ -370,6 +370,8 @@ def _reproduce(args) -> None:
                           seeds=ADAPTIVE_SEEDS if args.seeds is None else args.seeds,
                           progress=not args.quiet, cluster=args.cluster)
         print(f"wrote {report}")
+        print(f"{MADE_BESIDE}; the noise models in runs/adaptive/ (noise-model.npz, seed 0, "
+              "replaced by each run)")
         return
 
     # sim2real and sea test on sea data: they train with the paper's sea-data settings.
@@ -409,6 +411,12 @@ def _reproduce(args) -> None:
                            out=args.out, training=training, restarts=restarts,
                            progress=not args.quiet, cluster=args.cluster)
     print(f"wrote {report}")
+    print(MADE_BESIDE)
+
+
+# What reproduce and stress make outside --out, said after their reports.
+MADE_BESIDE = ("its datasets are in datasets/ and its trained models in runs/ (made once, "
+               "reused by the next run)")
 
 
 def _stress(args) -> None:
@@ -427,6 +435,7 @@ def _stress(args) -> None:
                     else tuple(args.fault_missions), noise=args.noise,
                     progress=not args.quiet, cluster=args.cluster)
     print(f"wrote {report} and its figures")
+    print(MADE_BESIDE)
 
 
 def _warn(message, category, filename, lineno, file=None, line=None) -> None:

@@ -205,7 +205,7 @@ def test_reproduce_adaptive_refuses_the_networks_settings(flag, said, tmp_path, 
 
 
 @pytest.mark.slow
-def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
+def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
     """Two weaving segments the test writes, a tiny training set (20 s per manoeuvre):
     every filter scored on every held-out mission against the truth and every segment
     against the reference, the targets stated met or missed, the figures and the model."""
@@ -217,6 +217,10 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["reproduce", "adaptive", "--data", str(logs), "--duration", "20",
                  "--seeds", "2", "--out", "report", "--quiet"]) == 0
+    said = capsys.readouterr().out  # what it made outside --out, said
+    assert "its datasets are in datasets/" in said and "runs/adaptive/" in said
+    assert sorted(p.name for p in (tmp_path / "runs" / "adaptive").iterdir()) == [
+        "noise-model-seed1.npz", "noise-model.npz"]
     results = json.loads((tmp_path / "report" / "adaptive.json").read_text())
     assert list(results["recorded"]) == ["trajectory1", "trajectory2"]
     assert len(results["simulated"]) == 20
