@@ -214,6 +214,27 @@ def test_ctrl_c_before_the_rename_leaves_nothing(tmp_path, capsys, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_ctrl_c_names_the_models_its_workers_finished(small, tmp_path, capsys):
+    """A model a training job finished stays for the next run (its folder existed), and
+    an interrupted command names it among what it leaves, not "nothing else"."""
+    from auvsim.cli_support import run_command
+    from beamsnet.training.config import TrainConfig
+    from beamsnet.training.runs import train_all
+
+    (tmp_path / "runs").mkdir()
+    out = tmp_path / "runs" / "v2"
+
+    def command():
+        train_all([(small, TrainConfig(model="v2", epochs=1), out)], workers=1,
+                  progress=False)
+        raise KeyboardInterrupt
+
+    assert run_command("beamsnet", command, {}) == 130
+    assert capsys.readouterr().err == (f"beamsnet: interrupted; {out} had been written "
+                                       "whole before it, nothing else was\n")
+    assert (out / "model.pt").is_file()
+
+
 def test_ctrl_c_in_beamsnet_is_one_line(small, tmp_path, capsys, monkeypatch):
     import beamsnet.training.train as train
 

@@ -273,19 +273,30 @@ class Outputs:
         made: the outermost folders it made.
         written: the files it wrote whole (``commit``), in order.
         removed: those it removed again on failure.
+        finished: what its workers finished whole and it keeps whatever follows (a
+            trained model's folder, ``finished``), in order.
     """
 
     folders: list[Path] = field(default_factory=list)
     made: list[Path] = field(default_factory=list)
     written: list[Path] = field(default_factory=list)
     removed: list[Path] = field(default_factory=list)
+    finished: list[Path] = field(default_factory=list)
 
     @property
     def kept(self) -> list[Path]:
-        """The files written and still there, each once (a file written into a
-        ``staged_dir`` that was then thrown away is not)."""
-        return list(dict.fromkeys(p for p in self.written
+        """The files written and still there, and what was finished, each once (a file
+        written into a ``staged_dir`` that was then thrown away is not)."""
+        return list(dict.fromkeys(p for p in (*self.written, *self.finished)
                                   if p not in self.removed and p.exists()))
+
+
+def finished(path: str | os.PathLike) -> None:
+    """Record ``path`` (a file or folder another process made whole: a trained model's
+    run folder) as kept by every open ``all_or_nothing`` block, which then names it
+    among what an interrupted command leaves; no block removes it."""
+    for scope in _scopes:
+        scope.finished.append(Path(path))
 
 
 _scopes: list[Outputs] = []  # the open ``all_or_nothing`` blocks, outermost first

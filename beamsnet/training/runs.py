@@ -21,7 +21,7 @@ from pathlib import Path
 import torch
 from tqdm import tqdm
 
-from auvsim.data.files import check_out_dir, staged_dir, write_text
+from auvsim.data.files import check_out_dir, finished, staged_dir, write_text
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
 from auvsim.runs.generate import exit_with, this_process
@@ -76,7 +76,11 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
     # trains, else a share of the cores.
     threads = torch.get_num_threads() if workers == 1 else max(1, cores // workers)
     if workers == 1 and cluster is None:
-        return [job(d, c, o, progress=progress, threads=threads) for d, c, o in jobs]
+        done = []
+        for d, c, o in jobs:
+            done.append(job(d, c, o, progress=progress, threads=threads))
+            finished(o)
+        return done
     if cluster is None:
         # Each worker ends with this process, even one killed with -9 (``exit_with``).
         runner = cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(
@@ -87,11 +91,12 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             jobs = [(Path(d).absolute(), c, Path(o).absolute()) for d, c, o in jobs]
     with runner as pool, tqdm(total=len(jobs), disable=None if progress else True,
                               leave=False, unit=" models", desc="training") as bar:
-        futures = [pool.submit(job, d, c, o, progress=False, threads=threads)
-                   for d, c, o in jobs]
+        futures = {pool.submit(job, d, c, o, progress=False, threads=threads): o
+                   for d, c, o in jobs}
         try:
             for future in cf.as_completed(futures):
                 future.result()  # the first error stops here, naming what went wrong
+                finished(futures[future])  # whole, and kept for the next run
                 bar.update()
         except BaseException as e:
             for future in futures:
