@@ -383,7 +383,7 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
             filter on a file without an IMU record (its own one-line reason).
     """
     def key(text: str) -> str:
-        return text.lower().replace("-", " ").replace("_", " ")
+        return "".join(c for c in text.lower() if c not in " -_")
 
     for s in specs():
         if s.kind == "network" or key(s.name) != key(name):

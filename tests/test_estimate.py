@@ -23,7 +23,7 @@ def turning(dataset_of):
     return dataset_of(flat(turn, dvl=dvl), "turning")
 
 
-@pytest.mark.parametrize("name", ["LS", "beam-calibration", "missing beam ls"])
+@pytest.mark.parametrize("name", ["LS", "beam-calibration", "missing beam ls", "MissingBeam_LS"])
 def test_estimate_writes_every_ping_beside_the_truth(turning, tmp_path, name, capsys):
     out = tmp_path / "est"
     assert main(["estimate", str(turning), "--estimator", name, "--out", str(out)]) == 0
