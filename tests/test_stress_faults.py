@@ -170,9 +170,15 @@ def test_bad_fault_options_get_one_line_and_exit_2(tmp_path, monkeypatch, capsys
 
 
 @pytest.mark.slow
-def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch):
+def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(TINY) == 0
+    # The learned noise is left out once for the run, not once per file (17 of them).
+    left = [line for line in capsys.readouterr().err.splitlines()
+            if "INS/DVL (learned noise) left out" in line]
+    assert len(left) == 1 and left[0].endswith("(and on 16 more of its files)"), left
+    assert "the training windows are of another (their mission 'speed_1' is not in it)" \
+        in left[0]
     out = tmp_path / "reports"
     summary = json.loads((out / "faults.json").read_text())
     assert list(summary["sweeps"]) == list(SWEEPS)

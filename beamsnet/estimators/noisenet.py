@@ -345,11 +345,12 @@ def _check_windows_of(dataset, windows: Windows) -> None:
                         and np.allclose(theirs[both], windows.beams[rows][both], rtol=1e-6,
                                         atol=1e-9))
             if not same:
+                which = "differs from the file's" if name in f.missions else "is not in it"
                 raise NoiseModelError(
                     f"the learned noise trains on the filter's own file ({dataset}), and the "
-                    f"training windows' mission {name!r} is not its; expected training "
-                    "windows of that file, or a trained model (noise_model in "
-                    "--filter-config)")
+                    f"training windows are of another (their mission {name!r} {which}); "
+                    "expected training windows of that file, or a trained model "
+                    "(noise_model in --filter-config)")
 
 
 ESTIMATORS = (

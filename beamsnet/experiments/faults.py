@@ -43,6 +43,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,7 +54,7 @@ from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import Windows, load_windows, select
 from beamsnet.estimators import short_name, spec
-from beamsnet.evaluate import baselines, fit_filters, trimmed
+from beamsnet.evaluate import FilterWarning, baselines, fit_filters, trimmed
 from beamsnet.experiments.runner import ensure_dataset
 from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import dead_reckoning_error, held, own_position_error, truth_at_pings
@@ -242,6 +243,7 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
             paths[text] = _dataset(config, fault, duration, datasets, progress)
     results: dict[str, list[dict]] = {}
     scored: dict[str, dict] = {}  # file -> its scores
+    left_out: dict[str, list[str]] = {}  # filter -> why it was left out, per file
     for sweep, faults in plan.items():
         results[sweep] = []
         for fault in faults:
@@ -250,7 +252,15 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 windows = load_windows(path, n_past=n_past, missions=list(missions),
                                        every_ping=True)
                 truth = truth_at_pings(path, windows)
-                own = fit_filters(path, train_w)
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", FilterWarning)
+                    own = fit_filters(path, train_w)
+                for w in caught:
+                    if issubclass(w.category, FilterWarning):
+                        name, _, why = str(w.message).partition(" left out on ")
+                        left_out.setdefault(name, []).append(why)
+                    else:
+                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
                 estimates = _estimates(fitted + own, models, windows)
                 positions = {f.name: f.positions(windows) for f in own}
                 scored[str(path)] = {name: _score(windows, pred, truth,
@@ -261,6 +271,9 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 dvl=_jsonable(dict(fault.dvl)), current_ned=fault.current_ned,
                 estimators=scored[str(path)]))
 
+    for name, whys in left_out.items():  # once for the run, not once per file
+        more = f" (and on {len(whys) - 1} more of its files)" if len(whys) > 1 else ""
+        warnings.warn(f"{name} left out on {whys[0]}{more}", FilterWarning, stacklevel=2)
     summary = dict(train_data=str(train_data), trained_on=trained_on,
                    models=[_trained(c) for _, _, c in models], missions=list(missions),
                    duration_s=duration, sweeps=results)
