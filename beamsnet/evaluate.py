@@ -113,7 +113,8 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
     ``run`` was trained on (``checkpoint["sensors"]``, see
     ``beamsnet.training.checkpoints.sensor_setup``).
 
-    A value matches when it equals that of any training mission. An attribute either side
+    A value matches when it equals that of any training mission (a mounting and a rate
+    within ``SENSOR_TOLERANCE``). An attribute either side
     lacks (an imported stream has no IMU rate) is not compared. ``setup`` is
     ``sensor_setup(dataset)`` when the caller has read it already (once for many runs).
 
@@ -150,17 +151,27 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
                       "errors", SensorSetupWarning, stacklevel=2)
 
 
+# What is the same sensor setup though not the same number (rtol, atol): a DVL mounting
+# within a degree of the training data's (the residual a calibration finds: auvsim
+# check-log's are a few tenths of a degree on a real vehicle) and a rate within 1 % (a
+# clock's error, thousands of ppm at most). Anything else matches to the last bits.
+SENSOR_TOLERANCE = {"dvl_mounting_rpy_deg": (0.0, 1.0), "dvl_rate_hz": (0.01, 0.0),
+                    "imu_rate_hz": (0.01, 0.0)}
+
+
 def _differences(setup: dict[str, dict], trained_on: dict[str, dict], keys) -> str:
-    """The values of ``keys`` in the missions of ``setup`` that no training mission has,
-    in words ("beam_angle_deg 30 (mission a) against 20"); empty when all match."""
+    """The values of ``keys`` in the missions of ``setup`` that no training mission has
+    (within ``SENSOR_TOLERANCE``), in words ("beam_angle_deg 30 (mission a) against 20");
+    empty when all match."""
     said = []
     for key in keys:
         reference = [s[key] for s in trained_on.values() if key in s]
+        rtol, atol = SENSOR_TOLERANCE.get(key, (1e-9, 0.0))
         seen: dict[str, list[str]] = {}  # value -> the missions that have it
         for name, attrs in setup.items():
             if key in attrs and reference and not any(
                     np.shape(attrs[key]) == np.shape(r)
-                    and np.allclose(attrs[key], r, rtol=1e-9, atol=0) for r in reference):
+                    and np.allclose(attrs[key], r, rtol=rtol, atol=atol) for r in reference):
                 seen.setdefault(_value(attrs[key]), []).append(name)
         theirs = " or ".join(dict.fromkeys(_value(r) for r in reference))
         said += [f"{key} {value} (mission {', '.join(names)}) against {theirs}"

@@ -116,3 +116,16 @@ def test_rates_and_mounting_are_geometry(run, data):
         warnings.simplefilter("error", SensorSetupWarning)  # no error, no warning
         check_sensors(run, imported, data["trained"])
     assert sensor_setup(data["trained"]) == checkpoint["sensors"]
+    # A calibration's residual mounting and a clock's rate error are the same setup:
+    # within a degree and 1 %; just beyond either is refused.
+    near = copy.deepcopy(checkpoint)
+    near["sensors"]["a"].update(dvl_rate_hz=0.9975, imu_rate_hz=100.9,
+                                dvl_mounting_rpy_deg=[0.27, -0.07, -0.99])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SensorSetupWarning)
+        check_sensors(run, near, data["trained"])
+    for change in (dict(dvl_rate_hz=0.985), dict(dvl_mounting_rpy_deg=[0.0, 0.0, 1.02])):
+        beyond = copy.deepcopy(checkpoint)
+        beyond["sensors"]["a"].update(change)
+        with pytest.raises(ConfigError, match=next(iter(change))):
+            check_sensors(run, beyond, data["trained"])
