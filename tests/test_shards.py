@@ -171,6 +171,18 @@ def test_a_missing_shard_or_index_is_refused_in_one_line(sharded, capsys):
     assert auvsim_cli.main(["inspect", str(sharded)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"is a directory with no {INDEX}" in err
+    assert "run it again to finish the dataset" in err  # its shards are there
+    run = sharded.parent / "run"  # a training run's folder given as a dataset
+    run.mkdir()
+    (run / "model.pt").write_bytes(b"")
+    with pytest.raises(DatasetError, match="is a training run .model.pt., not a dataset"):
+        open_dataset(run)
+    empty = sharded.parent / "empty"  # any other folder: no hint of a rerun
+    empty.mkdir()
+    with pytest.raises(DatasetError) as other:
+        open_dataset(empty)
+    assert f"is a directory with no {INDEX}" in str(other.value)
+    assert "run it again" not in str(other.value)
 
 
 def test_a_corrupt_shard_names_the_shard_and_the_field(sharded, capsys):

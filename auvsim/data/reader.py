@@ -358,10 +358,14 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     path = Path(path)
     if path.is_dir() and (path / INDEX).exists():
         path = path / INDEX
+    elif path.is_dir() and (path / "model.pt").exists():
+        raise DatasetError(f"{path}: is a training run (model.pt), not a dataset; expected "
+                           "an auvsim dataset file or a sharded dataset's folder")
     elif path.is_dir():
+        hint = (" (auvsim generate writes its index last: run it again to finish the "
+                "dataset)") if (path / SHARDS).is_dir() else ""
         raise DatasetError(f"{path}: is a directory with no {INDEX}; expected an auvsim "
-                           "dataset file or a sharded dataset's folder (auvsim generate "
-                           "writes its index last: run it again to finish the dataset)")
+                           f"dataset file or a sharded dataset's folder{hint}")
     if not path.exists():
         raise DatasetError(f"{path}: no such file")
     if not path.is_file():
