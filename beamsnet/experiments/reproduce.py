@@ -208,8 +208,9 @@ def snapir_dataset(data: Path, datasets: Path = Path("datasets")) -> Path:
     if missing:
         raise ConfigError(
             f"{str(data)!r}: no {', '.join(missing)}; expected a directory with the "
-            "Snapir AUV's V.npy and V_test.npy (3 x N DVL velocities), from the public "
-            "repository of the BeamsNet paper (see the README)", argument="data")
+            "Snapir AUV's V.npy and V_test.npy (3 x N DVL velocities), from the BeamsNet "
+            "paper's public repository, github.com/ansfl/BeamsNet (docs/guides/"
+            "train-evaluate.md says more)", argument="data")
     dataset = datasets / "snapir.h5"
     digests = [hashlib.sha256(p.read_bytes()).hexdigest() for p in sources]
     if not _imported_from(dataset, digests, open_dataset):
