@@ -28,6 +28,8 @@ EXAMPLES = """examples:
 
 Each command has its own --help."""
 
+DATASET_HELP = "a dataset: an .h5 file, or a sharded dataset's folder (or its index.h5)"
+
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "seed": "--seed", "missions": "--mission", "config": "--config",
          "workers": "--workers", "shards": "--shards", "cluster": "--cluster",
@@ -97,7 +99,7 @@ def _parser() -> argparse.ArgumentParser:
         "and the fields it holds. Every value is read and checked, so a damaged file is "
         "refused.")
     inspect.add_argument("file", type=Path,
-                         help="a dataset: an .h5 file, or a sharded dataset's index.h5")
+                         help=DATASET_HELP)
     imp = sub.add_parser(
         "import-velocity",
         help="make a dataset from recorded DVL velocities (import --format velocity)",
@@ -124,7 +126,7 @@ def _parser() -> argparse.ArgumentParser:
         "beams' status and, where the file has them, the current and the DVL's error "
         "velocity.")
     plot.add_argument("file", type=Path,
-                      help="a dataset: an .h5 file, or a sharded dataset's index.h5")
+                      help=DATASET_HELP)
     plot.add_argument("--mission", action="append", dest="missions", metavar="NAME",
                       help="draw this mission only (repeatable; default: all)")
     plot.add_argument("--out", type=Path, metavar="DIR",
@@ -303,7 +305,7 @@ def _export_parser(sub) -> None:
         "ensembles (header, fixed and variable leaders, bottom track with checksums), in "
         "beam or instrument coordinates. Needs auvsim[io].")
     export.add_argument("dataset", type=Path, metavar="DATASET",
-                        help="a dataset: an .h5 file, or a sharded dataset's index.h5")
+                        help=DATASET_HELP)
     export.add_argument("--to", choices=sorted(_EXPORTERS), required=True,
                         help="the format (required; no default)")
     export.add_argument("--out", type=Path, required=True, metavar="FILE",

@@ -145,8 +145,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="folder for estimates.csv and summary.json (default: a new "
                     "runs/estimate-DATE-TIME)")
     rp = sub.add_parser(
-        "reproduce", help="reproduce the paper's experiments: the simulation's Table 1, "
-        "the Snapir sea data's Table 3", formatter_class=_Defaults)
+        "reproduce", help="reproduce the paper's experiments (the simulation's Table 1, "
+        "the Snapir sea data's Table 3) and ours: sim-to-real, the real segments, the "
+        "learned noise", formatter_class=_Defaults)
     rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real",
                                            "sea", "adaptive"),
                     metavar="EXPERIMENT",
