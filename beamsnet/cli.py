@@ -129,6 +129,7 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
+    ev.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     runnable = [s for s in specs() if s.kind != "network"]
     es = sub.add_parser(
         "estimate", help="run one model-based estimator or filter over every ping of a "
@@ -294,7 +295,8 @@ def _evaluate(args) -> None:
     config = _filter_config(args.filter_config)
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
-                       allow_mismatch=args.allow_mismatch, filter_config=config)
+                       allow_mismatch=args.allow_mismatch, filter_config=config,
+                       progress=not args.quiet)
     for dataset, result in results.items():
         print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
         if "navigation" in result:

@@ -302,7 +302,8 @@ def _or_na(value: float, spec: str) -> str:
 
 
 def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path, *,
-             allow_mismatch: bool = False, filter_config=None) -> dict:
+             allow_mismatch: bool = False, filter_config=None, progress: bool = False
+             ) -> dict:
     """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
 
     Args:
@@ -313,21 +314,30 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         allow_mismatch: evaluate on data whose beam geometry or rates differ from a run's
             training data (with a warning) instead of refusing it.
         filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
+        progress: a progress bar on a terminal, over each dataset's stages (estimates,
+            scores, plots).
 
     Raises:
         ConfigError: ``out`` cannot be a directory; a dataset's sensors do not match.
         CheckpointError: a run is missing or not a readable beamsnet run.
         DataError: a dataset is not an auvsim dataset or gives no samples.
     """
+    from tqdm import tqdm
+
     out = check_out_dir(out)
     models = [(Path(r), *load(r)) for r in runs]
     results, sections, figures = {}, [], []
+    bar = tqdm(total=3 * len(datasets), disable=None if progress else True, leave=False,
+               unit=" stages", desc="evaluating")
     for dataset in datasets:
         setup = sensor_setup(dataset)  # read once for every run
         for run, _, checkpoint in models:
             check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
         own = dict(positions={}, stds={}, rotations={})
+        bar.set_postfix_str(f"every estimator on {Path(dataset).name}")
         windows, predictions = _estimates(models, dataset, filter_config=filter_config, **own)
+        bar.update()
+        bar.set_postfix_str(f"scores on {Path(dataset).name}")
         for run, _, checkpoint in models:
             check_missions(run, checkpoint, dataset, list(windows.names))
         rows = table(windows, predictions)
@@ -347,10 +357,14 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
             results[str(dataset)]["navigation"] = navigation
             sections.append(navigation_markdown(navigation, windows.reference))
         figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
+        bar.update()
     # Only now, every input checked, is ``out`` made: whole, or not at all.
     with staged_dir(out) as stage:
+        bar.set_postfix_str("plots")
         for windows, predictions, per_mission, name in figures:
             _plot(windows, predictions, per_mission, stage / name)
+            bar.update()
+        bar.close()
         write_text(stage / "evaluation.md", "\n\n".join(sections) + "\n")
         write_text(stage / "evaluation.json", json.dumps(results, indent=1))
     return results
