@@ -120,10 +120,31 @@ def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, 
     assert refused.value.argument == "average_epochs"
 
 
-def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path):
-    jobs = [(scale_only, TrainConfig(model="v2", epochs=1, seed=s), tmp_path / f"p{s}")
+def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path, monkeypatch):
+    """And its progress bar counts the workers' epochs as they end, not only whole models
+    (it sat at 0 of 3 for minutes)."""
+    import beamsnet.training.runs as runs
+
+    counted = []
+
+    class Bar:
+        def __init__(self, *, total, unit, **kwargs):
+            counted.append((total, unit))
+
+        def update(self, n=1):
+            counted.append(n)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(runs, "tqdm", Bar)
+    jobs = [(scale_only, TrainConfig(model="v2", epochs=2 + s, seed=s), tmp_path / f"p{s}")
             for s in (1, 2)]
-    parallel = train_all(jobs, workers=2, progress=False)
+    parallel = train_all(jobs, workers=2, progress=True)
+    assert counted[0] == (7, " epochs") and counted[1:] == [1] * 7
     serial = train(scale_only, jobs[1][1], tmp_path / "serial", progress=False)
     assert parallel[1]["final_train_loss"] == pytest.approx(serial["final_train_loss"],
                                                             rel=1e-5)

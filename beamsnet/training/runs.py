@@ -47,7 +47,8 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             workers see (a shared folder), and means the same file there.
         workers: processes (default: as many as cores, at most one per job); on a cluster
             they only set the threads, as they would here.
-        progress: a progress bar over jobs (over steps when there is one process here).
+        progress: a progress bar over the jobs' epochs (over steps when there is one
+            process here; over jobs on a cluster).
         diverged: ``"raise"``: a job whose loss became non-finite stops the others, as
             any error does; ``"record"``: its summary is ``{"diverged": why,
             "final_train_loss": nan}`` and the others go on (restarts: a seed that
@@ -81,23 +82,35 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
             done.append(job(d, c, o, progress=progress, threads=threads))
             finished(o)
         return done
+    epochs = None  # each local worker's epochs, as they end (a cluster's: its jobs)
     if cluster is None:
+        context = multiprocessing.get_context("forkserver")
+        epochs = context.SimpleQueue()
         # Each worker ends with this process, even one killed with -9 (``exit_with``).
-        runner = cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(
-            "forkserver"), initializer=exit_with, initargs=(this_process(),))
+        runner = cf.ProcessPoolExecutor(workers, mp_context=context, initializer=_worker,
+                                        initargs=(this_process(), epochs))
+        total, unit = sum(c.epochs for _, c, _ in jobs), " epochs"
     else:
         runner = executor(cluster, threads=1)
         if local_workers(cluster) is None:  # a scheduler's workers have their own cwd
             jobs = [(Path(d).absolute(), c, Path(o).absolute()) for d, c, o in jobs]
-    with runner as pool, tqdm(total=len(jobs), disable=None if progress else True,
-                              leave=False, unit=" models", desc="training") as bar:
+        total, unit = len(jobs), " models"
+    with runner as pool, tqdm(total=total, disable=None if progress else True,
+                              leave=False, unit=unit, desc="training") as bar:
         futures = {pool.submit(job, d, c, o, progress=False, threads=threads): o
                    for d, c, o in jobs}
         try:
-            for future in cf.as_completed(futures):
-                future.result()  # the first error stops here, naming what went wrong
-                finished(futures[future])  # whole, and kept for the next run
-                bar.update()
+            pending = set(futures)
+            while pending:
+                done, pending = cf.wait(pending, timeout=0.5,
+                                        return_when=cf.FIRST_COMPLETED)
+                while epochs is not None and not epochs.empty():
+                    bar.update(epochs.get())
+                for future in done:
+                    future.result()  # the first error stops here, naming what went wrong
+                    finished(futures[future])  # whole, and kept for the next run
+                    if epochs is None:
+                        bar.update()
         except BaseException as e:
             for future in futures:
                 future.cancel()  # the jobs not started yet; the running ones finish
@@ -128,6 +141,17 @@ def _stop_workers(pool: cf.ProcessPoolExecutor) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
 
 
+_epochs = None  # a local pool worker's queue to its parent's progress bar (``_worker``)
+
+
+def _worker(parent, epochs) -> None:
+    """A local training pool's initializer: end with the parent (``exit_with``), and
+    report each epoch that ends into ``epochs`` (a queue the parent's bar reads)."""
+    global _epochs
+    exit_with(parent)
+    _epochs = epochs
+
+
 def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress: bool,
          record: bool, threads: int) -> dict:
     """One job of ``train_all`` (module level, so worker processes can run it), trained
@@ -135,8 +159,10 @@ def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress:
     next job of a long-lived worker."""
     previous = torch.get_num_threads()
     torch.set_num_threads(threads)
+    queue = _epochs
+    told = {} if queue is None else {"on_epoch": lambda: queue.put(1)}
     try:
-        return train(dataset, config, out, progress=progress)
+        return train(dataset, config, out, progress=progress, **told)
     except DivergedError as e:
         if not record:
             raise

@@ -62,6 +62,7 @@ import dataclasses
 import json
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -147,8 +148,9 @@ def check_finite(windows: Windows, model: str, dataset: str | Path, *,
 
 
 def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
-          progress: bool = True) -> dict:
-    """Train one model on ``dataset`` and save it under the directory ``out``.
+          progress: bool = True, on_epoch: Callable[[], object] | None = None) -> dict:
+    """Train one model on ``dataset`` and save it under the directory ``out``;
+    ``on_epoch`` is called after each epoch (another process's progress bar).
 
     Every input is checked before the training starts, and nothing is written unless it
     ends with finite weights.
@@ -228,6 +230,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
             history["test"].append(test_loss)
             bar.update(steps)
             bar.set_postfix(train=f"{total / n:.3g}", test=f"{test_loss:.3g}")
+            if on_epoch is not None:
+                on_epoch()
     seconds = time.perf_counter() - started
     if averaged is not None:
         model = averaged.module
