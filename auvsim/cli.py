@@ -250,10 +250,13 @@ def _check_log_parser(sub) -> None:
 def _check_log(args: argparse.Namespace) -> None:
     from auvsim.data.checklog import apply, check_file, to_json
     from auvsim.data.reader import open_dataset
+    from auvsim.data.writer import check_output_path
 
     if args.apply is not None and args.apply.resolve() == args.file.resolve():
         raise ConfigError(f"--apply: {str(args.apply)!r} is the log itself; expected another "
                           "file (the log stays as recorded)")
+    if args.apply is not None:  # refused now, not after the checks' work
+        check_output_path(args.apply, "apply")
     reports = check_file(args.file, args.missions)
     print(to_json(reports) if args.json else "\n\n".join(r.table() for r in reports))
     if args.apply is not None:

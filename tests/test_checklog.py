@@ -353,8 +353,9 @@ def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):
     (tmp_path / "notes.txt").write_text("mine\n")
     for out, message in ((tmp_path / "notes.txt", "a file that is not HDF5 is there"),
                          (tmp_path / "notes.txt" / "x.h5", "is a file, not a folder")):
-        status, _, err = run(["check-log", str(raw), "--apply", str(out)])
+        status, said, err = run(["check-log", str(raw), "--apply", str(out)])
         assert status == 2 and err.count("\n") == 1 and f"--apply {str(out)!r}: " in err, err
+        assert said == ""  # refused before the checks' work, not after their report
         assert message in err and (tmp_path / "notes.txt").read_text() == "mine\n"
     status, _, err = run(["check-log", str(tmp_path / "missing.h5")])
     assert status == 2 and err.count("\n") == 1

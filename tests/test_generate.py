@@ -252,7 +252,7 @@ def test_unwritable_output_is_refused(tmp_path, capsys):
     blocker.write_text("not a directory")
     assert main(["generate", "--duration", "10", "--out", str(blocker / "x.h5")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot write" in err
+    assert err.count("\n") == 1 and "a_file' is a file, not a folder" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
 
 

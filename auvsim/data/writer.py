@@ -45,6 +45,32 @@ def check_mission_name(name: object, where: str) -> None:
                           f"got {name!r}")
 
 
+def check_output_path(path: str | os.PathLike, argument: str = "out") -> Path:
+    """``path`` checked as a dataset file to write: not a folder, not an existing file
+    that is not HDF5 (a dataset replaces only a dataset), not under a file. Cheap, so a
+    command checks it before its work, and the writer again.
+
+    Raises:
+        ConfigError: it is none of those (naming ``argument``).
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{str(path)!r} is a directory: expected a file name "
+                          f"(or {os.path.join(str(path), '')!r}, with a trailing "
+                          "/, for a sharded dataset)", argument=argument)
+    if path.exists():
+        with open(path, "rb") as f:
+            if f.read(len(HDF5_SIGNATURE)) != HDF5_SIGNATURE:
+                raise ConfigError(f"{str(path)!r}: a file that is not HDF5 is there; "
+                                  "expected a new path, or a dataset to replace",
+                                  argument=argument)
+    above = next((p for p in path.parents if p.exists()), None)
+    if above is not None and not above.is_dir():
+        raise ConfigError(f"{str(path)!r}: {str(above)!r} is a file, not a folder; "
+                          "expected a path in a folder", argument=argument)
+    return path
+
+
 class DatasetWriter:
     """Writes a dataset file; use as a context manager.
 
@@ -61,20 +87,7 @@ class DatasetWriter:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
         try:
-            if self.path.is_dir():
-                raise ConfigError(f"{str(self.path)!r} is a directory: expected a file name "
-                                  f"(or {os.path.join(str(self.path), '')!r}, with a trailing "
-                                  "/, for a sharded dataset)", argument=argument)
-            if self.path.exists():
-                with open(self.path, "rb") as f:
-                    if f.read(len(HDF5_SIGNATURE)) != HDF5_SIGNATURE:
-                        raise ConfigError(f"{str(self.path)!r}: a file that is not HDF5 is "
-                                          "there; expected a new path, or a dataset to "
-                                          "replace", argument=argument)
-            above = next((p for p in self.path.parents if p.exists()), None)
-            if above is not None and not above.is_dir():
-                raise ConfigError(f"{str(self.path)!r}: {str(above)!r} is a file, not a "
-                                  "folder; expected a path in a folder", argument=argument)
+            check_output_path(self.path, argument)
             self.path.parent.mkdir(parents=True, exist_ok=True)
             # Temporaries of killed runs in this folder go first (``files.sweep``).
             self.claim = Claim(self.path)
