@@ -187,6 +187,9 @@ def _import_parser(sub) -> None:
 
 
 def _import(args: argparse.Namespace) -> None:
+    from auvsim.data.writer import check_output_path
+
+    check_output_path(args.out)  # before the logs are read
     if args.format == "velocity":
         if args.description is not None:
             raise ConfigError("--description: only for --format csv")
@@ -472,7 +475,12 @@ def _generate(args: argparse.Namespace) -> None:
             generate,  # numba compilation only for the commands that need it
         )
 
+    from auvsim.data.writer import check_output_path
+
     config = build_config(args)
+    if args.shards is None and not args.out.endswith(("/", os.sep)):
+        check_output_path(args.out, hint=f" (or {os.path.join(args.out, '')!r}, with a "
+                          "trailing /, for a sharded dataset)")
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
                        shards=args.shards, progress=not args.quiet)
     # numba's cache did not have it: said on the first run only, and not under --quiet
@@ -516,7 +524,10 @@ def without_negative_zero(text: str) -> str:
 
 def _import_velocity(args: argparse.Namespace) -> None:
     from auvsim.data.importer import import_velocity
+    from auvsim.data.writer import check_output_path
     from auvsim.runs.presets import preset
+
+    check_output_path(args.out)
 
     dvl = dataclasses.replace(preset(args.preset).dvl, rate_hz=args.rate,
                               **({} if args.noise_std is None else

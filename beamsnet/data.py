@@ -83,8 +83,9 @@ class Windows(NamedTuple):
         time: (S,) ping time from the start of its mission, s.
         names: the mission names.
         h: (4, 3) beam matrix shared by every mission.
-        reference: what ``target`` is: ``the simulator's truth``, or for recorded
-            missions ``the reference: <reference_source>``.
+        reference: what ``target`` is: ``the simulator's truth`` (``TRUTH``), for an
+            imported velocity stream that stream (``IMPORTED``), or for recorded missions
+            ``the reference: <reference_source>``.
         derived: the missions whose beams are ``H v`` of the instrument's velocity
             (their log has no beams).
     """

@@ -327,46 +327,45 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
     out = check_out_dir(out)
     models = [(Path(r), *load(r)) for r in runs]
     results, sections, figures = {}, [], []
-    bar = tqdm(total=3 * len(datasets), disable=None if progress else True, leave=False,
-               unit=" stages", desc="evaluating")
-    for dataset in datasets:
-        setup = sensor_setup(dataset)  # read once for every run
-        for run, _, checkpoint in models:
-            check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
-        own = dict(positions={}, stds={}, rotations={})
-        bar.set_postfix_str(f"every estimator on {Path(dataset).name}")
-        windows, predictions = _estimates(models, dataset, filter_config=filter_config, **own)
-        bar.update()
-        bar.set_postfix_str(f"scores on {Path(dataset).name}")
-        for run, _, checkpoint in models:
-            check_missions(run, checkpoint, dataset, list(windows.names))
-        rows = table(windows, predictions)
-        per_mission = {
-            name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
-                                                  windows.target[windows.mission == m])
-                   for m in np.unique(windows.mission)}
-            for name, pred in predictions.items()}
-        results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission,
-                                     against=windows.reference)
-        sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings, "
-                                       f"against {windows.reference}"
-                                       + _derived_words(windows)))
-        if _has_truth(dataset, windows.names):
-            navigation = navigation_scores(windows, predictions,
-                                           truth_at_pings(dataset, windows), **own)
-            results[str(dataset)]["navigation"] = navigation
-            sections.append(navigation_markdown(navigation, windows.reference))
-        figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
-        bar.update()
-    # Only now, every input checked, is ``out`` made: whole, or not at all.
-    with staged_dir(out) as stage:
-        bar.set_postfix_str("plots")
-        for windows, predictions, per_mission, name in figures:
-            _plot(windows, predictions, per_mission, stage / name)
+    with tqdm(total=3 * len(datasets), disable=None if progress else True, leave=False,
+              unit=" stages", desc="evaluating") as bar:  # closed on an error too
+        for dataset in datasets:
+            setup = sensor_setup(dataset)  # read once for every run
+            for run, _, checkpoint in models:
+                check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
+            own = dict(positions={}, stds={}, rotations={})
+            bar.set_postfix_str(f"every estimator on {Path(dataset).name}")
+            windows, predictions = _estimates(models, dataset, filter_config=filter_config, **own)
             bar.update()
-        bar.close()
-        write_text(stage / "evaluation.md", "\n\n".join(sections) + "\n")
-        write_text(stage / "evaluation.json", json.dumps(results, indent=1))
+            bar.set_postfix_str(f"scores on {Path(dataset).name}")
+            for run, _, checkpoint in models:
+                check_missions(run, checkpoint, dataset, list(windows.names))
+            rows = table(windows, predictions)
+            per_mission = {
+                name: {windows.names[m]: metrics.rmse(pred[windows.mission == m],
+                                                      windows.target[windows.mission == m])
+                       for m in np.unique(windows.mission)}
+                for name, pred in predictions.items()}
+            results[str(dataset)] = dict(rows=rows, rmse_per_mission=per_mission,
+                                         against=windows.reference)
+            sections.append(markdown(rows, f"{dataset}: test split, {len(windows.target)} pings, "
+                                           f"against {windows.reference}"
+                                           + _derived_words(windows)))
+            if _has_truth(dataset, windows.names):
+                navigation = navigation_scores(windows, predictions,
+                                               truth_at_pings(dataset, windows), **own)
+                results[str(dataset)]["navigation"] = navigation
+                sections.append(navigation_markdown(navigation, windows.reference))
+            figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
+            bar.update()
+        # Only now, every input checked, is ``out`` made: whole, or not at all.
+        with staged_dir(out) as stage:
+            bar.set_postfix_str("plots")
+            for windows, predictions, per_mission, name in figures:
+                _plot(windows, predictions, per_mission, stage / name)
+                bar.update()
+            write_text(stage / "evaluation.md", "\n\n".join(sections) + "\n")
+            write_text(stage / "evaluation.json", json.dumps(results, indent=1))
     return results
 
 

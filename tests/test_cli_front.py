@@ -222,17 +222,20 @@ def test_ctrl_c_names_the_models_its_workers_finished(small, tmp_path, capsys):
     from beamsnet.training.runs import train_all
 
     (tmp_path / "runs").mkdir()
-    out = tmp_path / "runs" / "v2"
+    for workers in (1, 2):  # in this process, and in a pool's
+        outs = [tmp_path / "runs" / f"w{workers}_{k}" for k in range(workers)]
 
-    def command():
-        train_all([(small, TrainConfig(model="v2", epochs=1), out)], workers=1,
-                  progress=False)
-        raise KeyboardInterrupt
+        def command(outs=outs, workers=workers):
+            train_all([(small, TrainConfig(model="v2", epochs=1), o) for o in outs],
+                      workers=workers, progress=False)
+            raise KeyboardInterrupt
 
-    assert run_command("beamsnet", command, {}) == 130
-    assert capsys.readouterr().err == (f"beamsnet: interrupted; {out} had been written "
-                                       "whole before it, nothing else was\n")
-    assert (out / "model.pt").is_file()
+        assert run_command("beamsnet", command, {}) == 130
+        err = capsys.readouterr().err
+        assert err.startswith("beamsnet: interrupted; ") and err.count("\n") == 1, err
+        assert err.endswith(" had been written whole before it, nothing else was\n"), err
+        for o in outs:
+            assert str(o) in err and (o / "model.pt").is_file()
 
 
 def test_ctrl_c_in_beamsnet_is_one_line(small, tmp_path, capsys, monkeypatch):

@@ -256,6 +256,23 @@ def test_unwritable_output_is_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
 
 
+def test_an_output_that_is_a_folder_or_another_file_is_refused(tmp_path, capsys):
+    """A folder is refused with the hint of a sharded dataset (a trailing /); a user's
+    file that is not HDF5 is never replaced; an empty one (mktemp's) is."""
+    assert main(["generate", "--duration", "10", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"(or '{tmp_path}/', with a trailing /, for a sharded" in err
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    assert main(["generate", "--duration", "10", "--out", str(notes)]) == 2
+    assert "a file that is not HDF5 is there" in capsys.readouterr().err
+    assert notes.read_text() == "mine"
+    empty = tmp_path / "empty.h5"
+    empty.write_bytes(b"")
+    assert main(["generate", "--duration", "10", "--out", str(empty), "--quiet"]) == 0
+    assert empty.stat().st_size > 0
+
+
 def test_console_script_error_has_no_traceback(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "auvsim", "generate", "--duration", "-1", "--out",

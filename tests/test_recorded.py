@@ -13,6 +13,7 @@ import contextlib
 import io
 import json
 import math
+import os
 from pathlib import Path
 
 import h5py
@@ -22,8 +23,8 @@ from h5compare import assert_same_contents
 
 from auvsim.cli import main
 from auvsim.data.reader import open_dataset, require_attitude
-from auvsim.data.recorded import AKIT_DESCRIPTION, parse_description, read_log
-from auvsim.errors import DatasetError
+from auvsim.data.recorded import AKIT_DESCRIPTION, import_logs, parse_description, read_log
+from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import normal_gravity, radii
 from auvsim.physics.frames import euler_angles
 
@@ -415,8 +416,8 @@ def test_the_output_is_never_a_file_it_would_destroy(tmp_path):
     folder = tmp_path / "dive"
     csv_log(folder)
     (tmp_path / "notes.txt").write_text("mine\n")
-    cases = {folder / "imu.csv": "is one of the log's own files",
-             folder / "log.toml": "is one of the log's own files",
+    cases = {folder / "imu.csv": "a file that is not HDF5 is there",
+             folder / "log.toml": "a file that is not HDF5 is there",
              tmp_path / "notes.txt": "a file that is not HDF5 is there",
              tmp_path / "notes.txt" / "x.h5": "is a file, not a folder"}
     for out, message in cases.items():
@@ -424,6 +425,10 @@ def test_the_output_is_never_a_file_it_would_destroy(tmp_path):
         code, err = run_csv(folder, out)
         assert code == 2 and err.count("\n") == 1 and message in err, err
         assert {p: p.read_bytes() for p in before} == before
+    # The library refuses the log's own files whatever they hold (an HDF5 log, say).
+    for own in (folder / "imu.csv", folder / "log.toml"):
+        with pytest.raises(ConfigError, match="is one of the log's own files"):
+            import_logs([folder], own, format="csv", description=folder / "log.toml")
     err = io.StringIO()
     with pytest.raises(SystemExit) as exit_, contextlib.redirect_stderr(err):
         main(["import", str(folder), "--format", "csv", "--description",
@@ -431,6 +436,55 @@ def test_the_output_is_never_a_file_it_would_destroy(tmp_path):
     assert exit_.value.code == 2 and err.getvalue().count("\n") == 1
     assert "ends in /, a folder; expected the file to write" in err.getvalue()
     assert not (tmp_path / "new").exists()
+
+
+def test_an_output_path_a_user_gives(tmp_path):
+    """An empty file (``mktemp``'s) is replaced; a FIFO is refused at once, not opened
+    (which would wait for a writer); a folder is refused without generate's hint of a
+    sharded dataset, which import does not write."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    empty = tmp_path / "empty.h5"
+    empty.write_bytes(b"")
+    assert run_csv(folder, empty) == (0, "")
+    fifo = tmp_path / "fifo.h5"
+    os.mkfifo(fifo)
+    code, err = run_csv(folder, fifo)
+    assert code == 2 and "not a regular file" in err, err
+    code, err = run_csv(folder, tmp_path)
+    assert code == 2 and "is a directory: expected a file name\n" in err, err
+
+
+def test_a_symlinked_log_keeps_its_links_name(tmp_path):
+    """A mission is named after the folder as the user names it, a link's own name,
+    and an A-KIT segment reached through a link named TrajectoryK is one."""
+    csv_log(tmp_path / "raw_2024_05_01")
+    (tmp_path / "raw_2024_05_01" / "log.toml").write_text(
+        DESCRIPTION.replace('name = "dive"\n', ""))
+    (tmp_path / "dive3").symlink_to(tmp_path / "raw_2024_05_01")
+    assert run_csv(tmp_path / "dive3", tmp_path / "x.h5") == (0, "")
+    with open_dataset(tmp_path / "x.h5") as f:
+        assert list(f.missions) == ["dive3"]
+    _akit(tmp_path / "akit", 3)
+    (tmp_path / "akit" / "Trajectory3").rename(tmp_path / "seg3")
+    (tmp_path / "linked").mkdir()
+    (tmp_path / "linked" / "Trajectory3").symlink_to(tmp_path / "seg3")
+    assert run(["import", str(tmp_path / "linked" / "Trajectory3"), "--format", "akit",
+                "--out", str(tmp_path / "a.h5")]) == (0, "")
+
+
+def test_ignored_columns_may_share_a_name(tmp_path):
+    """Columns the description ignores may repeat a name (a logger's "Reserved" ones);
+    a described column named twice is refused (which would it be?)."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    depth = folder / "depth.csv"
+    lines = depth.read_text().splitlines()
+    depth.write_text("\n".join([lines[0] + ",reserved,reserved"]
+                               + [x + ",0,0" for x in lines[1:]]) + "\n")
+    (folder / "log.toml").write_text(DESCRIPTION.replace(
+        'columns = {depth = "depth"}', 'columns = {depth = "depth"}\nignore = ["reserved"]'))
+    assert run_csv(folder, tmp_path / "x.h5") == (0, "")
 
 
 def test_a_log_named_by_its_folder_as_dot(tmp_path, monkeypatch):

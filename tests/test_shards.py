@@ -94,7 +94,7 @@ def test_a_finished_dataset_is_kept_and_a_lost_or_changed_shard_made_again(shard
     assert again["kept"] == 3
     assert {p.name: p.stat().st_mtime_ns for p in shards.iterdir()} == stamps
 
-    (shards / "part-00001.h5").unlink()  # lost
+    (shards / "part-00001.h5").write_bytes(b"\0" * 100)  # damaged: not even HDF5
     with h5py.File(shards / "part-00002.h5", "r+") as f:  # data changed, checksums kept
         ds = f["missions/c/truth/position_ned"]
         ds[5, 0] = ds[5, 0] + 1.0

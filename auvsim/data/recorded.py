@@ -491,12 +491,12 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     if header == [""]:
         raise ConfigError(f"{str(path)!r}: empty; expected a header line naming the columns, "
                           "then rows of numbers")
-    twice = sorted({c for c in header if header.count(c) > 1})
-    if twice:
-        raise ConfigError(f"{str(path)!r}: column {twice[0]!r} appears {header.count(twice[0])} "
-                          "times in the header; expected each column once")
     wanted = {"time": (stream.time,), **stream.columns}
     named = [c for cols in wanted.values() for c in cols]
+    twice = sorted({c for c in named if header.count(c) > 1})
+    if twice:  # which of them is the column? (ignored columns may share a name)
+        raise ConfigError(f"{str(path)!r}: column {twice[0]!r} appears {header.count(twice[0])} "
+                          "times in the header; expected each described column once")
     for c in named:
         if c not in header:
             has = ", ".join(map(repr, header))
@@ -599,7 +599,7 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
             streams do not overlap in time (one line each).
     """
     folder = Path(folder)
-    name = name or description.name or folder.resolve().name
+    name = name or description.name or folder_name(folder)
     check_mission_name(name, f"{str(folder)!r}: the mission's name (log.name, or the folder's)")
     tables = {g: read_table(folder / s.file, s) for g, s in description.streams.items()}
     streams = description.streams
@@ -777,13 +777,19 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
 # ---- the import ----------------------------------------------------------------------
 
 
+def folder_name(path: str | os.PathLike) -> str:
+    """A folder's own name as its user gave it (``.`` and ``..`` made absolute, a
+    symbolic link's name kept, not its target's)."""
+    return Path(os.path.abspath(path)).name
+
+
 def akit_segments(source: Path) -> list[tuple[Path, int]]:
     """The A-KIT segments under ``source``: itself if it is a ``TrajectoryK`` folder, else
     its ``TrajectoryK`` subfolders, in K order."""
     if not source.is_dir():
         raise ConfigError(f"{str(source)!r}: not a folder; expected an A-KIT folder "
                           "(TrajectoryK/ subfolders) or one TrajectoryK folder")
-    match = AKIT_SEGMENT.fullmatch(source.resolve().name)
+    match = AKIT_SEGMENT.fullmatch(folder_name(source))
     if match:
         return [(source, int(match[1]))]
     found = sorted(((p, int(m[1])) for p in source.iterdir()
@@ -856,7 +862,7 @@ def import_logs(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
                 raise ConfigError(f"{str(source)!r}: not a folder; expected the folder of a "
                                   "log's CSV files")
             logs.append((Path(source), parsed,
-                         None if len(sources) == 1 else Path(source).resolve().name))
+                         None if len(sources) == 1 else folder_name(source)))
     recordings = [read_log(folder, d, name=name) for folder, d, name in logs]
     names = [r.name for r in recordings]
     if len(set(names)) != len(names):

@@ -45,29 +45,43 @@ def check_mission_name(name: object, where: str) -> None:
                           f"got {name!r}")
 
 
-def check_output_path(path: str | os.PathLike, argument: str = "out") -> Path:
-    """``path`` checked as a dataset file to write: not a folder, not an existing file
-    that is not HDF5 (a dataset replaces only a dataset), not under a file. Cheap, so a
-    command checks it before its work, and the writer again.
+def check_writable_path(path: Path, argument: str = "out", *, hint: str = "") -> None:
+    """Refuse a dataset file's path that is a folder (``hint`` adds what to give
+    instead) or lies under a file: what no writer can write.
 
     Raises:
-        ConfigError: it is none of those (naming ``argument``).
+        ConfigError: naming ``argument``.
+    """
+    if path.is_dir():
+        raise ConfigError(f"{str(path)!r} is a directory: expected a file name{hint}",
+                          argument=argument)
+    above = next((p for p in path.parents if p.exists()), None)
+    if above is not None and not above.is_dir():
+        raise ConfigError(f"{str(path)!r}: {str(above)!r} is a file, not a folder; "
+                          "expected a path in a folder", argument=argument)
+
+
+def check_output_path(path: str | os.PathLike, argument: str = "out", *,
+                      hint: str = "") -> Path:
+    """A user's output path for a dataset file, checked before a command's work: what
+    ``check_writable_path`` refuses, and an existing file that is neither HDF5 nor empty
+    (a command replaces a dataset, never a user's other file) or not a regular file.
+    The writer itself replaces any file (its own caches and shards, damaged or not).
+
+    Raises:
+        ConfigError: naming ``argument``.
     """
     path = Path(path)
-    if path.is_dir():
-        raise ConfigError(f"{str(path)!r} is a directory: expected a file name "
-                          f"(or {os.path.join(str(path), '')!r}, with a trailing "
-                          "/, for a sharded dataset)", argument=argument)
-    if path.exists():
+    check_writable_path(path, argument, hint=hint)
+    if path.exists() and not path.is_file():
+        raise ConfigError(f"{str(path)!r}: not a regular file; expected a file path",
+                          argument=argument)
+    if path.is_file() and path.stat().st_size > 0:
         with open(path, "rb") as f:
             if f.read(len(HDF5_SIGNATURE)) != HDF5_SIGNATURE:
                 raise ConfigError(f"{str(path)!r}: a file that is not HDF5 is there; "
                                   "expected a new path, or a dataset to replace",
                                   argument=argument)
-    above = next((p for p in path.parents if p.exists()), None)
-    if above is not None and not above.is_dir():
-        raise ConfigError(f"{str(path)!r}: {str(above)!r} is a file, not a folder; "
-                          "expected a path in a folder", argument=argument)
     return path
 
 
@@ -75,8 +89,8 @@ class DatasetWriter:
     """Writes a dataset file; use as a context manager.
 
     Args:
-        path: the final file name; the work happens in a temporary file beside it. An
-            existing file there is replaced only if it is an HDF5 file.
+        path: the final file name; the work happens in a temporary file beside it
+            (``check_output_path`` is what a command checks of a user's path first).
         config_json: the resolved configuration, stored in the root attributes.
         compression: a key of ``COMPRESSION``.
         argument: the argument that gave ``path``, which its errors name (``--out``).
@@ -87,7 +101,7 @@ class DatasetWriter:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
         try:
-            check_output_path(self.path, argument)
+            check_writable_path(self.path, argument)
             self.path.parent.mkdir(parents=True, exist_ok=True)
             # Temporaries of killed runs in this folder go first (``files.sweep``).
             self.claim = Claim(self.path)

@@ -244,9 +244,10 @@ def train_noise_models(dataset, missions: Sequence[str] | None = None, *,
     first round's runs (the fixed filter's, which no seed changes) are made once."""
     from auvsim.data.reader import open_dataset
 
+    seeds = list(seeds)  # a generator would pass the check empty-handed
     if rounds < 1 or epochs < 1 or not seeds:
         raise ValueError(f"expected at least one round, epoch and seed, got rounds={rounds}, "
-                         f"epochs={epochs}, seeds={list(seeds)}")
+                         f"epochs={epochs}, seeds={seeds}")
     with open_dataset(dataset) as f:
         if missions is None:
             missions = list(f.missions)

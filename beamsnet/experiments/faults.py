@@ -243,7 +243,8 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
             paths[text] = _dataset(config, fault, duration, datasets, progress)
     results: dict[str, list[dict]] = {}
     scored: dict[str, dict] = {}  # file -> its scores
-    left_out: dict[str, list[str]] = {}  # filter -> why it was left out, per file
+    # (filter, why with the file's name taken out) -> why it was left out, per file
+    left_out: dict[tuple[str, str], list[str]] = {}
     for sweep, faults in plan.items():
         results[sweep] = []
         for fault in faults:
@@ -258,7 +259,8 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 for w in caught:
                     if issubclass(w.category, FilterWarning):
                         name, _, why = str(w.message).partition(" left out on ")
-                        left_out.setdefault(name, []).append(why)
+                        key = (name, why.replace(str(path), "FILE"))
+                        left_out.setdefault(key, []).append(why)
                     else:
                         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
                 estimates = _estimates(fitted + own, models, windows)
@@ -271,7 +273,7 @@ def fault_stress(*, models: list, train_w: Windows, train_data: Path, trained_on
                 dvl=_jsonable(dict(fault.dvl)), current_ned=fault.current_ned,
                 estimators=scored[str(path)]))
 
-    for name, whys in left_out.items():  # once for the run, not once per file
+    for (name, _), whys in left_out.items():  # once for the run, not once per file
         more = f" (and on {len(whys) - 1} more of its files)" if len(whys) > 1 else ""
         warnings.warn(f"{name} left out on {whys[0]}{more}", FilterWarning, stacklevel=2)
     summary = dict(train_data=str(train_data), trained_on=trained_on,

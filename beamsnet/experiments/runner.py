@@ -86,8 +86,6 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
             return path
         warnings.warn(f"{path}: {why}; generating it again", StaleDatasetWarning,
                       stacklevel=2)
-        if path.is_file():  # this cache's own file, HDF5 or not: a writer replaces only HDF5
-            path.unlink()
     generate(config, path, progress=progress, cluster=cluster)
     return path
 
