@@ -396,15 +396,26 @@ def _training_with_two_workers(small, out: Path):
         stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 120
     family: list[psutil.Process] = []
-    while len([p for p in family if "forkserver" in " ".join(p.cmdline())]) < 3:
-        if proc.poll() is not None or time.monotonic() > deadline:
-            os.killpg(proc.pid, signal.SIGKILL)
-            pytest.fail("the training's workers never started")
-        time.sleep(0.2)
+    def command_line(p: psutil.Process) -> str:
         try:
-            family = psutil.Process(proc.pid).children(recursive=True)
-        except psutil.NoSuchProcess:
-            family = []
+            return " ".join(p.cmdline())
+        except psutil.Error:  # gone, or a zombie for a moment (a start-up fork's)
+            return ""
+
+    try:
+        while len([p for p in family if "forkserver" in command_line(p)]) < 3:
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail("the training's workers never started")
+            time.sleep(0.2)
+            try:
+                family = psutil.Process(proc.pid).children(recursive=True)
+            except psutil.NoSuchProcess:
+                family = []
+    except BaseException:  # no training left running on, whatever went wrong here
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise
     time.sleep(1.0)  # the two seeds are training
     return proc, family
 
