@@ -13,6 +13,7 @@ import auvsim  # noqa: F401  (registers auvsim/AUV-v0)
 from auvsim.config import ScenarioConfig
 from auvsim.data.reader import open_dataset
 from auvsim.envs.env import AuvEnv, EpisodeRecorder, ManeuverPolicy
+from auvsim.errors import ConfigError
 from auvsim.physics.frames import euler_angles, quat_to_rot
 from auvsim.runs.mission import MissionRun
 from auvsim.runs.presets import preset
@@ -143,6 +144,17 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
     assert steps == 50 and not terminated and reward == 0.0
     assert info["time"] == pytest.approx(5.0)
     assert env.run.vehicle.actuators[1] == pytest.approx(env.run.vehicle.hydro.rudder_max)
+
+
+def test_the_recorder_refuses_a_bad_path_or_name_before_any_episode(tmp_path):
+    """Said when it is made, not at close() after every episode has run."""
+    (tmp_path / "notes.txt").write_text("mine")
+    for path, name, what in ((tmp_path, "episode", "is a directory"),
+                             (tmp_path / "notes.txt", "episode", "not HDF5"),
+                             (tmp_path / "x.h5", "a/b", "expected a name without '/'")):
+        with pytest.raises(ConfigError, match=what):
+            EpisodeRecorder(AuvEnv(max_episode_seconds=10.0), path, name=name)
+    assert (tmp_path / "notes.txt").read_text() == "mine"
 
 
 def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_path):

@@ -108,7 +108,7 @@ import numpy as np
 from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
 from auvsim.data.reader import Block
 from auvsim.data.schema import phases_json
-from auvsim.data.writer import DatasetWriter
+from auvsim.data.writer import DatasetWriter, check_mission_name, check_output_path
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.control import autopilot
 from auvsim.physics.frames import EULER, STATE
@@ -313,9 +313,15 @@ class EpisodeRecorder(gym.Wrapper):
         env: an ``AuvEnv`` (or a wrapper of one).
         path: the HDF5 file to write; it appears, complete, on ``close()``.
         name: missions are named ``<name>_000``, ``<name>_001``, ...
+
+    Raises:
+        ConfigError: ``path`` or ``name`` cannot be written (``check_output_path``,
+            ``check_mission_name``): said now, not after the episodes have run.
     """
 
     def __init__(self, env: gym.Env, path: str | Path, *, name: str = "episode") -> None:
+        check_output_path(path, "path")
+        check_mission_name(f"{name}_000", "name")
         super().__init__(env)
         self.path = Path(path)
         self.name = name
