@@ -189,7 +189,6 @@ def _import_parser(sub) -> None:
 def _import(args: argparse.Namespace) -> None:
     from auvsim.data.writer import check_output_path
 
-    check_output_path(args.out)  # before the logs are read
     if args.format == "velocity":
         if args.description is not None:
             raise ConfigError("--description: only for --format csv")
@@ -202,6 +201,7 @@ def _import(args: argparse.Namespace) -> None:
     given = [key for key in _VELOCITY_DEFAULTS if getattr(args, key) is not None]
     if given:
         raise ConfigError(f"--{given[0].replace('_', '-')}: only for --format velocity")
+    check_output_path(args.out)  # before the logs are read (velocity: its own command's)
     if args.format == "pd0":
         _import_pd0(args)
         return
@@ -399,7 +399,9 @@ def _nameable(path: str) -> str:
 
 def _file_out(path: str) -> Path:
     """An output file's path: nameable, and not a folder's (a trailing /)."""
-    if _nameable(path).endswith((os.sep, "/")):
+    from auvsim.data.files import names_folder
+
+    if names_folder(_nameable(path)):
         raise argparse.ArgumentTypeError(f"{path!r} ends in /, a folder; expected the file "
                                          "to write")
     return Path(path)
@@ -475,10 +477,11 @@ def _generate(args: argparse.Namespace) -> None:
             generate,  # numba compilation only for the commands that need it
         )
 
+    from auvsim.data.files import names_folder
     from auvsim.data.writer import check_output_path
 
     config = build_config(args)
-    if args.shards is None and not args.out.endswith(("/", os.sep)):
+    if args.shards is None and not names_folder(args.out):
         check_output_path(args.out, hint=f" (or {os.path.join(args.out, '')!r}, with a "
                           "trailing /, for a sharded dataset)")
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,

@@ -47,7 +47,7 @@ from auvsim.config import Config
 from auvsim.data.reader import open_dataset
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
-from auvsim.sensors.dvl import Mode, Status
+from auvsim.sensors.dvl import Mode, clean_error_pings
 
 REPO = Path(__file__).resolve().parent.parent
 # ../shared/data beside the repository (a worktree sits one level deeper).
@@ -140,10 +140,9 @@ def simulate(config: Config, folder: Path, name: str) -> dict[str, np.ndarray]:
         mission = next(iter(dataset.missions.values()))
         e = mission.read("dvl/error_velocity")
         mode = mission.read("dvl/mode")
-        outlier = (mission.read("dvl/status") == Status.OUTLIER).any(axis=1)
+        clean = clean_error_pings(e, mode, mission.read("dvl/status"))
         error = mission.read("dvl/velocity_ls") - mission.read("dvl/velocity")
     finite = np.isfinite(e)
-    clean = finite & (mode == Mode.BOTTOM_TRACK) & ~outlier
     along = error[np.isfinite(error[:, 0]) & (mode == Mode.BOTTOM_TRACK), 0]
     return dict(clean=e[clean], all=e[finite], along=along)
 

@@ -319,6 +319,10 @@ def _edit(file: str, change):
     return apply
 
 
+def _replace(file: str, old: str, new: str):
+    return _edit(file, lambda text: text.replace(old, new))
+
+
 def _lines(change):
     return lambda text: "\n".join(change(text.splitlines())) + "\n"
 
@@ -339,43 +343,37 @@ BAD_LOGS = {
                        "line 6: time runs backwards"),
     "time_repeats": (_edit("depth.csv", _lines(lambda ls: ls[:5] + [ls[4]] + ls[6:])),
                      "line 6: time repeats"),
-    "deg_s_as_rad_s": (_edit("log.toml", lambda t: t.replace('angular_rate = "deg/s"',
-                                                             'angular_rate = "rad/s"')),
+    "deg_s_as_rad_s": (_replace("log.toml", 'angular_rate = "deg/s"', 'angular_rate = "rad/s"'),
                        "the angular rate reaches 37.42 rad/s"),  # |(10, 20, 30)|
-    "g_as_m_s2": (_edit("log.toml", lambda t: t.replace('specific_force = "g"',
-                                                        'specific_force = "m/s^2"')),
+    "g_as_m_s2": (_replace("log.toml", 'specific_force = "g"', 'specific_force = "m/s^2"'),
                   "the specific force's median magnitude is 1 m/s^2"),
-    "lat_deg_as_rad": (_edit("log.toml", lambda t: t.replace('latitude = "deg"',
-                                                             'latitude = "rad"')),
+    "lat_deg_as_rad": (_replace("log.toml", 'latitude = "deg"', 'latitude = "rad"'),
                        "the latitude reaches 1882.17 deg"),
-    "attitude_deg_as_rad": (_edit("log.toml", lambda t: t.replace('attitude = "deg"',
-                                                                  'attitude = "rad"')),
+    "attitude_deg_as_rad": (_replace("log.toml", 'attitude = "deg"', 'attitude = "rad"'),
                             "an attitude angle reaches 90 rad"),
-    "no_overlap": (_edit("log.toml", lambda t: t.replace("time_offset_s = 0.25",
-                                                         "time_offset_s = 1000.0")),
+    "no_overlap": (_replace("log.toml", "time_offset_s = 0.25", "time_offset_s = 1000.0"),
                    "they do not overlap"),
-    "unknown_key": (_edit("log.toml", lambda t: t.replace("beam_angle_deg", "beam_angel_deg")),
+    "unknown_key": (_replace("log.toml", "beam_angle_deg", "beam_angel_deg"),
                     "dvl.beam_angel_deg: unknown key"),
-    "no_spec": (_edit("log.toml", lambda t: t.replace("noise_std = 0.003\n", "")),
+    "no_spec": (_replace("log.toml", "noise_std = 0.003\n", ""),
                 "dvl.noise_std: missing; expected the instrument's figure"),
     "one_row": (_edit("depth.csv", _lines(lambda ls: ls[:2])),
                 "depth.csv': 1 row(s) under the header; expected a stream of samples"),
     "no_rows": (_edit("depth.csv", _lines(lambda ls: ls[:1])),
                 "depth.csv': 0 row(s) under the header; expected a stream of samples"),
-    "stamps_off_the_stated_rate": (_edit("log.toml", lambda t: t.replace(
-        'time_unit = "ms"\nframe = "FLU"', 'time_unit = "ms"\nrate_hz = 1.0\nframe = "FLU"')),
+    "stamps_off_the_stated_rate": (
+        _replace("log.toml", 'time_unit = "ms"\nframe = "FLU"',
+                 'time_unit = "ms"\nrate_hz = 1.0\nframe = "FLU"'),
         "its stamps come at 100 Hz, the log description's imu.rate_hz says 1 Hz"),
-    "name_with_a_slash": (_edit("log.toml", lambda t: t.replace('name = "dive"',
-                                                                'name = "a/b"')),
+    "name_with_a_slash": (_replace("log.toml", 'name = "dive"', 'name = "a/b"'),
                           "log.name: expected a name without '/'"),
-    "beam_angle_beyond_90": (_edit("log.toml", lambda t: t.replace("beam_angle_deg = 30.0",
-                                                                   "beam_angle_deg = 95.0")),
-                             "dvl.beam_angle_deg: expected the beams' angle"),
-    "origin_beyond_the_poles": (_edit("log.toml", lambda t: t.replace(
-        'name = "dive"', 'name = "dive"\norigin = [200.0, 34.9, -20.0]')),
+    "beam_angle_beyond_90": (
+        _replace("log.toml", "beam_angle_deg = 30.0", "beam_angle_deg = 95.0"),
+        "dvl.beam_angle_deg: expected the beams' angle"),
+    "origin_beyond_the_poles": (
+        _replace("log.toml", 'name = "dive"', 'name = "dive"\norigin = [200.0, 34.9, -20.0]'),
         "log.origin: expected [latitude deg in -90..90"),
-    "one_column_two_fields": (_edit("log.toml", lambda t: t.replace('altitude = "alt"',
-                                                                    'altitude = "err"')),
+    "one_column_two_fields": (_replace("log.toml", 'altitude = "alt"', 'altitude = "err"'),
                               "dvl.columns.altitude: column 'err' is also the stream's "
                               "error_velocity"),
     "header_names_a_column_twice": (_edit("depth.csv", _lines(lambda ls: [
@@ -384,8 +382,7 @@ BAD_LOGS = {
     "comment_row": (_edit("depth.csv", _lines(lambda ls: ls[:3] + ["# a note"] + ls[3:])),
                     "line 4: 1 cells, the header has 2"),
     "empty_file": (_edit("depth.csv", lambda t: ""), "depth.csv': empty; expected a header"),
-    "file_is_a_folder": (_edit("log.toml", lambda t: t.replace('file = "depth.csv"',
-                                                               'file = "."')),
+    "file_is_a_folder": (_replace("log.toml", 'file = "depth.csv"', 'file = "."'),
                          "is a folder; expected the CSV file of the log description's "
                          "depth.file"),
     # tomllib recurses once per level: Python's recursion limit, not a TOML error

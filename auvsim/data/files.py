@@ -219,6 +219,12 @@ def interrupt_handler(handler: Callable | int) -> Iterator[None]:
                 signal.signal(sig, previous)
 
 
+def names_folder(out: str | os.PathLike) -> bool:
+    """Whether ``out`` is written as a folder: ``datasets/rm/`` (a trailing /; a file name
+    that is an existing folder is refused, as a slip, by the dataset writer)."""
+    return os.fspath(out).endswith((os.sep, "/"))
+
+
 def check_out_dir(out: str | os.PathLike) -> Path:
     """``out`` as a Path, after checking that it can be made a directory (it is one, or the
     nearest existing path above it is), so that no work is spent before a bad output path

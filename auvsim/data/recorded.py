@@ -869,11 +869,9 @@ def import_logs(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
         raise ConfigError(f"mission names must differ, got {names}; rename a folder")
     read = [p for r in recordings for p in r.files] + ([] if description is None
                                                        else [Path(description)])
-    for p in read:
-        if Path(out).exists() and Path(out).samefile(p):
-            raise ConfigError(f"{str(out)!r}: is one of the log's own files; expected a new "
-                              "path for the dataset (the log stays as recorded)",
-                              argument="out")
+    if Path(out).exists() and any(Path(out).samefile(p) for p in read):
+        raise ConfigError(f"{str(out)!r}: is one of the log's own files; expected a new path "
+                          "for the dataset (the log stays as recorded)", argument="out")
     settings = dict(format=format, sources=[str(s) for s in sources],
                     description=None if description is None else str(description))
     summary: dict[str, dict] = {}

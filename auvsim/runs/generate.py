@@ -58,6 +58,7 @@ from auvsim.data.files import (
     interrupt_handler,
     interrupts_held,
     make_out_dir,
+    names_folder,
     sweep,
     writing,
 )
@@ -242,7 +243,7 @@ def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
             if given is not None:
                 raise ConfigError(": given with a cluster, whose own workers run the "
                                   "jobs; expected one or the other", argument=name)
-    sharded = shards is not None or _names_folder(out)
+    sharded = shards is not None or names_folder(out)
     if sharded and Path(out).suffix in (".h5", ".hdf5"):
         raise ConfigError(f"{os.fspath(out)!r}: a sharded dataset is a folder: expected a "
                           "folder name (datasets/rm/), or a file name without --shards",
@@ -267,12 +268,6 @@ def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
                                   compression=config.compression) as ds:
                 _in_jobs(config, ds, workers, jobs, bar, watch=cluster is None)
     return dict(summary, wall_s=time.perf_counter() - started)
-
-
-def _names_folder(out: str | os.PathLike) -> bool:
-    """Whether ``out`` is written as a folder: ``datasets/rm/`` (a file name that is an
-    existing folder is refused, as a slip, by ``DatasetWriter``)."""
-    return os.fspath(out).endswith((os.sep, "/"))
 
 
 @contextmanager

@@ -813,6 +813,14 @@ def usable_beams(valid: np.ndarray, beam_velocity: np.ndarray) -> np.ndarray:
     return np.asarray(valid, dtype=bool) & np.isfinite(beam_velocity)
 
 
+def clean_error_pings(error: np.ndarray, mode: np.ndarray, status: np.ndarray) -> np.ndarray:
+    """(M,) bool: the pings whose error velocity (M,) an instrument's own is compared with
+    (a real log's is the bottom track's, and holds no outlier): bottom-track pings
+    (``mode`` (M,)) with a finite error velocity and no outlier beam (``status`` (M, 4))."""
+    return (np.isfinite(error) & (mode == Mode.BOTTOM_TRACK)
+            & ~(status == Status.OUTLIER).any(axis=1))
+
+
 def describe_mission(mission) -> list[str]:
     """What ``auvsim inspect`` prints of a mission's DVL (``Dvl.describe``)."""
     a, dvl = mission.attrs, mission.dvl
@@ -846,11 +854,8 @@ def describe_mission(mission) -> list[str]:
         rms = f"{np.sqrt(np.mean(finite**2)):.3g} m/s" if finite.size else "none"
         lines.append(f"    DVL modes: {shares}; error velocity rms {rms} over "
                      f"{finite.size} four-beam pings")
-        if "status" in dvl:
-            # What an instrument's own error velocity is compared with: bottom-track pings
-            # whose four beams are not outliers (one outlier sets the rms above).
-            clean = (np.isfinite(error) & (mode == Mode.BOTTOM_TRACK)
-                     & ~(dvl.status == Status.OUTLIER).any(axis=1))
+        if "status" in dvl:  # one outlier sets the rms above
+            clean = clean_error_pings(error, mode, status)
             if clean.any():
                 lines[-1] += (f" ({np.sqrt(np.mean(error[clean] ** 2)):.3g} m/s over the "
                               f"{int(clean.sum())} bottom-track pings without an outlier)")
