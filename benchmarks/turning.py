@@ -402,8 +402,8 @@ def implied_limit(flow_deg: float, key: str = "fin_flow_slip") -> float:
     """The rudder limit (deg) at which the model's full-rudder step from 2 m/s has the fin
     flow angle ``flow_deg`` at its yaw-rate peak (``key``: with the sway, or from r |x_fin| / U
     alone): the limit the measured turns imply through the model's own balance of fin and
-    hull at the peak. Bisection; the flow angle grows with the limit (with the sway: 25.4,
-    28.0, 29.5 deg at 30, 35, 38 deg) and does not depend on the speed."""
+    hull at the peak. Bisection; the flow angle grows with the limit (with the sway: 25.0,
+    27.3, 28.6, 29.7 deg at 30, 35, 38, 41 deg) and does not depend on the speed."""
     lo, hi = 15.0, 60.0
     for _ in range(12):
         mid = 0.5 * (lo + hi)

@@ -72,6 +72,7 @@ class Hydro(NamedTuple):
     fin_x: float  # m, x of the rudder and stern-plane pairs
     fin_lift: float  # N s^2/m^2 per rad, for a PAIR of fins: 1/2 rho (2 S) CL_alpha
     fin_stall: float  # rad
+    fin_flow_axes: bool  # lift and drag in the fins' flow axes; False: body axes (v3 files)
     rudder_max: float  # rad, the rudder's angle limit
     planes_max: float  # rad, the stern planes' angle limit
     fin_tau: float  # s, servo time constant
@@ -155,6 +156,13 @@ _NUMERICS = {
 # value that gives those models exactly the behaviour they had: their shaft reaction rolled
 # the hull to port.
 _V3_DEFAULTS = {"propeller_rotation": -1.0}
+
+
+def _v3_layout(model: mujoco.MjModel) -> bool:
+    """A model of the layout before issue 10 (it lacks every numeric of ``_V3_DEFAULTS``):
+    its fins' forces stay in body axes, as that revision computed them."""
+    names = {model.numeric(i).name for i in range(model.nnumeric)}
+    return not names & _V3_DEFAULTS.keys()
 
 
 def _require(ok: bool, what: str, expected: str, got: object) -> None:
@@ -342,6 +350,7 @@ def load_hydro(model: mujoco.MjModel, *, net_buoyancy: float = 0.0,
         fin_x=float(model.site("rudder").pos[0]),
         fin_lift=0.5 * rho * 2.0 * num("fin_area") * num("fin_lift_slope"),
         fin_stall=num("fin_stall_angle"),
+        fin_flow_axes=not _v3_layout(model),
         rudder_max=float(ranges["rudder"][1]),
         planes_max=float(ranges["stern_planes"][1]),
         fin_tau=num("fin_time_constant"),
@@ -519,23 +528,36 @@ def water_wrench_into(h, nu, rot, actuators, current_ned, disturbance, tau, nu_d
     tau[4] -= h.hull_lift_x * fz
     tau[5] += h.hull_lift_x * fy
 
-    # Fins: lift from the fin angle plus the local flow angle, induced drag, stall.
+    # Fins: lift from the fin angle plus the local flow angle, induced drag, stall. Lift and
+    # drag are, by their definitions, normal to and against the fin's velocity through the
+    # water (uf, c) in the pair's plane: resolved into body axes through the flow angle
+    # beta (cos beta = |uf| / U, sin beta = c / U). Models of the v3 layout keep the body
+    # axes they had (lift along y or z, drag along -x: ``Hydro.fin_flow_axes``).
     uf = vr[0]
     vf = vr[1] + h.fin_x * w[2]
     wf = vr[2] - h.fin_x * w[1]
-    for axis in range(2):  # 0: rudder pair acts in y, 1: stern-plane pair acts in z
+    for axis in range(2):  # 0: rudder pair (x-y plane), 1: stern-plane pair (x-z plane)
         cross_flow = vf if axis == 0 else wf
+        u2 = uf * uf + cross_flow * cross_flow
         alpha = actuators[1 + axis] + math.atan2(cross_flow, abs(uf))
         alpha = min(max(alpha, -h.fin_stall), h.fin_stall)
-        q_s = h.fin_lift * (uf * uf + cross_flow * cross_flow)
-        lift = -q_s * alpha
-        tau[0] -= q_s * alpha * alpha
-        if axis == 0:
-            tau[1] += lift
-            tau[5] += h.fin_x * lift
+        lift = -h.fin_lift * u2 * alpha
+        drag = h.fin_lift * u2 * alpha * alpha
+        if not h.fin_flow_axes:
+            fx, fn = -drag, lift
+        elif u2 > 0.0:
+            speed_f = math.sqrt(u2)  # lift along (-sgn(uf) c, |uf|) / U, drag against (uf, c)
+            fx = (-math.copysign(1.0, uf) * cross_flow * lift - uf * drag) / speed_f
+            fn = (abs(uf) * lift - cross_flow * drag) / speed_f
         else:
-            tau[2] += lift
-            tau[4] -= h.fin_x * lift
+            fx, fn = 0.0, 0.0
+        tau[0] += fx
+        if axis == 0:
+            tau[1] += fn
+            tau[5] += h.fin_x * fn
+        else:
+            tau[2] += fn
+            tau[4] -= h.fin_x * fn
 
     # Propeller: thrust less the thrust deduction; the hull takes the shaft reaction, whose
     # sign is the propeller's hand (models/README.md).

@@ -127,7 +127,7 @@ SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 #   Snapir's hard turns lose 29 % of their speed, median of 21: benchmarks/turning.py),
 #   where auvsim's speed loop would raise the rpm and hold it: ``speed_control="rpm"``.
 # - It turns at the end of a line at full rudder (the Snapir's hard turns peak at 16.5
-#   deg/s, median of 21, where the A18-D's full-rudder step peaks at 15.8), where the
+#   deg/s, median of 21, where the A18-D's full-rudder step peaks at 15.0), where the
 #   heading PID's yaw-rate term backs the rudder off from the start of the turn (peaks
 #   of 12.4 deg/s in the survey turns: benchmarks/turning.py --rpm-alone):
 #   ``heading_control="full-rudder-turns"`` holds full rudder up to the PID's own braking
@@ -140,8 +140,8 @@ SNAPIR_WATERS = LocationConfig(latitude_deg=32.8498, longitude_deg=34.8922)
 #   +0.13) m and IMU (-1.77, -0.01, -0.14) m FRD, both 1.8 m aft, the IMU 0.27 m above
 #   the DVL. That point is taken as the model's origin: at the hard turns' yaw-rate peak
 #   the reference's sideslip (medians of 21: 0.30 m/s at 16.5 deg/s) puts the hull's
-#   pivot point 1.04 m ahead of it, and the model's sideslip (0.31 m/s at 15.8 deg/s,
-#   models/README.md) puts it 1.12 m ahead of the origin: the two points agree within
+#   pivot point 1.04 m ahead of it, and the model's sideslip (0.29 m/s at 15.0 deg/s,
+#   models/README.md) puts it 1.11 m ahead of the origin: the two points agree within
 #   about 0.1 m. A DVL aft of the pivot sees the turn's r x more sway; at 1.0 m forward
 #   it saw less.
 SNAPIR_IMU_POSITION = (-1.77, -0.01, -0.14)  # m, FRD from the body origin
