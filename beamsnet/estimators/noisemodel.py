@@ -63,6 +63,29 @@ class NoiseModel:
         return np.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * np.tanh(hidden @ self.w2 + self.b2))
 
 
+def constant_model(scale: float, bounds: tuple[float, float] = BOUNDS,
+                   window: int = WINDOW) -> NoiseModel:
+    """A model whose output is the variance scale ``scale`` at every ping (its weights are
+    zero): in the learned filter, the fixed filter with the DVL's noise, its white part and
+    its slow error's drive, multiplied by ``scale``. ``beamsnet reproduce adaptive`` runs it
+    to show how far any constant scale moves the filter.
+
+    Raises:
+        ValueError: ``scale`` not strictly inside the variance bounds (the std bounds
+            squared), which the bounded output only approaches.
+    """
+    lo, hi = (2 * math.log(b) for b in bounds)
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0
+            and lo < math.log(scale) < hi):
+        raise ValueError(f"scale: expected a variance scale strictly between "
+                         f"{bounds[0] ** 2:g} and {bounds[1] ** 2:g}, got {scale!r}")
+    d = len(FEATURES) * window
+    return NoiseModel(w1=np.zeros((HIDDEN, d)), b1=np.zeros(HIDDEN), w2=np.zeros(HIDDEN),
+                      b2=math.atanh((2 * math.log(scale) - lo - hi) / (hi - lo)),
+                      mean=np.zeros(d), std=np.ones(d), window=window, bounds=bounds,
+                      trained_on=dict(constant_scale=float(scale)))
+
+
 def windows(features: np.ndarray, window: int = WINDOW) -> np.ndarray:
     """(P, window F) the network's input after each ping: its features and the previous
     pings', newest first, the first ping's repeated before the start (as the loop fills
