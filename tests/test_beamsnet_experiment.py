@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 
 import pytest
 from conftest import flat, mission
@@ -12,6 +13,8 @@ from conftest import flat, mission
 import beamsnet.training.runs
 from auvsim.config import DvlConfig
 from auvsim.data.reader import read_attrs
+from auvsim.runs.generate import config_sha256
+from beamsnet.experiments import runner
 from beamsnet.experiments.runner import StaleDatasetWarning, ensure_dataset, train_runs
 from beamsnet.training.checkpoints import load
 from beamsnet.training.config import TrainConfig
@@ -70,6 +73,34 @@ def test_ensure_dataset_regenerates_a_file_made_from_another_config(tmp_path):
     with pytest.warns(StaleDatasetWarning, match="it is not a readable dataset"):
         ensure_dataset(dvl, path, progress=False)
     assert read_attrs(path)[0]["config_json"] == dvl.to_json()
+
+
+def test_ensure_dataset_regenerates_a_file_made_with_another_vehicle_model(tmp_path):
+    """A single file stores its config, which names the model file only: the hash of the
+    config with the model's contents is recorded beside it (``runner.MADE``), so an edited
+    model makes it again; a file changed since it was made falls back to its config."""
+    from auvsim.physics.vehicle import model_path
+
+    model = tmp_path / "my-auv.xml"
+    model.write_text(model_path("auv").read_text())
+    one = flat(mission("a", 1, speed=1.0, duration=20.0, start_speed=0.0))
+    one = dataclasses.replace(one, vehicle=dataclasses.replace(one.vehicle, model=str(model)))
+    path = tmp_path / "datasets" / "one.h5"
+    ensure_dataset(one, path, progress=False)
+    assert runner.stale(path, one) is None
+    model.write_text(model.read_text().replace('ctrlrange="-900 900"', 'ctrlrange="-800 800"'))
+    with pytest.warns(StaleDatasetWarning, match=r"another config \(another auvsim or "
+                                                 r"vehicle model\); generating it again"):
+        ensure_dataset(one, path, progress=False)
+    assert runner.stale(path, one) is None
+    made = json.loads((path.parent / runner.MADE).read_text())
+    assert made["one.h5"]["config_sha256"] == config_sha256(one)
+    # Changed since it was made: the record no longer speaks for it, its config does (the
+    # model's name only, so another edit of the model goes unseen, as for any file made
+    # elsewhere).
+    os.utime(path, ns=(0, 0))
+    model.write_text(model.read_text().replace('ctrlrange="-800 800"', 'ctrlrange="-700 700"'))
+    assert runner.stale(path, one) is None
 
 
 def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data, tmp_path):

@@ -302,6 +302,28 @@ def test_a_staged_folder_is_moved_in_whole_or_not_at_all(tmp_path):
     assert _listing(tmp_path) == {"a", "a/b", "a/b/one.txt", "a/b/mine.txt"}
 
 
+
+def test_a_staged_folder_named_dot_is_the_current_one(tmp_path, monkeypatch):
+    """``--out .`` (or ``keep/..``) writes into that folder, which exists; ``/`` and a
+    place that cannot be written in are refused in one line before any work."""
+    from auvsim.data.files import check_out_dir
+
+    (tmp_path / "keep").mkdir()
+    monkeypatch.chdir(tmp_path / "keep")
+    with staged_dir(Path(".")) as stage:
+        (stage / "one.txt").write_text("1")
+    with staged_dir(Path("..")) as stage:
+        (stage / "two.txt").write_text("2")
+    assert _listing(tmp_path) == {"keep", "keep/one.txt", "two.txt"}
+    with pytest.raises(ConfigError, match="the root directory; expected a directory below"):
+        check_out_dir("/")
+    if Path("/proc/self").is_dir():  # a place nobody can make a file in, root or not
+        with pytest.raises(ConfigError, match="cannot write in '/proc'.*expected a directory "
+                                              "you can write in"):
+            check_out_dir("/proc/auvsim-report")
+    assert _listing(tmp_path) == {"keep", "keep/one.txt", "two.txt"}  # no probe left
+
+
 # ---- words for users -------------------------------------------------------------------
 
 

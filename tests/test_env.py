@@ -146,6 +146,28 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
     assert env.run.vehicle.actuators[1] == pytest.approx(env.run.vehicle.hydro.rudder_max)
 
 
+@pytest.mark.parametrize("settings, said", [
+    (dict(max_episode_seconds=0.0), "max_episode_seconds: expected a positive number"),
+    (dict(max_episode_seconds=float("nan")), "max_episode_seconds: expected a positive"),
+    (dict(max_episode_seconds="20"), "max_episode_seconds: expected a positive number"),
+    (dict(frame_skip=True), "frame_skip: expected a whole number >= 1"),
+    (dict(frame_skip=2.5), "frame_skip: expected a whole number >= 1"),
+    (dict(config="paper-sim"), "config: expected an auvsim Config"),
+])
+def test_bad_environment_settings_are_refused_by_name(settings, said):
+    with pytest.raises(ConfigError, match=said):
+        AuvEnv(**settings)
+
+
+def test_a_numpy_frame_skip_is_a_whole_number_and_step_needs_a_reset():
+    env = AuvEnv(frame_skip=np.int64(10), max_episode_seconds=np.float64(5.0))
+    assert env.frame_skip == 10 and type(env.frame_skip) is int
+    with pytest.raises(gym.error.ResetNeeded, match="expected reset"):
+        env.step(np.zeros(3))
+    env.reset(seed=0)
+    env.step(np.zeros(3))
+
+
 def test_the_recorder_refuses_a_bad_path_or_name_before_any_episode(tmp_path):
     """Said when it is made, not at close() after every episode has run."""
     (tmp_path / "notes.txt").write_text("mine")

@@ -64,7 +64,7 @@ def test_zigzag_crosses_its_heading_limits(vehicle, angle):
     assert np.count_nonzero(np.diff(above.astype(int)) == 1) >= 3
     assert np.count_nonzero(np.diff(below.astype(int)) == 1) >= 3
     # The rudder switches only beyond the limits and reaches the commanded angle (under
-    # the A18-D's 38 deg rudder limit, both zigzags' rudders are reached).
+    # the A18-D's 41 deg rudder limit, both zigzags' rudders are reached).
     assert rudder.max() == pytest.approx(angle, abs=0.01)
     assert rudder.min() == pytest.approx(-angle, abs=0.01)
     switches = np.flatnonzero(np.diff(np.sign(traj.actuators[:, 1][t > 21.0])) != 0)
@@ -117,6 +117,17 @@ def test_lawnmower_refuses_legs_shorter_than_a_metre_zero_included():
     m = make_maneuver(ScenarioConfig(name="lawnmower", duration=60.0,
                                      options={"leg_m": 1.0, "spacing_m": 1.0}))
     assert [p.label for p in m.phases()][:2] == ["survey leg", "cross leg"]
+
+
+@pytest.mark.parametrize("name, option", [("depth_steps", "step_m"), ("yoyo", "amplitude_m")])
+def test_a_depth_change_above_the_surface_is_refused(name, option):
+    """From 20 m, a change of -30 m would command -10 m: refused when the manoeuvre is made,
+    not at the surface 157 s in with advice about buoyancy; -19 m still flies."""
+    with pytest.raises(ConfigError, match=f"scenario.options.{option}: expected a change "
+                                          "that keeps the depth below the surface"):
+        make_maneuver(ScenarioConfig(name=name, depth=20.0, duration=60.0,
+                                     options={option: -30.0}))
+    make_maneuver(ScenarioConfig(name=name, depth=20.0, duration=60.0, options={option: -19.0}))
 
 
 def test_spiral_dive_turns_and_descends(vehicle):

@@ -208,7 +208,7 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch, c
     assert worst["BeamsNetV2 (v2)"]["availability"] <= worst["LS"]["availability"]
     assert not (out / "stress.md").exists()  # the manoeuvre report is another run's
     # One file per distinct setting (20 % dropout in bursts of 5 is in two sweeps).
-    files = sorted((tmp_path / "datasets" / "faults").iterdir())
+    files = sorted((tmp_path / "datasets" / "faults").glob("*.h5"))
     assert len(files) == len({r["dataset"] for rows in summary["sweeps"].values()
                               for r in rows}) == 17
     # The combined setting's dead reckoning, per mission, for every estimator.

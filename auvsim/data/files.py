@@ -36,6 +36,7 @@ import shlex
 import shutil
 import signal
 import socket
+import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -231,15 +232,29 @@ def check_out_dir(out: str | os.PathLike) -> Path:
     is refused.
 
     Raises:
-        ConfigError: ``out``, or a path above it, exists and is not a directory.
+        ConfigError: ``out`` is the root directory; ``out``, or a path above it, exists and
+            is not a directory; or the nearest existing one cannot be written in (a file
+            is made there and removed, so that a read-only place is refused before the
+            work, not after it).
     """
     out = Path(out)
+    if not Path(os.path.abspath(out)).name:
+        raise ConfigError(f"{str(out)!r}: the root directory; expected a directory below it "
+                          "to write into", argument="out")
     for path in (out, *out.parents):
         if path.exists():
             if not path.is_dir():
                 what = "exists" if path == out else f"is inside {str(path)!r}, which exists"
                 raise ConfigError(f"{str(out)!r}: {what} and is not a directory; expected a "
                                   "directory to write into", argument="out")
+            try:
+                fd, probe = tempfile.mkstemp(prefix=f".{TAG}-probe-", dir=path)
+                os.close(fd)
+                os.unlink(probe)
+            except OSError as e:
+                raise ConfigError(f"{str(out)!r}: cannot write in {str(path)!r} "
+                                  f"({e.strerror or e}); expected a directory you can write "
+                                  "in", argument="out") from None
             break
     return out
 
@@ -475,6 +490,8 @@ def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
         ConfigError: ``out`` cannot be a directory.
     """
     out = check_out_dir(out)
+    if out.name in ("", ".", ".."):  # "." or "keep/..": the folder by a name of its own
+        out = Path(os.path.abspath(out))
     made = [p for p in (out.parent, *out.parent.parents) if not p.exists()]  # deepest first
     make_out_dir(out.parent)
     try:

@@ -17,9 +17,9 @@ ranges); a non-finite or wrongly shaped action is refused (``ValueError``):
 
     index  actuator                     -1 .. 1 maps to
     0      propeller shaft speed        -rpm_max .. rpm_max (900 rpm on the A18-D)
-    1      rudder angle (+ = starboard)  -rudder_max .. rudder_max (38 deg on the A18-D)
+    1      rudder angle (+ = starboard)  -rudder_max .. rudder_max (41 deg on the A18-D)
     2      stern-plane angle             -planes_max .. planes_max (15 deg; + = trailing edge down,
-                                                           pitches the nose up)
+                                                           pitches the nose down)
 
 ## Observation Space
 
@@ -163,8 +163,19 @@ class AuvEnv(gym.Env):
     def __init__(self, config: Config | None = None, *, frame_skip: int = 10,
                  max_episode_seconds: float = 600.0) -> None:
         self.config = preset("paper-sim") if config is None else config
-        if not isinstance(frame_skip, int) or frame_skip < 1:
+        if not isinstance(self.config, Config):
+            raise ConfigError(f"config: expected an auvsim Config (auvsim.runs.presets.preset"
+                              f"(NAME), or auvsim.config.load_config(FILE)), got "
+                              f"{type(config).__name__} {config!r}")
+        if isinstance(frame_skip, (bool, np.bool_)) or not isinstance(
+                frame_skip, (int, np.integer)) or frame_skip < 1:
             raise ConfigError(f"frame_skip: expected a whole number >= 1, got {frame_skip!r}")
+        frame_skip = int(frame_skip)
+        if isinstance(max_episode_seconds, (bool, np.bool_)) or not isinstance(
+                max_episode_seconds, (int, float, np.integer, np.floating)) or not (
+                math.isfinite(max_episode_seconds) and max_episode_seconds > 0):
+            raise ConfigError("max_episode_seconds: expected a positive number of seconds, "
+                              f"got {max_episode_seconds!r}")
         self.start = self.config.missions[0].scenario
         check_reachable(dataclasses.replace(self.config, missions=self.config.missions[:1]))
         self.frame_skip = frame_skip
@@ -187,6 +198,7 @@ class AuvEnv(gym.Env):
         # The arrays (truth, IMU, DVL, control) of the last step, for EpisodeRecorder;
         # None before the first step and at a terminal one.
         self.last_block: dict[str, np.ndarray] | None = None
+        self.step_index: int | None = None  # physics steps into the episode; None: no reset yet
         # The last info's values as one row (INFO), for auvsim.envs.vector; None before a reset.
         self.info_row: np.ndarray | None = None
 
@@ -210,11 +222,14 @@ class AuvEnv(gym.Env):
         return self._observation(None, state), self._info(state)
 
     def step(self, action):
+        if self.step_index is None:
+            raise gym.error.ResetNeeded("step() before reset(): expected reset() first, "
+                                        "which starts an episode")
         action = np.asarray(action, dtype=float)
         values = action.tolist()
         if action.shape != (3,) or not all(map(math.isfinite, values)):
-            raise ValueError(f"action: expected 3 finite numbers in [-1, 1] (propeller, "
-                             f"rudder, stern planes), got {values!r}")
+            raise ValueError(f"action: expected 3 finite numbers (propeller, rudder, stern "
+                             f"planes; each clipped to [-1, 1]), got {values!r}")
         # np.clip and the product by the limits in Python floats: the same IEEE arithmetic
         # on three numbers, at a fraction of numpy's cost per call.
         self._commands[:] = [min(max(a, -1.0), 1.0) * limit
@@ -307,7 +322,7 @@ class ManeuverPolicy:
 
 class EpisodeRecorder(gym.Wrapper):
     """Writes every episode the wrapped ``AuvEnv`` runs as a mission of a dataset at
-    ``path`` (schema v2, the same fields as ``auvsim generate``'s), when it is closed.
+    ``path`` (the same format and fields as ``auvsim generate``'s), when it is closed.
 
     Args:
         env: an ``AuvEnv`` (or a wrapper of one).

@@ -101,6 +101,15 @@ def _at_least(name: str, value: float, least: float, unit: str) -> None:
                           f"{value!r}")
 
 
+def _below_the_surface(name: str, depth: float, change: float) -> None:
+    """A depth change from the scenario's ``depth`` must keep the depth reference positive
+    (the scenario's own depth is checked so by its config)."""
+    if not depth + change > 0:
+        raise ConfigError(f"scenario.options.{name}: expected a change that keeps the depth "
+                          f"below the surface (more than {-depth:g} m from {depth:g} m), got "
+                          f"{change!r}")
+
+
 def _positive(name: str, value: float) -> None:
     if not value > 0:
         raise ConfigError(f"scenario.options.{name}: expected a positive number, got {value!r}")
@@ -294,7 +303,7 @@ class TurningCircle(Maneuver):
 
     @dataclass(frozen=True)
     class Options:
-        rudder_deg: float = 15.0  # a standard turn; the A18-D's full rudder is 38 deg
+        rudder_deg: float = 15.0  # a standard turn; the A18-D's full rudder is 41 deg
         lead_s: float = 20.0
         turn_s: float = 0.0  # 0: to the end
 
@@ -330,7 +339,7 @@ class Zigzag(Maneuver):
 
     name = "zigzag"
     # The two zigzags of the manoeuvring standards (IMO MSC.137(76)); both rudders lie
-    # within the A18-D's 38 deg rudder limit.
+    # within the A18-D's 41 deg rudder limit.
     variants = {"zigzag_10_10": {"angle_deg": 10.0, "rudder_deg": 10.0},
                 "zigzag_20_20": {"angle_deg": 20.0, "rudder_deg": 20.0}}
 
@@ -445,6 +454,10 @@ class DepthSteps(_Steps):
         leg_m: float = 0.0  # 0: one heading
         spacing_m: float = 50.0
 
+    def __init__(self, config, rng=None):
+        super().__init__(config, rng)
+        _below_the_surface("step_m", self.depth, self.options.step_m)
+
     def levels(self):
         return self.depth, self.depth + self.options.step_m
 
@@ -488,6 +501,7 @@ class Yoyo(_OnSurveyLines):
     def __init__(self, config, rng=None):
         super().__init__(config, rng)
         _at_least("period_s", self.options.period_s, 1.0, "s")
+        _below_the_surface("amplitude_m", self.depth, self.options.amplitude_m)
 
     def schedule(self, t):
         o = self.options

@@ -351,7 +351,8 @@ def _check_windows_of(dataset, windows: Windows) -> None:
                     f"the learned noise trains on the filter's own file ({dataset}), and the "
                     f"training windows are of another (their mission {name!r} {which}); "
                     "expected training windows of that file, or a trained model "
-                    "(noise_model in --filter-config)")
+                    "(noise_model in the filter's settings: --filter-config of beamsnet "
+                    "estimate and evaluate)")
 
 
 ESTIMATORS = (

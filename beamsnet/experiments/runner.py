@@ -38,6 +38,12 @@ from beamsnet.training.checkpoints import file_identity, load, trained
 from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
 from beamsnet.training.runs import keep_best, seed_runs, train_all
 
+# Beside the single-file datasets ``ensure_dataset`` makes: each one's config hash
+# (``config_sha256``, which covers the vehicle model file and auvsim's version, where the
+# file's stored config names the model only) with the file's size and mtime when it was
+# made. A sharded dataset's shards store the hash themselves.
+MADE = ".auvsim-made.json"
+
 
 class StaleDatasetWarning(UserWarning):
     """An experiment's dataset was there but made from another config (or unreadable),
@@ -69,9 +75,10 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
     exactly what ``config`` makes, on the Dask cluster ``cluster`` if one is given (the
     same data either way).
 
-    An existing file is reused only when its stored config hash equals the one
-    generating ``config`` would write (``auvsim.runs.generate.config_sha256``, where the
-    file stores one; else the SHA-256 of its stored config against that of
+    An existing file is reused only when its config hash equals the one generating
+    ``config`` would write (``auvsim.runs.generate.config_sha256``: stored in a sharded
+    dataset's shards, recorded in ``MADE`` beside a file this function made; else, for a
+    file made elsewhere, the SHA-256 of its stored config against that of
     ``config.to_json()``): a changed preset or an added manoeuvre regenerates it, and a
     ``StaleDatasetWarning`` says why in one line. ``generate`` writes the file whole or
     not at all, so an interrupted generation leaves nothing that a later run would take
@@ -87,6 +94,8 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
         warnings.warn(f"{path}: {why}; generating it again", StaleDatasetWarning,
                       stacklevel=2)
     generate(config, path, progress=progress, cluster=cluster)
+    if path.is_file():
+        _record(path, config)
     return path
 
 
@@ -102,14 +111,48 @@ def stale(path: str | os.PathLike, config) -> str | None:
         lines = str(e).strip().splitlines() or [type(e).__name__]
         return f"it is not a readable dataset ({lines[0]})"
     wanted = config.to_json()
-    if stored_sha is not None:
-        if stored_sha == config_sha256(config):
+    made = stored_sha if stored_sha is not None else _made(Path(path))
+    if made is not None:
+        if made == config_sha256(config):
             return None
-    elif _sha256(stored) == _sha256(wanted):
+    elif _sha256(stored) == _sha256(wanted):  # a file made elsewhere: its config alone
         return None
     differ = _differences(stored, wanted)
     return ("it was made from another config" + (f" ({differ})" if differ else
                                                   " (another auvsim or vehicle model)"))
+
+
+def _identity(path: Path) -> list[int]:
+    stat = path.stat()
+    return [stat.st_size, stat.st_mtime_ns]
+
+
+def _made(path: Path) -> str | None:
+    """The config hash ``ensure_dataset`` recorded for the file at ``path`` (``MADE``),
+    or None: none recorded, or the file has changed since (another size or mtime)."""
+    try:
+        entry = json.loads((path.parent / MADE).read_text()).get(path.name)
+        if entry["file"] == _identity(path):
+            return str(entry["config_sha256"])
+    except (OSError, ValueError, AttributeError, KeyError, TypeError):
+        pass
+    return None
+
+
+def _record(path: Path, config) -> None:
+    """Record ``config``'s hash for the file ``ensure_dataset`` just made at ``path``."""
+    from auvsim.data.files import write_text
+    from auvsim.runs.generate import config_sha256
+
+    index = path.parent / MADE
+    try:
+        made = json.loads(index.read_text())
+    except (OSError, ValueError):
+        made = {}
+    if not isinstance(made, dict):
+        made = {}
+    made[path.name] = {"config_sha256": config_sha256(config), "file": _identity(path)}
+    write_text(index, json.dumps(made, indent=1, sort_keys=True) + "\n")
 
 
 def _sha256(text: str) -> str:

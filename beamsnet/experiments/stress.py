@@ -151,6 +151,9 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     if maneuver_data is not None:
         _check_geometry(train_data, maneuver_data)
     windows = load_windows(train_data)  # the models' own (default) n_past
+    if not faults:  # the test's pings too, so that a file too short is refused before training
+        phases = _phases(maneuver_data)  # also gives the missions in the config's order
+        test_w = load_windows(maneuver_data, missions=list(phases) or None)
     # Every network of the registry that the file can feed (V1 needs IMU data, which an
     # imported stream has none of); every mission. The masked ones (V2M, CorrectionNet)
     # run on the fault sweep's missing beams.
@@ -166,8 +169,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
                             trained_on=_scenarios(train_data), out=out,
                             duration=fault_duration, missions=fault_missions,
                             noise_std=noise_std, progress=progress)
-    phases = _phases(maneuver_data)  # also gives the missions in the config's order
-    test_w = load_windows(maneuver_data, missions=list(phases) or None)
     trained_on = _scenarios(train_data)
     positions: dict[str, np.ndarray] = {}
     estimates = predictions(models, train_w, test_w, dataset=maneuver_data,
