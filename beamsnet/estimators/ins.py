@@ -76,7 +76,13 @@ current ping had one), the velocity is restarted from the measurements (its vari
 to cover the worst innovation, its correlations dropped), the attitude's variance gets
 its initial prior back and the position's grows by what that velocity error moves it
 over the window. Each restart is an ``Event`` of the track (ping, time, one line), listed
-by ``beamsnet estimate``.
+by ``beamsnet estimate``. A wrong state makes every beam disagree with it while the beams
+agree among themselves; an outlier makes one beam disagree with the others. So where a
+ping has four beams, its rejections count only if the beams pass the parity check: with
+a the unit vector of a^T D = 0 (D the beams' directions; the combination the Janus error
+velocity is made of, in which a common velocity, misalignment or timing error cancels)
+and z_k = (y_k - c_k) / (1 + s_k), (a . z)^2 <= gate sum_k a_k^2 (r_k + P_ck). Three
+beams, or a DVL's velocity, have no redundancy, and every rejection counts.
 
 Adaptive measurement noise (``adaptive = "innovation"``, the estimator ``INS/DVL
 (adaptive)``): the model-based adaptive baseline, innovation-based adaptive estimation
@@ -294,7 +300,10 @@ class FilterConfig:
             A quarter: one DVL axis (or one beam in four) rejected throughout; under the
             gate's own false-alarm rate (0.1 %) a quarter of a window's 30 or more
             measurements (8 or more) has a binomial probability below 1e-15, and a real
-            DVL's outliers (0.2 % to a few per cent of pings) stay well below it.
+            DVL's outliers (0.2 % to a few per cent of pings) stay well below it; on four
+            beams, a ping's rejections count only where its beams agree among themselves
+            (the module docstring's parity check), so outliers on a fifth of the
+            beam-pings restart nothing.
         adaptive: ``"none"``: the measurement noise is the stated one throughout (the
             fixed filter); ``"innovation"``: the stated white noise of the beams (or DVL
             axes) scaled by a factor estimated from the recent innovations (Mohamed &
@@ -598,7 +607,7 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
             p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, window,
-            watch_share, timing_std, adapt_window, r_low, r_high, kappa,
+            watch_share, parity, timing_std, adapt_window, r_low, r_high, kappa,
             net_window, net_w1, net_b1, net_w2, net_b2, feat_mean, feat_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
     (p, v, c, ba, bg, P); outputs per ping are returned.
@@ -620,6 +629,11 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         bias_psd: their driving PSD, (m/s)^2/s.
         window, watch_share: the divergence watch's window, pings (0: off), and the share
             of its measurements the gate must have rejected.
+        parity: (K,) unit vector a with a^T dirs = 0 (four beams: the Janus error
+            velocity's combination), or zeros (no redundancy): a ping whose K
+            measurements disagree among themselves (a . z beyond the gate, z the
+            measurements less their biases and scale factors) holds an outlier, and its
+            rejections do not count towards the watch.
         timing_std: s, the std of each ping's time on the IMU's clock: a measurement
             along b changes at b . du/dt, so it is uncertain by timing_std |b . du/dt|
             more (du/dt = f + C^T g - w x u + alpha x L, u the DVL point's body velocity).
@@ -673,6 +687,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     m_vv = np.zeros((3, 3))
     m_aa = np.zeros((3, 3))
     earth = omega_ie[0] != 0.0 or omega_ie[1] != 0.0 or omega_ie[2] != 0.0
+    check_parity = np.abs(parity).sum() > 0.0
     k_ping = 0
     while k_ping < n_ping and ping_row[k_ping] < 0:
         k_ping += 1
@@ -747,6 +762,18 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
             wb = w[i] - bg - c.T @ omega_ie
             worst = 0.0
+            # Do the ping's measurements agree among themselves (the parity check)? A
+            # common velocity, misalignment or timing error cancels in a . z; an outlier
+            # on one beam does not. Its rejections are then the instrument's, not the
+            # state's.
+            agree = True
+            if check_parity and usable[k_ping].all():
+                pz, pvar = 0.0, 0.0
+                for k in range(n_dir):
+                    pz += parity[k] * (meas[k_ping, k] - cb[k]) / (1.0 + s[k])
+                    pvar += parity[k] * parity[k] * (
+                        r_use[k] + (P[19 + k, 19 + k] if n > N_CORE else 0.0))
+                agree = pz * pz <= gate * pvar
             u_dot = np.zeros(3)
             if timing_std > 0.0:
                 u = c.T @ v + np.cross(wb, lever)
@@ -867,9 +894,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             if window > 0:
                 slot = k_ping % window
                 ring_used[slot] = used[k_ping] + rejected[k_ping]
-                ring_rejected[slot] = rejected[k_ping]
+                ring_rejected[slot] = rejected[k_ping] if agree else 0
                 offered = ring_used.sum()
-                if (rejected[k_ping] > 0 and offered >= window
+                if (ring_rejected[slot] > 0 and offered >= window
                         and ring_rejected.sum() >= watch_share * offered):
                     # The gate has rejected most measurements for a window: the state, not
                     # the instrument, is wrong. Restart the velocity from the measurements
@@ -1212,7 +1239,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
         np.ascontiguousarray(r_meas), chi2_1dof(cfg.gate_probability), n, decay,
         2.0 * bias_std**2 * decay,
-        cfg.watch_pings, float(cfg.watch_share),
+        cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
         cfg.clock_std if timing_std is None else float(timing_std),
         cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
         float(floor**2), float(ceiling**2),
@@ -1465,6 +1492,16 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
         t[min(k + 1, len(t) - 1)] - t[max(k - 1, 0)], 1e-9)
     return start_from_reference(imu_time[i], np.asarray(ref.position_ned[k], dtype=float),
                                 v[k], c, angular_rate=w[i], acceleration=accel, config=cfg)
+
+
+def _parity(dirs: np.ndarray) -> np.ndarray:
+    """The unit vector a with a^T ``dirs`` = 0 for four directions of rank 3 (a Janus
+    DVL's beams: the combination its error velocity is made of), else zeros (three beams or
+    a velocity's axes: no redundancy to check)."""
+    dirs = np.asarray(dirs, dtype=float)
+    if dirs.shape[0] != 4 or np.linalg.matrix_rank(dirs) != 3:
+        return np.zeros(dirs.shape[0])
+    return np.ascontiguousarray(np.linalg.svd(dirs)[0][:, 3])
 
 
 def _gated_variance_share(probability: float) -> float:
