@@ -189,11 +189,14 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
 
 def _check_duration(value, argument: str) -> None:
     """Raises ConfigError naming ``argument`` unless ``value`` is a positive number of
-    seconds (the preset would say ``duration``, which is not this command's option)."""
+    seconds, at most a mission's ``MAX_DURATION`` (the preset would say ``duration``, which
+    is not this command's option)."""
+    from auvsim.config import MAX_DURATION
+
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            math.isfinite(value) and value > 0):
-        raise ConfigError(f": expected a positive number of seconds, got {value!r}",
-                          argument=argument)
+            math.isfinite(value) and 0 < value <= MAX_DURATION):
+        raise ConfigError(f": expected a positive number of seconds, at most "
+                          f"{MAX_DURATION:g} (72 h), got {value!r}", argument=argument)
 
 
 def _table(windows: Windows, estimates: dict[str, np.ndarray],
