@@ -231,11 +231,12 @@ def test_outliers_on_single_beams_do_not_set_off_the_watch_a_wrong_state_still_d
     in five hold one or more, and the gate rejects about a fifth of the measurements,
     near the watch's quarter. A ping whose four beams disagree among themselves (the
     parity check, the Janus error velocity) holds an outlier, not a wrong state, so its
-    rejections do not count: no restart, and the track keeps to the truth (before the
-    check, 21 to 26 restarts in each 300 s manoeuvre of the fault sweep's 20 % setting,
-    each opening the gate to the next outlier, ended 10 to 16 m off against 0.4 to 4 m
-    clean). A start 2 m/s off, where every beam agrees and all disagree with the state,
-    is still restarted within the watch's window."""
+    rejections do not count: no restart, and the track keeps to the truth. (Counting
+    every rejection, the watch restarted here and opened the gate to the next outlier: a
+    fifth of the measurements rose to 0.28 rejected; in ``beamsnet stress --faults``'s 20 %
+    row the filter's vector RMSE was 0.3551 m/s, 0.0020 with the check.) A start 2 m/s
+    off, where every beam agrees and all disagree with the state, is still restarted
+    within the watch's window."""
     config = zigzag(PAPER_NOISE_CODE, 120.0)
     config = dataclasses.replace(config, dvl=dataclasses.replace(
         config.dvl, outlier_rate=0.2, outlier_std=0.5))
