@@ -159,8 +159,8 @@ def no_generation(monkeypatch):
      "--maneuvers notes.txt: not an HDF5 file"),
     (["stress", "--maneuver-duration", "-1"], "--maneuver-duration: expected a positive"),
     (["stress", "--train-duration", "0"], "--train-duration: expected a positive"),
-    (["stress", "--train-duration", "1e12"], "--train-duration: expected a positive number "
-     "of seconds, at most 259200 (72 h), got 1000000000000.0"),
+    (["stress", "--train-duration", "1e12"], "--train-duration: expected at most 259200 s"),
+    (["stress", "--maneuver-duration", "1e12"], "--maneuver-duration: expected at most"),
     (["stress", "--faults", "--fault-duration", "-3"], "--fault-duration"),
     (["reproduce", "paper-sim", "--data", "notes.txt"], "--data notes.txt: not an HDF5"),
     (["reproduce", "paper-sim", "--data", "{data}"],

@@ -134,11 +134,11 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     # Both configs (their durations checked) before either file is generated.
     train_config = maneuver_config = None
     if train_data is None:
-        _check_duration(train_duration, "train_duration")
-        train_config = preset(train_preset).with_duration(train_duration)
+        train_config = _config_of(preset(train_preset).with_duration, train_duration,
+                                  "train_duration")
     if maneuver_data is None and not faults:
-        _check_duration(maneuver_duration, "maneuver_duration")
-        maneuver_config = maneuvers(maneuver_duration, noise_std=noise_std)
+        maneuver_config = _config_of(lambda d: maneuvers(d, noise_std=noise_std),
+                                     maneuver_duration, "maneuver_duration")
     if train_config is not None:
         train_data = ensure_dataset(train_config,
                                     Path("datasets") / f"{train_preset}_{train_duration:g}s.h5",
@@ -189,14 +189,23 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
 
 def _check_duration(value, argument: str) -> None:
     """Raises ConfigError naming ``argument`` unless ``value`` is a positive number of
-    seconds, at most a mission's ``MAX_DURATION`` (the preset would say ``duration``, which
-    is not this command's option)."""
-    from auvsim.config import MAX_DURATION
-
+    seconds (the preset would say ``duration``, which is not this command's option)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            math.isfinite(value) and 0 < value <= MAX_DURATION):
-        raise ConfigError(f": expected a positive number of seconds, at most "
-                          f"{MAX_DURATION:g} (72 h), got {value!r}", argument=argument)
+            math.isfinite(value) and value > 0):
+        raise ConfigError(f": expected a positive number of seconds, got {value!r}",
+                          argument=argument)
+
+
+def _config_of(build, duration, argument: str):
+    """``build(duration)``, a preset's config, ``duration`` checked; the preset's own error
+    about its missions' duration (too long) names ``argument`` instead."""
+    _check_duration(duration, argument)
+    try:
+        return build(duration)
+    except ConfigError as e:
+        if not e.message.startswith("duration:"):
+            raise
+        raise ConfigError(e.message[len("duration"):], argument=argument) from None
 
 
 def _table(windows: Windows, estimates: dict[str, np.ndarray],
