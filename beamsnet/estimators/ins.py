@@ -118,7 +118,7 @@ watch is unchanged (its restart still uses the stated noise). With ``adaptive =
 bit-identical to the filter's before the setting existed.
 
 Learned DVL noise (``adaptive = "learned"``, the estimator ``INS/DVL (learned noise)``):
-at every ping the loop records eight features of the IMU since the previous ping and of
+at every ping the loop records six features of the IMU since the previous ping and of
 the ping's innovations and runs a small network (``beamsnet.estimators.noisemodel``, its
 arrays handed to the loop) whose bounded output scales the DVL's white variances and the
 drive of the bias states c_k from the next ping on; ``beamsnet.estimators.noisenet``
@@ -200,7 +200,7 @@ from beamsnet.estimators.registry import Needs, Spec
 N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
-N_FEATURES = 8  # what the loop records of each ping for a learned noise model (noisenet)
+N_FEATURES = 6  # what the loop records of each ping for a learned noise model (noisenet)
 # The error state's layout (the rows of P), by the FilterTrack field each part fills.
 _STATES = dict(position=slice(0, 3), velocity=slice(3, 6), attitude=slice(6, 9),
               accel_bias=slice(9, 12), gyro_bias=slice(12, 15), beam_scale=slice(15, 19),
@@ -864,11 +864,13 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             feat[0] = math.log(mean_w + 1e-3)
             feat[1] = math.log(math.sqrt(var_f + mean_f * mean_f) + 1e-3)
             feat[2] = math.log(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.1)
-            feat[3] = math.log(nis_sum / offered + 0.01) if offered > 0 else math.log(0.01)
+            # The scale the ping's innovations imply, lambda nu^2 / S: the mean NIS times
+            # the scale in use, which the noise model's own output does not move (to first
+            # order), so that training on its own runs converges (noisenet).
+            feat[3] = (math.log(scale_used * nis_sum / offered + 0.01) if offered > 0
+                       else math.log(0.01))
             feat[4] = share_sum / offered if offered > 0 else 0.0
-            feat[5] = math.log(scale_used)
-            feat[6] = rejected[k_ping] / offered if offered > 0 else 0.0
-            feat[7] = offered / n_dir
+            feat[5] = offered / n_dir
             if net_window > 0:
                 if feat_n == 0:  # the first ping's features fill the window
                     for j in range(net_window):

@@ -23,13 +23,13 @@ import numpy as np
 
 from auvsim.errors import AuvsimError
 
-FEATURES = ("log rotation rate", "log rms |f| - g", "log speed", "log NIS",
-            "scaled noise share", "log scale in use", "rejected share", "offered share")
+FEATURES = ("log rotation rate", "log rms |f| - g", "log speed", "log implied scale",
+            "scaled noise share", "offered share")
 WINDOW = 30  # pings of features the network reads (the model-based filter's window)
 HIDDEN = 16  # tanh units
 BOUNDS = (0.5, 10.0)  # the scaled std's bounds, multiples of the stated one
 NOISE_MODEL_FORMAT = "beamsnet-noise-model"
-NOISE_MODEL_VERSION = 1
+NOISE_MODEL_VERSION = 2  # 2: the implied scale, no scale in use or rejected share
 
 
 class NoiseModelError(AuvsimError):

@@ -23,12 +23,21 @@ a reference.
 the IMU samples since the previous ping and the ping's own innovations; ratios and
 logarithms, so that neither the IMU's rate nor the instrument's stated noise sets their
 scale): the log mean rotation rate, the log r.m.s. of |f| - g, the log speed, the log
-mean normalised innovation squared (nu^2 / S, winsorised at the gate: about 1 for a
-consistent filter), the share of S that the scaled noise makes (lambda (r + q) / S, q the
-drive since the last ping), the log scale in use, the share of the offered measurements
-the gate rejected and the share offered. The network reads the last ``WINDOW`` pings'
-features (the first ping's fill the window at the start), normalised by the training
-data's mean and std.
+scale the ping's innovations imply (lambda times their mean nu^2 / S, winsorised at the
+gate: the true scale, whatever lambda the filter used), the share of S that the scaled
+noise makes (lambda (r + q) / S, q the drive since the last ping) and the share of the
+measurements offered. The network reads the last ``WINDOW`` pings' features (the first
+ping's fill the window at the start), normalised by the training data's mean and std; a
+feature that never varies in the training data gets zero weights, so that an input the
+network never saw move cannot steer it.
+
+No feature is the network's own output, or moves with it: the filter's runs with the
+learned scale are the next round's training data, and an input that follows the output
+(the scale in use, the share the gate rejected, the plain nu^2 / S) made the rounds a
+feedback loop that did not converge. On a 200 s zigzag told half its beams' noise (true
+scale 4), five seeds learned 2.9 to 5.9 with those inputs, 1.6 to 2.5 after one round
+and 1.0 to 10.3 after three; with these, 3.1 to 3.7 after two rounds
+(``tests/test_learned_noise.py`` holds the known answers).
 
 **Network.** W F inputs, ``HIDDEN`` tanh units, one output z; log lambda =
 (log a + log b) / 2 + (log b - log a) / 2 tanh(z) for the variance bounds (a, b) =
@@ -45,16 +54,23 @@ one.
 filter's output (Schweppe 1965, "Evaluation of likelihood functions for Gaussian
 signals", IEEE Trans. Inf. Theory 11(1), 61-70; used to identify noise variances by Mehra
 1970, "On the identification of variances and adaptive Kalman filtering", IEEE TAC 15(2),
-175-184): per measurement, 0.5 (log S + nu^2 / S) with S(lambda) = (h P h^T - lambda_0 q)
-+ lambda (r + q), where h P h^T (with the timing term), the drive q and the scale
-lambda_0 are a recorded run's: the drive enters a bias's variance, whose h is 1, once per
-ping. The loss is so in closed form and needs no differentiable filter; as the scale
-changes P beyond one ping, the network is trained again (from its seeded start, with
-its inputs normalised afresh) on the filter's run with the learned scale (``ROUNDS``:
-first on the fixed filter's run, then on the learned one's). nu^2 is
-winsorised at the gate (min(nu^2, gate S_0)), as in the model-based filter: a gated
-outlier counts as a large innovation, not an unbounded one. The loss needs no truth: what
-the network is fitted to is what the filter sees.
+175-184): per measurement, 0.5 (log S + nu^2 / S) with S(lambda) = (lambda / lambda_0)
+S_0, where S_0 (h P h^T with the timing term, plus lambda_0 r) and the scale lambda_0 are
+a recorded run's. A Kalman filter told every noise and its prior lambda times larger
+has lambda times the covariance and the same gain; here the scale multiplies the DVL's
+white noise and its slow error's drive, which make most of S (the slow error's states
+give 40 to 150 times the white variance, above), so S scales with it. The loss is so in
+closed form and needs no differentiable filter; as the scale changes P beyond what that
+says, the network is trained again (from its seeded start, with its inputs normalised
+afresh) on the filter's run with the learned scale (``ROUNDS``: first on the fixed
+filter's run, then on the learned one's). An innovation beyond the gate (nu^2 >= gate
+S_0) counts by the probability of being there, -log P(|nu| > sqrt(gate S_0)) under
+S(lambda), not by its size: the censored normal likelihood (Tobin 1958, "Estimation of
+relationships for limited dependent variables", Econometrica 26(1), 24-36). So an outlier
+weighs no more than an innovation at the gate, and a filter told too little noise, whose
+gate cuts many good innovations, is not read as less noisy than it is (winsorising them
+at the gate instead, told half the noise, learned a quarter less than the true scale).
+The loss needs no truth: what the network is fitted to is what the filter sees.
 
 **Training data** (``training_records``): auvsim missions only. Each runs in both of the
 filter's measurement forms (the beams, and the DVL's LS velocity, the form a log without
@@ -104,9 +120,10 @@ class Records:
     measurements (up to 4; ``mask`` says which were offered)."""
 
     inputs: np.ndarray  # (N, WINDOW F)
-    nu2: np.ndarray  # (N, 4) squared innovations, winsorised at the gate, (m/s)^2
-    hph: np.ndarray  # (N, 4) h P h^T with the timing term, less the scaled drive, (m/s)^2
-    r: np.ndarray  # (N, 4) the stated variances plus the drive, (m/s)^2
+    nu2: np.ndarray  # (N, 4) squared innovations, at most gate S_0, (m/s)^2
+    s0: np.ndarray  # (N, 4) their variances S_0 in the recorded run, (m/s)^2
+    log_scale0: np.ndarray  # (N,) log lambda_0, the scale the recorded run used
+    censored: np.ndarray  # (N, 4) bool: beyond the gate (nu2 is then gate S_0)
     mask: np.ndarray  # (N, 4) bool
     group: np.ndarray  # (N,) int, the mission each row is from (for the validation split)
 
@@ -126,16 +143,17 @@ def records(track, gate: float, group: int = 0, *, until: float = math.inf,
     k = track.innovation.shape[1]
     r_stated = np.asarray(track.stated_std, dtype=float) ** 2
     now = started[1:]
-    scale, drive = track.noise_scale[now, None], track.slow_drive[now, None]
+    scale = track.noise_scale[now]
     nu = track.innovation[now]
-    hph = np.nan_to_num(track.innovation_hph[now])
     mask = np.isfinite(nu) & np.isfinite(track.innovation_hph[now])
+    s0 = np.nan_to_num(track.innovation_hph[now]) + scale[:, None] * r_stated
+    nu2 = np.nan_to_num(nu) ** 2
+    censored = mask & (nu2 >= gate * s0)
     pad = ((0, 0), (0, 4 - k))
-    nu2 = np.minimum(np.nan_to_num(nu) ** 2, gate * (hph + scale * r_stated))
-    return Records(inputs=x[:-1], nu2=np.pad(nu2, pad),
-                   hph=np.pad(np.maximum(hph - scale * drive, 0.0), pad),
-                   r=np.pad(r_stated + drive, pad, constant_values=1.0),
-                   mask=np.pad(mask, pad), group=np.full(len(now), group))
+    return Records(inputs=x[:-1], nu2=np.pad(np.minimum(nu2, gate * s0), pad),
+                   s0=np.pad(s0, pad, constant_values=1.0), log_scale0=np.log(scale),
+                   censored=np.pad(censored, pad), mask=np.pad(mask, pad),
+                   group=np.full(len(now), group))
 
 
 def training_records(dataset, missions: Sequence[str], config=None, model=None, *,
@@ -174,8 +192,12 @@ def _nll(torch, net, bounds, rec):
     lo, hi = (2 * math.log(b) for b in bounds)
     z = net(rec["inputs"])[:, 0]
     log_scale = 0.5 * (lo + hi) + 0.5 * (hi - lo) * torch.tanh(z)
-    s = rec["hph"] + torch.exp(log_scale)[:, None] * rec["r"]
-    terms = 0.5 * (torch.log(s) + rec["nu2"] / s)
+    s = torch.exp(log_scale - rec["log_scale0"])[:, None] * rec["s0"]
+    # Beyond the gate: -log P(|nu| > sqrt(gate S_0)) = -log 2 Phi(-sqrt(gate S_0 / S)); the
+    # ratio is 1 elsewhere, so that the branch not taken has a finite gradient.
+    ratio = torch.where(rec["censored"], rec["nu2"] / s, torch.ones_like(s))
+    tail = -(math.log(2.0) + torch.special.log_ndtr(-torch.sqrt(ratio)))
+    terms = torch.where(rec["censored"], tail, 0.5 * (torch.log(s) + rec["nu2"] / s))
     return (terms * rec["mask"]).sum() / rec["mask"].sum()
 
 
@@ -183,26 +205,33 @@ def fit(rec: Records, *, seed: int = 0, epochs: int = EPOCHS, lr: float = LR,
         bounds: tuple[float, float] = BOUNDS, trained_on: dict | None = None) -> NoiseModel:
     """Fit the network to ``rec`` by the innovations' negative log-likelihood (full
     batch, Adam, from a seeded start). Every fifth mission (``group``) is held out to
-    choose the epoch; the inputs are normalised by the training rows' mean and std (a
-    constant input by 1)."""
+    choose the epoch (with fewer than two missions, every fifth block of 2 ``WINDOW``
+    rows: a held-out row's window then barely overlaps a training row's, where rows taken
+    one in five shared most of theirs and the epoch chosen fitted the pings' noise); the
+    inputs are normalised by the training rows' mean and std (a
+    constant input by 1, its weights zero)."""
     import torch
 
     torch.manual_seed(seed)
     held = rec.group % 5 == 4
     if held.all() or not held.any():
-        held = np.arange(len(rec.group)) % 5 == 4
+        held = (np.arange(len(rec.group)) // (2 * WINDOW)) % 5 == 4
     train, valid = ~held, held
     mean = rec.inputs[train].mean(axis=0)
     std = rec.inputs[train].std(axis=0)
-    std[std < 1e-6] = 1.0
+    constant = std < 1e-6
+    std[constant] = 1.0
     d = rec.inputs.shape[1]
     net = torch.nn.Sequential(torch.nn.Linear(d, HIDDEN, dtype=torch.float64), torch.nn.Tanh(),
                               torch.nn.Linear(HIDDEN, 1, dtype=torch.float64))
+    with torch.no_grad():  # an input that never varied here gets no weight (its gradient
+        net[0].weight[:, torch.from_numpy(constant)] = 0.0  # is 0, so it stays 0)
 
     def tensors(rows):
         return {"inputs": torch.from_numpy((rec.inputs[rows] - mean) / std),
-                "nu2": torch.from_numpy(rec.nu2[rows]), "hph": torch.from_numpy(rec.hph[rows]),
-                "r": torch.from_numpy(rec.r[rows]),
+                "nu2": torch.from_numpy(rec.nu2[rows]), "s0": torch.from_numpy(rec.s0[rows]),
+                "log_scale0": torch.from_numpy(rec.log_scale0[rows]),
+                "censored": torch.from_numpy(rec.censored[rows]),
                 "mask": torch.from_numpy(rec.mask[rows].astype(float))}
 
     t, v = tensors(train), tensors(valid)

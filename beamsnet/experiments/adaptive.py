@@ -494,7 +494,7 @@ def _failures(sea: dict, features: dict) -> list[str]:
     lines += [f"- {n} (KS {shift[n]['ks']:.2f}): {NATURAL[n][0]}, "
               f"{_natural(n, shift[n]['simulated'][1])} against "
               f"{_natural(n, shift[n]['recorded'][1])}" for n in moved] or ["- none"]
-    nis = [_natural("log NIS", shift["log NIS"][k][1]) for k in ("simulated", "recorded")]
+    implied = [shift["log implied scale"][k][1] for k in ("simulated", "recorded")]
     scale = float(np.median(np.concatenate(list(scales.values()))))
     based = float(np.median(np.concatenate([_scale(r["model_based"]) for r in sea.values()])))
     least = min(sea, key=lambda n: sea[n]["scores"][FIXED].get("coverage_3sigma", 1.0))
@@ -502,8 +502,10 @@ def _failures(sea: dict, features: dict) -> list[str]:
              for label in (FIXED, LEARNED)]
     lines += ["", "What it means (our reading of these figures): the network learned to follow "
               "the innovations, and the recorded ones are "
-              f"{'smaller' if nis[1] < nis[0] else 'larger'} than the stated noise predicts: "
-              f"the ping's mean nu^2 / S is {nis[1]} at sea against {nis[0]} on the held-out "
+              f"{'smaller' if implied[1] < implied[0] else 'larger'} than the stated noise "
+              "predicts: the scale they imply (the ping's lambda nu^2 / S) is "
+              f"{_natural('log implied scale', implied[1])} at sea against "
+              f"{_natural('log implied scale', implied[0])} on the held-out "
               "missions, where the filter's noise model is the simulator's own. So at sea it "
               f"sets the DVL's noise at {scale:.2f} times the stated std (median over the "
               "segments' pings), where the model-based filter, which reads the innovations "
@@ -525,10 +527,9 @@ NATURAL = {
                           lambda x: math.degrees(math.exp(x) - 1e-3)),
     "log rms |f| - g": ("r.m.s. of |f| - g, m/s^2", lambda x: math.exp(x) - 1e-3),
     "log speed": ("speed, m/s", lambda x: math.exp(x) - 0.1),
-    "log NIS": ("the ping's mean nu^2 / S", lambda x: math.exp(x) - 0.01),
+    "log implied scale": ("the scale the ping's innovations imply, lambda nu^2 / S",
+                          lambda x: math.exp(x) - 0.01),
     "scaled noise share": ("share of S the scaled noise makes", lambda x: x),
-    "log scale in use": ("variance scale in use", math.exp),
-    "rejected share": ("share gated out", lambda x: x),
     "offered share": ("share of the measurements offered", lambda x: x),
 }
 
