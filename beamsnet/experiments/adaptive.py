@@ -596,7 +596,8 @@ def _feature_figure(features: dict, path: Path) -> None:
     from beamsnet.estimators.noisemodel import FEATURES
 
     sim, real = features["simulated"], features["recorded"]
-    fig, axes = plt.subplots(2, 4, figsize=(13, 5.5))
+    cols = math.ceil(len(FEATURES) / 2)
+    fig, axes = plt.subplots(2, cols, figsize=(3.25 * cols, 5.5))
     for j, name in enumerate(FEATURES):
         ax = axes.flat[j]
         both = np.concatenate([sim[:, j], real[:, j]])
