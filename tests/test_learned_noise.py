@@ -86,9 +86,9 @@ def test_told_half_the_noise_it_covers_the_truth_where_the_fixed_filter_does_not
 
 def test_every_seed_learns_the_same_scale_and_covers_the_truth(noisy, seeds):
     """Told half the noise, each of five seeds' models sets the scale within 30 % of the
-    true 4 and covers the truth on 90 % of the pings or more. Before the network's inputs were made
-    independent of its own output and the gated innovations counted by their probability
-    (the noisenet docstring), five seeds of this fit learned 2.9 to 5.9 here."""
+    true 4 and covers the truth on 90 % of the pings or more. Before the network's inputs
+    were made independent of its own output and the gated innovations counted by their
+    probability (the noisenet docstring), five seeds of this fit learned 2.9 to 5.9."""
     for model in seeds:
         track, truth = run(noisy, model, adaptive="learned", beam_noise_std=NOISE / 2)
         assert np.median(later(track.noise_scale)) == pytest.approx(4.0, rel=0.3)
