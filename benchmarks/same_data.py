@@ -206,17 +206,22 @@ def datasets_equal(a: h5py.Dataset, b: h5py.Dataset) -> str | None:
     if not a.shape:
         return None if arrays_equal(np.asarray(a[()]), np.asarray(b[()])) else "value differs"
     step = max(1, 4_000_000 // max(1, a.size // a.shape[0]))  # rows per read, bounded memory
+    first, largest = None, 0.0  # the first row that differs; the largest |diff| of all
     for start in range(0, a.shape[0], step):
         x, y = a[start:start + step], b[start:start + step]
         if not arrays_equal(x, y):
-            if x.dtype.kind in "biuf":
-                bad = (x != y) & ~(np.isnan(x) & np.isnan(y)) if x.dtype.kind == "f" else x != y
-                rows = np.flatnonzero(bad.reshape(len(x), -1).any(axis=1))
-                size = f", max |diff| {np.max(np.abs(x[bad] - y[bad])):.3g}" \
-                    if x.dtype.kind == "f" else ""
-                return f"values differ (first at row {start + rows[0]}{size})"
-            return f"values differ (rows {start}..{start + len(x) - 1})"
-    return None
+            if x.dtype.kind not in "biuf":
+                return f"values differ (rows {start}..{start + len(x) - 1})"
+            bad = (x != y) & ~(np.isnan(x) & np.isnan(y)) if x.dtype.kind == "f" else x != y
+            if first is None:
+                first = start + np.flatnonzero(bad.reshape(len(x), -1).any(axis=1))[0]
+            if x.dtype.kind == "f":  # NaN on one side only: an infinite difference
+                gap = np.nan_to_num(np.abs(x[bad] - y[bad]), nan=np.inf)
+                largest = max(largest, float(np.max(gap)))
+    if first is None:
+        return None
+    size = f", max |diff| {largest:.3g}" if a.dtype.kind == "f" else ""
+    return f"values differ (first at row {first}{size})"
 
 
 def attr_equal(a: object, b: object) -> bool:
