@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 from auvsim.config import (
+    MAX_DURATION,  # noqa: F401  (re-exported for the experiments that size presets)
     Config,
     DepthConfig,
     DvlConfig,

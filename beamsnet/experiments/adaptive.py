@@ -43,7 +43,7 @@ from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows
 from beamsnet.evaluate import navigation_scores, reported_stds
-from beamsnet.experiments.runner import ensure_dataset
+from beamsnet.experiments.runner import check_duration, ensure_dataset
 from beamsnet.experiments.sea import DEFAULT_SEA, median_score, pooled_coverage, sea_dataset
 from beamsnet.navigation import truth_at_pings
 
@@ -92,10 +92,7 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     from beamsnet.estimators.noisemodel import save_noise_model
     from beamsnet.estimators.noisenet import train_noise_models
 
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
-            math.isfinite(duration) and duration > 0):
-        raise ConfigError(f": expected a positive number of seconds per manoeuvre, got "
-                          f"{duration!r}", argument="duration")
+    check_duration(duration, "duration", unit="seconds per manoeuvre")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ConfigError(f": expected a whole number of seeds, at least 1, got {seeds!r}",
                           argument="seeds")

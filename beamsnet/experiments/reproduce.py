@@ -36,7 +36,13 @@ from beamsnet import metrics
 from beamsnet.data import check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import estimates, markdown, predictions, table, trimmed
-from beamsnet.experiments.runner import ensure_dataset, settings, train_runs, train_seeds
+from beamsnet.experiments.runner import (
+    check_duration,
+    ensure_dataset,
+    settings,
+    train_runs,
+    train_seeds,
+)
 from beamsnet.experiments.wording import count
 from beamsnet.plotstyle import legend_outside
 from beamsnet.training.config import PROFILES, TrainConfig
@@ -224,7 +230,6 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
              progress: bool = True, cluster: str | None = None) -> Path:
     """``beamsnet reproduce sim2real`` (``beamsnet.experiments.sim2real``) on the Snapir streams in
     ``data``."""
-    from auvsim.errors import ConfigError
     from beamsnet.experiments import sim2real as experiment
 
     check_out_dir(out)
@@ -232,10 +237,7 @@ def sim2real(data: Path, *, out: Path, duration: float, training: TrainConfig | 
         check_address(cluster)
     seeds = experiment.SIM_SEEDS if seeds is None else seeds
     _check_seeds(seeds)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
-            math.isfinite(duration) and duration > 0):
-        raise ConfigError(f": expected a positive number of seconds per manoeuvre, got "
-                          f"{duration!r}", argument="duration")
+    check_duration(duration, "duration", unit="seconds per manoeuvre")
     return experiment.sim2real(snapir_dataset(data), out=out, duration=duration, seeds=seeds,
                                training=training, runs=runs, workers=workers,
                                progress=progress, cluster=cluster)

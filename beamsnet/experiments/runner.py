@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import os
 import warnings
 from collections.abc import Mapping
@@ -32,7 +33,7 @@ import torch
 
 from auvsim.data.files import check_out_dir
 from auvsim.data.reader import open_dataset
-from auvsim.errors import AuvsimError
+from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet.training.checkpoints import file_identity, load, trained
 from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
@@ -43,6 +44,26 @@ from beamsnet.training.runs import keep_best, seed_runs, train_all
 # file's stored config names the model only) with the file's size and mtime when it was
 # made. A sharded dataset's shards store the hash themselves.
 MADE = ".auvsim-made.json"
+
+
+def check_duration(value, argument: str, *, unit: str = "seconds") -> float:
+    """``value``, the duration of an experiment's preset missions, checked before any data
+    is generated: a positive number of ``unit`` (seconds, or seconds per manoeuvre), at
+    most a mission's longest (``MAX_DURATION``).
+
+    Raises:
+        ConfigError: naming ``argument``, the experiment's option.
+    """
+    from auvsim.runs.presets import MAX_DURATION
+
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
+        raise ConfigError(f": expected a positive number of {unit}, got {value!r}",
+                          argument=argument)
+    if value > MAX_DURATION:
+        raise ConfigError(f": expected at most {MAX_DURATION:g} s (72 h, a mission's "
+                          f"longest), got {value!r}", argument=argument)
+    return float(value)
 
 
 class StaleDatasetWarning(UserWarning):

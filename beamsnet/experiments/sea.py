@@ -58,7 +58,7 @@ from beamsnet.evaluate import (
     reported_stds,
     trimmed,
 )
-from beamsnet.experiments.runner import ensure_dataset, train_seeds
+from beamsnet.experiments.runner import check_duration, ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
 from beamsnet.navigation import dead_reckoning_positions, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
@@ -151,10 +151,7 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
 
 
 def _check(duration, seeds) -> None:
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (
-            math.isfinite(duration) and duration > 0):
-        raise ConfigError(f": expected a positive number of seconds per manoeuvre, got "
-                          f"{duration!r}", argument="duration")
+    check_duration(duration, "duration", unit="seconds per manoeuvre")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ConfigError(f": expected a whole number of seeds >= 1, got {seeds!r}",
                           argument="seeds")

@@ -40,7 +40,7 @@ from beamsnet.data import Windows, check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import predictions
 from beamsnet.experiments.faults import FAULT_DURATION, check_options, fault_stress
-from beamsnet.experiments.runner import ensure_dataset, settings, train_runs
+from beamsnet.experiments.runner import check_duration, ensure_dataset, settings, train_runs
 from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import (
     dead_reckoning_error,
@@ -134,11 +134,11 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     # Both configs (their durations checked) before either file is generated.
     train_config = maneuver_config = None
     if train_data is None:
-        train_config = _config_of(preset(train_preset).with_duration, train_duration,
-                                  "train_duration")
+        check_duration(train_duration, "train_duration")
+        train_config = preset(train_preset).with_duration(train_duration)
     if maneuver_data is None and not faults:
-        maneuver_config = _config_of(lambda d: maneuvers(d, noise_std=noise_std),
-                                     maneuver_duration, "maneuver_duration")
+        check_duration(maneuver_duration, "maneuver_duration")
+        maneuver_config = maneuvers(maneuver_duration, noise_std=noise_std)
     if train_config is not None:
         train_data = ensure_dataset(train_config,
                                     Path("datasets") / f"{train_preset}_{train_duration:g}s.h5",
@@ -185,27 +185,6 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         write_text(stage / "stress.md",
                    _report(train_data, trained_on, maneuver_data, models, binned, rows))
     return Path(out) / "stress.md"
-
-
-def _check_duration(value, argument: str) -> None:
-    """Raises ConfigError naming ``argument`` unless ``value`` is a positive number of
-    seconds (the preset would say ``duration``, which is not this command's option)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            math.isfinite(value) and value > 0):
-        raise ConfigError(f": expected a positive number of seconds, got {value!r}",
-                          argument=argument)
-
-
-def _config_of(build, duration, argument: str):
-    """``build(duration)``, a preset's config, ``duration`` checked; the preset's own error
-    about its missions' duration (too long) names ``argument`` instead."""
-    _check_duration(duration, argument)
-    try:
-        return build(duration)
-    except ConfigError as e:
-        if not e.message.startswith("duration:"):
-            raise
-        raise ConfigError(e.message[len("duration"):], argument=argument) from None
 
 
 def _table(windows: Windows, estimates: dict[str, np.ndarray],
