@@ -123,7 +123,7 @@ the ping's innovations and runs a small network (``beamsnet.estimators.noisemode
 arrays handed to the loop) whose bounded output scales the DVL's white variances and the
 drive of the bias states c_k from the next ping on; ``beamsnet.estimators.noisenet``
 gives the reasons, the loss and the training. The track records what the training reads
-(``features``, ``innovation``, ``innovation_hph``, ``slow_drive``, ``noise_scale``). The
+(``features``, ``innovation``, ``innovation_hph``, ``noise_scale``). The
 fixed filter's arithmetic does not change.
 
 Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
@@ -536,8 +536,6 @@ class FilterTrack(NamedTuple):
     innovation_hph: np.ndarray | None = None  # (P, K) (m/s)^2, its predicted h P h^T
     # (with the timing term): the innovation variance less the measurement noise
     stated_std: np.ndarray | None = None  # (K,) m/s, each measurement's stated white noise
-    slow_drive: np.ndarray | None = None  # (P,) (m/s)^2, the variance the slow error's
-    # drive put into each measurement's bias since the previous ping, as stated (0: none)
     noise_scale: np.ndarray | None = None  # (P,) the scale of the DVL's noise (white and
     # slow drive) at each ping: 1, or the learned one (the model-based one scales R only)
 
@@ -669,7 +667,6 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     # The slow error's drive into each bias c_k since the last ping, unscaled, (m/s)^2;
     # the drive in use (bias_psd, or scaled by the noise model), and the scale in use.
     drive, bias_psd_use, scale_used = 0.0, bias_psd, 1.0
-    out_drive = np.full(n_ping, np.nan)
     out_scale = np.full(n_ping, np.nan)
     feat_ring = np.zeros((max(net_window, 1), N_FEATURES))
     feat_n = 0
@@ -845,7 +842,6 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     r_use[k] = ratio * r_meas[k]
             # The noise model's features of this ping (``noisemodel.FEATURES``), and its
             # scale for the next ping's measurements.
-            out_drive[k_ping] = drive
             out_scale[k_ping] = scale_used
             offered, nis_sum, share_sum = 0, 0.0, 0.0
             for k in range(n_dir):
@@ -953,7 +949,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     out_x[k_ping, 26 + r] = lever[r]
             k_ping += 1
     return (out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c, out_r,
-            out_feat, out_nu, out_hph, out_drive, out_scale)
+            out_feat, out_nu, out_hph, out_scale)
 
 
 def _dataset_config(mission) -> dict:
@@ -1234,7 +1230,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if cfg.adaptive == "learned":
         floor, ceiling = noise_model.bounds
     (out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used, features, innovations,
-     hph, drive, scale) = _filter(
+     hph, scale) = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
@@ -1268,7 +1264,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        accepted=used > 0, events=events, rotation=rot,
                        measurement_std=np.sqrt(r_used), features=features,
                        innovation=innovations, innovation_hph=hph,
-                       stated_std=np.sqrt(r_meas), slow_drive=drive, noise_scale=scale)
+                       stated_std=np.sqrt(r_meas), noise_scale=scale)
 
 
 def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
