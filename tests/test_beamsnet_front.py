@@ -304,7 +304,6 @@ def test_a_staged_folder_is_moved_in_whole_or_not_at_all(tmp_path):
     assert _listing(tmp_path) == {"a", "a/b", "a/b/one.txt", "a/b/mine.txt"}
 
 
-
 def test_a_staged_folder_named_dot_is_the_current_one(tmp_path, monkeypatch):
     """``--out .`` (or ``keep/..``) writes into that folder, which exists; ``/`` and a
     place that cannot be written in are refused in one line before any work."""

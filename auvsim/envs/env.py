@@ -105,6 +105,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from auvsim.checks import is_finite
 from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
 from auvsim.data.reader import Block
 from auvsim.data.schema import phases_json
@@ -167,13 +168,12 @@ class AuvEnv(gym.Env):
             raise ConfigError(f"config: expected an auvsim Config (auvsim.runs.presets.preset"
                               f"(NAME), or auvsim.config.load_config(FILE)), got "
                               f"{type(config).__name__} {config!r}")
-        if isinstance(frame_skip, (bool, np.bool_)) or not isinstance(
-                frame_skip, (int, np.integer)) or frame_skip < 1:
+        # numpy scalars as the Python numbers they hold (np.bool_ as a bool: refused)
+        frame_skip, max_episode_seconds = (x.item() if isinstance(x, np.generic) else x
+                                           for x in (frame_skip, max_episode_seconds))
+        if isinstance(frame_skip, bool) or not isinstance(frame_skip, int) or frame_skip < 1:
             raise ConfigError(f"frame_skip: expected a whole number >= 1, got {frame_skip!r}")
-        frame_skip = int(frame_skip)
-        if isinstance(max_episode_seconds, (bool, np.bool_)) or not isinstance(
-                max_episode_seconds, (int, float, np.integer, np.floating)) or not (
-                math.isfinite(max_episode_seconds) and max_episode_seconds > 0):
+        if not (is_finite(max_episode_seconds) and max_episode_seconds > 0):
             raise ConfigError("max_episode_seconds: expected a positive number of seconds, "
                               f"got {max_episode_seconds!r}")
         self.start = self.config.missions[0].scenario
