@@ -88,16 +88,26 @@ def _reference_at(m, times: np.ndarray, v_dvl: np.ndarray) -> dict[str, np.ndarr
 
 
 def dead_reckoning_track(windows: Windows, velocity: np.ndarray,
-                         truth: dict[str, np.ndarray], mission: int) -> np.ndarray:
+                         truth: dict[str, np.ndarray], mission: int, *,
+                         trapezoid: bool = False) -> np.ndarray:
     """(S_m, 3) NED displacement from the mission's first sample to each of its pings, m,
-    from integrating ``velocity`` (S, 3, DVL frame) with the true attitude; each velocity
-    holds until the next ping (so the first row is zero, and the span is that of a
-    position solution's from the first ping to the last)."""
+    from integrating ``velocity`` (S, 3, DVL frame) with the true attitude (the first row
+    is zero, and the span is that of a position solution's from the first ping to the
+    last).
+
+    By default each NED velocity holds until the next ping (the rectangle rule): the
+    track lags the vehicle by half a ping, which cancels in the difference of two such
+    tracks (``dead_reckoning_error``, ``beamsnet stress``). Against a position
+    (``dead_reckoning_positions``) it does not: after a half turn at 2 m/s and 1 Hz the
+    held track stands v dt = 2 m from where it should. ``trapezoid`` averages each
+    interval's two NED velocities instead (second order: on a circle, each step's chord
+    shortened by (theta/2) cot(theta/2), theta the turn over the step)."""
     mine = windows.mission == mission
     dt = np.diff(windows.time[mine])[:, None]
     to_ned = truth["rotation"][mine] @ truth["mounting"][mine]  # DVL -> NED
-    steps = np.einsum("sij,sj->si", to_ned[:-1], velocity[mine][:-1]) * dt
-    return np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
+    ned = np.einsum("sij,sj->si", to_ned, velocity[mine])
+    mean = 0.5 * (ned[:-1] + ned[1:]) if trapezoid else ned[:-1]
+    return np.concatenate([np.zeros((1, 3)), np.cumsum(mean * dt, axis=0)])
 
 
 def dead_reckoning_error(windows: Windows, velocity: np.ndarray,
@@ -143,16 +153,16 @@ def dead_reckoning_positions(windows: Windows, velocity: np.ndarray,
     the mission's pings, m: ``velocity`` (S, 3, DVL frame; NaN rows held, ``held``) moved
     to the origin, ``M v - w x L`` (``truth``'s mounting, body rate and the DVL's lever
     arm), rotated by ``truth["rotation"]`` (the reference's attitude, or another's put in
-    its place), each held until the next ping and summed from ``truth["position"]`` at
-    the mission's first sample (``dead_reckoning_track`` of the origin's velocity in the
-    DVL frame, ``v - M^T (w x L)``): a position solution in the frame of the reference's.
+    its place), integrated by the trapezoid rule from ``truth["position"]`` at the
+    mission's first sample (``dead_reckoning_track`` of the origin's velocity in the DVL
+    frame, ``v - M^T (w x L)``): a position solution in the frame of the reference's.
 
     Without the lever arm, the DVL's own track would stand L from the origin's, turned
     with the heading: 3.7 m apart after a half turn with the Snapir's DVL 1.85 m aft."""
     origin = held(windows, velocity) - np.einsum(
         "sji,sj->si", truth["mounting"], np.cross(truth["body_rate"], truth["lever"]))
     start = truth["position"][windows.mission == mission][0]
-    return start + dead_reckoning_track(windows, origin, truth, mission)
+    return start + dead_reckoning_track(windows, origin, truth, mission, trapezoid=True)
 
 
 def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],

@@ -39,13 +39,13 @@ The DVL's mounting and lever arm that check-log wrote are known to its standard 
 (Newey-West, over the 10-17 pings its residuals stay correlated: yaw 0.03-0.08 deg), and
 the filter's misalignment and lever-arm states start there. Before (an uncalibrated DVL's
 0.5 deg), the filter's yaw misalignment wandered to -0.33 deg on segment 4 and its
-heading with it, and the median final error was 2.28 m (1.35x); the same run with a
-prior of 0.05 to 0.12 deg gives 1.61 to 1.88 m, so the result does not hang on the exact
-figure.
+heading with it, and the median final error was 2.28 m (1.28x the dead reckoning's
+1.78 m); the same run with a prior of 0.05 to 0.12 deg gives 1.61 to 1.88 m, so the
+result does not hang on the exact figure.
 
 What is still missed (measured on the IMU-clock files): segment 4's coverage. Its error is
 not the filter's alone: the dead reckoning with the reference's attitude is further from
-the reference (4.72 m final, 4.63 m RMSE) than the filter (3.40, 2.78), and the
+the reference (4.15 m final, 3.31 m RMSE) than the filter (3.40, 2.78), and the
 reference's positions move 1.34 m from the integral of its own velocities within the
 first 50 s (1.83 m over segment 4, up to 5.50 m on segment 5: a post-processed INS whose
 positions were corrected by something other than its velocities), while the filter's

@@ -215,7 +215,7 @@ def navigator() -> Config:
       the Navigator's long-term accuracy: averaged over T >> tau, dv leaves 18 mm/s
       sqrt(2 tau / T), 0.7 mm/s over an hour, within 0.2 % +/- 1 mm/s; and with dead
       reckoning, where it adds 18 mm/s sqrt(2 tau T) = 0.9 m per axis over 400 s, below
-      the 1.68 m median final error of the six real segments' DVL dead reckoning with the
+      the 1.78 m median final error of the six real segments' DVL dead reckoning with the
       reference's attitude (``benchmarks/sea_filter.py``; ``reports/sea.md``).
 
     The DVL loses lock and errs as an instrument does (``DvlConfig``):
