@@ -1,5 +1,7 @@
 """Training throughput of BeamsNetV1 and V2 at batch size 4 on this machine (samples/s),
-one epoch each on the paper-sim 2 m/s mission, side by side in one run; with
+one epoch each on the paper-sim 2 m/s mission, side by side in one run, with the torch
+threads every training uses (``networks.TRAINING_THREADS``, one, so that a seed gives
+the same weights on any machine) and with one per core, and their ratio; with
 ``--reproduce``, also the wall time of the whole ``beamsnet reproduce paper-sim`` (every
 model trained afresh in a temporary directory) against its 15-minute target.
 
@@ -9,6 +11,7 @@ model trained afresh in a temporary directory) against its 15-minute target.
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -18,6 +21,7 @@ from pathlib import Path
 import perf_page
 import torch
 
+from beamsnet.estimators import networks
 from beamsnet.training.config import TrainConfig
 from beamsnet.training.train import train
 
@@ -31,14 +35,28 @@ def main() -> None:
                         help="also time beamsnet reproduce paper-sim on --data")
     perf_page.add_write_option(parser, "training")
     args = parser.parse_args()
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads")
+    fixed, cores = networks.TRAINING_THREADS, os.cpu_count() or 1
+    print(f"torch {torch.__version__}; threads: {fixed} (what training uses) against "
+          f"{cores} (one per core)")
+    speed = {}
     with tempfile.TemporaryDirectory() as tmp:
         for model in ("v2", "v1", "v2", "v1"):
-            summary = train(args.data, TrainConfig(model=model, epochs=args.epochs,
-                                                   missions=(args.mission,)),
-                            Path(tmp) / model, progress=False)
-            print(f"BeamsNet{model.upper()}: {summary['samples_per_second']:8.0f} samples/s "
-                  f"({summary['seconds']:.1f} s for {args.epochs} epoch(s))")
+            for threads in (fixed, cores):
+                networks.TRAINING_THREADS = threads  # this run's comparison only
+                try:
+                    summary = train(args.data, TrainConfig(model=model, epochs=args.epochs,
+                                                           missions=(args.mission,)),
+                                    Path(tmp) / model, progress=False)
+                finally:
+                    networks.TRAINING_THREADS = fixed
+                speed.setdefault((model, threads), []).append(summary["samples_per_second"])
+                print(f"BeamsNet{model.upper()}, {threads} thread(s): "
+                      f"{summary['samples_per_second']:8.0f} samples/s "
+                      f"({summary['seconds']:.1f} s for {args.epochs} epoch(s))")
+    for model in ("v2", "v1"):
+        ratio = max(speed[model, cores]) / max(speed[model, fixed])
+        print(f"BeamsNet{model.upper()}: {cores} threads train {ratio:.2f}x as fast as {fixed} "
+              "(best of two each)")
     if args.reproduce:
         target = 15 * 60
         with tempfile.TemporaryDirectory() as tmp:  # runs/ and reports/ land here, fresh

@@ -78,9 +78,9 @@ def _same_runs(here, there, summaries_here, summaries_there, names) -> None:
 
 @pytest.fixture
 def two_threads():
-    """This process trains with two torch threads, as it does on two or more cores where
-    nothing limits it (``make test`` runs its workers with one), so that a job given the
-    cluster's one thread in place of this process's own is seen."""
+    """This process runs torch with two threads, as it does on two or more cores where
+    nothing limits it (``make test`` runs its workers with one), so that a training that
+    took the process's threads in place of its own one would be seen."""
     previous = torch.get_num_threads()
     torch.set_num_threads(2)
     yield
@@ -89,13 +89,12 @@ def two_threads():
 
 @pytest.mark.slow
 def test_train_all_on_a_cluster_gives_the_local_weights(data, tmp_path, two_threads):
-    """Two jobs trained one after the other in this process, with its torch threads, and
-    the same two jobs on a one-worker cluster: the same weights and summaries, exactly.
-    This holds only because each job sets the thread count the local run had: Dask's
-    workers run torch with one thread (their nannies set OMP_NUM_THREADS=1), and V1's
-    and V2's weights differ in their last bits between one thread and two (on two or
-    more cores). Two local processes, one thread each, against the cluster: the
-    paper-sim report below."""
+    """Two jobs trained one after the other in this process (two torch threads), and the
+    same two jobs on a one-worker cluster (Dask's nannies set OMP_NUM_THREADS=1): the same
+    weights and summaries, exactly, because every training runs with
+    ``TRAINING_THREADS`` whatever the process's own number (V1's and V2's weights differ
+    in their last bits between one thread and two). Two local processes against the
+    cluster: the paper-sim report below."""
     def jobs(root):
         return [(data, TrainConfig(model="v1", epochs=2, average_epochs=1), root / "v1"),
                 (data, TrainConfig(model="v2", epochs=2, seed=1), root / "v2")]
@@ -133,32 +132,12 @@ def test_cli_train_runs_its_jobs_on_the_cluster(data, tmp_path, monkeypatch, cap
     assert load(run)[1]["train_config"]["epochs"] == 1
 
 
-def test_on_a_cluster_each_job_gets_the_threads_it_would_get_here(monkeypatch, two_threads):
-    """One process here trains with this process's threads, N processes with a share of
-    the cores each: on a cluster every job is given that same number."""
-    seen = []
-
-    def job(dataset, config, out, *, progress, record, threads):
-        seen.append(threads)
-        return {}
-
-    monkeypatch.setattr(beamsnet.training.runs, "executor", _thread_pool)
-    monkeypatch.setattr(beamsnet.training.runs, "_job", job)
-    cores, own = os.cpu_count() or 1, torch.get_num_threads()
-    for workers, jobs, threads in ((None, 1, own), (1, 3, own), (2, 2, max(1, cores // 2)),
-                                   (None, 64, 1)):
-        seen.clear()
-        assert train_all([("d.h5", TrainConfig(), "run")] * jobs, workers=workers,
-                         progress=False, cluster="local:2") == [{}] * jobs
-        assert seen == [threads] * jobs, workers
-
-
 def test_a_lost_worker_is_one_line_and_stops_the_other_jobs(monkeypatch):
     from distributed import KilledWorker
 
     ran = []
 
-    def job(dataset, config, out, *, progress, record, threads):
+    def job(dataset, config, out, *, progress, record):
         ran.append(out)
         raise KilledWorker("train-0", None, 3)
 

@@ -121,8 +121,9 @@ def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, 
 
 
 def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path, monkeypatch):
-    """And its progress bar counts the workers' epochs as they end, not only whole models
-    (it sat at 0 of 3 for minutes)."""
+    """To the bit, whatever the threads of the process it trains in. And its progress bar
+    counts the workers' epochs as they end, not only whole models (it sat at 0 of 3 for
+    minutes)."""
     import beamsnet.training.runs as runs
 
     counted = []
@@ -145,9 +146,20 @@ def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path, mo
             for s in (1, 2)]
     parallel = train_all(jobs, workers=2, progress=True)
     assert counted[0] == (7, " epochs") and counted[1:] == [1] * 7
-    serial = train(scale_only, jobs[1][1], tmp_path / "serial", progress=False)
-    assert parallel[1]["final_train_loss"] == pytest.approx(serial["final_train_loss"],
-                                                            rel=1e-5)
+    # The same job in this process, with its torch threads at two: the same bits (a seed
+    # trained alone took the process's threads, in a pool one, and its weights differed).
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        serial = train(scale_only, jobs[1][1], tmp_path / "serial", progress=False)
+        assert torch.get_num_threads() == 2  # given back
+    finally:
+        torch.set_num_threads(previous)
+    assert parallel[1]["final_train_loss"] == serial["final_train_loss"]
+    a = torch.load(tmp_path / "p2" / "model.pt", weights_only=False)["state_dict"]
+    b = torch.load(tmp_path / "serial" / "model.pt", weights_only=False)["state_dict"]
+    for key in a:
+        assert torch.equal(a[key], b[key]), key
 
 
 def test_v1_trains_on_imu_windows(scale_only, tmp_path):

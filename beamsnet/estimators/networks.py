@@ -37,6 +37,7 @@ weight act on the beams, so published weights only load into the published order
 
 from __future__ import annotations
 
+import contextlib
 from typing import TYPE_CHECKING, ClassVar
 
 import torch
@@ -55,6 +56,25 @@ CONV_KERNEL = 2  # the smallest kernel that sees a change between neighbouring s
 N_FEATURES = 2  # what the context branch hands to the output layer, next to the 4 beams
 PAST_INPUTS = ("beams", "changes")  # what V2's conv sees of the past epochs (see BeamsNetV2)
 MIN_BEAMS = 3  # valid beams for a 3-D velocity: any 3 of a Janus DVL's 4 are independent
+# Torch threads of every training (``training_threads``), on any machine and in any pool:
+# the number of threads sets how torch splits its sums, so it changes the weights' last
+# bits, and training grows those into other weights (a seed trained alone with two threads
+# and in a pool with one gave different models). One, because reproduce, stress and
+# restarts train several models at once, one process per core; a model trained alone at
+# batch 4 loses little by it (``benchmarks/training.py`` prints the ratio).
+TRAINING_THREADS = 1
+
+
+@contextlib.contextmanager
+def training_threads():
+    """Run the block (or, as a decorator, the function) with ``TRAINING_THREADS`` torch
+    threads, and give the process its own number back after."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(TRAINING_THREADS)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 def _conv_head(in_channels: int) -> nn.Sequential:

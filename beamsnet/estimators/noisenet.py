@@ -211,47 +211,51 @@ def fit(rec: Records, *, seed: int = 0, epochs: int = EPOCHS, lr: float = LR,
     rows: a held-out row's window then barely overlaps a training row's, where rows taken
     one in five shared most of theirs and the epoch chosen fitted the pings' noise); the
     inputs are normalised by the training rows' mean and std (a constant input by 1, its
-    weights zero)."""
+    weights zero). It trains with ``networks.TRAINING_THREADS`` torch threads, so a seed
+    gives the same model on any machine."""
     import torch
 
-    torch.manual_seed(seed)
-    held = rec.group % 5 == 4
-    if held.all() or not held.any():
-        held = (np.arange(len(rec.group)) // (2 * WINDOW)) % 5 == 4
-    train, valid = ~held, held
-    mean = rec.inputs[train].mean(axis=0)
-    std = rec.inputs[train].std(axis=0)
-    constant = std < 1e-6
-    std[constant] = 1.0
-    d = rec.inputs.shape[1]
-    net = torch.nn.Sequential(torch.nn.Linear(d, HIDDEN, dtype=torch.float64), torch.nn.Tanh(),
-                              torch.nn.Linear(HIDDEN, 1, dtype=torch.float64))
-    with torch.no_grad():  # an input that never varied here gets no weight (its gradient
-        net[0].weight[:, torch.from_numpy(constant)] = 0.0  # is 0, so it stays 0)
+    from beamsnet.estimators.networks import training_threads
 
-    def tensors(rows):
-        return {"inputs": torch.from_numpy((rec.inputs[rows] - mean) / std),
-                "nu2": torch.from_numpy(rec.nu2[rows]), "s0": torch.from_numpy(rec.s0[rows]),
-                "log_scale0": torch.from_numpy(rec.log_scale0[rows]),
-                "censored": torch.from_numpy(rec.censored[rows]),
-                "mask": torch.from_numpy(rec.mask[rows].astype(float))}
+    with training_threads():
+        torch.manual_seed(seed)
+        held = rec.group % 5 == 4
+        if held.all() or not held.any():
+            held = (np.arange(len(rec.group)) // (2 * WINDOW)) % 5 == 4
+        train, valid = ~held, held
+        mean = rec.inputs[train].mean(axis=0)
+        std = rec.inputs[train].std(axis=0)
+        constant = std < 1e-6
+        std[constant] = 1.0
+        d = rec.inputs.shape[1]
+        net = torch.nn.Sequential(torch.nn.Linear(d, HIDDEN, dtype=torch.float64), torch.nn.Tanh(),
+                                  torch.nn.Linear(HIDDEN, 1, dtype=torch.float64))
+        with torch.no_grad():  # an input that never varied here gets no weight (its gradient
+            net[0].weight[:, torch.from_numpy(constant)] = 0.0  # is 0, so it stays 0)
 
-    t, v = tensors(train), tensors(valid)
-    opt = torch.optim.Adam(net.parameters(), lr=lr)
-    best, best_state = math.inf, None
-    for _ in range(epochs):
-        opt.zero_grad()
-        loss = _nll(torch, net, bounds, t)
-        loss.backward()
-        opt.step()
-        with torch.no_grad():
-            score = float(_nll(torch, net, bounds, v))
-        if score < best:
-            best, best_state = score, [p.detach().clone() for p in net.parameters()]
-    w1, b1, w2, b2 = (p.numpy() for p in best_state)
-    return NoiseModel(w1=w1.copy(), b1=b1.copy(), w2=w2[0].copy(), b2=float(b2[0]),
-                      mean=np.asarray(mean, dtype=float), std=np.asarray(std, dtype=float),
-                      bounds=bounds, trained_on=dict(trained_on or {}, validation_nll=best))
+        def tensors(rows):
+            return {"inputs": torch.from_numpy((rec.inputs[rows] - mean) / std),
+                    "nu2": torch.from_numpy(rec.nu2[rows]), "s0": torch.from_numpy(rec.s0[rows]),
+                    "log_scale0": torch.from_numpy(rec.log_scale0[rows]),
+                    "censored": torch.from_numpy(rec.censored[rows]),
+                    "mask": torch.from_numpy(rec.mask[rows].astype(float))}
+
+        t, v = tensors(train), tensors(valid)
+        opt = torch.optim.Adam(net.parameters(), lr=lr)
+        best, best_state = math.inf, None
+        for _ in range(epochs):
+            opt.zero_grad()
+            loss = _nll(torch, net, bounds, t)
+            loss.backward()
+            opt.step()
+            with torch.no_grad():
+                score = float(_nll(torch, net, bounds, v))
+            if score < best:
+                best, best_state = score, [p.detach().clone() for p in net.parameters()]
+        w1, b1, w2, b2 = (p.numpy() for p in best_state)
+        return NoiseModel(w1=w1.copy(), b1=b1.copy(), w2=w2[0].copy(), b2=float(b2[0]),
+                          mean=np.asarray(mean, dtype=float), std=np.asarray(std, dtype=float),
+                          bounds=bounds, trained_on=dict(trained_on or {}, validation_nll=best))
 
 
 def train_noise_model(dataset, missions: Sequence[str] | None = None, *, seed: int = 0,

@@ -18,7 +18,6 @@ import shutil
 from collections.abc import Mapping
 from pathlib import Path
 
-import torch
 from tqdm import tqdm
 
 from auvsim.data.files import check_out_dir, finished, staged_dir, write_text
@@ -36,17 +35,16 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
     """Run ``train(dataset, config, out)`` for every job, in parallel processes, or as
     tasks on a Dask cluster.
 
-    Each process trains with ``cpu_count // workers`` threads (one when the jobs fill the
-    cores: small batches parallelise across runs far better than within one). On a
-    cluster every job sets that same number itself, whatever the machine that runs it:
-    the number of threads changes how torch splits its sums, and so the last bits of the
-    weights, and a job must give the weights it gives here.
+    Every job trains with the same torch threads wherever it runs (``train``: one,
+    ``beamsnet.estimators.networks.TRAINING_THREADS``), so it gives the same weights here,
+    in a pool of any size and on a cluster: small batches parallelise across runs, not
+    within one.
 
     Args:
         jobs: (dataset, config, out) triples. On a cluster every path must be one the
             workers see (a shared folder), and means the same file there.
-        workers: processes (default: as many as cores, at most one per job); on a cluster
-            they only set the threads, as they would here.
+        workers: processes (default: as many as cores, at most one per job); unused on a
+            cluster, whose workers each take one job at a time.
         progress: a progress bar over the jobs' epochs (over steps when there is one
             process here; over jobs on a cluster).
         diverged: ``"raise"``: a job whose loss became non-finite stops the others, as
@@ -71,15 +69,11 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
     if not jobs:
         return []
     job = functools.partial(_job, record=diverged == "record")
-    cores = os.cpu_count() or 1
-    workers = max(1, min(workers or cores, len(jobs)))
-    # The threads each job trains with here: this process's own when it is the one that
-    # trains, else a share of the cores.
-    threads = torch.get_num_threads() if workers == 1 else max(1, cores // workers)
+    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     if workers == 1 and cluster is None:
         done = []
         for d, c, o in jobs:
-            done.append(job(d, c, o, progress=progress, threads=threads))
+            done.append(job(d, c, o, progress=progress))
             finished(o)
         return done
     epochs = None  # each local worker's epochs, as they end (a cluster's: its jobs)
@@ -97,7 +91,7 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         total, unit = len(jobs), " models"
     with runner as pool, tqdm(total=total, disable=None if progress else True,
                               leave=False, unit=unit, desc="training") as bar:
-        futures = {pool.submit(job, d, c, o, progress=False, threads=threads): o
+        futures = {pool.submit(job, d, c, o, progress=False): o
                    for d, c, o in jobs}
         try:
             pending = set(futures)
@@ -153,12 +147,8 @@ def _worker(parent, epochs) -> None:
 
 
 def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress: bool,
-         record: bool, threads: int) -> dict:
-    """One job of ``train_all`` (module level, so worker processes can run it), trained
-    with ``threads`` torch threads; the process's own number is restored after, for the
-    next job of a long-lived worker."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(threads)
+         record: bool) -> dict:
+    """One job of ``train_all`` (module level, so worker processes can run it)."""
     queue = _epochs
     told = {} if queue is None else {"on_epoch": lambda: queue.put(1)}
     try:
@@ -167,8 +157,6 @@ def _job(dataset: str | Path, config: TrainConfig, out: str | Path, *, progress:
         if not record:
             raise
         return dict(diverged=str(e), final_train_loss=math.nan)
-    finally:
-        torch.set_num_threads(previous)
 
 
 def keep_best(runs: list[str | Path], out: str | Path, *,

@@ -73,7 +73,7 @@ from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet.data import DataError, Windows, load_windows, split
 from beamsnet.estimators import spec
-from beamsnet.estimators.networks import build
+from beamsnet.estimators.networks import build, training_threads
 from beamsnet.plotstyle import legend_outside
 from beamsnet.training.checkpoints import (
     CHECKPOINT_FORMAT,
@@ -147,10 +147,13 @@ def check_finite(windows: Windows, model: str, dataset: str | Path, *,
                 "expected finite values to train on")
 
 
+@training_threads()
 def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
           progress: bool = True, on_epoch: Callable[[], object] | None = None) -> dict:
     """Train one model on ``dataset`` and save it under the directory ``out``;
-    ``on_epoch`` is called after each epoch (another process's progress bar).
+    ``on_epoch`` is called after each epoch (another process's progress bar). It trains
+    with ``networks.TRAINING_THREADS`` torch threads, so a config and seed give the same
+    weights wherever they train.
 
     Every input is checked before the training starts, and nothing is written unless it
     ends with finite weights.
