@@ -4,13 +4,18 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import shutil
+import signal
+import subprocess
+import sys
 
 import h5py
 import numpy as np
 import pytest
 import torch
 from conftest import flat, mission, write
+from test_kill import as_from_a_terminal, process_tree, still_running, wait_for
 
 from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
@@ -160,6 +165,57 @@ def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path, mo
     b = torch.load(tmp_path / "serial" / "model.pt", weights_only=False)["state_dict"]
     for key in a:
         assert torch.equal(a[key], b[key]), key
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User plus system CPU time of process ``pid`` so far, s (0 once it has gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+@pytest.mark.parametrize("sig, to_group", [(signal.SIGINT, True), (signal.SIGTERM, False)],
+                         ids=["ctrl-c", "sigterm"])
+def test_an_interrupt_of_parallel_training_is_one_line_and_leaves_nothing(scale_only, tmp_path,
+                                                                         sig, to_group):
+    """Ctrl-C (SIGINT to the process group), or SIGTERM to the command alone (a scheduler's,
+    whose workers the command then ends), once two pool workers train: exit 130, the one
+    line on stderr, no output and no process left. Before, a worker's tqdm lock (its
+    default, a multiprocessing lock, is a named semaphore in a forkserver child) was left
+    to the resource tracker, which warned of "leaked semaphore objects" after the line.
+    A worker trains once its CPU time exceeds what importing the trainer costs by 2 s."""
+    started = subprocess.run(
+        [sys.executable, "-c", "import os, beamsnet.training.train; t = os.times(); "
+         "print(t.user + t.system)"], capture_output=True, text=True, check=True)
+    under_way = float(started.stdout) + 2.0
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "beamsnet.cli", "train", str(scale_only), "--out", str(out),
+         "--epochs", "500", "--restarts", "2", "--quiet"],
+        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, preexec_fn=as_from_a_terminal)
+    try:
+        def training() -> bool:  # both workers well into their epochs
+            assert proc.poll() is None, proc.communicate()
+            workers = [p for p, _ in process_tree(proc.pid)
+                       if p != proc.pid and _cpu_seconds(p) > under_way]
+            return len(workers) >= 2
+
+        wait_for(training, "two workers training", timeout=120)
+        tree = process_tree(proc.pid)
+        (os.killpg if to_group else os.kill)(proc.pid, sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 130
+    assert err.splitlines() == ["beamsnet: interrupted; nothing was written"]
+    assert list(tmp_path.iterdir()) == []
+    wait_for(lambda: not still_running(tree), "the run's processes to end", timeout=10)
 
 
 def test_v1_trains_on_imu_windows(scale_only, tmp_path):

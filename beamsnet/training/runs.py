@@ -15,6 +15,7 @@ import math
 import multiprocessing
 import os
 import shutil
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -140,9 +141,15 @@ _epochs = None  # a local pool worker's queue to its parent's progress bar (``_w
 
 def _worker(parent, epochs) -> None:
     """A local training pool's initializer: end with the parent (``exit_with``), and
-    report each epoch that ends into ``epochs`` (a queue the parent's bar reads)."""
+    report each epoch that ends into ``epochs`` (a queue the parent's bar reads).
+
+    tqdm's lock here is a thread lock: its default, a multiprocessing lock, is a named
+    semaphore in a forkserver child, which a worker ended by Ctrl-C or by the parent
+    (``_stop_workers``) never unlinks, and the resource tracker then warned of "leaked
+    semaphore objects" after the one-line interrupt. A worker draws no bar of its own."""
     global _epochs
     exit_with(parent)
+    tqdm.set_lock(threading.RLock())
     _epochs = epochs
 
 
