@@ -11,11 +11,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("auvsim", "beamsnet")
 # What beamsnet may import of auvsim: its lazy top-level exports, the dataset API (beam
-# geometry included), frames, the Earth (WGS-84), the error vocabulary and the
-# command-line boundary both CLIs share, and, for the experiment runner, the presets,
-# generation and the cluster helpers its Dask options share with auvsim.
+# geometry included), frames, the Earth (WGS-84), the error vocabulary, the value checks
+# (a leaf) and the command-line boundary both CLIs share, and, for the experiment runner,
+# the presets, generation and the cluster helpers its Dask options share with auvsim.
 BEAMSNET_MAY_IMPORT = ("auvsim.lazy", "auvsim.data", "auvsim.physics.frames",
-                       "auvsim.physics.earth", "auvsim.errors",
+                       "auvsim.physics.earth", "auvsim.errors", "auvsim.checks",
                        "auvsim.cli_support", "auvsim.runs.presets", "auvsim.runs.generate",
                        "auvsim.runs.cluster")
 

@@ -187,6 +187,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from auvsim.checks import is_finite
 from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_dvl_errors
 from auvsim.data.reader import open_dataset, require_attitude
@@ -353,14 +354,14 @@ class FilterConfig:
 
     def __post_init__(self) -> None:
         for name in _POSITIVE:
-            if not (_number(value := getattr(self, name)) and value > 0):
+            if not (is_finite(value := getattr(self, name)) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive std, got {value!r}")
         for name in _POSITIVE_OR_NONE:
-            if (value := getattr(self, name)) is not None and not (_number(value) and value > 0):
+            if (value := getattr(self, name)) is not None and not (is_finite(value) and value > 0):
                 raise ValueError(f"FilterConfig.{name}: expected a positive number or None, "
                                  f"got {value!r}")
         for name in _AT_LEAST_ZERO_OR_NONE:
-            if (value := getattr(self, name)) is not None and not (_number(value)
+            if (value := getattr(self, name)) is not None and not (is_finite(value)
                                                                    and value >= 0):
                 raise ValueError(f"FilterConfig.{name}: expected a number >= 0 or None, "
                                  f"got {value!r}")
@@ -375,26 +376,26 @@ class FilterConfig:
         if seed is not None and not (_whole(seed) and seed >= 0):
             raise ValueError("FilterConfig.initial_error_seed: expected a whole number >= 0 "
                              f"or None, got {seed!r}")
-        if _number(self.attitude_std_deg):  # one std for all three axes
+        if is_finite(self.attitude_std_deg):  # one std for all three axes
             object.__setattr__(self, "attitude_std_deg", (float(self.attitude_std_deg),) * 2)
         att = self.attitude_std_deg
-        if not (isinstance(att, tuple) and len(att) == 2 and all(_number(x) and x > 0
+        if not (isinstance(att, tuple) and len(att) == 2 and all(is_finite(x) and x > 0
                                                                   for x in att)):
             raise ValueError("FilterConfig.attitude_std_deg: expected two positive stds "
                              f"(level, heading) in deg, got {att!r}")
-        if not (_number(self.gate_probability) and 0 < self.gate_probability < 1):
+        if not (is_finite(self.gate_probability) and 0 < self.gate_probability < 1):
             raise ValueError("FilterConfig.gate_probability: expected a probability in "
                              f"(0, 1), got {self.gate_probability!r}")
-        if self.latitude_deg is not None and not (_number(self.latitude_deg)
+        if self.latitude_deg is not None and not (is_finite(self.latitude_deg)
                                                   and abs(self.latitude_deg) <= 90):
             raise ValueError("FilterConfig.latitude_deg: expected deg in [-90, 90], got "
                              f"{self.latitude_deg!r}")
-        if not (_number(self.clock_std) and self.clock_std >= 0):
+        if not (is_finite(self.clock_std) and self.clock_std >= 0):
             raise ValueError(f"FilterConfig.clock_std: expected s >= 0, got {self.clock_std!r}")
         if not (_whole(self.watch_pings) and self.watch_pings >= 0):
             raise ValueError("FilterConfig.watch_pings: expected a whole number of pings "
                              f">= 0, got {self.watch_pings!r}")
-        if not (_number(self.watch_share) and 0 < self.watch_share <= 1):
+        if not (is_finite(self.watch_share) and 0 < self.watch_share <= 1):
             raise ValueError("FilterConfig.watch_share: expected a share in (0, 1], got "
                              f"{self.watch_share!r}")
         if self.adaptive not in ADAPTIVE:
@@ -408,7 +409,7 @@ class FilterConfig:
                              f"got {self.noise_model!r}")
         bounds = self.adaptive_range
         if not (isinstance(bounds, tuple) and len(bounds) == 2
-                and all(_number(x) for x in bounds) and 0 < bounds[0] <= 1 <= bounds[1]):
+                and all(is_finite(x) for x in bounds) and 0 < bounds[0] <= 1 <= bounds[1]):
             raise ValueError("FilterConfig.adaptive_range: expected (floor, ceiling) with "
                              f"0 < floor <= 1 <= ceiling, got {bounds!r}")
 
@@ -434,11 +435,6 @@ _BOOL_OR_NONE = ("earth_rate", "beam_states")
 
 def _whole(value) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _number(value) -> bool:
-    return (isinstance(value, (int, float)) and not isinstance(value, bool)
-            and math.isfinite(value))
 
 
 def load_config(path) -> FilterConfig:
