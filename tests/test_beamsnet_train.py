@@ -151,15 +151,18 @@ def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path, mo
             for s in (1, 2)]
     parallel = train_all(jobs, workers=2, progress=True)
     assert counted[0] == (7, " epochs") and counted[1:] == [1] * 7
-    # The same job in this process, with its torch threads at two: the same bits (a seed
-    # trained alone took the process's threads, in a pool one, and its weights differed).
-    previous = torch.get_num_threads()
-    torch.set_num_threads(2)
+    # The same job in this process, with its torch threads at three (no pool worker's
+    # own number here): the same bits (a seed trained alone took the process's threads,
+    # in a pool one, and its weights differed), trained on one thread throughout.
+    previous, during = torch.get_num_threads(), []
+    torch.set_num_threads(3)
     try:
-        serial = train(scale_only, jobs[1][1], tmp_path / "serial", progress=False)
-        assert torch.get_num_threads() == 2  # given back
+        serial = train(scale_only, jobs[1][1], tmp_path / "serial", progress=False,
+                       on_epoch=lambda: during.append(torch.get_num_threads()))
+        assert torch.get_num_threads() == 3  # given back
     finally:
         torch.set_num_threads(previous)
+    assert during == [1] * jobs[1][1].epochs
     assert parallel[1]["final_train_loss"] == serial["final_train_loss"]
     a = torch.load(tmp_path / "p2" / "model.pt", weights_only=False)["state_dict"]
     b = torch.load(tmp_path / "serial" / "model.pt", weights_only=False)["state_dict"]

@@ -411,6 +411,18 @@ def test_no_reference_velocity_beyond_the_references_span():
     assert np.isnan(got[[0, 3]]).all() and np.isfinite(got[[1, 2]]).all()
 
 
+def _turning(n: int, rate: float):
+    """A mission's windows of ``n`` pings at 1 Hz, turning at ``rate`` (rad/s) from
+    heading 0: (windows, heading (n,) rad, body -> NED rotation (n, 3, 3))."""
+    t = np.arange(float(n))
+    heading = rate * t
+    rotation = np.zeros((n, 3, 3))
+    rotation[:, 0, 0], rotation[:, 0, 1] = np.cos(heading), -np.sin(heading)
+    rotation[:, 1, 0], rotation[:, 1, 1] = np.sin(heading), np.cos(heading)
+    rotation[:, 2, 2] = 1.0
+    return SimpleNamespace(mission=np.zeros(n, dtype=int), time=t), heading, rotation
+
+
 def test_dead_reckoning_moves_the_dvls_velocity_to_the_reference_point():
     """Turning at 0.1 rad/s at 1.5 m/s with the DVL 1.85 m aft: the DVL reads the
     origin's (1.5, 0, 0) plus w x L = (0, -0.185, 0) m/s. Moved back by M v - w x L, its
@@ -418,13 +430,7 @@ def test_dead_reckoning_moves_the_dvls_velocity_to_the_reference_point():
     from beamsnet.navigation import dead_reckoning_positions
 
     n, rate = 60, 0.1
-    t = np.arange(float(n))
-    windows = SimpleNamespace(mission=np.zeros(n, dtype=int), time=t)
-    heading = rate * t
-    rotation = np.zeros((n, 3, 3))
-    rotation[:, 0, 0], rotation[:, 0, 1] = np.cos(heading), -np.sin(heading)
-    rotation[:, 1, 0], rotation[:, 1, 1] = np.sin(heading), np.cos(heading)
-    rotation[:, 2, 2] = 1.0
+    windows, heading, rotation = _turning(n, rate)
     truth = dict(rotation=rotation, mounting=np.tile(np.eye(3), (n, 1, 1)),
                  position=np.zeros((n, 3)), body_rate=np.tile([0.0, 0.0, rate], (n, 1)),
                  lever=np.tile([-1.85, 0.0, 0.0], (n, 1)))
@@ -445,14 +451,9 @@ def test_dead_reckoning_against_a_position_integrates_by_the_trapezoid_rule():
     from beamsnet.navigation import dead_reckoning_positions, dead_reckoning_track
 
     n, speed, rate = 13, 2.0, np.radians(15.0)
-    t = np.arange(float(n))
-    windows = SimpleNamespace(mission=np.zeros(n, dtype=int), time=t)
-    heading = rate * t
-    rotation = np.zeros((n, 3, 3))
-    rotation[:, 0, 0], rotation[:, 0, 1] = np.cos(heading), -np.sin(heading)
-    rotation[:, 1, 0], rotation[:, 1, 1] = np.sin(heading), np.cos(heading)
-    rotation[:, 2, 2] = 1.0
-    true = speed / rate * np.stack([np.sin(heading), 1 - np.cos(heading), 0 * t], axis=1)
+    windows, heading, rotation = _turning(n, rate)
+    true = speed / rate * np.stack([np.sin(heading), 1 - np.cos(heading), 0 * heading],
+                                   axis=1)
     truth = dict(rotation=rotation, mounting=np.tile(np.eye(3), (n, 1, 1)), position=true,
                  body_rate=np.zeros((n, 3)), lever=np.zeros((n, 3)))
     velocity = np.tile([speed, 0.0, 0.0], (n, 1))

@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 import os
 import warnings
 from collections.abc import Mapping
@@ -31,6 +30,7 @@ from pathlib import Path
 
 import torch
 
+from auvsim.checks import is_finite
 from auvsim.data.files import check_out_dir
 from auvsim.data.reader import open_dataset
 from auvsim.errors import AuvsimError, ConfigError
@@ -56,8 +56,7 @@ def check_duration(value, argument: str, *, unit: str = "seconds") -> float:
     """
     from auvsim.runs.presets import MAX_DURATION
 
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            math.isfinite(value) and value > 0):
+    if not (is_finite(value) and value > 0):
         raise ConfigError(f": expected a positive number of {unit}, got {value!r}",
                           argument=argument)
     if value > MAX_DURATION:
