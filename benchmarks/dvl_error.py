@@ -18,16 +18,29 @@ largest |e| is 27 mm/s in 15,393), and their ``error`` is the bottom track's. Th
 over every finite ping is printed beside it.
 
 It also prints the velocity error budget per axis at 2 m/s (analytic, from the preset's
-settings), one mission's along-track velocity error (velocity_ls - velocity), and how fast
-the real DVL's velocity error decorrelates: the along-track difference between the DVL
-and the reference's velocity in the body frame (``../shared/data/snapir-akit``, Cohen &
-Klein 2025; the reference's NED velocity turned by its roll, pitch and yaw), its std and
-autocorrelation, on each 400 s segment. That difference holds the reference's own errors
-and the lever arm's and clocks' effects too (none removed here): an upper bound on the
-DVL's, and an estimate of its correlation time.
+settings), one mission's along-track velocity error (velocity_ls - velocity), and the real
+DVL's slow error, measured two ways on the six A-KIT segments (``../shared/data/snapir-akit``,
+Cohen & Klein 2025), imported and corrected as ``beamsnet reproduce sea`` does them
+(``auvsim import --format akit``, ``auvsim check-log --apply``):
 
-    .venv/bin/python benchmarks/dvl_error.py [--duration 600] [--seed 0] [--data DIR]
-        [--akit DIR]
+* against the reference: the DVL's velocity minus the reference's moved to the DVL
+  (``beamsnet.data.reference_velocity``), each segment's mean removed, its autocovariance
+  c(k) pooled over the segments and the two horizontal axes. Lag 0 holds the white noise
+  of both; from lag 1 on only correlated errors remain, and ``SLOW_FIT_LAGS`` (1 to 20 s)
+  are fitted by c(k) = sigma^2 exp(-k / tau) (least squares on ln c). That difference
+  also holds the reference's own slow errors: an upper bound on the DVL's.
+* against the IMU, which no DVL error enters: for every pair of pings k s apart, the
+  change of the DVL's NED velocity (the DVL's velocity moved to the IMU, turned by the
+  attitude) minus the IMU's integral of C f + g - 2 Omega x v over the same time (the
+  attitude: the gyros integrated from the reference's at the segment's start, as the
+  filter's mechanisation does; g the WGS-84 normal gravity). Its mean over the segment
+  removed (a constant tilt or bias), its mean square per horizontal axis, pooled, is the
+  structure function D(k) = 2 sigma_w^2 + 2 sigma^2 (1 - exp(-k / tau)) of white noise
+  sigma_w and a Gauss-Markov error (sigma, tau), plus the IMU's own drift (which only
+  adds): printed beside what each model predicts.
+
+    PYTHONPATH=.:benchmarks .venv/bin/python benchmarks/dvl_error.py [--duration 600]
+        [--seed 0] [--data DIR] [--akit DIR]
 """
 
 from __future__ import annotations
@@ -41,13 +54,15 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from turning import body_velocity
 
 from auvsim.config import Config
-from auvsim.data.reader import open_dataset
+from auvsim.data.reader import open_dataset, require_attitude
+from auvsim.physics.earth import earth_rate_ned, normal_gravity
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
 from auvsim.sensors.dvl import Mode, clean_error_pings
+from beamsnet.data import quaternions_at, recorded_body_rate, reference_velocity
 
 REPO = Path(__file__).resolve().parent.parent
 # ../shared/data beside the repository (a worktree sits one level deeper).
@@ -66,6 +81,10 @@ ALTITUDE_BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 45.0), (45.0, 6
                  (60.0, 100.0))  # m
 SLANT_RANGE = 46.0  # m, the navigator mission's mean (20 m depth over 60 m: 40 m / cos 30 deg)
 STATED_ACCURACY = 0.02  # m/s, the Snapir DVL's published velocity std (A-KIT, sensors.md)
+SLOW_FIT_LAGS = np.arange(1, 21)  # s (pings at 1 Hz), the lags the slow error is fitted on
+STRUCTURE_LAGS = (1, 2, 3, 5, 8)  # s, the lags of the structure function against the IMU
+# main's navigator slow error before it was measured against the IMU (commit 30481f7).
+SLOW_BEFORE = dict(slow_error_std=0.018, slow_error_time=3.0)
 
 
 def robust_std(x: np.ndarray) -> float:
@@ -95,21 +114,146 @@ def read_real(folder: Path) -> dict[str, np.ndarray]:
                 invalid=invalid, other=other)
 
 
-def read_csv(path: Path) -> np.ndarray:
-    """A numeric CSV with one header line, as an (n, columns) array."""
-    return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+def autocovariance(errors: list[np.ndarray], lags: np.ndarray) -> np.ndarray:
+    """(len(lags),) the autocovariance of several series at ``lags`` (samples), pooled:
+    each series' mean removed, the products of its pairs k apart that are both finite
+    summed over every series and divided by their count."""
+    total, count = np.zeros(len(lags)), np.zeros(len(lags))
+    for e in errors:
+        e = e - np.nanmean(e)
+        for j, k in enumerate(lags):
+            p = e[:len(e) - k] * e[k:]
+            total[j] += np.nansum(p)
+            count[j] += np.count_nonzero(np.isfinite(p))
+    return total / count
 
 
-def along_track_difference(folder: Path, k: int) -> np.ndarray:
-    """(n,) DVL x minus the reference's body-frame x velocity, m/s, of segment k."""
-    dvl = read_csv(folder / f"Trajectory{k}" / f"DVL_trajectory{k}.csv")
-    ref = read_csv(folder / f"Trajectory{k}" / f"GT_trajectory{k}.csv")
-    return dvl[:, 1] - body_velocity(ref)[:, 0]
+def gauss_markov_fit(lags: np.ndarray, covariance: np.ndarray, period: float
+                     ) -> tuple[float, float]:
+    """(sigma, tau) of c(k) = sigma^2 exp(-k period / tau) through ``covariance`` at
+    ``lags`` (least squares on ln c, over the lags where c > 0): sigma in the series'
+    unit, tau in s."""
+    ok = covariance > 0
+    slope, log_a = np.polyfit(lags[ok] * period, np.log(covariance[ok]), 1)
+    return math.sqrt(math.exp(log_a)), (-1.0 / slope if slope < 0 else math.inf)
 
 
-def autocorrelation(x: np.ndarray, lag: int) -> float:
-    x = x - x.mean()
-    return float(np.mean(x[lag:] * x[:len(x) - lag]) / x.var())
+def _rodrigues(phi: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) the rotations of rotation vectors ``phi`` (N, 3), rad."""
+    angle = np.linalg.norm(phi, axis=1)[:, None, None]
+    k = np.zeros((len(phi), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -phi[:, 2], phi[:, 1], -phi[:, 0]
+    k -= k.transpose(0, 2, 1)
+    small = angle < 1e-12
+    a = np.where(small, 1.0, np.sin(angle) / np.where(small, 1.0, angle))
+    b = np.where(small, 0.5, (1 - np.cos(angle)) / np.where(small, 1.0, angle) ** 2)
+    return np.eye(3) + a * k + b * (k @ k)
+
+
+def imu_velocity_changes(mission) -> tuple[np.ndarray, np.ndarray]:
+    """For a recorded mission: (P, 3) the DVL's velocity in NED at its pings, moved to
+    the IMU (``M v - w x L``, L the DVL's place from the IMU), m/s; and (P, 3) the IMU's
+    integral of C f + g - 2 Omega x v from its first sample within the reference to each
+    ping, m/s (NaN outside). C: the gyros integrated from the reference's attitude there,
+    C_i = C_(i-1) Exp(dt (w_i - C_(i-1)^T Omega)); g: (0, 0, the WGS-84 normal gravity at
+    the latitude); v in the Coriolis term: the DVL's NED velocity interpolated. Both use
+    the same attitude, so the rotation's errors are the IMU's alone."""
+    a = mission.attrs
+    ti = np.asarray(mission.imu.time, dtype=float)
+    f = np.asarray(mission.imu.specific_force, dtype=float)
+    w = np.asarray(mission.imu.angular_rate, dtype=float)
+    tr = np.asarray(mission.reference.time, dtype=float)
+    q = np.asarray(require_attitude(mission), dtype=float)
+    start = int(np.searchsorted(ti, tr[0]))
+    ti, f, w = ti[start:], f[start:], w[start:]
+    omega = earth_rate_ned(float(a["latitude_deg"]))
+    steps = _rodrigues(np.diff(ti)[:, None] * w[1:])
+    c = np.empty((len(ti), 3, 3))
+    c[0] = rotation_matrices(quaternions_at(tr, q, ti[:1]))[0]
+    for i in range(1, len(ti)):
+        earth = _rodrigues(-(ti[i] - ti[i - 1]) * (c[i - 1].T @ omega)[None])[0]
+        c[i] = c[i - 1] @ earth @ steps[i - 1]
+    tp = np.asarray(mission.dvl.time, dtype=float)
+    mounting = rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"]))
+    lever = np.asarray(a["dvl_position_body"], float) - np.asarray(a["imu_position_body"], float)
+    body = (np.asarray(mission.dvl.velocity_ls, dtype=float) @ mounting.T
+            - np.cross(recorded_body_rate(mission, tp), lever))
+    at_pings = np.stack([np.interp(tp, ti, c[:, i, j], left=np.nan, right=np.nan)
+                         for i in range(3) for j in range(3)], axis=1).reshape(-1, 3, 3)
+    ned = np.einsum("pij,pj->pi", at_pings, body)
+    v = np.stack([np.interp(ti, tp, ned[:, i]) for i in range(3)], axis=1)
+    g = np.array([0.0, 0.0, normal_gravity(float(a["latitude_deg"]))])
+    accel = np.einsum("nij,nj->ni", c, f) + g - 2 * np.cross(omega, v)
+    integral = np.concatenate([np.zeros((1, 3)), np.cumsum(
+        0.5 * (accel[1:] + accel[:-1]) * np.diff(ti)[:, None], axis=0)])
+    return ned, np.stack([np.interp(tp, ti, integral[:, i], left=np.nan, right=np.nan)
+                          for i in range(3)], axis=1)
+
+
+def structure_function(missions, lags) -> np.ndarray:
+    """(len(lags),) (m/s)^2, D(k): the mean square per horizontal NED axis of the DVL's
+    velocity change over k pings minus the IMU's (``imu_velocity_changes``), each
+    mission's mean at each lag removed, pooled over the missions."""
+    total, count = np.zeros(len(lags)), np.zeros(len(lags))
+    for m in missions:
+        dvl, imu = imu_velocity_changes(m)
+        for j, k in enumerate(lags):
+            d = (dvl[k:] - dvl[:-k] - (imu[k:] - imu[:-k]))[:, :2]
+            d = d[np.isfinite(d).all(axis=1)]
+            d -= d.mean(axis=0)
+            total[j] += np.sum(d**2)
+            count[j] += d.size
+    return total / count
+
+
+def predicted_structure(white: float, slow: float, tau: float, lags) -> np.ndarray:
+    """(len(lags),) D(k) of white noise ``white`` and a Gauss-Markov error (``slow``,
+    ``tau`` s) per axis, at ``lags`` s: 2 white^2 + 2 slow^2 (1 - exp(-k / tau))."""
+    k = np.asarray(lags, dtype=float)
+    return 2 * white**2 + 2 * slow**2 * (1 - np.exp(-k / tau))
+
+
+def real_slow_error(akit: Path, white: float) -> tuple[float, float]:
+    """Print the real DVL's slow error measured against the reference and against the IMU
+    on the A-KIT segments of ``akit`` (the module docstring), beside what the preset's
+    model (white per axis ``white`` at 2 m/s) predicts before and after; return the fit
+    (sigma m/s, tau s)."""
+    from beamsnet.experiments.sea import sea_dataset
+
+    with tempfile.TemporaryDirectory() as tmp, open_dataset(
+            sea_dataset(akit, Path(tmp))[0]) as dataset:
+        missions = [dataset.missions[name] for name in sorted(dataset.missions)]
+        errors = [np.asarray(m.dvl.velocity_ls, dtype=float)[:, axis]
+                  - reference_velocity(m, np.asarray(m.dvl.time, dtype=float))[:, axis]
+                  for m in missions for axis in (0, 1)]
+        lags = np.arange(0, SLOW_FIT_LAGS[-1] + 1)
+        c = autocovariance(errors, lags)
+        sigma, tau = gauss_markov_fit(SLOW_FIT_LAGS, c[SLOW_FIT_LAGS], 1.0)
+        d = structure_function(missions, STRUCTURE_LAGS)
+    print(f"\nReal DVL minus reference (both horizontal DVL axes, {len(missions)} segments "
+          "pooled), autocovariance c(k), (mm/s)^2:\n")
+    print("| k (s) | " + " | ".join(str(k) for k in (0, 1, 2, 3, 5, 10, 15, 20)) + " |")
+    print("|---" * 9 + "|")
+    print("| c(k) | " + " | ".join(f"{1e6 * c[k]:.1f}" for k in (0, 1, 2, 3, 5, 10, 15, 20))
+          + " |")
+    print(f"\nFit over lags {SLOW_FIT_LAGS[0]}-{SLOW_FIT_LAGS[-1]} s: slow error sigma "
+          f"{1e3 * sigma:.1f} mm/s, tau {tau:.1f} s; what lag 0 adds, "
+          f"sqrt(c(0) - sigma^2) = {1e3 * math.sqrt(max(c[0] - sigma**2, 0)):.1f} mm/s "
+          "(white noise of the DVL and the reference).")
+    models = {"measured against the IMU": d,
+              f"white {1e3 * white:.1f} + slow before ({1e3 * SLOW_BEFORE['slow_error_std']:g}"
+              f" mm/s, {SLOW_BEFORE['slow_error_time']:g} s)": predicted_structure(
+                  white, SLOW_BEFORE["slow_error_std"], SLOW_BEFORE["slow_error_time"],
+                  STRUCTURE_LAGS),
+              f"white {1e3 * white:.1f} + slow fitted above ({1e3 * sigma:.1f} mm/s, "
+              f"{tau:.1f} s)": predicted_structure(white, sigma, tau, STRUCTURE_LAGS)}
+    print("\nDVL velocity change minus the IMU's, rms per horizontal axis sqrt(D(k)), mm/s "
+          "(the IMU's own drift adds to the measured row):\n")
+    print("| | " + " | ".join(f"k = {k} s" for k in STRUCTURE_LAGS) + " |")
+    print("|---" * (len(STRUCTURE_LAGS) + 1) + "|")
+    for label, row in models.items():
+        print(f"| {label} | " + " | ".join(f"{1e3 * math.sqrt(x):.1f}" for x in row) + " |")
+    return sigma, tau
 
 
 def summary(e: np.ndarray) -> str:
@@ -214,14 +358,12 @@ def main() -> None:
               f"(preset: {1e3 * after.dvl.noise_std:g} + {1e3 * after.dvl.noise_speed_coeff:g})")
 
     if (args.akit / "Trajectory1").is_dir():
-        print("\nReal DVL minus reference, along track (m/s), by segment: std, "
-              "autocorrelation at lags 1, 2, 5 s, and tau = -1 s / ln(r(1)):\n")
-        print("| segment | std (mm/s) | r(1) | r(2) | r(5) | tau (s) |\n|---|---|---|---|---|---|")
-        for k in range(1, 7):
-            d = along_track_difference(args.akit, k)
-            r = [autocorrelation(d, lag) for lag in (1, 2, 5)]
-            print(f"| {k} | {1e3 * d.std():.1f} | {r[0]:.2f} | {r[1]:.2f} | {r[2]:.2f} | "
-                  f"{-1.0 / math.log(r[0]):.1f} |")
+        white = budget(after, 2.0, SLANT_RANGE)[0][1]
+        sigma, tau = real_slow_error(args.akit, white)
+        print(f"\nPreset: slow error {1e3 * after.dvl.slow_error_std:g} mm/s over "
+              f"{after.dvl.slow_error_time:g} s (fitted: {1e3 * sigma:.1f} mm/s, {tau:.1f} s).")
+    else:
+        print(f"\n(no A-KIT segments in {args.akit}: the real slow error is left out)")
 
     print(f"\nVelocity error per axis along track at 2 m/s and {SLANT_RANGE:g} m of slant "
           "range (analytic), mm/s:\n")

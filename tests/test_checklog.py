@@ -101,18 +101,17 @@ def test_fit_clock_keeps_a_significant_slope_and_drops_noise():
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
     """Two missions of the ``navigator`` preset's sensors (noise, biases, scale factors,
-    misalignments, DVL errors): a 600 s zigzag (turns all along: lever arms, clocks) and a
+    misalignments, DVL errors): a 300 s zigzag (turns all along: lever arms, clocks) and a
     300 s lawnmower (straight legs: gravity).
 
-    600 s, not 300: the preset's DVL carries a slow velocity error (18 mm/s over 3 s,
-    Gauss-Markov, beside 1.2 mm/s of white beam noise), which the DVL clock's fit sees
-    as noise correlated over several pings. Over 300 s of this zigzag it left the DVL
-    offset 0.07 s off (-0.871 for -0.8; without the slow error -0.808), and over seeds
-    3-8 the error spread over -0.07..+0.15 s; over 600 s, seeds 3-6: -0.044, +0.038,
-    +0.008, -0.002 s."""
+    The preset's DVL carries a slow velocity error (9 mm/s over 19 s, Gauss-Markov),
+    which the DVL clock's fit sees as noise correlated over several pings. Over 300 s of
+    this zigzag, seeds 3-6 leave the DVL offset -0.004, +0.004, +0.005 and -0.002 s off
+    (its slow error was 18 mm/s over 3 s before it was measured against the IMU: then
+    300 s left it 0.07 s off, and the zigzag flew 600 s)."""
     base = preset("navigator")
     missions = (MissionConfig(name="zigzag", seed=3,
-                              scenario=ScenarioConfig(name="zigzag", duration=600.0)),
+                              scenario=ScenarioConfig(name="zigzag", duration=300.0)),
                 MissionConfig(name="lawnmower", seed=4,
                               scenario=ScenarioConfig(name="lawnmower", duration=300.0)))
     path = tmp_path_factory.mktemp("checklog") / "sim.h5"
@@ -469,17 +468,24 @@ def test_serial_least_squares_errors_hold_for_residuals_correlated_over_pings():
 
 def test_apply_records_how_well_it_knows_what_it_wrote(simulated):
     """The filter's prior on a corrected file: the standard errors of the DVL mounting
-    and lever arm check-log applied, None for what it did not. On this zigzag the lever
-    arm is found and the mounting's roll is not (the velocity is nearly all along x, which
-    a roll leaves alone: its standard error is over 0.3 deg)."""
-    log = recorded_log(simulated["zigzag"], axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
-                       dvl_offset=0.3)
-    report = check_arrays(log, "sim")
-    found = findings(report)
-    mounting, lever = applied_dvl_errors({"check_log_json": json.dumps(report.to_json())})
-    assert found["dvl lever arm"].confidence != "not observable"
-    np.testing.assert_allclose(lever, found["dvl lever arm"].value["se_m"])
-    assert np.all(lever > 0)
+    and lever arm check-log applied, None for what it did not. On the zigzag both are
+    found; on the lawnmower's straight legs the mounting's roll is not (the velocity is
+    nearly all along x, which a roll leaves alone: its standard error is over 0.3 deg),
+    so the mounting has no prior from it."""
+    def applied(name):
+        log = recorded_log(simulated[name], axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
+                           dvl_offset=0.3)
+        report = check_arrays(log, "sim")
+        return findings(report), applied_dvl_errors(
+            {"check_log_json": json.dumps(report.to_json())})
+
+    found, (mounting, lever) = applied("zigzag")
+    for name, errors, key in (("dvl lever arm", lever, "se_m"),
+                              ("dvl mounting", mounting, "se_deg")):
+        assert found[name].confidence != "not observable"
+        np.testing.assert_allclose(errors, found[name].value[key])
+        assert np.all(errors > 0)
+    found, (mounting, lever) = applied("lawnmower")
     assert found["dvl mounting"].confidence == "not observable" and mounting is None
     assert found["dvl mounting"].value["se_deg"][0] > 0.3
     assert applied_dvl_errors({}) == (None, None)

@@ -304,6 +304,39 @@ def test_a_bad_filter_config_gets_one_line_and_exit_2(navigation, tmp_path, caps
         assert not out.exists()
 
 
+def test_a_simulated_dvls_noise_grows_with_its_speed_in_the_filter(dataset_of):
+    """A DVL whose beams' white noise is 2 mm/s + 3 mm/s per m/s of speed (about 8 mm/s at
+    2 m/s): the filter states each ping's noise at its predicted speed, within what a
+    speed error of 2 cm/s moves it, and its normalised innovations are chi-square with one
+    degree of freedom (median 0.455; over about 240 innovations within 0.3-0.65). Told
+    the noise at rest alone (a ``beam_noise_std`` setting, held constant), the median is
+    more than ten times too large. ``noise_scale`` multiplies the stated noise."""
+    dvl = dataclasses.replace(zigzag(0.002, 60.0).dvl, noise_speed_coeff=0.003)
+    path = dataset_of(dataclasses.replace(zigzag(0.002, 60.0), dvl=dvl), "growing")
+    with open_dataset(path) as f:
+        m = f.missions["zz"]
+        track = ins.run_mission(m)
+        speed = np.linalg.norm(m.dvl.velocity, axis=1)
+        at_rest = ins.run_mission(m, ins.FilterConfig(beam_noise_std=0.002))
+        doubled = ins.run_mission(m, ins.FilterConfig(noise_scale=2.0))
+
+    def median_nis(t):
+        ok = np.isfinite(t.innovation)
+        return float(np.median(t.innovation[ok] ** 2
+                               / (t.innovation_hph[ok] + t.measurement_std[ok] ** 2)))
+
+    started = np.isfinite(track.stated_std).all(axis=1)
+    assert started.sum() > 55
+    np.testing.assert_allclose(track.stated_std[started],
+                               np.repeat((0.002 + 0.003 * speed[started])[:, None], 4, 1),
+                               rtol=0, atol=6e-5)
+    assert 0.3 < median_nis(track) < 0.65
+    np.testing.assert_array_equal(at_rest.stated_std[started], 0.002)
+    assert median_nis(at_rest) > 10 * 0.455
+    np.testing.assert_allclose(doubled.stated_std[started], 2 * track.stated_std[started],
+                               rtol=0, atol=1e-4)
+
+
 def test_beam_noise_from_the_error_velocity_of_a_janus_dvl():
     """Beams of white noise sigma at 30 deg: the error velocity's std is
     sigma / (sqrt 2 sin 30 deg) = 1.41 sigma, and the function gives sigma back (to the

@@ -64,9 +64,11 @@ unit direction d_k of the DVL frame (a beam, or an axis of its velocity)::
 
 with M the nominal mounting (DVL frame -> body) and L = r_dvl - r_imu: one scalar update
 each (Groves sec. 3.2.5, sequential processing of uncorrelated measurements), so one to
-four beams all help. n_k is white with the instrument's std, plus what the ping's timing
-uncertainty (``clock_std`` on a recorded log, 0 for simulated clocks) makes of the rate
-at which y_k changes. Each innovation is gated by chi-square with 1 dof at
+four beams all help. n_k is white with the instrument's std (a simulated instrument's grows
+with the speed, as its beams' noise does: ``noise_speed_coeff`` times the DVL point's
+predicted speed at the ping, per beam or through the Janus geometry per axis), plus what
+the ping's timing uncertainty (``clock_std`` on a recorded log, 0 for simulated clocks)
+makes of the rate at which y_k changes. Each innovation is gated by chi-square with 1 dof at
 ``gate_probability``. A beam is used where it has bottom lock (``dvl/valid``) on a ping
 not in water track (``dvl/mode`` != 1).
 
@@ -132,12 +134,11 @@ attributes hold the drawn value), with a recorded log's rounding added
 (``quantisation_density``); the beams' white noise from ``dvl_noise_std``, a velocity's
 from it through the Janus geometry (``janus_velocity_std``) or from
 ``dvl_velocity_accuracy``; ``beam_noise_from_error_velocity`` estimates a beam noise from
-the DVL's error velocity. What of a recorded DVL's stated velocity accuracy the white
-noise does not explain, sqrt(accuracy^2 - white^2), is its time-correlated error: the
-biases c_k become Gauss-Markov with that std over the correlation time the ``navigator``
-preset measured on a real Navigator (3 s), unless the log states one; a simulated file's
-own slow error (``dvl_slow_error_std``, ``_time``) likewise. None of it comes from a
-synthetic protocol's sigma.
+the DVL's error velocity. A recorded DVL's time-correlated error is the one the
+``navigator`` preset measured on a real Navigator (9 mm/s per axis over 19 s): the biases
+c_k become Gauss-Markov with that std over that time; a simulated file's own slow error
+(``dvl_slow_error_std``, ``_time``) likewise. None of it comes from a synthetic
+protocol's sigma.
 
 Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
 recorded one at its reference's first sample within the IMU's span
@@ -163,8 +164,8 @@ their stated rate: the A-KIT file on the IMU's (on the reference's it would have
 
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
 factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
-ratio (a scale factor shared by the beams: the per-measurement ones hold it), range- and
-speed-dependent noise and heavy-tailed outliers (the gate handles them). Scored against a
+ratio (a scale factor shared by the beams: the per-measurement ones hold it), range-dependent
+noise and heavy-tailed outliers (the gate handles them). Scored against a
 reference, the reported covariance covers the filter's error only, not the reference's
 own (a post-processed INS solution: on the A-KIT segment 4 the dead reckoning with the
 reference's attitude is as far from the reference as the filter, 4 m).
@@ -283,6 +284,9 @@ class FilterConfig:
             beam noise (this setting's, else the instrument's) through the Janus geometry
             (``janus_velocity_std``) if known, else the mission's
             ``dvl_velocity_accuracy`` (the arrays' ``instrument.measurement_std``).
+        noise_scale: multiplies the DVL's white noise std, the instrument's (with its
+            growth with speed) or a setting's: a mis-stated noise on purpose (the learned
+            noise model trains at several, ``noisenet.STATED_FACTORS``).
         dvl_updates: False: no measurement is used, pure inertial navigation.
         accel_noise_density: m/s^2/sqrt(Hz); None: the mission's, with a recorded log's
             quantisation added (``quantisation_density``).
@@ -339,6 +343,7 @@ class FilterConfig:
     gate_probability: float = 0.999
     beam_noise_std: float | None = None
     velocity_noise_std: float | None = None
+    noise_scale: float = 1.0
     dvl_updates: bool = True
     accel_noise_density: float | None = None
     gyro_noise_density: float | None = None
@@ -425,7 +430,7 @@ _NO_NET = (0, np.zeros((1, 1)), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(
 ADAPTIVE_START = 10
 
 # FilterConfig's fields by what they accept (the others are checked one by one).
-_POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std")
+_POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std", "noise_scale")
 _POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
 _AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
                           "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
@@ -531,7 +536,8 @@ class FilterTrack(NamedTuple):
     # (NaN: not offered)
     innovation_hph: np.ndarray | None = None  # (P, K) (m/s)^2, its predicted h P h^T
     # (with the timing term): the innovation variance less the measurement noise
-    stated_std: np.ndarray | None = None  # (K,) m/s, each measurement's stated white noise
+    stated_std: np.ndarray | None = None  # (P, K) m/s, each measurement's stated white
+    # noise at each ping (the instrument's at the ping's speed, or the setting's)
     noise_scale: np.ndarray | None = None  # (P,) the scale of the DVL's noise (white and
     # slow drive) at each ping: 1, or the learned one (the model-based one scales R only)
 
@@ -600,7 +606,7 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
 
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
-            p, v, c, ba, bg, P, q, r_meas, gate, n, bias_decay, bias_psd, window,
+            p, v, c, ba, bg, P, q, r_meas, r_growth, gate, n, bias_decay, bias_psd, window,
             watch_share, parity, timing_std, adapt_window, r_low, r_high, kappa,
             net_window, net_w1, net_b1, net_w2, net_b2, feat_mean, feat_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
@@ -617,7 +623,10 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         lever: (3,) r_dvl - r_imu. r_imu: (3,) IMU position in the body, m.
         p, v, c, ba, bg: initial IMU-point position, velocity, rotation, biases.
         P: (n, n) initial covariance. q: (4,) PSDs (accel, gyro white noise; accel, gyro
-            bias random walk). r_meas: (K,) measurement variances, (m/s)^2.
+            bias random walk). r_meas: (K,) measurement variances at rest, (m/s)^2.
+        r_growth: (K,) m/s per m/s: each measurement's white std grows by this times the
+            DVL point's speed (predicted at the ping), the instrument's law; where 0 the
+            variance is ``r_meas`` exactly.
         gate: chi-square threshold. n: states, ``N_CORE`` (15) or ``N_BEAM`` (29).
         bias_decay: 1 / correlation time of the measurement biases c_k, 1/s (0: constant).
         bias_psd: their driving PSD, (m/s)^2/s.
@@ -667,7 +676,10 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     feat_ring = np.zeros((max(net_window, 1), N_FEATURES))
     feat_n = 0
     hidden = np.zeros(net_b1.shape[0])
-    r_use = r_meas.copy()  # the variances in use: r_meas, or adapted
+    r_base = r_meas.copy()  # the ping's stated variances (r_meas, grown with the speed)
+    r_use = r_meas.copy()  # the variances in use: r_base, or adapted (times mult)
+    mult = 1.0  # the adapted variances' ratio to the stated ones, from the last ping
+    out_stated = np.full((n_ping, n_dir), np.nan)  # each ping's stated std, m/s
     ring = np.zeros(max(adapt_window, 1))  # the last innovations' white-noise ratios
     ring_n = 0
     adapt_start = min(adapt_window, ADAPTIVE_START)
@@ -755,6 +767,14 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
             wb = w[i] - bg - c.T @ omega_ie
             worst = 0.0
+            # The instrument's white noise at the DVL point's speed, and the adaptation.
+            u = c.T @ v + np.cross(wb, lever)
+            speed = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+            for k in range(n_dir):
+                if r_growth[k] != 0.0:
+                    r_base[k] = (math.sqrt(r_meas[k]) + r_growth[k] * speed) ** 2
+                r_use[k] = mult * r_base[k]
+                out_stated[k_ping, k] = math.sqrt(r_base[k])
             # Do the ping's measurements agree among themselves (the parity check)? A
             # common velocity, misalignment or timing error cancels in a . z; an outlier
             # on one beam does not. Its rejections are then the instrument's, not the
@@ -807,7 +827,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     # variance.
                     ring[ring_n % adapt_window] = (
                         min(nu * nu, gate * s_inn) / kappa - hph
-                        - (timing_std * rate_k) ** 2) / r_meas[k]
+                        - (timing_std * rate_k) ** 2) / r_base[k]
                     ring_n += 1
                 if nu * nu > gate * s_inn:
                     rejected[k_ping] += 1
@@ -833,9 +853,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             if adapt_window > 0 and held >= adapt_start:
                 # Innovation-based R (the module docstring), for the next ping's updates:
                 # the stated variances times the window's mean ratio, bounded.
-                ratio = min(max(ring[:held].sum() / held, r_low), r_high)
+                mult = min(max(ring[:held].sum() / held, r_low), r_high)
                 for k in range(n_dir):
-                    r_use[k] = ratio * r_meas[k]
+                    r_use[k] = mult * r_base[k]
             # The noise model's features of this ping (``noisemodel.FEATURES``), and its
             # scale for the next ping's measurements.
             out_scale[k_ping] = scale_used
@@ -846,7 +866,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     nu2 = out_nu[k_ping, k] ** 2
                     s_k = out_hph[k_ping, k] + r_use[k]
                     nis_sum += min(nu2, gate * s_k) / s_k
-                    share_sum += min(scale_used * (r_meas[k] + drive) / s_k, 1.0)
+                    share_sum += min(scale_used * (r_base[k] + drive) / s_k, 1.0)
             drive = 0.0
             mean_w = acc_w / acc_n if acc_n > 0 else 0.0
             mean_f = acc_f / acc_n if acc_n > 0 else 0.0
@@ -882,8 +902,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 # Bounded by construction: log lambda in (log r_low, log r_high).
                 lo, hi = math.log(r_low), math.log(r_high)
                 scale_used = math.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * math.tanh(z))
+                mult = scale_used
                 for k in range(n_dir):
-                    r_use[k] = scale_used * r_meas[k]
+                    r_use[k] = mult * r_base[k]
                 bias_psd_use = scale_used * bias_psd
             if window > 0:
                 slot = k_ping % window
@@ -903,7 +924,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                         for j in range(n):
                             P[3 + r, j] = 0.0
                             P[j, 3 + r] = 0.0
-                        P[3 + r, 3 + r] = 4.0 * worst * worst + r_meas.max()
+                        P[3 + r, 3 + r] = 4.0 * worst * worst + r_base.max()
                         P[6 + r, 6 + r] += attitude_prior[r]
                         P[r, r] += (worst * span) ** 2
                     reset[k_ping] = True
@@ -945,7 +966,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     out_x[k_ping, 26 + r] = lever[r]
             k_ping += 1
     return (out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c, out_r,
-            out_feat, out_nu, out_hph, out_scale)
+            out_feat, out_nu, out_hph, out_scale, out_stated)
 
 
 def _dataset_config(mission) -> dict:
@@ -1058,6 +1079,10 @@ class Instrument(NamedTuple):
     gyro_bias_psd: float  # (rad/s)^2/s
     measurement_std: np.ndarray  # (K,) m/s, white noise of each beam or velocity axis
     # (NaN: not stated; the settings' ``beam_noise_std`` or ``velocity_noise_std`` give it)
+    noise_growth: np.ndarray | float = 0.0  # (K,) m/s per m/s: how much that noise grows
+    # with the DVL's speed (a simulated instrument's ``noise_speed_coeff``, per beam or
+    # through the Janus geometry per axis); the noise at speed U is measurement_std +
+    # noise_growth U
     slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
     slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
 
@@ -1194,9 +1219,17 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
          else cfg.gyro_noise_density) ** 2,
         ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
         ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd])
-    r_meas = np.broadcast_to(_measurement_std(cfg, ins.measurement_std, beams=beams is not None,
-                                              beam_angle_deg=beam_angle_deg),
-                             (len(dirs),)) ** 2
+    r_meas = (np.broadcast_to(_measurement_std(cfg, ins.measurement_std,
+                                               beams=beams is not None,
+                                               beam_angle_deg=beam_angle_deg),
+                              (len(dirs),)) * cfg.noise_scale) ** 2
+    # A setting's noise (``_measurement_std``'s) is constant; the instrument's grows with
+    # the speed.
+    setting = (cfg.beam_noise_std is not None if beams is not None else
+               cfg.velocity_noise_std is not None
+               or (cfg.beam_noise_std is not None and beam_angle_deg is not None))
+    r_growth = (np.zeros(len(dirs)) if setting else np.broadcast_to(
+        np.asarray(ins.noise_growth, dtype=float), (len(dirs),)) * cfg.noise_scale)
     if not np.isfinite(r_meas).all():
         raise ValueError("instrument.measurement_std: expected finite stds, or "
                          "beam_noise_std / velocity_noise_std in config; got "
@@ -1204,8 +1237,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     dt = np.concatenate([[0.0], np.diff(t[i0:])])
     # The measurement biases c_k: constant (``beam_bias_std``), or first-order Gauss-Markov
     # with the instrument's slow error (its std added, its correlation time) or
-    # ``bias_time``. Over a mission of hundreds of correlation times the constant part
-    # it replaces is a share of a few per cent of its variance.
+    # ``bias_time``. The constant part it lets decay is a small share of its variance
+    # (1 mm/s beside the real Navigator's 9 mm/s: 1.2 %).
     bias_time = cfg.bias_time if cfg.bias_time is not None else (
         ins.slow_error_time if ins.slow_error_std > 0 else None)
     bias_std = math.hypot(cfg.beam_bias_std, ins.slow_error_std)
@@ -1226,12 +1259,13 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if cfg.adaptive == "learned":
         floor, ceiling = noise_model.bounds
     (out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used, features, innovations,
-     hph, scale) = _filter(
+     hph, scale, stated_std) = _filter(
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
-        np.ascontiguousarray(r_meas), chi2_1dof(cfg.gate_probability), n, decay,
+        np.ascontiguousarray(r_meas), np.ascontiguousarray(r_growth, dtype=float),
+        chi2_1dof(cfg.gate_probability), n, decay,
         2.0 * bias_std**2 * decay,
         cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
         cfg.clock_std if timing_std is None else float(timing_std),
@@ -1260,7 +1294,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        accepted=used > 0, events=events, rotation=rot,
                        measurement_std=np.sqrt(r_used), features=features,
                        innovation=innovations, innovation_hph=hph,
-                       stated_std=np.sqrt(r_meas), noise_scale=scale)
+                       stated_std=stated_std, noise_scale=scale)
 
 
 def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
@@ -1364,22 +1398,28 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         recorded and a.get("dvl_beams_derived", False)) and measurements == "auto"
     # The instrument's noise as the file states it (NaN where it does not); run_arrays
     # applies the settings.
+    # A simulated instrument's beam noise grows with the speed (its config's
+    # ``noise_speed_coeff``; the range term is not modelled here).
+    growth = 0.0 if recorded else float(
+        _dataset_config(mission).get("dvl", {}).get("noise_speed_coeff", 0.0))
     if use_beams:
         measurement_std = np.full(4, math.nan if beam_noise is None
                                   else max(beam_noise, BEAM_NOISE_FLOOR))
+        noise_growth = np.full(4, growth)
     elif beam_noise is not None and beam_angle is not None:
         measurement_std = np.maximum(janus_velocity_std(beam_noise, beam_angle),
                                      BEAM_NOISE_FLOOR)
+        noise_growth = janus_velocity_std(growth, beam_angle)
     else:
         measurement_std = np.full(3, float(a.get("dvl_velocity_accuracy", math.nan)))
+        noise_growth = np.zeros(3)
     white = _measurement_std(cfg, measurement_std, beams=use_beams, beam_angle_deg=beam_angle)
     if not np.isfinite(white).all():
         stated, setting = (("dvl_noise_std", "beam_noise_std") if use_beams else
                            ("dvl_noise_std or dvl_velocity_accuracy", "velocity_noise_std"))
         raise DataError(f"mission {mission.name}: no DVL noise ({stated}); expected it, or "
                         f"{setting} in the filter's settings")
-    slow_std, slow_time = _slow_error(a, white, recorded=recorded, beams=use_beams,
-                                      beam_angle=beam_angle)
+    slow_std, slow_time = _slow_error(a, recorded=recorded)
     instrument = Instrument(
         accel_noise_density=density("imu_accel_noise_density", f),
         gyro_noise_density=density("imu_gyro_noise_density", w),
@@ -1387,7 +1427,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         gyro_bias_std=bias_std("gyro_turn_on_bias", "imu_gyro_bias_instability"),
         accel_bias_psd=psd("imu_accel_bias_instability", "imu_accel_bias_correlation_time"),
         gyro_bias_psd=psd("imu_gyro_bias_instability", "imu_gyro_bias_correlation_time"),
-        measurement_std=measurement_std, slow_error_std=slow_std,
+        measurement_std=measurement_std, noise_growth=noise_growth, slow_error_std=slow_std,
         slow_error_time=slow_time)
 
     dvl_time = np.asarray(dvl.time, dtype=float)
@@ -1426,25 +1466,20 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         dvl_position_std=position_std, noise_model=noise_model)
 
 
-def _slow_error(a: dict, measurement_std: np.ndarray, *, recorded: bool, beams: bool,
-                beam_angle: float | None) -> tuple[float, float | None]:
+def _slow_error(a: dict, *, recorded: bool) -> tuple[float, float | None]:
     """The DVL's time-correlated velocity error (std per axis, m/s; correlation time, s):
-    a simulated file's own (``dvl_slow_error_std``, ``_time``); for a recorded log, what
-    of the stated velocity accuracy the white noise does not explain,
-    sqrt(accuracy^2 - white^2) (the white part from the beam noise through the Janus
-    geometry), over the correlation time the ``navigator`` preset measured on a real
-    Navigator (``auvsim.runs.presets.navigator``), unless the log states one."""
+    a simulated file's own (``dvl_slow_error_std``, ``_time``); for a recorded log that
+    states none, the slow error measured on a real Teledyne RDI Navigator (the
+    ``navigator`` preset's, ``auvsim.runs.presets.navigator`` gives the measurement), the
+    only DVL whose slow error auvsim has measured."""
     if "dvl_slow_error_std" in a and float(a["dvl_slow_error_std"]) > 0:
         return float(a["dvl_slow_error_std"]), float(a["dvl_slow_error_time"])
-    if not recorded or "dvl_velocity_accuracy" not in a or "dvl_noise_std" not in a:
+    if not recorded:
         return 0.0, None
     from auvsim.runs.presets import navigator
 
-    white = (janus_velocity_std(float(a["dvl_noise_std"]), beam_angle)[0]
-             if beams and beam_angle is not None else float(np.max(measurement_std[:2])))
-    slow = math.sqrt(max(float(a["dvl_velocity_accuracy"]) ** 2 - white**2, 0.0))
-    time = float(a.get("dvl_slow_error_time", navigator().dvl.slow_error_time))
-    return slow, time
+    measured = navigator().dvl
+    return measured.slow_error_std, measured.slow_error_time
 
 
 def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:

@@ -12,10 +12,11 @@ two pings of a 1 Hz DVL, a navigation-grade IMU's white noise adds h Q h^T of or
 (0.0002 m/s^2/sqrt(Hz))^2 x 1 s = 4e-8 (m/s)^2 to an innovation's variance, against 1e-6
 to 1e-5 (m/s)^2 for the beams' white noise (1.2 to 3.6 mm/s): the innovations, all a
 filter at sea sees of its own errors, cannot tell a Q ten times larger from the stated.
-And not R alone: with the slow error as states, h P h^T is 40 to 150 times the stated
-white variance (measured, ``beamsnet reproduce adaptive``'s inputs table on the Snapir
-segments and auvsim's missions), so R alone moves the innovation variance by a few per
-cent whatever its scale. A-KIT (Cohen & Klein 2025, "Adaptive Kalman-informed
+And not R alone: with the slow error as states, h P h^T is 1.1 to 4.6 times the stated
+white variance (the median per mission over auvsim's ``realistic-maneuvers`` missions and
+the Snapir segments, with the real Navigator's slow error of 9 mm/s over 19 s), so R
+alone holds a quarter to a half of the innovation variance, and a noise mis-stated in
+both parts needs both scaled. A-KIT (Cohen & Klein 2025, "Adaptive Kalman-informed
 transformer", EAAI) adapts the IMU's process noise instead, trained on real segments with
 a reference.
 
@@ -59,8 +60,8 @@ signals", IEEE Trans. Inf. Theory 11(1), 61-70; used to identify noise variances
 S_0, where S_0 (h P h^T with the timing term, plus lambda_0 r) and the scale lambda_0 are
 a recorded run's. A Kalman filter told every noise and its prior lambda times larger
 has lambda times the covariance and the same gain; here the scale multiplies the DVL's
-white noise and its slow error's drive, which make most of S (the slow error's states
-give 40 to 150 times the white variance, above), so S scales with it. The loss is so in
+white noise and its slow error's drive, which make most of S (above), so S scales with
+it. The loss is so in
 closed form and needs no differentiable filter; as the scale changes P beyond what that
 says, the network is trained again (from its seeded start, with its inputs normalised
 afresh) on the filter's run with the learned scale (``ROUNDS``: first on the fixed
@@ -143,12 +144,12 @@ def records(track, gate: float, group: int = 0, *, until: float = math.inf,
                              & (track.ping_time <= until))
     x = windows(track.features[started], window)
     k = track.innovation.shape[1]
-    r_stated = np.asarray(track.stated_std, dtype=float) ** 2
     now = started[1:]
+    r_stated = np.asarray(track.stated_std, dtype=float)[now] ** 2
     scale = track.noise_scale[now]
     nu = track.innovation[now]
     mask = np.isfinite(nu) & np.isfinite(track.innovation_hph[now])
-    s0 = np.nan_to_num(track.innovation_hph[now]) + scale[:, None] * r_stated
+    s0 = np.nan_to_num(track.innovation_hph[now]) + scale[:, None] * np.nan_to_num(r_stated)
     nu2 = np.nan_to_num(nu) ** 2
     censored = mask & (nu2 >= gate * s0)
     pad = ((0, 0), (0, 4 - k))
@@ -175,11 +176,10 @@ def training_records(dataset, missions: Sequence[str], config=None, model=None, 
     with open_dataset(dataset) as f:
         for g, name in enumerate(missions):
             m = f.missions[name]
-            stated = float(m.attrs["dvl_noise_std"])
             for form in FORMS:
                 for factor in STATED_FACTORS:
                     cfg = dataclasses.replace(
-                        config, beam_noise_std=factor * stated,
+                        config, noise_scale=factor,
                         adaptive="none" if model is None else "learned")
                     track = run_mission(m, cfg, noise_model=model, measurements=form,
                                         beam_correction=beam_correction)

@@ -541,7 +541,7 @@ def _range(q: list[float]) -> str:
 
 def _scale(track) -> np.ndarray:
     """(P,) the learned std over the stated at the track's started pings."""
-    s = np.asarray(track.measurement_std)[:, 0] / np.asarray(track.stated_std)[0]
+    s = np.asarray(track.measurement_std)[:, 0] / np.asarray(track.stated_std)[:, 0]
     return s[np.isfinite(s)]
 
 
@@ -572,12 +572,12 @@ def _noise_figure(sim: dict, sea: dict, path: Path) -> None:
         twin.set_ylabel("speed (m/s)", color="tab:gray")
         offered = np.isfinite(track.innovation)
         rms = np.sqrt((np.where(offered, track.innovation, 0.0) ** 2).sum(axis=1) / np.maximum(
-            offered.sum(axis=1), 1)) / np.asarray(track.stated_std).max()
+            offered.sum(axis=1), 1)) / np.nanmax(np.asarray(track.stated_std), axis=1)
         rms[~offered.any(axis=1)] = np.nan
         axes[1, c].semilogy(t, rms, color="tab:purple", lw=0.6)
         axes[1, c].set_ylabel("innovation RMS / stated std")
         for tr, label, style in ((track, LEARNED, "-"), (adaptive_track, MODEL_BASED, "--")):
-            scale = np.asarray(tr.measurement_std)[:, 0] / np.asarray(tr.stated_std)[0]
+            scale = np.asarray(tr.measurement_std)[:, 0] / np.asarray(tr.stated_std)[:, 0]
             axes[2, c].plot(t, scale, style, lw=1.0, label=label)
         axes[2, c].set_ylabel("noise std / stated")
         axes[2, c].set_xlabel("time (s)")

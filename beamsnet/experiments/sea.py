@@ -125,10 +125,11 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                        progress=progress, cluster=cluster)
     sim_train = split(load_windows(sim), training.train_fraction)[0]
     fitted = [b.fit(sim_train) for b in baselines()]
-    with open_dataset(sim) as f:  # each file opened once for what the report says of it
-        noise, sim_geometry = simulated_noise(f), _geometry(f)
-    with open_dataset(dataset) as f:
+    with open_dataset(dataset) as f:  # each file opened once for what the report says of it
         segments, geometry, logged_noise = list(f.missions), _geometry(f), _logged_noise(f)
+        speed = _logged_speed(f)
+    with open_dataset(sim) as f:
+        noise, sim_geometry = simulated_noise(f, speed), _geometry(f)
     results = {}
     for name in segments:
         others = [s for s in segments if s != name]
@@ -247,31 +248,43 @@ def _logged_noise(f: Dataset) -> float:
     return float(np.median([float(m.attrs["dvl_noise_std"]) for m in f.missions.values()]))
 
 
-def simulated_noise(f: Dataset) -> dict[str, float]:
+def _logged_speed(f: Dataset) -> float:
+    """The logs' speed, m/s: the median over an open file's missions of the median norm
+    of their DVL velocity (``dvl/velocity_ls``)."""
+    return float(np.median([np.nanmedian(np.linalg.norm(m.dvl.velocity_ls, axis=1))
+                            for m in f.missions.values()]))
+
+
+def simulated_noise(f: Dataset, speed: float) -> dict[str, float]:
     """The simulated instrument's noise settings, as its file (open, ``f``) records them
     (its first mission's attributes: every mission of a preset has one instrument): the
-    DVL's white beam noise, the IMU's noise densities and the bias instabilities with
-    their correlation time; and from its config the spreads of the DVL's scale factor and
-    bias (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
+    DVL's white beam noise at rest and, with its config's growth with speed
+    (``noise_speed_coeff``), at ``speed`` (m/s, the logs' speed: ``dvl_beam_noise``),
+    the IMU's noise densities and the bias instabilities with their correlation time; and
+    from its config the spreads of the DVL's scale factor and bias
+    (``dvl_scale_factor_std``, -, and ``dvl_bias_std``, m/s)."""
     a = next(iter(f.missions.values())).attrs
     dvl = json.loads(f.config_json or "{}").get("dvl", {})
     keys = ("dvl_noise_std", "imu_accel_noise_density", "imu_gyro_noise_density",
             "imu_accel_bias_instability", "imu_gyro_bias_instability",
             "imu_bias_correlation_time")
-    return {**{k: float(a[k]) for k in keys},
+    growth = float(dvl.get("noise_speed_coeff", 0.0))
+    return {**{k: float(a[k]) for k in keys}, "dvl_noise_speed_coeff": growth,
+            "speed": speed, "dvl_beam_noise": float(a["dvl_noise_std"]) + growth * speed,
             "dvl_scale_factor_std": float(dvl.get("scale_factor_std", math.nan)),
             "dvl_bias_std": float(dvl.get("bias_std", math.nan))}
 
 
 def _filters(dataset: Path, noise: dict[str, float]) -> dict[str, object]:
     """The INS/DVL filter at its defaults, and with the simulated instrument's noise
-    settings (beam noise, noise densities, bias random walks 2 sigma^2 / tau), both on
-    the beams as logged (no calibration: a segment has no split of its own to fit on)."""
+    settings (beam noise at the logs' speed, noise densities, bias random walks 2 sigma^2
+    / tau), both on the beams as logged (no calibration: a segment has no split of its own
+    to fit on)."""
     from beamsnet.estimators.ins import FilterConfig, InsDvlFilter
 
     tau = noise["imu_bias_correlation_time"]
     simulated = FilterConfig(
-        beam_noise_std=noise["dvl_noise_std"],
+        beam_noise_std=noise["dvl_beam_noise"],
         accel_noise_density=noise["imu_accel_noise_density"],
         gyro_noise_density=noise["imu_gyro_noise_density"],
         accel_bias_psd=2 * noise["imu_accel_bias_instability"] ** 2 / tau,
@@ -468,6 +481,16 @@ def _corrections_table(corrections: dict) -> list[str]:
     return lines
 
 
+def _beam_noise_words(noise: dict) -> str:
+    """The simulated DVL's white beam noise in words: at rest, its growth with speed and
+    its value at the logs' speed."""
+    if not noise["dvl_noise_speed_coeff"]:
+        return f"{noise['dvl_noise_std']:g} m/s"
+    return (f"{noise['dvl_noise_std']:g} m/s + {noise['dvl_noise_speed_coeff']:g} m/s per "
+            f"m/s of speed: {noise['dvl_beam_noise']:.2g} m/s at the logs' median speed, "
+            f"{noise['speed']:.2f} m/s")
+
+
 def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     """Item 9's table (medians over the segments) and what transfers, from the numbers."""
     first = next(iter(results.values()))["scores"]
@@ -483,9 +506,9 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
         f"{count(setup['epochs'], 'epoch')}, {count(setup['seeds'], 'seed')}, every seed "
         "a row), only on auvsim's `realistic-maneuvers` preset "
         f"({setup['duration']:g} s per manoeuvre, `{setup['sim']}`): the navigator's 30 deg "
-        f"DVL (white beam noise {noise['dvl_noise_std']:g} m/s) and navigation-grade IMU. "
+        f"DVL (white beam noise {_beam_noise_words(noise)}) and navigation-grade IMU. "
         f"`{SIM_FILTER}` is the filter with that simulated instrument's noise settings "
-        f"(beam noise {noise['dvl_noise_std']:g} m/s, accelerometer "
+        f"(beam noise {noise['dvl_beam_noise']:.2g} m/s, accelerometer "
         f"{noise['imu_accel_noise_density']:.3g} m/s^2/sqrt(Hz), gyro "
         f"{noise['imu_gyro_noise_density']:.3g} rad/s/sqrt(Hz)) in place of the real "
         "instrument's. Beside them, each model-based estimator fitted on the other real "
@@ -541,10 +564,11 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
         "real segments show how much of it is systematic, and so learnable, on this "
         "vehicle.",
     ]
-    ratio = noise["dvl_noise_std"] / logged if logged > 0 else math.nan
+    ratio = noise["dvl_beam_noise"] / logged if logged > 0 else math.nan
     lines.append(
-        f"- Noise: the simulated DVL's white beam noise is {noise['dvl_noise_std']:g} m/s, "
-        f"the logged instrument's (its specification in the log description) {logged:g} m/s:"
+        f"- Noise: the simulated DVL's white beam noise is {noise['dvl_beam_noise']:.2g} m/s "
+        f"at the logs' speed, the logged instrument's (its specification in the log "
+        f"description) {logged:g} m/s:"
         + (f" the simulated one is {ratio:.2g} times as noisy." if ratio >= 1 else
            f" the logged one is {1 / ratio:.2g} times as noisy.")
         + (" An estimator that learned to average the simulated noise (the Kalman filters' "
