@@ -1,0 +1,139 @@
+"""The IMU's high-frequency content, real against simulated: what the learned noise's
+"log rms |f| - g" input sees at sea (``reports/adaptive.md``: 0.026 m/s^2 at sea against
+0.0095 in auvsim, its inputs' largest shift).
+
+For each of the six A-KIT segments (``../shared/data/snapir-akit``, Cohen & Klein 2025:
+the Snapir's iXblue Phins at 100 Hz, imported and corrected as ``beamsnet reproduce sea``
+does) and for auvsim's ``realistic-maneuvers`` missions (``--sim``, default the file
+``reproduce sea`` trains on, ``datasets/sea-train_300s.h5``), per axis:
+
+* the amplitude spectral density of the specific force (ug/sqrt(Hz)) and of the angular
+  rate (deg/sqrt(h)) averaged over frequency bands: Welch's method (10 s Hann segments,
+  half overlapping, one-sided), on the samples from 100 s to 200 s of each mission;
+* the noise one sample holds if it is white: the std of the first differences over
+  sqrt(2) (mm/s^2, deg/h);
+* the median over 1 s windows of the r.m.s. of |f| - g, the learned noise's input
+  (g: the mission's median |f|).
+
+Below 1 Hz both hold the vehicle's own motion; above it a navigation-grade IMU's white
+noise is what auvsim simulates (the ``navigation-full`` grade: 20 ug/sqrt(Hz), 0.0025
+deg/sqrt(h), a one-sided 28 ug/sqrt(Hz) and 0.0035 deg/sqrt(h); the A-KIT log
+description states the same for the Phins, from Groves 2013, as the publication gives
+none).
+
+What it printed (2026-12-05): above 10 Hz the real accelerometers hold 33 to 450
+ug/sqrt(Hz) (auvsim: 28), with a line at 20-30 Hz of up to 1750 ug/sqrt(Hz) on
+segments 2-5 (a propeller's or hull's vibration, our reading), and the real gyros 0.02 to
+1.0 deg/sqrt(h) (auvsim: 0.004); one sample holds 18 to 44 mm/s^2 and 53 to 246 deg/h
+if white (auvsim: 2.0 to 2.5 mm/s^2, 6 to 50 deg/h, the latter its motion). The median
+r.m.s. of |f| - g over 1 s is 0.017 to 0.047 m/s^2 at sea and 0.008 to 0.011 in auvsim:
+the learned noise's input moved because the real IMU records vibration, or noise, that
+the simulated one has not: up to 16 times its accelerometers' floor above 10 Hz (60 at
+the 20-30 Hz line) and 5 to 250 times its gyros'. Not acted on: it needs a source for how much
+of it is motion (which an INS integrates) and how much sensor noise (which it must not
+trust).
+
+    PYTHONPATH=.:benchmarks .venv/bin/python benchmarks/imu_spectrum.py [--akit DIR]
+        [--sim FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from sea_filter import DATA
+
+from auvsim.data.reader import open_dataset
+
+RATE = 100.0  # Hz, both IMUs
+SPAN = (10_000, 20_000)  # samples: 100 s to 200 s of a mission
+SEGMENT = 1000  # samples per Welch segment (10 s)
+BANDS = ((0.1, 1.0), (1.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 40.0),
+         (40.0, 50.0))  # Hz
+G0 = 9.80665  # m/s^2 per g
+SIM = Path("datasets/sea-train_300s.h5")
+
+
+def welch(x: np.ndarray, rate: float, segment: int) -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies Hz, one-sided PSD unit^2/Hz) of ``x`` by Welch's method: Hann
+    segments of ``segment`` samples, half overlapping, each detrended by its mean."""
+    window = np.hanning(segment)
+    scale = rate * np.sum(window**2)
+    starts = range(0, len(x) - segment + 1, segment // 2)
+    psd = np.mean([np.abs(np.fft.rfft((x[s:s + segment] - x[s:s + segment].mean())
+                                      * window)) ** 2 for s in starts], axis=0) / scale
+    psd[1:-1] *= 2.0
+    return np.fft.rfftfreq(segment, 1.0 / rate), psd
+
+
+def band_asd(x: np.ndarray) -> list[float]:
+    """The amplitude spectral density of ``x`` (sampled at ``RATE``) averaged (in power)
+    over each of ``BANDS``, in x's unit per sqrt(Hz)."""
+    f, p = welch(x, RATE, SEGMENT)
+    return [math.sqrt(float(np.mean(p[(f >= lo) & (f < hi)]))) for lo, hi in BANDS]
+
+
+def figures(mission) -> dict[str, np.ndarray | float]:
+    """One mission's figures (the module docstring)."""
+    f = np.asarray(mission.imu.specific_force, dtype=float)
+    w = np.asarray(mission.imu.angular_rate, dtype=float)
+    span = slice(*SPAN)
+    norm = np.linalg.norm(f, axis=1)
+    excess = norm - np.median(norm)
+    windows = excess[:len(excess) // 100 * 100].reshape(-1, 100)
+    return dict(
+        accel=np.array([band_asd(f[span, k]) for k in range(3)]) / (G0 * 1e-6),
+        gyro=np.degrees(np.array([band_asd(w[span, k]) for k in range(3)])) * 60.0,
+        accel_white=1e3 * np.diff(f, axis=0).std(axis=0) / math.sqrt(2),
+        gyro_white=np.degrees(np.diff(w, axis=0).std(axis=0) / math.sqrt(2)) * 3600.0,
+        rms=float(np.median(np.sqrt(np.mean(windows**2, axis=1)))))
+
+
+def table(name: str, found: dict) -> list[str]:
+    bands = " ".join(f"{lo:g}-{hi:g}" for lo, hi in BANDS)
+    out = [f"{name}: ASD per band (Hz: {bands}); white per sample; median rms |f| - g "
+           f"{found['rms']:.4f} m/s^2"]
+    for k, axis in enumerate("xyz"):
+        out.append(f"  accel {axis} ug/sqrt(Hz): "
+                   + " ".join(f"{v:7.0f}" for v in found["accel"][k])
+                   + f"   | {found['accel_white'][k]:6.2f} mm/s^2 per sample")
+    for k, axis in enumerate("xyz"):
+        out.append(f"  gyro {axis} deg/sqrt(h):  "
+                   + " ".join(f"{v:7.3f}" for v in found["gyro"][k])
+                   + f"   | {found['gyro_white'][k]:6.1f} deg/h per sample")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--akit", type=Path, default=DATA, help="the A-KIT folder")
+    parser.add_argument("--sim", type=Path, default=SIM,
+                        help="a realistic-maneuvers file (default: %(default)s)")
+    args = parser.parse_args(argv)
+    lines = []
+    if (args.akit / "Trajectory1").is_dir():
+        from beamsnet.experiments.sea import sea_dataset
+
+        with tempfile.TemporaryDirectory() as tmp, open_dataset(
+                sea_dataset(args.akit, Path(tmp))[0]) as real:
+            for name in sorted(real.missions):
+                lines += table(f"real {name}", figures(real.missions[name]))
+    else:
+        lines.append(f"(no A-KIT segments in {args.akit}: the real rows are left out)")
+    if args.sim.is_file():
+        with open_dataset(args.sim) as sim:
+            for name in sorted(sim.missions)[:6]:
+                lines += table(f"auvsim {name}", figures(sim.missions[name]))
+    else:
+        lines.append(f"(no {args.sim}: run beamsnet reproduce sea to make it)")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
