@@ -181,7 +181,8 @@ def imu_velocity_changes(mission) -> tuple[np.ndarray, np.ndarray]:
     at_pings = np.stack([np.interp(tp, ti, c[:, i, j], left=np.nan, right=np.nan)
                          for i in range(3) for j in range(3)], axis=1).reshape(-1, 3, 3)
     ned = np.einsum("pij,pj->pi", at_pings, body)
-    v = np.stack([np.interp(ti, tp, ned[:, i]) for i in range(3)], axis=1)
+    have = np.isfinite(ned).all(axis=1)  # the Coriolis term's v: the pings with a velocity
+    v = np.stack([np.interp(ti, tp[have], ned[have, i]) for i in range(3)], axis=1)
     g = np.array([0.0, 0.0, normal_gravity(float(a["latitude_deg"]))])
     accel = np.einsum("nij,nj->ni", c, f) + g - 2 * np.cross(omega, v)
     integral = np.concatenate([np.zeros((1, 3)), np.cumsum(
