@@ -54,6 +54,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from sea_filter import gyro_step
 
 from auvsim.config import Config
 from auvsim.data.reader import open_dataset, require_attitude
@@ -138,26 +139,15 @@ def gauss_markov_fit(lags: np.ndarray, covariance: np.ndarray, period: float
     return math.sqrt(math.exp(log_a)), (-1.0 / slope if slope < 0 else math.inf)
 
 
-def _rodrigues(phi: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) the rotations of rotation vectors ``phi`` (N, 3), rad."""
-    angle = np.linalg.norm(phi, axis=1)[:, None, None]
-    k = np.zeros((len(phi), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -phi[:, 2], phi[:, 1], -phi[:, 0]
-    k -= k.transpose(0, 2, 1)
-    small = angle < 1e-12
-    a = np.where(small, 1.0, np.sin(angle) / np.where(small, 1.0, angle))
-    b = np.where(small, 0.5, (1 - np.cos(angle)) / np.where(small, 1.0, angle) ** 2)
-    return np.eye(3) + a * k + b * (k @ k)
-
-
 def imu_velocity_changes(mission) -> tuple[np.ndarray, np.ndarray]:
     """For a recorded mission: (P, 3) the DVL's velocity in NED at its pings, moved to
     the IMU (``M v - w x L``, L the DVL's place from the IMU), m/s; and (P, 3) the IMU's
     integral of C f + g - 2 Omega x v from its first sample within the reference to each
     ping, m/s (NaN outside). C: the gyros integrated from the reference's attitude there,
-    C_i = C_(i-1) Exp(dt (w_i - C_(i-1)^T Omega)); g: (0, 0, the WGS-84 normal gravity at
-    the latitude); v in the Coriolis term: the DVL's NED velocity interpolated. Both use
-    the same attitude, so the rotation's errors are the IMU's alone."""
+    C_i = C_(i-1) Exp(dt (w_i - C_(i-1)^T Omega)) (``sea_filter.gyro_step``); g: (0, 0,
+    the WGS-84 normal gravity at the latitude); v in the Coriolis term: the DVL's NED
+    velocity interpolated. Both use the same attitude, so the rotation's errors are the
+    IMU's alone."""
     a = mission.attrs
     ti = np.asarray(mission.imu.time, dtype=float)
     f = np.asarray(mission.imu.specific_force, dtype=float)
@@ -167,12 +157,10 @@ def imu_velocity_changes(mission) -> tuple[np.ndarray, np.ndarray]:
     start = int(np.searchsorted(ti, tr[0]))
     ti, f, w = ti[start:], f[start:], w[start:]
     omega = earth_rate_ned(float(a["latitude_deg"]))
-    steps = _rodrigues(np.diff(ti)[:, None] * w[1:])
     c = np.empty((len(ti), 3, 3))
     c[0] = rotation_matrices(quaternions_at(tr, q, ti[:1]))[0]
     for i in range(1, len(ti)):
-        earth = _rodrigues(-(ti[i] - ti[i - 1]) * (c[i - 1].T @ omega)[None])[0]
-        c[i] = c[i - 1] @ earth @ steps[i - 1]
+        c[i] = gyro_step(c[i - 1], ti[i] - ti[i - 1], w[i], omega)
     tp = np.asarray(mission.dvl.time, dtype=float)
     mounting = rotation_rpy(*np.radians(a["dvl_mounting_rpy_deg"]))
     lever = np.asarray(a["dvl_position_body"], float) - np.asarray(a["imu_position_body"], float)

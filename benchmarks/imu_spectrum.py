@@ -46,6 +46,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from scipy import signal
 from sea_filter import DATA
 
 from auvsim.data.reader import open_dataset
@@ -59,22 +60,11 @@ G0 = 9.80665  # m/s^2 per g
 SIM = Path("datasets/sea-train_300s.h5")
 
 
-def welch(x: np.ndarray, rate: float, segment: int) -> tuple[np.ndarray, np.ndarray]:
-    """(frequencies Hz, one-sided PSD unit^2/Hz) of ``x`` by Welch's method: Hann
-    segments of ``segment`` samples, half overlapping, each detrended by its mean."""
-    window = np.hanning(segment)
-    scale = rate * np.sum(window**2)
-    starts = range(0, len(x) - segment + 1, segment // 2)
-    psd = np.mean([np.abs(np.fft.rfft((x[s:s + segment] - x[s:s + segment].mean())
-                                      * window)) ** 2 for s in starts], axis=0) / scale
-    psd[1:-1] *= 2.0
-    return np.fft.rfftfreq(segment, 1.0 / rate), psd
-
-
 def band_asd(x: np.ndarray) -> list[float]:
     """The amplitude spectral density of ``x`` (sampled at ``RATE``) averaged (in power)
-    over each of ``BANDS``, in x's unit per sqrt(Hz)."""
-    f, p = welch(x, RATE, SEGMENT)
+    over each of ``BANDS``, in x's unit per sqrt(Hz): scipy's Welch (Hann segments of
+    ``SEGMENT`` samples, half overlapping, each less its mean, one-sided)."""
+    f, p = signal.welch(x, fs=RATE, nperseg=SEGMENT)
     return [math.sqrt(float(np.mean(p[(f >= lo) & (f < hi)]))) for lo, hi in BANDS]
 
 

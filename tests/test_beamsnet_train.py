@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import torch
 from conftest import flat, mission, write
-from test_kill import as_from_a_terminal, process_tree, still_running, wait_for
+from test_kill import as_from_a_terminal, cpu_seconds, process_tree, still_running, wait_for
 
 from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
@@ -170,16 +170,6 @@ def test_parallel_training_gives_what_one_process_gives(scale_only, tmp_path, mo
         assert torch.equal(a[key], b[key]), key
 
 
-def _cpu_seconds(pid: int) -> float:
-    """User plus system CPU time of process ``pid`` so far, s (0 once it has gone)."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 @pytest.mark.parametrize("sig, to_group", [(signal.SIGINT, True), (signal.SIGTERM, False)],
                          ids=["ctrl-c", "sigterm"])
 def test_an_interrupt_of_parallel_training_is_one_line_and_leaves_nothing(scale_only, tmp_path,
@@ -204,7 +194,7 @@ def test_an_interrupt_of_parallel_training_is_one_line_and_leaves_nothing(scale_
         def training() -> bool:  # both workers well into their epochs
             assert proc.poll() is None, proc.communicate()
             workers = [p for p, _ in process_tree(proc.pid)
-                       if p != proc.pid and _cpu_seconds(p) > under_way]
+                       if p != proc.pid and cpu_seconds(p) > under_way]
             return len(workers) >= 2
 
         wait_for(training, "two workers training", timeout=120)

@@ -39,16 +39,31 @@ def as_from_a_terminal() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def _stat(pid: int | str) -> list[bytes]:
+    """The fields of /proc/PID/stat after the command's name (state first); OSError once
+    the process has gone."""
+    with open(f"/proc/{pid}/stat", "rb") as f:
+        return f.read().rsplit(b")", 1)[1].split()
+
+
 def _processes() -> dict[int, tuple[int, bytes, bytes]]:
     """Every process: pid -> (parent pid, state, start time), from /proc."""
     table = {}
     for entry in os.listdir("/proc"):
         if entry.isdigit():
             with contextlib.suppress(OSError):
-                with open(f"/proc/{entry}/stat", "rb") as f:
-                    fields = f.read().rsplit(b")", 1)[1].split()
+                fields = _stat(entry)
                 table[int(entry)] = (int(fields[1]), fields[0], fields[19])
     return table
+
+
+def cpu_seconds(pid: int) -> float:
+    """User plus system CPU time of process ``pid`` so far, s (0 once it has gone)."""
+    try:
+        fields = _stat(pid)
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def process_tree(pid: int) -> set[tuple[int, bytes]]:

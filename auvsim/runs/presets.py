@@ -216,7 +216,7 @@ def navigator() -> Config:
       tau, with a scatter of 0.4 mm/s and 2.3 s: ``tests/test_dvl_noise.py``), so the data
       also allow about 9.5 mm/s over 24 s; the preset keeps the direct fit. The IMU, which
       no DVL error enters, checks it: the DVL's change of NED velocity over k s minus the
-      IMU's integral of its specific force has an rms of 7.0, 7.1 and 7.6 mm/s per
+      IMU's integral of its specific force has an rms of 7.0, 7.2 and 7.6 mm/s per
       horizontal axis at k = 1, 2 and 3 s, where white noise of 5.1 mm/s with this slow
       error predicts 7.8, 8.3 and 8.7 (the IMU's own drift only adds). The 18 mm/s over
       3 s this preset had before (the rest of the publication's 0.02 m/s after the white

@@ -1219,17 +1219,10 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
          else cfg.gyro_noise_density) ** 2,
         ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
         ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd])
-    r_meas = (np.broadcast_to(_measurement_std(cfg, ins.measurement_std,
-                                               beams=beams is not None,
-                                               beam_angle_deg=beam_angle_deg),
-                              (len(dirs),)) * cfg.noise_scale) ** 2
-    # A setting's noise (``_measurement_std``'s) is constant; the instrument's grows with
-    # the speed.
-    setting = (cfg.beam_noise_std is not None if beams is not None else
-               cfg.velocity_noise_std is not None
-               or (cfg.beam_noise_std is not None and beam_angle_deg is not None))
-    r_growth = (np.zeros(len(dirs)) if setting else np.broadcast_to(
-        np.asarray(ins.noise_growth, dtype=float), (len(dirs),)) * cfg.noise_scale)
+    white, growth = _measurement_std(cfg, ins.measurement_std, ins.noise_growth,
+                                     beams=beams is not None, beam_angle_deg=beam_angle_deg)
+    r_meas = (white * cfg.noise_scale) ** 2
+    r_growth = growth * cfg.noise_scale
     if not np.isfinite(r_meas).all():
         raise ValueError("instrument.measurement_std: expected finite stds, or "
                          "beam_noise_std / velocity_noise_std in config; got "
@@ -1297,20 +1290,25 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        stated_std=stated_std, noise_scale=scale)
 
 
-def _measurement_std(cfg: FilterConfig, stated, *, beams: bool,
-                     beam_angle_deg: float | None) -> np.ndarray:
-    """(K,) m/s, each measurement's white noise: a setting wins (a beam's
-    ``beam_noise_std``, at least ``BEAM_NOISE_FLOOR``; a velocity axis's
-    ``velocity_noise_std``, else ``beam_noise_std`` through the Janus geometry where the
-    beams' angle is known), else ``stated``, the instrument's (NaN where it states none)."""
+def _measurement_std(cfg: FilterConfig, stated, growth=0.0, *, beams: bool,
+                     beam_angle_deg: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """(K,) m/s, each measurement's white noise at rest, and (K,) m/s per m/s, its growth
+    with the speed: a setting wins, constant (a beam's ``beam_noise_std``, at least
+    ``BEAM_NOISE_FLOOR``; a velocity axis's ``velocity_noise_std``, else
+    ``beam_noise_std`` through the Janus geometry where the beams' angle is known), else
+    ``stated`` and ``growth``, the instrument's (NaN where it states none)."""
+    k = 4 if beams else 3
     if beams and cfg.beam_noise_std is not None:
-        return np.full(4, max(float(cfg.beam_noise_std), BEAM_NOISE_FLOOR))
-    if not beams and cfg.velocity_noise_std is not None:
-        return np.full(3, float(cfg.velocity_noise_std))
-    if not beams and cfg.beam_noise_std is not None and beam_angle_deg is not None:
-        return np.maximum(janus_velocity_std(float(cfg.beam_noise_std), beam_angle_deg),
-                          BEAM_NOISE_FLOOR)
-    return np.asarray(stated, dtype=float)
+        std = np.full(4, max(float(cfg.beam_noise_std), BEAM_NOISE_FLOOR))
+    elif not beams and cfg.velocity_noise_std is not None:
+        std = np.full(3, float(cfg.velocity_noise_std))
+    elif not beams and cfg.beam_noise_std is not None and beam_angle_deg is not None:
+        std = np.maximum(janus_velocity_std(float(cfg.beam_noise_std), beam_angle_deg),
+                         BEAM_NOISE_FLOOR)
+    else:
+        return (np.broadcast_to(np.asarray(stated, dtype=float), (k,)),
+                np.broadcast_to(np.asarray(growth, dtype=float), (k,)))
+    return std, np.zeros(k)
 
 
 def _known(setting: float | None, calibrated, default: float) -> np.ndarray:
@@ -1413,7 +1411,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     else:
         measurement_std = np.full(3, float(a.get("dvl_velocity_accuracy", math.nan)))
         noise_growth = np.zeros(3)
-    white = _measurement_std(cfg, measurement_std, beams=use_beams, beam_angle_deg=beam_angle)
+    white = _measurement_std(cfg, measurement_std, beams=use_beams,
+                             beam_angle_deg=beam_angle)[0]
     if not np.isfinite(white).all():
         stated, setting = (("dvl_noise_std", "beam_noise_std") if use_beams else
                            ("dvl_noise_std or dvl_velocity_accuracy", "velocity_noise_std"))

@@ -12,13 +12,13 @@ two pings of a 1 Hz DVL, a navigation-grade IMU's white noise adds h Q h^T of or
 (0.0002 m/s^2/sqrt(Hz))^2 x 1 s = 4e-8 (m/s)^2 to an innovation's variance, against 1e-6
 to 1e-5 (m/s)^2 for the beams' white noise (1.2 to 3.6 mm/s): the innovations, all a
 filter at sea sees of its own errors, cannot tell a Q ten times larger from the stated.
-And not R alone: with the slow error as states, h P h^T is 1.1 to 4.6 times the stated
-white variance (the median per mission over auvsim's ``realistic-maneuvers`` missions and
-the Snapir segments, with the real Navigator's slow error of 9 mm/s over 19 s), so R
-alone holds a quarter to a half of the innovation variance, and a noise mis-stated in
-both parts needs both scaled. A-KIT (Cohen & Klein 2025, "Adaptive Kalman-informed
-transformer", EAAI) adapts the IMU's process noise instead, trained on real segments with
-a reference.
+And not R alone: the slow error's drive, into the states that hold it, is the DVL's
+other noise, and a noise mis-stated in both parts needs both scaled; with the real
+Navigator's slow error (9 mm/s over 19 s) the two together make most of the innovation
+variance (the "scaled noise share" of ``reports/adaptive.md``'s inputs table, median 0.76
+on auvsim's missions and 0.65 at sea). A-KIT (Cohen & Klein 2025, "Adaptive
+Kalman-informed transformer", EAAI) adapts the IMU's process noise instead, trained on
+real segments with a reference.
 
 **Features** (``FEATURES``; the loop computes them at every ping, after its updates, from
 the IMU samples since the previous ping and the ping's own innovations; ratios and
@@ -61,18 +61,18 @@ S_0, where S_0 (h P h^T with the timing term, plus lambda_0 r) and the scale lam
 a recorded run's. A Kalman filter told every noise and its prior lambda times larger
 has lambda times the covariance and the same gain; here the scale multiplies the DVL's
 white noise and its slow error's drive, which make most of S (above), so S scales with
-it. The loss is so in
-closed form and needs no differentiable filter; as the scale changes P beyond what that
-says, the network is trained again (from its seeded start, with its inputs normalised
-afresh) on the filter's run with the learned scale (``ROUNDS``: first on the fixed
-filter's run, then on the learned one's). An innovation beyond the gate (nu^2 >= gate
-S_0) counts by the probability of being there, -log P(|nu| > sqrt(gate S_0)) under
-S(lambda), not by its size: the censored normal likelihood (Tobin 1958, "Estimation of
-relationships for limited dependent variables", Econometrica 26(1), 24-36). So an outlier
-weighs no more than an innovation at the gate, and a filter told too little noise, whose
-gate cuts many good innovations, is not read as less noisy than it is (winsorising them
-at the gate instead, told half the noise, learned 16 to 24 % under the true scale: of
-N(0, 4 S_0), min(nu^2, gate S_0) keeps 0.83 of the variance).
+it. The loss is so in closed form and needs no differentiable filter; as the scale
+changes P beyond what that says, the network is trained again (from its seeded start,
+with its inputs normalised afresh) on the filter's run with the learned scale
+(``ROUNDS``: first on the fixed filter's run, then on the learned one's). An innovation
+beyond the gate (nu^2 >= gate S_0) counts by the probability of being there,
+-log P(|nu| > sqrt(gate S_0)) under S(lambda), not by its size: the censored normal
+likelihood (Tobin 1958, "Estimation of relationships for limited dependent variables",
+Econometrica 26(1), 24-36). So an outlier weighs no more than an innovation at the
+gate, and a filter told too little noise, whose gate cuts many good innovations, is not
+read as less noisy than it is (winsorising them at the gate instead, told half the noise,
+learned 16 to 24 % under the true scale: of N(0, 4 S_0), min(nu^2, gate S_0) keeps 0.83
+of the variance).
 The loss needs no truth: what the network is fitted to is what the filter sees.
 
 **Training data** (``training_records``): auvsim missions only. Each runs in both of the
@@ -149,7 +149,7 @@ def records(track, gate: float, group: int = 0, *, until: float = math.inf,
     scale = track.noise_scale[now]
     nu = track.innovation[now]
     mask = np.isfinite(nu) & np.isfinite(track.innovation_hph[now])
-    s0 = np.nan_to_num(track.innovation_hph[now]) + scale[:, None] * np.nan_to_num(r_stated)
+    s0 = np.nan_to_num(track.innovation_hph[now]) + scale[:, None] * r_stated
     nu2 = np.nan_to_num(nu) ** 2
     censored = mask & (nu2 >= gate * s0)
     pad = ((0, 0), (0, 4 - k))
@@ -213,49 +213,55 @@ def fit(rec: Records, *, seed: int = 0, epochs: int = EPOCHS, lr: float = LR,
     inputs are normalised by the training rows' mean and std (a constant input by 1, its
     weights zero). It trains with ``networks.TRAINING_THREADS`` torch threads, so a seed
     gives the same model on any machine."""
-    import torch
-
     from beamsnet.estimators.networks import training_threads
 
     with training_threads():
-        torch.manual_seed(seed)
-        held = rec.group % 5 == 4
-        if held.all() or not held.any():
-            held = (np.arange(len(rec.group)) // (2 * WINDOW)) % 5 == 4
-        train, valid = ~held, held
-        mean = rec.inputs[train].mean(axis=0)
-        std = rec.inputs[train].std(axis=0)
-        constant = std < 1e-6
-        std[constant] = 1.0
-        d = rec.inputs.shape[1]
-        net = torch.nn.Sequential(torch.nn.Linear(d, HIDDEN, dtype=torch.float64), torch.nn.Tanh(),
-                                  torch.nn.Linear(HIDDEN, 1, dtype=torch.float64))
-        with torch.no_grad():  # an input that never varied here gets no weight (its gradient
-            net[0].weight[:, torch.from_numpy(constant)] = 0.0  # is 0, so it stays 0)
+        return _fit(rec, seed, epochs, lr, bounds, trained_on)
 
-        def tensors(rows):
-            return {"inputs": torch.from_numpy((rec.inputs[rows] - mean) / std),
-                    "nu2": torch.from_numpy(rec.nu2[rows]), "s0": torch.from_numpy(rec.s0[rows]),
-                    "log_scale0": torch.from_numpy(rec.log_scale0[rows]),
-                    "censored": torch.from_numpy(rec.censored[rows]),
-                    "mask": torch.from_numpy(rec.mask[rows].astype(float))}
 
-        t, v = tensors(train), tensors(valid)
-        opt = torch.optim.Adam(net.parameters(), lr=lr)
-        best, best_state = math.inf, None
-        for _ in range(epochs):
-            opt.zero_grad()
-            loss = _nll(torch, net, bounds, t)
-            loss.backward()
-            opt.step()
-            with torch.no_grad():
-                score = float(_nll(torch, net, bounds, v))
-            if score < best:
-                best, best_state = score, [p.detach().clone() for p in net.parameters()]
-        w1, b1, w2, b2 = (p.numpy() for p in best_state)
-        return NoiseModel(w1=w1.copy(), b1=b1.copy(), w2=w2[0].copy(), b2=float(b2[0]),
-                          mean=np.asarray(mean, dtype=float), std=np.asarray(std, dtype=float),
-                          bounds=bounds, trained_on=dict(trained_on or {}, validation_nll=best))
+def _fit(rec: Records, seed: int, epochs: int, lr: float, bounds: tuple[float, float],
+         trained_on: dict | None) -> NoiseModel:
+    """``fit``'s work, in the torch threads it sets."""
+    import torch
+
+    torch.manual_seed(seed)
+    held = rec.group % 5 == 4
+    if held.all() or not held.any():
+        held = (np.arange(len(rec.group)) // (2 * WINDOW)) % 5 == 4
+    train, valid = ~held, held
+    mean = rec.inputs[train].mean(axis=0)
+    std = rec.inputs[train].std(axis=0)
+    constant = std < 1e-6
+    std[constant] = 1.0
+    d = rec.inputs.shape[1]
+    net = torch.nn.Sequential(torch.nn.Linear(d, HIDDEN, dtype=torch.float64), torch.nn.Tanh(),
+                              torch.nn.Linear(HIDDEN, 1, dtype=torch.float64))
+    with torch.no_grad():  # an input that never varied here gets no weight (its gradient
+        net[0].weight[:, torch.from_numpy(constant)] = 0.0  # is 0, so it stays 0)
+
+    def tensors(rows):
+        return {"inputs": torch.from_numpy((rec.inputs[rows] - mean) / std),
+                "nu2": torch.from_numpy(rec.nu2[rows]), "s0": torch.from_numpy(rec.s0[rows]),
+                "log_scale0": torch.from_numpy(rec.log_scale0[rows]),
+                "censored": torch.from_numpy(rec.censored[rows]),
+                "mask": torch.from_numpy(rec.mask[rows].astype(float))}
+
+    t, v = tensors(train), tensors(valid)
+    opt = torch.optim.Adam(net.parameters(), lr=lr)
+    best, best_state = math.inf, None
+    for _ in range(epochs):
+        opt.zero_grad()
+        loss = _nll(torch, net, bounds, t)
+        loss.backward()
+        opt.step()
+        with torch.no_grad():
+            score = float(_nll(torch, net, bounds, v))
+        if score < best:
+            best, best_state = score, [p.detach().clone() for p in net.parameters()]
+    w1, b1, w2, b2 = (p.numpy() for p in best_state)
+    return NoiseModel(w1=w1.copy(), b1=b1.copy(), w2=w2[0].copy(), b2=float(b2[0]),
+                      mean=np.asarray(mean, dtype=float), std=np.asarray(std, dtype=float),
+                      bounds=bounds, trained_on=dict(trained_on or {}, validation_nll=best))
 
 
 def train_noise_model(dataset, missions: Sequence[str] | None = None, *, seed: int = 0,
