@@ -575,6 +575,11 @@ def _intervals(name: str, value, *, beam: bool) -> tuple:
 MAX_IMU_SCALE_FACTOR_STD = 0.1
 MAX_IMU_MISALIGNMENT_STD = 0.05  # rad
 MAX_GYRO_G_SENSITIVITY_STD = 1e-3  # rad/s per m/s^2
+# A vibration's std per axis: 1 g and 1 rad/s (57 deg/s) are far above the tens of mm/s^2
+# and hundreds of deg/h a survey AUV's IMU records above 10 Hz (``benchmarks/
+# imu_spectrum.py``) and still small beside a navigation IMU's ranges.
+MAX_IMU_VIBRATION_ACCEL = 9.80665  # m/s^2
+MAX_IMU_VIBRATION_GYRO = 1.0  # rad/s
 
 
 @dataclass(frozen=True)
@@ -608,6 +613,10 @@ class ImuConfig:
             ``MAX_IMU_MISALIGNMENT_STD``.
         gyro_g_sensitivity_std: std of each of the nine elements of G (rad/s per m/s^2),
             at most ``MAX_GYRO_G_SENSITIVITY_STD``.
+        accel_vibration_std, gyro_vibration_std: (3,) the std per axis (m/s^2, rad/s) of
+            the vibration the triad records on its vehicle, added to every sample: zero
+            mean and no power at zero frequency (``auvsim.sensors.imu`` gives its
+            spectrum), so it integrates to a bounded velocity and angle. Zero: none.
     """
 
     rate_hz: float = 100.0
@@ -625,11 +634,19 @@ class ImuConfig:
     accel_misalignment_std: float = 0.0
     gyro_misalignment_std: float = 0.0
     gyro_g_sensitivity_std: float = 0.0
+    accel_vibration_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_vibration_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        for name, bound, unit in (("accel_vibration_std", MAX_IMU_VIBRATION_ACCEL, "m/s^2"),
+                                  ("gyro_vibration_std", MAX_IMU_VIBRATION_GYRO, "rad/s")):
+            value = _vector(f"imu.{name}", getattr(self, name), 3)
+            _check(all(0 <= v <= bound for v in value), f"imu.{name}",
+                   f"3 stds in [0, {bound:g}] {unit}", getattr(self, name))
+            object.__setattr__(self, name, value)
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if value is None and f.name in _IMU_OPTIONAL:
+            if (value is None and f.name in _IMU_OPTIONAL) or f.name in _IMU_VIBRATION:
                 continue
             _finite(f"imu.{f.name}", value)
             _check(value >= 0, f"imu.{f.name}", "a value >= 0", value)
@@ -660,6 +677,7 @@ class ImuConfig:
 
 
 _IMU_OPTIONAL = ("accel_bias_correlation_time", "gyro_bias_correlation_time")
+_IMU_VIBRATION = ("accel_vibration_std", "gyro_vibration_std")
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,12 @@ does) and for auvsim's ``realistic-maneuvers`` missions (``--sim``, default the 
 * the noise one sample holds if it is white: the std of the first differences over
   sqrt(2) (mm/s^2, deg/h);
 * the median over 1 s windows of the r.m.s. of |f| - g, the learned noise's input
-  (g: the mission's median |f|).
+  (g: the mission's median |f|);
+* the std above ``VIBRATION_HZ`` of each axis (a 4th-order Butterworth high-pass run
+  forward and back, over the whole mission), and its median over the real segments: the
+  vibration the ``navigator`` preset's IMU records (``ImuConfig.accel_vibration_std``,
+  ``gyro_vibration_std``; ``auvsim.sensors.imu``'s model of it puts 98.7 % of its power
+  above 10 Hz, so its std is this figure).
 
 Below 1 Hz both hold the vehicle's own motion; above it a navigation-grade IMU's white
 noise is what auvsim simulates (the ``navigation-full`` grade: 20 ug/sqrt(Hz), 0.0025
@@ -21,17 +26,24 @@ deg/sqrt(h), a one-sided 28 ug/sqrt(Hz) and 0.0035 deg/sqrt(h); the A-KIT log
 description states the same for the Phins, from Groves 2013, as the publication gives
 none).
 
-What it printed (2026-12-05): above 10 Hz the real accelerometers hold 33 to 450
-ug/sqrt(Hz) (auvsim: 28), with a line at 20-30 Hz of up to 1750 ug/sqrt(Hz) on
-segments 2-5 (a propeller's or hull's vibration, our reading), and the real gyros 0.02 to
-1.0 deg/sqrt(h) (auvsim: 0.004); one sample holds 18 to 44 mm/s^2 and 53 to 246 deg/h
-if white (auvsim: 2.0 to 2.5 mm/s^2, 6 to 50 deg/h, the latter its motion). The median
-r.m.s. of |f| - g over 1 s is 0.017 to 0.047 m/s^2 at sea and 0.008 to 0.011 in auvsim:
-the learned noise's input moved because the real IMU records vibration, or noise, that
-the simulated one has not: up to 16 times its accelerometers' floor above 10 Hz (60 at
-the 20-30 Hz line) and 5 to 250 times its gyros'. Not acted on: it needs a source for how much
-of it is motion (which an INS integrates) and how much sensor noise (which it must not
-trust).
+What it printed (2026-12-05, before the ``navigator`` preset's vibration): above 10 Hz
+the real accelerometers hold 33 to 450 ug/sqrt(Hz) (auvsim: 28), with a line at 24 Hz of
+up to 1750 ug/sqrt(Hz) on segments 2-5, and the real gyros 0.02 to 1.0 deg/sqrt(h)
+(auvsim: 0.004); one sample holds 18 to 44 mm/s^2 and 53 to 246 deg/h if white (auvsim:
+2.0 to 2.5 mm/s^2, 6 to 50 deg/h, the latter its motion). The median r.m.s. of |f| - g
+over 1 s is 0.017 to 0.047 m/s^2 at sea and 0.008 to 0.011 in auvsim: the learned noise's
+input moved because the real IMU records what the simulated one did not. Above 10 Hz the
+real segments' median std per axis is 20.0 / 29.3 / 27.6 mm/s^2 and 138 / 136 / 45 deg/h
+(auvsim then: 1.7 and 1.3 to 1.8).
+
+Whether that content is noise an INS must distrust or vibration that integrates away, the
+DVL answers: the DVL's velocity change over 1 s minus the IMU's integral of it is 7.0 mm/s
+r.m.s. per horizontal axis, less than the DVL's own error model predicts (7.8;
+``benchmarks/dvl_error.py``); a white noise of 20 mm/s^2 per sample at 100 Hz would add 2
+mm/s to it in quadrature. So the ``navigator`` preset's IMU records it as a vibration with
+no power at zero frequency (``auvsim.sensors.imu``, ``auvsim.runs.presets
+.SNAPIR_VIBRATION``), of the std measured here, and the filter's IMU noise stays the
+datasheet's.
 
     PYTHONPATH=.:benchmarks .venv/bin/python benchmarks/imu_spectrum.py [--akit DIR]
         [--sim FILE]
@@ -58,6 +70,7 @@ BANDS = ((0.1, 1.0), (1.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0,
          (40.0, 50.0))  # Hz
 G0 = 9.80665  # m/s^2 per g
 SIM = Path("datasets/sea-train_300s.h5")
+VIBRATION_HZ = 10.0  # Hz: above it, the vibration's std
 
 
 def band_asd(x: np.ndarray) -> list[float]:
@@ -81,7 +94,15 @@ def figures(mission) -> dict[str, np.ndarray | float]:
         gyro=np.degrees(np.array([band_asd(w[span, k]) for k in range(3)])) * 60.0,
         accel_white=1e3 * np.diff(f, axis=0).std(axis=0) / math.sqrt(2),
         gyro_white=np.degrees(np.diff(w, axis=0).std(axis=0) / math.sqrt(2)) * 3600.0,
-        rms=float(np.median(np.sqrt(np.mean(windows**2, axis=1)))))
+        rms=float(np.median(np.sqrt(np.mean(windows**2, axis=1)))),
+        accel_above=1e3 * above(f), gyro_above=np.degrees(above(w)) * 3600.0)
+
+
+def above(x: np.ndarray) -> np.ndarray:
+    """(3,) the std of each column of ``x`` (sampled at ``RATE``) above ``VIBRATION_HZ``:
+    a 4th-order Butterworth high-pass, forward and back (no phase shift)."""
+    sos = signal.butter(4, VIBRATION_HZ, btype="high", fs=RATE, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0).std(axis=0)
 
 
 def table(name: str, found: dict) -> list[str]:
@@ -96,7 +117,13 @@ def table(name: str, found: dict) -> list[str]:
         out.append(f"  gyro {axis} deg/sqrt(h):  "
                    + " ".join(f"{v:7.3f}" for v in found["gyro"][k])
                    + f"   | {found['gyro_white'][k]:6.1f} deg/h per sample")
+    out.append(f"  above {VIBRATION_HZ:g} Hz: accel {fmt(found['accel_above'])} mm/s^2, "
+               f"gyro {fmt(found['gyro_above'])} deg/h")
     return out
+
+
+def fmt(v) -> str:
+    return " / ".join(f"{x:.1f}" for x in v)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -111,8 +138,13 @@ def main(argv: list[str] | None = None) -> int:
 
         with tempfile.TemporaryDirectory() as tmp, open_dataset(
                 sea_dataset(args.akit, Path(tmp))[0]) as real:
-            for name in sorted(real.missions):
-                lines += table(f"real {name}", figures(real.missions[name]))
+            found = [figures(real.missions[name]) for name in sorted(real.missions)]
+            for name, f in zip(sorted(real.missions), found, strict=True):
+                lines += table(f"real {name}", f)
+            lines.append(f"real, median over the segments, above {VIBRATION_HZ:g} Hz: accel "
+                         f"{fmt(np.median([f['accel_above'] for f in found], axis=0))} "
+                         f"mm/s^2, gyro "
+                         f"{fmt(np.median([f['gyro_above'] for f in found], axis=0))} deg/h")
     else:
         lines.append(f"(no A-KIT segments in {args.akit}: the real rows are left out)")
     if args.sim.is_file():

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from auvsim.config import (
     MAX_DURATION,  # noqa: F401  (re-exported for the experiments that size presets)
@@ -176,6 +177,20 @@ def _as_flown(kind: str, speed: float, options: dict) -> dict:
     return dict(options)
 
 
+# The vibration the Snapir's iXblue Phins records in its hull, measured on the six A-KIT
+# segments (Cohen & Klein 2025; ``benchmarks/imu_spectrum.py`` prints it): the std above
+# 10 Hz per axis, median over the segments, 20.0 / 29.3 / 27.6 mm/s^2 (segments 17 to 45)
+# and 138 / 136 / 45 deg/h (40 to 193), against the datasheet grade's white noise of 1.7
+# mm/s^2 and 1.3 to 1.8 deg/h there; most of the accelerometers' in a line at 24 Hz on
+# every segment, whatever the speed (23.7 Hz at 1.6 m/s, 24.8 at 2.1). It integrates
+# away: the IMU's velocity change over 1 s matches the DVL's to within the DVL's own noise
+# (``benchmarks/dvl_error.py``), so the model is a vibration with no power at zero
+# frequency (``auvsim.sensors.imu``), not white noise.
+SNAPIR_VIBRATION = dict(accel_vibration_std=(0.0200, 0.0293, 0.0276),
+                        gyro_vibration_std=tuple(x * math.pi / 180.0 / 3600.0
+                                                 for x in (138.0, 136.2, 45.2)))
+
+
 def navigator() -> Config:
     """A physical default: a Teledyne RDI Workhorse Navigator-like DVL (600 kHz) on the
     A18-D over gently rough terrain, with a navigation-grade IMU, flying survey lines
@@ -271,6 +286,9 @@ def navigator() -> Config:
     The missions are flown in the Snapir's waters off Haifa (``SNAPIR_WATERS``), so the
     IMU measures the Earth's rate and the WGS-84 normal gravity there, as the real logs'
     IMU does (``auvsim.config.LocationConfig``).
+
+    The IMU is the ``navigation-full`` grade on the Snapir's hull: it records the hull's
+    vibration (``SNAPIR_VIBRATION``), which the grade's datasheet figures leave out.
     """
     return Config(
         missions=(MissionConfig(scenario=ScenarioConfig(options=dict(SURVEY_LINES))),),
@@ -287,7 +305,7 @@ def navigator() -> Config:
                       sound_speed_std=0.003, misalignment_std_deg=0.1, water_track=True,
                       water_track_range=10.0, water_track_noise_std=0.05,
                       slow_error_std=0.009, slow_error_time=19.0),
-        imu=IMU_GRADES["navigation-full"],
+        imu=dataclasses.replace(IMU_GRADES["navigation-full"], **SNAPIR_VIBRATION),
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
         water=NAVIGATOR_WATER,
         location=SNAPIR_WATERS,

@@ -22,6 +22,20 @@ b[0] ~ N(0, sigma_b^2); u, v ~ N(0, 1) white. There is no
 quantisation or saturation. With S, M and G zero (every config before them) the output is
 bitwise that of the additive model: the products are skipped, not multiplied by zero.
 
+A vehicle's vibration (``ImuConfig.accel_vibration_std``, ``gyro_vibration_std``, per
+axis; zero by default) is added to every sample, after the bias terms::
+
+    x[k] = sigma_x (e[k] - e[k - 1]) / sqrt(2),   e ~ N(0, 1) white per axis
+
+the first difference of a white sequence: std sigma_x, zero mean, and a spectrum that
+rises as sin^2(pi f / rate) from nothing at zero frequency to the most at the Nyquist
+frequency (98.7 % of its power above 10 Hz at 100 Hz). Its sum telescopes, so the
+velocity (the angle) it adds to an integration is sigma_x dt (e[k] - e[0]) / sqrt(2),
+bounded: vibration moves the sensor back and forth, it does not drift it. The shape is a
+model: a real IMU's vibration has lines (the Snapir's Phins one at 24 Hz) where this one
+spreads its power over the band; its std per axis is the measured one. A config without
+vibration keeps every draw and every bit of its output.
+
 The true values are the truth's: f its ``specific_force`` and w its ``angular_rate``, the
 body's rate in the local NED frame. With a geographic origin (``auvsim.config.
 LocationConfig``) the gyros measure the rate in inertial space, ``w = w_nb + C^T w_ie``
@@ -278,7 +292,9 @@ class _Channel:
 
     def __init__(self, bias: np.ndarray, noise_std: float, gm_std: float, tau_rate: float,
                  noise_rng: np.random.Generator, gm_rng: np.random.Generator,
-                 matrix: np.ndarray, g_matrix: np.ndarray | None = None) -> None:
+                 matrix: np.ndarray, g_matrix: np.ndarray | None = None,
+                 vibration_std: np.ndarray | None = None,
+                 vibration_rng: np.random.Generator | None = None) -> None:
         """Derive the triad's constants and draw its initial Gauss-Markov state.
 
         Args:
@@ -289,6 +305,8 @@ class _Channel:
             noise_rng, gm_rng: the white noise's and the Gauss-Markov drive's streams.
             matrix: (3, 3) S + M, the triad's scale factors and misalignment.
             g_matrix: (3, 3) G, rad/s per m/s^2 of specific force (gyros only).
+            vibration_std: (3,) the vibration's std per axis (None: none), drawn from
+                ``vibration_rng``.
         """
         self.bias = bias
         self.biased = bool(np.any(bias))  # asked once: np.any costs as much as the sum
@@ -306,8 +324,13 @@ class _Channel:
         # Started from the stationary distribution, so the process has the same statistics
         # at every sample and no transient depends on where a mission starts.
         self.gm_state = gm_std * gm_rng.standard_normal(3) if gm_std else np.zeros(3)
+        # The vibration's e[k - 1] for the next sample: its first sample is stationary too.
+        self.vibration_std = vibration_std
+        self.vibration_rng = vibration_rng
+        self.vibration_last = (vibration_rng.standard_normal(3) if vibration_std is not None
+                               else np.zeros(3))
         self.exact = not (self.biased or noise_std or gm_std or self.matrix_t is not None
-                          or self.g_matrix_t is not None)
+                          or self.g_matrix_t is not None or vibration_std is not None)
         # The samples' error terms that do not depend on the truth, made ahead in chunks:
         # the white noise n[k] and the Gauss-Markov bias b[k] of samples at, at + 1, ...
         # A block of a few samples (an environment step) then costs one compiled pass over
@@ -316,6 +339,7 @@ class _Channel:
         self.at = 0
         self.noise = np.zeros((0, 3))
         self.gauss_markov = np.zeros((0, 3))
+        self.vibration = np.zeros((0, 3))
 
     def corrupt(self, truth: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
         out = truth.copy()  # a copy: the caller's truth stays intact
@@ -329,7 +353,8 @@ class _Channel:
         if self.at + n > len(self.noise):
             self._ahead(n)
         _add_terms(out, self.bias if self.biased else _OFF, self.noise if self.noise_std
-                   else _OFF_ROWS, self.gauss_markov if self.gm_std else _OFF_ROWS, self.at)
+                   else _OFF_ROWS, self.gauss_markov if self.gm_std else _OFF_ROWS,
+                   self.vibration if self.vibration_std is not None else _OFF_ROWS, self.at)
         self.at += n
         return out
 
@@ -343,9 +368,16 @@ class _Channel:
         if self.gm_std:
             gauss_markov = gauss_markov_rows(self.gm_state, self.gm_rng.standard_normal(
                 (rows, 3)), std=self.gm_std, dt_over_tau=self.dt_over_tau)
+        vibration = np.zeros((rows, 3))
+        if self.vibration_std is not None:
+            e = self.vibration_rng.standard_normal((rows, 3))
+            vibration = np.diff(np.concatenate([self.vibration_last[None], e]), axis=0)
+            vibration *= self.vibration_std / math.sqrt(2.0)
+            self.vibration_last = e[-1]
         left = slice(self.at, None)
         self.noise = np.concatenate([self.noise[left], noise])
         self.gauss_markov = np.concatenate([self.gauss_markov[left], gauss_markov])
+        self.vibration = np.concatenate([self.vibration[left], vibration])
         self.at = 0
 
 
@@ -354,17 +386,18 @@ _OFF, _OFF_ROWS = np.zeros(0), np.zeros((0, 3))  # a term that is off, for _add_
 
 
 @numba.njit(cache=True)
-def _add_terms(out, bias, noise, gauss_markov, at):
-    """``out += bias; out += noise[at:at + N]; out += gauss_markov[at:at + N]``, element
-    by element in that order (the same arithmetic), in one compiled pass: on the few rows
-    of an environment step, numpy's calls (a broadcast above all) cost several times the
-    additions. A term given empty ((0,) or (0, 3)) is off.
+def _add_terms(out, bias, noise, gauss_markov, vibration, at):
+    """``out += bias; out += noise[at:at + N]; out += gauss_markov[at:at + N]; out +=
+    vibration[at:at + N]``, element by element in that order (the same arithmetic), in one
+    compiled pass: on the few rows of an environment step, numpy's calls (a broadcast above
+    all) cost several times the additions. A term given empty ((0,) or (0, 3)) is off.
 
     Args:
         out: (N, 3) the measurement so far, added to in place.
         bias: (3,) turn-on bias.
-        noise, gauss_markov: (M, 3) rows of white noise and Gauss-Markov bias, M >= at + N.
-        at: the row of ``noise`` and ``gauss_markov`` of out's first row.
+        noise, gauss_markov, vibration: (M, 3) rows of white noise, Gauss-Markov bias and
+            vibration, M >= at + N.
+        at: the row of those rows of out's first row.
     """
     for k in range(out.shape[0]):
         for j in range(3):
@@ -374,6 +407,8 @@ def _add_terms(out, bias, noise, gauss_markov, at):
                 out[k, j] += noise[at + k, j]
             if gauss_markov.shape[0]:
                 out[k, j] += gauss_markov[at + k, j]
+            if vibration.shape[0]:
+                out[k, j] += vibration[at + k, j]
 
 
 def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) -> np.ndarray:
@@ -389,15 +424,21 @@ def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) ->
     raise ValueError(f"{name}: expected an array of shape {expected}, got shape {out.shape}")
 
 
+def _vibration(std) -> np.ndarray | None:
+    """(3,) a triad's vibration std per axis, or None where it has none."""
+    return np.asarray(std, dtype=float) if any(std) else None
+
+
 class ImuErrorModel:
     """The error process of one mission, applied block by block.
 
     The output depends only on the config, the biases, the calibration errors, the state
     of ``rng`` at construction and the full sequence of samples, not on how that sequence
     is split into calls of ``corrupt``: white noise and Gauss-Markov drive come from four
-    child generators (accel noise, gyro noise, accel drive, gyro drive) that are only ever
-    read forward, the Gauss-Markov state is carried from one call to the next, and the
-    scale-factor, misalignment and g-sensitivity terms act sample by sample.
+    child generators (accel noise, gyro noise, accel drive, gyro drive; two more for a
+    vibration) that are only ever read forward, the Gauss-Markov state (and the
+    vibration's last draw) is carried from one call to the next, and the scale-factor,
+    misalignment and g-sensitivity terms act sample by sample.
 
     Example::
 
@@ -416,7 +457,8 @@ class ImuErrorModel:
         Args:
             config: rates, densities and Gauss-Markov parameters (``ImuConfig``).
             biases: the mission's turn-on biases, (3,) m/s^2 and (3,) rad/s.
-            rng: parent generator; four children are spawned from it (``rng.spawn(4)``).
+            rng: parent generator; four children are spawned from it (``rng.spawn(4)``),
+                and two more for a vibration.
             calibration: the mission's scale-factor, misalignment and g-sensitivity
                 errors (``draw_calibration``); none by default.
         """
@@ -429,21 +471,30 @@ class ImuErrorModel:
                 ImuCalibration._fields, calibration,
                 ((3,), (3,), (3, 3), (3, 3), (3, 3)), strict=True)))
         accel_noise, gyro_noise, accel_gm, gyro_gm = rng.spawn(4)
+        # The vibration's two streams are spawned after those four, and only where there
+        # is one: a config without keeps every draw it had.
+        shaking = any(config.accel_vibration_std) or any(config.gyro_vibration_std)
+        accel_vib, gyro_vib = rng.spawn(2) if shaking else (None, None)
         root_rate = math.sqrt(config.rate_hz)
         c = self.calibration
         self._accel = _Channel(self.biases.accel, config.accel_noise_density * root_rate,
                                config.accel_bias_instability, config.rate_hz * config.accel_tau,
-                               accel_noise, accel_gm, c.accel_matrix)
+                               accel_noise, accel_gm, c.accel_matrix,
+                               vibration_std=_vibration(config.accel_vibration_std),
+                               vibration_rng=accel_vib)
         self._gyro = _Channel(self.biases.gyro, config.gyro_noise_density * root_rate,
                               config.gyro_bias_instability, config.rate_hz * config.gyro_tau,
-                              gyro_noise, gyro_gm, c.gyro_matrix, c.gyro_g_sensitivity)
+                              gyro_noise, gyro_gm, c.gyro_matrix, c.gyro_g_sensitivity,
+                              vibration_std=_vibration(config.gyro_vibration_std),
+                              vibration_rng=gyro_vib)
 
     def corrupt(self, specific_force: np.ndarray,
                 angular_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Measure the next N samples of the mission and advance the error state.
 
-        ``f_meas = (I + S_a + M_a) f + b_a + n_a`` and
-        ``w_meas = (I + S_g + M_g) w + G f + b_g + n_g`` per sample (module docstring).
+        ``f_meas = (I + S_a + M_a) f + b_a + n_a (+ x_a)`` and
+        ``w_meas = (I + S_g + M_g) w + G f + b_g + n_g (+ x_g)`` per sample (module
+        docstring; x: the vibration, where there is one).
 
         Args:
             specific_force: (N, 3) true specific force f = a - g at the IMU, m/s^2, body
@@ -538,7 +589,7 @@ class Imu(Sensor):
                     imu_gyro_g_sensitivity=cal.gyro_g_sensitivity.ravel())
 
     def measure(self, truth, rng):
-        if self.model is None:  # its four child streams, spawned once from the noise stream
+        if self.model is None:  # its child streams, spawned once from the noise stream
             self.model = ImuErrorModel(self.config, self.biases, rng,
                                        calibration=self.calibration)
         rate = truth.angular_rate
