@@ -575,9 +575,10 @@ def _intervals(name: str, value, *, beam: bool) -> tuple:
 MAX_IMU_SCALE_FACTOR_STD = 0.1
 MAX_IMU_MISALIGNMENT_STD = 0.05  # rad
 MAX_GYRO_G_SENSITIVITY_STD = 1e-3  # rad/s per m/s^2
-# A vibration's std per axis: 1 g and 1 rad/s (57 deg/s) are far above the tens of mm/s^2
-# and hundreds of deg/h a survey AUV's IMU records above 10 Hz (``benchmarks/
-# imu_spectrum.py``) and still small beside a navigation IMU's ranges.
+# A vibration's std per axis (and its growth per rad/s of yaw rate): 1 g and 1 rad/s (57
+# deg/s) are far above the tens to hundreds of mm/s^2 and deg/h a survey AUV's IMU records
+# above 10 Hz (``benchmarks/imu_spectrum.py``) and still small beside a navigation IMU's
+# ranges.
 MAX_IMU_VIBRATION_ACCEL = 9.80665  # m/s^2
 MAX_IMU_VIBRATION_GYRO = 1.0  # rad/s
 
@@ -614,9 +615,12 @@ class ImuConfig:
         gyro_g_sensitivity_std: std of each of the nine elements of G (rad/s per m/s^2),
             at most ``MAX_GYRO_G_SENSITIVITY_STD``.
         accel_vibration_std, gyro_vibration_std: (3,) the std per axis (m/s^2, rad/s) of
-            the vibration the triad records on its vehicle, added to every sample: zero
-            mean and no power at zero frequency (``auvsim.sensors.imu`` gives its
-            spectrum), so it integrates to a bounded velocity and angle. Zero: none.
+            the vibration the triad records on its vehicle without rotation, added to every
+            sample: zero mean and no power at zero frequency (``auvsim.sensors.imu`` gives
+            its spectrum), so it integrates to a bounded velocity and angle. Zero: none.
+        accel_vibration_per_rate, gyro_vibration_per_rate: (3,) the growth of that std
+            per rad/s of the true yaw rate's magnitude (m/s^2 and rad/s per rad/s): the
+            std at a sample is ``*_vibration_std + *_vibration_per_rate |r|``.
     """
 
     rate_hz: float = 100.0
@@ -636,10 +640,15 @@ class ImuConfig:
     gyro_g_sensitivity_std: float = 0.0
     accel_vibration_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_vibration_std: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_vibration_per_rate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_vibration_per_rate: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        for name, bound, unit in (("accel_vibration_std", MAX_IMU_VIBRATION_ACCEL, "m/s^2"),
-                                  ("gyro_vibration_std", MAX_IMU_VIBRATION_GYRO, "rad/s")):
+        for name, bound, unit in (
+                ("accel_vibration_std", MAX_IMU_VIBRATION_ACCEL, "m/s^2"),
+                ("gyro_vibration_std", MAX_IMU_VIBRATION_GYRO, "rad/s"),
+                ("accel_vibration_per_rate", MAX_IMU_VIBRATION_ACCEL, "m/s^2 per rad/s"),
+                ("gyro_vibration_per_rate", MAX_IMU_VIBRATION_GYRO, "rad/s per rad/s")):
             value = _vector(f"imu.{name}", getattr(self, name), 3)
             _check(all(0 <= v <= bound for v in value), f"imu.{name}",
                    f"3 stds in [0, {bound:g}] {unit}", getattr(self, name))
@@ -677,7 +686,8 @@ class ImuConfig:
 
 
 _IMU_OPTIONAL = ("accel_bias_correlation_time", "gyro_bias_correlation_time")
-_IMU_VIBRATION = ("accel_vibration_std", "gyro_vibration_std")
+_IMU_VIBRATION = ("accel_vibration_std", "gyro_vibration_std", "accel_vibration_per_rate",
+                  "gyro_vibration_per_rate")
 
 
 @dataclass(frozen=True)

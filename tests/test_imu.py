@@ -141,7 +141,9 @@ def test_output_does_not_depend_on_how_the_mission_is_split():
                        accel_turn_on_bias=1e-3, gyro_turn_on_bias=1e-5,
                        accel_bias_instability=1e-3, gyro_bias_instability=1e-5,
                        bias_correlation_time=10.0, accel_vibration_std=(0.02, 0.03, 0.01),
-                       gyro_vibration_std=(1e-3, 0.0, 2e-4))
+                       gyro_vibration_std=(1e-3, 0.0, 2e-4),
+                       accel_vibration_per_rate=(0.2, 0.3, 0.0),
+                       gyro_vibration_per_rate=(0.0, 5e-3, 2e-3))
     f, w = truth(10_007)
     whole_f, whole_w = model(config, seed=21).corrupt(f, w)
     m = model(config, seed=21)
@@ -498,7 +500,8 @@ def test_full_grades_add_the_cited_terms_to_their_base_grades():
         assert 0 < getattr(nav, name) < getattr(mems, name), name
     # The navigator's IMU is this grade on the Snapir's hull, with its vibration.
     assert dataclasses.replace(preset("navigator").imu, accel_vibration_std=(0, 0, 0),
-                               gyro_vibration_std=(0, 0, 0)) == nav
+                               gyro_vibration_std=(0, 0, 0), accel_vibration_per_rate=(0, 0, 0),
+                               gyro_vibration_per_rate=(0, 0, 0)) == nav
     for name in ("paper-sim", "paper-sim-text", "maneuvers"):  # the paper's protocol
         assert preset(name).imu == IMU_GRADES["navigation"]
 
@@ -523,6 +526,8 @@ BAD_IMU = [
     ("accel_vibration_std", (0.02, 0.03), "3 finite numbers"),
     ("gyro_vibration_std", (2.0, 0.0, 0.0), "3 stds in [0, 1] rad/s"),
     ("gyro_vibration_std", (0.0, math.nan, 0.0), "3 finite numbers"),
+    ("accel_vibration_per_rate", (0.0, 0.0, -1.0), "3 stds in [0, 9.80665] m/s^2 per rad/s"),
+    ("gyro_vibration_per_rate", "0.01", "3 finite numbers"),
 ]
 
 
@@ -576,27 +581,40 @@ def test_a_generated_mission_stores_and_shows_the_realised_calibration(tmp_path)
 
 
 VIBRATION = ImuConfig(accel_vibration_std=(0.02, 0.03, 0.01),
-                      gyro_vibration_std=(1e-3, 5e-4, 2e-4))
+                      gyro_vibration_std=(1e-3, 5e-4, 2e-4),
+                      accel_vibration_per_rate=(0.2, 0.3, 0.4),
+                      gyro_vibration_per_rate=(5e-3, 8e-3, 2e-3))
+SHAKES = (("accel_vibration_std", "accel_vibration_per_rate"),
+          ("gyro_vibration_std", "gyro_vibration_per_rate"))
 
 
-def test_vibration_has_its_std_no_mean_and_integrates_to_a_bounded_velocity():
-    """The vibration alone, x[k] = sigma (e[k] - e[k-1]) / sqrt(2): its std per axis is
-    sigma, its lag-1 autocorrelation -1/2 (a first difference of white noise), and its
-    sum telescopes, so the velocity (angle) it integrates to over 1000 s is
-    sigma dt (e[k] - e[0]) / sqrt(2), whose std over k is sigma dt / sqrt(2), where white
-    noise of the same std would wander sigma dt sqrt(k)."""
+def shaken(n: int, seed: int, yaw_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) accel and gyro errors of ``VIBRATION`` alone on a truth that turns at a
+    steady ``yaw_rate`` (rad/s) and measures nothing else."""
+    rate = np.zeros((n, 3))
+    rate[:, 2] = yaw_rate
+    f, w = model(VIBRATION, seed, ZERO).corrupt(np.zeros((n, 3)), rate)
+    return f, w - rate
+
+
+@pytest.mark.parametrize("yaw_rate", [0.0, -0.1, 0.25])
+def test_vibration_has_its_std_no_mean_and_integrates_to_a_bounded_velocity(yaw_rate):
+    """The vibration alone at a steady yaw rate r, x[k] = (sigma_0 + s |r|) (e[k] -
+    e[k-1]) / sqrt(2): its std per axis is sigma_0 + s |r|, its lag-1 autocorrelation -1/2
+    (a first difference of white noise), and its sum telescopes, so the velocity (angle) it
+    integrates to over 1000 s is sigma dt (e[k] - e[0]) / sqrt(2), whose std over k is
+    sigma dt / sqrt(2), where white noise of the same std would wander sigma dt sqrt(k)."""
     n, dt = 100_000, 0.01
-    for error, sigma in zip(errors(VIBRATION, n, seed=5), (VIBRATION.accel_vibration_std,
-                                                          VIBRATION.gyro_vibration_std),
-                            strict=True):
+    for error, (base, grows) in zip(shaken(n, 5, yaw_rate), SHAKES, strict=True):
+        sigma = np.asarray(getattr(VIBRATION, base)) + np.asarray(
+            getattr(VIBRATION, grows)) * abs(yaw_rate)
         np.testing.assert_allclose(error.std(axis=0), sigma, rtol=0.02)
         lag1 = np.mean(error[1:] * error[:-1], axis=0) / error.var(axis=0)
         np.testing.assert_allclose(lag1, -0.5, atol=0.01)
         integral = np.cumsum(error, axis=0) * dt
-        np.testing.assert_allclose(integral.std(axis=0), np.asarray(sigma) * dt / math.sqrt(2),
-                                   rtol=0.03)
-        assert np.all(np.abs(integral).max(axis=0) < 7 * np.asarray(sigma) * dt)
-        assert np.all(np.abs(error.mean(axis=0)) < 1e-3 * np.asarray(sigma))
+        np.testing.assert_allclose(integral.std(axis=0), sigma * dt / math.sqrt(2), rtol=0.03)
+        assert np.all(np.abs(integral).max(axis=0) < 7 * sigma * dt)
+        assert np.all(np.abs(error.mean(axis=0)) < 1e-3 * sigma)
 
 
 def test_vibration_puts_its_power_above_10_hz():
@@ -605,7 +623,7 @@ def test_vibration_puts_its_power_above_10_hz():
     0-10 Hz over that over 0-50 Hz, (5 - 100 sin(0.2 pi) / (4 pi)) / 25 = 1.29 %."""
     from scipy import signal
 
-    f, _ = errors(VIBRATION, 200_000, seed=6)
+    f, _ = shaken(200_000, 6, 0.0)
     freq, p = signal.welch(f[:, 1], fs=100.0, nperseg=1000)
     below = np.sum(p[freq < 10.0]) / np.sum(p)
     analytic = (5.0 - 100.0 * math.sin(0.2 * math.pi) / (4 * math.pi)) / 25.0
@@ -614,29 +632,31 @@ def test_vibration_puts_its_power_above_10_hz():
 
 def test_vibration_adds_to_the_other_terms_and_changes_none_of_their_draws():
     """A config with vibration measures what the same config without it does, plus a
-    vibration: their difference has the vibration's std and lag-1 autocorrelation, so the
-    noise, bias and calibration draws are those a config without it makes."""
+    vibration: their difference, over the std it should have at each sample's yaw rate,
+    has unit std and the lag-1 autocorrelation -1/2, so the noise, bias and calibration
+    draws are those a config without it makes."""
     base = IMU_GRADES["navigation-full"]
-    shaken = dataclasses.replace(base, accel_vibration_std=VIBRATION.accel_vibration_std,
-                                 gyro_vibration_std=VIBRATION.gyro_vibration_std)
+    with_shake = dataclasses.replace(base, **{k: getattr(VIBRATION, k) for pair in SHAKES
+                                              for k in pair})
     f, w = truth(50_000)
     without = model(base, seed=4).corrupt(f, w)
-    with_it = model(shaken, seed=4).corrupt(f, w)
-    for a, b, sigma in zip(with_it, without, (VIBRATION.accel_vibration_std,
-                                              VIBRATION.gyro_vibration_std), strict=True):
-        d = a - b
-        np.testing.assert_allclose(d.std(axis=0), sigma, rtol=0.03)
-        lag1 = np.mean(d[1:] * d[:-1], axis=0) / d.var(axis=0)
+    with_it = model(with_shake, seed=4).corrupt(f, w)
+    for a, b, (std, grows) in zip(with_it, without, SHAKES, strict=True):
+        sigma = (np.asarray(getattr(VIBRATION, std))
+                 + np.asarray(getattr(VIBRATION, grows)) * np.abs(w[:, 2:3]))
+        unit = (a - b) / sigma
+        np.testing.assert_allclose(unit.std(axis=0), 1.0, rtol=0.03)
+        # Neighbours share e[k]: (e[k+1] - e[k]) (e[k] - e[k-1]) / 2 has mean -1/2.
+        lag1 = np.mean(unit[1:] * unit[:-1], axis=0)
         np.testing.assert_allclose(lag1, -0.5, atol=0.02)
 
 
 def test_the_navigator_preset_records_the_snapirs_vibration_and_the_paper_presets_none():
     from auvsim.runs.presets import SNAPIR_VIBRATION
 
-    assert preset("navigator").imu.accel_vibration_std == SNAPIR_VIBRATION[
-        "accel_vibration_std"]
-    assert preset("realistic-maneuvers").imu.gyro_vibration_std == SNAPIR_VIBRATION[
-        "gyro_vibration_std"]
+    for name in ("navigator", "realistic-maneuvers"):
+        imu = preset(name).imu
+        assert {k: getattr(imu, k) for k in SNAPIR_VIBRATION} == SNAPIR_VIBRATION
     for name in ("paper-sim", "maneuvers"):
         c = preset(name).imu
-        assert not any(c.accel_vibration_std) and not any(c.gyro_vibration_std)
+        assert not any(any(getattr(c, k)) for pair in SHAKES for k in pair)

@@ -489,3 +489,49 @@ def test_the_evidence_on_segment_4_is_what_the_benchmark_docstring_quotes(akit_f
     assert np.std(heading) < 0.03 and len(heading) > 390
     assert 1e3 * x["mean"] == pytest.approx(4.7, abs=0.05)
     assert 1e3 * x["slow"] == pytest.approx(9.4, abs=0.05) and x["tau"] > 10.0
+
+
+@needs_akit
+def test_the_navigator_imu_vibrates_as_the_shared_segments_imu_does(akit_files):
+    """The ``navigator`` preset's IMU vibration is the real Phins' (``benchmarks/
+    imu_spectrum.py``): per axis, the line a + b |yaw rate| fitted to the r.m.s. above
+    10 Hz of each second of the six segments, to its stated digits. The simulated vibration,
+    fed each segment's own yaw rates (below 10 Hz: the real gyro's vibration left out) and
+    measured the same way, gives the line back (98.7 %
+    of its power lies above 10 Hz, so its r.m.s. there is 0.993 of its std)."""
+    import imu_spectrum
+
+    from auvsim.runs.presets import SNAPIR_VIBRATION
+    from auvsim.sensors.imu import ImuBiases, ImuErrorModel
+
+    deg_h = math.degrees(1.0) * 3600.0
+    with open_dataset(akit_files[1]) as f:
+        missions = [m for _, m in sorted(f.missions.items())]
+        real = imu_spectrum.vibration_fit(missions)
+        gyro_z = [np.asarray(m.imu.angular_rate, dtype=float)[:, 2:] for m in missions]
+    rates = [(z - imu_spectrum.high_passed(z))[:, 0] for z in gyro_z]
+    shake = {k: np.asarray(v) for k, v in SNAPIR_VIBRATION.items()}
+    np.testing.assert_allclose(1e3 * shake["accel_vibration_std"], 1e3 * real["accel_std"],
+                               atol=0.05)
+    np.testing.assert_allclose(1e3 * shake["accel_vibration_per_rate"],
+                               1e3 * real["accel_per_rate"], atol=0.5)
+    np.testing.assert_allclose(deg_h * shake["gyro_vibration_std"], deg_h * real["gyro_std"],
+                               atol=0.05)
+    np.testing.assert_allclose(deg_h * shake["gyro_vibration_per_rate"],
+                               deg_h * real["gyro_per_rate"], atol=0.05)
+    assert np.all(real["accel_r2"] > 0.6) and np.all(real["gyro_r2"] > 0.6)
+
+    config = dataclasses.replace(IMU_GRADES["ideal"], **SNAPIR_VIBRATION)
+    simulated = []
+    for k, yaw in enumerate(rates):
+        w = np.zeros((len(yaw), 3))
+        w[:, 2] = yaw
+        force, rate = ImuErrorModel(config, ImuBiases(np.zeros(3), np.zeros(3)),
+                                    np.random.default_rng(k)).corrupt(np.zeros_like(w), w)
+        simulated.append(Fields(imu=Fields(specific_force=force, angular_rate=rate)))
+    back = imu_spectrum.vibration_fit(simulated)
+    for name in ("accel", "gyro"):
+        np.testing.assert_allclose(back[f"{name}_std"], 0.993 * real[f"{name}_std"],
+                                   rtol=0.05)
+        np.testing.assert_allclose(back[f"{name}_per_rate"],
+                                   0.993 * real[f"{name}_per_rate"], rtol=0.05)

@@ -22,18 +22,22 @@ b[0] ~ N(0, sigma_b^2); u, v ~ N(0, 1) white. There is no
 quantisation or saturation. With S, M and G zero (every config before them) the output is
 bitwise that of the additive model: the products are skipped, not multiplied by zero.
 
-A vehicle's vibration (``ImuConfig.accel_vibration_std``, ``gyro_vibration_std``, per
-axis; zero by default) is added to every sample, after the bias terms::
+A vehicle's vibration (``ImuConfig.accel_vibration_std`` and ``_per_rate``, likewise for
+the gyros, per axis; zero by default) is added to every sample, after the bias terms::
 
-    x[k] = sigma_x (e[k] - e[k - 1]) / sqrt(2),   e ~ N(0, 1) white per axis
+    x[k] = (sigma_0 + s |r[k]|) (e[k] - e[k - 1]) / sqrt(2),   e ~ N(0, 1) white per axis
 
-the first difference of a white sequence: std sigma_x, zero mean, and a spectrum that
-rises as sin^2(pi f / rate) from nothing at zero frequency to the most at the Nyquist
-frequency (98.7 % of its power above 10 Hz at 100 Hz). Its sum telescopes, so the
-velocity (the angle) it adds to an integration is sigma_x dt (e[k] - e[0]) / sqrt(2),
-bounded: vibration moves the sensor back and forth, it does not drift it. The shape is a
-model: a real IMU's vibration has lines (the Snapir's Phins one at 24 Hz) where this one
-spreads its power over the band; its std per axis is the measured one. A config without
+with r the true yaw rate (body z): a vehicle's hull and fins shake more in a turn (on the
+Snapir's logs the IMU's content above 10 Hz is 6 to 10 mm/s^2 in straight flight and
+about 100 in its hardest turns: ``auvsim.runs.presets.SNAPIR_VIBRATION``). At a steady
+rate it is the first difference of a white sequence: std sigma_0 + s |r|, zero mean, and
+a spectrum that rises as sin^2(pi f / rate) from nothing at zero frequency to the most at
+the Nyquist frequency (98.7 % of its power above 10 Hz at 100 Hz). Its sum telescopes,
+so the velocity (the angle) it adds to an integration is sigma dt (e[k] - e[0]) /
+sqrt(2), bounded: vibration moves the sensor back and forth, it does not drift it (a std
+that changes with the rate leaves sum_k e[k] (sigma[k] - sigma[k + 1]) dt / sqrt(2),
+as small). The shape is a model: a real IMU's vibration has lines (the Snapir's Phins
+one at 24 Hz) where this one spreads its power over the band. A config without
 vibration keeps every draw and every bit of its output.
 
 The true values are the truth's: f its ``specific_force`` and w its ``angular_rate``, the
@@ -293,7 +297,7 @@ class _Channel:
     def __init__(self, bias: np.ndarray, noise_std: float, gm_std: float, tau_rate: float,
                  noise_rng: np.random.Generator, gm_rng: np.random.Generator,
                  matrix: np.ndarray, g_matrix: np.ndarray | None = None,
-                 vibration_std: np.ndarray | None = None,
+                 vibration: tuple[np.ndarray, np.ndarray] | None = None,
                  vibration_rng: np.random.Generator | None = None) -> None:
         """Derive the triad's constants and draw its initial Gauss-Markov state.
 
@@ -305,8 +309,8 @@ class _Channel:
             noise_rng, gm_rng: the white noise's and the Gauss-Markov drive's streams.
             matrix: (3, 3) S + M, the triad's scale factors and misalignment.
             g_matrix: (3, 3) G, rad/s per m/s^2 of specific force (gyros only).
-            vibration_std: (3,) the vibration's std per axis (None: none), drawn from
-                ``vibration_rng``.
+            vibration: (3,) the vibration's std per axis without rotation and (3,) its
+                growth per rad/s of yaw rate (None: none), drawn from ``vibration_rng``.
         """
         self.bias = bias
         self.biased = bool(np.any(bias))  # asked once: np.any costs as much as the sum
@@ -325,12 +329,14 @@ class _Channel:
         # at every sample and no transient depends on where a mission starts.
         self.gm_state = gm_std * gm_rng.standard_normal(3) if gm_std else np.zeros(3)
         # The vibration's e[k - 1] for the next sample: its first sample is stationary too.
-        self.vibration_std = vibration_std
+        self.shaking = vibration is not None
+        self.vibration_std, self.vibration_per_rate = vibration if self.shaking else (_OFF,
+                                                                                     _OFF)
         self.vibration_rng = vibration_rng
-        self.vibration_last = (vibration_rng.standard_normal(3) if vibration_std is not None
+        self.vibration_last = (vibration_rng.standard_normal(3) if self.shaking
                                else np.zeros(3))
         self.exact = not (self.biased or noise_std or gm_std or self.matrix_t is not None
-                          or self.g_matrix_t is not None or vibration_std is not None)
+                          or self.g_matrix_t is not None or self.shaking)
         # The samples' error terms that do not depend on the truth, made ahead in chunks:
         # the white noise n[k] and the Gauss-Markov bias b[k] of samples at, at + 1, ...
         # A block of a few samples (an environment step) then costs one compiled pass over
@@ -341,7 +347,8 @@ class _Channel:
         self.gauss_markov = np.zeros((0, 3))
         self.vibration = np.zeros((0, 3))
 
-    def corrupt(self, truth: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
+    def corrupt(self, truth: np.ndarray, specific_force: np.ndarray,
+                yaw_rate: np.ndarray) -> np.ndarray:
         out = truth.copy()  # a copy: the caller's truth stays intact
         if self.exact:
             return out
@@ -354,7 +361,8 @@ class _Channel:
             self._ahead(n)
         _add_terms(out, self.bias if self.biased else _OFF, self.noise if self.noise_std
                    else _OFF_ROWS, self.gauss_markov if self.gm_std else _OFF_ROWS,
-                   self.vibration if self.vibration_std is not None else _OFF_ROWS, self.at)
+                   self.vibration if self.shaking else _OFF_ROWS, self.vibration_std,
+                   self.vibration_per_rate, yaw_rate, self.at)
         self.at += n
         return out
 
@@ -369,10 +377,10 @@ class _Channel:
             gauss_markov = gauss_markov_rows(self.gm_state, self.gm_rng.standard_normal(
                 (rows, 3)), std=self.gm_std, dt_over_tau=self.dt_over_tau)
         vibration = np.zeros((rows, 3))
-        if self.vibration_std is not None:
+        if self.shaking:  # unit rows, (e[k] - e[k - 1]) / sqrt(2): the std is the sample's
             e = self.vibration_rng.standard_normal((rows, 3))
             vibration = np.diff(np.concatenate([self.vibration_last[None], e]), axis=0)
-            vibration *= self.vibration_std / math.sqrt(2.0)
+            vibration /= math.sqrt(2.0)
             self.vibration_last = e[-1]
         left = slice(self.at, None)
         self.noise = np.concatenate([self.noise[left], noise])
@@ -386,17 +394,22 @@ _OFF, _OFF_ROWS = np.zeros(0), np.zeros((0, 3))  # a term that is off, for _add_
 
 
 @numba.njit(cache=True)
-def _add_terms(out, bias, noise, gauss_markov, vibration, at):
+def _add_terms(out, bias, noise, gauss_markov, vibration, vibration_std, per_rate, yaw_rate,
+               at):
     """``out += bias; out += noise[at:at + N]; out += gauss_markov[at:at + N]; out +=
-    vibration[at:at + N]``, element by element in that order (the same arithmetic), in one
-    compiled pass: on the few rows of an environment step, numpy's calls (a broadcast above
-    all) cost several times the additions. A term given empty ((0,) or (0, 3)) is off.
+    (vibration_std + per_rate |yaw_rate|) vibration[at:at + N]``, element by element in that
+    order (the same arithmetic), in one compiled pass: on the few rows of an environment
+    step, numpy's calls (a broadcast above all) cost several times the additions. A term
+    given empty ((0,) or (0, 3)) is off.
 
     Args:
         out: (N, 3) the measurement so far, added to in place.
         bias: (3,) turn-on bias.
         noise, gauss_markov, vibration: (M, 3) rows of white noise, Gauss-Markov bias and
-            vibration, M >= at + N.
+            unit vibration, M >= at + N.
+        vibration_std, per_rate: (3,) the vibration's std without rotation and its growth
+            per rad/s of yaw rate.
+        yaw_rate: (N,) rad/s, the samples' true yaw rate.
         at: the row of those rows of out's first row.
     """
     for k in range(out.shape[0]):
@@ -408,7 +421,8 @@ def _add_terms(out, bias, noise, gauss_markov, vibration, at):
             if gauss_markov.shape[0]:
                 out[k, j] += gauss_markov[at + k, j]
             if vibration.shape[0]:
-                out[k, j] += vibration[at + k, j]
+                out[k, j] += (vibration_std[j] + per_rate[j] * abs(yaw_rate[k])) * vibration[
+                    at + k, j]
 
 
 def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) -> np.ndarray:
@@ -424,9 +438,12 @@ def _float_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) ->
     raise ValueError(f"{name}: expected an array of shape {expected}, got shape {out.shape}")
 
 
-def _vibration(std) -> np.ndarray | None:
-    """(3,) a triad's vibration std per axis, or None where it has none."""
-    return np.asarray(std, dtype=float) if any(std) else None
+def _vibration(std, per_rate) -> tuple[np.ndarray, np.ndarray] | None:
+    """A triad's vibration, (3,) std per axis without rotation and (3,) its growth per
+    rad/s of yaw rate, or None where it has none."""
+    if not (any(std) or any(per_rate)):
+        return None
+    return np.asarray(std, dtype=float), np.asarray(per_rate, dtype=float)
 
 
 class ImuErrorModel:
@@ -473,20 +490,20 @@ class ImuErrorModel:
         accel_noise, gyro_noise, accel_gm, gyro_gm = rng.spawn(4)
         # The vibration's two streams are spawned after those four, and only where there
         # is one: a config without keeps every draw it had.
-        shaking = any(config.accel_vibration_std) or any(config.gyro_vibration_std)
+        accel_shake = _vibration(config.accel_vibration_std, config.accel_vibration_per_rate)
+        gyro_shake = _vibration(config.gyro_vibration_std, config.gyro_vibration_per_rate)
+        shaking = accel_shake is not None or gyro_shake is not None
         accel_vib, gyro_vib = rng.spawn(2) if shaking else (None, None)
         root_rate = math.sqrt(config.rate_hz)
         c = self.calibration
         self._accel = _Channel(self.biases.accel, config.accel_noise_density * root_rate,
                                config.accel_bias_instability, config.rate_hz * config.accel_tau,
                                accel_noise, accel_gm, c.accel_matrix,
-                               vibration_std=_vibration(config.accel_vibration_std),
-                               vibration_rng=accel_vib)
+                               vibration=accel_shake, vibration_rng=accel_vib)
         self._gyro = _Channel(self.biases.gyro, config.gyro_noise_density * root_rate,
                               config.gyro_bias_instability, config.rate_hz * config.gyro_tau,
                               gyro_noise, gyro_gm, c.gyro_matrix, c.gyro_g_sensitivity,
-                              vibration_std=_vibration(config.gyro_vibration_std),
-                              vibration_rng=gyro_vib)
+                              vibration=gyro_shake, vibration_rng=gyro_vib)
 
     def corrupt(self, specific_force: np.ndarray,
                 angular_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -494,7 +511,8 @@ class ImuErrorModel:
 
         ``f_meas = (I + S_a + M_a) f + b_a + n_a (+ x_a)`` and
         ``w_meas = (I + S_g + M_g) w + G f + b_g + n_g (+ x_g)`` per sample (module
-        docstring; x: the vibration, where there is one).
+        docstring; x: the vibration, where there is one, at the sample's yaw rate: that of
+        ``angular_rate``).
 
         Args:
             specific_force: (N, 3) true specific force f = a - g at the IMU, m/s^2, body
@@ -508,8 +526,9 @@ class ImuErrorModel:
         """
         specific_force = _float_array("specific_force", specific_force, (None, 3))
         angular_rate = _float_array("angular_rate", angular_rate, (len(specific_force), 3))
-        return (self._accel.corrupt(specific_force, specific_force),
-                self._gyro.corrupt(angular_rate, specific_force))
+        yaw_rate = angular_rate[:, 2]
+        return (self._accel.corrupt(specific_force, specific_force, yaw_rate),
+                self._gyro.corrupt(angular_rate, specific_force, yaw_rate))
 
 
 class Imu(Sensor):
