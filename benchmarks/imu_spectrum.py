@@ -1,6 +1,7 @@
 """The IMU's high-frequency content, real against simulated: what the learned noise's
 "log rms |f| - g" input sees at sea (``reports/adaptive.md``: 0.026 m/s^2 at sea against
-0.0095 in auvsim, its inputs' largest shift).
+0.0095 in auvsim, its inputs' largest shift, before the ``navigator`` preset's IMU
+recorded the Snapir's vibration; 0.016 with it).
 
 For each of the six A-KIT segments (``../shared/data/snapir-akit``, Cohen & Klein 2025:
 the Snapir's iXblue Phins at 100 Hz, imported and corrected as ``beamsnet reproduce sea``
@@ -15,7 +16,8 @@ does) and for auvsim's ``realistic-maneuvers`` missions (``--sim``, default the 
 * the median over 1 s windows of the r.m.s. of |f| - g, the learned noise's input
   (g: the mission's median |f|);
 * the std above ``VIBRATION_HZ`` of each axis (a 4th-order Butterworth high-pass run
-  forward and back, over the whole mission);
+  forward and back, over the whole mission), and the correlation, over the mission's
+  seconds, of the z accelerometer's r.m.s. above it with the mean |yaw rate|;
 * over all the missions together, the r.m.s. of that high-passed signal over each second
   against the mean |yaw rate| (gyro z) in it, fitted per axis by least squares as
   ``a + b |r|``: the vibration the ``navigator`` preset's IMU records
@@ -45,7 +47,7 @@ r.m.s. per horizontal axis, less than the DVL's own error model predicts (7.8;
 ``benchmarks/dvl_error.py``); a white noise of 20 mm/s^2 per sample at 100 Hz would add 2
 mm/s to it in quadrature. So the ``navigator`` preset's IMU records it as a vibration with
 no power at zero frequency (``auvsim.sensors.imu``, ``auvsim.runs.presets
-.SNAPIR_VIBRATION``), of the std measured here, and the filter's IMU noise stays the
+.SNAPIR_VIBRATION``), of the size measured here, and the filter's IMU noise stays the
 datasheet's.
 
 The real content is not steady: per second it follows the yaw rate (correlation 0.84 to
@@ -54,7 +56,11 @@ The real content is not steady: per second it follows the yaw rate (correlation 
 per rad/s and 83 / 32 / 23 deg/h + 1034 / 1567 / 389 deg/h per rad/s (r^2 0.62 to 0.75),
 which the ``navigator`` preset takes (``SNAPIR_VIBRATION``). A steady vibration of the
 median std (tried first) left the learned noise's input as far off as before, narrow
-where the real one is wide: 67 % of the recorded pings outside its simulated range.
+where the real one is wide: 67 % of the recorded pings outside its simulated range (32 %
+without vibration); with the line, 13.5 % (``reports/adaptive.md``). The simulated
+missions give the line back (8.7 / 10.3 / 6.5 mm/s^2 + 180 / 340 / 349 per rad/s) but turn
+less than the segments, so over a whole mission they hold less of it: std above 10 Hz 9 to
+13 / 12 to 20 / 8 to 18 mm/s^2 against the segments' 17 to 27 / 26 to 45 / 23 to 42.
 
     PYTHONPATH=.:benchmarks .venv/bin/python benchmarks/imu_spectrum.py [--akit DIR]
         [--sim FILE]
@@ -106,7 +112,15 @@ def figures(mission) -> dict[str, np.ndarray | float]:
         accel_white=1e3 * np.diff(f, axis=0).std(axis=0) / math.sqrt(2),
         gyro_white=np.degrees(np.diff(w, axis=0).std(axis=0) / math.sqrt(2)) * 3600.0,
         rms=float(np.median(np.sqrt(np.mean(windows**2, axis=1)))),
-        accel_above=1e3 * above(f), gyro_above=np.degrees(above(w)) * 3600.0)
+        accel_above=1e3 * above(f), gyro_above=np.degrees(above(w)) * 3600.0,
+        turning=_turning(mission))
+
+
+def _turning(mission) -> float:
+    """The correlation over a mission's seconds of the z accelerometer's r.m.s. above
+    ``VIBRATION_HZ`` with the mean |yaw rate|."""
+    force, _, rate = per_second(mission)
+    return float(np.corrcoef(force[:, 2], rate)[0, 1])
 
 
 def high_passed(x: np.ndarray) -> np.ndarray:
@@ -174,7 +188,8 @@ def table(name: str, found: dict) -> list[str]:
                    + " ".join(f"{v:7.3f}" for v in found["gyro"][k])
                    + f"   | {found['gyro_white'][k]:6.1f} deg/h per sample")
     out.append(f"  above {VIBRATION_HZ:g} Hz: accel {fmt(found['accel_above'])} mm/s^2, "
-               f"gyro {fmt(found['gyro_above'])} deg/h")
+               f"gyro {fmt(found['gyro_above'])} deg/h; per second, accel z's r.m.s. "
+               f"against |yaw rate|: correlation {found['turning']:.2f}")
     return out
 
 

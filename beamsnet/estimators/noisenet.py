@@ -16,7 +16,7 @@ And not R alone: the slow error's drive, into the states that hold it, is the DV
 other noise, and a noise mis-stated in both parts needs both scaled; with the real
 Navigator's slow error (9 mm/s over 19 s) the two together make most of the innovation
 variance (the "scaled noise share" of ``reports/adaptive.md``'s inputs table, median 0.76
-on auvsim's missions and 0.65 at sea). A-KIT (Cohen & Klein 2025, "Adaptive
+on auvsim's missions and 0.68 at sea). A-KIT (Cohen & Klein 2025, "Adaptive
 Kalman-informed transformer", EAAI) adapts the IMU's process noise instead, trained on
 real segments with a reference.
 

@@ -506,8 +506,8 @@ def _failures(sea: dict, features: dict) -> list[str]:
               "missions, where the filter's noise model is the simulator's own. So at sea it "
               f"sets the DVL's noise at {scale:.2f} times the stated std (median over the "
               "segments' pings), where the model-based filter, which reads the innovations "
-              f"alone, sets its own at {based:.2f}: the network's other inputs moved too "
-              "(above), out of much of the range it was trained on. What separates the "
+              f"alone, sets its own at {based:.2f}; of the network's other inputs, "
+              f"{_moved_words(shift, moved)}. What separates the "
               "filter from the reference is slow (the "
               "DVL's and the reference's own slow errors, which `benchmarks/sea_filter.py "
               "--evidence` measures): no ping-to-ping innovation shows it, so a noise that "
@@ -515,6 +515,17 @@ def _failures(sea: dict, features: dict) -> list[str]:
               "smaller the reported sigma shrinks with it. The segment the fixed filter "
               f"covers least, {least}: fixed {cover[0]:.1f} %, learned {cover[1]:.1f} %."]
     return lines
+
+
+def _moved_words(shift: dict, moved: list[str]) -> str:
+    """How far the inputs other than the implied scale moved, in words (``_failures``)."""
+    others = [n for n in shift if n != "log implied scale"]
+    farthest = max(others, key=lambda n: shift[n]["outside"])
+    moved = [n for n in moved if n != "log implied scale"]
+    return ((", ".join(moved) + (" moves" if len(moved) == 1 else " move") + " the most "
+             if moved else "none moves far ") + "(above), and the one most often outside the "
+            f"range it was trained on is {farthest}, at "
+            f"{100 * shift[farthest]['outside']:.1f} % of the recorded pings")
 
 
 MOVED = 0.5  # the KS distance from which an input counts as moved
