@@ -619,8 +619,9 @@ class ImuConfig:
             sample: zero mean and no power at zero frequency (``auvsim.sensors.imu`` gives
             its spectrum), so it integrates to a bounded velocity and angle. Zero: none.
         accel_vibration_per_rate, gyro_vibration_per_rate: (3,) the growth of that std
-            per rad/s of the true yaw rate's magnitude (m/s^2 and rad/s per rad/s): the
-            std at a sample is ``*_vibration_std + *_vibration_per_rate |r|``.
+            per rad/s of the magnitude of the true body-z rate the gyros sense (m/s^2 and
+            rad/s per rad/s): the std at a sample is ``*_vibration_std +
+            *_vibration_per_rate |r|``.
     """
 
     rate_hz: float = 100.0
@@ -651,7 +652,7 @@ class ImuConfig:
                 ("gyro_vibration_per_rate", MAX_IMU_VIBRATION_GYRO, "rad/s per rad/s")):
             value = _vector(f"imu.{name}", getattr(self, name), 3)
             _check(all(0 <= v <= bound for v in value), f"imu.{name}",
-                   f"3 stds in [0, {bound:g}] {unit}", getattr(self, name))
+                   f"3 values in [0, {bound:g}] {unit}", getattr(self, name))
             object.__setattr__(self, name, value)
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)

@@ -52,10 +52,10 @@ datasheet's.
 
 The real content is not steady: per second it follows the yaw rate (correlation 0.84 to
 0.91 per segment on the z accelerometer), from 6 to 10 mm/s^2 in straight flight to about
-100 in the hardest turns: the fit gives 8.6 / 10.2 / 6.3 mm/s^2 + 183 / 344 / 354 mm/s^2
-per rad/s and 83 / 32 / 23 deg/h + 1034 / 1567 / 389 deg/h per rad/s (r^2 0.62 to 0.75),
+100 in the hardest turns: the fit gives 8.6 / 10.1 / 6.3 mm/s^2 + 183 / 345 / 355 mm/s^2
+per rad/s and 83 / 32 / 23 deg/h + 1037 / 1570 / 390 deg/h per rad/s (r^2 0.62 to 0.75),
 which the ``navigator`` preset takes (``SNAPIR_VIBRATION``). A steady vibration of the
-median std (tried first) left the learned noise's input as far off as before, narrow
+median std (tried first) left the learned noise's input further off than before, narrow
 where the real one is wide: 67 % of the recorded pings outside its simulated range (32 %
 without vibration); with the line, 13.5 % (``reports/adaptive.md``). The simulated
 missions give the line back (8.7 / 10.3 / 6.5 mm/s^2 + 180 / 340 / 349 per rad/s) but turn
@@ -146,7 +146,7 @@ def per_second(mission) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     def rms(x):
         return np.sqrt(np.mean(high_passed(x)[:n].reshape(-1, int(RATE), 3) ** 2, axis=1))
 
-    return rms(f), rms(w), np.abs(w[:n, 2].reshape(-1, int(RATE)).mean(axis=1))
+    return rms(f), rms(w), np.abs(w[:n, 2]).reshape(-1, int(RATE)).mean(axis=1)
 
 
 def vibration_fit(missions) -> dict[str, np.ndarray]:

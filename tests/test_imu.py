@@ -522,11 +522,11 @@ BAD_IMU = [
     ("accel_bias_correlation_time", "long", "a finite number"),
     ("gyro_bias_correlation_time", 0.0, "a time > 0 s"),
     ("gyro_bias_correlation_time", math.nan, "a finite number"),
-    ("accel_vibration_std", (0.02, -0.01, 0.0), "3 stds in [0, 9.80665] m/s^2"),
+    ("accel_vibration_std", (0.02, -0.01, 0.0), "3 values in [0, 9.80665] m/s^2"),
     ("accel_vibration_std", (0.02, 0.03), "3 finite numbers"),
-    ("gyro_vibration_std", (2.0, 0.0, 0.0), "3 stds in [0, 1] rad/s"),
+    ("gyro_vibration_std", (2.0, 0.0, 0.0), "3 values in [0, 1] rad/s"),
     ("gyro_vibration_std", (0.0, math.nan, 0.0), "3 finite numbers"),
-    ("accel_vibration_per_rate", (0.0, 0.0, -1.0), "3 stds in [0, 9.80665] m/s^2 per rad/s"),
+    ("accel_vibration_per_rate", (0.0, 0.0, -1.0), "3 values in [0, 9.80665] m/s^2 per rad/s"),
     ("gyro_vibration_per_rate", "0.01", "3 finite numbers"),
 ]
 
@@ -631,24 +631,24 @@ def test_vibration_puts_its_power_above_10_hz():
 
 
 def test_vibration_adds_to_the_other_terms_and_changes_none_of_their_draws():
-    """A config with vibration measures what the same config without it does, plus a
-    vibration: their difference, over the std it should have at each sample's yaw rate,
-    has unit std and the lag-1 autocorrelation -1/2, so the noise, bias and calibration
-    draws are those a config without it makes."""
+    """A config with vibration measures what the same config without it does, plus the
+    vibration drawn from the two streams spawned after the first four: (sigma_0 + s |r[k]|)
+    (e[k] - e[k - 1]) / sqrt(2), e[-1] the stream's first draw, to the last bits of the
+    sums. So the noise, bias and calibration draws are those a config without it makes."""
     base = IMU_GRADES["navigation-full"]
     with_shake = dataclasses.replace(base, **{k: getattr(VIBRATION, k) for pair in SHAKES
                                               for k in pair})
-    f, w = truth(50_000)
+    f, w = truth(5000)
     without = model(base, seed=4).corrupt(f, w)
     with_it = model(with_shake, seed=4).corrupt(f, w)
-    for a, b, (std, grows) in zip(with_it, without, SHAKES, strict=True):
+    streams = np.random.default_rng(4).spawn(6)[4:]  # the vibration's: after the first four
+    for a, b, (std, grows), rng in zip(with_it, without, SHAKES, streams, strict=True):
+        e = np.concatenate([rng.standard_normal((1, 3)), rng.standard_normal((len(f), 3))])
         sigma = (np.asarray(getattr(VIBRATION, std))
                  + np.asarray(getattr(VIBRATION, grows)) * np.abs(w[:, 2:3]))
-        unit = (a - b) / sigma
-        np.testing.assert_allclose(unit.std(axis=0), 1.0, rtol=0.03)
-        # Neighbours share e[k]: (e[k+1] - e[k]) (e[k] - e[k-1]) / 2 has mean -1/2.
-        lag1 = np.mean(unit[1:] * unit[:-1], axis=0)
-        np.testing.assert_allclose(lag1, -0.5, atol=0.02)
+        np.testing.assert_allclose(a - b, sigma * np.diff(e, axis=0) / math.sqrt(2),
+                                   rtol=0, atol=1e-13)
+        assert np.all(a != b)
 
 
 def test_the_navigator_preset_records_the_snapirs_vibration_and_the_paper_presets_none():

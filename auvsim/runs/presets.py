@@ -179,23 +179,25 @@ def _as_flown(kind: str, speed: float, options: dict) -> dict:
 
 # The vibration the Snapir's iXblue Phins records in its hull, measured on the six A-KIT
 # segments (Cohen & Klein 2025; ``benchmarks/imu_spectrum.py`` prints it): the r.m.s. above
-# 10 Hz over each second grows with the yaw rate (correlation 0.84 to 0.91 per segment),
-# from 6 to 10 mm/s^2 in straight flight to about 100 in the hardest turns, and a least-
-# squares line over the segments' seconds gives per axis (x, y, z) 8.6 / 10.2 / 6.3 mm/s^2
-# + 183 / 344 / 354 mm/s^2 per rad/s of |r| (r^2 0.62 to 0.75) and 83 / 32 / 23 deg/h +
-# 1034 / 1567 / 389 deg/h per rad/s (r^2 0.63 to 0.69), against the datasheet grade's
-# white noise of 1.7 mm/s^2 and 1.3 to 1.8 deg/h there. Most of the accelerometers' power
-# lies in a line at 24 Hz on every segment, whatever the speed (23.7 Hz at 1.6 m/s, 24.8 at
-# 2.1); its cause (the fins at full deflection, the actuators) is not in the logs. It
-# integrates away: the IMU's velocity change over 1 s matches the DVL's to within the DVL's
-# own noise (``benchmarks/dvl_error.py``), so the model is a vibration with no power at
-# zero frequency (``auvsim.sensors.imu``), not white noise.
+# 10 Hz over each second grows with its mean |yaw rate| (correlation 0.84 to 0.91 per
+# segment), from 6 to 10 mm/s^2 in straight flight to about 100 in the hardest turns, and
+# a least-squares line over the segments' seconds gives per axis (x, y, z) 8.6 / 10.1 /
+# 6.3 mm/s^2 + 183 / 345 / 355 mm/s^2 per rad/s of |r| (r^2 0.62 to 0.75) and 83 / 32 /
+# 23 deg/h + 1037 / 1570 / 390 deg/h per rad/s (r^2 0.63 to 0.69), against the datasheet
+# grade's white noise of 1.7 mm/s^2 and 1.3 to 1.8 deg/h there (the real sensor's own
+# white noise is in the intercepts, and the grade adds its own: 2 to 4 % more in
+# quadrature). Most of the
+# accelerometers' power lies in a line at 24 Hz on every segment, whatever the speed (23.7
+# Hz at 1.6 m/s, 24.8 at 2.1); its cause (the fins at full deflection, the actuators) is
+# not in the logs. It integrates away: the IMU's velocity change over 1 s matches the
+# DVL's to within the DVL's own noise (``benchmarks/dvl_error.py``), so the model is a
+# vibration with no power at zero frequency (``auvsim.sensors.imu``), not white noise.
 _DEG_PER_HOUR = math.pi / 180.0 / 3600.0  # rad/s
 SNAPIR_VIBRATION = dict(
-    accel_vibration_std=(0.0086, 0.0102, 0.0063),
-    accel_vibration_per_rate=(0.183, 0.344, 0.354),
-    gyro_vibration_std=tuple(x * _DEG_PER_HOUR for x in (83.0, 32.4, 23.4)),
-    gyro_vibration_per_rate=tuple(x * _DEG_PER_HOUR for x in (1034.1, 1567.3, 389.2)))
+    accel_vibration_std=(0.0086, 0.0101, 0.0063),
+    accel_vibration_per_rate=(0.183, 0.345, 0.355),
+    gyro_vibration_std=tuple(x * _DEG_PER_HOUR for x in (82.8, 32.1, 23.3)),
+    gyro_vibration_per_rate=tuple(x * _DEG_PER_HOUR for x in (1036.9, 1570.1, 390.1)))
 
 
 def navigator() -> Config:

@@ -27,16 +27,21 @@ the gyros, per axis; zero by default) is added to every sample, after the bias t
 
     x[k] = (sigma_0 + s |r[k]|) (e[k] - e[k - 1]) / sqrt(2),   e ~ N(0, 1) white per axis
 
-with r the true yaw rate (body z): a vehicle's hull and fins shake more in a turn (on the
-Snapir's logs the IMU's content above 10 Hz is 6 to 10 mm/s^2 in straight flight and
-about 100 in its hardest turns: ``auvsim.runs.presets.SNAPIR_VIBRATION``). At a steady
-rate it is the first difference of a white sequence: std sigma_0 + s |r|, zero mean, and
-a spectrum that rises as sin^2(pi f / rate) from nothing at zero frequency to the most at
-the Nyquist frequency (98.7 % of its power above 10 Hz at 100 Hz). Its sum telescopes,
-so the velocity (the angle) it adds to an integration is sigma dt (e[k] - e[0]) /
-sqrt(2), bounded: vibration moves the sensor back and forth, it does not drift it (a std
-that changes with the rate leaves sum_k e[k] (sigma[k] - sigma[k + 1]) dt / sqrt(2),
-as small). The shape is a model: a real IMU's vibration has lines (the Snapir's Phins
+with r the true body-z rate the gyros sense (with a geographic origin the Earth's share
+too, 7e-5 rad/s at most): a vehicle's hull and fins shake more in a turn (on the Snapir's
+logs the IMU's content above 10 Hz is 6 to 10 mm/s^2 in straight flight and about 100 in
+its hardest turns: ``auvsim.runs.presets.SNAPIR_VIBRATION``). At a steady rate it is the
+first difference of a white sequence: std sigma_0 + s |r|, zero mean, and a spectrum that
+rises as sin^2(pi f / rate) from nothing at zero frequency to the most at the Nyquist
+frequency (98.7 % of its power above 10 Hz at 100 Hz). Its sum telescopes, so the
+velocity (the angle) it adds to an integration is sigma dt (e[k] - e[-1]) / sqrt(2), e[-1]
+the draw before the first sample: bounded, as vibration moves the sensor back and forth
+and does not drift it. A std that changes with the rate leaves besides sum_k e[k]
+(sigma[k] - sigma[k + 1]) dt / sqrt(2), of std dt sqrt(sum_k (sigma[k + 1] - sigma[k])^2
+/ 2): small where the rate changes slowly against the sample rate (a turn that builds
+over a few seconds moves sigma by a few thousandths of its range from one sample to the
+next), but not bounded.
+The shape is a model: a real IMU's vibration has lines (the Snapir's Phins
 one at 24 Hz) where this one spreads its power over the band. A config without
 vibration keeps every draw and every bit of its output.
 
@@ -376,16 +381,15 @@ class _Channel:
         if self.gm_std:
             gauss_markov = gauss_markov_rows(self.gm_state, self.gm_rng.standard_normal(
                 (rows, 3)), std=self.gm_std, dt_over_tau=self.dt_over_tau)
-        vibration = np.zeros((rows, 3))
+        left = slice(self.at, None)
         if self.shaking:  # unit rows, (e[k] - e[k - 1]) / sqrt(2): the std is the sample's
             e = self.vibration_rng.standard_normal((rows, 3))
             vibration = np.diff(np.concatenate([self.vibration_last[None], e]), axis=0)
             vibration /= math.sqrt(2.0)
             self.vibration_last = e[-1]
-        left = slice(self.at, None)
+            self.vibration = np.concatenate([self.vibration[left], vibration])
         self.noise = np.concatenate([self.noise[left], noise])
         self.gauss_markov = np.concatenate([self.gauss_markov[left], gauss_markov])
-        self.vibration = np.concatenate([self.vibration[left], vibration])
         self.at = 0
 
 
@@ -526,7 +530,7 @@ class ImuErrorModel:
         """
         specific_force = _float_array("specific_force", specific_force, (None, 3))
         angular_rate = _float_array("angular_rate", angular_rate, (len(specific_force), 3))
-        yaw_rate = angular_rate[:, 2]
+        yaw_rate = np.ascontiguousarray(angular_rate[:, 2])  # one compiled layout
         return (self._accel.corrupt(specific_force, specific_force, yaw_rate),
                 self._gyro.corrupt(angular_rate, specific_force, yaw_rate))
 
