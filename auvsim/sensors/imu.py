@@ -58,6 +58,7 @@ Units (see ``auvsim``): specific force in m/s^2, angular rate in rad/s, body FRD
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from typing import NamedTuple
 
@@ -643,6 +644,15 @@ def describe_mission(mission) -> list[str]:
             f"largest g-sensitivity {largest['gyro_g_sensitivity']} rad/s per m/s^2; bias "
             f"correlation times accel {a['imu_accel_bias_correlation_time']:g} s, gyro "
             f"{a['imu_gyro_bias_correlation_time']:g} s")
+    imu = json.loads(mission.dataset.config_json or "{}").get("imu", {})
+    shake = {f"{k}_{v}": imu.get(f"{k}_vibration_{v}", (0.0, 0.0, 0.0))
+             for k in ("accel", "gyro") for v in ("std", "per_rate")}
+    if any(any(x) for x in shake.values()):  # the config's (no attribute holds it)
+        lines.append(
+            f"    IMU vibration (config): accel {shown(shake['accel_std'], 4)} m/s^2 + "
+            f"{shown(shake['accel_per_rate'], 4)} per rad/s of yaw rate, gyro "
+            f"{shown(shake['gyro_std'], 6)} rad/s + {shown(shake['gyro_per_rate'], 6)} per "
+            "rad/s")
     return lines
 
 
