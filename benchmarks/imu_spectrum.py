@@ -168,6 +168,7 @@ def vibration_fit(missions) -> dict[str, np.ndarray]:
 
 
 def fit_line(label: str, fit: dict) -> str:
+    """``vibration_fit``'s line, printed in mm/s^2 and deg/h."""
     deg_h = np.degrees(1.0) * 3600.0
     return (f"{label}: above {VIBRATION_HZ:g} Hz, r.m.s. per second = a + b |yaw rate|: accel "
             f"a {fmt(1e3 * fit['accel_std'])} mm/s^2, b {fmt(1e3 * fit['accel_per_rate'])} "
@@ -195,6 +196,7 @@ def table(name: str, found: dict) -> list[str]:
 
 
 def fmt(v, digits: int = 1) -> str:
+    """Numbers joined by " / " with ``digits`` decimals."""
     return " / ".join(f"{x:.{digits}f}" for x in v)
 
 

@@ -186,12 +186,12 @@ def _as_flown(kind: str, speed: float, options: dict) -> dict:
 # 23 deg/h + 1037 / 1570 / 390 deg/h per rad/s (r^2 0.63 to 0.69), against the datasheet
 # grade's white noise of 1.7 mm/s^2 and 1.3 to 1.8 deg/h there (the real sensor's own
 # white noise is in the intercepts, and the grade adds its own: 2 to 4 % more in
-# quadrature). Most of the
-# accelerometers' power lies in a line at 24 Hz on every segment, whatever the speed (23.7
-# Hz at 1.6 m/s, 24.8 at 2.1); its cause (the fins at full deflection, the actuators) is
-# not in the logs. It integrates away: the IMU's velocity change over 1 s matches the
-# DVL's to within the DVL's own noise (``benchmarks/dvl_error.py``), so the model is a
-# vibration with no power at zero frequency (``auvsim.sensors.imu``), not white noise.
+# quadrature). Most of the accelerometers' power lies in a line at 24 Hz on every segment,
+# whatever the speed (23.7 Hz at 1.6 m/s, 24.8 at 2.1); its cause (the fins at full
+# deflection, the actuators) is not in the logs. It integrates away: the IMU's velocity
+# change over 1 s matches the DVL's to within the DVL's own noise (``benchmarks/
+# dvl_error.py``), so the model is a vibration with no power at zero frequency
+# (``auvsim.sensors.imu``), not white noise.
 _DEG_PER_HOUR = math.pi / 180.0 / 3600.0  # rad/s
 SNAPIR_VIBRATION = dict(
     accel_vibration_std=(0.0086, 0.0101, 0.0063),

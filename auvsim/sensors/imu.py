@@ -40,10 +40,9 @@ and does not drift it. A std that changes with the rate leaves besides sum_k e[k
 (sigma[k] - sigma[k + 1]) dt / sqrt(2), of std dt sqrt(sum_k (sigma[k + 1] - sigma[k])^2
 / 2): small where the rate changes slowly against the sample rate (a turn that builds
 over a few seconds moves sigma by a few thousandths of its range from one sample to the
-next), but not bounded.
-The shape is a model: a real IMU's vibration has lines (the Snapir's Phins
-one at 24 Hz) where this one spreads its power over the band. A config without
-vibration keeps every draw and every bit of its output.
+next), but not bounded. The shape is a model: a real IMU's vibration has lines (the
+Snapir's Phins one at 24 Hz) where this one spreads its power over the band. A config
+without vibration keeps every draw and every bit of its output.
 
 The true values are the truth's: f its ``specific_force`` and w its ``angular_rate``, the
 body's rate in the local NED frame. With a geographic origin (``auvsim.config.
@@ -336,8 +335,7 @@ class _Channel:
         self.gm_state = gm_std * gm_rng.standard_normal(3) if gm_std else np.zeros(3)
         # The vibration's e[k - 1] for the next sample: its first sample is stationary too.
         self.shaking = vibration is not None
-        self.vibration_std, self.vibration_per_rate = vibration if self.shaking else (_OFF,
-                                                                                     _OFF)
+        self.vibration_std, self.vibration_per_rate = vibration if self.shaking else (_OFF, _OFF)
         self.vibration_rng = vibration_rng
         self.vibration_last = (vibration_rng.standard_normal(3) if self.shaking
                                else np.zeros(3))
