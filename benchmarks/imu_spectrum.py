@@ -99,29 +99,25 @@ def band_asd(x: np.ndarray) -> list[float]:
     return [math.sqrt(float(np.mean(p[(f >= lo) & (f < hi)]))) for lo, hi in BANDS]
 
 
-def figures(mission) -> dict[str, np.ndarray | float]:
-    """One mission's figures (the module docstring)."""
+def figures(mission) -> dict:
+    """One mission's figures (the module docstring); ``seconds`` holds its
+    ``per_second`` arrays, for ``vibration_fit``."""
     f = np.asarray(mission.imu.specific_force, dtype=float)
     w = np.asarray(mission.imu.angular_rate, dtype=float)
     span = slice(*SPAN)
     norm = np.linalg.norm(f, axis=1)
     excess = norm - np.median(norm)
     windows = excess[:len(excess) // 100 * 100].reshape(-1, 100)
+    f_high, w_high = high_passed(f), high_passed(w)
+    seconds = _per_second(f_high, w_high, w)
     return dict(
         accel=np.array([band_asd(f[span, k]) for k in range(3)]) / (G0 * 1e-6),
         gyro=np.degrees(np.array([band_asd(w[span, k]) for k in range(3)])) * 60.0,
         accel_white=1e3 * np.diff(f, axis=0).std(axis=0) / math.sqrt(2),
         gyro_white=np.degrees(np.diff(w, axis=0).std(axis=0) / math.sqrt(2)) * 3600.0,
         rms=float(np.median(np.sqrt(np.mean(windows**2, axis=1)))),
-        accel_above=1e3 * above(f), gyro_above=np.degrees(above(w)) * 3600.0,
-        turning=_turning(mission))
-
-
-def _turning(mission) -> float:
-    """The correlation over a mission's seconds of the z accelerometer's r.m.s. above
-    ``VIBRATION_HZ`` with the mean |yaw rate|."""
-    force, _, rate = per_second(mission)
-    return float(np.corrcoef(force[:, 2], rate)[0, 1])
+        accel_above=1e3 * f_high.std(axis=0), gyro_above=np.degrees(w_high.std(axis=0)) * 3600.0,
+        turning=float(np.corrcoef(seconds[0][:, 2], seconds[2])[0, 1]), seconds=seconds)
 
 
 def high_passed(x: np.ndarray) -> np.ndarray:
@@ -131,31 +127,33 @@ def high_passed(x: np.ndarray) -> np.ndarray:
     return signal.sosfiltfilt(sos, x, axis=0)
 
 
-def above(x: np.ndarray) -> np.ndarray:
-    """(3,) the std of each column of ``x`` above ``VIBRATION_HZ``."""
-    return high_passed(x).std(axis=0)
-
-
 def per_second(mission) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per whole second of a mission's IMU: (S, 3) the r.m.s. of the specific force above
     ``VIBRATION_HZ`` (m/s^2), (S, 3) of the angular rate (rad/s), and (S,) the mean
     |yaw rate| (rad/s)."""
     f = np.asarray(mission.imu.specific_force, dtype=float)
     w = np.asarray(mission.imu.angular_rate, dtype=float)
-    n = int(RATE) * (len(f) // int(RATE))
+    return _per_second(high_passed(f), high_passed(w), w)
+
+
+def _per_second(f_high: np.ndarray, w_high: np.ndarray, w: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``per_second`` from the high-passed specific force and rate and the rate."""
+    second = int(RATE)
+    n = second * (len(w) // second)
 
     def rms(x):
-        return np.sqrt(np.mean(high_passed(x)[:n].reshape(-1, int(RATE), 3) ** 2, axis=1))
+        return np.sqrt(np.mean(x[:n].reshape(-1, second, 3) ** 2, axis=1))
 
-    return rms(f), rms(w), np.abs(w[:n, 2]).reshape(-1, int(RATE)).mean(axis=1)
+    return rms(f_high), rms(w_high), np.abs(w[:n, 2]).reshape(-1, second).mean(axis=1)
 
 
-def vibration_fit(missions) -> dict[str, np.ndarray]:
-    """Over every second of ``missions`` together, per axis, least squares of the r.m.s.
-    above ``VIBRATION_HZ`` on the mean |yaw rate|, ``a + b |r|``: the accelerometers' a
-    (m/s^2) and b (m/s^2 per rad/s), the gyros' a (rad/s) and b (rad/s per rad/s), and the
-    fits' r^2."""
-    parts = [per_second(m) for m in missions]
+def vibration_fit(seconds) -> dict[str, np.ndarray]:
+    """Over every second of several missions together (``seconds``: each one's
+    ``per_second``), per axis, least squares of the r.m.s. above ``VIBRATION_HZ`` on the
+    mean |yaw rate|, ``a + b |r|``: the accelerometers' a (m/s^2) and b (m/s^2 per rad/s),
+    the gyros' a (rad/s) and b (rad/s per rad/s), and the fits' r^2."""
+    parts = list(seconds)
     rate = np.concatenate([p[2] for p in parts])
     design = np.stack([np.ones_like(rate), rate], axis=1)
     out = {}
@@ -220,15 +218,16 @@ def main(argv: list[str] | None = None) -> int:
                          f"mm/s^2, gyro "
                          f"{fmt(np.median([f['gyro_above'] for f in found], axis=0))} deg/h")
             lines.append(fit_line("real, the segments together",
-                                  vibration_fit(real.missions.values())))
+                                  vibration_fit(f["seconds"] for f in found)))
     else:
         lines.append(f"(no A-KIT segments in {args.akit}: the real rows are left out)")
     if args.sim.is_file():
         with open_dataset(args.sim) as sim:
-            for name in sorted(sim.missions)[:6]:
-                lines += table(f"auvsim {name}", figures(sim.missions[name]))
+            found = {name: figures(sim.missions[name]) for name in sorted(sim.missions)}
+            for name in list(found)[:6]:
+                lines += table(f"auvsim {name}", found[name])
             lines.append(fit_line("auvsim, every mission together",
-                                  vibration_fit(sim.missions.values())))
+                                  vibration_fit(f["seconds"] for f in found.values())))
     else:
         lines.append(f"(no {args.sim}: run beamsnet reproduce sea to make it)")
     print("\n".join(lines))

@@ -510,7 +510,7 @@ def test_the_navigator_imu_vibrates_as_the_shared_segments_imu_does(akit_files):
     deg_h = math.degrees(1.0) * 3600.0
     with open_dataset(akit_files[1]) as f:
         missions = [m for _, m in sorted(f.missions.items())]
-        real = imu_spectrum.vibration_fit(missions)
+        real = imu_spectrum.vibration_fit(map(imu_spectrum.per_second, missions))
         gyro_z = [np.asarray(m.imu.angular_rate, dtype=float)[:, 2:] for m in missions]
     rates = [(z - imu_spectrum.high_passed(z))[:, 0] for z in gyro_z]
     shake = {k: np.asarray(v) for k, v in SNAPIR_VIBRATION.items()}
@@ -537,7 +537,7 @@ def test_the_navigator_imu_vibrates_as_the_shared_segments_imu_does(akit_files):
     shape = np.sin(np.pi * freq / 100.0) ** 2
     kept = math.sqrt(np.trapezoid(shape * np.abs(h) ** 4, freq) / np.trapezoid(shape, freq))
     assert kept == pytest.approx(0.990, abs=5e-4)
-    back = imu_spectrum.vibration_fit(simulated)
+    back = imu_spectrum.vibration_fit(map(imu_spectrum.per_second, simulated))
     for name in ("accel", "gyro"):
         np.testing.assert_allclose(back[f"{name}_std"], kept * real[f"{name}_std"],
                                    rtol=0.05)

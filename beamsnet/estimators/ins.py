@@ -767,7 +767,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
             wb = w[i] - bg - c.T @ omega_ie
             worst = 0.0
-            # The instrument's white noise at the DVL point's speed, and the adaptation.
+            # The instrument's white noise at the DVL point's predicted speed (u: its
+            # velocity, body, before the ping's updates), and the adaptation.
             u = c.T @ v + np.cross(wb, lever)
             speed = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
             for k in range(n_dir):
@@ -789,7 +790,6 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 agree = pz * pz <= gate * pvar
             u_dot = np.zeros(3)
             if timing_std > 0.0:
-                u = c.T @ v + np.cross(wb, lever)
                 alpha = (w[i] - w[i - 1]) / dt[i] if i > 0 else np.zeros(3)
                 u_dot = (f[i] - ba + g * c[2, :] - np.cross(wb, u)
                          + np.cross(alpha, lever))
