@@ -288,6 +288,7 @@ def test_estimate_reports_the_filters_accepted_pings_and_its_events(navigation, 
     ("earth_rate = 1\n", "earth_rate: expected true, false or None, got 1"),
     ("bias_time = 0.0\n", "bias_time: expected a positive number or None, got 0.0"),
     ("lever_arm_std = 0\n", "lever_arm_std: expected a positive number or None"),
+    ("process_noise_scale = -1.0\n", "process_noise_scale: expected a positive std"),
     ('initial_error_seed = "x"\n', "initial_error_seed: expected a whole number >= 0"),
     ("initial_error_seed = 1.5\n", "initial_error_seed: expected a whole number >= 0"),
 ])
@@ -335,6 +336,36 @@ def test_a_simulated_dvls_noise_grows_with_its_speed_in_the_filter(dataset_of):
     assert median_nis(at_rest) > 10 * 0.455
     np.testing.assert_allclose(doubled.stated_std[started], 2 * track.stated_std[started],
                                rtol=0, atol=1e-4)
+
+
+def test_the_process_noise_scale_multiplies_every_std_of_the_imus_q(dataset_of):
+    """``process_noise_scale = k`` is the filter told the IMU's white noise densities times
+    k and its biases' random-walk PSDs times k^2 (the same Q, reached through the
+    settings: equal to rounding); it moves the track, and 1 is the stated Q exactly."""
+    path = dataset_of(zigzag(0.002, 60.0), "process")
+    with open_dataset(path) as f:
+        m = f.missions["zz"]
+        a = m.attrs
+        stated = ins.run_mission(m)
+        one = ins.run_mission(m, ins.FilterConfig(process_noise_scale=1.0))
+        scaled = ins.run_mission(m, ins.FilterConfig(process_noise_scale=3.0))
+
+        def psd(sensor):  # the bias drive the filter takes from the file: 2 sigma^2 / tau
+            tau = a.get(f"imu_{sensor}_bias_correlation_time", a["imu_bias_correlation_time"])
+            return 2 * float(a[f"imu_{sensor}_bias_instability"]) ** 2 / float(tau)
+
+        told = ins.run_mission(m, ins.FilterConfig(
+            accel_noise_density=3.0 * float(a["imu_accel_noise_density"]),
+            gyro_noise_density=3.0 * float(a["imu_gyro_noise_density"]),
+            accel_bias_psd=9.0 * psd("accel"), gyro_bias_psd=9.0 * psd("gyro")))
+    for field in ("position_ned", "position_std", "velocity_dvl", "velocity_std"):
+        np.testing.assert_array_equal(getattr(one, field), getattr(stated, field))
+        np.testing.assert_allclose(getattr(scaled, field), getattr(told, field), rtol=1e-9,
+                                   atol=1e-12)
+    started = np.isfinite(stated.position_std).all(axis=1)
+    assert (scaled.position_std[started][-1] > stated.position_std[started][-1]).all()
+    with pytest.raises(ValueError, match="process_noise_scale: expected a positive std"):
+        ins.FilterConfig(process_noise_scale=0.0)
 
 
 def test_beam_noise_from_the_error_velocity_of_a_janus_dvl():

@@ -15,8 +15,10 @@ from conftest import zigzag
 
 from auvsim.data.reader import open_dataset
 from beamsnet.cli import main
+from beamsnet.data import load_windows
 from beamsnet.estimators import ins, noisemodel, noisenet, spec
 from beamsnet.experiments import adaptive
+from beamsnet.navigation import truth_at_pings
 
 NOISE = 0.01  # m/s, the beams' true white noise (and what the file states)
 WARM_UP = 1 / 3  # the share of the pings left out of the statistics (the window filling)
@@ -286,7 +288,7 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
     recorded = report[report.index("## Recorded"):]
     assert "truth" not in recorded.split("## Where")[0]
     assert len(re.findall(r"(?:\bmet|\*\*missed\*\*)[;.]", report)) == 4
-    assert report.count("| **median** |") == 3
+    assert report.count("| **median** |") == 4
     # The fixed filter with every constant scale, each segment's best in hindsight.
     assert list(results["constant"]) == ["trajectory1", "trajectory2"]
     for name, row in results["constant"].items():
@@ -294,6 +296,21 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
         assert row["1"] == results["recorded"][name]["INS/DVL"]["final_m"]  # the fixed filter
     best = np.median([min(row.values()) for row in results["constant"].values()])
     assert f"median final {best:.2f} m" in report
+    # And with the IMU's process noise scaled, alone and with the DVL's: (1, q) is the
+    # fixed filter told q times the IMU's noise std, as the filter itself gives it.
+    assert list(results["process"]) == ["trajectory1", "trajectory2"]
+    for row in results["process"].values():
+        assert set(row) == {f"{d:g},{q:g}" for d in (1, *adaptive.CONSTANT_STD)
+                            for q in adaptive.CONSTANT_PROCESS_STD}
+    with open_dataset(tmp_path / "datasets" / "sea.h5") as f:
+        windows = load_windows(tmp_path / "datasets" / "sea.h5", missions=["trajectory2"])
+        told = ins.run_mission(f.missions["trajectory2"],
+                               ins.FilterConfig(process_noise_scale=2.0))
+    reference = truth_at_pings(tmp_path / "datasets" / "sea.h5", windows)["position"]
+    at = np.searchsorted(told.ping_time, windows.time[-1])
+    assert results["process"]["trajectory2"]["1,2"] == pytest.approx(
+        float(np.linalg.norm(told.position_ned[at, :2] - reference[-1, :2])), rel=1e-9)
+    assert "## What a constant process noise scale can do at sea" in report
     for figure in ("adaptive.png", "adaptive-features.png"):
         assert (tmp_path / "report" / figure).stat().st_size > 10_000
     model = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")

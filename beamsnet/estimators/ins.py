@@ -287,6 +287,11 @@ class FilterConfig:
         noise_scale: multiplies the DVL's white noise std, the instrument's (with its
             growth with speed) or a setting's: a mis-stated noise on purpose (the learned
             noise model trains at several, ``noisenet.STATED_FACTORS``).
+        process_noise_scale: multiplies the std of the IMU's process noise (Q: the white
+            noise densities of the accelerometers and gyros and the drive of their biases,
+            the instrument's or the settings'): a mis-stated Q on purpose
+            (``beamsnet reproduce adaptive`` runs the fixed filter at several to show how
+            far any constant Q moves it at sea).
         dvl_updates: False: no measurement is used, pure inertial navigation.
         accel_noise_density: m/s^2/sqrt(Hz); None: the mission's, with a recorded log's
             quantisation added (``quantisation_density``).
@@ -344,6 +349,7 @@ class FilterConfig:
     beam_noise_std: float | None = None
     velocity_noise_std: float | None = None
     noise_scale: float = 1.0
+    process_noise_scale: float = 1.0
     dvl_updates: bool = True
     accel_noise_density: float | None = None
     gyro_noise_density: float | None = None
@@ -430,7 +436,8 @@ _NO_NET = (0, np.zeros((1, 1)), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(
 ADAPTIVE_START = 10
 
 # FilterConfig's fields by what they accept (the others are checked one by one).
-_POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std", "noise_scale")
+_POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std", "noise_scale",
+             "process_noise_scale")
 _POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
 _AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
                           "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
@@ -1218,7 +1225,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         (ins.gyro_noise_density if cfg.gyro_noise_density is None
          else cfg.gyro_noise_density) ** 2,
         ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
-        ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd])
+        ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd]
+    ) * cfg.process_noise_scale**2
     white, growth = _measurement_std(cfg, ins.measurement_std, ins.noise_growth,
                                      beams=beams is not None, beam_angle_deg=beam_angle_deg)
     r_meas = (white * cfg.noise_scale) ** 2

@@ -56,6 +56,10 @@ SEEDS = 9
 # The DVL noise's std multiples (white part and drive together) of the constant scales
 # the report runs the filter with at sea: how far any constant scale moves it.
 CONSTANT_STD = (0.6, 0.8, 1.25, 1.6, 2.0, 3.0, 5.0, 8.0)
+# The IMU's process noise's std multiples (Q: white noise densities and bias drives) the
+# report runs the fixed filter with at sea, alone and with each DVL multiple above: what
+# A-KIT adapts, as far as a constant scale of it moves this filter.
+CONSTANT_PROCESS_STD = (0.5, 2.0, 5.0)
 HELD_OUT_SEED = 1000  # added to each mission's seed for the held-out simulated set
 FIXED, MODEL_BASED, LEARNED = "INS/DVL", "INS/DVL (adaptive)", "INS/DVL (learned noise)"
 FILTERS = (FIXED, MODEL_BASED, LEARNED)
@@ -115,7 +119,7 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     for each, path in zip(models, paths, strict=True):
         save_noise_model(each, path)
     sim = {name: _mission(test, name, model, models[1:]) for name in _names(test)}
-    sea = {name: _mission(real, name, model, models[1:], CONSTANT_STD)
+    sea = {name: _mission(real, name, model, models[1:], CONSTANT_STD, CONSTANT_PROCESS_STD)
            for name in _names(real)}
     every = {seed + k: dict(simulated={n: _learned_of(([r] + r["others"])[k])
                                        for n, r in sim.items()},
@@ -123,6 +127,7 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                                       for n, r in sea.items()})
              for k in range(seeds)}
     constant = {name: r["constant"] for name, r in sea.items()}
+    process = {name: r["process"] for name, r in sea.items()}
     features = dict(
         simulated=np.concatenate([_started(r["track"].features) for r in sim.values()]
                                  + _velocity_features(test, model)),
@@ -134,11 +139,13 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         write_text(stage / "adaptive.json", json.dumps(
             {"setup": setup, "simulated": {n: r["scores"] for n, r in sim.items()},
              "recorded": {n: r["scores"] for n, r in sea.items()},
-             "seeds": every, "constant": constant, "features": _shift(features)},
+             "seeds": every, "constant": constant, "process": process,
+             "features": _shift(features)},
             indent=1, default=float))
         _noise_figure(sim, sea, stage / "adaptive.png")
         _feature_figure(features, stage / "adaptive-features.png")
-        write_text(stage / "adaptive.md", report(sim, sea, features, setup, every, constant))
+        write_text(stage / "adaptive.md",
+                   report(sim, sea, features, setup, every, constant, process))
     return Path(out) / "adaptive.md"
 
 
@@ -155,28 +162,32 @@ def _learned_of(result: dict) -> dict:
                 scale=float(np.median(_scale(result["track"]))))
 
 
-def _filters(dataset: Path, model, labels: tuple[str, ...] = FILTERS) -> dict:
-    """The filters ``labels`` (default the three), the learned one with ``model``."""
+def _filters(dataset: Path, model, labels: tuple[str, ...] = FILTERS,
+             config=None) -> dict:
+    """The filters ``labels`` (default the three), the learned one with ``model``, each
+    with ``config`` (default ``FilterConfig()``)."""
     from beamsnet.estimators.ins import AdaptiveInsDvlFilter, InsDvlFilter
     from beamsnet.estimators.noisenet import LearnedInsDvlFilter
 
-    make = {FIXED: lambda: InsDvlFilter(dataset, calibrate=False),
-            MODEL_BASED: lambda: AdaptiveInsDvlFilter(dataset, calibrate=False),
-            LEARNED: lambda: LearnedInsDvlFilter(dataset, calibrate=False, model=model)}
+    make = {FIXED: lambda: InsDvlFilter(dataset, config, calibrate=False),
+            MODEL_BASED: lambda: AdaptiveInsDvlFilter(dataset, config, calibrate=False),
+            LEARNED: lambda: LearnedInsDvlFilter(dataset, config, calibrate=False,
+                                                 model=model)}
     out = {label: make[label]() for label in labels}
     for label, estimator in out.items():
         estimator.name = label
     return out
 
 
-def _mission(dataset: Path, name: str, model, others=(), scales=()) -> dict:
+def _mission(dataset: Path, name: str, model, others=(), scales=(), process=()) -> dict:
     """The three filters on mission ``name``: their scores against its truth or
     reference, and each filter's track (for the figures); ``others``: the learned filter
     with each of these models too (``_scored``'s, in ``"others"``); ``scales``: its final
-    error with a constant model at each of these std multiples (``"constant"``, keys as
-    ``"2"``, and ``"1"`` the fixed filter's), all on the same windows."""
-    from beamsnet.estimators.noisemodel import constant_model
-
+    error with a constant model at each of these std multiples of the DVL's noise
+    (``"constant"``, keys as ``"2"``, and ``"1"`` the fixed filter's); ``process``: the
+    final error with the IMU's process noise at each of these std multiples, the DVL's at
+    1 and at each of ``scales`` (``"process"``, keys as ``"2,0.5"``: the DVL's multiple,
+    the IMU's), all on the same windows."""
     windows = load_windows(dataset, missions=[name])
     truth = truth_at_pings(dataset, windows)
     result = dict(_scored(name, windows, truth, _filters(dataset, model)),
@@ -184,10 +195,26 @@ def _mission(dataset: Path, name: str, model, others=(), scales=()) -> dict:
                           for other in others])
     if scales:
         result["constant"] = {"1": result["scores"][FIXED]["final_m"], **{
-            f"{k:g}": _scored(name, windows, truth, _filters(
-                dataset, constant_model(k * k), (LEARNED,)))["scores"][LEARNED]["final_m"]
+            f"{k:g}": _constant_final(dataset, name, windows, truth, k, 1.0)
             for k in scales}}
+    if process:
+        result["process"] = {f"{k:g},{q:g}": _constant_final(dataset, name, windows, truth, k, q)
+                             for k in (1.0, *scales) for q in process}
     return result
+
+
+def _constant_final(dataset: Path, name: str, windows, truth, dvl: float,
+                    imu: float) -> float:
+    """The final horizontal error on mission ``name`` of the fixed filter with the DVL's
+    noise std (its white part and its slow error's drive, a constant noise model) times
+    ``dvl`` and the IMU's process noise std times ``imu``."""
+    from beamsnet.estimators.ins import FilterConfig
+    from beamsnet.estimators.noisemodel import constant_model
+
+    label = FIXED if dvl == 1 else LEARNED
+    model = None if dvl == 1 else constant_model(dvl * dvl)
+    filters = _filters(dataset, model, (label,), FilterConfig(process_noise_scale=imu))
+    return _scored(name, windows, truth, filters)["scores"][label]["final_m"]
 
 
 def _scored(name: str, windows, truth, filters: dict) -> dict:
@@ -284,7 +311,7 @@ def _against(results: dict) -> str:
 
 
 def report(sim: dict, sea: dict, features: dict, setup: dict, every: dict,
-           constant: dict) -> str:
+           constant: dict, process: dict) -> str:
     """The report's Markdown."""
     from beamsnet.estimators.noisemodel import BOUNDS, FEATURES, HIDDEN, WINDOW
 
@@ -324,6 +351,7 @@ def report(sim: dict, sea: dict, features: dict, setup: dict, every: dict,
         "(adaptive.png)", "",
         *_seeds(sim, sea, every), "",
         *_constant_lines(constant), "",
+        *_process_lines(constant, process), "",
         "## Where the learned filter does worse at sea, and why", "",
         *_failures(sea, features), "",
         "![the learned filter's inputs, simulated against recorded](adaptive-features.png)",
@@ -450,6 +478,57 @@ def _constant_lines(constant: dict) -> list[str]:
         "A noise network's scale varies along a segment, so this bounds it only among "
         f"constant scales; the target asks {100 * TARGET_GAIN:.0f} % below."]
     return lines
+
+
+def _process_lines(constant: dict, process: dict) -> list[str]:
+    """What a constant scale of the IMU's process noise does at sea, alone and with the
+    DVL's: the table (the DVL's at 1), the best one scale (pair) for every segment and
+    each segment's own, chosen in hindsight."""
+    names = list(constant)
+    fixed = np.array([constant[n]["1"] for n in names])
+    imu = sorted({float(k.split(",")[1]) for k in process[names[0]]} | {1.0})
+    dvl = sorted(float(k) for k in constant[names[0]])
+
+    def final(name: str, d: float, q: float) -> float:
+        return constant[name][f"{d:g}"] if q == 1 else process[name][f"{d:g},{q:g}"]
+
+    alone = np.array([[final(n, 1.0, q) for q in imu] for n in names])
+    pairs = [(d, q) for d in dvl for q in imu]
+    both = np.array([[final(n, d, q) for d, q in pairs] for n in names])
+    base = float(np.median(fixed))
+
+    def below(m: float) -> str:
+        return f"{m:.2f} m, {100 * (1 - m / base):.1f} % below"
+
+    one, one_pair = np.median(alone, axis=0), np.median(both, axis=0)
+    lines = [
+        "## What a constant process noise scale can do at sea", "",
+        "The fixed filter with the IMU's process noise (Q: the accelerometers' and gyros' "
+        "white noise densities and their biases' drive) multiplied by a constant, on every "
+        "recorded segment: final horizontal error against the reference, m, at each "
+        "multiple of the stated std (1: the fixed filter); and with the DVL's noise "
+        "multiplied too, at each multiple of the table above.", "",
+        "| segment | " + " | ".join(f"x {q:g}" for q in imu)
+        + " | best, in hindsight | best with the DVL's, in hindsight (DVL x, IMU x) |",
+        "|---|" + "---|" * (len(imu) + 2)]
+    for name, row, row2 in zip(names, alone, both, strict=True):
+        j, j2 = int(np.argmin(row)), int(np.argmin(row2))
+        lines.append(f"| {name} | " + " | ".join(f"{x:.2f}" for x in row)
+                     + f" | {row[j]:.2f} (x {imu[j]:g}) | {row2[j2]:.2f} (x {pairs[j2][0]:g}, "
+                     f"x {pairs[j2][1]:g}) |")
+    lines.append("| **median** | " + " | ".join(f"{m:.2f}" for m in one)
+                 + f" | {np.median(alone.min(axis=1)):.2f} | {np.median(both.min(axis=1)):.2f} |")
+    k, k2 = int(np.argmin(one)), int(np.argmin(one_pair))
+    return lines + [
+        "",
+        f"- The one IMU scale best for every segment together, chosen in hindsight: x "
+        f"{imu[k]:g}, median final {below(one[k])} the fixed filter's {base:.2f} m; each "
+        f"segment's own best: {below(float(np.median(alone.min(axis=1))))}.",
+        f"- Both noises scaled, the one pair best for every segment together: DVL x "
+        f"{pairs[k2][0]:g}, IMU x {pairs[k2][1]:g}, median final {below(one_pair[k2])}; each "
+        f"segment's own best pair, chosen in hindsight against the reference: "
+        f"{below(float(np.median(both.min(axis=1))))}. The target asks "
+        f"{100 * TARGET_GAIN:.0f} % below."]
 
 
 def _failures(sea: dict, features: dict) -> list[str]:
