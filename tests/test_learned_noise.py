@@ -258,6 +258,10 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
     for k in (1, 2):
         write_akit(logs, k, sway_bias=0.0, scale=0.01 * k, weave_deg_s=3.0)
     monkeypatch.chdir(tmp_path)
+    # Fewer constant scales than the report's, to keep the test short (each is a run of
+    # every mission).
+    monkeypatch.setattr(adaptive, "CONSTANT_STD", (0.6, 2.0))
+    monkeypatch.setattr(adaptive, "CONSTANT_PROCESS_STD", (2.0,))
     assert main(["reproduce", "adaptive", "--data", str(logs), "--duration", "20",
                  "--seeds", "2", "--out", "report", "--quiet"]) == 0
     said = capsys.readouterr().out  # what it made outside --out, said
@@ -282,11 +286,11 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
             n: s["INS/DVL (learned noise)"] for n, s in results[part].items()}
         assert list(results["seeds"]["1"][part]) == list(results[part])
     report = (tmp_path / "report" / "adaptive.md").read_text()
-    seeds = report[report.index("## Every seed"):report.index("## Where")]
+    seeds = report[report.index("## Every seed"):report.index("## What a constant")]
     assert [line.split("|")[1].strip() for line in seeds.splitlines()
             if re.match(r"\| \d", line)] == ["0", "1"]
     recorded = report[report.index("## Recorded"):]
-    assert "truth" not in recorded.split("## Where")[0]
+    assert "truth" not in recorded.split("## How much")[0]  # its simulated control names one
     assert len(re.findall(r"(?:\bmet|\*\*missed\*\*)[;.]", report)) == 4
     assert report.count("| **median** |") == 4
     # The fixed filter with every constant scale, each segment's best in hindsight.
@@ -311,6 +315,15 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
     assert results["process"]["trajectory2"]["1,2"] == pytest.approx(
         float(np.linalg.norm(told.position_ned[at, :2] - reference[-1, :2])), rel=1e-9)
     assert "## What a constant process noise scale can do at sea" in report
+    # The same choices on the held-out simulated missions: what hindsight gains by chance.
+    assert list(results["simulated_constant"]) == list(results["simulated"])
+    chance = adaptive._hindsight(*({n: r[k] for n, r in results["simulated_constant"].items()}
+                                   for k in ("constant", "process")))
+    assert chance["fixed"] == pytest.approx(np.median(
+        [s["INS/DVL"]["final_m"] for s in results["simulated"].values()]))
+    assert chance["pair"] <= min(chance["dvl"], chance["imu"]) <= chance["fixed"]
+    assert f"| 20 held-out simulated missions, against their truth | {chance['fixed']:.2f} |" \
+        in report
     for figure in ("adaptive.png", "adaptive-features.png"):
         assert (tmp_path / "report" / figure).stat().st_size > 10_000
     model = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")
