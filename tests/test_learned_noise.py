@@ -314,16 +314,45 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
     at = np.searchsorted(told.ping_time, windows.time[-1])
     assert results["process"]["trajectory2"]["1,2"] == pytest.approx(
         float(np.linalg.norm(told.position_ned[at, :2] - reference[-1, :2])), rel=1e-9)
-    assert "## What a constant process noise scale can do at sea" in report
-    # The same choices on the held-out simulated missions: what hindsight gains by chance.
+    # The process section's median row, recomputed from the file's finals: per IMU multiple
+    # with the DVL's at 1, then each segment's own best IMU multiple and own best pair.
+    section = report[report.index("## What a constant process noise"):
+                     report.index("## How much of a choice")]
+    imu = sorted({1.0, *adaptive.CONSTANT_PROCESS_STD})
+
+    def final(row_c, row_p, d, q):
+        return row_c[f"{d:g}"] if q == 1 else row_p[f"{d:g},{q:g}"]
+
+    def own(part_c, part_p, dvl, qs):
+        return np.median([min(final(part_c[n], part_p[n], d, q) for d in dvl for q in qs)
+                          for n in part_c])
+
+    dvl = (1.0, *adaptive.CONSTANT_STD)
+    medians = [np.median([final(results["constant"][n], results["process"][n], 1.0, q)
+                          for n in results["constant"]]) for q in imu]
+    expected = ("| **median** | " + " | ".join(f"{m:.2f}" for m in medians)
+                + f" | {own(results['constant'], results['process'], (1.0,), imu):.2f}"
+                f" | {own(results['constant'], results['process'], dvl, imu):.2f} |")
+    assert expected in section
+    # The chance section: the same figures on the held-out simulated missions, against
+    # their truth, and at sea, each as "one for all / each its own" below the fixed filter.
     assert list(results["simulated_constant"]) == list(results["simulated"])
-    chance = adaptive._hindsight(*({n: r[k] for n, r in results["simulated_constant"].items()}
-                                   for k in ("constant", "process")))
-    assert chance["fixed"] == pytest.approx(np.median(
-        [s["INS/DVL"]["final_m"] for s in results["simulated"].values()]))
-    assert chance["pair"] <= min(chance["dvl"], chance["imu"]) <= chance["fixed"]
-    assert f"| 20 held-out simulated missions, against their truth | {chance['fixed']:.2f} |" \
-        in report
+    assert list(results["simulated_process"]) == list(results["simulated"])
+    for part_c, part_p, label in (
+            (results["constant"], results["process"], "2 recorded segments, against the "
+             "reference"),
+            (results["simulated_constant"], results["simulated_process"],
+             "20 held-out simulated missions, against their truth")):
+        fixed = np.median([row["1"] for row in part_c.values()])
+        cells = []
+        for ds, qs in (((1.0,) + adaptive.CONSTANT_STD, (1.0,)), ((1.0,), imu), (dvl, imu)):
+            one = min(np.median([final(part_c[n], part_p[n], d, q) for n in part_c])
+                      for d in ds for q in qs)
+            cells.append(f"{100 * (1 - one / fixed):.1f} / "
+                         f"{100 * (1 - own(part_c, part_p, ds, qs) / fixed):.1f}")
+        assert f"| {label} | {fixed:.2f} | " + " | ".join(cells) + " |" in report
+    fixed_sim = np.median([s["INS/DVL"]["final_m"] for s in results["simulated"].values()])
+    assert fixed_sim == np.median([row["1"] for row in results["simulated_constant"].values()])
     for figure in ("adaptive.png", "adaptive-features.png"):
         assert (tmp_path / "report" / figure).stat().st_size > 10_000
     model = noisemodel.load_noise_model(tmp_path / "runs" / "adaptive" / "noise-model.npz")
