@@ -163,7 +163,8 @@ their stated rate: the A-KIT file on the IMU's (on the reference's it would have
 0.25 % by the publication's stated rates).
 
 Not modelled (they make the filter optimistic where the data have them): the IMU's scale
-factors, misalignments and g-sensitivity (the ``-full`` grades), the DVL's sound-speed
+factors, misalignments and g-sensitivity (the ``-full`` grades; in the turns the filter
+takes them for accelerometer bias, ``benchmarks/filter_consistency.py``), the DVL's sound-speed
 ratio (a scale factor shared by the beams: the per-measurement ones hold it), range-dependent
 noise and heavy-tailed outliers (the gate handles them). Scored against a
 reference, the reported covariance covers the filter's error only, not the reference's

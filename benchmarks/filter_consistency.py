@@ -1,0 +1,119 @@
+"""Is the INS/DVL filter consistent where the truth is known? Held-out ``realistic-maneuvers``
+missions (the manoeuvres of ``MISSIONS``, ``beamsnet reproduce adaptive``'s held-out seeds),
+generated twice: with the preset's IMU (``navigation-full``: scale factors and
+misalignments besides its biases, noise and vibration), and with the same IMU less its
+scale factors and misalignments, which the filter does not model (``beamsnet.estimators
+.ins``, "Not modelled"). On each, the filter with its defaults, and per mission:
+
+* its accelerometer-bias estimate at the last ping minus what a level IMU at rest reads
+  of the errors drawn for it, b + (S + M)(0, 0, -g) (its turn-on bias, scale factors and
+  misalignment; the Gauss-Markov part, 10 ug, left out), in units of the filter's own
+  std: a consistent filter keeps these within a few;
+* the mean of its velocity NEES against the true DVL velocity (3 for a consistent filter);
+* its final horizontal error against the truth, m, and its reported 3 sigma there.
+
+Measured at 300 s per manoeuvre (the command below, in 9 s):
+
+* with the scale factors and misalignments, the accelerometer-bias estimates lie up to
+  24 std from the drawn errors along x and y (random waypoints: +202 ug along x, 24 std,
+  +122 ug along y, 13 std; yoyo -62 ug along y, 7 std; lawnmower +55 ug along y, 6 std;
+  turning circle +77 ug along x, 4 std);
+* without them, within 1.9 std along x and y on all six (along z up to 8 std, on both:
+  the vertical channel, which the DVL alone aids);
+* the velocity NEES falls from 2.1-8.2 to 1.6-6.4; the two turn-heavy missions stay
+  above 3 (turning circle 8.2 -> 6.4, random waypoints 7.2 -> 5.0), so something else in
+  the turns is not modelled either;
+* every final error lies within the reported 3 sigma.
+
+Our reading, not separated further here: the filter takes the triads' misalignment in the
+turns as accelerometer bias (a gyro misalignment of 0.1 mrad in a 15 deg/s yaw rate tilts
+the platform by 0.16 mrad per right angle: 160 ug of apparent horizontal acceleration).
+On the real Snapir segments the filter finds a forward accelerometer bias of 112 to 135 ug
+when its prior lets it (``accel_bias_std = 0.00049`` in a ``--filter-config``), beyond the
+Phins' 10-50 ug: consistent with the same cause. Modelling the gyros' scale factors and
+misalignments as filter states is the step this measurement points to; it is not done.
+
+    PYTHONPATH=.:benchmarks .venv/bin/python benchmarks/filter_consistency.py
+        [--duration 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from auvsim.data.reader import open_dataset
+from auvsim.runs.generate import generate
+from beamsnet.estimators.ins import run_mission
+from beamsnet.experiments.adaptive import held_out
+
+MISSIONS = ("turning_circle", "random_waypoints", "zigzag_10_10", "lawnmower", "yoyo",
+            "depth_steps")
+MICRO_G = 9.80665e-6  # m/s^2, to print in
+
+
+def configs(duration: float) -> dict:
+    """The held-out missions of ``MISSIONS`` with the preset's IMU, and without its scale
+    factors and misalignments."""
+    config = held_out(duration)
+    config = dataclasses.replace(config, missions=tuple(
+        m for m in config.missions if m.name in MISSIONS))
+    plain = dataclasses.replace(config.imu, accel_scale_factor_std=0.0,
+                                accel_misalignment_std=0.0, gyro_scale_factor_std=0.0,
+                                gyro_misalignment_std=0.0)
+    return {"preset's IMU": config,
+            "without scale factors and misalignments": dataclasses.replace(config, imu=plain)}
+
+
+def level_reading(mission) -> np.ndarray:
+    """(3,) m/s^2: what the mission's accelerometers read of their drawn errors, level and
+    at rest: b + (S + M)(0, 0, -g)."""
+    a = mission.attrs
+    s = np.diag(np.asarray(a.get("imu_accel_scale_factor", np.zeros(3)), dtype=float))
+    m = np.asarray(a.get("imu_accel_misalignment", np.zeros(9)), dtype=float).reshape(3, 3)
+    return (np.asarray(a["imu_accel_turn_on_bias"], dtype=float)
+            + (s + m) @ np.array([0.0, 0.0, -mission.gravity]))
+
+
+def scores(path: Path) -> list[str]:
+    """One line per mission of the file at ``path``: the filter's consistency."""
+    lines = []
+    with open_dataset(path) as f:
+        for name, mission in f.missions.items():
+            track = run_mission(mission)
+            off = track.accel_bias[-1] - level_reading(mission)
+            nees = track.nees_velocity[np.isfinite(track.nees_velocity)]
+            truth = mission.truth
+            at = [np.interp(track.ping_time[-1], truth.time, truth.position_ned[:, j])
+                  for j in range(2)]
+            final = float(np.linalg.norm(track.position_ned[-1, :2] - at))
+            lines.append(
+                f"  {name:18s} {' '.join(f'{x:+7.1f}' for x in off / MICRO_G)}   "
+                f"{' '.join(f'{x:+5.1f}' for x in off / track.accel_bias_std[-1])}   "
+                f"{nees.mean():5.2f}   {final:5.2f} / {3 * track.horizontal_std[-1]:5.2f}")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--duration", type=float, default=300.0,
+                        help="s per manoeuvre (default: %(default)s)")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, config in configs(args.duration).items():
+            path = Path(tmp) / "missions.h5"
+            generate(config, path, workers=1, progress=False)
+            print(f"{label}: accelerometer bias estimate minus the drawn level reading, ug "
+                  "(x y z), and in the filter's std; velocity NEES mean; final horizontal "
+                  "error / reported 3 sigma, m")
+            print("\n".join(scores(path)))
+            path.unlink()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
