@@ -591,13 +591,14 @@ def _chance_lines(recorded: dict, simulated: dict) -> list[str]:
             for f in FAMILIES) + " |")
 
     more = [f for f in FAMILIES if adds(recorded, f) > adds(simulated, f)]
+    within = [f for f in FAMILIES if f not in more]
     verdict = (
-        "so the per-segment bounds above lie within what a choice per mission gains where "
-        "the noise is known, and do not show that a noise chosen without the reference "
-        "would reach the target." if not more else
-        f"more than in simulation for the {' and '.join(more)} scale"
-        f"{'s' if len(more) > 1 else ''}: part of that bound may be a noise mis-stated at "
-        "sea.")
+        "no more than in simulation, so the per-segment bounds above lie within what a "
+        "choice per mission gains where the noise is known, and do not show that a noise "
+        "chosen without the reference would reach the target." if not more else
+        f"more than in simulation for the {' and '.join(more)} settings (part of "
+        f"{'that bound' if len(more) == 1 else 'those bounds'} may be a noise mis-stated at "
+        "sea)" + (f", no more for the {' and '.join(within)} settings." if within else "."))
     return [
         "## How much of a choice in hindsight is chance", "",
         "Median final horizontal error of the fixed filter, m, and how far below it (%) the "
@@ -616,8 +617,7 @@ def _chance_lines(recorded: dict, simulated: dict) -> list[str]:
         + ", ".join(f"{adds(simulated, f):.1f} points ({f})" for f in FAMILIES)
         + " to the best one setting for all: an upper estimate of what the choice alone "
         "gains, since part of it may be what the filter is not told there. At sea it adds "
-        + ", ".join(f"{adds(recorded, f):.1f} ({f})" for f in FAMILIES) + "; "
-        + ("no more than in simulation, " if not more else "") + verdict]
+        + ", ".join(f"{adds(recorded, f):.1f} ({f})" for f in FAMILIES) + ": " + verdict]
 
 
 def _failures(sea: dict, features: dict) -> list[str]:
