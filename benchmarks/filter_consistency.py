@@ -48,6 +48,7 @@ import numpy as np
 
 from auvsim.data.reader import open_dataset
 from auvsim.runs.generate import generate
+from auvsim.sensors.imu import NO_CALIBRATION_ERRORS
 from beamsnet.estimators.ins import run_mission
 from beamsnet.experiments.adaptive import held_out
 
@@ -73,10 +74,11 @@ def level_reading(mission) -> np.ndarray:
     """(3,) m/s^2: what the mission's accelerometers read of their drawn errors, level and
     at rest: b + (S + M)(0, 0, -g)."""
     a = mission.attrs
-    s = np.diag(np.asarray(a.get("imu_accel_scale_factor", np.zeros(3)), dtype=float))
-    m = np.asarray(a.get("imu_accel_misalignment", np.zeros(9)), dtype=float).reshape(3, 3)
+    drawn = NO_CALIBRATION_ERRORS._replace(
+        accel_scale_factor=np.asarray(a["imu_accel_scale_factor"], dtype=float),
+        accel_misalignment=np.asarray(a["imu_accel_misalignment"], dtype=float).reshape(3, 3))
     return (np.asarray(a["imu_accel_turn_on_bias"], dtype=float)
-            + (s + m) @ np.array([0.0, 0.0, -mission.gravity]))
+            + drawn.accel_matrix @ np.array([0.0, 0.0, -mission.gravity]))
 
 
 def scores(path: Path) -> list[str]:

@@ -341,26 +341,29 @@ def test_a_simulated_dvls_noise_grows_with_its_speed_in_the_filter(dataset_of):
 def test_the_process_noise_scale_multiplies_every_std_of_the_imus_q(dataset_of):
     """``process_noise_scale = k`` is the filter told the IMU's white noise densities times
     k and its biases' random-walk PSDs times k^2 (the same Q, reached through the
-    settings: equal to rounding); it moves the track, and 1 is the stated Q exactly."""
+    settings: equal to rounding); it moves the track, and 1 is the stated Q exactly (the
+    filter told the file's own Q through the settings)."""
     path = dataset_of(zigzag(0.002, 60.0), "process")
     with open_dataset(path) as f:
         m = f.missions["zz"]
         a = m.attrs
-        stated = ins.run_mission(m)
-        one = ins.run_mission(m, ins.FilterConfig(process_noise_scale=1.0))
+        stated = ins.run_mission(m, ins.FilterConfig(process_noise_scale=1.0))
         scaled = ins.run_mission(m, ins.FilterConfig(process_noise_scale=3.0))
 
         def psd(sensor):  # the bias drive the filter takes from the file: 2 sigma^2 / tau
             tau = a.get(f"imu_{sensor}_bias_correlation_time", a["imu_bias_correlation_time"])
             return 2 * float(a[f"imu_{sensor}_bias_instability"]) ** 2 / float(tau)
 
-        told = ins.run_mission(m, ins.FilterConfig(
-            accel_noise_density=3.0 * float(a["imu_accel_noise_density"]),
-            gyro_noise_density=3.0 * float(a["imu_gyro_noise_density"]),
-            accel_bias_psd=9.0 * psd("accel"), gyro_bias_psd=9.0 * psd("gyro")))
+        def told(k):  # the file's Q times k^2, through the settings
+            return ins.run_mission(m, ins.FilterConfig(
+                accel_noise_density=k * float(a["imu_accel_noise_density"]),
+                gyro_noise_density=k * float(a["imu_gyro_noise_density"]),
+                accel_bias_psd=k * k * psd("accel"), gyro_bias_psd=k * k * psd("gyro")))
+
+        one, three = told(1.0), told(3.0)
     for field in ("position_ned", "position_std", "velocity_dvl", "velocity_std"):
         np.testing.assert_array_equal(getattr(one, field), getattr(stated, field))
-        np.testing.assert_allclose(getattr(scaled, field), getattr(told, field), rtol=1e-9,
+        np.testing.assert_allclose(getattr(scaled, field), getattr(three, field), rtol=1e-9,
                                    atol=1e-12)
     started = np.isfinite(stated.position_std).all(axis=1)
     assert (scaled.position_std[started][-1] > stated.position_std[started][-1]).all()

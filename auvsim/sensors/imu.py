@@ -529,7 +529,10 @@ class ImuErrorModel:
         """
         specific_force = _float_array("specific_force", specific_force, (None, 3))
         angular_rate = _float_array("angular_rate", angular_rate, (len(specific_force), 3))
-        yaw_rate = np.ascontiguousarray(angular_rate[:, 2])  # one compiled layout
+        # The yaw rate a vibration's std grows with, copied only where one is on (one
+        # compiled layout); ``_OFF`` otherwise, which ``_add_terms`` never reads.
+        yaw_rate = (np.ascontiguousarray(angular_rate[:, 2])
+                    if self._accel.shaking or self._gyro.shaking else _OFF)
         return (self._accel.corrupt(specific_force, specific_force, yaw_rate),
                 self._gyro.corrupt(angular_rate, specific_force, yaw_rate))
 

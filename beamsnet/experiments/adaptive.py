@@ -153,7 +153,7 @@ def adaptive(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         _noise_figure(sim, sea, stage / "adaptive.png")
         _feature_figure(features, stage / "adaptive-features.png")
         write_text(stage / "adaptive.md",
-                   report(sim, sea, features, setup, every, constant, _grid(constant, process),
+                   report(sim, sea, features, setup, every, _grid(constant, process),
                           _grid(sim_constant, sim_process)))
     return Path(out) / "adaptive.md"
 
@@ -319,12 +319,14 @@ def _against(results: dict) -> str:
     return next(iter(results.values()))["scores"]["against"]
 
 
-def report(sim: dict, sea: dict, features: dict, setup: dict, every: dict,
-           constant: dict, grid: dict, sim_grid: dict) -> str:
-    """The report's Markdown."""
+def report(sim: dict, sea: dict, features: dict, setup: dict, every: dict, grid: dict,
+           sim_grid: dict) -> str:
+    """The report's Markdown; ``grid`` and ``sim_grid``: the constant scales' finals
+    (``_grid``) at sea and on the held-out simulated missions."""
     from beamsnet.estimators.noisemodel import BOUNDS, FEATURES, HIDDEN, WINDOW
 
     t = setup["trained_on"]
+    hindsight = _hindsight(grid)
     lines = [
         "# adaptive: a filter that learns its noise in simulation, at sea", "",
         f"Made by `beamsnet reproduce adaptive --data DIR` (DIR: a folder of A-KIT logs; by "
@@ -359,9 +361,9 @@ def report(sim: dict, sea: dict, features: dict, setup: dict, every: dict,
         "![the learned noise over time, beside the manoeuvre and the innovations]"
         "(adaptive.png)", "",
         *_seeds(sim, sea, every), "",
-        *_constant_lines(constant), "",
-        *_process_lines(grid), "",
-        *_chance_lines(_hindsight(grid), _hindsight(sim_grid)), "",
+        *_constant_lines(grid, hindsight), "",
+        *_process_lines(grid, hindsight), "",
+        *_chance_lines(hindsight, _hindsight(sim_grid)), "",
         "## Where the learned filter does worse at sea, and why", "",
         *_failures(sea, features), "",
         "![the learned filter's inputs, simulated against recorded](adaptive-features.png)",
@@ -453,38 +455,37 @@ def _seeds(sim: dict, sea: dict, every: dict) -> list[str]:
     return lines
 
 
-def _constant_lines(constant: dict) -> list[str]:
-    """What a constant scale of the DVL's noise does at sea: the table, the best one scale
-    for every segment, and each segment's own best, both chosen in hindsight."""
-    keys = list(next(iter(constant.values())))
-    order = sorted(keys, key=float)
-    finals = np.array([[row[k] for k in order] for row in constant.values()])
-    fixed = finals[:, order.index("1")]
+def _constant_lines(grid: dict, h: dict) -> list[str]:
+    """What a constant scale of the DVL's noise does at sea (``grid``'s settings with the
+    IMU's at 1; ``h``: its ``_hindsight``): the table, the best one scale for every
+    segment, and each segment's own best, both chosen in hindsight."""
+    dvl = h["dvl"]
+    finals = np.array([[row[d, 1.0] for d in dvl] for row in grid.values()])
     medians = np.median(finals, axis=0)
-    one = int(np.argmin(medians))
-    best = finals.min(axis=1)
+    best = h["DVL"]
     lines = [
         "## What a constant noise scale can do at sea", "",
         "The fixed filter with the DVL's noise (its white part and its slow error's drive, "
         "as the network scales them) multiplied by a constant, on every recorded segment: "
         "final horizontal error against the reference, m, at each multiple of the stated "
         "std (1: the fixed filter).", "",
-        "| segment | " + " | ".join(f"x {k}" for k in order) + " | best, in hindsight |",
-        "|---|" + "---|" * (len(order) + 1)]
-    for (name, row), b in zip(constant.items(), best, strict=True):
-        lines.append(f"| {name} | " + " | ".join(f"{row[k]:.2f}" for k in order)
-                     + f" | {b:.2f} (x {min(row, key=row.get)}) |")
+        "| segment | " + " | ".join(f"x {d:g}" for d in dvl) + " | best, in hindsight |",
+        "|---|" + "---|" * (len(dvl) + 1)]
+    for name, row in zip(grid, finals, strict=True):
+        j = int(np.argmin(row))
+        lines.append(f"| {name} | " + " | ".join(f"{x:.2f}" for x in row)
+                     + f" | {row[j]:.2f} (x {dvl[j]:g}) |")
     lines.append("| **median** | " + " | ".join(f"{m:.2f}" for m in medians)
-                 + f" | {np.median(best):.2f} |")
+                 + f" | {best['own']:.2f} |")
     lines += [
         "",
         f"- The one scale best for every segment together, chosen in hindsight: x "
-        f"{order[one]}, median final {medians[one]:.2f} m, "
-        f"{_below(medians[one], np.median(fixed)):.1f} % below the fixed filter's "
-        f"{np.median(fixed):.2f} m.",
+        f"{best['setting'][0]:g}, median final {best['one']:.2f} m, "
+        f"{_below(best['one'], h['fixed']):.1f} % below the fixed filter's "
+        f"{h['fixed']:.2f} m.",
         f"- Each segment's own best scale, chosen in hindsight against the reference (which "
-        f"no filter has): median final {np.median(best):.2f} m, "
-        f"{_below(float(np.median(best)), float(np.median(fixed))):.1f} % below. "
+        f"no filter has): median final {best['own']:.2f} m, "
+        f"{_below(best['own'], h['fixed']):.1f} % below. "
         "A noise network's scale varies along a segment, so this bounds it only among "
         f"constant scales; the target asks {100 * TARGET_GAIN:.0f} % below."]
     return lines
@@ -535,11 +536,10 @@ def _edge(value: float, values: list[float]) -> str:
     return " (the grid's edge)" if value in (values[0], values[-1]) else ""
 
 
-def _process_lines(grid: dict) -> list[str]:
+def _process_lines(grid: dict, h: dict) -> list[str]:
     """What a constant scale of the IMU's process noise does at sea, alone and with the
-    DVL's: the table (the DVL's at 1), the best one scale (pair) for every segment and
-    each segment's own, chosen in hindsight."""
-    h = _hindsight(grid)
+    DVL's (``grid``; ``h``: its ``_hindsight``): the table (the DVL's at 1), the best one
+    scale (pair) for every segment and each segment's own, chosen in hindsight."""
     pairs = sorted(next(iter(grid.values())))
     fixed = h["fixed"]
     lines = [
