@@ -7,6 +7,8 @@ zigzag), then runs, side by side and alternating (these machines are noisy):
 * ``generate``: ``auvsim generate`` of that mission, HDF5 writing included;
 * ``filter``: ``beamsnet.estimators.ins.run_mission`` on it, HDF5 reading included (15 states);
 * ``filter+beams``: the same with the 14 instrument states (29 states);
+* ``filter+beams+gyro``: and the gyros' scale factors and misalignments (38 states; the
+  ``navigation-full`` grade's spreads, set in the ``FilterConfig``);
 * ``adaptive``, ``adaptive+beams``: ``filter`` and ``filter+beams`` with the beam noise
   estimated from the innovations (``FilterConfig(adaptive="innovation")``, the
   ``INS/DVL (adaptive)`` estimator);
@@ -23,7 +25,8 @@ scale factors, biases, misalignment and lever arm; the Earth's rate; the pings' 
 
 * ``recorded``: ``beamsnet.estimators.ins.run_arrays`` on the arrays (the CSVs read once,
   untimed; their axes and clocks as published: the speed does not depend on them), fixed,
-  adaptive and learned side by side.
+  adaptive and learned side by side, and the fixed filter with the gyro matrix's states
+  (38).
 
 Real-time factor per core = simulated (or recorded) seconds / CPU seconds of this
 (single-threaded) process; the first call (numba compiling, or loading its on-disk
@@ -65,6 +68,11 @@ def random_model() -> noisemodel.NoiseModel:
 
 
 MODEL = random_model()
+# The gyro matrix's states with the navigation-full grade's spreads (the benchmark's IMU,
+# "navigation", states none).
+FULL = IMU_GRADES["navigation-full"]
+GYRO = dict(gyro_matrix_states=True, gyro_scale_factor_std=FULL.gyro_scale_factor_std,
+            gyro_misalignment_std=FULL.gyro_misalignment_std)
 
 
 def main() -> None:
@@ -95,19 +103,21 @@ def main() -> None:
         def full() -> None:
             generate(config, out, workers=1, progress=False)
 
-        def run(beam_states: bool, adaptive: str = "none"):
+        def run(beam_states: bool, adaptive: str = "none", gyro: bool = False):
             def go() -> None:
                 with open_dataset(out) as f:
                     ins.run_mission(f.missions["zz"], ins.FilterConfig(
-                        beam_states=beam_states, adaptive=adaptive), noise_model=MODEL)
+                        beam_states=beam_states, adaptive=adaptive, **(GYRO if gyro else {})),
+                        noise_model=MODEL)
             return go
 
         full()  # loads (or compiles) every kernel once, so that none is timed
         run(False)()
         run(True)()
-        times: dict[str, list[float]] = {"generate": [], "filter": [], "filter+beams": [],
-                                         "adaptive": [], "adaptive+beams": [], "learned": [],
-                                         "learned+beams": [], "kernel": []}
+        times: dict[str, list[float]] = {
+            name: [] for name in ("generate", "filter", "filter+beams", "filter+beams+gyro",
+                                  "adaptive", "adaptive+beams", "learned", "learned+beams",
+                                  "kernel")}
         ins._filter = timed_kernel
         try:
             for _ in range(args.repeats):
@@ -116,6 +126,7 @@ def main() -> None:
                 times["filter"].append(cpu_seconds(run(False)))
                 times["kernel"].append(kernel_times[0])
                 times["filter+beams"].append(cpu_seconds(run(True)))
+                times["filter+beams+gyro"].append(cpu_seconds(run(True, gyro=True)))
                 times["adaptive"].append(cpu_seconds(run(False, "innovation")))
                 times["adaptive+beams"].append(cpu_seconds(run(True, "innovation")))
                 times["learned"].append(cpu_seconds(run(False, "learned")))
@@ -164,17 +175,23 @@ def recorded(folder: Path, repeats: int) -> None:
     seconds = float(imu[-1, 0] - imu[0, 0])
     adaptive = ins.FilterConfig(adaptive="innovation")
     learned = ins.FilterConfig(adaptive="learned")
-    times: dict[str, list[float]] = {"fixed": [], "adaptive": [], "learned": []}
+    gyro = ins.FilterConfig(**GYRO)
+    ins.run_arrays(**inputs, config=gyro)
+    times: dict[str, list[float]] = {"fixed": [], "adaptive": [], "learned": [],
+                                     "fixed+gyro": []}
     for _ in range(repeats):  # alternating, as above
         times["fixed"].append(cpu_seconds(lambda: ins.run_arrays(**inputs)))
         times["adaptive"].append(cpu_seconds(lambda: ins.run_arrays(**inputs,
                                                                      config=adaptive)))
         times["learned"].append(cpu_seconds(lambda: ins.run_arrays(
             **inputs, config=learned, noise_model=MODEL)))
-    for name, target in (("fixed", 1000), ("adaptive", 500), ("learned", 500)):
+        times["fixed+gyro"].append(cpu_seconds(lambda: ins.run_arrays(**inputs, config=gyro)))
+    for name, target in (("fixed", 1000), ("adaptive", 500), ("learned", 500),
+                         ("fixed+gyro", 1000)):
         t = statistics.median(times[name])
+        states = ins.N_OUT if name.endswith("gyro") else ins.N_BEAM
         print(f"recorded segment {folder.name} ({name}): {seconds:g} s, {len(imu)} IMU "
-              f"samples, {len(dvl)} DVL pings, {ins.N_BEAM} states, median of {repeats}: "
+              f"samples, {len(dvl)} DVL pings, {states} states, median of {repeats}: "
               f"{t:.3f} CPU s, {seconds / t:.0f}x real time per core")
         print(f"target: {name} filter >= {target}x real time per core on a recorded "
               f"segment -> {'met' if seconds / t >= target else 'MISSED'}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -16,6 +17,7 @@ from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import euler_angles, rotation_matrices, rotation_rpy
 from auvsim.runs.presets import PAPER_NOISE_CODE
 from auvsim.sensors.imu import IMU_GRADES
+from beamsnet.cli import main
 from beamsnet.data import load_windows, split
 from beamsnet.estimators import ins
 
@@ -259,6 +261,78 @@ def test_beam_scale_factors_and_biases_are_estimated_within_three_sigma(dataset_
     rms = [np.sqrt(np.mean((t.velocity_dvl - truth) ** 2)) for t in (track, without)]
     assert rms[0] < rms[1]
     assert np.isnan(without.beam_scale).all()
+
+
+@pytest.fixture(scope="module")
+def gyro_matrix(dataset_of):
+    """The navigation-grade IMU with gyro scale factors (std 100 ppm) and misalignments
+    (std 1 mrad, ten times the navigation-full grade's, so that 200 s show them), no
+    accelerometer ones, on random waypoints: turns at up to 15 deg/s in every direction."""
+    imu = dataclasses.replace(IMU_GRADES["navigation"], gyro_scale_factor_std=1e-4,
+                              gyro_misalignment_std=1e-3)
+    return dataset_of(flat(MissionConfig(name="rw", seed=12, scenario=ScenarioConfig(
+        name="random_waypoints", duration=200.0)), imu=imu,
+        dvl=DvlConfig(noise_std=PAPER_NOISE_CODE)), "gyro_matrix")
+
+
+def test_the_gyros_scale_factors_and_misalignments_are_estimated_within_three_sigma(
+        gyro_matrix):
+    """With the gyro matrix's states (on by default where the IMU states the spreads) each
+    element of K_g is estimated within 3 sigma, and the two a yaw rate excites (the x and y
+    gyros' coupling to the z rate) to under a fifth of their prior. Without them the
+    filter takes the tilt those couplings make in the turns for accelerometer bias:
+    tens of sigma from the drawn bias along x or y, where with them it stays within 3, and
+    its velocity NEES is further from 3."""
+    with open_dataset(gyro_matrix) as f:
+        m = f.missions["rw"]
+        a = m.attrs
+        drawn = (np.diag(np.asarray(a["imu_gyro_scale_factor"], dtype=float))
+                 + np.asarray(a["imu_gyro_misalignment"], dtype=float).reshape(3, 3)).ravel()
+        bias = np.asarray(a["imu_accel_turn_on_bias"], dtype=float)
+        track = ins.run_mission(m)
+        without = ins.run_mission(m, ins.FilterConfig(gyro_matrix_states=False))
+    error, std = track.gyro_matrix[-1] - drawn, track.gyro_matrix_std[-1]
+    assert np.all(np.abs(error) < 3 * std), error / std
+    assert np.all(std[[2, 5]] < 0.2 * track.gyro_matrix_std[0][[2, 5]])
+    assert np.all(np.abs(track.accel_bias[-1] - bias)[:2] < 3 * track.accel_bias_std[-1][:2])
+    assert np.max(np.abs(without.accel_bias[-1] - bias)[:2]
+                  / without.accel_bias_std[-1][:2]) > 10
+    nees = [np.nanmean(t.nees_velocity) for t in (track, without)]
+    assert abs(nees[0] - 3) < abs(nees[1] - 3), nees
+    assert np.isnan(without.gyro_matrix).all()
+
+
+def test_gyro_matrix_states_known_to_nothing_leave_the_filter_as_it_was(navigation):
+    """The nine states with a prior of 1e-12 change nothing but the arithmetic's last
+    digits: the track is the filter's without them to 1e-9 m and 1e-12 m/s."""
+    with open_dataset(navigation) as f:
+        m = f.missions["zz_0"]
+        plain = ins.run_mission(m)
+        known = ins.run_mission(m, ins.FilterConfig(
+            gyro_matrix_states=True, gyro_scale_factor_std=1e-12, gyro_misalignment_std=1e-12))
+    np.testing.assert_allclose(known.position_ned, plain.position_ned, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(known.velocity_dvl, plain.velocity_dvl, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(known.position_std, plain.position_std, rtol=1e-9)
+    assert np.abs(known.gyro_matrix).max() < 1e-12
+
+
+def test_gyro_matrix_states_without_a_spread_get_one_line_and_exit_2(navigation, tmp_path,
+                                                                    capsys):
+    settings = tmp_path / "filter.toml"
+    settings.write_text("gyro_matrix_states = true\n")
+    out = tmp_path / "out"
+    assert main(["estimate", str(navigation), "--estimator", "INS/DVL", "--filter-config",
+                 str(settings), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "its IMU states no gyro scale factor or misalignment" in err
+    assert not out.exists()
+    with pytest.raises(ValueError, match="^gyro_matrix_states: expected gyro_scale_factor_std"):
+        ins.run_arrays(np.arange(3.0), np.zeros((3, 3)), np.zeros((3, 3)), np.arange(2.0),
+                       velocity=np.zeros((2, 3)), start=ins.coarse_alignment(
+                           np.arange(3.0), np.tile([0.0, 0.0, -9.8], (3, 1)), heading_deg=0.0),
+                       instrument=ins.Instrument(1e-4, 1e-6, 1e-4, 1e-7, 0.0, 0.0,
+                                                 np.full(3, 0.01)), gravity=9.8,
+                       config=ins.FilterConfig(gyro_matrix_states=True))
 
 
 @pytest.fixture(scope="module")

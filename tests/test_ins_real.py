@@ -289,6 +289,7 @@ def test_estimate_reports_the_filters_accepted_pings_and_its_events(navigation, 
     ("bias_time = 0.0\n", "bias_time: expected a positive number or None, got 0.0"),
     ("lever_arm_std = 0\n", "lever_arm_std: expected a positive number or None"),
     ("process_noise_scale = -1.0\n", "process_noise_scale: expected a positive std"),
+    ("gyro_misalignment_std = -1e-4\n", "gyro_misalignment_std: expected a number >= 0"),
     ('initial_error_seed = "x"\n', "initial_error_seed: expected a whole number >= 0"),
     ("initial_error_seed = 1.5\n", "initial_error_seed: expected a whole number >= 0"),
 ])

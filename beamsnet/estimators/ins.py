@@ -49,12 +49,16 @@ attitude error theta with C = Exp(theta) C_hat (NED, rad), accelerometer and gyr
 errors (body, m/s^2, rad/s), and with ``beam_states`` (on for recorded logs and arrays)
 14 instrument states: each measurement's scale factor s_k and bias c_k (4 + 4: per beam,
 or per DVL axis), the DVL frame's misalignment mu (3, rad) and the DVL's lever-arm error
-(3, m). Continuous error dynamics (Groves eq. 14.64 without the curvature terms)::
+(3, m); and with ``gyro_matrix_states`` (on where the IMU states the spreads: a
+simulated file's ``-full`` grades) 9 more, the gyros' scale factors and misalignments,
+K_g in measured w = (I + K_g) w + b_g + n_g (Groves sec. 4.4.6's gyro error model,
+auvsim's simulated IMU), used as w = (I - K_g)(w_measured - b_g) to first order.
+Continuous error dynamics (Groves eq. 14.64 without the curvature terms, with K_g's)::
 
     dp' = dv,   dv' = -[C f x] theta - C db_a - 2 Omega_ie x dv - C n_a,
-    theta' = -Omega_ie x theta - C db_g - C n_g,
+    theta' = -Omega_ie x theta - C db_g - C dK_g w - C n_g,
     db_a' = w_ba,  db_g' = w_bg  (random walks),  c_k' = -c_k / tau + w_c (``bias_time``;
-    constant without), s, mu, L constant
+    constant without), s, mu, L, K_g constant
 
 propagated at every IMU sample with Phi = I + F dt and Q = diag(...) dt (Groves eq.
 14.72-14.82, first order), applied to the sparse blocks only. Measurement k, along the
@@ -162,9 +166,12 @@ distance) e too large. check-log therefore puts a file on the clock whose stamps
 their stated rate: the A-KIT file on the IMU's (on the reference's it would have e =
 0.25 % by the publication's stated rates).
 
-Not modelled (they make the filter optimistic where the data have them): the IMU's scale
-factors, misalignments and g-sensitivity (the ``-full`` grades; in the turns the filter
-takes them for accelerometer bias, ``benchmarks/filter_consistency.py``), the DVL's sound-speed
+Not modelled (they make the filter optimistic where the data have them): the
+accelerometers' scale factors and misalignments and the gyros' g-sensitivity (the
+gyros' scale factors and misalignments are the states above: without them the filter
+took them for accelerometer bias in the turns, up to 24 of its std on a simulated mission,
+where the accelerometers' own leave it within 4: ``benchmarks/filter_consistency.py``),
+the DVL's sound-speed
 ratio (a scale factor shared by the beams: the per-measurement ones hold it), range-dependent
 noise and heavy-tailed outliers (the gate handles them). Scored against a
 reference, the reported covariance covers the filter's error only, not the reference's
@@ -172,8 +179,8 @@ own (a post-processed INS solution: on the A-KIT segment 4 the dead reckoning wi
 reference's attitude is as far from the reference as the filter, 4 m).
 
 Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
-real time; on a recorded 400 s segment with the 29 states, about 5000x
-(``docs/performance/results/filter.md``). The first call compiles the loop (about 30 s)
+real time; on a recorded 400 s segment with the 29 states, about 5000x, with the
+gyro matrix's 38 about 3500x (``docs/performance/results/filter.md``). The first call compiles the loop (about 30 s)
 into numba's on-disk cache; later processes load it in under a second.
 """
 
@@ -203,13 +210,16 @@ from beamsnet.estimators.registry import Needs, Spec
 N_CORE = 15  # p, v, theta, b_a, b_g
 N_BEAM = 29  # + 4 scale factors, 4 biases (beams or DVL axes), the DVL's 3 misalignments
 # and 3 lever-arm errors
+N_GYRO_MATRIX = 9  # the gyros' scale factors and misalignments, K_g row-major, where on
+N_OUT = N_BEAM + N_GYRO_MATRIX  # the track's instrument-state columns (NaN where off)
 N_FEATURES = 6  # what the loop records of each ping for a learned noise model (noisenet)
 # The error state's layout (the rows of P), by the FilterTrack field each part fills.
 _STATES = dict(position=slice(0, 3), velocity=slice(3, 6), attitude=slice(6, 9),
               accel_bias=slice(9, 12), gyro_bias=slice(12, 15), beam_scale=slice(15, 19),
-              beam_bias=slice(19, 23), misalignment=slice(23, 26), lever_arm=slice(26, 29))
+              beam_bias=slice(19, 23), misalignment=slice(23, 26), lever_arm=slice(26, 29),
+              gyro_matrix=slice(29, 38))  # in P, K_g follows the core or the beam states
 _INSTRUMENT_STATES = ("accel_bias", "gyro_bias", "beam_scale", "beam_bias", "misalignment",
-                     "lever_arm")  # FilterTrack has each, and its std
+                     "lever_arm", "gyro_matrix")  # FilterTrack has each, and its std
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
 # How well an uncalibrated DVL's mounting is known, deg per axis: our choice for a DVL
 # mounted mechanically without an alignment calibration (at 0.5 deg a DVL track bends by
@@ -258,6 +268,15 @@ class FilterConfig:
             arrays and for a simulated file with a slow DVL error (a real instrument's
             slow errors), off for other simulated missions (white beam noise, as their
             file states).
+        gyro_matrix_states: estimate the gyros' scale factors and misalignments, K_g in
+            measured w = (I + K_g) w + b_g + noise (9 more states, constant; the module
+            docstring's theta' gains -C dK_g w); None: on where the instrument states
+            either spread (a simulated file's IMU config; ``run_arrays``'s
+            ``instrument``), off otherwise (a recorded log states none).
+        gyro_scale_factor_std: initial std of each scale factor (K_g's diagonal), -; None:
+            the instrument's (0 where it states none).
+        gyro_misalignment_std: initial std of each of K_g's six off-diagonal elements,
+            rad; None: likewise.
         beam_scale_std: initial std of each scale factor, -: 0.2 %, the long-term
             accuracy of a Teledyne RDI Workhorse Navigator (``auvsim.runs.presets
             .navigator`` cites it).
@@ -341,6 +360,9 @@ class FilterConfig:
     latitude_deg: float | None = None
     gravity: float | None = None
     beam_states: bool | None = None
+    gyro_matrix_states: bool | None = None
+    gyro_scale_factor_std: float | None = None
+    gyro_misalignment_std: float | None = None
     beam_scale_std: float = 0.002
     beam_bias_std: float = 0.001
     misalignment_std_deg: float | None = None
@@ -442,8 +464,9 @@ _POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std", 
 _POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
 _AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
                           "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
-                          "accel_bias_psd", "gyro_bias_psd")
-_BOOL_OR_NONE = ("earth_rate", "beam_states")
+                          "accel_bias_psd", "gyro_bias_psd", "gyro_scale_factor_std",
+                          "gyro_misalignment_std")
+_BOOL_OR_NONE = ("earth_rate", "beam_states", "gyro_matrix_states")
 
 
 def _whole(value) -> bool:
@@ -536,6 +559,9 @@ class FilterTrack(NamedTuple):
     misalignment_std: np.ndarray | None = None  # (P, 3) rad
     lever_arm: np.ndarray | None = None  # (P, 3) m, the DVL's from the IMU, body
     lever_arm_std: np.ndarray | None = None  # (P, 3) m
+    gyro_matrix: np.ndarray | None = None  # (P, 9) the gyros' K_g, row-major: scale
+    # factors (-) on its diagonal, misalignments (rad) off it (NaN: no states)
+    gyro_matrix_std: np.ndarray | None = None  # (P, 9)
     measurement_std: np.ndarray | None = None  # (P, K) m/s, the white noise of each beam
     # (or DVL axis) for the next ping: the stated one, or the adapted (``adaptive``)
     features: np.ndarray | None = None  # (P, N_FEATURES) what a learned noise model reads
@@ -598,9 +624,10 @@ def _matmul_into(a, b, out):
 
 
 @numba.njit(cache=True)
-def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
+def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa, gi, m_kg):
     """x <- Phi x in place for one state vector (a column or row of P): Phi = I + F dt on
-    the blocks p<-v, v<-theta, v<-b_a, theta<-b_g, and with the Earth rate v<-v, a<-a."""
+    the blocks p<-v, v<-theta, v<-b_a, theta<-b_g, with the Earth rate v<-v, a<-a, and
+    where the gyro matrix's states are on (from state ``gi``; -1: off) theta<-K_g."""
     v0, v1, v2 = x[3], x[4], x[5]
     a0, a1, a2 = x[6], x[7], x[8]
     for r in range(3):
@@ -610,11 +637,27 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa):
                      + m_vv[r, 0] * v0 + m_vv[r, 1] * v1 + m_vv[r, 2] * v2)
         x[6 + r] += (m_abg[r, 0] * x[12] + m_abg[r, 1] * x[13] + m_abg[r, 2] * x[14]
                      + m_aa[r, 0] * a0 + m_aa[r, 1] * a1 + m_aa[r, 2] * a2)
+        if gi >= 0:
+            acc = 0.0
+            for j in range(N_GYRO_MATRIX):
+                acc += m_kg[r, j] * x[gi + j]
+            x[6 + r] += acc
+
+
+@numba.njit(cache=True)
+def _gyro_rate(w_i, bg, kg, gi):
+    """(3,) rad/s, a gyro sample corrected: w - b_g, and where the gyro matrix's states are
+    on (``gi`` >= 0) less K_g (w - b_g), the first order of (I + K_g)^-1 (w - b_g)."""
+    out = w_i - bg
+    if gi >= 0:
+        out = out - kg @ out
+    return out
 
 
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
-            p, v, c, ba, bg, P, q, r_meas, r_growth, gate, n, bias_decay, bias_psd, window,
+            p, v, c, ba, bg, kg, P, q, r_meas, r_growth, gate, n, gi, bias_decay, bias_psd,
+            window,
             watch_share, parity, timing_std, adapt_window, r_low, r_high, kappa,
             net_window, net_w1, net_b1, net_w2, net_b2, feat_mean, feat_std):
     """Run the filter over one mission. Arrays are updated in place where they are state
@@ -630,12 +673,16 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
         the DVL's axes for its velocity). mounting: (3, 3) DVL -> body.
         lever: (3,) r_dvl - r_imu. r_imu: (3,) IMU position in the body, m.
         p, v, c, ba, bg: initial IMU-point position, velocity, rotation, biases.
+        kg: (3, 3) initial gyro matrix K_g (measured w = (I + K_g) w + b_g + noise: its
+            diagonal the scale factors, the rest the misalignments), used where ``gi`` >= 0.
         P: (n, n) initial covariance. q: (4,) PSDs (accel, gyro white noise; accel, gyro
             bias random walk). r_meas: (K,) measurement variances at rest, (m/s)^2.
         r_growth: (K,) m/s per m/s: each measurement's white std grows by this times the
             DVL point's speed (predicted at the ping), the instrument's law; where 0 the
             variance is ``r_meas`` exactly.
-        gate: chi-square threshold. n: states, ``N_CORE`` (15) or ``N_BEAM`` (29).
+        gate: chi-square threshold. n: states, ``N_CORE`` (15) or ``N_BEAM`` (29), plus
+            ``N_GYRO_MATRIX`` (9) where the gyro matrix's states are on.
+        gi: the first of the gyro matrix's states (``n - N_GYRO_MATRIX``), or -1: off.
         bias_decay: 1 / correlation time of the measurement biases c_k, 1/s (0: constant).
         bias_psd: their driving PSD, (m/s)^2/s.
         window, watch_share: the divergence watch's window, pings (0: off), and the share
@@ -665,8 +712,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     out_v = np.full((n_ping, 3), np.nan)
     out_cov = np.full((n_ping, 3, 3), np.nan)
     out_p = np.full((n_ping, 3), np.nan)
-    out_x = np.full((n_ping, N_BEAM), np.nan)  # the instrument states, by _STATES
-    out_sd = np.full((n_ping, N_BEAM), np.nan)  # sqrt(diag P), by _STATES
+    out_x = np.full((n_ping, N_OUT), np.nan)  # the instrument states, by _STATES
+    out_sd = np.full((n_ping, N_OUT), np.nan)  # sqrt(diag P), by _STATES
+    nb = gi if gi >= 0 else n  # the states before the gyro matrix's: core and beam
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
@@ -707,6 +755,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     hrow = np.zeros(n)
     fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
     rate = np.zeros(3)
+    wr = np.zeros(3)  # the corrected gyro sample (w - b_g - K_g (w - b_g))
+    m_kg = np.zeros((3, N_GYRO_MATRIX))  # -dt C [w^T in row a] on theta <- K_g
     c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(f.shape[0]):
         if i > 0:
@@ -721,6 +771,13 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             for r in range(3):
                 fb[r] = f[i - 1, r] - ba[r]
                 wb[r] = w[i, r] - bg[r]
+            if gi >= 0:  # the gyros' scale factors and misalignments: less K_g (w - b_g)
+                for r in range(3):
+                    wr[r] = wb[r]
+                for r in range(3):
+                    wb[r] -= kg[r, 0] * wr[0] + kg[r, 1] * wr[1] + kg[r, 2] * wr[2]
+                for r in range(3):
+                    wr[r] = wb[r]
             for r in range(3):
                 cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
             if earth:  # w_nb = w - C^T Omega_ie; C f less the Coriolis term 2 Omega_ie x v
@@ -754,16 +811,21 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             for r in range(3):
                 for j in range(3):
                     m_c[r, j] = -h * c_old[r, j]
+            if gi >= 0:  # theta' = -C dK_g w: element (a, b) drives -C[:, a] w_b
+                for r in range(3):
+                    for a_ in range(3):
+                        for b_ in range(3):
+                            m_kg[r, 3 * a_ + b_] = m_c[r, a_] * wr[b_]
             for j in range(n):
-                _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa)
+                _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg)
             for j in range(n):
-                _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa)
+                _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg)
             for r in range(3):
                 P[3 + r, 3 + r] += q[0] * h
                 P[6 + r, 6 + r] += q[1] * h
                 P[9 + r, 9 + r] += q[2] * h
                 P[12 + r, 12 + r] += q[3] * h
-            if n > N_CORE and bias_decay > 0.0:  # first-order Gauss-Markov biases c_k
+            if nb > N_CORE and bias_decay > 0.0:  # first-order Gauss-Markov biases c_k
                 decay = 1.0 - h * bias_decay
                 for k in range(4):
                     cb[k] *= decay
@@ -773,7 +835,8 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 drive = drive * decay * decay + bias_psd * h
         while k_ping < n_ping and ping_row[k_ping] == i:
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
-            wb = w[i] - bg - c.T @ omega_ie
+            w_imu = _gyro_rate(w[i], bg, kg, gi)
+            wb = w_imu - c.T @ omega_ie
             worst = 0.0
             # The instrument's white noise at the DVL point's predicted speed (u: its
             # velocity, body, before the ping's updates), and the adaptation.
@@ -794,7 +857,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 for k in range(n_dir):
                     pz += parity[k] * (meas[k_ping, k] - cb[k]) / (1.0 + s[k])
                     pvar += parity[k] * parity[k] * (
-                        r_use[k] + (P[19 + k, 19 + k] if n > N_CORE else 0.0))
+                        r_use[k] + (P[19 + k, 19 + k] if nb > N_CORE else 0.0))
                 agree = pz * pz <= gate * pvar
             u_dot = np.zeros(3)
             if timing_std > 0.0:
@@ -817,11 +880,16 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 hrow[3:6] = a
                 hrow[6:9] = np.cross(a, v)
                 hrow[12:15] = np.cross(gk, lever)
-                if n > N_CORE:
+                if nb > N_CORE:
                     hrow[15 + k] = along
                     hrow[19 + k] = 1.0
                     hrow[23:26] = (1.0 + s[k]) * np.cross(dirs[k], mounting.T @ u)
                     hrow[26:29] = np.cross(gk, wb)  # g . (w x dL) = dL . (g x w)
+                if gi >= 0:  # the rate's error dK_g w in g . (w x L), as b_g's above
+                    gl = np.cross(gk, lever)
+                    for a_ in range(3):
+                        for b_ in range(3):
+                            hrow[gi + 3 * a_ + b_] = gl[a_] * w_imu[b_]
                 ph = P @ hrow
                 rate_k = gm[0] * u_dot[0] + gm[1] * u_dot[1] + gm[2] * u_dot[2]
                 hph = hrow @ ph
@@ -852,11 +920,15 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 c[:, :] = _exp(dx[6:9]) @ c
                 ba += dx[9:12]
                 bg += dx[12:15]
-                if n > N_CORE:
+                if nb > N_CORE:
                     s += dx[15:19]
                     cb += dx[19:23]
                     mis += dx[23:26]
                     lever += dx[26:29]
+                if gi >= 0:
+                    for a_ in range(3):
+                        for b_ in range(3):
+                            kg[a_, b_] += dx[gi + 3 * a_ + b_]
             held = min(ring_n, adapt_window)
             if adapt_window > 0 and held >= adapt_start:
                 # Innovation-based R (the module docstring), for the next ping's updates:
@@ -938,7 +1010,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                     reset[k_ping] = True
                     ring_used[:] = 0
                     ring_rejected[:] = 0
-            wb = w[i] - bg - c.T @ omega_ie
+            wb = _gyro_rate(w[i], bg, kg, gi) - c.T @ omega_ie
             jac = np.zeros((3, 9))  # d v_dvl / d (dv, theta, db_g)
             mt = mounting.T
             jv = mt @ c.T
@@ -960,18 +1032,22 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             out_r[k_ping] = r_use
             # The origin's position error adds theta x (C r_imu); r_imu is short, and its
             # share is below the position std's first digit: the IMU point's std.
-            for j in range(n):
-                out_sd[k_ping, j] = math.sqrt(P[j, j])
+            for j in range(n):  # the gyro matrix's in its columns of _STATES
+                out_sd[k_ping, j if j < nb else N_BEAM + j - nb] = math.sqrt(P[j, j])
             for r in range(3):
                 out_x[k_ping, 9 + r] = ba[r]
                 out_x[k_ping, 12 + r] = bg[r]
-            if n > N_CORE:
+            if nb > N_CORE:
                 for k in range(4):
                     out_x[k_ping, 15 + k] = s[k]
                     out_x[k_ping, 19 + k] = cb[k]
                 for r in range(3):
                     out_x[k_ping, 23 + r] = mis[r]
                     out_x[k_ping, 26 + r] = lever[r]
+            if gi >= 0:
+                for a_ in range(3):
+                    for b_ in range(3):
+                        out_x[k_ping, N_BEAM + 3 * a_ + b_] = kg[a_, b_]
             k_ping += 1
     return (out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c, out_r,
             out_feat, out_nu, out_hph, out_scale, out_stated)
@@ -1093,6 +1169,8 @@ class Instrument(NamedTuple):
     # noise_growth U
     slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
     slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
+    gyro_scale_factor_std: float = 0.0  # -, each gyro's scale-factor error
+    gyro_misalignment_std: float = 0.0  # rad, each of the gyro triad's six cross-couplings
 
 
 def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
@@ -1209,8 +1287,18 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if g is None:
         raise ValueError("gravity: expected it, or latitude_deg for the normal gravity")
     beam_states = cfg.beam_states if cfg.beam_states is not None else True
-    n = N_BEAM if beam_states else N_CORE
+    nb = N_BEAM if beam_states else N_CORE
     ins = instrument
+    scale_std = (ins.gyro_scale_factor_std if cfg.gyro_scale_factor_std is None
+                 else cfg.gyro_scale_factor_std)
+    cross_std = (ins.gyro_misalignment_std if cfg.gyro_misalignment_std is None
+                 else cfg.gyro_misalignment_std)
+    stated = scale_std > 0 or cross_std > 0
+    gyro_matrix = cfg.gyro_matrix_states if cfg.gyro_matrix_states is not None else stated
+    if gyro_matrix and not stated:
+        raise ValueError("gyro_matrix_states: expected gyro_scale_factor_std or "
+                         "gyro_misalignment_std above 0 (the instrument states neither)")
+    n = nb + (N_GYRO_MATRIX if gyro_matrix else 0)
     std = np.concatenate([
         np.asarray(start.position_std, dtype=float), np.asarray(start.velocity_std, float),
         np.asarray(start.attitude_std, dtype=float),
@@ -1218,7 +1306,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         np.full(3, ins.gyro_bias_std if cfg.gyro_bias_std is None else cfg.gyro_bias_std),
         np.full(4, cfg.beam_scale_std), np.full(4, cfg.beam_bias_std),
         np.radians(_known(cfg.misalignment_std_deg, mounting_std_deg, MISALIGNMENT_STD_DEG)),
-        _known(cfg.lever_arm_std, dvl_position_std, LEVER_ARM_STD)])[:n]
+        _known(cfg.lever_arm_std, dvl_position_std, LEVER_ARM_STD)])[:nb]
+    if gyro_matrix:  # K_g: scale factors on its diagonal, misalignments off it
+        std = np.concatenate([std, np.where(np.eye(3).ravel() > 0, scale_std, cross_std)])
     P = np.diag(std**2)
     q = np.array([
         (ins.accel_noise_density if cfg.accel_noise_density is None
@@ -1244,7 +1334,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     bias_time = cfg.bias_time if cfg.bias_time is not None else (
         ins.slow_error_time if ins.slow_error_std > 0 else None)
     bias_std = math.hypot(cfg.beam_bias_std, ins.slow_error_std)
-    if bias_time is not None and n > N_CORE:
+    if bias_time is not None and beam_states:
         P[19:23, 19:23] = np.diag(np.full(4, bias_std**2))
     decay = 0.0 if bias_time is None else 1.0 / bias_time
     floor, ceiling = cfg.adaptive_range
@@ -1265,9 +1355,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
-        v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), P, q,
+        v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), np.zeros((3, 3)), P, q,
         np.ascontiguousarray(r_meas), np.ascontiguousarray(r_growth, dtype=float),
-        chi2_1dof(cfg.gate_probability), n, decay,
+        chi2_1dof(cfg.gate_probability), n, nb if gyro_matrix else -1, decay,
         2.0 * bias_std**2 * decay,
         cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
         cfg.clock_std if timing_std is None else float(timing_std),
@@ -1436,8 +1526,20 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         accel_bias_psd=psd("imu_accel_bias_instability", "imu_accel_bias_correlation_time"),
         gyro_bias_psd=psd("imu_gyro_bias_instability", "imu_gyro_bias_correlation_time"),
         measurement_std=measurement_std, noise_growth=noise_growth, slow_error_std=slow_std,
-        slow_error_time=slow_time)
+        slow_error_time=slow_time,
+        # A simulated file's gyro scale factors and misalignments are drawn (its
+        # attributes) from the spreads of its config; a recorded log states none.
+        gyro_scale_factor_std=float(imu_cfg.get("gyro_scale_factor_std", 0.0)),
+        gyro_misalignment_std=float(imu_cfg.get("gyro_misalignment_std", 0.0)))
 
+    if cfg.gyro_matrix_states and not any(
+            x if x is not None else y for x, y in (
+                (cfg.gyro_scale_factor_std, instrument.gyro_scale_factor_std),
+                (cfg.gyro_misalignment_std, instrument.gyro_misalignment_std))):
+        raise DataError(f"mission {mission.name}: its IMU states no gyro scale factor or "
+                        "misalignment; expected gyro_scale_factor_std or "
+                        "gyro_misalignment_std above 0 in the filter's settings "
+                        "(--filter-config) with gyro_matrix_states")
     dvl_time = np.asarray(dvl.time, dtype=float)
     if use_beams:
         beams = np.asarray(dvl.beam_velocity, dtype=float)
