@@ -105,10 +105,12 @@ def stationary(latitude: float, seconds: float = 600.0, heading_deg: float = 30.
 def test_a_stationary_imu_at_a_latitude_stays_put_with_earth_rate_and_normal_gravity():
     """Pure inertial navigation for 10 minutes at 45 deg: with the latitude, the filter
     compensates the Earth's rate and uses the WGS-84 normal gravity there, so it stays at
-    rest to rounding. Known answers without them: g0 = 9.81 leaves (9.81 - g) t^2 / 2
-    downward (4 m after 600 s at 45 deg, the Schuler loop does not act on the vertical);
-    the Earth's rate left in the gyros tilts the platform by Omega_N t, which gravity
-    turns into metres within the first minute."""
+    rest to rounding. Known answers without them: g0 = 9.81 leaves dg = 9.81 - g
+    downward, and the gravity's growth with depth g' (the normal gravity's free-air term)
+    makes the vertical channel unstable, p'' = dg + g' p: p = dg / g' (cosh(sqrt(g') t) - 1)
+    (750 m after 600 s at 45 deg, where dg t^2 / 2 alone is 680 m; the Schuler loop does not
+    act on the vertical); the Earth's rate left in the gyros tilts the platform by
+    Omega_N t, which gravity turns into metres within the first minute."""
     data = stationary(45.0)
     pure = ins.FilterConfig(dvl_updates=False)
     still = ins.run_arrays(**data, latitude_deg=45.0, config=pure)
@@ -116,7 +118,8 @@ def test_a_stationary_imu_at_a_latitude_stays_put_with_earth_rate_and_normal_gra
     assert np.abs(still.velocity_dvl).max() < 1e-9
     heavy = ins.run_arrays(**data, latitude_deg=45.0, gravity=9.81, config=pure)
     t = still.ping_time[-1]
-    fall = (9.81 - normal_gravity(45.0)) * t**2 / 2
+    growth = normal_gravity(45.0, -1.0) - normal_gravity(45.0)
+    fall = (9.81 - normal_gravity(45.0)) / growth * (math.cosh(math.sqrt(growth) * t) - 1)
     assert heavy.position_ned[-1, 2] == pytest.approx(fall, rel=1e-3)
     flat_earth = ins.run_arrays(**data, gravity=normal_gravity(45.0), config=pure)
     assert np.abs(flat_earth.position_ned[:60, :2]).max() > 1.0

@@ -21,27 +21,37 @@ Mechanisation (Groves 2013, "Principles of GNSS, Inertial, and Multisensor Integ
 Navigation Systems", 2nd ed., sec. 5.4, first-order form in a local-level frame), from
 IMU sample i - 1 to i, dt_i = t_i - t_{i-1}::
 
-    v_i = v_{i-1} + dt (C_{i-1} f_{i-1} + g - 2 Omega_ie x v_{i-1})
+    v_i = v_{i-1} + dt (C_{i-1} f_{i-1} + g(p_{i-1}) - 2 Omega_ie x v_{i-1})
     p_i = p_{i-1} + dt v_i
-    C_i = C_{i-1} Exp(dt (w_i - C_{i-1}^T Omega_ie))
+    C_i = C_{i-1} Exp(dt (w_i - C'_i^T Omega_ie)),   C'_i = C_{i-1} Exp(dt w_i)
 
-with f and w the bias-corrected samples, g = (0, 0, g) and Omega_ie the Earth's rate in
-NED. Whenever the latitude is known (a recorded log always; a simulated mission with a
-geographic origin, whose attributes carry ``latitude_deg``), Omega_ie and g are the
-WGS-84 Earth rate and normal gravity there (``auvsim.physics.earth``); without one,
-auvsim's flat world that does not rotate (Omega_ie = 0, the mission's own g). The
+with f and w the bias-corrected samples, g(p) = (0, 0, g + g' p_down) and Omega_ie the
+Earth's rate in NED. Whenever the latitude is known (a recorded log always; a simulated
+mission with a geographic origin, whose attributes carry ``latitude_deg``), Omega_ie and
+g are the WGS-84 Earth rate and normal gravity at the frame's origin, and g' the normal
+gravity's free-air growth with depth, 3.1e-6 m/s^2 per m (``auvsim.physics.earth``;
+under water the true growth is less by the water above, 4 pi G rho = 0.9e-6, but the
+free-air term is what auvsim's IMU reads, and over the tens of metres a mission changes
+depth the difference stays under 1e-5 m/s^2); without one, auvsim's flat world that does
+not rotate (Omega_ie = 0, g' = 0, the mission's own g). The
 transport rate (the local-level frame turning as the vehicle moves over the curved Earth,
 v / R: 3e-7 rad/s at 2 m/s, 2 % of the Earth's rate) and the change of gravity with the
 distance travelled are left out: over the few kilometres of a mission the frame turns
 by under 0.03 deg and the position error they make stays under a few centimetres, far
-below the DVL's. Without the Earth's rate, this is the discrete form auvsim's truth
-obeys: MuJoCo's semi-implicit Euler step holds the acceleration recorded at step i - 1
-over the step and rotates by the angular velocity recorded at step i, and the simulated
-accelerometer reads C^T (a - g) with the model's g. So noise-free data integrate back
-exactly at the body origin; at the IMU point (and the DVL) the one discretisation error
-is the lever arm's (derived, and tested to 1e-9, in ``tests/test_ins.py::
-lever_arm_error``). A real IMU's increments would need Savage's coning and sculling
-terms instead; at 100 Hz on the Snapir's logs they are below the logs' rounding.
+below the DVL's. This is the discrete form auvsim's truth obeys: MuJoCo's semi-implicit
+Euler step holds the acceleration recorded at step i - 1 over the step and rotates by
+the angular velocity recorded at step i, and the simulated accelerometer reads C^T (a +
+2 Omega_ie x v - g(p)) and the gyro w + C^T Omega_ie at the same step. The Earth's rate is
+taken at the sample's own attitude, C'_i (to O(dt Omega_ie)), as the gyros read it: at
+C_{i-1} instead, a turn at rate r tilted the solution by dt r Omega_ie per second
+(1.6e-7 rad/s at 15 deg/s and 100 Hz, 1.1 m north after 240 s of a noise-free
+turning circle), and the surface's gravity at 20 m depth put 6e-5 m/s^2 into the
+vertical (1.8 m down). So noise-free data integrate back exactly at the body origin (to
+a few parts in a million on the rotating Earth); at the IMU point (and the DVL) the one
+discretisation error is the lever arm's (derived, and tested to 1e-9, in
+``tests/test_ins.py::lever_arm_error``). A real IMU's increments would need Savage's
+coning and sculling terms instead; at 100 Hz on the Snapir's logs they are below the
+logs' rounding.
 
 Error state (x = x_hat + dx; Groves ch. 14.2, Sola 2017 "Quaternion kinematics for the
 error-state Kalman filter" sec. 7 for the global attitude error): dp, dv (NED, m, m/s),
@@ -55,7 +65,7 @@ K_g in measured w = (I + K_g) w + b_g + n_g (Groves sec. 4.4.6's gyro error mode
 auvsim's simulated IMU), used as w = (I - K_g)(w_measured - b_g) to first order.
 Continuous error dynamics (Groves eq. 14.64 without the curvature terms, with K_g's)::
 
-    dp' = dv,   dv' = -[C f x] theta - C db_a - 2 Omega_ie x dv - C n_a,
+    dp' = dv,   dv' = -[C f x] theta - C db_a - 2 Omega_ie x dv + g' dp_d e_d - C n_a,
     theta' = -Omega_ie x theta - C db_g - C dK_g w - C n_g,
     db_a' = w_ba,  db_g' = w_bg  (random walks),  c_k' = -c_k / tau + w_c (``bias_time``;
     constant without), s, mu, L, K_g constant
@@ -180,8 +190,9 @@ reference's attitude is as far from the reference as the filter, 4 m).
 
 Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
 real time; on a recorded 400 s segment with the 29 states, about 5000x, with the
-gyro matrix's 38 about 3500x (``docs/performance/results/filter.md``). The first call compiles the loop (about 30 s)
-into numba's on-disk cache; later processes load it in under a second.
+gyro matrix's 38 about 3500x (``docs/performance/results/filter.md``). The first call
+compiles the loop (about 30 s) into numba's on-disk cache; later processes load it in
+under a second.
 """
 
 from __future__ import annotations
@@ -624,11 +635,13 @@ def _matmul_into(a, b, out):
 
 
 @numba.njit(cache=True)
-def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa, gi, m_kg):
+def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa, gi, m_kg, g_dt):
     """x <- Phi x in place for one state vector (a column or row of P): Phi = I + F dt on
-    the blocks p<-v, v<-theta, v<-b_a, theta<-b_g, with the Earth rate v<-v, a<-a, and
-    where the gyro matrix's states are on (from state ``gi``; -1: off) theta<-K_g."""
+    the blocks p<-v, v<-theta, v<-b_a, theta<-b_g, with the Earth rate v<-v, a<-a and the
+    gravity's growth with depth v_down<-p_down (``g_dt``: dt dg/d(down), 0 without),
+    and where the gyro matrix's states are on (from state ``gi``; -1: off) theta<-K_g."""
     v0, v1, v2 = x[3], x[4], x[5]
+    p2 = x[2]
     a0, a1, a2 = x[6], x[7], x[8]
     for r in range(3):
         x[r] += dt * x[3 + r]
@@ -642,6 +655,8 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa, gi, m_kg):
             for j in range(N_GYRO_MATRIX):
                 acc += m_kg[r, j] * x[gi + j]
             x[6 + r] += acc
+    if g_dt != 0.0:
+        x[5] += g_dt * p2
 
 
 @numba.njit(cache=True)
@@ -655,7 +670,7 @@ def _gyro_rate(w_i, bg, kg, gi):
 
 
 @numba.njit(cache=True)
-def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
+def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mounting, lever, r_imu,
             p, v, c, ba, bg, kg, P, q, r_meas, r_growth, gate, n, gi, bias_decay, bias_psd,
             window,
             watch_share, parity, timing_std, adapt_window, r_low, r_high, kappa,
@@ -666,7 +681,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
     Args:
         f, w: (N, 3) measured specific force, m/s^2, and angular rate, rad/s, body.
         dt: (N,) s, dt[i] the interval from sample i - 1 to i (dt[0] unused).
-        g: gravity, m/s^2 (down). omega_ie: (3,) Earth rate, NED.
+        g: gravity at the frame's origin (down position 0), m/s^2 (down). g_grad: its
+            growth with the down position, m/s^2 per m (0: the same everywhere).
+        omega_ie: (3,) Earth rate, NED.
         ping_row: (P,) IMU sample of each ping (-1: before the start, skipped).
         meas: (P, K) m/s, K <= 4 scalar measurements per ping along ``dirs``.
         usable: (P, K) bool. dirs: (K, 3) unit directions in the DVL frame (beams, or
@@ -784,19 +801,24 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                 cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
                 cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
                 cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
-                np.dot(c.T, omega_ie, rate)  # into a buffer; BLAS's rounding, as at pings
+                for r in range(3):
+                    dphi[r] = h * wb[r]
+                _exp_into(dphi, rot)
+                _matmul_into(c, rot, c_old)  # the attitude at sample i, to O(dt Omega_ie)
+                np.dot(c_old.T, omega_ie, rate)
                 for r in range(3):
                     wb[r] -= rate[r]
                     cf[r] -= 2.0 * cor[r]
-            cf[2] += g
+            g_i = g + g_grad * p[2] if g_grad != 0.0 else g  # at the IMU's depth at i - 1
+            cf[2] += g_i
             for r in range(3):
                 v[r] += h * cf[r]
                 p[r] += h * v[r]
                 dphi[r] = h * wb[r]
                 c_old[r, :] = c[r, :]
-            cf[2] -= g  # C f (less the Coriolis term) is what the error dynamics see
+            cf[2] -= g_i  # C f (less the Coriolis term) is what the error dynamics see
             acc_w += math.sqrt(wb[0] * wb[0] + wb[1] * wb[1] + wb[2] * wb[2])
-            excess = math.sqrt(fb[0] * fb[0] + fb[1] * fb[1] + fb[2] * fb[2]) - g
+            excess = math.sqrt(fb[0] * fb[0] + fb[1] * fb[1] + fb[2] * fb[2]) - g_i
             acc_f += excess
             acc_f2 += excess * excess
             acc_n += 1
@@ -817,9 +839,9 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
                         for b_ in range(3):
                             m_kg[r, 3 * a_ + b_] = m_c[r, a_] * wr[b_]
             for j in range(n):
-                _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg)
+                _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg, h * g_grad)
             for j in range(n):
-                _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg)
+                _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg, h * g_grad)
             for r in range(3):
                 P[3 + r, 3 + r] += q[0] * h
                 P[6 + r, 6 + r] += q[1] * h
@@ -862,7 +884,7 @@ def _filter(f, w, dt, g, omega_ie, ping_row, meas, usable, dirs, mounting, lever
             u_dot = np.zeros(3)
             if timing_std > 0.0:
                 alpha = (w[i] - w[i - 1]) / dt[i] if i > 0 else np.zeros(3)
-                u_dot = (f[i] - ba + g * c[2, :] - np.cross(wb, u)
+                u_dot = (f[i] - ba + (g + g_grad * p[2]) * c[2, :] - np.cross(wb, u)
                          + np.cross(alpha, lever))
             for k in range(n_dir):
                 if not usable[k_ping, k]:
@@ -1286,6 +1308,11 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
          else normal_gravity(latitude_deg, height_m) if latitude_deg is not None else None)
     if g is None:
         raise ValueError("gravity: expected it, or latitude_deg for the normal gravity")
+    # On the Earth, g is the gravity at the frame's origin and grows with the depth below
+    # it as the normal gravity's free-air term does (3.1e-6 m/s^2 per m), as auvsim's
+    # IMU reads it; in the flat world it is the same everywhere.
+    g_grad = (normal_gravity(latitude_deg, height_m - 1.0)
+              - normal_gravity(latitude_deg, height_m)) if earth else 0.0
     beam_states = cfg.beam_states if cfg.beam_states is not None else True
     nb = N_BEAM if beam_states else N_CORE
     ins = instrument
@@ -1352,7 +1379,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         floor, ceiling = noise_model.bounds
     (out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used, features, innovations,
      hph, scale, stated_std) = _filter(
-        f[i0:], w[i0:], dt, float(g), omega_ie, ping_row, np.nan_to_num(meas),
+        f[i0:], w[i0:], dt, float(g), float(g_grad), omega_ie, ping_row, np.nan_to_num(meas),
         np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
         rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
         v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), np.zeros((3, 3)), P, q,
