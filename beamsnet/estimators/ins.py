@@ -190,7 +190,7 @@ reference's attitude is as far from the reference as the filter, 4 m).
 
 Speed (``benchmarks/filter.py``, one core): the compiled loop runs at thousands of times
 real time; on a recorded 400 s segment with the 29 states, about 5000x, with the
-gyro matrix's 38 about 3500x (``docs/performance/results/filter.md``). The first call
+gyro matrix's 38 about 3700x (``docs/performance/results/filter.md``). The first call
 compiles the loop (about 30 s) into numba's on-disk cache; later processes load it in
 under a second.
 """

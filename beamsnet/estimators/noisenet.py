@@ -23,9 +23,9 @@ real segments with a reference. At sea a constant Q hardly moves this filter's m
 (``FilterConfig.process_noise_scale``); the best one scale for every segment ends 4.8 %
 below the stated Q's median final, though single segments move by tens of per cent
 either way, and each segment's own best, chosen in hindsight against the reference, 8.7 %
-(its DVL scale: 19.4 %). A choice per segment in hindsight gains much of its figure by
+(its DVL scale: 19.1 %). A choice per segment in hindsight gains much of its figure by
 picking the least of noisy finals: on the held-out simulated missions, where the filter
-is told the DVL noise the simulator drew, it adds 32.5 points to the best one DVL scale
+is told the DVL noise the simulator drew, it adds 33.0 points to the best one DVL scale
 for all (the report's "How much of a choice in hindsight is chance").
 
 **Features** (``FEATURES``; the loop computes them at every ping, after its updates, from
