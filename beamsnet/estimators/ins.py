@@ -190,7 +190,7 @@ their stated rate: the A-KIT file on the IMU's (on the reference's it would have
 Not modelled (they make the filter optimistic where the data have them): the
 accelerometers' scale factors and misalignments and the gyros' g-sensitivity (the
 gyros' scale factors and misalignments are the states above: without them the filter
-took them for accelerometer bias in the turns, up to 24 of its std on a simulated mission,
+took them for accelerometer bias in the turns, up to 28 of its std on a simulated mission,
 where the accelerometers' own leave it within 4: ``benchmarks/filter_consistency.py``),
 the DVL's sound-speed
 ratio (a scale factor shared by the beams: the per-measurement ones hold it), range-dependent
