@@ -725,7 +725,7 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
             DVL point's speed (predicted at the ping), the instrument's law; where 0 the
             variance is ``r_meas`` exactly.
         gate: chi-square threshold. n: states, ``N_CORE`` (15) or ``N_BEAM`` (29), plus
-            ``N_GYRO_MATRIX`` (9) where the gyro matrix's states are on.
+            ``N_SLOW`` (3) and ``N_GYRO_MATRIX`` (9) where those are on, in that order.
         gi: the first of the gyro matrix's states (``n - N_GYRO_MATRIX``), or -1: off.
         si: the first of the DVL's slow velocity error's states (3, Gauss-Markov, in the
             DVL frame: measurement k gains d_k . e), or -1: the measurement biases c_k
@@ -762,7 +762,7 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
     out_p = np.full((n_ping, 3), np.nan)
     out_x = np.full((n_ping, N_OUT), np.nan)  # the instrument states, by _STATES
     out_sd = np.full((n_ping, N_OUT), np.nan)  # sqrt(diag P), by _STATES
-    nb = gi if gi >= 0 else n  # the states before the gyro matrix's: core and beam
+    nb = si if si >= 0 else gi if gi >= 0 else n  # the core and beam states
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
@@ -1100,7 +1100,7 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
             # The origin's position error adds theta x (C r_imu); r_imu is short, and its
             # share is below the position std's first digit: the IMU point's std.
             for j in range(n):  # the slow error's and the gyro matrix's in their columns
-                out_sd[k_ping, j if j < nb else N_BEAM + j - nb if j < nb + N_SLOW and si >= 0
+                out_sd[k_ping, j if j < nb else N_BEAM + j - si if si >= 0 and j < si + N_SLOW
                        else N_BEAM + N_SLOW + j - gi] = math.sqrt(P[j, j])
             for r in range(3):
                 out_x[k_ping, 9 + r] = ba[r]
