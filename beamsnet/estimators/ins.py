@@ -8,7 +8,11 @@ noise), ``run_mission`` (a thin adapter: a simulated, imported-with-IMU or recor
 mission's streams and attributes into ``run_arrays``), ``InsDvlFilter`` (the estimator
 of the tables). Settings: ``FilterConfig`` (``load_config`` reads one from TOML,
 ``beamsnet estimate/evaluate --filter-config``). Output: ``FilterTrack`` at every ping,
-with the position and its std, the attitude, the instrument states, ``accepted`` (a
+with the position and its std, the DVL's velocity in the DVL frame as the filter has it
+(with the beam states, the nominal mounting turned by the estimated misalignment mu:
+a + a x mu, its covariance with mu's; in the nominal frame a misaligned DVL's velocity
+is off by the speed times the misalignment), the attitude, the instrument states,
+``accepted`` (a
 measurement of the ping was used), ``availability`` (their share) and ``events``;
 ``at_pings`` reads any of its fields at the samples of a beamsnet ``Windows``.
 
@@ -319,7 +323,9 @@ class FilterConfig:
             of its axes, deg (with ``beam_states``). None: how well the mounting is known,
             the standard errors of a calibration where there is one (a file that ``auvsim
             check-log --apply`` corrected: the mounting it found and wrote, per axis;
-            ``run_arrays``'s ``mounting_std_deg``), else ``MISALIGNMENT_STD_DEG``. The INS
+            ``run_arrays``'s ``mounting_std_deg``), else a simulated file's drawn spread
+            (its DVL config's ``misalignment_std_deg``, where above 0), else
+            ``MISALIGNMENT_STD_DEG``. The INS
             cannot tell a heading misalignment from its own heading on a straight leg, so
             this is what makes the position's std grow with distance, and what the DVL's
             slow errors in the turns can move the heading by.
@@ -572,7 +578,8 @@ class FilterTrack(NamedTuple):
     measurements). Shapes (P, .); NaN at pings before the filter's start."""
 
     ping_time: np.ndarray  # (P,) s
-    velocity_dvl: np.ndarray  # (P, 3) m/s, DVL frame (nominal mounting)
+    velocity_dvl: np.ndarray  # (P, 3) m/s, DVL frame: the nominal mounting, turned by
+    # the estimated misalignment where the beam states are on
     velocity_std: np.ndarray  # (P, 3) m/s
     velocity_cov: np.ndarray  # (P, 3, 3) (m/s)^2
     position_ned: np.ndarray  # (P, 3) m, body origin
@@ -1095,6 +1102,25 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
                     sub[a_, b_] = P[idx[a_], idx[b_]]
             out_cov[k_ping] = jac @ sub @ jac.T
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
+            if nb > N_CORE:
+                # In the DVL's frame as the filter has it: the nominal one turned by the
+                # misalignment, a - mu x a = a + a x mu, uncertain by [a x] P_mu [a x]^T
+                # more (and its correlations with the states above).
+                a_v = out_v[k_ping].copy()
+                out_v[k_ping] += np.cross(a_v, mis)
+                ax = np.array([[0.0, -a_v[2], a_v[1]], [a_v[2], 0.0, -a_v[0]],
+                               [-a_v[1], a_v[0], 0.0]])
+                cross_cov = np.zeros((3, 3))  # jac P[idx, mu] [a x]^T
+                p_mu = np.empty((3, 3))
+                p_xm = np.empty((9, 3))
+                for a_ in range(3):
+                    for b_ in range(3):
+                        p_mu[a_, b_] = P[23 + a_, 23 + b_]
+                for a_ in range(9):
+                    for b_ in range(3):
+                        p_xm[a_, b_] = P[idx[a_], 23 + b_]
+                cross_cov = jac @ p_xm @ ax.T
+                out_cov[k_ping] += ax @ p_mu @ ax.T + cross_cov + cross_cov.T
             out_p[k_ping] = p - c @ r_imu
             out_c[k_ping] = c
             out_r[k_ping] = r_use
@@ -1659,6 +1685,10 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     # A file that states a slow DVL error needs the bias states to hold it.
     beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
     mounting_std, position_std = applied_dvl_errors(a)
+    drawn = float(_dataset_config(mission).get("dvl", {}).get("misalignment_std_deg", 0.0))
+    if mounting_std is None and not recorded and drawn > 0:
+        # A simulated DVL's mounting is drawn around the nominal with this spread.
+        mounting_std = np.full(3, drawn)
     return run_arrays(
         imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
         mounting_rpy_deg=np.asarray(a.get("dvl_mounting_rpy_deg", np.zeros(3)), float),
