@@ -197,9 +197,10 @@ accelerometers' scale factors and misalignments and the gyros' g-sensitivity (th
 gyros' scale factors and misalignments are the states above: without them the filter
 took them for accelerometer bias in the turns, up to 28 of its std on a simulated mission,
 where the accelerometers' own leave it within 4: ``benchmarks/filter_consistency.py``),
-the DVL's sound-speed
-ratio (a scale factor shared by the beams: the per-measurement ones hold it), range-dependent
-noise and heavy-tailed outliers (the gate handles them). Scored against a
+range-dependent noise and heavy-tailed outliers (the gate handles them). The DVL's
+sound-speed ratio, a scale factor every beam shares, is held by the scale factors s_k
+through a correlated prior (``common_scale_std``, a simulated file's sound-speed
+spread). Scored against a
 reference, the reported covariance covers the filter's error only, not the reference's
 own (a post-processed INS solution: on the A-KIT segment 4 the dead reckoning with the
 reference's attitude is as far from the reference as the filter, 4 m).
@@ -318,6 +319,10 @@ class FilterConfig:
         beam_scale_std: initial std of each scale factor, -: 0.2 %, the long-term
             accuracy of a Teledyne RDI Workhorse Navigator (``auvsim.runs.presets
             .navigator`` cites it).
+        common_scale_std: the std of a scale factor every measurement shares, -, added
+            to the scale factors' prior as a correlated part (``beam_states``); None: the
+            instrument's (a simulated DVL's sound-speed spread: every beam is divided by
+            the sound-speed ratio; 0 for a recorded log, which states none).
         beam_bias_std: initial std of each bias, m/s: 1 mm/s, likewise.
         misalignment_std_deg: initial std of the DVL's mounting misalignment about each
             of its axes, deg (with ``beam_states``). None: how well the mounting is known,
@@ -406,6 +411,7 @@ class FilterConfig:
     gyro_scale_factor_std: float | None = None
     gyro_misalignment_std: float | None = None
     beam_scale_std: float = 0.002
+    common_scale_std: float | None = None
     beam_bias_std: float = 0.001
     misalignment_std_deg: float | None = None
     lever_arm_std: float | None = None
@@ -507,7 +513,7 @@ _POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
 _AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
                           "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
                           "accel_bias_psd", "gyro_bias_psd", "gyro_scale_factor_std",
-                          "gyro_misalignment_std")
+                          "gyro_misalignment_std", "common_scale_std")
 _BOOL_OR_NONE = ("earth_rate", "beam_states", "slow_error_states", "gyro_matrix_states")
 
 
@@ -1267,6 +1273,8 @@ class Instrument(NamedTuple):
     # noise_growth U
     slow_error_std: float = 0.0  # m/s, the DVL's time-correlated velocity error per axis
     slow_error_time: float | None = None  # s, its correlation time (Gauss-Markov)
+    common_scale_std: float = 0.0  # -, a scale factor every measurement shares (a DVL's
+    # sound-speed ratio: its beams are all divided by it)
     gyro_scale_factor_std: float = 0.0  # -, each gyro's scale-factor error
     gyro_misalignment_std: float = 0.0  # rad, each of the gyro triad's six cross-couplings
 
@@ -1425,6 +1433,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if gyro_matrix:  # K_g: scale factors on its diagonal, misalignments off it
         std = np.concatenate([std, np.where(np.eye(3).ravel() > 0, scale_std, cross_std)])
     P = np.diag(std**2)
+    common = ins.common_scale_std if cfg.common_scale_std is None else cfg.common_scale_std
+    if beam_states and common > 0:  # the scale factors' shared part: a correlated prior
+        P[15:19, 15:19] += common**2
     q = np.array([
         (ins.accel_noise_density if cfg.accel_noise_density is None
          else cfg.accel_noise_density) ** 2,
@@ -1647,6 +1658,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         # A simulated file's gyro scale factors and misalignments are drawn (its
         # attributes) from the spreads of its config; a recorded log states none.
         gyro_scale_factor_std=float(imu_cfg.get("gyro_scale_factor_std", 0.0)),
+        common_scale_std=0.0 if recorded else float(
+            _dataset_config(mission).get("dvl", {}).get("sound_speed_std", 0.0)),
         gyro_misalignment_std=float(imu_cfg.get("gyro_misalignment_std", 0.0)))
 
     if cfg.gyro_matrix_states and not any(
