@@ -25,7 +25,7 @@ below the stated Q's median final, though single segments move by tens of per ce
 either way, and each segment's own best, chosen in hindsight against the reference, 8.7 %
 (its DVL scale: 19.1 %). A choice per segment in hindsight gains much of its figure by
 picking the least of noisy finals: on the held-out simulated missions, where the filter
-is told the DVL noise the simulator drew, it adds 23.8 points to the best one DVL scale
+is told the DVL noise the simulator drew, it adds 27.3 points to the best one DVL scale
 for all (the report's "How much of a choice in hindsight is chance").
 
 **Features** (``FEATURES``; the loop computes them at every ping, after its updates, from
