@@ -309,9 +309,9 @@ class FilterConfig:
             the same model).
         gyro_matrix_states: estimate the gyros' scale factors and misalignments, K_g in
             measured w = (I + K_g) w + b_g + noise (9 more states, constant; the module
-            docstring's theta' gains -C dK_g w); None: on where the instrument states
-            either spread (a simulated file's IMU config; ``run_arrays``'s
-            ``instrument``), off otherwise (a recorded log states none).
+            docstring's theta' gains -C dK_g w); None: on where either spread is stated,
+            by the settings below or by the instrument (a simulated file's IMU config;
+            ``run_arrays``'s ``instrument``), off otherwise (a recorded log states none).
         gyro_scale_factor_std: initial std of each scale factor (K_g's diagonal), -; None:
             the instrument's (0 where it states none).
         gyro_misalignment_std: initial std of each of K_g's six off-diagonal elements,
