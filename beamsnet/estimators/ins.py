@@ -242,12 +242,13 @@ N_SLOW = 3  # the DVL's slow velocity error, its frame's axes, where on (beams)
 N_GYRO_MATRIX = 9  # the gyros' scale factors and misalignments, K_g row-major, where on
 N_OUT = N_BEAM + N_SLOW + N_GYRO_MATRIX  # the track's instrument-state columns (NaN: off)
 N_FEATURES = 6  # what the loop records of each ping for a learned noise model (noisenet)
-# The error state's layout (the rows of P), by the FilterTrack field each part fills.
+# The track's columns of the error state, by the FilterTrack field each part fills: the
+# rows of P for the core and beam states; the slow-error and gyro-matrix blocks follow, in
+# P, whichever blocks before them are on (``_filter``'s si and gi).
 _STATES = dict(position=slice(0, 3), velocity=slice(3, 6), attitude=slice(6, 9),
               accel_bias=slice(9, 12), gyro_bias=slice(12, 15), beam_scale=slice(15, 19),
               beam_bias=slice(19, 23), misalignment=slice(23, 26), lever_arm=slice(26, 29),
-              slow_error=slice(29, 32), gyro_matrix=slice(32, 41))  # in P, each of the last
-# two follows the states before it that are on
+              slow_error=slice(29, 32), gyro_matrix=slice(32, 41))
 _INSTRUMENT_STATES = ("accel_bias", "gyro_bias", "beam_scale", "beam_bias", "misalignment",
                      "lever_arm", "slow_error", "gyro_matrix")  # FilterTrack: each, its std
 BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite weight
@@ -1106,27 +1107,46 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
             for a_ in range(9):
                 for b_ in range(9):
                     sub[a_, b_] = P[idx[a_], idx[b_]]
-            out_cov[k_ping] = jac @ sub @ jac.T
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
-            if nb > N_CORE:
-                # In the DVL's frame as the filter has it: the nominal one turned by the
-                # misalignment, a - mu x a = a + a x mu, uncertain by [a x] P_mu [a x]^T
-                # more (and its correlations with the states above).
+            if nb > N_CORE or gi >= 0:
+                # The states the velocity at the DVL also depends on: the lever arm,
+                # M^T [w x] dL, the gyro matrix through the rate, M^T [L x] e_a w_b per
+                # element, and the misalignment: in the DVL's frame as the filter has it,
+                # the nominal one turned by mu, a - mu x a = a + a x mu, so [a x] dmu.
+                extra = (6 if nb > N_CORE else 0) + (N_GYRO_MATRIX if gi >= 0 else 0)
+                idx2 = np.empty(9 + extra, dtype=np.int64)
+                jac2 = np.zeros((3, 9 + extra))
+                idx2[:9] = idx
+                jac2[:, :9] = jac
+                col = 9
                 a_v = out_v[k_ping].copy()
-                out_v[k_ping] += np.cross(a_v, mis)
-                ax = np.array([[0.0, -a_v[2], a_v[1]], [a_v[2], 0.0, -a_v[0]],
-                               [-a_v[1], a_v[0], 0.0]])
-                cross_cov = np.zeros((3, 3))  # jac P[idx, mu] [a x]^T
-                p_mu = np.empty((3, 3))
-                p_xm = np.empty((9, 3))
-                for a_ in range(3):
-                    for b_ in range(3):
-                        p_mu[a_, b_] = P[23 + a_, 23 + b_]
-                for a_ in range(9):
-                    for b_ in range(3):
-                        p_xm[a_, b_] = P[idx[a_], 23 + b_]
-                cross_cov = jac @ p_xm @ ax.T
-                out_cov[k_ping] += ax @ p_mu @ ax.T + cross_cov + cross_cov.T
+                if nb > N_CORE:
+                    wx = np.array([[0.0, -wb[2], wb[1]], [wb[2], 0.0, -wb[0]],
+                                   [-wb[1], wb[0], 0.0]])
+                    jac2[:, col:col + 3] = mt @ wx
+                    jac2[:, col + 3:col + 6] = np.array(
+                        [[0.0, -a_v[2], a_v[1]], [a_v[2], 0.0, -a_v[0]],
+                         [-a_v[1], a_v[0], 0.0]])
+                    for r in range(3):
+                        idx2[col + r] = 26 + r
+                        idx2[col + 3 + r] = 23 + r
+                    col += 6
+                    out_v[k_ping] += np.cross(a_v, mis)
+                if gi >= 0:
+                    w_imu = _gyro_rate(w[i], bg, kg, gi)
+                    ml = mt @ lx
+                    for a_ in range(3):
+                        for b_ in range(3):
+                            jac2[:, col] = ml[:, a_] * w_imu[b_]
+                            idx2[col] = gi + 3 * a_ + b_
+                            col += 1
+                sub2 = np.empty((9 + extra, 9 + extra))
+                for a_ in range(9 + extra):
+                    for b_ in range(9 + extra):
+                        sub2[a_, b_] = P[idx2[a_], idx2[b_]]
+                out_cov[k_ping] = jac2 @ sub2 @ jac2.T
+            else:
+                out_cov[k_ping] = jac @ sub @ jac.T
             out_p[k_ping] = p - c @ r_imu
             out_c[k_ping] = c
             out_r[k_ping] = r_use
