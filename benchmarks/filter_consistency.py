@@ -46,9 +46,9 @@ when its prior lets it (``accel_bias_std = 0.00049`` in a ``--filter-config``), 
 Phins' 10-50 ug. With the gyro states as well (the navigation-full grade's spreads in the
 settings: ``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
 ``gyro_misalignment_std = 1e-4``) it finds 28 to 36 ug, and the x gyro's coupling to the
-z rate at 83 to 101 urad on all six segments (98 to 122 urad with ten times the prior):
-the same signature, from a real gyro cross-coupling of about 0.1 mrad (``sea_filter.py``
-gives the positions).
+z rate at 83 to 101 urad on all six segments: the same signature, from a real gyro
+cross-coupling of about 0.1 mrad (``sea_filter.py --evidence`` with those settings prints
+both).
 
     PYTHONPATH=.:benchmarks .venv/bin/python benchmarks/filter_consistency.py
         [--duration 300]

@@ -166,9 +166,9 @@ std would put a third of its variance into the vertical (5.2 mm/s where it has 9
 deg) and some into the error velocity, which it has none of. On the 20 held-out
 ``realistic-maneuvers`` missions of ``beamsnet reproduce adaptive`` the states took the
 fixed filter's median final from 1.52 to 1.19 m and its RMSE from 0.95 to 0.68 m (better
-on 18 of 20; ``reports/adaptive.md`` before and after), and its median velocity NEES
-from 2.60 to 2.94 (a scratch run on the report's held-out file). None of it comes from a
-synthetic protocol's sigma.
+on 18 of 20; ``reports/adaptive.md`` before and after the commit that added them), and
+its median velocity NEES from 2.60 to 2.94 (a scratch run on the report's held-out
+file). None of it comes from a synthetic protocol's sigma.
 
 Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
 recorded one at its reference's first sample within the IMU's span
@@ -266,6 +266,11 @@ LEVER_ARM_STD = 0.1
 
 class NoImuError(DataError):
     """A mission without an ``imu`` group (an imported DVL stream)."""
+
+
+class SettingsError(ValueError):
+    """Settings that ask for states the instrument gives nothing to hold (``run_mission``
+    names the mission in a ``DataError``)."""
 
 
 @dataclass(frozen=True)
@@ -669,6 +674,12 @@ def _exp(phi):
 
 
 @numba.njit(cache=True)
+def _skew(a):
+    """(3, 3) [a x], with [a x] b = a x b."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+@numba.njit(cache=True)
 def _matmul_into(a, b, out):
     """out <- a b for 3x3 matrices (no BLAS call, no allocation)."""
     for i in range(3):
@@ -702,13 +713,15 @@ def _phi_apply(x, dt, m_va, m_vba, m_abg, m_vv, m_aa, gi, m_kg, g_dt):
 
 
 @numba.njit(cache=True)
-def _gyro_rate(w_i, bg, kg, gi):
-    """(3,) rad/s, a gyro sample corrected: w - b_g, and where the gyro matrix's states are
-    on (``gi`` >= 0) less K_g (w - b_g), the first order of (I + K_g)^-1 (w - b_g)."""
-    out = w_i - bg
+def _gyro_rate_into(w_i, bg, kg, gi, out):
+    """out <- a gyro sample corrected, rad/s: w - b_g, and where the gyro matrix's states
+    are on (``gi`` >= 0) less K_g (w - b_g), the first order of (I + K_g)^-1 (w - b_g)."""
+    for r in range(3):
+        out[r] = w_i[r] - bg[r]
     if gi >= 0:
-        out = out - kg @ out
-    return out
+        a0, a1, a2 = out[0], out[1], out[2]
+        for r in range(3):
+            out[r] -= kg[r, 0] * a0 + kg[r, 1] * a1 + kg[r, 2] * a2
 
 
 @numba.njit(cache=True)
@@ -820,6 +833,7 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
     fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
     rate = np.zeros(3)
     wr = np.zeros(3)  # the corrected gyro sample (w - b_g - K_g (w - b_g))
+    w_imu = np.zeros(3)  # likewise at a ping
     m_kg = np.zeros((3, N_GYRO_MATRIX))  # -dt C [w^T in row a] on theta <- K_g
     c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(f.shape[0]):
@@ -834,12 +848,8 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
                         m_aa[r, j] = 0.5 * m_vv[r, j]
             for r in range(3):
                 fb[r] = f[i - 1, r] - ba[r]
-                wb[r] = w[i, r] - bg[r]
-            if gi >= 0:  # the gyros' scale factors and misalignments: less K_g (w - b_g)
-                for r in range(3):
-                    wr[r] = wb[r]
-                for r in range(3):
-                    wb[r] -= kg[r, 0] * wr[0] + kg[r, 1] * wr[1] + kg[r, 2] * wr[2]
+            _gyro_rate_into(w[i], bg, kg, gi, wb)
+            if gi >= 0:  # the rate the gyro matrix's error acts on, before the Earth's
                 for r in range(3):
                     wr[r] = wb[r]
             for r in range(3):
@@ -911,7 +921,7 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
                 drive = drive * decay * decay + bias_psd * h
         while k_ping < n_ping and ping_row[k_ping] == i:
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
-            w_imu = _gyro_rate(w[i], bg, kg, gi)
+            _gyro_rate_into(w[i], bg, kg, gi, w_imu)
             wb = w_imu - c.T @ omega_ie
             worst = 0.0
             # The instrument's white noise at the DVL point's predicted speed (u: its
@@ -1092,16 +1102,15 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
                     reset[k_ping] = True
                     ring_used[:] = 0
                     ring_rejected[:] = 0
-            wb = _gyro_rate(w[i], bg, kg, gi) - c.T @ omega_ie
+            _gyro_rate_into(w[i], bg, kg, gi, w_imu)  # after the ping's updates
+            wb = w_imu - c.T @ omega_ie
             jac = np.zeros((3, 9))  # d v_dvl / d (dv, theta, db_g)
             mt = mounting.T
             jv = mt @ c.T
             jac[:, 0:3] = jv
-            vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-            jac[:, 3:6] = jv @ vx
-            lx = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]],
-                           [-lever[1], lever[0], 0.0]])
-            jac[:, 6:9] = mt @ lx
+            jac[:, 3:6] = jv @ _skew(v)
+            ml = mt @ _skew(lever)
+            jac[:, 6:9] = ml
             idx = np.array([3, 4, 5, 6, 7, 8, 12, 13, 14])
             sub = np.empty((9, 9))
             for a_ in range(9):
@@ -1121,20 +1130,14 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
                 col = 9
                 a_v = out_v[k_ping].copy()
                 if nb > N_CORE:
-                    wx = np.array([[0.0, -wb[2], wb[1]], [wb[2], 0.0, -wb[0]],
-                                   [-wb[1], wb[0], 0.0]])
-                    jac2[:, col:col + 3] = mt @ wx
-                    jac2[:, col + 3:col + 6] = np.array(
-                        [[0.0, -a_v[2], a_v[1]], [a_v[2], 0.0, -a_v[0]],
-                         [-a_v[1], a_v[0], 0.0]])
+                    jac2[:, col:col + 3] = mt @ _skew(wb)
+                    jac2[:, col + 3:col + 6] = _skew(a_v)
                     for r in range(3):
                         idx2[col + r] = 26 + r
                         idx2[col + 3 + r] = 23 + r
                     col += 6
                     out_v[k_ping] += np.cross(a_v, mis)
                 if gi >= 0:
-                    w_imu = _gyro_rate(w[i], bg, kg, gi)
-                    ml = mt @ lx
                     for a_ in range(3):
                         for b_ in range(3):
                             jac2[:, col] = ml[:, a_] * w_imu[b_]
@@ -1354,7 +1357,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         The track at every ping.
 
     Raises:
-        ValueError: an argument of the wrong shape, order or value, named.
+        ValueError: an argument of the wrong shape, order or value, named
+            (``SettingsError``: settings asking for states the instrument gives nothing to
+            hold).
     """
     t = np.asarray(imu_time, dtype=float)
     f = np.ascontiguousarray(specific_force, dtype=np.float64)
@@ -1427,16 +1432,18 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     stated = scale_std > 0 or cross_std > 0
     gyro_matrix = cfg.gyro_matrix_states if cfg.gyro_matrix_states is not None else stated
     if gyro_matrix and not stated:
-        raise ValueError("gyro_matrix_states: expected gyro_scale_factor_std or "
-                         "gyro_misalignment_std above 0 (the instrument states neither)")
+        raise SettingsError("gyro_matrix_states: expected gyro_scale_factor_std or "
+                            "gyro_misalignment_std above 0 in the settings: its IMU states "
+                            "no gyro scale factor or misalignment")
     # The DVL's slow error as a velocity error of its frame (3 states, as a simulated DVL
     # makes it and a real one's velocity shows it) where the beams are measured; on a
     # velocity the per-axis biases c_k are the same thing.
     slow = (cfg.slow_error_states if cfg.slow_error_states is not None
             else beams is not None and beam_states and ins.slow_error_std > 0)
     if slow and not (beam_states and ins.slow_error_std > 0):
-        raise ValueError("slow_error_states: expected beam_states and an instrument with a "
-                         "slow error (instrument.slow_error_std above 0)")
+        raise SettingsError("slow_error_states needs a DVL slow error and beam_states; "
+                            "expected an instrument with slow_error_std above 0 and "
+                            "beam_states not false")
     si = nb if slow else -1
     n = nb + (N_SLOW if slow else 0) + (N_GYRO_MATRIX if gyro_matrix else 0)
     gi = n - N_GYRO_MATRIX if gyro_matrix else -1
@@ -1594,6 +1601,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
     Raises:
         NoImuError: the mission has no IMU record (an imported stream).
+        DataError: settings asking for states this file's instrument gives nothing to hold
+            (``SettingsError``, with the mission's name).
         DatasetError: a recorded mission without a reference attitude to start from
             (``auvsim.data.reader.require_attitude``'s one line).
     """
@@ -1616,7 +1625,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     else:
         start = _truth_start(mission, r_imu, cfg)
 
-    imu_cfg = _dataset_config(mission).get("imu", {})
+    config_of = _dataset_config(mission)  # a simulated file's config ({} otherwise)
+    imu_cfg, dvl_cfg = config_of.get("imu", {}), config_of.get("dvl", {})
 
     def bias_std(turn_on_key, instability_key):
         # A simulated file stores its turn-on biases as drawn (the truth), their spread
@@ -1646,7 +1656,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     # A simulated instrument's beam noise grows with the speed (its config's
     # ``noise_speed_coeff``; the range term is not modelled here).
     growth = 0.0 if recorded else float(
-        _dataset_config(mission).get("dvl", {}).get("noise_speed_coeff", 0.0))
+        dvl_cfg.get("noise_speed_coeff", 0.0))
     if use_beams:
         measurement_std = np.full(4, math.nan if beam_noise is None
                                   else max(beam_noise, BEAM_NOISE_FLOOR))
@@ -1679,22 +1689,9 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         # attributes) from the spreads of its config; a recorded log states none.
         gyro_scale_factor_std=float(imu_cfg.get("gyro_scale_factor_std", 0.0)),
         common_scale_std=0.0 if recorded else float(
-            _dataset_config(mission).get("dvl", {}).get("sound_speed_std", 0.0)),
+            dvl_cfg.get("sound_speed_std", 0.0)),
         gyro_misalignment_std=float(imu_cfg.get("gyro_misalignment_std", 0.0)))
 
-    if cfg.gyro_matrix_states and not any(
-            x if x is not None else y for x, y in (
-                (cfg.gyro_scale_factor_std, instrument.gyro_scale_factor_std),
-                (cfg.gyro_misalignment_std, instrument.gyro_misalignment_std))):
-        raise DataError(f"mission {mission.name}: its IMU states no gyro scale factor or "
-                        "misalignment; expected gyro_scale_factor_std or "
-                        "gyro_misalignment_std above 0 in the filter's settings "
-                        "(--filter-config) with gyro_matrix_states")
-    if cfg.slow_error_states and not (slow_std > 0 and cfg.beam_states is not False):
-        raise DataError(f"mission {mission.name}: slow_error_states needs a DVL slow error "
-                        "and beam_states; expected the file to state dvl_slow_error_std (or a "
-                        "recorded log) and beam_states not false in the filter's settings "
-                        "(--filter-config)")
     dvl_time = np.asarray(dvl.time, dtype=float)
     if use_beams:
         beams = np.asarray(dvl.beam_velocity, dtype=float)
@@ -1718,21 +1715,25 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     # A file that states a slow DVL error needs the bias states to hold it.
     beam_states = cfg.beam_states if cfg.beam_states is not None else (recorded or slow_std > 0)
     mounting_std, position_std = applied_dvl_errors(a)
-    drawn = float(_dataset_config(mission).get("dvl", {}).get("misalignment_std_deg", 0.0))
+    drawn = float(dvl_cfg.get("misalignment_std_deg", 0.0))
     if mounting_std is None and not recorded and drawn > 0:
         # A simulated DVL's mounting is drawn around the nominal with this spread.
         mounting_std = np.full(3, drawn)
-    return run_arrays(
-        imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
-        mounting_rpy_deg=np.asarray(a.get("dvl_mounting_rpy_deg", np.zeros(3)), float),
-        imu_position_body=r_imu,
-        dvl_position_body=np.asarray(a.get("dvl_position_body", np.zeros(3)), float),
-        start=start, instrument=instrument, latitude_deg=latitude,
-        height_m=float(a.get("height_m", 0.0)), gravity=mission.gravity,
-        config=dataclasses.replace(cfg, beam_states=beam_states),
-        truth_velocity_dvl=truth_v, ping_row=ping_row,
-        timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
-        dvl_position_std=position_std, noise_model=noise_model)
+    try:
+        return run_arrays(
+            imu_time, f, w, dvl_time, **measured, valid=valid, beam_angle_deg=beam_angle,
+            mounting_rpy_deg=np.asarray(a.get("dvl_mounting_rpy_deg", np.zeros(3)), float),
+            imu_position_body=r_imu,
+            dvl_position_body=np.asarray(a.get("dvl_position_body", np.zeros(3)), float),
+            start=start, instrument=instrument, latitude_deg=latitude,
+            height_m=float(a.get("height_m", 0.0)), gravity=mission.gravity,
+            config=dataclasses.replace(cfg, beam_states=beam_states),
+            truth_velocity_dvl=truth_v, ping_row=ping_row,
+            timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
+            dvl_position_std=position_std, noise_model=noise_model)
+    except SettingsError as e:  # the filter's settings against this file's instrument
+        raise DataError(f"mission {mission.name}: {e} (the filter's settings, "
+                        "--filter-config)") from None
 
 
 def _slow_error(a: dict, *, recorded: bool) -> tuple[float, float | None]:

@@ -514,7 +514,7 @@ def _hindsight(grid: dict) -> dict:
     finals = list(grid.values())
     settings = sorted(finals[0])
     out = dict(fixed=float(np.median([f[1.0, 1.0] for f in finals])),
-               missions=len(finals), choices=len(settings),
+               missions=len(finals),
                dvl=sorted({d for d, _ in settings}), imu=sorted({q for _, q in settings}))
     for family, keep in FAMILIES.items():
         chosen = [x for x in settings if keep(*x)]
