@@ -92,6 +92,7 @@ noise and report the miss.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import statistics
 import sys
@@ -102,7 +103,7 @@ import numpy as np
 
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import rotation_matrices
+from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet.data import load_windows, reference_velocity
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
@@ -138,7 +139,7 @@ def score(mission, config: ins.FilterConfig | None = None) -> dict:
     return dict(final=mine["final_m"], rmse=mine["rmse_m"], coverage=mine["coverage_3sigma"],
                 sigma_final=float(track.horizontal_std[-1]), restarts=len(track.events),
                 availability=track.availability, dr_final=dr["final_m"], dr_rmse=dr["rmse_m"],
-                pings=len(windows.time), track=track)
+                pings=len(windows.time), track=track, config=estimator.config)
 
 
 def table(rows: dict[str, dict]) -> list[str]:
@@ -256,6 +257,36 @@ def reference_drift(mission) -> tuple[np.ndarray, np.ndarray]:
     return np.linalg.norm(p - p[0] - moved, axis=1), t - t[0]
 
 
+def earth_and_body(mission, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
+    """The DVL's horizontal velocity less the reference's (as ``dvl_error``), in NED at the
+    pings (turned by ``rotation`` (P, 3, 3) body -> NED and the DVL's mounting), fitted
+    by least squares as a constant in NED ``a`` (N, E) plus a constant in the DVL frame
+    ``b`` (x, y; its z barely reaches the horizontal): an error of the instrument turns with the vehicle, a difference in
+    the reference's Earth-fixed velocity (a current it took for motion, a fix spread over
+    its velocities) does not. Returns a, b (m/s) and the rms left (m/s) by no fit, a
+    alone, b alone and both."""
+    t = np.asarray(mission.dvl.time, dtype=float)
+    e = np.asarray(mission.dvl.velocity_ls, dtype=float) - reference_velocity(mission, t)
+    mounting = rotation_rpy(*np.radians(mission.attrs.get("dvl_mounting_rpy_deg",
+                                                          np.zeros(3))))
+    turn = (rotation @ mounting)[:, :2, :]  # (P, 2, 3) DVL frame -> N, E
+    ok = np.isfinite(e).all(axis=1) & np.isfinite(turn).all(axis=(1, 2))
+    turn, e_ned = turn[ok], np.einsum("pij,pj->pi", turn[ok], e[ok])
+    design = np.concatenate([np.broadcast_to(np.eye(2), (len(turn), 2, 2)), turn[:, :, :2]],
+                            axis=2)
+    y = e_ned.ravel()
+
+    def left(columns) -> float:
+        a = design[:, :, columns].reshape(-1, len(columns))
+        x = np.linalg.lstsq(a, y, rcond=None)[0]
+        return float(np.sqrt(np.mean((y - a @ x) ** 2))), x
+
+    x = left([0, 1, 2, 3])[1]
+    rms = [float(np.sqrt(np.mean(y**2)))] + [left(c)[0] for c in ([0, 1], [2, 3],
+                                                                  [0, 1, 2, 3])]
+    return x[:2], x[2:], rms
+
+
 def evidence(ds, rows: dict[str, dict]) -> list[str]:
     """The figures the module docstring quotes about what the filter cannot fix, per
     segment of the corrected file ``ds`` (``rows``: its scores, with the filter's track)."""
@@ -276,6 +307,24 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
         early = 3 * track.horizontal_std[np.searchsorted(track.ping_time, started + EARLY)]
         out.append(f"{name:<13}{axes}  |  {np.std(heading):10.3f} {np.abs(heading).max():8.3f}"
                    f"  |  {drift[since <= EARLY].max():9.2f} {drift.max():8.2f} {early:10.2f}")
+    out += ["The DVL's horizontal velocity less the reference's in NED, fitted as a "
+            "constant in NED (N, E) plus a constant in the DVL frame (x, y) (mm/s), and "
+            "the rms left by no fit, the NED one alone, the DVL-frame one alone and both "
+            "(mm/s); the filter's heading less the gyros' alone from the same start (its "
+            "run without DVL updates): max |.| (deg)",
+            "segment        NED N     E  |  DVL x     y  |  rms: none   NED   DVL  "
+            "both  |  heading - gyros"]
+    for name, m in sorted(ds.missions.items()):
+        track = rows[name]["track"]
+        a, b, rms = earth_and_body(m, track.rotation)
+        alone = ins.run_mission(m, dataclasses.replace(rows[name]["config"],
+                                                       dvl_updates=False))
+        turned = np.degrees(np.abs(np.angle(np.exp(1j * (
+            yaw_of(track.rotation) - yaw_of(alone.rotation))))))
+        out.append(f"{name:<13} {1e3 * a[0]:6.1f} {1e3 * a[1]:5.1f}  | "
+                   f"{1e3 * b[0]:6.1f} {1e3 * b[1]:5.1f}  |  "
+                   f"{1e3 * rms[0]:9.1f} {1e3 * rms[1]:5.1f} {1e3 * rms[2]:5.1f} "
+                   f"{1e3 * rms[3]:5.1f}  |  {np.nanmax(turned):15.3f}")
     out += ["The filter's DVL innovations (every measurement offered): their rms, the rms the "
             "filter predicts, sqrt(mean S), with S = h P h^T + r^2 (mm/s), and the mean "
             "normalised innovation squared, nu^2 / S (1 for a filter whose noise is right); "
@@ -293,6 +342,11 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
         out.append(f"{name:<13}{1e3 * rms:5.1f}  {1e3 * predicted:9.1f}  {1e3 * white:9.1f}  "
                    f"{nis:8.3f}  {1e3 * ahead:15.1f}  {bias}    {coupling}")
     return out
+
+
+def yaw_of(rotation: np.ndarray) -> np.ndarray:
+    """(P,) rad, the heading of body -> NED rotations (P, 3, 3)."""
+    return np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])
 
 
 def innovations(track: ins.FilterTrack) -> tuple[float, float, float, float]:

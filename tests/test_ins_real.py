@@ -494,6 +494,20 @@ def test_a_start_from_a_reference_is_as_uncertain_as_its_clock_lets_it_be():
     assert start.position_std[1] == pytest.approx(0.1)
 
 
+def test_a_corrected_files_clocks_are_as_uncertain_as_check_log_found_them():
+    """The clock uncertainty of a file ``check-log --apply`` wrote: its IMU clock's
+    standard error and half an IMU sample for the start, that and the DVL clock's for a
+    ping; ``CLOCK_STD`` where it found none; a setting wins over both."""
+    found = [{"name": "imu clock", "value": {"offset_s": 0.4, "offset_se_s": 0.012}},
+             {"name": "dvl clock", "value": {"offset_s": 1.4, "offset_se_s": 0.02}}]
+    attrs = {"imu_rate_hz": 100.0, "check_log_json": json.dumps({"findings": found})}
+    start, ping = ins.clock_stds(attrs, ins.FilterConfig())
+    assert start == pytest.approx(math.hypot(0.012, 0.005))
+    assert ping == pytest.approx(math.sqrt(0.012**2 + 0.005**2 + 0.02**2))
+    assert ins.clock_stds({}, ins.FilterConfig()) == (ins.CLOCK_STD, ins.CLOCK_STD)
+    assert ins.clock_stds(attrs, ins.FilterConfig(clock_std=0.03)) == (0.03, 0.03)
+
+
 @needs_akit
 def test_run_mission_on_the_imported_and_the_corrected_segment(akit_files):
     """Segment 5 as ``auvsim import --format akit`` wrote it (the IMU's y axis mirrored,

@@ -1016,6 +1016,25 @@ def applied_dvl_errors(attrs) -> tuple[np.ndarray | None, np.ndarray | None]:
     return se("dvl mounting", "se_deg"), se("dvl lever arm", "se_m")
 
 
+def applied_clock_errors(attrs) -> tuple[float | None, float | None]:
+    """How well a corrected mission's clocks are put on the reference's: the standard
+    errors (s) of the IMU's and the DVL's clock offsets ``corrected`` applied, read from
+    its ``check_log_json`` (each offset against the reference's clock); None for each one
+    it did not find (too few windows, or no report)."""
+    if "check_log_json" not in attrs:
+        return None, None
+    found = {f["name"]: f for f in json.loads(attrs["check_log_json"])["findings"]}
+
+    def se(name: str) -> float | None:
+        value = found.get(name, {}).get("value")
+        if not isinstance(value, dict) or value.get("offset_se_s") is None:
+            return None
+        x = float(value["offset_se_s"])
+        return x if math.isfinite(x) else None
+
+    return se("imu clock"), se("dvl clock")
+
+
 def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,
           compression: str = "lzf") -> None:
     """Write ``out``: the dataset ``path`` with each reported mission corrected

@@ -89,7 +89,7 @@ each (Groves sec. 3.2.5, sequential processing of uncorrelated measurements), so
 four beams all help. n_k is white with the instrument's std (a simulated instrument's grows
 with the speed, as its beams' noise does: ``noise_speed_coeff`` times the DVL point's
 predicted speed at the ping, per beam or through the Janus geometry per axis), plus what
-the ping's timing uncertainty (``clock_std`` on a recorded log, 0 for simulated clocks)
+the ping's timing uncertainty (``clock_stds`` on a recorded log, 0 for simulated clocks)
 makes of the rate at which y_k changes. Each innovation is gated by chi-square with 1 dof at
 ``gate_probability``. A beam is used where it has bottom lock (``dvl/valid``) on a ping
 not in water track (``dvl/mode`` != 1).
@@ -173,8 +173,8 @@ file). None of it comes from a synthetic protocol's sigma.
 Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
 recorded one at its reference's first sample within the IMU's span
 (``start_from_reference``: the reference's accuracy, widened by what the vehicle turns,
-accelerates and moves in ``clock_std``); without either, ``coarse_alignment`` (levelling
-from the averaged accelerometers, a given heading).
+accelerates and moves in the clock's uncertainty, ``clock_stds``); without either,
+``coarse_alignment`` (levelling from the averaged accelerometers, a given heading).
 
 A recorded file from ``auvsim check-log --apply`` is read as it is: the IMU's dt from its
 times (``imu_rate_hz`` only sets the rounding's density), ``imu_position_body``,
@@ -226,7 +226,7 @@ import numpy as np
 
 from auvsim.checks import is_finite
 from auvsim.data.beams import beam_matrix
-from auvsim.data.checklog import applied_dvl_errors
+from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
@@ -257,6 +257,9 @@ BEAM_NOISE_FLOOR = 1e-4  # m/s: a noise-free file's beams still get a finite wei
 # 0.9 % of the distance; Kinsey, Eustice & Whitcomb 2006, "A survey of underwater vehicle
 # navigation", IFAC MCMC, sec. 3.2, on why it matters).
 MISALIGNMENT_STD_DEG = 0.5
+# How well a recorded log's clocks are put on one another where nothing measured it, s:
+# the tolerance ``auvsim check-log``'s targets ask of its clock offsets.
+CLOCK_STD = 0.05
 # Likewise its lever arm from the IMU, m per axis: the accuracy ``auvsim check-log`` is to
 # find lever arms to. A vehicle rolling at 30 deg/s moves a DVL 1.8 m below its IMU at
 # 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's noise: the states
@@ -372,9 +375,12 @@ class FilterConfig:
             2 sigma^2 / tau of the mission's Gauss-Markov bias (its drive, to first order
             in t / tau).
         gyro_bias_psd: gyro bias random-walk PSD, (rad/s)^2/s; None: likewise.
-        clock_std: s, how well the streams' clocks are aligned with the reference's (the
-            tolerance ``auvsim check-log`` states for its offsets): a start from a
-            reference is uncertain by what the vehicle moves and turns in that time.
+        clock_std: s, how well the streams' clocks are aligned with the reference's: a
+            start from a reference is uncertain by what the vehicle moves and turns in
+            that time, a ping by what its velocity changes in it. None: a corrected
+            file's own figures (the standard errors of the clock offsets ``auvsim
+            check-log --apply`` applied: the IMU's against the reference's for the start,
+            the IMU's and the DVL's together for the pings), else ``CLOCK_STD``.
         watch_pings: the divergence watch's window, pings (0: no watch).
         watch_share: the share of the window's measurements the gate must have rejected
             (with one rejected at the current ping) for the watch to restart the velocity
@@ -432,7 +438,7 @@ class FilterConfig:
     gyro_noise_density: float | None = None
     accel_bias_psd: float | None = None
     gyro_bias_psd: float | None = None
-    clock_std: float = 0.05
+    clock_std: float | None = None
     watch_pings: int = 10
     watch_share: float = 0.25
     adaptive: str = "none"
@@ -478,7 +484,8 @@ class FilterConfig:
                                                   and abs(self.latitude_deg) <= 90):
             raise ValueError("FilterConfig.latitude_deg: expected deg in [-90, 90], got "
                              f"{self.latitude_deg!r}")
-        if not (is_finite(self.clock_std) and self.clock_std >= 0):
+        if self.clock_std is not None and not (is_finite(self.clock_std)
+                                               and self.clock_std >= 0):
             raise ValueError(f"FilterConfig.clock_std: expected s >= 0, got {self.clock_std!r}")
         if not (_whole(self.watch_pings) and self.watch_pings >= 0):
             raise ValueError("FilterConfig.watch_pings: expected a whole number of pings "
@@ -1226,24 +1233,28 @@ def quantisation_density(samples: np.ndarray, rate_hz: float) -> float:
 
 def start_from_reference(time: float, position_ned, velocity_ned, rotation, *,
                          angular_rate, acceleration=None,
-                         config: FilterConfig = FilterConfig()) -> Start:
+                         config: FilterConfig = FilterConfig(),
+                         clock_std: float | None = None) -> Start:
     """A start at a reference's sample (its ``time`` on the IMU's clock; the body origin's
     position (3,) m, NED velocity (3,) m/s and body -> NED rotation (3, 3)), uncertain by
     the reference's own accuracy (``config``'s position, velocity and attitude stds) and
-    by what a clock error of ``config.clock_std`` makes of it: the rotation over that
-    time, |w| clock_std for the body rate ``angular_rate`` (3,) rad/s there (a vehicle
-    that starts rolling at 33 deg/s is 1.7 deg off in roll for 0.05 s), the velocity
-    change |a| clock_std, the distance |v| clock_std."""
+    by what a clock error of ``clock_std`` s makes of it (None: ``config.clock_std``, else
+    ``CLOCK_STD``): the rotation over that time, |w| clock_std for the body rate
+    ``angular_rate`` (3,) rad/s there (a vehicle that starts rolling at 33 deg/s is 1.7
+    deg off in roll for 0.05 s), the velocity change |a| clock_std, the distance |v|
+    clock_std."""
+    if clock_std is None:
+        clock_std = CLOCK_STD if config.clock_std is None else config.clock_std
     level, heading = np.radians(config.attitude_std_deg)
     rotation = np.asarray(rotation, dtype=float)
-    turned = np.abs(rotation @ np.asarray(angular_rate, dtype=float)) * config.clock_std
+    turned = np.abs(rotation @ np.asarray(angular_rate, dtype=float)) * clock_std
     accel = np.zeros(3) if acceleration is None else np.asarray(acceleration, dtype=float)
     velocity_ned = np.asarray(velocity_ned, dtype=float)
     return Start(
         time=float(time), position_ned=np.asarray(position_ned, dtype=float),
         velocity_ned=velocity_ned, rotation=rotation,
-        position_std=np.hypot(config.position_std, np.abs(velocity_ned) * config.clock_std),
-        velocity_std=np.hypot(config.velocity_std, np.abs(accel) * config.clock_std),
+        position_std=np.hypot(config.position_std, np.abs(velocity_ned) * clock_std),
+        velocity_std=np.hypot(config.velocity_std, np.abs(accel) * clock_std),
         attitude_std=np.hypot(np.array([level, level, heading]), turned))
 
 
@@ -1348,7 +1359,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         ping_row: (P,) the IMU sample of each ping, where a file states it (simulated
             missions' ``imu/index_of_dvl``); default from the times.
         timing_std: s, how uncertain each ping's time is on the IMU's clock; None:
-            ``config.clock_std`` (0 for a simulated mission, whose clocks are exact).
+            ``config.clock_std``, else ``CLOCK_STD`` (``run_mission``: a corrected
+            file's own figure; 0 for a simulated mission, whose clocks are exact).
         noise_model: with ``config.adaptive = "learned"``, the learned noise model
             (``beamsnet.estimators.noisenet.NoiseModel``); None: read from
             ``config.noise_model``.
@@ -1515,7 +1527,8 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         chi2_1dof(cfg.gate_probability), n, si, gi, decay,
         2.0 * bias_std**2 * decay,
         cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
-        cfg.clock_std if timing_std is None else float(timing_std),
+        (CLOCK_STD if cfg.clock_std is None else cfg.clock_std) if timing_std is None
+        else float(timing_std),
         cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
         float(floor**2), float(ceiling**2),
         _gated_variance_share(cfg.gate_probability), *net)
@@ -1621,7 +1634,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     latitude = None if a.get("latitude_deg") is None else float(a["latitude_deg"])
 
     if recorded:
-        start = _reference_start(mission, imu_time, w, cfg)
+        start_clock, timing_std = clock_stds(a, cfg)
+        start = _reference_start(mission, imu_time, w, cfg, start_clock)
     else:
         start = _truth_start(mission, r_imu, cfg)
 
@@ -1729,7 +1743,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
             height_m=float(a.get("height_m", 0.0)), gravity=mission.gravity,
             config=dataclasses.replace(cfg, beam_states=beam_states),
             truth_velocity_dvl=truth_v, ping_row=ping_row,
-            timing_std=None if recorded else 0.0, mounting_std_deg=mounting_std,
+            timing_std=timing_std if recorded else 0.0, mounting_std_deg=mounting_std,
             dvl_position_std=position_std, noise_model=noise_model)
     except SettingsError as e:  # the filter's settings against this file's instrument
         raise DataError(f"mission {mission.name}: {e} (the filter's settings, "
@@ -1775,9 +1789,25 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
                  angular_rate=np.asarray(truth.angular_rate[0], dtype=float))
 
 
+def clock_stds(attrs, cfg: FilterConfig) -> tuple[float, float]:
+    """How uncertain a recorded file's clocks are, s: (the IMU's against the reference's,
+    for a start from it; a ping's on the IMU's clock). ``cfg.clock_std`` for both where
+    set; else the standard errors of the offsets ``auvsim check-log --apply`` applied
+    (``applied_clock_errors``; a ping's from both, each found against the reference),
+    with half an IMU sample besides (a log does not say which instant of a sample's
+    interval its stamp marks), and ``CLOCK_STD`` for what it did not find."""
+    if cfg.clock_std is not None:
+        return cfg.clock_std, cfg.clock_std
+    imu, dvl = applied_clock_errors(attrs)
+    rate = float(attrs.get("imu_rate_hz", math.inf))
+    imu = CLOCK_STD if imu is None else math.hypot(imu, 0.5 / rate)
+    return imu, CLOCK_STD if dvl is None else math.hypot(imu, dvl)
+
+
 def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
-                     cfg: FilterConfig) -> Start:
-    """A recorded mission's start: its reference's first sample within the IMU's span."""
+                     cfg: FilterConfig, clock_std: float) -> Start:
+    """A recorded mission's start: its reference's first sample within the IMU's span,
+    uncertain by what the vehicle does in ``clock_std`` s besides."""
     quaternion = require_attitude(mission)
     ref = mission.reference
     t = np.asarray(ref.time, dtype=float)
@@ -1790,7 +1820,8 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
     accel = (v[min(k + 1, len(t) - 1)] - v[max(k - 1, 0)]) / max(
         t[min(k + 1, len(t) - 1)] - t[max(k - 1, 0)], 1e-9)
     return start_from_reference(imu_time[i], np.asarray(ref.position_ned[k], dtype=float),
-                                v[k], c, angular_rate=w[i], acceleration=accel, config=cfg)
+                                v[k], c, angular_rate=w[i], acceleration=accel, config=cfg,
+                                clock_std=clock_std)
 
 
 def _parity(dirs: np.ndarray) -> np.ndarray:
