@@ -39,27 +39,45 @@ The DVL's mounting and lever arm that check-log wrote are known to its standard 
 (Newey-West, over the 10-17 pings its residuals stay correlated: yaw 0.03-0.08 deg), and
 the filter's misalignment and lever-arm states start there. With an uncalibrated DVL's
 priors instead (0.5 deg and 0.1 m: ``misalignment_std_deg`` and ``lever_arm_std`` in a
-``--filter-config``) the median final error is 2.31 m, against 2.21 m.
+``--filter-config``) the median final error is 2.31 m, against 2.16 m.
 
-What is missed (measured on the IMU-clock files): the median final is 1.24 x the dead
-reckoning's (2.21 against 1.78 m), and the coverage is 85.0 % over all the pings, with
-segment 4 at 10 %. Segment 4's error is not the filter's alone: the dead reckoning with
+The clocks are known as well as check-log measured them (``ins.clock_stds``: the
+standard errors of its offsets, 5 to 20 ms, with half an IMU sample). With a fixed 0.05 s
+instead, a segment that starts in a turn (segment 6: 6.3 deg/s) started with 0.32 deg of
+heading uncertainty, and the DVL's updates then moved the heading up to 0.5 deg from the
+gyros' own (``--evidence``: now at most 0.09 deg), which follow the reference's to 0.03
+deg; the median final was 2.21 m (1.24 x) and the coverage 85.0 %, a share of it bought
+with that wider heading.
+
+What is missed (measured on the IMU-clock files): the median final is 1.21 x the dead
+reckoning's (2.16 against 1.78 m), and the coverage is 83.1 % over all the pings, with
+segment 4 at 4 %. Segment 4's error is not the filter's alone: the dead reckoning with
 the reference's attitude is further from the reference (4.15 m final, 3.31 m RMSE) than
-the filter (3.59, 3.03), and the reference's positions move 1.34 m from the integral of
+the filter (3.95, 3.14), and the reference's positions move 1.34 m from the integral of
 its own velocities within the first 50 s (1.83 m over segment 4, up to 5.50 m on segment
 5: a post-processed INS whose positions were corrected by something other than its
-velocities), while the filter's 3 sigma there is 1.16 m at 50 s. The filter's heading is
-not the cause either: the gyros integrated alone from the start agree with the
-reference's heading at its own samples to 0.03 deg (std over the segment: 0.012 to 0.029
-deg; at most 0.14 deg). The DVL's velocity against the reference's, per DVL axis, has a
-mean of -7.7 to +6.6 mm/s along x (under 1 mm/s across and down) and a slow part of 3-12
-mm/s along x and y whose autocorrelation decays over tens of pings (a fit of r(k) = A
-exp(-k / tau) over k = 1..10 pings gives tau 13 to 78 s along x, 25 to 106 s across).
+velocities), while the filter's 3 sigma there is 0.82 m at 50 s. Much of what the DVL's
+velocity differs from the reference's by does not turn with the vehicle: fitted as a
+constant in NED plus a constant in the DVL frame (``--evidence``), the NED part is 3 to
+16 mm/s (8 to 16 on four segments; segment 5: 7.9 N, 13.5 E, and it alone takes the rms
+from 13.0 to 7.3 mm/s, the DVL-frame part not at all; segment 4: 10.1 mm/s south over the
+segment, 14 to 25 mm/s south in every 20 s between 40 and 200 s while the vehicle heads
+south, west and east). An error of the DVL's (scale, bias, mounting, lever arm, clock)
+turns with the vehicle; an Earth-fixed difference is a current one of the two took for
+motion (a DVL in water track) or the reference's own (a position fix spread over its
+velocities), and over 400 s it is 1 to 6 m that no model of the IMU and the DVL can
+follow. The filter's heading is not the cause either: the gyros integrated alone from the
+start agree with the reference's heading at its own samples to 0.03 deg (std over the
+segment: 0.012 to 0.029 deg; at most 0.14 deg). The DVL's velocity against the
+reference's, per DVL axis, has a mean of -7.7 to +6.6 mm/s along x (under 1 mm/s across
+and down) and a slow part of 3-12 mm/s along x and y whose autocorrelation decays over
+tens of pings (a fit of r(k) = A exp(-k / tau) over k = 1..10 pings gives tau 13 to 78 s
+along x, 25 to 106 s across).
 
 The filter's DVL noise is the real Navigator's as ``benchmarks/dvl_error.py`` measures
 it: white noise from the log's error-velocity figure and a slow error of 9 mm/s over 19 s
-(``auvsim.runs.presets.navigator``), which the IMU confirms: its DVL innovations are 4.1
-to 5.8 mm/s rms where it predicts 5.7 to 7.1 (mean NIS 0.53 to 1.03 per segment;
+(``auvsim.runs.presets.navigator``), which the IMU confirms: its DVL innovations are 4.0
+to 5.8 mm/s rms where it predicts 5.1 to 5.4 (mean NIS 0.58 to 1.21 per segment;
 ``--evidence`` prints them). Before that measurement the filter took 19.5 mm/s over 3 s
 (the rest of the stated 0.02 m/s after the white noise, over a correlation time the
 reference's own fast noise had shortened): innovations of 5.3 to 6.9 mm/s against 14.9 to
@@ -69,8 +87,8 @@ hold slower errors, and they take up what differs slowly between the IMU and the
 forward velocity averages 6 to 10 mm/s above the DVL's on every segment (``--evidence``;
 the DVL's own mean is within 8 mm/s of the reference's). The filter reads that offset as
 a forward accelerometer bias the 10 ug prior holds back: with the Phins figure's 50 ug
-(``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.5 to +3.2 mm/s,
-yet the median final grows to 2.29 m (1.29 x) and the coverage is 84.6 %, so it is not
+(``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.9 to +3.2 mm/s,
+yet the median final grows to 2.30 m (1.29 x) and the coverage is 81.2 %, so it is not
 why the filter ends further from this reference, itself aided by this DVL, than the DVL's
 dead reckoning. Where the truth is known, a filter without the gyro matrix's states
 takes the gyros' misalignment in the turns for accelerometer biases of this size
@@ -78,11 +96,11 @@ takes the gyros' misalignment in the turns for accelerometer biases of this size
 here by default; turned on with the navigation-full grade's spreads
 (``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
 ``gyro_misalignment_std = 1e-4``) and the 50 ug prior, the forward accelerometer bias
-falls to 28 to 36 ug, inside the Phins' figure, and the x gyro's coupling to the z rate
-comes out at 83 to 101 urad on all six segments (``--evidence`` with those settings):
+falls to 31 to 37 ug, inside the Phins' figure, and the x gyro's coupling to the z rate
+comes out at 84 to 104 urad on all six segments (``--evidence`` with those settings):
 the bias the filter read is the real gyros' cross-coupling. It does not bring the
 filter nearer the reference: with the default accelerometer prior and the gyro states
-the median final is 2.32 m (1.31 x) and the coverage 84.7 %. We keep the measured
+the median final is 2.29 m (1.29 x) and the coverage 81.0 %. We keep the measured
 noise and report the miss.
 
     .venv/bin/python benchmarks/sea_filter.py [--data ../shared/data/snapir-akit]
@@ -261,10 +279,10 @@ def earth_and_body(mission, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """The DVL's horizontal velocity less the reference's (as ``dvl_error``), in NED at the
     pings (turned by ``rotation`` (P, 3, 3) body -> NED and the DVL's mounting), fitted
     by least squares as a constant in NED ``a`` (N, E) plus a constant in the DVL frame
-    ``b`` (x, y; its z barely reaches the horizontal): an error of the instrument turns with the vehicle, a difference in
-    the reference's Earth-fixed velocity (a current it took for motion, a fix spread over
-    its velocities) does not. Returns a, b (m/s) and the rms left (m/s) by no fit, a
-    alone, b alone and both."""
+    ``b`` (x, y; its z barely reaches the horizontal): an error of the instrument turns
+    with the vehicle, an Earth-fixed difference (a current one of the two took for
+    motion, a fix spread over the reference's velocities) does not. Returns a, b (m/s)
+    and the rms left (m/s) by no fit, a alone, b alone and both."""
     t = np.asarray(mission.dvl.time, dtype=float)
     e = np.asarray(mission.dvl.velocity_ls, dtype=float) - reference_velocity(mission, t)
     mounting = rotation_rpy(*np.radians(mission.attrs.get("dvl_mounting_rpy_deg",
