@@ -184,3 +184,39 @@ def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.
             np.linalg.norm(position[:, :2] - reference[:, :2], axis=1),
             np.hypot(position_std[:, 0], position_std[:, 1]))
     return out
+
+
+def earth_fixed_fit(difference: np.ndarray, turn: np.ndarray) -> dict[str, float]:
+    """Whether a velocity difference turns with the vehicle: ``difference`` (S, 3) m/s in
+    the DVL frame (a DVL's velocity less a reference's), put in NED by ``turn`` (S, 3, 3)
+    DVL -> NED, and its horizontal part fitted by least squares as a constant in NED
+    (``north``, ``east``) plus a constant in the DVL frame (``x``, ``y``; its z barely
+    reaches the horizontal). An error of the instrument (scale, bias, mounting, lever
+    arm, clock) turns with the vehicle; an Earth-fixed difference (a current one of the
+    two took for motion, a fix spread over a reference's velocities) does not. Where the
+    headings vary the two are told apart; on a straight line they are not (both fits
+    then leave the same).
+
+    Returns:
+        ``north``, ``east``, ``x``, ``y`` (m/s) of the joint fit, and the rms (m/s) of the
+        horizontal difference left by no fit (``rms``), by the NED constant alone
+        (``rms_ned``), by the DVL-frame one alone (``rms_dvl``) and by both
+        (``rms_both``). NaN without two finite samples.
+    """
+    difference, turn = np.asarray(difference, float), np.asarray(turn, float)
+    ok = np.isfinite(difference).all(axis=1) & np.isfinite(turn).all(axis=(1, 2))
+    keys = ("north", "east", "x", "y", "rms", "rms_ned", "rms_dvl", "rms_both")
+    if ok.sum() < 2:
+        return dict.fromkeys(keys, float("nan"))
+    horizontal = turn[ok, :2, :]  # (S, 2, 3)
+    y = np.einsum("sij,sj->si", horizontal, difference[ok]).ravel()
+    design = np.concatenate([np.broadcast_to(np.eye(2), (len(horizontal), 2, 2)),
+                             horizontal[:, :, :2]], axis=2).reshape(-1, 4)
+
+    def fit(columns: list[int]) -> tuple[np.ndarray, float]:
+        x = np.linalg.lstsq(design[:, columns], y, rcond=None)[0]
+        return x, float(np.sqrt(np.mean((y - design[:, columns] @ x) ** 2)))
+
+    both, left = fit([0, 1, 2, 3])
+    return dict(zip(keys, (*map(float, both), float(np.sqrt(np.mean(y**2))),
+                           fit([0, 1])[1], fit([2, 3])[1], left), strict=True))

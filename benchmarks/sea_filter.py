@@ -126,7 +126,7 @@ from beamsnet.data import load_windows, reference_velocity
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
 from beamsnet.experiments.sea import sea_dataset
-from beamsnet.navigation import truth_at_pings
+from beamsnet.navigation import earth_fixed_fit, truth_at_pings
 
 ROOT = Path(__file__).resolve().parents[1]
 # The shared real segments: ``shared/data/snapir-akit`` beside the repository (or beside a
@@ -275,36 +275,6 @@ def reference_drift(mission) -> tuple[np.ndarray, np.ndarray]:
     return np.linalg.norm(p - p[0] - moved, axis=1), t - t[0]
 
 
-def earth_and_body(mission, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
-    """The DVL's horizontal velocity less the reference's (as ``dvl_error``), in NED at the
-    pings (turned by ``rotation`` (P, 3, 3) body -> NED and the DVL's mounting), fitted
-    by least squares as a constant in NED ``a`` (N, E) plus a constant in the DVL frame
-    ``b`` (x, y; its z barely reaches the horizontal): an error of the instrument turns
-    with the vehicle, an Earth-fixed difference (a current one of the two took for
-    motion, a fix spread over the reference's velocities) does not. Returns a, b (m/s)
-    and the rms left (m/s) by no fit, a alone, b alone and both."""
-    t = np.asarray(mission.dvl.time, dtype=float)
-    e = np.asarray(mission.dvl.velocity_ls, dtype=float) - reference_velocity(mission, t)
-    mounting = rotation_rpy(*np.radians(mission.attrs.get("dvl_mounting_rpy_deg",
-                                                          np.zeros(3))))
-    turn = (rotation @ mounting)[:, :2, :]  # (P, 2, 3) DVL frame -> N, E
-    ok = np.isfinite(e).all(axis=1) & np.isfinite(turn).all(axis=(1, 2))
-    turn, e_ned = turn[ok], np.einsum("pij,pj->pi", turn[ok], e[ok])
-    design = np.concatenate([np.broadcast_to(np.eye(2), (len(turn), 2, 2)), turn[:, :, :2]],
-                            axis=2)
-    y = e_ned.ravel()
-
-    def left(columns) -> float:
-        a = design[:, :, columns].reshape(-1, len(columns))
-        x = np.linalg.lstsq(a, y, rcond=None)[0]
-        return float(np.sqrt(np.mean((y - a @ x) ** 2))), x
-
-    x = left([0, 1, 2, 3])[1]
-    rms = [float(np.sqrt(np.mean(y**2)))] + [left(c)[0] for c in ([0, 1], [2, 3],
-                                                                  [0, 1, 2, 3])]
-    return x[:2], x[2:], rms
-
-
 def evidence(ds, rows: dict[str, dict]) -> list[str]:
     """The figures the module docstring quotes about what the filter cannot fix, per
     segment of the corrected file ``ds`` (``rows``: its scores, with the filter's track)."""
@@ -334,15 +304,19 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
             "both  |  heading - gyros"]
     for name, m in sorted(ds.missions.items()):
         track = rows[name]["track"]
-        a, b, rms = earth_and_body(m, track.rotation)
+        t = np.asarray(m.dvl.time, dtype=float)
+        mounting = rotation_rpy(*np.radians(m.attrs.get("dvl_mounting_rpy_deg", np.zeros(3))))
+        fit = earth_fixed_fit(np.asarray(m.dvl.velocity_ls, dtype=float)
+                              - reference_velocity(m, t), track.rotation @ mounting)
         alone = ins.run_mission(m, dataclasses.replace(rows[name]["config"],
                                                        dvl_updates=False))
         turned = np.degrees(np.abs(np.angle(np.exp(1j * (
             yaw_of(track.rotation) - yaw_of(alone.rotation))))))
-        out.append(f"{name:<13} {1e3 * a[0]:6.1f} {1e3 * a[1]:5.1f}  | "
-                   f"{1e3 * b[0]:6.1f} {1e3 * b[1]:5.1f}  |  "
-                   f"{1e3 * rms[0]:9.1f} {1e3 * rms[1]:5.1f} {1e3 * rms[2]:5.1f} "
-                   f"{1e3 * rms[3]:5.1f}  |  {np.nanmax(turned):15.3f}")
+        mm = {k: 1e3 * v for k, v in fit.items()}
+        out.append(f"{name:<13} {mm['north']:6.1f} {mm['east']:5.1f}  | "
+                   f"{mm['x']:6.1f} {mm['y']:5.1f}  |  {mm['rms']:9.1f} "
+                   f"{mm['rms_ned']:5.1f} {mm['rms_dvl']:5.1f} {mm['rms_both']:5.1f}  |  "
+                   f"{np.nanmax(turned):15.3f}")
     out += ["The filter's DVL innovations (every measurement offered): their rms, the rms the "
             "filter predicts, sqrt(mean S), with S = h P h^T + r^2 (mm/s), and the mean "
             "normalised innovation squared, nu^2 / S (1 for a filter whose noise is right); "

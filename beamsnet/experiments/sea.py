@@ -60,7 +60,7 @@ from beamsnet.evaluate import (
 )
 from beamsnet.experiments.runner import check_duration, ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
-from beamsnet.navigation import dead_reckoning_positions, truth_at_pings
+from beamsnet.navigation import dead_reckoning_positions, earth_fixed_fit, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
@@ -342,8 +342,11 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     scores[by_reference]["velocity_rmse"] = metrics.rmse_vector(
         windows.velocity_ls, windows.target)
     tracks[by_reference] = dead_reckoning_positions(windows, windows.velocity_ls, truth, 0)
+    earth = earth_fixed_fit(windows.velocity_ls - windows.target,
+                            truth["rotation"] @ truth["mounting"])
     return dict(scores=dict(scores, failed=failed, pings=len(windows.time),
-                            against=windows.reference, derived=bool(windows.derived)),
+                            against=windows.reference, derived=bool(windows.derived),
+                            earth_fixed=earth),
                 time=windows.time, reference=truth["position"], tracks=tracks)
 
 
@@ -439,7 +442,7 @@ def report(results: dict, setup: dict) -> str:
         f"{_fmt(100 * med[FILTER]['coverage_3sigma'], '.1f')} | {mtriple(by_reference)} | "
         f"{mtriple(by_filter)} | {_fmt(med[FILTER]['velocity_rmse'], '.4f')} | "
         f"{med[by_reference]['velocity_rmse']:.4f} |")
-    lines += ["", *_coverage_words(results)]
+    lines += ["", *_coverage_words(results), "", *_earth_fixed_words(results)]
     failed: dict[tuple[str, str], list[str]] = {}  # (filter, why) -> segments
     for name, r in results.items():
         for label, why in r["scores"]["failed"].items():
@@ -468,6 +471,39 @@ def _coverage_words(results: dict) -> list[str]:
             "segment, " + (f"under 90 % on {len(under)} of {len(rows)}: "
                            + ", ".join(under) if under else "at least 90 % on every one")
             + "."]
+
+
+def _earth_fixed_words(results: dict) -> list[str]:
+    """Per segment, what the DVL's velocity differs from the reference's by, as a constant
+    in NED plus a constant in the DVL frame (``beamsnet.navigation.earth_fixed_fit``)."""
+    rows = {name: r["scores"]["earth_fixed"] for name, r in results.items()
+            if math.isfinite(r["scores"].get("earth_fixed", {}).get("rms", math.nan))}
+    if not rows:
+        return []
+    lines = ["What the DVL's velocity differs from the reference's by, horizontally in NED "
+             "at the pings, fitted as a constant in NED plus a constant in the DVL frame "
+             "(mm/s; `beamsnet.navigation.earth_fixed_fit`). An error of the DVL (scale, "
+             "bias, mounting, lever arm, clock) turns with the vehicle; a difference fixed "
+             "to the Earth does not: a current one of the two took for motion, or the "
+             "reference's own (a fix spread over its velocities). No model of the IMU and "
+             "the DVL follows it; over a segment it amounts to the NED constant's size "
+             "times the segment's duration (the last column).",
+             "",
+             "| segment | NED: north, east | DVL frame: x, y | rms left: none / NED alone / "
+             "DVL frame alone / both | NED size x duration (m) |",
+             "|---|---|---|---|---|"]
+    for name, e in rows.items():
+        mm = {k: 1e3 * v for k, v in e.items()}
+        duration = float(np.ptp(results[name]["time"]))
+        lines.append(f"| {name} | {mm['north']:+.1f}, {mm['east']:+.1f} | "
+                     f"{mm['x']:+.1f}, {mm['y']:+.1f} | {mm['rms']:.1f} / "
+                     f"{mm['rms_ned']:.1f} / {mm['rms_dvl']:.1f} / {mm['rms_both']:.1f} | "
+                     f"{math.hypot(e['north'], e['east']) * duration:.1f} |")
+    earthward = [name for name, e in rows.items() if e["rms_ned"] < e["rms_dvl"]]
+    lines += ["", f"The NED constant alone explains more than the DVL-frame one on "
+              f"{len(earthward)} of {len(rows)} segments"
+              + (f" ({', '.join(earthward)})." if earthward else ".")]
+    return lines
 
 
 def _corrections_table(corrections: dict) -> list[str]:
