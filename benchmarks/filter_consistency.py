@@ -41,12 +41,12 @@ Measured at 300 s per manoeuvre (the command below, in 10 s):
   IMU, which nothing here explains yet;
 * every final error lies within the reported 3 sigma.
 
-On the real Snapir segments the filter finds a forward accelerometer bias of 112 to 135 ug
+On the real Snapir segments the filter finds a forward accelerometer bias of 112 to 139 ug
 when its prior lets it (``accel_bias_std = 0.00049`` in a ``--filter-config``), beyond the
 Phins' 10-50 ug. With the gyro states as well (the navigation-full grade's spreads in the
 settings: ``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
-``gyro_misalignment_std = 1e-4``) it finds 28 to 36 ug, and the x gyro's coupling to the
-z rate at 83 to 101 urad on all six segments: the same signature, from a real gyro
+``gyro_misalignment_std = 1e-4``) it finds 31 to 37 ug, and the x gyro's coupling to the
+z rate at 84 to 104 urad on all six segments: the same signature, from a real gyro
 cross-coupling of about 0.1 mrad (``sea_filter.py --evidence`` with those settings prints
 both).
 
