@@ -195,18 +195,19 @@ def earth_fixed_fit(difference: np.ndarray, turn: np.ndarray) -> dict[str, float
     arm, clock) turns with the vehicle; an Earth-fixed difference (a current one of the
     two took for motion, a fix spread over a reference's velocities) does not. Where the
     headings vary the two are told apart; on a straight line they are not (both fits
-    then leave the same).
+    then leave the same, and the split is NaN).
 
     Returns:
-        ``north``, ``east``, ``x``, ``y`` (m/s) of the joint fit, and the rms (m/s) of the
+        ``north``, ``east``, ``x``, ``y`` (m/s) of the joint fit (NaN where the headings
+        cannot tell them apart), and the rms per axis (m/s; N and E together) of the
         horizontal difference left by no fit (``rms``), by the NED constant alone
         (``rms_ned``), by the DVL-frame one alone (``rms_dvl``) and by both
-        (``rms_both``). NaN without two finite samples.
+        (``rms_both``). All NaN with fewer than three finite samples.
     """
     difference, turn = np.asarray(difference, float), np.asarray(turn, float)
     ok = np.isfinite(difference).all(axis=1) & np.isfinite(turn).all(axis=(1, 2))
     keys = ("north", "east", "x", "y", "rms", "rms_ned", "rms_dvl", "rms_both")
-    if ok.sum() < 2:
+    if ok.sum() < 3:
         return dict.fromkeys(keys, float("nan"))
     horizontal = turn[ok, :2, :]  # (S, 2, 3)
     y = np.einsum("sij,sj->si", horizontal, difference[ok]).ravel()
@@ -218,5 +219,7 @@ def earth_fixed_fit(difference: np.ndarray, turn: np.ndarray) -> dict[str, float
         return x, float(np.sqrt(np.mean((y - design[:, columns] @ x) ** 2)))
 
     both, left = fit([0, 1, 2, 3])
+    if np.linalg.matrix_rank(design) < 4:  # one heading: the split is arbitrary
+        both = np.full(4, np.nan)
     return dict(zip(keys, (*map(float, both), float(np.sqrt(np.mean(y**2))),
                            fit([0, 1])[1], fit([2, 3])[1], left), strict=True))

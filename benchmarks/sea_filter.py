@@ -39,21 +39,21 @@ The DVL's mounting and lever arm that check-log wrote are known to its standard 
 (Newey-West, over the 10-17 pings its residuals stay correlated: yaw 0.03-0.08 deg), and
 the filter's misalignment and lever-arm states start there. With an uncalibrated DVL's
 priors instead (0.5 deg and 0.1 m: ``misalignment_std_deg`` and ``lever_arm_std`` in a
-``--filter-config``) the median final error is 2.31 m, against 2.16 m.
+``--filter-config``) the median final error is 2.30 m, against 2.18 m.
 
-The clocks are known as well as check-log measured them (``ins.clock_stds``: the
-standard errors of its offsets, 5 to 20 ms, with half an IMU sample). With a fixed 0.05 s
-instead, a segment that starts in a turn (segment 6: 6.3 deg/s) started with 0.32 deg of
-heading uncertainty, and the DVL's updates then moved the heading up to 0.5 deg from the
-gyros' own (``--evidence``: now at most 0.09 deg), which follow the reference's to 0.03
-deg; the median final was 2.21 m (1.24 x) and the coverage 85.0 %, a share of it bought
-with that wider heading.
+The clocks are known as well as check-log measured them (``ins.clock_stds``: for the
+start the IMU clock's, 6 to 14 ms; for a ping that and the DVL clock's, 18 to 36 ms). With
+a fixed 0.05 s instead, a segment that starts in a turn (segment 6: 6.3 deg/s) started
+with 0.32 deg of heading uncertainty, and the DVL's updates then moved the heading up to
+0.5 deg from the gyros' own (``--evidence``: now at most 0.07 deg), which follow the
+reference's to 0.03 deg; the median final was 2.21 m (1.24 x) and the coverage 85.0 %, a
+share of it bought with that wider heading.
 
-What is missed (measured on the IMU-clock files): the median final is 1.21 x the dead
-reckoning's (2.16 against 1.78 m), and the coverage is 83.1 % over all the pings, with
+What is missed (measured on the IMU-clock files): the median final is 1.23 x the dead
+reckoning's (2.18 against 1.78 m), and the coverage is 83.1 % over all the pings, with
 segment 4 at 4 %. Segment 4's error is not the filter's alone: the dead reckoning with
 the reference's attitude is further from the reference (4.15 m final, 3.31 m RMSE) than
-the filter (3.95, 3.14), and the reference's positions move 1.34 m from the integral of
+the filter (3.93, 3.15), and the reference's positions move 1.34 m from the integral of
 its own velocities within the first 50 s (1.83 m over segment 4, up to 5.50 m on segment
 5: a post-processed INS whose positions were corrected by something other than its
 velocities), while the filter's 3 sigma there is 0.82 m at 50 s. Much of what the DVL's
@@ -77,7 +77,7 @@ along x, 25 to 106 s across).
 The filter's DVL noise is the real Navigator's as ``benchmarks/dvl_error.py`` measures
 it: white noise from the log's error-velocity figure and a slow error of 9 mm/s over 19 s
 (``auvsim.runs.presets.navigator``), which the IMU confirms: its DVL innovations are 4.0
-to 5.8 mm/s rms where it predicts 5.1 to 5.4 (mean NIS 0.58 to 1.21 per segment;
+to 5.8 mm/s rms where it predicts 5.1 to 5.7 (mean NIS 0.57 to 1.20 per segment;
 ``--evidence`` prints them). Before that measurement the filter took 19.5 mm/s over 3 s
 (the rest of the stated 0.02 m/s after the white noise, over a correlation time the
 reference's own fast noise had shortened): innovations of 5.3 to 6.9 mm/s against 14.9 to
@@ -87,8 +87,8 @@ hold slower errors, and they take up what differs slowly between the IMU and the
 forward velocity averages 6 to 10 mm/s above the DVL's on every segment (``--evidence``;
 the DVL's own mean is within 8 mm/s of the reference's). The filter reads that offset as
 a forward accelerometer bias the 10 ug prior holds back: with the Phins figure's 50 ug
-(``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.9 to +3.2 mm/s,
-yet the median final grows to 2.30 m (1.29 x) and the coverage is 81.2 %, so it is not
+(``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.7 to +3.2 mm/s,
+yet the median final grows to 2.29 m (1.29 x) and the coverage is 81.8 %, so it is not
 why the filter ends further from this reference, itself aided by this DVL, than the DVL's
 dead reckoning. Where the truth is known, a filter without the gyro matrix's states
 takes the gyros' misalignment in the turns for accelerometer biases of this size
@@ -97,10 +97,10 @@ here by default; turned on with the navigation-full grade's spreads
 (``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
 ``gyro_misalignment_std = 1e-4``) and the 50 ug prior, the forward accelerometer bias
 falls to 31 to 37 ug, inside the Phins' figure, and the x gyro's coupling to the z rate
-comes out at 84 to 104 urad on all six segments (``--evidence`` with those settings):
+comes out at 84 to 102 urad on all six segments (``--evidence`` with those settings):
 the bias the filter read is the real gyros' cross-coupling. It does not bring the
 filter nearer the reference: with the default accelerometer prior and the gyro states
-the median final is 2.29 m (1.29 x) and the coverage 81.0 %. We keep the measured
+the median final is 2.28 m (1.28 x) and the coverage 81.5 %. We keep the measured
 noise and report the miss.
 
     .venv/bin/python benchmarks/sea_filter.py [--data ../shared/data/snapir-akit]
@@ -121,7 +121,7 @@ import numpy as np
 
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import rotation_matrices, rotation_rpy
+from auvsim.physics.frames import rotation_matrices
 from beamsnet.data import load_windows, reference_velocity
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
@@ -297,17 +297,18 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
                    f"  |  {drift[since <= EARLY].max():9.2f} {drift.max():8.2f} {early:10.2f}")
     out += ["The DVL's horizontal velocity less the reference's in NED, fitted as a "
             "constant in NED (N, E) plus a constant in the DVL frame (x, y) (mm/s), and "
-            "the rms left by no fit, the NED one alone, the DVL-frame one alone and both "
-            "(mm/s); the filter's heading less the gyros' alone from the same start (its "
-            "run without DVL updates): max |.| (deg)",
+            "the rms per axis left by no fit, the NED one alone, the DVL-frame one alone "
+            "and both (mm/s; reports/sea.md's table); the filter's heading less the "
+            "gyros' alone from the same start (its run without DVL updates): max |.| (deg)",
             "segment        NED N     E  |  DVL x     y  |  rms: none   NED   DVL  "
             "both  |  heading - gyros"]
     for name, m in sorted(ds.missions.items()):
         track = rows[name]["track"]
-        t = np.asarray(m.dvl.time, dtype=float)
-        mounting = rotation_rpy(*np.radians(m.attrs.get("dvl_mounting_rpy_deg", np.zeros(3))))
-        fit = earth_fixed_fit(np.asarray(m.dvl.velocity_ls, dtype=float)
-                              - reference_velocity(m, t), track.rotation @ mounting)
+        # As reports/sea.md fits it: at the scored pings, turned by the reference's attitude.
+        windows = load_windows(m.dataset.path, missions=[name])
+        truth = truth_at_pings(m.dataset.path, windows)
+        fit = earth_fixed_fit(windows.velocity_ls - windows.target,
+                              truth["rotation"] @ truth["mounting"])
         alone = ins.run_mission(m, dataclasses.replace(rows[name]["config"],
                                                        dvl_updates=False))
         turned = np.degrees(np.abs(np.angle(np.exp(1j * (

@@ -493,19 +493,18 @@ def test_apply_records_how_well_it_knows_what_it_wrote(simulated):
 
 
 def test_apply_records_how_well_it_knows_the_clocks(simulated):
-    """The filter's clock uncertainty on a corrected file: the standard errors of the
-    clock offsets check-log applied, each the one its finding states (under the 0.05 s
-    check-log's targets ask for); None without a report. With the half IMU sample the
-    log leaves open (which instant of its interval a sample is stamped at; 5 ms at 100
-    Hz, the filter's ``clock_stds`` adds it) they hold the offsets' actual errors: the
-    injected offsets are found within 4 of them."""
+    """The filter's clock uncertainty on a corrected file: how well check-log knew the
+    clock offsets it applied, at least the standard error its finding states and under
+    the 0.05 s its targets ask for; None without a report. With what the log leaves open
+    of a sample's stamp (which instant of its interval it marks: up to 5 ms at 100 Hz)
+    they hold the offsets' actual errors: the injected offsets are found within 4 of
+    them."""
     log = recorded_log(simulated["zigzag"], axes=REFLECT, imu_offset=-0.62, imu_rate=0.0,
                        dvl_offset=0.45)
     report = check_arrays(log, "sim")
     found = findings(report)
     imu, dvl = applied_clock_errors({"check_log_json": json.dumps(report.to_json())})
     for name, se, injected in (("imu clock", imu, -0.62), ("dvl clock", dvl, 0.45)):
-        assert se == found[name].value["offset_se_s"]
-        assert 0 < se < 0.05
+        assert found[name].value["offset_se_s"] <= se < 0.05
         assert abs(found[name].value["offset_s"] - injected) < 4 * math.hypot(se, 0.005)
     assert applied_clock_errors({}) == (None, None)

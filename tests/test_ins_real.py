@@ -495,17 +495,26 @@ def test_a_start_from_a_reference_is_as_uncertain_as_its_clock_lets_it_be():
 
 
 def test_a_corrected_files_clocks_are_as_uncertain_as_check_log_found_them():
-    """The clock uncertainty of a file ``check-log --apply`` wrote: its IMU clock's
-    standard error and half an IMU sample for the start, that and the DVL clock's for a
-    ping; ``CLOCK_STD`` where it found none; a setting wins over both."""
-    found = [{"name": "imu clock", "value": {"offset_s": 0.4, "offset_se_s": 0.012}},
+    """The clock uncertainty of a file ``check-log --apply`` wrote: for the start, how
+    well it knew the IMU's clock (its windows' standard error, widened by how far the
+    applied offset lies from their mean: here 0.005 s) and the stamp's place in an IMU
+    sample (uniform over 0.01 s: 0.01 / sqrt 12); for a ping, that and the DVL clock's;
+    ``CLOCK_STD`` for a clock it did not find, or for both without a report; a setting
+    wins over all."""
+    windows = [[10.0, 0.41], [60.0, 0.40], [110.0, 0.405]]  # mean 0.405, applied 0.4
+    found = [{"name": "imu clock", "value": {"offset_s": 0.4, "offset_se_s": 0.012,
+                                             "rate_error": 0.0, "windows": windows}},
              {"name": "dvl clock", "value": {"offset_s": 1.4, "offset_se_s": 0.02}}]
-    attrs = {"imu_rate_hz": 100.0, "check_log_json": json.dumps({"findings": found})}
-    start, ping = ins.clock_stds(attrs, ins.FilterConfig())
-    assert start == pytest.approx(math.hypot(0.012, 0.005))
-    assert ping == pytest.approx(math.sqrt(0.012**2 + 0.005**2 + 0.02**2))
-    assert ins.clock_stds({}, ins.FilterConfig()) == (ins.CLOCK_STD, ins.CLOCK_STD)
-    assert ins.clock_stds(attrs, ins.FilterConfig(clock_std=0.03)) == (0.03, 0.03)
+    attrs = {"check_log_json": json.dumps({"findings": found})}
+    imu = math.sqrt(0.012**2 + 0.005**2 + 0.01**2 / 12)
+    start, ping = ins.clock_stds(attrs, ins.FilterConfig(), 100.0)
+    assert start == pytest.approx(imu)
+    assert ping == pytest.approx(math.hypot(imu, 0.02))
+    dvl_only = {"check_log_json": json.dumps({"findings": found[1:]})}
+    assert ins.clock_stds(dvl_only, ins.FilterConfig(), 100.0) == pytest.approx(
+        (ins.CLOCK_STD, math.hypot(ins.CLOCK_STD, 0.02)))
+    assert ins.clock_stds({}, ins.FilterConfig(), 100.0) == (ins.CLOCK_STD, ins.CLOCK_STD)
+    assert ins.clock_stds(attrs, ins.FilterConfig(clock_std=0.03), 100.0) == (0.03, 0.03)
 
 
 @needs_akit

@@ -514,10 +514,11 @@ def test_earth_fixed_fit_tells_a_current_from_an_instrument_error():
     yaw) reading 12 mm/s north and 5 mm/s east that do not turn with it beside 7 mm/s
     along its x and -3 mm/s along its y that do, with 1 mm/s of white noise: the fit
     gives both back to 0.3 mm/s and leaves the noise; on a straight line the two cannot
-    be told apart and each alone leaves what both do."""
+    be told apart: each alone leaves what both do, and the split is not given."""
     rng = np.random.default_rng(3)
     heading = np.linspace(0.0, 4 * math.pi, 400)
-    body = np.stack([rotation_rpy(0.0, 0.0, h) for h in heading])
+    pitch = np.radians(5.0) * np.sin(heading / 3)  # diving and climbing as it turns
+    body = np.stack([rotation_rpy(0.0, p, h) for p, h in zip(pitch, heading, strict=True)])
     turn = body @ rotation_rpy(0.0, 0.0, math.radians(10.0))  # DVL -> NED
     earth, own = np.array([0.012, 0.005, 0.0]), np.array([0.007, -0.003, 0.0])
     difference = (np.einsum("sji,j->si", turn, earth) + own
@@ -530,4 +531,5 @@ def test_earth_fixed_fit_tells_a_current_from_an_instrument_error():
     straight = earth_fixed_fit(difference[:50], np.repeat(turn[:1], 50, axis=0))
     assert straight["rms_ned"] == pytest.approx(straight["rms_both"], rel=1e-9)
     assert straight["rms_dvl"] == pytest.approx(straight["rms_both"], rel=1e-9)
-    assert math.isnan(earth_fixed_fit(difference[:1], turn[:1])["north"])
+    assert math.isnan(straight["north"]) and math.isnan(straight["y"])
+    assert math.isnan(earth_fixed_fit(difference[:2], turn[:2])["rms"])

@@ -1017,22 +1017,29 @@ def applied_dvl_errors(attrs) -> tuple[np.ndarray | None, np.ndarray | None]:
 
 
 def applied_clock_errors(attrs) -> tuple[float | None, float | None]:
-    """How well a corrected mission's clocks are put on the reference's: the standard
-    errors (s) of the IMU's and the DVL's clock offsets ``corrected`` applied, read from
-    its ``check_log_json`` (each offset against the reference's clock); None for each one
+    """How well a corrected mission's clocks are put on the reference's (s), the IMU's
+    and the DVL's, read from its ``check_log_json`` (each against the reference's clock):
+    the standard error of the offset its windows' line gives; where no rate was kept,
+    the offset ``corrected`` applied is the whole log's, found by a scan of its own, and
+    the error is widened by how far that lies from the windows' mean. None for each one
     it did not find (too few windows, or no report)."""
     if "check_log_json" not in attrs:
         return None, None
     found = {f["name"]: f for f in json.loads(attrs["check_log_json"])["findings"]}
 
-    def se(name: str) -> float | None:
+    def error(name: str) -> float | None:
         value = found.get(name, {}).get("value")
         if not isinstance(value, dict) or value.get("offset_se_s") is None:
             return None
-        x = float(value["offset_se_s"])
-        return x if math.isfinite(x) else None
+        se = float(value["offset_se_s"])
+        if not math.isfinite(se):
+            return None
+        windows = np.asarray(value.get("windows") or np.zeros((0, 2)), dtype=float)
+        if not len(windows) or value.get("rate_error", 0.0) != 0.0:
+            return se
+        return math.hypot(se, float(np.mean(windows[:, 1])) - float(value["offset_s"]))
 
-    return se("imu clock"), se("dvl clock")
+    return error("imu clock"), error("dvl clock")
 
 
 def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,

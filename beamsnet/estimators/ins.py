@@ -1634,7 +1634,7 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     latitude = None if a.get("latitude_deg") is None else float(a["latitude_deg"])
 
     if recorded:
-        start_clock, timing_std = clock_stds(a, cfg)
+        start_clock, timing_std = clock_stds(a, cfg, rate)
         start = _reference_start(mission, imu_time, w, cfg, start_clock)
     else:
         start = _truth_start(mission, r_imu, cfg)
@@ -1789,19 +1789,23 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
                  angular_rate=np.asarray(truth.angular_rate[0], dtype=float))
 
 
-def clock_stds(attrs, cfg: FilterConfig) -> tuple[float, float]:
+def clock_stds(attrs, cfg: FilterConfig, imu_rate_hz: float) -> tuple[float, float]:
     """How uncertain a recorded file's clocks are, s: (the IMU's against the reference's,
     for a start from it; a ping's on the IMU's clock). ``cfg.clock_std`` for both where
-    set; else the standard errors of the offsets ``auvsim check-log --apply`` applied
+    set; else how well ``auvsim check-log --apply`` knew the offsets it applied
     (``applied_clock_errors``; a ping's from both, each found against the reference),
-    with half an IMU sample besides (a log does not say which instant of a sample's
-    interval its stamp marks), and ``CLOCK_STD`` for what it did not find."""
+    the IMU's with what a log leaves open of its stamps besides (which instant of a
+    sample's interval a stamp marks: uniform over one sample at ``imu_rate_hz``,
+    1 / (rate sqrt 12)), and ``CLOCK_STD`` for a clock it did not find; ``CLOCK_STD`` for
+    both where it found neither (a log it did not correct). A clock rate check-log found
+    insignificant, and so did not apply, is taken as none."""
     if cfg.clock_std is not None:
         return cfg.clock_std, cfg.clock_std
     imu, dvl = applied_clock_errors(attrs)
-    rate = float(attrs.get("imu_rate_hz", math.inf))
-    imu = CLOCK_STD if imu is None else math.hypot(imu, 0.5 / rate)
-    return imu, CLOCK_STD if dvl is None else math.hypot(imu, dvl)
+    if imu is None and dvl is None:
+        return CLOCK_STD, CLOCK_STD
+    imu = CLOCK_STD if imu is None else math.hypot(imu, 1.0 / (imu_rate_hz * math.sqrt(12)))
+    return imu, math.hypot(imu, CLOCK_STD if dvl is None else dvl)
 
 
 def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,

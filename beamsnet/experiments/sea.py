@@ -482,7 +482,8 @@ def _earth_fixed_words(results: dict) -> list[str]:
         return []
     lines = ["What the DVL's velocity differs from the reference's by, horizontally in NED "
              "at the pings, fitted as a constant in NED plus a constant in the DVL frame "
-             "(mm/s; `beamsnet.navigation.earth_fixed_fit`). An error of the DVL (scale, "
+             "(mm/s, the rms per axis; `beamsnet.navigation.earth_fixed_fit`; n/a where "
+             "the headings do not vary enough to tell the two apart). An error of the DVL (scale, "
              "bias, mounting, lever arm, clock) turns with the vehicle; a difference fixed "
              "to the Earth does not: a current one of the two took for motion, or the "
              "reference's own (a fix spread over its velocities). No model of the IMU and "
@@ -495,11 +496,12 @@ def _earth_fixed_words(results: dict) -> list[str]:
     for name, e in rows.items():
         mm = {k: 1e3 * v for k, v in e.items()}
         duration = float(np.ptp(results[name]["time"]))
-        lines.append(f"| {name} | {mm['north']:+.1f}, {mm['east']:+.1f} | "
-                     f"{mm['x']:+.1f}, {mm['y']:+.1f} | {mm['rms']:.1f} / "
+        lines.append(f"| {name} | {_fmt(mm['north'], '+.1f')}, {_fmt(mm['east'], '+.1f')} | "
+                     f"{_fmt(mm['x'], '+.1f')}, {_fmt(mm['y'], '+.1f')} | {mm['rms']:.1f} / "
                      f"{mm['rms_ned']:.1f} / {mm['rms_dvl']:.1f} / {mm['rms_both']:.1f} | "
-                     f"{math.hypot(e['north'], e['east']) * duration:.1f} |")
-    earthward = [name for name, e in rows.items() if e["rms_ned"] < e["rms_dvl"]]
+                     f"{_fmt(math.hypot(e['north'], e['east']) * duration, '.1f')} |")
+    earthward = [name for name, e in rows.items()
+                 if math.isfinite(e["north"]) and e["rms_ned"] < e["rms_dvl"]]
     lines += ["", f"The NED constant alone explains more than the DVL-frame one on "
               f"{len(earthward)} of {len(rows)} segments"
               + (f" ({', '.join(earthward)})." if earthward else ".")]
@@ -530,7 +532,7 @@ def _beam_noise_words(noise: dict) -> str:
 def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
     """Item 9's table (medians over the segments) and what transfers, from the numbers."""
     first = next(iter(results.values()))["scores"]
-    skip = {"failed", "pings", "against", "derived", by_reference}
+    skip = {"failed", "pings", "against", "derived", "earth_fixed", by_reference}
     labels = [k for k in first if k not in skip and not k.startswith("DR: ")]
     sim = [k for k in labels if not k.endswith(OTHERS)]
     ls = median_score(results, "LS", "velocity_rmse")
