@@ -42,7 +42,7 @@ Measured at 300 s per manoeuvre (the command below, in 10 s):
 * every final error lies within the reported 3 sigma.
 
 One draw per manoeuvre says little of a NEES: a slow DVL error that wanders far for a
-minute moves a mission's mean by several. Over eight draws each (``--seeds 8``, 25 min),
+minute moves a mission's mean by several. Over eight draws each (``--seeds 8``),
 with the preset's IMU and the default filter, the velocity NEES's median per manoeuvre is
 2.35 to 3.95 (yoyo 3.95, its draws 1.86 to 8.18: the single-draw run's is the highest of
 the eight), the horizontal accelerometer biases lie within 5.1 std (without the gyro
