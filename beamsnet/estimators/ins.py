@@ -378,9 +378,9 @@ class FilterConfig:
         clock_std: s, how well the streams' clocks are aligned with the reference's: a
             start from a reference is uncertain by what the vehicle moves and turns in
             that time, a ping by what its velocity changes in it. None: a corrected
-            file's own figures (the standard errors of the clock offsets ``auvsim
-            check-log --apply`` applied: the IMU's against the reference's for the start,
-            the IMU's and the DVL's together for the pings), else ``CLOCK_STD``.
+            file's own figures (how well ``auvsim check-log --apply`` knew the clock
+            offsets it applied, ``clock_stds``: the IMU's against the reference's for the
+            start, the IMU's and the DVL's together for the pings), else ``CLOCK_STD``.
         watch_pings: the divergence watch's window, pings (0: no watch).
         watch_share: the share of the window's measurements the gate must have rejected
             (with one rejected at the current ping) for the watch to restart the velocity
