@@ -61,18 +61,18 @@ velocity differs from the reference's by does not turn with the vehicle: fitted 
 constant in NED plus a constant in the DVL frame (``--evidence``), the NED part is 3 to
 16 mm/s (8 to 16 on four segments; segment 5: 7.9 N, 13.5 E, and it alone takes the rms
 from 13.0 to 7.3 mm/s, the DVL-frame part not at all; segment 4: 10.1 mm/s south over the
-segment, 14 to 25 mm/s south in every 20 s between 40 and 200 s while the vehicle heads
-south, west and east). An error of the DVL's (scale, bias, mounting, lever arm, clock)
-turns with the vehicle; an Earth-fixed difference is a current one of the two took for
-motion (a DVL in water track) or the reference's own (a position fix spread over its
-velocities), and over 400 s it is 1 to 6 m that no model of the IMU and the DVL can
-follow. The filter's heading is not the cause either: the gyros integrated alone from the
-start agree with the reference's heading at its own samples to 0.03 deg (std over the
-segment: 0.012 to 0.029 deg; at most 0.14 deg). The DVL's velocity against the
-reference's, per DVL axis, has a mean of -7.7 to +6.6 mm/s along x (under 1 mm/s across
-and down) and a slow part of 3-12 mm/s along x and y whose autocorrelation decays over
-tens of pings (a fit of r(k) = A exp(-k / tau) over k = 1..10 pings gives tau 13 to 78 s
-along x, 25 to 106 s across).
+segment, 14 to 27 mm/s south in every 20 s between 40 and 200 s of its scored pings while
+the vehicle heads south, west and east: ``--evidence`` prints the windows). An error of
+the DVL's (scale, bias, mounting, lever arm, clock) turns with the vehicle; an
+Earth-fixed difference is a current one of the two took for motion (a DVL in water track)
+or the reference's own (a position fix spread over its velocities), and over 400 s it is
+1 to 6 m that no model of the IMU and the DVL can follow. The filter's heading is not the
+cause either: the gyros integrated alone from the start agree with the reference's
+heading at its own samples to 0.03 deg (std over the segment: 0.012 to 0.029 deg; at most
+0.14 deg). The DVL's velocity against the reference's, per DVL axis, has a mean of -7.7
+to +6.6 mm/s along x (under 1 mm/s across and down) and a slow part of 3-12 mm/s along x
+and y whose autocorrelation decays over tens of pings (a fit of r(k) = A exp(-k / tau)
+over k = 1..10 pings gives tau 13 to 78 s along x, 25 to 106 s across).
 
 The filter's DVL noise is the real Navigator's as ``benchmarks/dvl_error.py`` measures
 it: white noise from the log's error-velocity figure and a slow error of 9 mm/s over 19 s
@@ -318,6 +318,12 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
                    f"{mm['x']:6.1f} {mm['y']:5.1f}  |  {mm['rms']:9.1f} "
                    f"{mm['rms_ned']:5.1f} {mm['rms_dvl']:5.1f} {mm['rms_both']:5.1f}  |  "
                    f"{np.nanmax(turned):15.3f}")
+    lowest = min(rows, key=lambda name: rows[name]["coverage"])
+    out += [f"The least covered segment, {lowest}: the same difference in NED, its mean per "
+            f"{WINDOW:g} s (N, E, mm/s), and the reference's heading there (deg)",
+            "from s   to s    N mm/s   E mm/s   heading min  max"]
+    out += [f"{a:6.0f} {b:6.0f}  {n:7.1f}  {e:7.1f}   {lo:11.0f} {hi:4.0f}"
+            for a, b, n, e, lo, hi in ned_windows(ds.missions[lowest])]
     out += ["The filter's DVL innovations (every measurement offered): their rms, the rms the "
             "filter predicts, sqrt(mean S), with S = h P h^T + r^2 (mm/s), and the mean "
             "normalised innovation squared, nu^2 / S (1 for a filter whose noise is right); "
@@ -334,6 +340,32 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
         coupling = " ".join(f"{1e6 * x:+5.0f}" for x in track.gyro_matrix[-1][[2, 5]])
         out.append(f"{name:<13}{1e3 * rms:5.1f}  {1e3 * predicted:9.1f}  {1e3 * white:9.1f}  "
                    f"{nis:8.3f}  {1e3 * ahead:15.1f}  {bias}    {coupling}")
+    return out
+
+
+WINDOW = 20.0  # s, the windows ``ned_windows`` averages over
+
+
+def ned_windows(mission) -> list[tuple[float, ...]]:
+    """The DVL's horizontal velocity less the reference's, in NED (as ``earth_fixed_fit``
+    takes it: at the scored pings, turned by the reference's attitude), averaged over
+    consecutive ``WINDOW`` s from the first scored ping: per window its start and end (s
+    from there), the mean north and east (mm/s), and the reference's heading's least and
+    greatest (deg)."""
+    path = mission.dataset.path
+    windows = load_windows(path, missions=[mission.name])
+    truth = truth_at_pings(path, windows)
+    turn = truth["rotation"] @ truth["mounting"]
+    ned = np.einsum("sij,sj->si", turn, windows.velocity_ls - windows.target)[:, :2]
+    heading = np.degrees(yaw_of(truth["rotation"]))
+    since = windows.time - windows.time[0]
+    out = []
+    for start in np.arange(0.0, since[-1], WINDOW):
+        inside = (since >= start) & (since < start + WINDOW)
+        if inside.any():
+            n, e = 1e3 * np.nanmean(ned[inside], axis=0)
+            out.append((start, start + WINDOW, n, e, heading[inside].min(),
+                        heading[inside].max()))
     return out
 
 
