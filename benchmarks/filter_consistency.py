@@ -50,12 +50,12 @@ states within 37.6) and all 48 finals within their 3 sigma; without the IMU's sc
 factors and misalignments, the median NEES is 2.53 to 3.59 and the biases within 4.0
 std.
 
-On the real Snapir segments the filter finds a forward accelerometer bias of 112 to 137 ug
+On the real Snapir segments the filter finds a forward accelerometer bias of 112 to 135 ug
 when its prior lets it (``accel_bias_std = 0.00049`` in a ``--filter-config``), beyond the
 Phins' 10-50 ug. With the gyro states as well (the navigation-full grade's spreads in the
 settings: ``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
 ``gyro_misalignment_std = 1e-4``) it finds 31 to 37 ug, and the x gyro's coupling to the
-z rate at 84 to 102 urad on all six segments: the same signature, from a real gyro
+z rate at 84 to 100 urad on all six segments: the same signature, from a real gyro
 cross-coupling of about 0.1 mrad (``sea_filter.py --evidence`` with those settings prints
 both).
 
