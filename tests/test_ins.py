@@ -527,10 +527,13 @@ def test_a_mission_without_imu_raises_no_imu_error(tmp_path):
 def test_a_ping_is_applied_at_the_imu_sample_nearest_its_time():
     """Known answers on a 100 Hz clock: a ping 4 ms after a sample is applied there and
     one 6 ms after at the next (at or before it, every ping would lag 5 ms on average);
-    a ping more than half a sample before the first has none."""
+    a ping more than half a sample before the first has none, nor, with a single sample,
+    one before it."""
     t = np.arange(0.0, 1.0001, 0.01)
     pings = np.array([-0.02, -0.004, 0.0, 0.004, 0.006, 0.5, 1.0, 1.2])
     np.testing.assert_array_equal(ins.nearest_samples(t, pings),
                                   [-1, 0, 0, 0, 1, 50, 100, 100])
     lag = pings[2:6] - t[ins.nearest_samples(t, pings[2:6])]
     assert np.all(np.abs(lag) <= 0.005 + 1e-12)
+    # One sample: every ping at or after it is its.
+    np.testing.assert_array_equal(ins.nearest_samples(t[:1], pings), [-1, -1, 0, 0, 0, 0, 0, 0])

@@ -998,14 +998,20 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     return fields, attrs
 
 
+def _applied_findings(attrs) -> dict:
+    """A corrected mission's check-log findings by name, from its ``check_log_json`` ({}:
+    no report)."""
+    if "check_log_json" not in attrs:
+        return {}
+    return {f["name"]: f for f in json.loads(attrs["check_log_json"])["findings"]}
+
+
 def applied_dvl_errors(attrs) -> tuple[np.ndarray | None, np.ndarray | None]:
     """How well a corrected mission's DVL mounting and lever arm are known: the standard
     errors (deg, m; (3,) each) of the values ``corrected`` wrote into ``attrs``
     (``dvl_mounting_rpy_deg``, ``dvl_position_body``), read from its ``check_log_json``;
     None for each one it did not write (not observable, or no report)."""
-    if "check_log_json" not in attrs:
-        return None, None
-    found = {f["name"]: f for f in json.loads(attrs["check_log_json"])["findings"]}
+    found = _applied_findings(attrs)
 
     def se(name: str, key: str) -> np.ndarray | None:
         f = found.get(name)
@@ -1023,9 +1029,7 @@ def applied_clock_errors(attrs) -> tuple[float | None, float | None]:
     the offset ``corrected`` applied is the whole log's, found by a scan of its own, and
     the error is widened by how far that lies from the windows' mean. None for each one
     it did not find (too few windows, or no report)."""
-    if "check_log_json" not in attrs:
-        return None, None
-    found = {f["name"]: f for f in json.loads(attrs["check_log_json"])["findings"]}
+    found = _applied_findings(attrs)
 
     def error(name: str) -> float | None:
         value = found.get(name, {}).get("value")

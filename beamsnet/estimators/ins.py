@@ -800,6 +800,11 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
     out_x = np.full((n_ping, N_OUT), np.nan)  # the instrument states, by _STATES
     out_sd = np.full((n_ping, N_OUT), np.nan)  # sqrt(diag P), by _STATES
     nb = si if si >= 0 else gi if gi >= 0 else n  # the core and beam states
+    column = np.arange(n)  # each state's column of the track (_STATES)
+    if si >= 0:
+        column[si:si + N_SLOW] = np.arange(N_BEAM, N_BEAM + N_SLOW)
+    if gi >= 0:
+        column[gi:gi + N_GYRO_MATRIX] = np.arange(N_BEAM + N_SLOW, N_OUT)
     out_c = np.full((n_ping, 3, 3), np.nan)
     used = np.zeros(n_ping, dtype=np.int64)
     rejected = np.zeros(n_ping, dtype=np.int64)
@@ -1113,60 +1118,51 @@ def _filter(f, w, dt, g, g_grad, omega_ie, ping_row, meas, usable, dirs, mountin
                     ring_rejected[:] = 0
             _gyro_rate_into(w[i], bg, kg, gi, w_imu)  # after the ping's updates
             wb = w_imu - c.T @ omega_ie
-            jac = np.zeros((3, 9))  # d v_dvl / d (dv, theta, db_g)
+            # The velocity at the DVL's covariance: its Jacobian on (dv, theta, db_g) and
+            # on the states it also depends on where they are on: the lever arm,
+            # M^T [w x] dL, the misalignment (in the DVL's frame as the filter has it, the
+            # nominal one turned by mu, a - mu x a = a + a x mu, so [a x] dmu), and the
+            # gyro matrix through the rate, M^T [L x] e_a w_b per element.
+            extra = (6 if nb > N_CORE else 0) + (N_GYRO_MATRIX if gi >= 0 else 0)
+            idx = np.empty(9 + extra, dtype=np.int64)
+            jac = np.zeros((3, 9 + extra))
             mt = mounting.T
             jv = mt @ c.T
+            ml = mt @ _skew(lever)
             jac[:, 0:3] = jv
             jac[:, 3:6] = jv @ _skew(v)
-            ml = mt @ _skew(lever)
             jac[:, 6:9] = ml
-            idx = np.array([3, 4, 5, 6, 7, 8, 12, 13, 14])
-            sub = np.empty((9, 9))
-            for a_ in range(9):
-                for b_ in range(9):
-                    sub[a_, b_] = P[idx[a_], idx[b_]]
+            for r in range(3):
+                idx[r], idx[3 + r], idx[6 + r] = 3 + r, 6 + r, 12 + r
             out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
-            if nb > N_CORE or gi >= 0:
-                # The states the velocity at the DVL also depends on: the lever arm,
-                # M^T [w x] dL, the gyro matrix through the rate, M^T [L x] e_a w_b per
-                # element, and the misalignment: in the DVL's frame as the filter has it,
-                # the nominal one turned by mu, a - mu x a = a + a x mu, so [a x] dmu.
-                extra = (6 if nb > N_CORE else 0) + (N_GYRO_MATRIX if gi >= 0 else 0)
-                idx2 = np.empty(9 + extra, dtype=np.int64)
-                jac2 = np.zeros((3, 9 + extra))
-                idx2[:9] = idx
-                jac2[:, :9] = jac
-                col = 9
+            col = 9
+            if nb > N_CORE:
                 a_v = out_v[k_ping].copy()
-                if nb > N_CORE:
-                    jac2[:, col:col + 3] = mt @ _skew(wb)
-                    jac2[:, col + 3:col + 6] = _skew(a_v)
-                    for r in range(3):
-                        idx2[col + r] = 26 + r
-                        idx2[col + 3 + r] = 23 + r
-                    col += 6
-                    out_v[k_ping] += np.cross(a_v, mis)
-                if gi >= 0:
-                    for a_ in range(3):
-                        for b_ in range(3):
-                            jac2[:, col] = ml[:, a_] * w_imu[b_]
-                            idx2[col] = gi + 3 * a_ + b_
-                            col += 1
-                sub2 = np.empty((9 + extra, 9 + extra))
-                for a_ in range(9 + extra):
-                    for b_ in range(9 + extra):
-                        sub2[a_, b_] = P[idx2[a_], idx2[b_]]
-                out_cov[k_ping] = jac2 @ sub2 @ jac2.T
-            else:
-                out_cov[k_ping] = jac @ sub @ jac.T
+                jac[:, col:col + 3] = mt @ _skew(wb)
+                jac[:, col + 3:col + 6] = _skew(a_v)
+                for r in range(3):
+                    idx[col + r] = 26 + r
+                    idx[col + 3 + r] = 23 + r
+                col += 6
+                out_v[k_ping] += np.cross(a_v, mis)
+            if gi >= 0:
+                for a_ in range(3):
+                    for b_ in range(3):
+                        jac[:, col] = ml[:, a_] * w_imu[b_]
+                        idx[col] = gi + 3 * a_ + b_
+                        col += 1
+            sub = np.empty((9 + extra, 9 + extra))
+            for a_ in range(9 + extra):
+                for b_ in range(9 + extra):
+                    sub[a_, b_] = P[idx[a_], idx[b_]]
+            out_cov[k_ping] = jac @ sub @ jac.T
             out_p[k_ping] = p - c @ r_imu
             out_c[k_ping] = c
             out_r[k_ping] = r_use
             # The origin's position error adds theta x (C r_imu); r_imu is short, and its
             # share is below the position std's first digit: the IMU point's std.
-            for j in range(n):  # the slow error's and the gyro matrix's in their columns
-                out_sd[k_ping, j if j < nb else N_BEAM + j - si if si >= 0 and j < si + N_SLOW
-                       else N_BEAM + N_SLOW + j - gi] = math.sqrt(P[j, j])
+            for j in range(n):
+                out_sd[k_ping, column[j]] = math.sqrt(P[j, j])
             for r in range(3):
                 out_x[k_ping, 9 + r] = ba[r]
                 out_x[k_ping, 12 + r] = bg[r]
@@ -1246,7 +1242,7 @@ def start_from_reference(time: float, position_ned, velocity_ned, rotation, *,
     deg off in roll for 0.05 s), the velocity change |a| clock_std, the distance |v|
     clock_std."""
     if clock_std is None:
-        clock_std = CLOCK_STD if config.clock_std is None else config.clock_std
+        clock_std = _clock_setting(config)
     level, heading = np.radians(config.attitude_std_deg)
     rotation = np.asarray(rotation, dtype=float)
     turned = np.abs(rotation @ np.asarray(angular_rate, dtype=float)) * clock_std
@@ -1319,13 +1315,12 @@ def nearest_samples(t: np.ndarray, times: np.ndarray) -> np.ndarray:
     """(P,) the index of the sample of ``t`` (increasing, s) nearest each of ``times`` (s);
     -1 for a time more than half a sample before the first (no sample holds it)."""
     t, times = np.asarray(t, dtype=float), np.asarray(times, dtype=float)
-    after = np.clip(np.searchsorted(t, times), 1, max(len(t) - 1, 1))
+    if len(t) < 2:
+        return np.where(times < t[0], -1, 0).astype(np.int64)
+    after = np.clip(np.searchsorted(t, times), 1, len(t) - 1)
     before = after - 1
     out = np.where(np.abs(times - t[before]) <= np.abs(t[after] - times), before, after)
-    if len(t) == 1:
-        out = np.zeros(len(times), dtype=np.int64)
-    half = 0.5 * (t[1] - t[0]) if len(t) > 1 else 0.0
-    return np.where(times < t[0] - half, -1, out).astype(np.int64)
+    return np.where(times < t[0] - 0.5 * (t[1] - t[0]), -1, out).astype(np.int64)
 
 
 def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
@@ -1540,8 +1535,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         chi2_1dof(cfg.gate_probability), n, si, gi, decay,
         2.0 * bias_std**2 * decay,
         cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
-        (CLOCK_STD if cfg.clock_std is None else cfg.clock_std) if timing_std is None
-        else float(timing_std),
+        _clock_setting(cfg) if timing_std is None else float(timing_std),
         cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
         float(floor**2), float(ceiling**2),
         _gated_variance_share(cfg.gate_probability), *net)
@@ -1800,6 +1794,11 @@ def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
                  position_std=np.full(3, cfg.position_std),
                  velocity_std=np.full(3, cfg.velocity_std), attitude_std=att_std,
                  angular_rate=np.asarray(truth.angular_rate[0], dtype=float))
+
+
+def _clock_setting(cfg: FilterConfig) -> float:
+    """s, the clock uncertainty the settings give: ``clock_std``, else ``CLOCK_STD``."""
+    return CLOCK_STD if cfg.clock_std is None else cfg.clock_std
 
 
 def clock_stds(attrs, cfg: FilterConfig, imu_rate_hz: float) -> tuple[float, float]:
