@@ -186,6 +186,15 @@ def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.
     return out
 
 
+def dvl_against_reference(windows: Windows, truth: dict[str, np.ndarray]
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """At the samples of ``windows``: the DVL's own velocity less the target (the truth's
+    or the reference's velocity at the DVL), (S, 3) m/s in the DVL frame, and the DVL ->
+    NED rotation ``truth``'s attitude and mounting give, (S, 3, 3): what
+    ``earth_fixed_fit`` takes."""
+    return windows.velocity_ls - windows.target, truth["rotation"] @ truth["mounting"]
+
+
 def earth_fixed_fit(difference: np.ndarray, turn: np.ndarray) -> dict[str, float]:
     """Whether a velocity difference turns with the vehicle: ``difference`` (S, 3) m/s in
     the DVL frame (a DVL's velocity less a reference's), put in NED by ``turn`` (S, 3, 3)

@@ -41,13 +41,14 @@ the filter's misalignment and lever-arm states start there. With an uncalibrated
 priors instead (0.5 deg and 0.1 m: ``misalignment_std_deg`` and ``lever_arm_std`` in a
 ``--filter-config``) the median final error is 2.34 m, against 2.16 m.
 
-The clocks are known as well as check-log measured them (``ins.clock_stds``: for the
-start the IMU clock's, 6 to 14 ms; for a ping that and the DVL clock's, 18 to 36 ms). With
-a fixed 0.05 s instead, a segment that starts in a turn (segment 6: 6.3 deg/s) started
-with 0.32 deg of heading uncertainty, and the DVL's updates then moved the heading up to
-0.5 deg from the gyros' own (``--evidence``: now at most 0.072 deg), which follow the
-reference's to 0.03 deg; the median final was 2.21 m (1.24 x) and the coverage 85.0 %, a
-share of it bought with that wider heading.
+The clocks are known as well as check-log measured them (``ins.clock_stds``, which
+``--evidence`` prints: for the start the IMU clock's, 6 to 14 ms; for a ping that and the
+DVL clock's, 18 to 36 ms). With a fixed 0.05 s instead (``clock_std = 0.05`` in a
+``--filter-config``), a segment that starts in a turn starts with the turn times 0.05 s
+of heading uncertainty (0.3 deg at 6 deg/s), and the DVL's updates then move the heading
+up to 0.51 deg from the gyros' own (0.072 deg at most with the measured figures), which
+follow the reference's to 0.03 deg; the median final is then 2.18 m (1.22 x) and the
+coverage 85.0 %, a share of it bought with that wider heading.
 
 What is missed (measured on the IMU-clock files): the median final is 1.22 x the dead
 reckoning's (2.16 against 1.78 m), and the coverage is 82.3 % over all the pings, with
@@ -121,12 +122,12 @@ import numpy as np
 
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import rotation_matrices
+from auvsim.physics.frames import rotation_matrices, yaw_of
 from beamsnet.data import load_windows, reference_velocity
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
 from beamsnet.experiments.sea import sea_dataset
-from beamsnet.navigation import earth_fixed_fit, truth_at_pings
+from beamsnet.navigation import dvl_against_reference, earth_fixed_fit, truth_at_pings
 
 ROOT = Path(__file__).resolve().parents[1]
 # The shared real segments: ``shared/data/snapir-akit`` beside the repository (or beside a
@@ -157,7 +158,8 @@ def score(mission, config: ins.FilterConfig | None = None) -> dict:
     return dict(final=mine["final_m"], rmse=mine["rmse_m"], coverage=mine["coverage_3sigma"],
                 sigma_final=float(track.horizontal_std[-1]), restarts=len(track.events),
                 availability=track.availability, dr_final=dr["final_m"], dr_rmse=dr["rmse_m"],
-                pings=len(windows.time), track=track, config=estimator.config)
+                pings=len(windows.time), track=track, config=estimator.config,
+                windows=windows, truth=truth)
 
 
 def table(rows: dict[str, dict]) -> list[str]:
@@ -256,7 +258,7 @@ def gyro_heading(mission) -> np.ndarray:
             t = imu_t[i]
             i += 1
         at = gyro_step(c, ref_t[k] - t, w[i], omega)
-        turn = math.atan2(at[1, 0], at[0, 0]) - math.atan2(ref_c[k][1, 0], ref_c[k][0, 0])
+        turn = yaw_of(at) - yaw_of(ref_c[k])
         out.append(math.remainder(turn, 2 * math.pi))
     return np.degrees(out)
 
@@ -275,17 +277,19 @@ def reference_drift(mission) -> tuple[np.ndarray, np.ndarray]:
     return np.linalg.norm(p - p[0] - moved, axis=1), t - t[0]
 
 
+def per_segment(ds, title: str, columns: str, line) -> list[str]:
+    """A table of the segments of ``ds`` (sorted by name): ``title``, ``columns``, and
+    ``line(name, mission)`` after each name."""
+    return [title, columns] + [f"{name:<13}{line(name, m)}"
+                               for name, m in sorted(ds.missions.items())]
+
+
 def evidence(ds, rows: dict[str, dict]) -> list[str]:
     """The figures the module docstring quotes about what the filter cannot fix, per
-    segment of the corrected file ``ds`` (``rows``: its scores, with the filter's track)."""
-    out = [f"DVL minus reference velocity per DVL axis: mean, slow part sqrt(A) std (mm/s), "
-           f"tau (s) of r(k) = A exp(-k / tau), k = {LAGS[0]}..{LAGS[-1]} pings; gyros "
-           "alone minus the reference's heading (deg); reference position minus the "
-           f"integral of its velocity, horizontal, max over the first {EARLY:g} s and "
-           f"over the segment, and the filter's 3 sigma_h at {EARLY:g} s (m)",
-           "segment        x: mean  slow   tau   y: mean  slow   tau   z: mean  slow   tau  "
-           "| heading std  max |.|  | drift 50 s  segment  3 sigma_h"]
-    for name, m in sorted(ds.missions.items()):
+    segment of the corrected file ``ds`` (``rows``: its scores, with the filter's track,
+    its settings and the scored pings)."""
+
+    def errors(name, m):
         axes = "".join(f"   {1e3 * a['mean']:7.1f} {1e3 * a['slow']:5.1f} {a['tau']:5.1f}"
                        for a in dvl_error(m))
         heading = gyro_heading(m)
@@ -293,70 +297,78 @@ def evidence(ds, rows: dict[str, dict]) -> list[str]:
         track = rows[name]["track"]
         started = track.ping_time[np.isfinite(track.position_std[:, 0])][0]
         early = 3 * track.horizontal_std[np.searchsorted(track.ping_time, started + EARLY)]
-        out.append(f"{name:<13}{axes}  |  {np.std(heading):10.3f} {np.abs(heading).max():8.3f}"
-                   f"  |  {drift[since <= EARLY].max():9.2f} {drift.max():8.2f} {early:10.2f}")
-    out += ["The DVL's horizontal velocity less the reference's in NED, fitted as a "
-            "constant in NED (N, E) plus a constant in the DVL frame (x, y) (mm/s), and "
-            "the rms per axis left by no fit, the NED one alone, the DVL-frame one alone "
-            "and both (mm/s; reports/sea.md's table); the filter's heading less the "
-            "gyros' alone from the same start (its run without DVL updates): max |.| (deg)",
-            "segment        NED N     E  |  DVL x     y  |  rms: none   NED   DVL  "
-            "both  |  heading - gyros"]
-    for name, m in sorted(ds.missions.items()):
-        track = rows[name]["track"]
-        # As reports/sea.md fits it: at the scored pings, turned by the reference's attitude.
-        windows = load_windows(m.dataset.path, missions=[name])
-        truth = truth_at_pings(m.dataset.path, windows)
-        fit = earth_fixed_fit(windows.velocity_ls - windows.target,
-                              truth["rotation"] @ truth["mounting"])
-        alone = ins.run_mission(m, dataclasses.replace(rows[name]["config"],
-                                                       dvl_updates=False))
+        return (f"{axes}  |  {np.std(heading):10.3f} {np.abs(heading).max():8.3f}  |  "
+                f"{drift[since <= EARLY].max():9.2f} {drift.max():8.2f} {early:10.2f}")
+
+    def earth_fixed(name, m):
+        r = rows[name]
+        mm = {k: 1e3 * v for k, v in earth_fixed_fit(
+            *dvl_against_reference(r["windows"], r["truth"])).items()}
+        alone = ins.run_mission(m, dataclasses.replace(r["config"], dvl_updates=False))
         turned = np.degrees(np.abs(np.angle(np.exp(1j * (
-            yaw_of(track.rotation) - yaw_of(alone.rotation))))))
-        mm = {k: 1e3 * v for k, v in fit.items()}
-        out.append(f"{name:<13} {mm['north']:6.1f} {mm['east']:5.1f}  | "
-                   f"{mm['x']:6.1f} {mm['y']:5.1f}  |  {mm['rms']:9.1f} "
-                   f"{mm['rms_ned']:5.1f} {mm['rms_dvl']:5.1f} {mm['rms_both']:5.1f}  |  "
-                   f"{np.nanmax(turned):15.3f}")
-    lowest = min(rows, key=lambda name: rows[name]["coverage"])
-    out += [f"The least covered segment, {lowest}: the same difference in NED, its mean per "
-            f"{WINDOW:g} s (N, E, mm/s), and the reference's heading there (deg)",
-            "from s   to s    N mm/s   E mm/s   heading min  max"]
-    out += [f"{a:6.0f} {b:6.0f}  {n:7.1f}  {e:7.1f}   {lo:11.0f} {hi:4.0f}"
-            for a, b, n, e, lo, hi in ned_windows(ds.missions[lowest])]
-    out += ["The filter's DVL innovations (every measurement offered): their rms, the rms the "
-            "filter predicts, sqrt(mean S), with S = h P h^T + r^2 (mm/s), and the mean "
-            "normalised innovation squared, nu^2 / S (1 for a filter whose noise is right); "
-            "and the mean of its velocity less the DVL's along the DVL's x (mm/s); its "
-            "accelerometer bias at the last ping (ug, x y z) and, where its gyro-matrix "
-            "states are on, the x and y gyros' coupling to the z rate there (urad)",
-            "segment        rms  predicted  r (white)  mean NIS  filter - DVL, x  "
-            "accel bias x y z    K_g xz yz"]
-    for name, m in sorted(ds.missions.items()):
+            yaw_of(r["track"].rotation) - yaw_of(alone.rotation))))))
+        start, ping = ins.clock_stds(m.attrs, r["config"], float(m.attrs["imu_rate_hz"]))
+        return (f" {mm['north']:6.1f} {mm['east']:5.1f}  | {mm['x']:6.1f} {mm['y']:5.1f}  |  "
+                f"{mm['rms']:9.1f} {mm['rms_ned']:5.1f} {mm['rms_dvl']:5.1f} "
+                f"{mm['rms_both']:5.1f}  |  {np.nanmax(turned):15.3f}  |  "
+                f"{1e3 * start:5.1f} {1e3 * ping:5.1f}")
+
+    def innovation(name, m):
         track = rows[name]["track"]
         rms, predicted, white, nis = innovations(track)
         ahead = np.nanmean(track.velocity_dvl[:, 0] - np.asarray(m.dvl.velocity_ls)[:, 0])
         bias = " ".join(f"{x / MICRO_G:+5.0f}" for x in track.accel_bias[-1])
         coupling = " ".join(f"{1e6 * x:+5.0f}" for x in track.gyro_matrix[-1][[2, 5]])
-        out.append(f"{name:<13}{1e3 * rms:5.1f}  {1e3 * predicted:9.1f}  {1e3 * white:9.1f}  "
-                   f"{nis:8.3f}  {1e3 * ahead:15.1f}  {bias}    {coupling}")
-    return out
+        return (f"{1e3 * rms:5.1f}  {1e3 * predicted:9.1f}  {1e3 * white:9.1f}  "
+                f"{nis:8.3f}  {1e3 * ahead:15.1f}  {bias}    {coupling}")
+
+    lowest = min(rows, key=lambda name: rows[name]["coverage"])
+    return [
+        *per_segment(
+            ds, f"DVL minus reference velocity per DVL axis: mean, slow part sqrt(A) std "
+            f"(mm/s), tau (s) of r(k) = A exp(-k / tau), k = {LAGS[0]}..{LAGS[-1]} pings; "
+            "gyros alone minus the reference's heading (deg); reference position minus the "
+            f"integral of its velocity, horizontal, max over the first {EARLY:g} s and over "
+            f"the segment, and the filter's 3 sigma_h at {EARLY:g} s (m)",
+            "segment        x: mean  slow   tau   y: mean  slow   tau   z: mean  slow   tau  "
+            "| heading std  max |.|  | drift 50 s  segment  3 sigma_h", errors),
+        *per_segment(
+            ds, "The DVL's horizontal velocity less the reference's in NED, fitted as a "
+            "constant in NED (N, E) plus a constant in the DVL frame (x, y) (mm/s), and "
+            "the rms per axis left by no fit, the NED one alone, the DVL-frame one alone "
+            "and both (mm/s; reports/sea.md's table); the filter's heading less the "
+            "gyros' alone from the same start (its run without DVL updates): max |.| "
+            "(deg); the clock uncertainty the filter took, at the start and at a ping (ms)",
+            "segment        NED N     E  |  DVL x     y  |  rms: none   NED   DVL  "
+            "both  |  heading - gyros  |  start  ping", earth_fixed),
+        f"The least covered segment, {lowest}: the same difference in NED, its mean per "
+        f"{WINDOW:g} s (N, E, mm/s), and the reference's heading there (deg)",
+        "from s   to s    N mm/s   E mm/s   heading min  max",
+        *(f"{a:6.0f} {b:6.0f}  {n:7.1f}  {e:7.1f}   {lo:11.0f} {hi:4.0f}"
+          for a, b, n, e, lo, hi in ned_windows(rows[lowest]["windows"],
+                                                rows[lowest]["truth"])),
+        *per_segment(
+            ds, "The filter's DVL innovations (every measurement offered): their rms, the "
+            "rms the filter predicts, sqrt(mean S), with S = h P h^T + r^2 (mm/s), and the "
+            "mean normalised innovation squared, nu^2 / S (1 for a filter whose noise is "
+            "right); and the mean of its velocity less the DVL's along the DVL's x (mm/s); "
+            "its accelerometer bias at the last ping (ug, x y z) and, where its gyro-matrix "
+            "states are on, the x and y gyros' coupling to the z rate there (urad)",
+            "segment        rms  predicted  r (white)  mean NIS  filter - DVL, x  "
+            "accel bias x y z    K_g xz yz", innovation)]
 
 
 WINDOW = 20.0  # s, the windows ``ned_windows`` averages over
 
 
-def ned_windows(mission) -> list[tuple[float, ...]]:
-    """The DVL's horizontal velocity less the reference's, in NED (as ``earth_fixed_fit``
-    takes it: at the scored pings, turned by the reference's attitude), averaged over
-    consecutive ``WINDOW`` s from the first scored ping: per window its start and end (s
-    from there), the mean north and east (mm/s), and the reference's heading's least and
-    greatest (deg)."""
-    path = mission.dataset.path
-    windows = load_windows(path, missions=[mission.name])
-    truth = truth_at_pings(path, windows)
-    turn = truth["rotation"] @ truth["mounting"]
-    ned = np.einsum("sij,sj->si", turn, windows.velocity_ls - windows.target)[:, :2]
+def ned_windows(windows, truth: dict[str, np.ndarray]) -> list[tuple[float, ...]]:
+    """The DVL's horizontal velocity less the reference's in NED at a mission's scored
+    pings (``windows``, ``truth``: as ``earth_fixed_fit`` takes it), averaged over
+    consecutive ``WINDOW`` s from the first: per window its start and end (s from there),
+    the mean north and east (mm/s), and the reference's heading's least and greatest
+    (deg)."""
+    difference, turn = dvl_against_reference(windows, truth)
+    ned = np.einsum("sij,sj->si", turn, difference)[:, :2]
     heading = np.degrees(yaw_of(truth["rotation"]))
     since = windows.time - windows.time[0]
     out = []
@@ -367,11 +379,6 @@ def ned_windows(mission) -> list[tuple[float, ...]]:
             out.append((start, start + WINDOW, n, e, heading[inside].min(),
                         heading[inside].max()))
     return out
-
-
-def yaw_of(rotation: np.ndarray) -> np.ndarray:
-    """(P,) rad, the heading of body -> NED rotations (P, 3, 3)."""
-    return np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])
 
 
 def innovations(track: ins.FilterTrack) -> tuple[float, float, float, float]:

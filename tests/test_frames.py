@@ -18,6 +18,7 @@ from auvsim.physics.frames import (
     rotation_matrices,
     rotation_rpy,
     skew,
+    yaw_of,
 )
 
 
@@ -105,3 +106,13 @@ def test_quaternions_of_arrays_are_those_of_each_row():
                                rotation_matrices(a) @ rotation_matrices(b), atol=1e-12)
     np.testing.assert_allclose(rotation_matrices(quaternion_product(a[0], b)),
                                rotation_matrices(a[:1]) @ rotation_matrices(b), atol=1e-12)
+
+
+def test_yaw_of_one_rotation_and_of_a_stack():
+    """Known answers: the yaw of ZYX rotations (roll and pitch leave it alone) for one
+    (a float) and for a stack of them (each, in an array)."""
+    yaws = np.radians([-170.0, -30.0, 0.0, 45.0, 179.0])
+    stack = np.stack([rotation_rpy(0.3, -0.2, y) for y in yaws])
+    assert isinstance(yaw_of(stack[1]), float)
+    assert math.isclose(yaw_of(stack[1]), yaws[1], abs_tol=1e-12)
+    np.testing.assert_allclose(yaw_of(stack), yaws, atol=1e-12)

@@ -182,6 +182,10 @@ def mujoco_from_ned(position_ned, quaternion: np.ndarray,
     return qpos, v_world
 
 
-def yaw_of(rotation: np.ndarray) -> float:
-    """Heading (rad from north) of a (3, 3) body -> NED rotation."""
-    return math.atan2(rotation[1, 0], rotation[0, 0])
+def yaw_of(rotation: np.ndarray) -> float | np.ndarray:
+    """Heading (rad from north) of a (3, 3) body -> NED rotation (a float), or of each of
+    a stack (..., 3, 3) (an array)."""
+    rotation = np.asarray(rotation)
+    if rotation.ndim == 2:
+        return math.atan2(rotation[1, 0], rotation[0, 0])
+    return np.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])

@@ -60,7 +60,12 @@ from beamsnet.evaluate import (
 )
 from beamsnet.experiments.runner import check_duration, ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
-from beamsnet.navigation import dead_reckoning_positions, earth_fixed_fit, truth_at_pings
+from beamsnet.navigation import (
+    dead_reckoning_positions,
+    dvl_against_reference,
+    earth_fixed_fit,
+    truth_at_pings,
+)
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
@@ -342,8 +347,7 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     scores[by_reference]["velocity_rmse"] = metrics.rmse_vector(
         windows.velocity_ls, windows.target)
     tracks[by_reference] = dead_reckoning_positions(windows, windows.velocity_ls, truth, 0)
-    earth = earth_fixed_fit(windows.velocity_ls - windows.target,
-                            truth["rotation"] @ truth["mounting"])
+    earth = earth_fixed_fit(*dvl_against_reference(windows, truth))
     return dict(scores=dict(scores, failed=failed, pings=len(windows.time),
                             against=windows.reference, derived=bool(windows.derived),
                             earth_fixed=earth),
