@@ -11,10 +11,16 @@ import warnings
 from pathlib import Path
 
 from auvsim.cli_support import run_command
+from auvsim.data.files import ReplacedWarning
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
-from beamsnet.evaluate import FilterWarning, SensorSetupWarning, UnseenMissionWarning
+from beamsnet.evaluate import (
+    TRAIN_FRACTION,
+    FilterWarning,
+    SensorSetupWarning,
+    UnseenMissionWarning,
+)
 from beamsnet.experiments.adaptive import DURATION as ADAPTIVE_DURATION
 from beamsnet.experiments.adaptive import SEEDS as ADAPTIVE_SEEDS
 from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
@@ -73,16 +79,33 @@ def _per_experiment(field: str, *names: str) -> str:
     return ", ".join(f"{value(name):g} for {name}" for name in names)
 
 
+EXAMPLES = """examples:
+  beamsnet train datasets/paper_sim.h5 --model v2 --out runs/v2
+  beamsnet evaluate runs/v2 datasets/paper_sim.h5 --out evaluation/v2
+  beamsnet estimate snapir-checked.h5 --estimator INS/DVL --out runs/ins
+  beamsnet reproduce paper-sim
+  beamsnet reproduce sea --data DIR
+  beamsnet stress
+
+Each command has its own --help."""
+
+
 def _parser() -> argparse.ArgumentParser:
     # Every training default shown and used here is read from beamsnet.training.train's
     # TrainConfig and PROFILES: the command line writes none of its own.
     train = PROFILES["train"]
-    parser = OneLineErrorParser(prog="beamsnet", description=__doc__)
+    parser = OneLineErrorParser(prog="beamsnet", description=__doc__, epilog=EXAMPLES,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                 parser_class=OneLineErrorParser)
+
+    def command(name: str, help: str) -> argparse.ArgumentParser:
+        """A command, its --help opening with what it does (the list's line)."""
+        return sub.add_parser(name, help=help, description=f"{help[0].upper()}{help[1:]}.",
+                              formatter_class=_Defaults)
+
     networks = specs("network")
-    tr = sub.add_parser("train", help=f"train {', '.join(s.short for s in networks)} on a "
-                        "dataset", formatter_class=_Defaults)
+    tr = command("train", f"train {', '.join(s.short for s in networks)} on a dataset")
     tr.add_argument("dataset", type=Path, help="auvsim dataset (.h5 file or sharded folder)")
     tr.add_argument("--model", choices=network_names(), default=train.config.model,
                     help="; ".join(f"{s.name}: {s.title}" for s in networks))
@@ -114,8 +137,8 @@ def _parser() -> argparse.ArgumentParser:
                     help="train on this mission only (repeatable; default: all)")
     tr.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
     tr.add_argument("--quiet", action="store_true", help=QUIET_HELP)
-    ev = sub.add_parser("evaluate", help="compare trained runs with the model-based "
-                        "estimators on the test split of datasets", formatter_class=_Defaults)
+    ev = command("evaluate", "compare trained runs with the model-based estimators on the "
+                 "test split of datasets")
     ev.add_argument("run", type=Path, help="run folder written by beamsnet train")
     ev.add_argument("datasets", type=Path, nargs="+", metavar="dataset",
                     help="auvsim datasets to evaluate on")
@@ -131,24 +154,24 @@ def _parser() -> argparse.ArgumentParser:
                     "a run's training data (with a warning) instead of refusing it")
     ev.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     runnable = [s for s in specs() if s.kind != "network"]
-    es = sub.add_parser(
-        "estimate", help="run one model-based estimator or filter over every ping of a "
-        "dataset", formatter_class=_Defaults)
+    es = command("estimate", "run one model-based estimator or filter over every ping of a "
+                 "dataset")
     es.add_argument("dataset", type=Path, help="auvsim dataset to estimate on")
     es.add_argument("--estimator", required=True, metavar="NAME",
                     help="its name in the tables (case, spaces and dashes do not matter): "
                     + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
-                    help="fit on this file's training split (default: the dataset's own)")
+                    help="fit on this file's training split (default: the dataset's own, "
+                    f"the first {100 * TRAIN_FRACTION:.0f} %% of each mission's pings, which "
+                    "the scores then include)")
     es.add_argument("--filter-config", type=Path, metavar="FILE.toml",
                     help=FILTER_CONFIG_HELP)
     es.add_argument("--out", type=Path, metavar="FOLDER",
                     help="folder for estimates.csv and summary.json (default: a new "
                     "runs/estimate-DATE-TIME)")
-    rp = sub.add_parser(
-        "reproduce", help="reproduce the paper's experiments (the simulation's Table 1, "
-        "the Snapir sea data's Table 3) and ours: sim-to-real, the real segments, the "
-        "learned noise", formatter_class=_Defaults)
+    rp = command("reproduce", "reproduce the paper's experiments (the simulation's Table 1, "
+                 "the Snapir sea data's Table 3) and ours: sim-to-real, the real segments, "
+                 "the learned noise")
     rp.add_argument("experiment", choices=("paper-sim", "paper-sim-text", "snapir", "sim2real",
                                            "sea", "adaptive"),
                     metavar="EXPERIMENT",
@@ -191,9 +214,7 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
     rp.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     stress = PROFILES["stress"]
-    st = sub.add_parser(
-        "stress", help="train on straight lines, test every estimator on manoeuvres",
-        formatter_class=_Defaults)
+    st = command("stress", "train on straight lines, test every estimator on manoeuvres")
     st.add_argument("--train", type=Path, dest="train_data", metavar="DATASET",
                     help="dataset to train on (default: paper-sim, generated)")
     st.add_argument("--maneuvers", type=Path, dest="maneuver_data", metavar="DATASET",
@@ -301,7 +322,8 @@ def _evaluate(args) -> None:
         print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
         if "navigation" in result:
             print()
-            print(navigation_markdown(result["navigation"], result["against"]))
+            print(navigation_markdown(result["navigation"], result["against"],
+                                      since_first=True))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
 
 
@@ -316,6 +338,8 @@ def _estimate(args) -> None:
           + (f"; beams derived as H v from the DVL's own velocity in "
              f"{', '.join(summary['beams_derived'])} (the log has none)"
              if summary.get("beams_derived") else ""))
+    if "fitted_on_scored_pings" in summary:
+        print(f"note: {summary['estimator']} was {summary['fitted_on_scored_pings']}")
     for mission, row in summary["missions"].items():
         said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"
                 + (" accepted" if "events" in row else "")]
@@ -463,6 +487,7 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always", SensorSetupWarning)
         warnings.simplefilter("always", UnseenMissionWarning)
         warnings.simplefilter("always", FilterWarning)
+        warnings.simplefilter("always", ReplacedWarning)
         return run_command("beamsnet", command, FLAGS)
 
 

@@ -353,9 +353,11 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
                                            + _derived_words(windows)))
             if _has_truth(dataset, windows.names):
                 navigation = navigation_scores(windows, predictions,
-                                               truth_at_pings(dataset, windows), **own)
+                                               truth_at_pings(dataset, windows), **own,
+                                               since_first=True)
                 results[str(dataset)]["navigation"] = navigation
-                sections.append(navigation_markdown(navigation, windows.reference))
+                sections.append(navigation_markdown(navigation, windows.reference,
+                                                    since_first=True))
             figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
             bar.update()
         # Only now, every input checked, is ``out`` made: whole, or not at all.
@@ -424,6 +426,9 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
                       f"{', '.join(map(repr, known))}", argument="estimator")
 
 
+TRAIN_FRACTION = 0.75  # ``estimate``'s training split of a file (the paper's 75 %)
+
+
 def estimate(name: str, dataset: str | Path, out: str | Path, *,
              train: str | Path | None = None, filter_config=None) -> dict:
     """Run one model-based estimator over every ping of ``dataset`` and write its
@@ -438,7 +443,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             (``load_windows(every_ping=True)``).
         out: the directory to write, made once every input has been checked.
         train: the file whose training split the estimator is fitted on (default the
-            training split of ``dataset`` itself).
+            training split of ``dataset`` itself: the first ``TRAIN_FRACTION`` of each
+            mission's pings, which every ping's scores then include; the summary's
+            ``fitted_on_scored_pings`` says so).
         filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
 
     Returns:
@@ -455,7 +462,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     train_windows = load_windows(dataset if train is None else train)
     _check_same_beams(train, train_windows, dataset, windows)
     try:
-        train_w = split(train_windows)[0]
+        train_w = split(train_windows, TRAIN_FRACTION)[0]
     except ValueError as e:
         raise DataError(f"{train or dataset}: {e}") from None
     try:
@@ -467,6 +474,11 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred), against=windows.reference,
                    availability=availability(pred), missions={})
+    if train is None and spec(estimator.name).needs.training:
+        summary["fitted_on_scored_pings"] = (
+            f"fitted on the first {100 * TRAIN_FRACTION:.0f} % of each mission's pings of "
+            "this file (its training split), which the scores include; --train OTHER.h5 "
+            "fits it on another file")
     if windows.derived:
         summary["beams_derived"] = list(windows.derived)
     if hasattr(estimator, "config"):
@@ -532,8 +544,8 @@ def baseline_names(reference: str) -> tuple[str, str]:
 
 def navigation_scores(windows: Windows, predictions: dict[str, np.ndarray],
                       truth: dict[str, np.ndarray], *, positions: dict | None = None,
-                      stds: dict | None = None, rotations: dict | None = None
-                      ) -> dict[str, dict[str, dict]]:
+                      stds: dict | None = None, rotations: dict | None = None,
+                      since_first: bool = False) -> dict[str, dict[str, dict]]:
     """Per mission, per estimator: its horizontal position error against
     ``truth["position"]`` (the truth, or a recorded mission's reference; see
     ``beamsnet.navigation.position_report``): its own position where it has one
@@ -542,6 +554,11 @@ def navigation_scores(windows: Windows, predictions: dict[str, np.ndarray],
     on. Beside them the two baselines of ``baseline_names``: the DVL's own velocity
     (``windows.velocity_ls``) with that attitude, and with the attitude of each estimator
     of ``rotations`` (name -> (S, 3, 3) body -> NED), the filter's.
+
+    ``since_first``: an estimator's own position is scored, like the dead reckonings, from
+    the truth at the mission's first sample (by how far it moved from there), so that all
+    are scored over the same interval where ``windows`` start mid-mission (``evaluate``'s
+    test split); its coverage stays that of its own position.
 
     Returns:
         mission name -> row name -> the scores (``final_m``, ``rmse_m``,
@@ -555,7 +572,7 @@ def navigation_scores(windows: Windows, predictions: dict[str, np.ndarray],
         for name, pred in predictions.items():
             if name in positions:
                 rows[name] = position_report(windows, positions[name], truth, i,
-                                             stds.get(name))
+                                             stds.get(name), since_first=since_first)
             elif np.isfinite(pred[windows.mission == i]).any():
                 rows[name] = position_report(
                     windows, dead_reckoning_positions(windows, pred, truth, i), truth, i)
@@ -608,11 +625,18 @@ def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | Non
     return at_pings(tracks, windows, field)
 
 
-def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:
-    """``navigation_scores`` as a Markdown table per mission, saying what it is against."""
+def navigation_markdown(scores: dict[str, dict[str, dict]], against: str, *,
+                        since_first: bool = False) -> str:
+    """``navigation_scores`` as a Markdown table per mission, saying what it is against
+    (and, ``since_first``, from where: the scores' own ``since_first``)."""
     lines = []
+    whose = "the truth's" if against in TRUTHS else "the reference's"
+    start = (f"Every row starts at {whose} position at the mission's first scored ping (an "
+             "estimator with its own position: scored by how far it moved from there); "
+             "within 3 sigma: the error of its own position, which its sigma is of.")
     for mission, rows in scores.items():
         lines += [f"#### {mission}: horizontal position error against {against}", "",
+                  *([start, ""] if since_first else []),
                   "| estimator | final (m) | RMSE (m) | final (% of distance) | "
                   "within 3 sigma (%) |", "|---|---|---|---|---|"]
         for name, row in rows.items():

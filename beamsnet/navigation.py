@@ -166,19 +166,26 @@ def dead_reckoning_positions(windows: Windows, velocity: np.ndarray,
 
 
 def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.ndarray],
-                    mission: int, position_std: np.ndarray | None = None) -> dict[str, float]:
+                    mission: int, position_std: np.ndarray | None = None, *,
+                    since_first: bool = False) -> dict[str, float]:
     """``beamsnet.metrics.position_scores`` of the mission's positions (``position``, (S_m,
     3) or the whole (S, 3), m NED) against ``truth["position"]`` (the truth, or the
     reference), and with ``position_std`` (same shape, the estimator's reported 1 sigma
     per axis) ``coverage_3sigma``: the share of pings whose horizontal error lies within
     the radius 3 sqrt(sigma_N^2 + sigma_E^2) (``beamsnet.metrics.coverage``), 1 - e^-9 =
-    99.99 % for a right covariance with equal north and east sigmas."""
+    99.99 % for a right covariance with equal north and east sigmas.
+
+    ``since_first``: score how far the positions moved from the mission's first sample,
+    put at the truth there, as a dead reckoning from that sample is (a scored interval
+    that starts mid-mission, such as a test split); the coverage stays that of the
+    positions themselves, which is what their sigma is of."""
     mine = windows.mission == mission
     if len(position) == len(windows.time):
         position = position[mine]
         position_std = None if position_std is None else position_std[mine]
     reference = truth["position"][mine]
-    out = metrics.position_scores(position, reference)
+    scored = position - position[0] + reference[0] if since_first else position
+    out = metrics.position_scores(scored, reference)
     if position_std is not None:
         out["coverage_3sigma"] = metrics.coverage(
             np.linalg.norm(position[:, :2] - reference[:, :2], axis=1),

@@ -21,7 +21,7 @@ import beamsnet.experiments.reproduce
 import beamsnet.experiments.stress
 import beamsnet.training.train
 from auvsim.config import DvlConfig
-from auvsim.data.files import staged_dir
+from auvsim.data.files import ReplacedWarning, staged_dir
 from auvsim.errors import ConfigError
 from beamsnet.cli import REPORTS, main, report_dir
 from beamsnet.evaluate import estimate, evaluate
@@ -298,8 +298,10 @@ def test_a_staged_folder_is_moved_in_whole_or_not_at_all(tmp_path):
         assert not out.exists()
     assert _listing(out) == {"one.txt"}
     (out / "mine.txt").write_text("kept")
-    with staged_dir(out) as stage:
-        (stage / "one.txt").write_text("2")
+    with pytest.warns(ReplacedWarning, match="b': replaced one.txt, which was there") as said:
+        with staged_dir(out) as stage:
+            (stage / "one.txt").write_text("2")
+    assert len(said) == 1 and "mine.txt" not in str(said[0].message)
     assert (out / "one.txt").read_text() == "2" and (out / "mine.txt").read_text() == "kept"
     assert _listing(tmp_path) == {"a", "a/b", "a/b/one.txt", "a/b/mine.txt"}
 

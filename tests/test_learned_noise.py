@@ -235,6 +235,13 @@ def test_it_trains_on_simulated_missions_only(tmp_path):
     import_logs([tmp_path / "logs"], tmp_path / "sea.h5", format="akit")
     with pytest.raises(noisemodel.NoiseModelError, match="simulated data only"):
         noisenet.train_noise_model(tmp_path / "sea.h5")
+    # The estimator, fitted on the log itself (beamsnet estimate), says the same and what
+    # to give instead (not that the log lacks measured beams, which it does too).
+    from beamsnet.data import load_windows, split
+
+    train = split(load_windows(tmp_path / "sea.h5"))[0]
+    with pytest.raises(noisemodel.NoiseModelError, match="simulated data only.*noise_model"):
+        noisenet.LearnedInsDvlFilter(tmp_path / "sea.h5").fit(train)
 
 
 @pytest.mark.parametrize("flag, said", [

@@ -358,10 +358,31 @@ def test_export_refuses_and_writes_nothing(dataset, tmp_path):
     code, _, err = run("export", str(dataset), "--to", "pd0", "--mission", "nope",
                        "--out", str(out))
     assert code == 2 and "--mission 'nope': no such mission" in err
+    code, _, err = run("export", str(dataset), "--to", "pd0", "--out",
+                       str(tmp_path / "nowhere" / "x.pd0"))  # as the MCAP export says it
+    assert code == 2 and "the folder" in err and "does not exist; expected a file in an " \
+        "existing folder" in err
     code, _, err = run("import", str(dataset), "--format", "pd0", "--out",
                        str(tmp_path / "y.h5"))
     assert code == 2 and "--description" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_export_of_a_log_without_beams_says_what_it_has(tmp_path):
+    """A recorded log holds its DVL's velocity, not its beams: refused in one line naming
+    the file and what the log has, nothing written."""
+    from test_sea import write_akit
+
+    from auvsim.data.recorded import import_logs
+
+    write_akit(tmp_path / "logs", 1)
+    log = tmp_path / "sea.h5"
+    import_logs([tmp_path / "logs"], log, format="akit")
+    out = tmp_path / "x.pd0"
+    code, stdout, err = run("export", str(log), "--to", "pd0", "--out", str(out))
+    assert code == 2 and stdout == "" and err.count("\n") == 1, err
+    assert f"{log}: mission 'trajectory1' has its DVL's velocity only; expected" in err
+    assert not out.exists()
 
 
 def test_a_description_nested_too_deeply_is_refused_in_one_line(exported, tmp_path):

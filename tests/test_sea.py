@@ -370,6 +370,16 @@ def test_own_position_sigma_and_attitude_from_an_estimators_tracks(recorded, sig
     assert rows["own"]["coverage_3sigma"] == covered
     assert rows["DR: DVL + filter attitude"] == pytest.approx(
         rows["DR: DVL + reference attitude"], abs=1e-9)
+    # Scored from its first sample, as the dead reckonings are (a test split starts
+    # mid-mission): it moved exactly as the reference did, 0 m off; what its sigma covers
+    # is still its own position's 1 m.
+    since = navigation_scores(windows, {"own": windows.velocity_ls}, truth,
+                              positions={"own": position}, stds=reported_stds(own, windows),
+                              since_first=True)["trajectory1"]
+    assert since["own"]["final_m"] == pytest.approx(0.0, abs=1e-9)
+    assert since["own"]["rmse_m"] == pytest.approx(0.0, abs=1e-9)
+    assert since["own"]["coverage_3sigma"] == covered
+    assert since["DR: DVL + reference attitude"] == rows["DR: DVL + reference attitude"]
 
 
 def test_the_filter_on_a_recorded_mission_writes_its_own_track(tmp_path, capsys):

@@ -38,6 +38,7 @@ import signal
 import socket
 import tempfile
 import threading
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -256,6 +257,23 @@ def check_out_dir(out: str | os.PathLike) -> Path:
                                   f"({e.strerror or e}); expected a directory you can write "
                                   "in", argument="out") from None
             break
+    return out
+
+
+def check_out_file(out: str | os.PathLike) -> Path:
+    """``out`` as a Path, after checking that it names a file in an existing folder (an
+    export's output: refused before any work).
+
+    Raises:
+        ConfigError: ``out`` is a directory, or its folder does not exist.
+    """
+    out = Path(out)
+    if out.is_dir():
+        raise ConfigError(f"{str(out)!r}: is a directory; expected a file name",
+                          argument="out")
+    if not out.parent.is_dir():
+        raise ConfigError(f"{str(out)!r}: the folder {str(out.parent)!r} does not exist; "
+                          "expected a file in an existing folder", argument="out")
     return out
 
 
@@ -508,15 +526,32 @@ def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
-def _move_into(source: Path, out: Path) -> None:
+class ReplacedWarning(UserWarning):
+    """An output folder held files of the names a run writes: they were replaced."""
+
+
+def _move_into(source: Path, out: Path, *, top: bool = True) -> list[Path]:
     """Move the folder ``source`` to ``out``: renamed if ``out`` does not exist, else entry
-    by entry (folders merged the same way)."""
+    by entry (folders merged the same way). Returns the files it replaced; at the top, a
+    ``ReplacedWarning`` names them (a run written over another's, say)."""
     if not out.exists():
         source.rename(out)
-        return
+        return []
+    replaced = []
     for entry in sorted(source.iterdir()):
         target = out / entry.name
         if entry.is_dir() and target.is_dir():
-            _move_into(entry, target)
+            replaced += _move_into(entry, target, top=False)
         else:
+            if target.exists():
+                replaced.append(target)
             entry.replace(target)
+    if top and replaced:
+        names = [str(p.relative_to(out)) for p in replaced]
+        if len(names) > 5:
+            names = [*names[:5], f"{len(names) - 5} more"]
+        shown = " and ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
+        warnings.warn(f"{str(out)!r}: replaced {shown}, which "
+                      f"{'was' if len(replaced) == 1 else 'were'} there already",
+                      ReplacedWarning, stacklevel=2)
+    return replaced

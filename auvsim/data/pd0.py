@@ -71,7 +71,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.beams import Mode, beam_matrix, error_velocity, least_squares
-from auvsim.data.files import check_not_source, write_bytes
+from auvsim.data.files import check_not_source, check_out_file, write_bytes
 from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
@@ -236,6 +236,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
     """
     from auvsim.data.reader import open_dataset
 
+    out = check_out_file(out)
     check_not_source(out, dataset)
     if coordinates not in COORDINATES:
         raise ConfigError(f": expected one of {', '.join(COORDINATES)}, got {coordinates!r}",
@@ -244,8 +245,11 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
         m = ds.mission(mission)  # a PD0 file holds one DVL's pings
         mission = m.name
         if not m.has("dvl") or "beam_velocity" not in m.dvl:
-            raise ConfigError(f"mission {mission!r} has no DVL beams (dvl/beam_velocity); "
-                              "expected a mission with a DVL", argument="dataset")
+            has = ("its DVL's velocity only" if m.has("dvl") and "velocity_ls" in m.dvl
+                   else "no DVL")
+            raise ConfigError(f"{dataset}: mission {mission!r} has {has}; expected a "
+                              "mission with its DVL's beams (dvl/beam_velocity), which a "
+                              "PD0 file holds")
         pings = _pings(m)
     data = encode(pings, coordinates=coordinates)
     write_bytes(out, data)

@@ -96,13 +96,12 @@ import math
 import os
 import re
 from collections.abc import Mapping
-from pathlib import Path
 
 import numpy as np
 
 from auvsim import __version__
 from auvsim.data.beams import beam_matrix
-from auvsim.data.files import Claim, check_not_source, commit, writing
+from auvsim.data.files import Claim, check_not_source, check_out_file, commit, writing
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
@@ -171,7 +170,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     if compression not in COMPRESSIONS:
         raise ConfigError(f"{compression!r}: expected one of {', '.join(COMPRESSIONS)}",
                           argument="compression")
-    out = _output(out)
+    out = check_out_file(out)
     if not (isinstance(block_s, (int, float)) and block_s >= 1e-3 and math.isfinite(block_s)):
         raise ConfigError(f"{block_s!r}: expected at least 0.001 s", argument="block_s")
     step = round(block_s * 1e9)
@@ -261,18 +260,6 @@ def _topics(topics: Mapping[str, str] | None) -> dict[str, str]:
         raise ConfigError("two keys name the same topic; expected a topic each",
                           argument="topics")
     return names
-
-
-def _output(out: str | os.PathLike) -> Path:
-    out = Path(out)
-    if out.is_dir():
-        raise ConfigError(f"{str(out)!r}: is a directory; expected a file name",
-                          argument="out")
-    folder = out.parent
-    if not folder.is_dir():
-        raise ConfigError(f"{str(out)!r}: the folder {str(folder)!r} does not exist; "
-                          "expected a file in an existing folder", argument="out")
-    return out
 
 
 def stamps_ns(time: np.ndarray) -> np.ndarray:

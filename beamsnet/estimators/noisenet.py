@@ -300,11 +300,7 @@ def train_noise_models(dataset, missions: Sequence[str] | None = None, *,
     with open_dataset(dataset) as f:
         if missions is None:
             missions = list(f.missions)
-        recorded = [n for n in missions if f.missions[n].origin == "recorded"]
-    if recorded:
-        raise NoiseModelError(f"missions: expected auvsim's simulated missions, got the "
-                              f"recorded {recorded[0]!r}: the noise model trains on "
-                              "simulated data only")
+    _refuse_recorded(dataset, missions)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -364,6 +360,8 @@ class LearnedInsDvlFilter(InsDvlFilter):
             NoiseModelError: the training windows are not of this filter's file (their
                 missions, times or beams differ), so it has no training run of its own.
         """
+        if not self.given:
+            _refuse_recorded(self.dataset, [train.names[i] for i in np.unique(train.mission)])
         super().fit(train)
         if not self.given:
             _check_windows_of(self.dataset, train)
@@ -374,6 +372,25 @@ class LearnedInsDvlFilter(InsDvlFilter):
                        for i in missions},
                 beam_correction=self.correction)
         return self
+
+
+def _refuse_recorded(dataset, missions: Sequence[str]) -> None:
+    """Refuse to train on a recorded mission of ``dataset`` (a log has no truth to learn
+    the noise from, nor measured beams).
+
+    Raises:
+        NoiseModelError: naming the first recorded mission and what to give instead.
+    """
+    from auvsim.data.reader import open_dataset
+
+    with open_dataset(dataset) as f:
+        recorded = [n for n in missions if f.missions[n].origin == "recorded"]
+    if recorded:
+        raise NoiseModelError(f"{dataset}: mission {recorded[0]!r} is recorded, and the "
+                              "noise model trains on simulated data only; on a recorded "
+                              "log, give a trained one (noise_model in the filter's "
+                              "settings, --filter-config; beamsnet reproduce adaptive "
+                              "writes one)")
 
 
 def _check_windows_of(dataset, windows: Windows) -> None:

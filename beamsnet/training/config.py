@@ -94,8 +94,8 @@ class TrainConfig:
         check(self.mask_rate is None or (_real(self.mask_rate) and 0 <= self.mask_rate < 1
                                          and (known[self.model].masked
                                               or self.mask_rate == 0)),
-              "mask_rate", f"None or a probability in [0, 1) for {' or '.join(masked)}, 0 "
-              f"for {' and '.join(unmasked)} (no masks)")
+              "mask_rate", f"a probability in [0, 1) for {' or '.join(masked)} (left out: "
+              f"{MASK_RATE:g}), 0 for {' and '.join(unmasked)} (no masks)")
         optional = [k for k, m in known.items() if m.imu_option]
         check(isinstance(self.imu, bool) and (known[self.model].imu_option or not self.imu),
               "imu", f"True only for {' or '.join(optional)} (the others take the IMU "
