@@ -376,7 +376,8 @@ class LearnedInsDvlFilter(InsDvlFilter):
 
 def _refuse_recorded(dataset, missions: Sequence[str]) -> None:
     """Refuse to train on a recorded mission of ``dataset`` (a log has no truth to learn
-    the noise from, nor measured beams).
+    the noise from, nor measured beams); a name the file does not hold is
+    ``_check_windows_of``'s to refuse.
 
     Raises:
         NoiseModelError: naming the first recorded mission and what to give instead.
@@ -384,7 +385,8 @@ def _refuse_recorded(dataset, missions: Sequence[str]) -> None:
     from auvsim.data.reader import open_dataset
 
     with open_dataset(dataset) as f:
-        recorded = [n for n in missions if f.missions[n].origin == "recorded"]
+        recorded = [n for n in missions
+                    if n in f.missions and f.missions[n].origin == "recorded"]
     if recorded:
         raise NoiseModelError(f"{dataset}: mission {recorded[0]!r} is recorded, and the "
                               "noise model trains on simulated data only; on a recorded "
