@@ -11,7 +11,6 @@ import warnings
 from pathlib import Path
 
 from auvsim.cli_support import run_command
-from auvsim.data.files import ReplacedWarning
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
@@ -465,6 +464,44 @@ def _stress(args) -> None:
     print(MADE_BESIDE)
 
 
+# The commands whose --out folder a user names and may name again: each says which files
+# already there it replaced (a run trained again into its folder, say).
+SAYS_REPLACED = ("train", "evaluate", "estimate")
+class ReplacedWarning(UserWarning):
+    """A command's --out folder held files it then changed."""
+
+
+HASHED = 16 << 20  # bytes: a file up to this size is compared by its contents, a larger
+# one by its size and time (hashing a dataset a folder holds would take long)
+
+
+def _files_in(folder: Path | None) -> dict[Path, tuple]:
+    """The files directly in ``folder`` (none if it is not a folder), each with what tells
+    a rewrite: its contents' digest, or its size and modification time if large."""
+    import hashlib
+
+    if folder is None or not folder.is_dir():
+        return {}
+    out = {}
+    for path in folder.iterdir():
+        if path.is_file():
+            stat = path.stat()
+            out[path] = ((hashlib.sha256(path.read_bytes()).hexdigest(),)
+                         if stat.st_size <= HASHED else (stat.st_size, stat.st_mtime_ns))
+    return out
+
+
+def _say_replaced(folder: Path | None, before: dict[Path, tuple]) -> None:
+    """Warn of the files of ``before`` (``_files_in`` before the command) that the
+    command changed."""
+    now = _files_in(folder)
+    changed = sorted(p.name for p, seen in before.items() if now.get(p, seen) != seen)
+    if changed:
+        words = (", ".join(changed[:-1]) + " and " if len(changed) > 1 else "") + changed[-1]
+        warnings.warn(f"{str(folder)!r} held {words} already; this run replaced "
+                      f"{'it' if len(changed) == 1 else 'them'}", ReplacedWarning, stacklevel=2)
+
+
 def _warn(message, category, filename, lineno, file=None, line=None) -> None:
     """A warning on one line of stderr, as errors are."""
     print(f"beamsnet: warning: {message}", file=sys.stderr)
@@ -478,8 +515,11 @@ def main(argv: list[str] | None = None) -> int:
     def command() -> None:
         if getattr(args, "cluster", None) is not None:
             check_address(args.cluster)  # before any data is read or made
+        out = args.out if args.command in SAYS_REPLACED else None
+        before = _files_in(out)
         {"train": _train, "evaluate": _evaluate, "estimate": _estimate,
          "reproduce": _reproduce, "stress": _stress}[args.command](args)
+        _say_replaced(out, before)
 
     with warnings.catch_warnings():
         warnings.showwarning = _warn

@@ -21,7 +21,7 @@ import beamsnet.experiments.reproduce
 import beamsnet.experiments.stress
 import beamsnet.training.train
 from auvsim.config import DvlConfig
-from auvsim.data.files import ReplacedWarning, staged_dir
+from auvsim.data.files import staged_dir
 from auvsim.errors import ConfigError
 from beamsnet.cli import REPORTS, main, report_dir
 from beamsnet.evaluate import estimate, evaluate
@@ -298,12 +298,26 @@ def test_a_staged_folder_is_moved_in_whole_or_not_at_all(tmp_path):
         assert not out.exists()
     assert _listing(out) == {"one.txt"}
     (out / "mine.txt").write_text("kept")
-    with pytest.warns(ReplacedWarning, match="b': replaced one.txt, which was there") as said:
-        with staged_dir(out) as stage:
-            (stage / "one.txt").write_text("2")
-    assert len(said) == 1 and "mine.txt" not in str(said[0].message)
+    with staged_dir(out) as stage:
+        (stage / "one.txt").write_text("2")
     assert (out / "one.txt").read_text() == "2" and (out / "mine.txt").read_text() == "kept"
     assert _listing(tmp_path) == {"a", "a/b", "a/b/one.txt", "a/b/mine.txt"}
+
+
+def test_a_command_says_which_files_in_its_folder_it_replaced(data, tmp_path, capsys):
+    """The same estimate again writes the same files: nothing to say. Another estimator
+    into the same folder replaces both files, and says so in one line; a file of the
+    user's is left alone and unnamed."""
+    out = tmp_path / "est"
+    assert main(["estimate", str(data), "--estimator", "LS", "--out", str(out)]) == 0
+    (out / "mine.txt").write_text("kept")
+    assert main(["estimate", str(data), "--estimator", "LS", "--out", str(out)]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["estimate", str(data), "--estimator", "KF", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert err == (f"beamsnet: warning: {str(out)!r} held estimates.csv and summary.json "
+                   "already; this run replaced them\n")
+    assert (out / "mine.txt").read_text() == "kept"
 
 
 def test_a_staged_folder_named_dot_is_the_current_one(tmp_path, monkeypatch):

@@ -38,7 +38,6 @@ import signal
 import socket
 import tempfile
 import threading
-import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -526,32 +525,15 @@ def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
-class ReplacedWarning(UserWarning):
-    """An output folder held files of the names a run writes: they were replaced."""
-
-
-def _move_into(source: Path, out: Path, *, top: bool = True) -> list[Path]:
+def _move_into(source: Path, out: Path) -> None:
     """Move the folder ``source`` to ``out``: renamed if ``out`` does not exist, else entry
-    by entry (folders merged the same way). Returns the files it replaced; at the top, a
-    ``ReplacedWarning`` names them (a run written over another's, say)."""
+    by entry (folders merged the same way)."""
     if not out.exists():
         source.rename(out)
-        return []
-    replaced = []
+        return
     for entry in sorted(source.iterdir()):
         target = out / entry.name
         if entry.is_dir() and target.is_dir():
-            replaced += _move_into(entry, target, top=False)
+            _move_into(entry, target)
         else:
-            if target.exists():
-                replaced.append(target)
             entry.replace(target)
-    if top and replaced:
-        names = [str(p.relative_to(out)) for p in replaced]
-        if len(names) > 5:
-            names = [*names[:5], f"{len(names) - 5} more"]
-        shown = " and ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
-        warnings.warn(f"{str(out)!r}: replaced {shown}, which "
-                      f"{'was' if len(replaced) == 1 else 'were'} there already",
-                      ReplacedWarning, stacklevel=2)
-    return replaced
