@@ -193,6 +193,24 @@ def position_report(windows: Windows, position: np.ndarray, truth: dict[str, np.
     return out
 
 
+def reference_departure(time: np.ndarray, position_ned: np.ndarray,
+                        velocity_ned: np.ndarray) -> np.ndarray:
+    """(R,) m, how far a navigation solution's horizontal positions (``position_ned``, (R,
+    3) m, at ``time`` (R,) s) have moved from the integral of its own NED velocities
+    (``velocity_ned``, (R, 3) m/s; trapezoids between its samples) since its first sample.
+
+    0 throughout for a solution whose positions are its velocities' integral; one whose
+    positions were corrected by something its velocities do not hold (a position fix, a
+    smoother's) departs by that. Scores against such a reference cannot be trusted to
+    better than it: two estimators that differ by less are not told apart by it."""
+    t = np.asarray(time, dtype=float)
+    p = np.asarray(position_ned, dtype=float)[:, :2]
+    v = np.asarray(velocity_ned, dtype=float)[:, :2]
+    moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
+        0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
+    return np.linalg.norm(p - p[0] - moved, axis=1)
+
+
 def dvl_against_reference(windows: Windows, truth: dict[str, np.ndarray]
                           ) -> tuple[np.ndarray, np.ndarray]:
     """At the samples of ``windows``: the DVL's own velocity less the target (the truth's

@@ -127,7 +127,12 @@ from beamsnet.data import load_windows, reference_velocity
 from beamsnet.estimators import ins
 from beamsnet.evaluate import baseline_names, navigation_scores, reported_stds
 from beamsnet.experiments.sea import sea_dataset
-from beamsnet.navigation import dvl_against_reference, earth_fixed_fit, truth_at_pings
+from beamsnet.navigation import (
+    dvl_against_reference,
+    earth_fixed_fit,
+    reference_departure,
+    truth_at_pings,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 # The shared real segments: ``shared/data/snapir-akit`` beside the repository (or beside a
@@ -265,16 +270,15 @@ def gyro_heading(mission) -> np.ndarray:
 
 def reference_drift(mission) -> tuple[np.ndarray, np.ndarray]:
     """(R,) m, how far the reference's horizontal position has moved from the integral of
-    its own NED velocity (trapezoids between its samples), from its first sample within
-    the IMU's span, at each sample from there; (R,) s, their times from that sample."""
+    its own NED velocity (``beamsnet.navigation.reference_departure``), from its first
+    sample within the IMU's span, at each sample from there; (R,) s, their times from that
+    sample."""
     ref = mission.reference
     t = np.asarray(ref.time, dtype=float)
     k0 = int(np.searchsorted(t, float(mission.imu.time[0])))
-    t, p = t[k0:], np.asarray(ref.position_ned, dtype=float)[k0:, :2]
-    v = np.asarray(ref.velocity_ned, dtype=float)[k0:, :2]
-    moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
-        0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
-    return np.linalg.norm(p - p[0] - moved, axis=1), t - t[0]
+    t = t[k0:]
+    return (reference_departure(t, np.asarray(ref.position_ned, dtype=float)[k0:],
+                                np.asarray(ref.velocity_ned, dtype=float)[k0:]), t - t[0])
 
 
 def per_segment(ds, title: str, columns: str, line) -> list[str]:

@@ -38,6 +38,22 @@ def test_a_straight_track_with_a_known_drift_scores_its_known_errors():
     assert scores["final_percent"] == pytest.approx(0.5, rel=1e-12)
 
 
+def test_a_references_departure_from_its_own_velocities():
+    """Positions that are the analytic integral of their velocities (north at a speed that
+    grows linearly, east at a constant one: the trapezoids integrate both exactly) depart
+    by 0; a fix that moves them 1.5 m east at 40 s departs by 1.5 m from there on."""
+    from beamsnet.navigation import reference_departure
+
+    t = np.arange(0.0, 80.0, 0.5)
+    velocity = np.stack([1.0 + 0.01 * t, np.full_like(t, 0.3), 0 * t], axis=1)
+    position = np.stack([t + 0.005 * t**2, 0.3 * t, 0 * t], axis=1) + [5.0, -2.0, 20.0]
+    np.testing.assert_allclose(reference_departure(t, position, velocity), 0.0, atol=1e-12)
+    fixed = position + np.where(t >= 40, 1.5, 0.0)[:, None] * [0.0, 1.0, 0.0]
+    departure = reference_departure(t, fixed, velocity)
+    np.testing.assert_allclose(departure[t < 40], 0.0, atol=1e-12)
+    np.testing.assert_allclose(departure[t >= 40], 1.5, atol=1e-12)
+
+
 def test_position_scores_refuse_mismatched_or_missing_rows():
     with pytest.raises(ValueError, match="shape of position"):
         metrics.position_scores(np.zeros((4, 3)), np.zeros((5, 3)))
