@@ -10,7 +10,7 @@ import re
 import sys
 from pathlib import Path
 
-from auvsim.cli_support import run_command
+from auvsim.cli_support import exit_with, run_command
 from auvsim.config import SCENARIOS, Config, ScenarioConfig
 from auvsim.errors import ConfigError, OneLineErrorParser
 
@@ -561,5 +561,11 @@ def main(argv: list[str] | None = None) -> int:
     return run_command("auvsim", lambda: command(args), FLAGS)
 
 
+def run() -> None:
+    """The ``auvsim`` program (``exit_with``: its status, and a teardown Ctrl-C cannot
+    break)."""
+    exit_with("auvsim", main)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

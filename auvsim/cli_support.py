@@ -23,6 +23,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from typing import NoReturn
 
 from auvsim.data.files import all_or_nothing, reason
 from auvsim.errors import AuvsimError
@@ -68,6 +69,23 @@ def run_command(prog: str, command: Callable[[], object],
             return _say(prog, f"interrupted; {named}{more} had been written whole before "
                         "it, nothing else was", INTERRUPTED)
     return 0
+
+
+def exit_with(prog: str, main: Callable[[], int]) -> NoReturn:
+    """The command-line process: ``main()``'s status, and from its end on deaf to Ctrl-C
+    and SIGTERM. Its work is done and said by then (its outputs whole, or removed); what
+    remains is the interpreter's teardown (a worker pool's and a cluster's finalizers),
+    which an interrupt would only turn into a traceback, or a status of 130 for outputs
+    that are whole. An interrupt before ``main`` has caught any (while its arguments are
+    parsed) is one line and 130, as in a command."""
+    try:
+        status = main()
+    except KeyboardInterrupt:
+        status = _say(prog, "interrupted; nothing was written", INTERRUPTED)
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
+    sys.exit(status)
 
 
 def _say(prog: str, line: str, status: int) -> int:

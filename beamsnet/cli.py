@@ -10,7 +10,7 @@ import time
 import warnings
 from pathlib import Path
 
-from auvsim.cli_support import run_command
+from auvsim.cli_support import exit_with, run_command
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.estimators import network_names, spec, specs
@@ -531,5 +531,11 @@ def main(argv: list[str] | None = None) -> int:
         return run_command("beamsnet", command, FLAGS)
 
 
+def run() -> None:
+    """The ``beamsnet`` program (``exit_with``: its status, and a teardown Ctrl-C cannot
+    break)."""
+    exit_with("beamsnet", main)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

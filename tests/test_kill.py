@@ -208,3 +208,37 @@ def test_kill_9_of_a_run_in_one_process_is_swept_by_the_next(tmp_path, sharded):
         _, err = proc.communicate(timeout=120)
         assert proc.returncode == 0, err
     assert _hidden(tmp_path) == []
+
+
+def test_an_interrupted_sharded_run_names_the_shards_it_keeps(tmp_path):
+    """A sharded dataset keeps each shard made whole, for the same command to finish: an
+    interrupt names them (it said nothing was written), and the next run keeps them."""
+    out = tmp_path / "rm"
+    with _started(f"{out}/", *LONG) as proc:
+        wait_for(lambda: proc.poll() is None and any((out / "shards").glob("part-*.h5")),
+                 "a whole shard", timeout=120)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    whole = sorted((out / "shards").glob("part-*.h5"))
+    assert proc.returncode == 130 and whole
+    assert err.startswith(f"auvsim: interrupted; {whole[0]}") and err.count("\n") == 1, err
+    assert err.rstrip().endswith("had been written whole before it, nothing else was")
+    assert not (out / "index.h5").exists()
+
+
+@pytest.mark.parametrize("status", [0, 2])
+def test_a_ctrl_c_in_the_teardown_changes_nothing(status):
+    """Once the command has ended (its outputs whole, or removed), a Ctrl-C while the
+    interpreter tears down (a pool's or a cluster's finalizers: atexit) neither prints a
+    traceback nor changes the status; without ``exit_with`` it did both."""
+    code = ("import atexit, os, signal, time\n"
+            "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.3)))\n"
+            "from auvsim.cli_support import exit_with\n"
+            f"exit_with('auvsim', lambda: {status})\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, preexec_fn=as_from_a_terminal)
+    assert (done.returncode, done.stderr) == (status, "")
+    bare = code.replace(f"exit_with('auvsim', lambda: {status})", f"raise SystemExit({status})")
+    done = subprocess.run([sys.executable, "-c", bare], capture_output=True, text=True,
+                          timeout=60, preexec_fn=as_from_a_terminal)
+    assert "KeyboardInterrupt" in done.stderr  # what the test guards against

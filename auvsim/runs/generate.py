@@ -55,6 +55,7 @@ from auvsim.data.files import (
     Claim,
     check_out_dir,
     commit,
+    finished,
     interrupt_handler,
     interrupts_held,
     make_out_dir,
@@ -342,6 +343,11 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
             for made in (folder / SHARDS, folder):
                 with suppress(OSError):
                     made.rmdir()
+        # A shard is renamed into place only when whole, and kept for the same command
+        # to finish the dataset: a run that stops names those there among what it leaves.
+        for name, _ in plan:
+            if (folder / SHARDS / name).is_file():
+                finished(folder / SHARDS / name)
         raise
     planned = {name for name, _ in plan}
     for stale in (folder / SHARDS).glob("part-*.h5"):
