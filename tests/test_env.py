@@ -144,6 +144,10 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
     assert steps == 50 and not terminated and reward == 0.0
     assert info["time"] == pytest.approx(5.0)
     assert env.run.vehicle.actuators[1] == pytest.approx(env.run.vehicle.hydro.rudder_max)
+    with pytest.raises(gym.error.ResetNeeded, match="after the episode ended"):
+        env.step(np.zeros(3))  # the vehicle does not fly on past its episode's end
+    env.reset(seed=1)
+    env.step(np.zeros(3))
 
 
 @pytest.mark.parametrize("settings, said", [
@@ -157,6 +161,12 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
 def test_bad_environment_settings_are_refused_by_name(settings, said):
     with pytest.raises(ConfigError, match=said):
         AuvEnv(**settings)
+
+
+def test_a_policy_refuses_a_speed_its_vehicle_cannot_hold():
+    env = AuvEnv()
+    with pytest.raises(ConfigError, match="speed 9 m/s is beyond what vehicle 'auv' can hold"):
+        ManeuverPolicy(ScenarioConfig(name="zigzag", speed=9.0), env)
 
 
 def test_a_numpy_frame_skip_is_a_whole_number_and_step_needs_a_reset():

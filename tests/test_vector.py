@@ -111,7 +111,7 @@ def test_reset_mask_resets_those_envs_as_sync_does():
     env.close()
 
 
-def test_bad_actions_are_refused_and_a_worker_error_closes_the_env():
+def test_bad_actions_are_refused_and_an_error_in_a_worker_closes_the_env():
     env = AuvVectorEnv(num_envs=2, workers=2, max_episode_seconds=1.0)
     processes = list(env._processes)
     env.reset(seed=0)
@@ -121,8 +121,14 @@ def test_bad_actions_are_refused_and_a_worker_error_closes_the_env():
     env.step(np.zeros((2, 3)))  # still usable after the refusal
     bad = np.zeros((2, 3))
     bad[1, 0] = np.nan
-    with pytest.raises(ValueError, match=r"action: expected 3 finite numbers.*nan") as caught:
+    with pytest.raises(ValueError, match=r"actions: expected finite numbers.*\[nan, 0.0, "
+                                         r"0.0\] for env 1"):
         env.step(bad)
+    env.step(np.zeros((2, 3)))  # refused before any env stepped: still usable
+    assert not env.closed
+    # An error inside an env (a seed gymnasium refuses) closes the vector env.
+    with pytest.raises(gym.error.Error, match="greater or equal to zero") as caught:
+        env.reset(seed=[0, -1])
     assert caught.value.__notes__ == ["in env 1 of the AuvVectorEnv"]
     assert env.closed
     assert not any(p.is_alive() for p in processes) and not mp.active_children()

@@ -113,7 +113,7 @@ from auvsim.data.writer import DatasetWriter, check_mission_name, check_output_p
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.control import autopilot
 from auvsim.physics.frames import EULER, STATE
-from auvsim.physics.maneuvers import Maneuver, make_maneuver
+from auvsim.physics.maneuvers import Maneuver, check_scenario, make_maneuver
 from auvsim.runs.mission import MissionRun, check_reachable
 from auvsim.runs.presets import preset
 
@@ -199,6 +199,7 @@ class AuvEnv(gym.Env):
         # None before the first step and at a terminal one.
         self.last_block: dict[str, np.ndarray] | None = None
         self.step_index: int | None = None  # physics steps into the episode; None: no reset yet
+        self.ended = False  # the episode ended (terminated or truncated); reset() clears it
         # The last info's values as one row (INFO), for auvsim.envs.vector; None before a reset.
         self.info_row: np.ndarray | None = None
 
@@ -215,6 +216,7 @@ class AuvEnv(gym.Env):
         self.run = self._mission(seed=int(self.np_random.integers(2**63)))
         self.run.vehicle.reset(**self.run.scenario.initial_state())
         self.step_index = 0
+        self.ended = False  # terminated or truncated: step() then needs a reset()
         self.last_block = None
         self.last_ping = dict(beams=np.zeros(4), valid=np.zeros(4), velocity=np.zeros(3),
                               time=math.nan)
@@ -225,6 +227,10 @@ class AuvEnv(gym.Env):
         if self.step_index is None:
             raise gym.error.ResetNeeded("step() before reset(): expected reset() first, "
                                         "which starts an episode")
+        if self.ended:
+            raise gym.error.ResetNeeded("step() after the episode ended (terminated or "
+                                        "truncated): expected reset() first, which starts "
+                                        "the next")
         action = np.asarray(action, dtype=float)
         values = action.tolist()
         if action.shape != (3,) or not all(map(math.isfinite, values)):
@@ -249,6 +255,7 @@ class AuvEnv(gym.Env):
                                   velocity=block["dvl/velocity"][-1],
                                   time=float(block["dvl/time"][-1]))
         truncated = self.step_index * vehicle.dt >= self.max_episode_seconds - 1e-9
+        self.ended = terminated or truncated
         state = vehicle.state_row()
         return self._observation(block, state), 0.0, terminated, \
             truncated and not terminated, self._info(state)
@@ -290,6 +297,10 @@ class ManeuverPolicy:
         env: the environment it will fly (for the vehicle's limits and gains).
 
     Call ``reset()`` after each ``env.reset()``.
+
+    Raises:
+        ConfigError: a ``ScenarioConfig`` whose speeds the vehicle cannot hold
+            (``Vehicle.check_speed``), as ``auvsim generate`` refuses it.
     """
 
     def __init__(self, maneuver: Maneuver | ScenarioConfig, env: AuvEnv) -> None:
@@ -297,6 +308,9 @@ class ManeuverPolicy:
         self.scenario = None if isinstance(maneuver, Maneuver) else maneuver
         self.maneuver = maneuver if isinstance(maneuver, Maneuver) else None
         self.integrals = np.zeros(3)
+        if self.scenario is not None:  # refused as auvsim generate refuses it
+            for speed in check_scenario(self.scenario).speeds():
+                self.env.run.vehicle.check_speed(speed)
 
     def reset(self) -> None:
         if self.scenario is not None:

@@ -55,8 +55,9 @@ As with ``AsyncVectorEnv``, the workers import the main script: guard a script t
 makes one with ``if __name__ == "__main__":``. A worker exits when the env is closed,
 garbage-collected, at interpreter exit, and when the parent dies (its end of the pipe
 closes: the worker reads EOF); the shared memory is unlinked by ``close()`` (or by
-multiprocessing's resource tracker if the parent is killed). An exception in a worker
-(``AuvEnv.step`` refuses a non-finite action with a ``ValueError``) closes the env and
+multiprocessing's resource tracker if the parent is killed). Actions of the wrong shape
+or not finite are refused in the parent, naming the env, before any env steps: the env
+stays open. An exception in a worker (a seed gymnasium refuses, say) closes the env and
 is re-raised in the parent, same type and message, with the worker's traceback as its
 cause; a worker that died, mid-step or idle, is a ``RuntimeError`` naming it and its
 exit code, the env closed; a Ctrl-C closes the env too. Polling counts the cores this
@@ -543,8 +544,8 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             terminations and truncations (num_envs,) bool, and the batched info.
 
         Raises:
-            ValueError: ``actions`` of the wrong shape; a non-finite action (from the
-                env: the vector env is then closed).
+            ValueError: ``actions`` of the wrong shape, or not finite (naming the env);
+                the vector env stays open.
         """
         return self._step(actions, STEP)
 
@@ -552,11 +553,17 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         """``step``, with ``message`` (``STEP``, or ``NOOP`` for benchmarks/env.py's
         timing of the parent: the workers answer at once) sent to the workers."""
         self._check_open()
-        actions = np.asarray(actions)
+        actions = np.asarray(actions, dtype=float)
         if actions.shape != self._actions.shape:
             raise ValueError(f"actions: expected an array of shape {self._actions.shape} "
                              f"(num_envs, 3: propeller, rudder, stern planes), got shape "
                              f"{actions.shape}")
+        finite = np.isfinite(actions).all(axis=1)
+        if not finite.all():  # refused here, before any env steps: the env stays open
+            k = int(np.flatnonzero(~finite)[0])
+            raise ValueError(f"actions: expected finite numbers (propeller, rudder, stern "
+                             f"planes; each clipped to [-1, 1]), got {actions[k].tolist()!r} "
+                             f"for env {k}")
         self._actions[:] = actions
         self._run(message, self._slice.step if message == STEP else None)
         views = self._views
