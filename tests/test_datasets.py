@@ -232,7 +232,8 @@ gyro_noise_density = 1e-5
 def test_inspect_describes_the_file(ideal_file, capsys):
     assert main(["inspect", str(ideal_file)]) == 0
     text = capsys.readouterr().out
-    assert "mission_000: straight, seed 5, 60 s, vehicle auv" in text
+    assert ("mission_000: straight at 2 m/s, heading 30 deg, 20 m deep, seed 5, 60 s, "
+            "vehicle auv") in text  # what it was commanded, from the stored config
     assert "DVL 1 Hz (60 pings)" in text and "100.0 % of beams valid" in text
     assert "    dvl: beam_range, beam_velocity, beam_velocity_true, error_velocity, mode, " \
         "status, time, valid, velocity, velocity_ls" in text

@@ -125,3 +125,25 @@ def test_manoeuvres_of_other_sensors_are_refused_before_training(tmp_path, monke
     assert "--maneuvers 'rm': its sensors differ from the training data's (beam_angle_deg " \
         "30.0 against 20.0)" in err
     assert not (tmp_path / "runs").exists() and not (tmp_path / "reports").exists()
+
+
+@pytest.mark.parametrize("v2_calm, said", [
+    (0.2, "is less accurate than least squares even on the calmest pings (0.2000 against "
+          "0.0100 m/s"),
+    (0.005, "error grows no more with the manoeuvres' intensity than least squares' (1.0x "
+            "against 1.0x)"),
+])
+def test_the_verdict_on_v2s_premise_needs_a_v2_that_learned(v2_calm, said):
+    """An untrained BeamsNetV2 (worse than LS on the calmest pings) grows no faster than
+    LS with the intensity: that says nothing of its premise, and the report says so."""
+    from beamsnet.experiments.stress import _verdict
+
+    v2 = "BeamsNetV2 (v2)"
+    flat = {"LS": np.array([0.01, 0.01]), v2: np.array([v2_calm, v2_calm])}
+    binned = {"yaw_rate": (np.array([0.0, 1.0, 2.0]), flat)}
+    rows = {"straight": {n: dict(rmse_vector=float(e[0]), dr_error=1.0)
+                         for n, e in flat.items()}}
+    text = "\n".join(_verdict(binned, rows, v2))
+    assert said in text
+    assert ("premise, that the past pings show the motion of the current one, holds"
+            in text) == (v2_calm < 0.01)

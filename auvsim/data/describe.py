@@ -36,11 +36,16 @@ def describe(path: str | os.PathLike) -> str:
                  f"(auvsim {f.attrs.get('auvsim_version', '?')}, created "
                  f"{f.attrs.get('created_utc', '?')}), {len(f.missions)} mission(s)"
                  + sharded]
-        for name, m in f.missions.items():
+        commanded = _commanded(f.config_json)
+        # In the config's order (a preset's), where the file has one; else the file's.
+        names = [n for n in commanded if n in f.missions]
+        names += [n for n in f.missions if n not in commanded]
+        for name in names:
+            m = f.missions[name]
             if m.origin == "recorded":
                 lines += _recorded(name, m)
                 continue
-            lines += _mission(name, m)
+            lines += _mission(name, m, commanded.get(name, ""))
             for sensor in registry().values():
                 if m.has(sensor.name):
                     lines += sensor.describe(m)
@@ -59,7 +64,19 @@ def describe(path: str | os.PathLike) -> str:
         return "\n".join(lines)
 
 
-def _mission(name: str, m: Mission) -> list[str]:
+def _commanded(config_json: str) -> dict[str, str]:
+    """Mission name -> what its scenario commands, in words (``at 2 m/s, heading 30 deg,
+    20 m deep``), from a dataset's stored config, in its order ({} without one)."""
+    try:
+        missions = json.loads(config_json)["missions"] if config_json else []
+        return {m["name"]: f"at {m['scenario']['speed']:g} m/s, heading "
+                           f"{m['scenario']['heading_deg']:g} deg, {m['scenario']['depth']:g} m "
+                           "deep" for m in missions}
+    except (ValueError, KeyError, TypeError):  # a config of another shape: not said
+        return {}
+
+
+def _mission(name: str, m: Mission, commanded: str = "") -> list[str]:
     a = m.attrs
     if m.origin == "imported":
         return [f"  {name}: imported from {a['source_file']} (sha256 "
@@ -71,7 +88,8 @@ def _mission(name: str, m: Mission) -> list[str]:
         lat, lon = float(a["latitude_deg"]), float(a["longitude_deg"])
         place = (f", at {abs(lat):g} deg {'N' if lat >= 0 else 'S'}, {abs(lon):g} deg "
                  f"{'E' if lon >= 0 else 'W'} (the rotating Earth)")
-    lines = [f"  {name}: {a['scenario']}, seed {a['seed']}, {a['duration_s']:g} s, vehicle "
+    lines = [f"  {name}: {a['scenario']}" + (f" {commanded}" if commanded else "")
+             + f", seed {a['seed']}, {a['duration_s']:g} s, vehicle "
              f"{a['vehicle']}" + (f", gravity {gravity:g} m/s^2" if gravity else "") + place]
     phases = m.phases
     if phases:
