@@ -558,9 +558,8 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             raise ValueError(f"actions: expected an array of shape {self._actions.shape} "
                              f"(num_envs, 3: propeller, rudder, stern planes), got shape "
                              f"{actions.shape}")
-        finite = np.isfinite(actions).all(axis=1)
-        if not finite.all():  # refused here, before any env steps: the env stays open
-            k = int(np.flatnonzero(~finite)[0])
+        if not np.isfinite(actions).all():  # refused here, before any env steps: open
+            k = int(np.flatnonzero(~np.isfinite(actions).all(axis=1))[0])
             raise ValueError(f"actions: expected finite numbers (propeller, rudder, stern "
                              f"planes; each clipped to [-1, 1]), got {actions[k].tolist()!r} "
                              f"for env {k}")
