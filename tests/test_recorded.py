@@ -330,7 +330,9 @@ def _lines(change):
 BAD_LOGS = {
     "missing_column": (_edit("imu.csv", _lines(lambda ls: [",".join(x.split(",")[:-2])
                                                             for x in ls])),
-                       "no column 'wz'"),
+                       "no column 'wz' (the log description's imu.columns)"),
+    "time_column_typo": (_replace("log.toml", 'time = "t_ms"', 'time = "stamp"'),
+                         "no column 'stamp' (the log description's imu.time)"),
     "extra_column": (_edit("depth.csv", _lines(lambda ls: [x + ",0" for x in ls])),
                      "column '0' is not in the log description"),
     "short_row": (_edit("imu.csv", _lines(lambda ls: ls[:5] + [ls[5].rsplit(",", 1)[0]]
@@ -353,6 +355,14 @@ BAD_LOGS = {
                             "an attitude angle reaches 90 rad"),
     "no_overlap": (_replace("log.toml", "time_offset_s = 0.25", "time_offset_s = 1000.0"),
                    "they do not overlap"),
+    "ms_as_s": (_replace("log.toml", 'time_unit = "ms"\nframe = "FLU"', 'frame = "FLU"'),
+                "the imu stream spans 1990 s and the reference stream 1 s; expected streams "
+                "of one mission (is imu.time_unit or reference.time_unit right"),
+    "m_s_as_mm_s": (_edit("dvl.csv", _lines(lambda ls: [ls[0]] + [
+        ",".join([x.split(",")[0]] + [repr(float(c) / 1000) if float(c) != -32768 else c
+                                      for c in x.split(",")[1:4]] + x.split(",")[4:])
+        for x in ls[1:]])), "the DVL's median speed is 0.0015 m/s and the reference's 1.581 "
+                            "m/s; expected them alike (is dvl.units.velocity right"),
     "unknown_key": (_replace("log.toml", "beam_angle_deg", "beam_angel_deg"),
                     "dvl.beam_angel_deg: unknown key"),
     "no_spec": (_replace("log.toml", "noise_std = 0.003\n", ""),
@@ -544,6 +554,47 @@ def test_a_lat_lon_in_radians_declared_degrees_disagrees_with_the_velocity(tmp_p
     code, err = run_csv(folder, tmp_path / "x.h5")
     assert code == 2 and "the positions travel" in err and err.count("\n") == 1
     assert not (tmp_path / "x.h5").exists()
+
+
+def _turning_reference(folder: Path) -> None:
+    """nav.csv of ``csv_log`` replaced by 60 s of a turn at 1.5 m/s (heading 0.05 t rad
+    from north; positions its exact integral, about 60 m), in ENU as declared."""
+    t = np.arange(61.0)
+    psi, speed, rate = 0.05 * t, 1.5, 0.05
+    north, east = speed / rate * np.sin(psi), speed / rate * (1 - np.cos(psi))
+    m, n = (r + H0 for r in radii(LAT0))
+    lat = LAT0 + np.degrees(north / m)
+    lon = LON0 + np.degrees(east / (n * math.cos(math.radians(LAT0))))
+    _write_csv(folder / "nav.csv", ["t_ms", "lat", "lon", "h", "ve", "vn", "vu", "roll",
+                                    "pitch", "yaw"],
+               [1000 * t, lat, lon, np.full_like(t, H0), speed * np.sin(psi),
+                speed * np.cos(psi), 0 * t, 0 * t, 0 * t, 90 - np.degrees(psi)])
+
+
+@pytest.mark.parametrize("mistake, said", [
+    (None, None),
+    (("frame = \"ENU\"", "frame = \"NED\""), "mean turn of"),  # ENU velocities as NED
+    (("columns.latitude = \"lat\"\ncolumns.longitude = \"lon\"",
+      "columns.latitude = \"lon\"\ncolumns.longitude = \"lat\""), "mean turn of"),
+])
+def test_a_reference_whose_positions_and_velocities_part_ways_is_refused(tmp_path, mistake,
+                                                                         said):
+    """A turning track whose positions are its velocities' integral imports; the same
+    with the reference's frame declared NED for its ENU velocities, or its latitude and
+    longitude columns swapped, moves its positions in another direction than its
+    velocities and is refused in one line (the distances still agree)."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    _turning_reference(folder)
+    if mistake is not None:
+        _replace("log.toml", *mistake)(folder)
+    code, err = run_csv(folder, tmp_path / "x.h5")
+    if said is None:
+        assert (code, err) == (0, "")
+    else:
+        assert code == 2 and err.count("\n") == 1 and said in err, err
+        assert "the positions move in another direction than the velocities" in err
+        assert not (tmp_path / "x.h5").exists()
 
 
 def test_a_recorded_mission_is_checked_by_the_reader(akit, tmp_path):

@@ -39,7 +39,9 @@ comment too), time that runs backwards or repeats, stamps at another rate than t
 stated one (``RATE_RANGE``), a cell that is NaN or not a number, units that cannot be
 right (gyros beyond a turn per second where rad/s is declared, accelerometers that do not
 see gravity, angles beyond their range in rad, positions that disagree with the
-velocities), streams that do not overlap in time, and a mission name that is not a
+velocities in distance or direction, a DVL far slower or faster than the reference),
+streams that do not overlap in time or span a hundred times another's (a time unit
+mistaken), and a mission name that is not a
 group's (``auvsim.data.writer.check_mission_name``). The dataset is never written over one
 of the log's own files.
 
@@ -102,6 +104,16 @@ MAX_RATE = 2 * math.pi  # rad/s
 MAX_SPEED = 15.0  # m/s: five times an AUV's top speed (the A18-D's 3 m/s, vehicles.md)
 TRACK_RATIO = 2.0  # positions and integrated velocities may disagree by at most this factor
 MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
+# The positions' legs (over ``TRACK_LEG`` samples) against the velocities' over the same
+# samples: the cosine of the angle between them, summed over the legs, at least this. A
+# frame declared NED for ENU velocities (north and east swapped, a mirror) or latitude
+# and longitude swapped turns the legs against each other; a real reference's positions
+# and velocities agree in direction to a degree or two.
+TRACK_COSINE = 0.9  # 26 deg
+TRACK_LEG = 10
+SPAN_RATIO = 100.0  # a stream may span at most this many times another's (ms read as s: 1000)
+SPEED_RATIO = 5.0  # the DVL's median speed within this factor of the reference's
+MOVING = 0.2  # m/s: the reference's median speed above which the DVL's is compared
 
 
 # The A-KIT layout. Every figure carries its source; what the publication does not state
@@ -497,11 +509,13 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     if twice:  # which of them is the column? (ignored columns may share a name)
         raise ConfigError(f"{str(path)!r}: column {twice[0]!r} appears {header.count(twice[0])} "
                           "times in the header; expected each described column once")
-    for c in named:
-        if c not in header:
-            has = ", ".join(map(repr, header))
-            raise ConfigError(f"{str(path)!r}: no column {c!r} (the log description's "
-                              f"{stream.group}.columns); the file has {has}")
+    for key, cols in wanted.items():
+        for c in cols:
+            if c not in header:
+                has = ", ".join(map(repr, header))
+                said = f"{stream.group}.time" if key == "time" else f"{stream.group}.columns"
+                raise ConfigError(f"{str(path)!r}: no column {c!r} (the log description's "
+                                  f"{said}); the file has {has}")
     extra = [c for c in header if c not in named and c not in stream.ignore]
     if extra:
         raise ConfigError(f"{str(path)!r}: column {extra[0]!r} is not in the log description; "
@@ -615,6 +629,13 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
                           f" and the {b} stream {starts[b]:.9g} to {ends[b]:.9g} s: they do not "
                           "overlap; expected streams of one mission (check the files and each "
                           "stream's time_offset_s)")
+    spans = {g: ends[g] - starts[g] for g in tables}
+    long, short = max(spans, key=spans.get), min(spans, key=spans.get)
+    if spans[long] > SPAN_RATIO * max(spans[short], 1e-9):
+        raise ConfigError(f"{where[long]}: the {long} stream spans {spans[long]:.6g} s and the "
+                          f"{short} stream {spans[short]:.6g} s; expected streams of one "
+                          f"mission (is {long}.time_unit or {short}.time_unit right: s, ms, "
+                          "us or ns?)")
     t0 = min(starts.values())
     fields: dict[str, np.ndarray] = {}
     attrs: dict[str, object] = {}
@@ -658,6 +679,7 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
             fields["reference/latitude_deg"], fields["reference/longitude_deg"],
             fields["reference/height_m"], origin)
         _check_track(fields, where["reference"])
+        _check_speeds(tables, where)  # the reference agrees with itself: now the DVL
     groups = [g for g in RECORDED_GROUPS if g in tables]
     duration = max(float(fields[f"{g}/time"][-1]) for g in groups)
     attrs.update(groups=json.dumps(groups), latitude_deg=origin[0], longitude_deg=origin[1],
@@ -757,10 +779,27 @@ def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]
                     "attitude = \"deg\"?)")
 
 
+def _check_speeds(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]) -> None:
+    """The DVL's median speed within ``SPEED_RATIO`` of the reference's, where the
+    reference moves (``MOVING``): a velocity in mm/s declared as m/s (or the reverse)
+    makes them differ a thousandfold."""
+    if not ("dvl" in tables and "reference" in tables):
+        return
+    v = np.linalg.norm(tables["dvl"]["velocity"], axis=1)
+    dvl = float(np.median(v[np.isfinite(v)])) if np.isfinite(v).any() else 0.0
+    ref = float(np.median(np.linalg.norm(tables["reference"]["velocity"], axis=1)))
+    if ref > MOVING and not 1 / SPEED_RATIO < dvl / ref < SPEED_RATIO:
+        raise ConfigError(f"{where['dvl']}: the DVL's median speed is {dvl:.4g} m/s and the "
+                          f"reference's {ref:.4g} m/s; expected them alike (is "
+                          "dvl.units.velocity right: m/s or mm/s?)")
+
+
 def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
     """The distance travelled by the reference's positions and by its integrated
-    velocities agree to within ``TRACK_RATIO``: lat/lon in degrees declared as radians (or
-    the reverse) makes them differ by 57x."""
+    velocities agree to within ``TRACK_RATIO`` (lat/lon in degrees declared as radians, or
+    the reverse, makes them differ by 57x), and so do their directions, to
+    ``TRACK_COSINE`` over legs of ``TRACK_LEG`` samples (a frame declared NED for ENU
+    velocities mirrors one against the other)."""
     t = fields["reference/time"]
     step = np.linalg.norm(np.diff(fields["reference/position_ned"][:, :2], axis=0), axis=1)
     v = np.linalg.norm(fields["reference/velocity_ned"][:, :2], axis=1)
@@ -772,6 +811,23 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
             f"{where}: the positions travel {track:.4g} m but the velocities "
             f"{flown:.4g} m; expected them to agree (are reference.units.latitude and "
             "longitude, or the velocity's, right?)")
+    if max(flown, track) > MIN_TRACK:
+        p = fields["reference/position_ned"][:, :2]
+        v = fields["reference/velocity_ned"][:, :2]
+        moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
+            (v[1:] + v[:-1]) / 2 * np.diff(t)[:, None], axis=0)])
+        legs = np.arange(0, len(t), TRACK_LEG)
+        a, b = np.diff(p[legs], axis=0), np.diff(moved[legs], axis=0)
+        dot = float(np.sum(a * b))
+        cosine = dot / max(math.sqrt(float(np.sum(a * a)) * float(np.sum(b * b))), 1e-12)
+        if cosine < TRACK_COSINE:
+            angle = math.degrees(math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])),
+                                            dot))
+            raise ConfigError(
+                f"{where}: the positions move in another direction than the velocities "
+                f"(their legs of {TRACK_LEG} samples agree to a cosine of {cosine:.2f}, a "
+                f"mean turn of {angle:+.0f} deg); expected them to agree (is reference.frame "
+                "right, NED or ENU? are the latitude and longitude columns swapped?)")
 
 
 # ---- the import ----------------------------------------------------------------------
