@@ -597,6 +597,20 @@ def test_a_reference_whose_positions_and_velocities_part_ways_is_refused(tmp_pat
         assert not (tmp_path / "x.h5").exists()
 
 
+def test_a_short_fast_reference_that_agrees_with_itself_passes():
+    """Five samples (fewer than a leg) 40 m apart: the track's one leg is its whole span;
+    its north and east swapped (a straight line north read as east) are refused."""
+    from auvsim.data.recorded import _check_track
+
+    t = np.arange(5.0)
+    v = np.tile([10.0, 0.0, 0.0], (5, 1))
+    _check_track({"reference/time": t, "reference/position_ned": t[:, None] * v,
+                  "reference/velocity_ned": v}, "nav.csv")
+    with pytest.raises(ConfigError, match="another direction than the velocities"):
+        _check_track({"reference/time": t, "reference/position_ned": t[:, None] * v[:, [1, 0, 2]],
+                      "reference/velocity_ned": v}, "nav.csv")
+
+
 def test_a_recorded_mission_is_checked_by_the_reader(akit, tmp_path):
     out, _ = akit
     bad = tmp_path / "bad.h5"

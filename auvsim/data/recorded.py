@@ -107,8 +107,9 @@ MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
 # The positions' legs (over ``TRACK_LEG`` samples) against the velocities' over the same
 # samples: the cosine of the angle between them, summed over the legs, at least this. A
 # frame declared NED for ENU velocities (north and east swapped, a mirror) or latitude
-# and longitude swapped turns the legs against each other; a real reference's positions
-# and velocities agree in direction to a degree or two.
+# and longitude swapped turns the legs against each other (on a straight line by twice
+# its heading's distance from 45 deg: one near it cannot tell); a real reference's
+# positions and velocities agree in direction to a degree or two.
 TRACK_COSINE = 0.9  # 26 deg
 TRACK_LEG = 10
 SPAN_RATIO = 100.0  # a stream may span at most this many times another's (ms read as s: 1000)
@@ -816,7 +817,7 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
         v = fields["reference/velocity_ned"][:, :2]
         moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
             (v[1:] + v[:-1]) / 2 * np.diff(t)[:, None], axis=0)])
-        legs = np.arange(0, len(t), TRACK_LEG)
+        legs = np.unique(np.append(np.arange(0, len(t), TRACK_LEG), len(t) - 1))
         a, b = np.diff(p[legs], axis=0), np.diff(moved[legs], axis=0)
         dot = float(np.sum(a * b))
         cosine = dot / max(math.sqrt(float(np.sum(a * a)) * float(np.sum(b * b))), 1e-12)
