@@ -321,8 +321,7 @@ def _evaluate(args) -> None:
         print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
         if "navigation" in result:
             print()
-            print(navigation_markdown(result["navigation"], result["against"],
-                                      since_first=True))
+            print(navigation_markdown(result["navigation"], result["against"]))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
 
 

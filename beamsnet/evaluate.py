@@ -356,8 +356,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
                                                truth_at_pings(dataset, windows), **own,
                                                since_first=True)
                 results[str(dataset)]["navigation"] = navigation
-                sections.append(navigation_markdown(navigation, windows.reference,
-                                                    since_first=True))
+                sections.append(navigation_markdown(navigation, windows.reference))
             figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
             bar.update()
         # Only now, every input checked, is ``out`` made: whole, or not at all.
@@ -625,10 +624,9 @@ def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | Non
     return at_pings(tracks, windows, field)
 
 
-def navigation_markdown(scores: dict[str, dict[str, dict]], against: str, *,
-                        since_first: bool = False) -> str:
-    """``navigation_scores`` as a Markdown table per mission, saying what it is against
-    (and, ``since_first``, from where: the scores' own ``since_first``)."""
+def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:
+    """``evaluate``'s ``navigation_scores`` (``since_first``) as a Markdown table per
+    mission, saying what it is against and from where."""
     lines = []
     whose = "the truth's" if against in TRUTHS else "the reference's"
     start = (f"Every row starts at {whose} position at the mission's first scored ping (an "
@@ -636,7 +634,7 @@ def navigation_markdown(scores: dict[str, dict[str, dict]], against: str, *,
              "within 3 sigma: the error of its own position, which its sigma is of.")
     for mission, rows in scores.items():
         lines += [f"#### {mission}: horizontal position error against {against}", "",
-                  *([start, ""] if since_first else []),
+                  start, "",
                   "| estimator | final (m) | RMSE (m) | final (% of distance) | "
                   "within 3 sigma (%) |", "|---|---|---|---|---|"]
         for name, row in rows.items():

@@ -13,6 +13,7 @@ import os
 
 import numpy as np
 
+from auvsim.data.checklog import cumulative
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from beamsnet import metrics
@@ -203,11 +204,9 @@ def reference_departure(time: np.ndarray, position_ned: np.ndarray,
     positions were corrected by something its velocities do not hold (a position fix, a
     smoother's) departs by that. Scores against such a reference cannot be trusted to
     better than it: two estimators that differ by less are not told apart by it."""
-    t = np.asarray(time, dtype=float)
     p = np.asarray(position_ned, dtype=float)[:, :2]
-    v = np.asarray(velocity_ned, dtype=float)[:, :2]
-    moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
-        0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None], axis=0)])
+    moved = cumulative(np.asarray(time, dtype=float),
+                       np.asarray(velocity_ned, dtype=float)[:, :2])
     return np.linalg.norm(p - p[0] - moved, axis=1)
 
 

@@ -66,6 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.data.checklog import cumulative
 from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
 from auvsim.data.writer import DatasetWriter, check_mission_name
 from auvsim.errors import ConfigError
@@ -784,7 +785,7 @@ def _check_speeds(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str
     """The DVL's median speed within ``SPEED_RATIO`` of the reference's, where the
     reference moves (``MOVING``): a velocity in mm/s declared as m/s (or the reverse)
     makes them differ a thousandfold."""
-    if not ("dvl" in tables and "reference" in tables):
+    if "dvl" not in tables:
         return
     v = np.linalg.norm(tables["dvl"]["velocity"], axis=1)
     dvl = float(np.median(v[np.isfinite(v)])) if np.isfinite(v).any() else 0.0
@@ -814,9 +815,7 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
             "longitude, or the velocity's, right?)")
     if max(flown, track) > MIN_TRACK:
         p = fields["reference/position_ned"][:, :2]
-        v = fields["reference/velocity_ned"][:, :2]
-        moved = np.concatenate([np.zeros((1, 2)), np.cumsum(
-            (v[1:] + v[:-1]) / 2 * np.diff(t)[:, None], axis=0)])
+        moved = cumulative(t, fields["reference/velocity_ned"][:, :2])
         legs = np.unique(np.append(np.arange(0, len(t), TRACK_LEG), len(t) - 1))
         a, b = np.diff(p[legs], axis=0), np.diff(moved[legs], axis=0)
         dot = float(np.sum(a * b))

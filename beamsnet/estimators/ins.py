@@ -1334,9 +1334,9 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                dvl_position_std=None, noise_model=None) -> FilterTrack:
     """Run the filter on arrays: no dataset needed.
 
-    The streams keep their own clocks: each DVL ping is applied at the IMU sample at or
-    just before its time (``np.searchsorted``), nothing is resampled; pings before
-    ``start.time`` are left out (NaN, not accepted).
+    The streams keep their own clocks: each DVL ping is applied at the IMU sample nearest
+    its time (``nearest_samples``), nothing is resampled; pings before ``start.time`` are
+    left out (NaN, not accepted).
 
     Args:
         imu_time: (N,) s, increasing. specific_force: (N, 3) m/s^2 and angular_rate:

@@ -519,15 +519,14 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
     fig, axes = plt.subplots(2 * rows, cols, figsize=(2.9 * cols + 2.2, 4.6 * rows),
                              squeeze=False, layout="constrained")
     look = styles(estimates)
-    for ax in axes.flat:
-        ax.set_visible(False)
+    for i in range(n, rows * cols):  # the last row's empty places
+        axes[2 * (i // cols), i % cols].set_visible(False)
+        axes[2 * (i // cols) + 1, i % cols].set_visible(False)
     for i, name in enumerate(windows.names):
         mine = windows.mission == i
         t = windows.time[mine]
         p = truth["position"][mine]
         ax_t, ax_e = axes[2 * (i // cols), i % cols], axes[2 * (i // cols) + 1, i % cols]
-        ax_t.set_visible(True)
-        ax_e.set_visible(True)
         ax_t.plot(p[:, 1] - p[0, 1], p[:, 0] - p[0, 0], "k", lw=1)
         ax_t.plot(0, 0, "ko", ms=3)
         ax_t.set_aspect("equal", adjustable="datalim")
