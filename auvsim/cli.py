@@ -248,6 +248,9 @@ def _check_log_parser(sub) -> None:
     check.add_argument("--apply", type=_file_out, metavar="OUT.h5",
                        help="write the dataset corrected by the findings to this file "
                        "(default: none)")
+    check.add_argument("--accept-low", action="store_true",
+                       help="with --apply, write corrections whose finding is of low "
+                       "confidence too (default: refuse them, writing nothing)")
 
 
 def _check_log(args: argparse.Namespace) -> None:
@@ -263,7 +266,7 @@ def _check_log(args: argparse.Namespace) -> None:
     reports = check_file(args.file, args.missions)
     print(to_json(reports) if args.json else "\n\n".join(r.table() for r in reports))
     if args.apply is not None:
-        apply(args.file, args.apply, reports)
+        apply(args.file, args.apply, reports, accept_low=args.accept_low)
         if not args.json:
             with open_dataset(args.file) as ds:
                 others = len(ds.missions) - len(reports)

@@ -338,6 +338,38 @@ def test_apply_puts_a_stretched_reference_on_the_imus_clock(simulated, tmp_path)
     assert found["value"]["clock"] == "reference" and "no stated rates" in found["evidence"]
 
 
+def first_seconds(log: Log, seconds: float) -> Log:
+    """``log`` cut to the stamps under ``seconds``."""
+    r, i, d = (np.asarray(t) < seconds for t in (log.reference_time, log.imu_time,
+                                                  log.dvl_time))
+    return dataclasses.replace(
+        log, reference_time=log.reference_time[r], reference_velocity=log.reference_velocity[r],
+        reference_quaternion=log.reference_quaternion[r],
+        reference_position=log.reference_position[r], imu_time=log.imu_time[i],
+        specific_force=log.specific_force[i], angular_rate=log.angular_rate[i],
+        dvl_time=log.dvl_time[d], dvl_velocity=log.dvl_velocity[d])
+
+
+def test_apply_refuses_a_correction_of_low_confidence_unless_accepted(simulated, tmp_path):
+    # 90 s of the zigzag: under three of the clock fit's 50 s windows, so the clocks'
+    # offsets are found with low confidence, and --apply would write them.
+    raw, out = tmp_path / "raw.h5", tmp_path / "out.h5"
+    write_recorded(raw, first_seconds(recorded_log(
+        simulated["zigzag"], axes=np.eye(3), imu_offset=0.2, imu_rate=0.0, dvl_offset=0.3), 90))
+    status, said, err = run(["check-log", str(raw), "--apply", str(out)])
+    assert status == 2 and err.count("\n") == 1, err
+    assert "low confidence (sim: imu clock; sim: dvl clock)" in err and "--accept-low" in err
+    assert "imu clock" in said and not out.exists()  # the table, then the refusal
+    status, said, err = run(["check-log", str(raw), "--apply", str(out), "--accept-low"])
+    assert (status, err) == (0, "") and f"wrote {out}" in said
+    with open_dataset(out) as ds:
+        assert "check_log_json" in ds.missions["sim"].attrs
+    # A log long enough for three windows is written without it.
+    write_recorded(raw, recorded_log(simulated["zigzag"], axes=np.eye(3), imu_offset=0.2,
+                                     imu_rate=0.0, dvl_offset=0.3))
+    assert run(["check-log", str(raw), "--apply", str(tmp_path / "full.h5")])[0] == 0
+
+
 def test_bad_input_is_one_line_and_writes_nothing(simulated, tmp_path):
     raw = tmp_path / "raw.h5"
     write_recorded(raw, recorded_log(simulated["lawnmower"], axes=np.eye(3), imu_offset=0,

@@ -1046,11 +1046,37 @@ def applied_clock_errors(attrs) -> tuple[float | None, float | None]:
     return error("imu clock"), error("dvl clock")
 
 
+# The findings ``corrected`` writes into the corrected file; the others (the reference's
+# clock, the DVL's scale, gravity) are evidence only.
+APPLIED = ("imu axes", "imu clock", "dvl clock", "dvl mounting", "dvl lever arm",
+           "imu lever arm", "time base")
+
+
+def low_confidence(reports: list[Report]) -> list[str]:
+    """``"mission: finding"`` for every finding of ``reports`` that ``apply`` would write
+    and whose confidence is low. A time base that keeps the reference's clock is not one:
+    every clock is measured against the reference's, so keeping it moves no stamp."""
+    return [f"{r.mission}: {f.name}" for r in reports for f in r.findings
+            if f.name in APPLIED and f.confidence == "low"
+            and not (f.name == "time base" and f.value["clock"] == "reference")]
+
+
 def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,
-          compression: str = "lzf") -> None:
+          compression: str = "lzf", accept_low: bool = False) -> None:
     """Write ``out``: the dataset ``path`` with each reported mission corrected
     (``corrected``) and every other mission as it was. Built under a temporary name and
-    renamed when complete (``DatasetWriter``)."""
+    renamed when complete (``DatasetWriter``).
+
+    Raises:
+        ConfigError: a finding it would write is of low confidence (``low_confidence``),
+            unless ``accept_low``; nothing is written.
+    """
+    low = low_confidence(reports)
+    if low and not accept_low:
+        raise ConfigError(
+            f"--apply: {len(low)} correction(s) rest on a finding of low confidence "
+            f"({'; '.join(low)}); expected medium or high (the table says what each rests "
+            "on: state it in the log description, or give --accept-low to write it anyway)")
     by_name = {r.mission: r for r in reports}
     with open_dataset(path) as ds:
         config = json.dumps({"check_log": {"source": str(path),

@@ -189,7 +189,8 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
     reports = check_file(logged)
     said = _said(reports)
     if not _imported_from(dataset, digests, said):
-        apply(logged, dataset, reports)
+        # Every finding and its confidence is in the report's table.
+        apply(logged, dataset, reports, accept_low=True)
     return dataset, said
 
 
