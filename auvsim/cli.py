@@ -7,7 +7,9 @@ import dataclasses
 import errno
 import os
 import re
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from auvsim.cli_support import exit_with, run_command
@@ -352,7 +354,8 @@ def _serve_parser(sub) -> None:
         "network: its TCP JSON API (json_v3.1), a velocity-and-transducer report and a "
         "dead-reckoning report per ping, one JSON object per line, to every client; it "
         "answers get_config, set_config, reset_dead_reckoning and calibrate_gyro. It stops "
-        "after the mission's last ping (unless --loop), or on Ctrl-C or SIGTERM.")
+        "after the mission's last ping (unless --loop), or on Ctrl-C or SIGTERM, and says "
+        "what it served.")
     serve.add_argument("file", type=Path, help="a dataset of simulated missions")
     serve.add_argument("--dvl", choices=("a50",), required=True,
                        help="the instrument to play (required; a50: Water Linked DVL A50)")
@@ -381,11 +384,23 @@ def _serve(args: argparse.Namespace) -> None:
               f"{', from the first client' if args.wait_for_client else ''}; Ctrl-C stops",
               flush=True)
 
-    summary = serve(args.file, args.mission, host=args.host, port=args.port,
-                    speed=args.speed, loop=args.loop, wait_for_client=args.wait_for_client,
-                    ready=ready)
+    # Ctrl-C and SIGTERM are how a server is stopped: they end the play within 50 ms, and
+    # the command says what it served and exits 0 (from another thread than the main one,
+    # where no handler can be set, they stay an interrupt).
+    stop = threading.Event()
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        handlers = {signum: signal.signal(signum, lambda *_: stop.set())
+                    for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        summary = serve(args.file, args.mission, host=args.host, port=args.port,
+                        speed=args.speed, loop=args.loop,
+                        wait_for_client=args.wait_for_client, ready=ready, stop=stop)
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
     print(f"served {summary['reports']} velocity reports of {summary['mission']} to "
-          f"{summary['clients']} client(s)")
+          f"{summary['clients']} client(s)" + ("; stopped by a signal" if stop.is_set() else ""))
 
 
 def _nameable(path: str) -> str:
