@@ -211,6 +211,26 @@ def test_learned_without_a_model_says_what_it_needs(noisy):
         run(noisy, None, adaptive="learned")
 
 
+def rows(n: int, window: int = noisenet.WINDOW) -> noisenet.Records:
+    """``n`` rows of the loss, of one mission, with every measurement offered."""
+    rng = np.random.default_rng(0)
+    return noisenet.Records(
+        inputs=rng.standard_normal((n, 2 * window)), nu2=np.full((n, 4), 1e-6),
+        s0=np.full((n, 4), 1e-6), log_scale0=np.zeros(n),
+        censored=np.zeros((n, 4), bool), mask=np.ones((n, 4), bool), group=np.zeros(n, int))
+
+
+def test_too_few_rows_to_hold_any_out_are_refused_in_one_line():
+    # One mission: the fifth block of 2 WINDOW rows is the first held out, so 8 WINDOW
+    # rows hold none (a 60 s mission's training split gave 156 and a traceback).
+    need = 8 * noisenet.WINDOW + 1
+    with pytest.raises(noisemodel.NoiseModelError, match=f"expected at least {need} ") as e:
+        noisenet.fit(rows(need - 1), epochs=2)
+    assert "\n" not in str(e.value)
+    model = noisenet.fit(rows(need), epochs=2)
+    assert math.isfinite(model.trained_on["validation_nll"])
+
+
 def test_it_is_registered_and_trains_on_the_training_split(noisy):
     from beamsnet.data import load_windows, split
 

@@ -237,6 +237,15 @@ def _fit(rec: Records, seed: int, epochs: int, lr: float, bounds: tuple[float, f
     if held.all() or not held.any():
         held = (np.arange(len(rec.group)) // (2 * WINDOW)) % 5 == 4
     train, valid = ~held, held
+    if not (rec.mask[valid].any() and rec.mask[train].any()):
+        # The first held-out block is the fifth: 4 blocks of 2 WINDOW rows before it.
+        need = 8 * WINDOW + 1
+        runs = len(FORMS) * len(STATED_FACTORS)
+        raise NoiseModelError(
+            f"the learned noise has {len(rec.group)} rows of innovations to fit on, too "
+            f"few to hold any out to choose its epoch; expected at least {need} (longer or "
+            f"more training missions: one mission gives {runs} rows a ping after its first "
+            f"{WINDOW + 1}, so about {WINDOW + 1 + -(-need // runs)} training pings)")
     mean = rec.inputs[train].mean(axis=0)
     std = rec.inputs[train].std(axis=0)
     constant = std < 1e-6
