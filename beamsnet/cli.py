@@ -305,8 +305,16 @@ def _train(args) -> None:
               f"all in {args.out / 'restarts.json'})")
     print(f"trained {spec(args.model).short}: final loss "
           f"{summary['final_train_loss']:.3g} (training), {summary['final_test_loss']:.3g} "
-          f"(test split), {summary['samples_per_second']:.0f} samples/s; wrote "
+          f"(test split; least squares {summary['ls_test_loss']:.3g}), "
+          f"{summary['samples_per_second']:.0f} samples/s; wrote "
           f"{summary['checkpoint']} and {summary['plot']}")
+    loss, ls = summary["final_test_loss"], summary["ls_test_loss"]
+    if loss > ls:
+        times = f"{loss / ls:.3g} times its loss" if ls > 0 else "whose loss is 0"
+        warnings.warn(f"{spec(args.model).short} does worse on the test split than least "
+                      f"squares on the same beams ({times}): more epochs, "
+                      "--restarts or a smaller --lr may let it learn; the losses plot shows "
+                      "how it went", WorseThanLeastSquaresWarning, stacklevel=2)
 
 
 def _evaluate(args) -> None:
@@ -466,8 +474,14 @@ def _stress(args) -> None:
 # The commands whose --out folder a user names and may name again: each says which files
 # already there it replaced (a run trained again into its folder, say).
 SAYS_REPLACED = ("train", "evaluate", "estimate")
+
+
 class ReplacedWarning(UserWarning):
     """A command's --out folder held files it then changed."""
+
+
+class WorseThanLeastSquaresWarning(UserWarning):
+    """A trained network's test-split loss is above the beams' least-squares solution's."""
 
 
 HASHED = 16 << 20  # bytes: a file up to this size is compared by its contents, a larger
@@ -527,6 +541,7 @@ def main(argv: list[str] | None = None) -> int:
         warnings.simplefilter("always", UnseenMissionWarning)
         warnings.simplefilter("always", FilterWarning)
         warnings.simplefilter("always", ReplacedWarning)
+        warnings.simplefilter("always", WorseThanLeastSquaresWarning)
         return run_command("beamsnet", command, FLAGS)
 
 

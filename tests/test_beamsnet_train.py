@@ -232,6 +232,34 @@ def test_cli_train_and_evaluate(scale_only, tmp_path, capsys):
     assert (tmp_path / "rep" / "scale_errors.png").exists()
 
 
+def test_train_gives_least_squares_loss_beside_the_networks(scale_only, tmp_path):
+    from beamsnet.data import load_windows, split
+    from beamsnet.training.train import train
+
+    config = TrainConfig(model="v2", epochs=1)
+    summary = train(scale_only, config, tmp_path / "run", progress=False)
+    test = split(load_windows(scale_only, n_past=config.n_past), config.train_fraction)[1]
+    h = test.h  # (4, 3): LS is pinv(H) y, worked out here by the normal equations
+    ls = np.linalg.solve(h.T @ h, h.T @ test.beams.T).T
+    assert summary["ls_test_loss"] == pytest.approx(np.mean((ls - test.target) ** 2), rel=1e-9)
+
+
+@pytest.mark.parametrize("loss,warned", [(2.0, True), (0.5, False)])
+def test_the_command_warns_of_a_network_worse_than_least_squares(monkeypatch, capsys, loss,
+                                                                  warned):
+    import beamsnet.training.train
+
+    monkeypatch.setattr(beamsnet.training.train, "train", lambda *a, **k: {
+        "final_train_loss": loss, "final_test_loss": loss, "ls_test_loss": 1.0,
+        "samples_per_second": 1.0, "checkpoint": "c", "plot": "p"})
+    assert main(["train", "data.h5", "--model", "v1", "--out", "run", "--quiet"]) == 0
+    out, err = capsys.readouterr()
+    assert "(test split; least squares 1)" in out
+    said = ("beamsnet: warning: BeamsNetV1 does worse on the test split than least squares "
+            "on the same beams (2 times its loss)")
+    assert (said in err) == warned and err.count("\n") == warned
+
+
 @pytest.mark.parametrize("args,message", [
     (["train", "missing.h5", "--out", "x"], "no such file"),
     (["train", "{data}", "--out", "{tmp}/r", "--mission", "nope"], "nope"),
@@ -317,7 +345,7 @@ def test_cli_defaults_are_train_configs(monkeypatch, capsys):
     def record(name):
         def fake(*args, **kwargs):
             calls[name] = (args, kwargs)
-            return {"final_train_loss": 0.0, "final_test_loss": 0.0,
+            return {"final_train_loss": 0.0, "final_test_loss": 0.0, "ls_test_loss": 0.0,
                     "samples_per_second": 1.0, "checkpoint": "c", "plot": "p"}
         return fake
 

@@ -73,6 +73,7 @@ from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet.data import DataError, Windows, load_windows, split
 from beamsnet.estimators import spec
+from beamsnet.estimators.baselines import least_squares
 from beamsnet.estimators.networks import build, training_threads
 from beamsnet.plotstyle import legend_outside
 from beamsnet.training.checkpoints import (
@@ -243,6 +244,10 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     final_test_loss = _mse(model, x_test, y_test)
     if not math.isfinite(final_train_loss):  # the last step's update overflowed
         raise _diverged(config, final_train_loss, "after the last step")
+    # The same loss of the beams' own least-squares solution (paper eq. 9): what a network
+    # that learned nothing useful still has to beat.
+    ls_test_loss = float(np.nanmean((least_squares(test_w.beams, test_w.h)
+                                     - test_w.target) ** 2))
 
     checkpoint = dict(format=CHECKPOINT_FORMAT, format_version=CHECKPOINT_VERSION,
                       model=config.model, kwargs=kwargs, state_dict=model.state_dict(),
@@ -257,7 +262,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     return dict(checkpoint=str(out / "model.pt"), plot=str(out / "losses.png"),
                 history=history,
                 seconds=seconds, samples_per_second=config.epochs * n / seconds,
-                final_train_loss=final_train_loss, final_test_loss=final_test_loss)
+                final_train_loss=final_train_loss, final_test_loss=final_test_loss,
+                ls_test_loss=ls_test_loss)
 
 
 def _diverged(config: TrainConfig, loss: float, where: str) -> DivergedError:
