@@ -145,6 +145,9 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
         group = f.missions
         available = list(group)
         names = tuple(available if missions is None else missions)
+        if not available:
+            raise DataError(f"{path}: holds no missions; expected a dataset with at least "
+                            "one (auvsim generate or auvsim import writes them)")
         if not names:
             raise DataError(f"missions: expected at least one mission name; {path} has "
                             f"{', '.join(available)}")

@@ -88,6 +88,20 @@ def test_missions_are_chosen_by_name_in_the_order_given(path):
     np.testing.assert_array_equal(both.beams[both.mission == 0], w.beams)
 
 
+def test_a_dataset_without_missions_is_refused_in_one_line(path, tmp_path):
+    def empty(f):
+        for name in list(f["missions"]):
+            del f["missions"][name]
+
+    bare = edited_copy(path, tmp_path, empty)
+    with pytest.raises(DataError, match="holds no missions; expected a dataset with at least "
+                       "one") as e:
+        load_windows(bare)
+    assert "\n" not in str(e.value)
+    with pytest.raises(DataError, match="expected at least one mission name; .* has a, b"):
+        load_windows(path, missions=[])
+
+
 def test_pings_without_bottom_lock_are_skipped_now_and_as_past_beams(path, tmp_path):
     def lose_lock(f):
         m = f["missions/a/dvl"]

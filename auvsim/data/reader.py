@@ -378,7 +378,9 @@ def open_dataset(path: str | os.PathLike, *, verify: bool = False) -> Dataset:
     try:
         f = h5py.File(path, "r")
     except OSError as e:
-        raise DatasetError(f"{path}: not an HDF5 file, or corrupt ({_reason(e)})") from None
+        raise DatasetError(f"{path}: not an HDF5 file, or corrupt ({_reason(e)}); expected "
+                           "an auvsim dataset (auvsim generate or auvsim import writes one)"
+                           ) from None
     try:
         dataset = _checked(path, f, key)
         if verify:
