@@ -448,8 +448,9 @@ def _reproduce(args) -> None:
 
 
 # What reproduce and stress make outside --out, said after their reports.
-MADE_BESIDE = ("its datasets are in datasets/ and its trained models in runs/ (made once, "
-               "reused by the next run)")
+MADE_BESIDE = ("its datasets are in datasets/ (but one --data names) and its trained models "
+               "under runs/ (each reused by a run of the same settings on the same data, and "
+               "trained again in its place otherwise)")
 
 
 def _stress(args) -> None:

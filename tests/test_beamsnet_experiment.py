@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 
 import pytest
@@ -175,3 +176,16 @@ def test_the_paper_sim_report_lists_a_diverged_seed(tmp_path, monkeypatch):
                       duration=7200.0, out=tmp_path / "again", training=TrainConfig(epochs=1),
                       restarts=2, workers=1, progress=False).read_text()
     assert "paper-sim_60s.h5`, 60 s per speed" in again and "7200" not in again
+    # What differs from the paper's protocol says the paper's; what does not, nothing.
+    assert "1 epoch (the paper: 30);" in report and "batch 4, lr 0.01 decaying" in report
+    verdicts = [line.split(" | ")[5] for line in report.splitlines()
+                if line.startswith("| ") and " m/s | " in line and line.count(" | ") == 7]
+    assert len(verdicts) == 3 and set(verdicts) <= {"both", "V1 only", "V2 only", "neither"}
+
+
+def test_the_improvement_figure_shows_an_estimator_worse_than_least_squares():
+    from beamsnet.experiments.reproduce import FIGURE_FLOOR, figure_floor
+
+    assert figure_floor([75.2, 80.0, math.nan]) == 0.0
+    assert figure_floor([75.2, -12.0]) == -17.0
+    assert figure_floor([75.2, -10457.3]) == FIGURE_FLOOR
