@@ -39,22 +39,28 @@ The DVL's mounting and lever arm that check-log wrote are known to its standard 
 (Newey-West, over the 10-17 pings its residuals stay correlated: yaw 0.03-0.08 deg), and
 the filter's misalignment and lever-arm states start there. With an uncalibrated DVL's
 priors instead (0.5 deg and 0.1 m: ``misalignment_std_deg`` and ``lever_arm_std`` in a
-``--filter-config``) the median final error is 2.34 m, against 2.16 m.
+``--filter-config``) the median final error is 2.19 m, against 2.02 m.
 
 The clocks are known as well as check-log measured them (``ins.clock_stds``, which
 ``--evidence`` prints: for the start the IMU clock's, 6 to 14 ms; for a ping that and the
 DVL clock's, 18 to 36 ms). With a fixed 0.05 s instead (``clock_std = 0.05`` in a
 ``--filter-config``), a segment that starts in a turn starts with the turn times 0.05 s
 of heading uncertainty (0.3 deg at 6 deg/s), and the DVL's updates then move the heading
-up to 0.51 deg from the gyros' own (0.072 deg at most with the measured figures), which
-follow the reference's to 0.03 deg; the median final is then 2.18 m (1.22 x) and the
-coverage 85.0 %, a share of it bought with that wider heading.
+up to 0.50 deg from the gyros' own (0.078 deg at most with the measured figures), which
+follow the reference's to 0.03 deg; the median final is then 2.09 m (1.17 x) and the
+coverage 85.2 %, a share of it bought with that wider heading.
 
-What is missed (measured on the IMU-clock files): the median final is 1.22 x the dead
-reckoning's (2.16 against 1.78 m), and the coverage is 82.3 % over all the pings, with
-segment 4 at 4 % (and segment 1 at 90 %). Segment 4's error is not the filter's alone:
+A real IMU's sample is the interval that ends at its time, so the filter takes it at the
+interval's middle attitude on these logs (``ins.run_arrays``' ``imu_samples``; the held
+form of auvsim's simulated IMU turned it half a sample late). The DVL innovations' rms
+falls on every segment with it (pooled 4.86 against 4.98 mm/s), and the median final
+error from 2.16 m (1.22 x) to 2.02 m.
+
+What is missed (measured on the IMU-clock files): the coverage is 82.7 % over all the
+pings, with segment 4 at 4 % (every other at 92 % or more); the median final is 1.14 x
+the dead reckoning's (2.02 against 1.78 m). Segment 4's error is not the filter's alone:
 the dead reckoning with the reference's attitude is further from the reference (4.15 m
-final, 3.31 m RMSE) than the filter (3.93, 3.15), and the reference's positions move 1.34
+final, 3.31 m RMSE) than the filter (3.92, 3.12), and the reference's positions move 1.34
 m from the integral of its own velocities within the first 50 s (1.83 m over segment 4,
 up to 5.50 m on segment 5: a post-processed INS whose positions were corrected by
 something other than its velocities), while the filter's 3 sigma there is 0.82 m at 50 s.
@@ -77,9 +83,10 @@ exp(-k / tau) over k = 1..10 pings gives tau 13 to 78 s along x, 25 to 106 s acr
 
 The filter's DVL noise is the real Navigator's as ``benchmarks/dvl_error.py`` measures
 it: white noise from the log's error-velocity figure and a slow error of 9 mm/s over 19 s
-(``auvsim.runs.presets.navigator``), which the IMU confirms: its DVL innovations are 4.0
-to 5.8 mm/s rms where it predicts 5.1 to 5.7 (mean NIS 0.57 to 1.20 per segment;
-``--evidence`` prints them). Before that measurement the filter took 19.5 mm/s over 3 s
+(``auvsim.runs.presets.navigator``), which the IMU confirms: its DVL innovations are 3.9
+to 5.8 mm/s rms where it predicts 5.1 to 5.7 (mean NIS 0.55 to 1.17 per segment;
+``--evidence`` prints them). Before that measurement (and with the held IMU step) the
+filter took 19.5 mm/s over 3 s
 (the rest of the stated 0.02 m/s after the white noise, over a correlation time the
 reference's own fast noise had shortened): innovations of 5.3 to 6.9 mm/s against 14.9 to
 15.5 predicted (mean NIS 0.12 to 0.20), a median final of 1.70 m (0.96 x the dead
@@ -88,20 +95,20 @@ hold slower errors, and they take up what differs slowly between the IMU and the
 forward velocity averages 6 to 10 mm/s above the DVL's on every segment (``--evidence``;
 the DVL's own mean is within 8 mm/s of the reference's). The filter reads that offset as
 a forward accelerometer bias the 10 ug prior holds back: with the Phins figure's 50 ug
-(``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.3 to +3.2 mm/s,
-yet the median final grows to 2.27 m (1.27 x) and the coverage is 82.0 %, so it is not
-why the filter ends further from this reference, itself aided by this DVL, than the DVL's
-dead reckoning. Where the truth is known, a filter without the gyro matrix's states
+(``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.1 to +3.4 mm/s,
+the bias ends at 111 to 134 ug, and the median final is 2.12 m (1.19 x) with a coverage
+of 82.3 %, so it is not why the filter ends further from this reference, itself aided by
+this DVL, than the DVL's dead reckoning. Where the truth is known, a filter without the gyro matrix's states
 takes the gyros' misalignment in the turns for accelerometer biases of this size
 (``benchmarks/filter_consistency.py``). The log states no such errors, so they are off
 here by default; turned on with the navigation-full grade's spreads
 (``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
 ``gyro_misalignment_std = 1e-4``) and the 50 ug prior, the forward accelerometer bias
 falls to 31 to 37 ug, inside the Phins' figure, and the x gyro's coupling to the z rate
-comes out at 84 to 100 urad on all six segments (``--evidence`` with those settings):
+comes out at 85 to 101 urad on all six segments (``--evidence`` with those settings):
 the bias the filter read is the real gyros' cross-coupling. It does not bring the
 filter nearer the reference: with the default accelerometer prior and the gyro states
-the median final is 2.25 m (1.27 x) and the coverage 82.0 %. We keep the measured
+the median final is 2.11 m (1.19 x) and the coverage 82.2 %. We keep the measured
 noise and report the miss.
 
     .venv/bin/python benchmarks/sea_filter.py [--data ../shared/data/snapir-akit]
