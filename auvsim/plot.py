@@ -322,10 +322,15 @@ def _draw_status(ax, status: np.ndarray, extent) -> None:
                  " % of beam pings")
 
 
+STILL = 1e-3  # m/s: a current slower than this horizontally flows toward nowhere
+
+
 def toward_deg(current_ned: np.ndarray) -> np.ndarray:
     """(N,) the direction a current flows toward, deg from north in [0, 360), as
-    ``auvsim inspect`` gives it, of its (N, 3) NED velocity, m/s."""
-    return np.degrees(np.arctan2(current_ned[:, 1], current_ned[:, 0])) % 360
+    ``auvsim inspect`` gives it, of its (N, 3) NED velocity, m/s; NaN where its horizontal
+    speed is under ``STILL`` (still water has no direction: arctan2 would say 0)."""
+    toward = np.degrees(np.arctan2(current_ned[:, 1], current_ned[:, 0])) % 360
+    return np.where(np.hypot(current_ned[:, 0], current_ned[:, 1]) < STILL, np.nan, toward)
 
 
 def _legend_beside(ax, *more, handles=None) -> None:

@@ -350,7 +350,7 @@ def test_inspect_never_prints_a_negative_zero(small, capsys, monkeypatch):
                                   "v1-0")
 
 
-def test_the_mission_plot_says_what_it_plots(small):
+def test_the_mission_plot_says_what_it_plots(dataset_of):
     """Speed over ground and through the water; the current's direction toward, 0 to
     360 deg as inspect says it; every legend beside its panel, outside the data."""
     import matplotlib
@@ -359,8 +359,12 @@ def test_the_mission_plot_says_what_it_plots(small):
     import matplotlib.pyplot as plt
 
     from auvsim import plot
+    from auvsim.config import VehicleConfig
 
-    with open_dataset(small) as f:
+    # A current toward the north-east (the direction is drawn where the water moves).
+    flowing = dataset_of(flat(mission("a", 1, speed=2.0, duration=30.0),
+                              vehicle=VehicleConfig(current_ned=(0.2, 0.2, 0.0))), "flowing")
+    with open_dataset(flowing) as f:
         m = f.missions["a"]
         fig, axes = plt.subplots(4, 2, figsize=(15, 12.8), layout="constrained")
         plot._draw(m, axes)
@@ -374,7 +378,10 @@ def test_the_mission_plot_says_what_it_plots(small):
     assert "toward" in direction.get_ylabel() and direction.get_ylim() == (0, 360)
     toward = direction.get_lines()[0].get_ydata()
     assert toward.min() >= 0 and toward.max() < 360
-    assert abs(np.mean(toward) - inspected) < 5
+    assert abs(np.mean(toward) - inspected) < 5 and abs(inspected - 45.0) < 5
+    # Still water flows toward nowhere: no direction drawn (was 0 deg, north).
+    still = plot.toward_deg(np.array([[0.0, 0.0, 0.0], [0.0005, 0.0, 0.0], [0.0, 0.2, 0.0]]))
+    assert np.isnan(still[:2]).all() and still[2] == pytest.approx(90.0)
     fig.canvas.draw()
     for ax in axes.ravel():
         legend = ax.get_legend()
