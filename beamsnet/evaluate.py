@@ -380,12 +380,33 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
                                      gridspec_kw=dict(width_ratios=(2, 1)))
     look = styles(predictions)
     speed = np.linalg.norm(windows.target, axis=1)
-    for name, pred in predictions.items():
-        ax_t.plot(windows.time, np.linalg.norm(pred, axis=1) - speed, ms=2,
-                  label=name, **look[name].points())
-    ax_t.set_xlabel("mission time, s")
+    # The missions one after another, each from its test split's first ping, a line
+    # between them: on one time axis they would lie over each other.
+    x = np.empty(len(windows.time))
+    offset = 0.0
+    for k, mission in enumerate(windows.names):
+        rows = windows.mission == k
+        if not rows.any():
+            continue
+        x[rows] = windows.time[rows] - windows.time[rows].min() + offset
+        if offset > 0:
+            ax_t.axvline(offset, color="k", lw=0.6)
+        ax_t.text(offset, 1.0, f" {mission}", transform=ax_t.get_xaxis_transform(),
+                  va="bottom", fontsize=7)
+        offset = x[rows].max() + 1.0
+    errors = {name: np.linalg.norm(pred, axis=1) - speed for name, pred in predictions.items()}
+    for name, error in errors.items():
+        ax_t.plot(x, error, ms=2, label=name, **look[name].points())
+    ax_t.set_xlabel("time from each mission's first test ping, s (missions one after another)")
     ax_t.set_ylabel("speed error, m/s")
-    ax_t.set_title("error over the test split")
+    ax_t.set_title("error over the test split", pad=12)
+    # An estimator far off (a network that did not learn) would flatten the others at 0:
+    # past LS's own spread the axis goes logarithmic.
+    spread = error_spread(errors.get("LS"))
+    if spread > 0 and max(np.nanmax(np.abs(e), initial=0.0) for e in errors.values()) \
+            > 20 * spread:
+        ax_t.set_yscale("symlog", linthresh=spread)
+        ax_t.set_ylabel("speed error, m/s (logarithmic beyond LS's 99th percentile)")
     names = list(per_mission)
     missions = list(next(iter(per_mission.values())))
     width = 0.8 / len(names)
@@ -394,9 +415,22 @@ def _plot(windows: Windows, predictions: dict, per_mission: dict, path: Path) ->
                  [per_mission[name][m] for m in missions], width, **look[name].bar())
     ax_m.set_xticks(np.arange(len(missions)) + 0.4 - width / 2, missions)
     ax_m.set_ylabel("speed RMSE, m/s")
+    rmses = [v for name in names for v in per_mission[name].values() if v > 0]
+    if "LS" in per_mission and rmses and max(rmses) > 20 * max(per_mission["LS"].values()):
+        ax_m.set_yscale("log")  # so that the others still show beside one far off
     ax_m.set_title("per mission")
     figure_legend(fig, ax_t, markerscale=3, fontsize=8)
     save_figure(fig, path, dpi=110)
+
+
+def error_spread(error) -> float:
+    """The 99th percentile of |error| (NaN ignored), 0 without one: where the errors plot
+    of ``_plot`` goes logarithmic."""
+    if error is None:
+        return 0.0
+    error = np.abs(np.asarray(error, dtype=float))
+    error = error[np.isfinite(error)]
+    return float(np.percentile(error, 99)) if error.size else 0.0
 
 
 def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> object:

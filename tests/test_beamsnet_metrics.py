@@ -135,3 +135,11 @@ def test_r2_and_vaf_are_undefined_when_the_speed_only_varies_by_round_off():
     varied = true.copy()
     varied[:, 0] = np.linspace(1.0, 2.0, 100)  # a real speed change: defined again
     assert np.isfinite(metrics.r2(varied + 0.01, varied))
+
+
+def test_the_errors_plot_goes_logarithmic_past_ls_own_spread():
+    from beamsnet.evaluate import error_spread
+
+    error = np.concatenate([-np.arange(101.0), [np.nan]])  # |e| = 0 .. 100, and a NaN
+    assert error_spread(error) == pytest.approx(99.0)
+    assert error_spread(None) == 0.0 and error_spread(np.array([np.nan])) == 0.0
