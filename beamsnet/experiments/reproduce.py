@@ -263,6 +263,9 @@ def _report(experiment, data, lengths: set[float], training: TrainConfig, restar
     def unlike(name: str, said: str) -> str:
         return "" if getattr(training, name) == getattr(paper, name) else f" (the paper: {said})"
 
+    protocol = ("batch_size", "lr", "lr_gamma", "lr_step", "epochs")
+    same = (", as the paper" if all(getattr(training, k) == getattr(paper, k) for k in protocol)
+            else "")
     lines = [
         f"# {experiment}: the BeamsNet paper's simulation, reproduced",
         "",
@@ -272,7 +275,7 @@ def _report(experiment, data, lengths: set[float], training: TrainConfig, restar
         f"{unlike('lr', f'{paper.lr:g}')} decaying x{training.lr_gamma:g}"
         f"{unlike('lr_gamma', f'{paper.lr_gamma:g}')} every {training.lr_step} epochs"
         f"{unlike('lr_step', str(paper.lr_step))}, {count(training.epochs, 'epoch')}"
-        f"{unlike('epochs', str(paper.epochs))}; {_averaging(training.average_epochs)}; "
+        f"{unlike('epochs', str(paper.epochs))}{same}; {_averaging(training.average_epochs)}; "
         f"each model trained from {count(restarts, 'seed')}, the one that fits its training "
         "split best kept). RMSE improvement over least squares on the speed, %, on each "
         "mission's test split (last 25 %); \"within 5\" says which of ours are at most 5 "
