@@ -98,8 +98,9 @@ a forward accelerometer bias the 10 ug prior holds back: with the Phins figure's
 (``accel_bias_std = 0.00049`` in a ``--filter-config``) it falls to -0.1 to +3.4 mm/s,
 the bias ends at 111 to 134 ug, and the median final is 2.12 m (1.19 x) with a coverage
 of 82.3 %, so it is not why the filter ends further from this reference, itself aided by
-this DVL, than the DVL's dead reckoning. Where the truth is known, a filter without the gyro matrix's states
-takes the gyros' misalignment in the turns for accelerometer biases of this size
+this DVL, than the DVL's dead reckoning. Where the truth is known, a filter without the
+gyro matrix's states takes the gyros' misalignment in the turns for accelerometer biases
+of this size
 (``benchmarks/filter_consistency.py``). The log states no such errors, so they are off
 here by default; turned on with the navigation-full grade's spreads
 (``gyro_matrix_states = true``, ``gyro_scale_factor_std = 7e-6``,
