@@ -892,22 +892,7 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
             if gi >= 0:  # the rate the gyro matrix's error acts on, before the Earth's
                 for r in range(3):
                     wr[r] = wb[r]
-            if interval:  # C at the interval's middle: C_{i-1} Exp(dt w_nb / 2)
-                if earth:  # w_nb = w - C^T Omega_ie, at C_{i-1} (to O(dt Omega_ie))
-                    np.dot(c.T, omega_ie, rate)
-                for r in range(3):
-                    dphi[r] = 0.5 * h * (wb[r] - rate[r]) if earth else 0.5 * h * wb[r]
-                _exp_into(dphi, rot)
-                _matmul_into(c, rot, m_c)
-                for r in range(3):
-                    cf[r] = m_c[r, 0] * fb[0] + m_c[r, 1] * fb[1] + m_c[r, 2] * fb[2]
-            else:
-                for r in range(3):
-                    cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
-            if earth:  # w_nb = w - C^T Omega_ie; C f less the Coriolis term 2 Omega_ie x v
-                cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
-                cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
-                cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
+            if earth:  # w_nb = w - C^T Omega_ie, the Earth's rate at sample i's attitude
                 for r in range(3):
                     dphi[r] = h * wb[r]
                 _exp_into(dphi, rot)
@@ -915,6 +900,21 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
                 np.dot(c_old.T, omega_ie, rate)
                 for r in range(3):
                     wb[r] -= rate[r]
+            if interval:  # C at the interval's middle: C_{i-1} Exp(dt w_nb / 2)
+                for r in range(3):
+                    dphi[r] = 0.5 * h * wb[r]
+                _exp_into(dphi, rot)
+                _matmul_into(c, rot, m_c)
+                for r in range(3):
+                    cf[r] = m_c[r, 0] * fb[0] + m_c[r, 1] * fb[1] + m_c[r, 2] * fb[2]
+            else:
+                for r in range(3):
+                    cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
+            if earth:  # C f less the Coriolis term 2 Omega_ie x v
+                cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
+                cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
+                cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
+                for r in range(3):
                     cf[r] -= 2.0 * cor[r]
             g_i = g + g_grad * p[2] if g_grad != 0.0 else g  # at the IMU's depth at i - 1
             cf[2] += g_i
