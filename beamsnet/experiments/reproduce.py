@@ -260,12 +260,13 @@ def _report(experiment, data, lengths: set[float], training: TrainConfig, restar
     per = " to ".join(f"{x:g}" for x in sorted({min(lengths), max(lengths)}))
     paper = TrainConfig()  # the paper's protocol: beamsnet train's defaults
 
-    def unlike(name: str, said: str) -> str:
-        return "" if getattr(training, name) == getattr(paper, name) else f" (the paper: {said})"
+    differs = {k for k in ("batch_size", "lr", "lr_gamma", "lr_step", "epochs")
+               if getattr(training, k) != getattr(paper, k)}
 
-    protocol = ("batch_size", "lr", "lr_gamma", "lr_step", "epochs")
-    same = (", as the paper" if all(getattr(training, k) == getattr(paper, k) for k in protocol)
-            else "")
+    def unlike(name: str, said: str) -> str:
+        return f" (the paper: {said})" if name in differs else ""
+
+    same = "" if differs else ", as the paper"
     lines = [
         f"# {experiment}: the BeamsNet paper's simulation, reproduced",
         "",
