@@ -22,14 +22,16 @@ import logging
 import re
 import signal
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
-from auvsim.data.files import interrupt_handler
+from auvsim.data.files import interrupt_handler, interrupts_held
 from auvsim.errors import ConfigError, SimulationError
 
 CONNECT_TIMEOUT_S = 10.0
-CLOSE_S = 30.0  # a local cluster's shutdown; past it, its workers are killed
+CLOSE_S = 30.0  # a local cluster's shutdown, client and all; past it, its workers are killed
+MIN_CLOSE_S = 1.0  # the cluster's own close, however long the client's took
 HANDSHAKE_S = 5.0  # beyond the connect timeout, for a peer that connects but never answers
 THREADS = 2  # per local worker: two missions in flight, as the built-in pool's process
 # A local cluster's settings, each measured by benchmarks/cluster.py against the built-in
@@ -105,25 +107,29 @@ def executor(address: str, *, threads: int = THREADS,
 
 
 def _stop_local(client, cluster) -> None:
-    """Close the client and the local cluster, each within ``CLOSE_S``; if the cluster does
+    """Close the client and the local cluster, both within ``CLOSE_S``; if the cluster does
     not close in time, kill its worker processes: a worker busy in a job (or starved of CPU)
     that does not answer its nanny in time must neither hold up the end of the run nor
     outlive it. The workers are known as processes (``psutil``, which refuses a pid that a
-    new process has taken since), not as bare pids."""
+    new process has taken since), not as bare pids. A Ctrl-C or SIGTERM meanwhile is held
+    and delivered once the cluster has gone: one that broke into the close would leave the
+    cluster half closed, for Dask's exit hook to wait on and its workers to outlive."""
     import psutil  # Dask distributed's own dependency
 
     workers = []
     for worker in cluster.workers.values():
         with suppress(psutil.Error, TypeError):  # ended, or never started
             workers.append(psutil.Process(worker.pid))
-    with suppress(TimeoutError, OSError):  # the cluster is what holds the workers
-        client.close(timeout=CLOSE_S)
-    try:
-        cluster.close(timeout=CLOSE_S)
-    except (TimeoutError, OSError):
-        for process in workers:
-            with suppress(psutil.Error):  # ended meanwhile
-                process.kill()
+    deadline = time.monotonic() + CLOSE_S
+    with interrupts_held():
+        with suppress(TimeoutError, OSError):  # the cluster is what holds the workers
+            client.close(timeout=CLOSE_S)
+        try:
+            cluster.close(timeout=max(deadline - time.monotonic(), MIN_CLOSE_S))
+        except (TimeoutError, OSError):
+            for process in workers:
+                with suppress(psutil.Error):  # ended meanwhile
+                    process.kill()
 
 
 def _local(dask, distributed, n: int, threads: int, timeout: float):
