@@ -93,7 +93,8 @@ def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
                missions: list[str] | None = None, *, filter_config=None,
                **own) -> tuple[Windows, dict]:
     """``estimates`` for loaded models (run directory, model, checkpoint); ``own``: the
-    dicts ``predictions`` fills with the filters' positions, sigmas and attitudes."""
+    dicts ``predictions`` fills with the filters' positions, sigmas, attitudes and
+    divergence watches."""
     configs = [c["train_config"] for _, _, c in models]
     n_past = max([c["n_past"] for c in configs], default=3)
     fraction = configs[0]["train_fraction"] if configs else 0.75
@@ -241,13 +242,15 @@ def _left_out(estimator, dataset, error: AuvsimError) -> None:
 def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
                 test_w: Windows, *, dataset: str | Path | None = None,
                 positions: dict | None = None, stds: dict | None = None,
-                rotations: dict | None = None, filter_config=None) -> dict[str, np.ndarray]:
+                rotations: dict | None = None, watched: dict | None = None,
+                filter_config=None) -> dict[str, np.ndarray]:
     """Every estimator's (S, 3) predictions on ``test_w``: the baselines fitted on
     ``train_w`` (and the INS/DVL filter run on ``dataset``, the file ``test_w`` comes
     from, if given), then the loaded ``models`` (run directory, model, checkpoint).
     ``positions``, a dict, receives the (S, 3) NED position of every estimator with a
     position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
-    one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one."""
+    one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one, ``watched``
+    a filter's ``watch_scores`` per mission."""
     out = {b.name: b.fit(train_w).predict(test_w) for b in baselines()}
     own = [] if dataset is None else fit_filters(dataset, train_w, filter_config=filter_config)
     for estimator in own:
@@ -262,6 +265,9 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
             stds.update(reported_stds(estimator, test_w))
         if rotations is not None:
             rotations.update(own_rotations(estimator, test_w))
+        if watched is not None and hasattr(estimator, "tracks"):
+            watched[estimator.name] = {mission: watch_scores(track) for mission, track
+                                       in estimator.tracks(test_w).items()}
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
         out[name] = predict(model, trimmed(test_w, checkpoint))
@@ -333,9 +339,10 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
             setup = sensor_setup(dataset)  # read once for every run
             for run, _, checkpoint in models:
                 check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
-            own = dict(positions={}, stds={}, rotations={})
+            own, watched = dict(positions={}, stds={}, rotations={}), {}
             bar.set_postfix_str(f"every estimator on {Path(dataset).name}")
-            windows, predictions = _estimates(models, dataset, filter_config=filter_config, **own)
+            windows, predictions = _estimates(models, dataset, filter_config=filter_config,
+                                              watched=watched, **own)
             bar.update()
             bar.set_postfix_str(f"scores on {Path(dataset).name}")
             for run, _, checkpoint in models:
@@ -357,6 +364,9 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
                                                since_first=True)
                 results[str(dataset)]["navigation"] = navigation
                 sections.append(navigation_markdown(navigation, windows.reference))
+            if watched:
+                results[str(dataset)]["watch"] = watched
+                sections.append(watch_markdown(watched))
             figures.append((windows, predictions, per_mission, f"{Path(dataset).stem}_errors.png"))
             bar.update()
         # Only now, every input checked, is ``out`` made: whole, or not at all.
@@ -534,9 +544,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             # A filter outputs a number at every ping, diverged or not: its availability
             # is the share of pings whose measurement it accepted, and its events say when
             # its divergence watch restarted it.
-            track = estimator.tracks(windows)[mission]
-            row["availability"] = track.availability
-            row["events"] = [event.text for event in track.events]
+            row.update(watch_scores(estimator.tracks(windows)[mission]))
         if have.any():
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
@@ -656,6 +664,32 @@ def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | Non
     if any(getattr(t, field, None) is None for t in tracks.values()):
         return None
     return at_pings(tracks, windows, field)
+
+
+def watch_scores(track) -> dict:
+    """A filter's track of one mission as its divergence watch saw it: its availability,
+    the share of pings whose measurement it accepted (not of its finite outputs: a
+    filter that has diverged still outputs numbers), and the watch's restarts, one line
+    each."""
+    return dict(availability=track.availability, events=[e.text for e in track.events])
+
+
+def watch_markdown(watched: dict[str, dict[str, dict]]) -> str:
+    """What each filter's divergence watch did on each mission (``watched``: {filter:
+    {mission: ``watch_scores``}}): the share of pings it accepted and its restarts, over
+    the whole mission (a filter runs each from its start, not the test split alone)."""
+    lines = []
+    for name, missions in watched.items():
+        said = []
+        for mission, row in missions.items():
+            restarts = row["events"]
+            said.append(f"{mission} {100 * row['availability']:.1f} % of the mission's pings "
+                        "accepted, "
+                        + (f"{len(restarts)} restart{'s' if len(restarts) > 1 else ''}: "
+                           + "; ".join(restarts) if restarts else "no restart"))
+        lines.append(f"{name}, what its divergence watch saw (a restart when its gate keeps "
+                     "rejecting the measurements): " + "; ".join(said) + ".")
+    return "\n\n".join(lines)
 
 
 def navigation_markdown(scores: dict[str, dict[str, dict]], against: str) -> str:

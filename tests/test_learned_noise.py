@@ -304,6 +304,7 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
                 row = scores[label]
                 assert all(np.isfinite(row[k]) for k in (
                     "final_m", "rmse_m", "velocity_rmse", "coverage_3sigma"))
+                assert 0.5 < row["availability"] <= 1 and isinstance(row["events"], list)
     assert set(results["features"]) == set(noisemodel.FEATURES)
     # Every seed's model scored on every mission; the first's are the tables'.
     assert list(results["seeds"]) == ["0", "1"]
@@ -320,6 +321,7 @@ def test_reproduce_adaptive_writes_its_report(tmp_path, monkeypatch, capsys):
     assert "truth" not in recorded.split("## How much")[0]  # its simulated control names one
     assert len(re.findall(r"(?:\bmet|\*\*missed\*\*)[;.]", report)) == 4
     assert report.count("| **median** |") == 4
+    assert report.count("whose measurement each filter accepted") == 2  # simulated, recorded
     # The fixed filter with every constant scale, each segment's best in hindsight.
     assert list(results["constant"]) == ["trajectory1", "trajectory2"]
     for name, row in results["constant"].items():

@@ -15,7 +15,7 @@ import pytest
 from auvsim.physics.frames import rotation_rpy
 from beamsnet import metrics
 from beamsnet.data import body_rate, quaternions_at, reference_velocity
-from beamsnet.experiments.sea import DEFAULT_SEA
+from beamsnet.experiments.sea import DEFAULT_SEA, watch_words
 from beamsnet.navigation import earth_fixed_fit
 
 
@@ -295,11 +295,29 @@ def test_reproduce_sea_scores_every_segment_against_its_reference(tmp_path, monk
                       "Affine (other segments)"):
             assert np.isfinite(segments[name][label]["velocity_rmse"])
     assert held < 0.5
+    for scores in segments.values():  # clean logs: every ping's measurement but the first's
+        for label in ("INS/DVL", "INS/DVL (simulated instrument's noise)"):
+            assert scores[label]["availability"] == pytest.approx(119 / 120)
+            assert scores[label]["events"] == []
+    assert "INS/DVL 99.2 % (lowest 99.2 %" in report and "restarted none of them" in report
     assert "| **median** |" in report
     ours = "\n".join(line for line in report.splitlines()  # not the errors it quotes
                       if not line.startswith("Filters that did not run"))
     assert "against the reference: Delph INS" in report and "truth" not in ours
     assert "derived** as `H v`" in report and "## Sim-to-real" in report
+
+
+def test_the_reports_say_what_each_filters_divergence_watch_did():
+    results = {"a": {"scores": {"F": {"availability": 0.5, "events": ["at 10 s: restarted"]},
+                                "G": {"availability": 0.9}}},  # not a filter's: no events
+               "b": {"scores": {"F": {"availability": 1.0, "events": []}}}}
+    [words] = watch_words(results, ("F", "G"))
+    assert "median over the 2 missions: F 75.0 % (lowest 50.0 %, a)." in words
+    assert "G " not in words
+    assert words.endswith("restarted them 1 time: F on a: at 10 s: restarted.")
+    results["a"]["scores"]["F"]["events"] = []
+    assert watch_words(results, ("F",))[0].endswith("restarted none of them.")
+    assert watch_words(results, ("G",)) == []
 
 
 SHARED = DEFAULT_SEA
@@ -341,6 +359,14 @@ def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsy
     assert rows["LS"]["final_m"] == pytest.approx(math.hypot(0.29, north), abs=2e-3)
     assert rows["DR: DVL + reference attitude"] == pytest.approx(rows["LS"])
     assert np.isfinite(rows["CorrectionNet (corr)"]["final_m"])
+    # The filter's own track, its 3 sigma, the baseline with its attitude, and its watch.
+    assert rows["INS/DVL"]["coverage_3sigma"] == 1.0
+    assert rows["DR: DVL + filter attitude (INS/DVL)"]["final_m"] == pytest.approx(
+        rows["LS"]["final_m"], abs=0.01)  # its attitude all but the reference's
+    assert result["watch"]["INS/DVL"] == {"trajectory1": {"availability": 1.0, "events": []}}
+    assert ("INS/DVL, what its divergence watch saw (a restart when its gate keeps "
+            "rejecting the measurements): trajectory1 100.0 % of the mission's pings "
+            "accepted, no restart.") in (tmp_path / "ev" / "evaluation.md").read_text()
 
 
 class OwnTrack:

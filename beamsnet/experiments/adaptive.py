@@ -45,7 +45,14 @@ from beamsnet import metrics
 from beamsnet.data import load_windows
 from beamsnet.evaluate import navigation_scores, reported_stds
 from beamsnet.experiments.runner import check_duration, ensure_dataset
-from beamsnet.experiments.sea import DEFAULT_SEA, median_score, pooled_coverage, sea_dataset
+from beamsnet.experiments.sea import (
+    DEFAULT_SEA,
+    median_score,
+    pooled_coverage,
+    sea_dataset,
+    watch_scores,
+    watch_words,
+)
 from beamsnet.navigation import truth_at_pings
 
 if TYPE_CHECKING:
@@ -242,7 +249,7 @@ def _scored(name: str, windows, truth, filters: dict) -> dict:
         have = np.isfinite(pred).all(axis=1)
         scores[label] = dict(velocity_rmse=metrics.rmse_vector(pred[have],
                                                                windows.target[have]),
-                             **navigation[label])
+                             **navigation[label], **watch_scores(tracks[label]))
     return dict(scores=dict(scores, against=windows.reference, pings=len(windows.time)),
                 time=windows.time,
                 track=tracks.get(LEARNED), model_based=tracks.get(MODEL_BASED))
@@ -312,7 +319,8 @@ def _table(results: dict, against: str) -> list[str]:
     lines.append("")
     lines.append("Over every mission's pings together, within 3 sigma: " + ", ".join(
         f"{label} {100 * pooled_coverage(results, label):.1f} %" for label in FILTERS) + ".")
-    return lines
+    watched = watch_words(results, FILTERS)
+    return lines + (["", *watched] if watched else [])
 
 
 def _against(results: dict) -> str:

@@ -57,6 +57,7 @@ from beamsnet.evaluate import (
     own_rotations,
     reported_stds,
     trimmed,
+    watch_scores,
 )
 from beamsnet.experiments.runner import check_duration, ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
@@ -313,12 +314,13 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
         for run, model, checkpoint in nets[key]:
             predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
     predictions.update({f"{b.name}{OTHERS}": b.predict(windows) for b in real})
-    positions, stds, rotations, failed = {}, {}, {}, {}
+    positions, stds, rotations, failed, watched = {}, {}, {}, {}, {}
     for label, estimator in _filters(dataset, noise).items():
         try:
             predictions[label] = estimator.predict(windows)
             positions[label] = estimator.positions(windows)
             stds.update(reported_stds(estimator, windows))
+            watched[label] = watch_scores(estimator.tracks(windows)[name])
             if label == FILTER:
                 rotations.update(own_rotations(estimator, windows))
         except AuvsimError as e:  # said in the report, not hidden
@@ -342,6 +344,7 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
             velocity_rmse=(metrics.rmse_vector(pred[have], windows.target[have])
                            if have.any() else math.nan),
             availability=float(have.mean()), **navigation.get(label, {}))
+        scores[label].update(watched.get(label, {}))  # a filter's: the pings it accepted
     by_reference, by_filter = baseline_names(windows.reference)
     for label in (by_reference, by_filter):
         if label in navigation:
@@ -360,6 +363,33 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
                             against=windows.reference, derived=bool(windows.derived),
                             earth_fixed=earth, reference_departure_m=float(departure.max())),
                 time=windows.time, reference=truth["position"], tracks=tracks)
+
+
+def watch_words(results: dict, labels) -> list[str]:
+    """For each filter of ``labels`` in ``results`` (as ``median_score`` takes them, each
+    row with ``watch_scores``): the share of pings whose measurement it accepted, median
+    over the missions and the lowest, and every restart of its divergence watch."""
+    accepted, restarts = [], []
+    for label in labels:
+        rows = {name: r["scores"][label] for name, r in results.items()
+                if "events" in r["scores"].get(label, {})}
+        if not rows:
+            continue
+        low = min(rows, key=lambda name: rows[name]["availability"])
+        accepted.append(f"{label} {100 * median_score(results, label, 'availability'):.1f} "
+                        f"% (lowest {100 * rows[low]['availability']:.1f} %, {low})")
+        restarts += [f"{label} on {name}: {text}" for name, row in rows.items()
+                     for text in row["events"]]
+    if not accepted:
+        return []
+    return [f"The share of pings whose measurement each filter accepted (its availability: "
+            f"the gate passed it), median over the {len(results)} missions: "
+            + "; ".join(accepted) + ". "
+            + ("The divergence watch, which restarts a filter whose gate keeps rejecting "
+               "the measurements, restarted none of them." if not restarts else
+               "The divergence watch, which restarts a filter whose gate keeps rejecting "
+               f"the measurements, restarted them {count(len(restarts), 'time')}: "
+               + "; ".join(restarts) + ".")]
 
 
 def median_score(results: dict, label: str, key: str) -> float:
@@ -454,7 +484,9 @@ def report(results: dict, setup: dict) -> str:
         f"{_fmt(100 * med[FILTER]['coverage_3sigma'], '.1f')} | {mtriple(by_reference)} | "
         f"{mtriple(by_filter)} | {_fmt(med[FILTER]['velocity_rmse'], '.4f')} | "
         f"{med[by_reference]['velocity_rmse']:.4f} |")
-    lines += ["", *_coverage_words(results), "", *_earth_fixed_words(results)]
+    for words in (_coverage_words(results), watch_words(results, (FILTER, SIM_FILTER)),
+                  _earth_fixed_words(results)):
+        lines += ["", *words] if words else []
     failed: dict[tuple[str, str], list[str]] = {}  # (filter, why) -> segments
     for name, r in results.items():
         for label, why in r["scores"]["failed"].items():
