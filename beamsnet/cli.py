@@ -13,6 +13,7 @@ from pathlib import Path
 from auvsim.cli_support import exit_with, run_command
 from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
+from beamsnet.data import NO_REFERENCE
 from beamsnet.estimators import network_names, spec, specs
 from beamsnet.evaluate import (
     TRAIN_FRACTION,
@@ -340,12 +341,16 @@ def _estimate(args) -> None:
     args.out = report_dir(args.out, False, "estimate")
     summary = estimate(args.estimator, args.dataset, args.out, train=args.train,
                        filter_config=config)
-    print(f"{summary['estimator']} on {args.dataset}, scored against {summary['against']}"
+    print(f"{summary['estimator']} on {args.dataset}, "
+          + ("not scored: the log has no reference" if summary["against"] == NO_REFERENCE
+             else f"scored against {summary['against']}")
           + (f"; beams derived as H v from the DVL's own velocity in "
              f"{', '.join(summary['beams_derived'])} (the log has none)"
              if summary.get("beams_derived") else ""))
     if "fitted_on_scored_pings" in summary:
         print(f"note: {summary['estimator']} was {summary['fitted_on_scored_pings']}")
+    if "unfitted" in summary:
+        print(f"note: {summary['estimator']}: {summary['unfitted']}")
     for mission, row in summary["missions"].items():
         said = [f"{100 * row['availability']:.1f} % of {row['pings']} pings"
                 + (" accepted" if "events" in row else "")]

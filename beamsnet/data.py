@@ -64,6 +64,7 @@ class DataError(DatasetError, ValueError):
 TRUTH = "the simulator's truth"
 IMPORTED = "the imported velocity, the truth by the paper's protocol"
 TRUTHS = (TRUTH, IMPORTED)  # targets that are the truth by construction
+NO_REFERENCE = "nothing: the log has no reference"  # a recorded log's target, NaN
 
 
 class Windows(NamedTuple):
@@ -212,7 +213,7 @@ def _check_each_has_samples(path, group, names: Sequence[str], parts: list[dict]
             continue
         m = group[name]
         beams = recorded_beams(m)[0]
-        t_ref = m.reference.time if m.origin == "recorded" else None
+        t_ref = m.reference.time if m.has("reference") else None
         if t_ref is not None and not ((m.dvl.time >= t_ref[0]) & (m.dvl.time <= t_ref[-1])).any():
             why = "no ping lies within the reference's time span"
         elif not np.isfinite(beams).any():
@@ -250,13 +251,28 @@ def check_dataset(path: str | os.PathLike, *, argument: str,
     return Path(path)
 
 
+def check_referenced(windows: Windows, dataset: str | os.PathLike) -> None:
+    """Refuse samples of a log without a reference (``NO_REFERENCE``): nothing to score
+    or train against.
+
+    Raises:
+        DataError: in one line, saying what can be done with such a file.
+    """
+    if windows.reference == NO_REFERENCE:
+        raise DataError(f"{dataset}: a log without a reference, so no velocity to score or "
+                        "train against; expected a file with a reference or the truth "
+                        "(beamsnet estimate runs an estimator on it, unscored)")
+
+
 def check_truth(windows: Windows, dataset: str | os.PathLike) -> None:
     """Refuse samples whose true DVL velocity holds NaN or inf: no estimator can be scored
     against it.
 
     Raises:
-        DataError: naming the dataset and where the first such sample is.
+        DataError: naming the dataset and where the first such sample is; or the file is
+            a log without a reference (``NO_REFERENCE``), so nothing to score or train on.
     """
+    check_referenced(windows, dataset)
     bad = ~np.isfinite(windows.target).all(axis=1)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
@@ -317,7 +333,10 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
         gyro = m.imu.angular_rate[rows]
     else:
         ks = ks[ok]
-    if recorded:
+    if recorded and not m.has("reference"):  # estimates without a score
+        target = np.full((len(ks), 3), np.nan)
+        reference = NO_REFERENCE
+    elif recorded:
         # Only the pings the reference covers are scored: beyond its span (a DVL clock
         # that check-log moved past the reference's last sample) nothing says where the
         # vehicle was.

@@ -33,7 +33,16 @@ import numpy as np
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import AuvsimError, ConfigError
 from beamsnet import metrics
-from beamsnet.data import TRUTHS, DataError, Windows, check_truth, load_windows, split
+from beamsnet.data import (
+    NO_REFERENCE,
+    TRUTHS,
+    DataError,
+    Windows,
+    check_referenced,
+    check_truth,
+    load_windows,
+    split,
+)
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
 from beamsnet.estimators.ins import at_pings
@@ -501,9 +510,24 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset, filter_config=filter_config)
     windows = load_windows(dataset, every_ping=True)
-    check_truth(windows, dataset)
+    scored = windows.reference != NO_REFERENCE  # a log without one: estimates alone
+    unfitted = None
+    if scored:
+        check_truth(windows, dataset)
+    elif train is None and getattr(estimator, "calibrate", False):
+        estimator.calibrate = False  # the filter on the beams as measured
+        unfitted = ("its beams are used as measured: the log has no reference to calibrate "
+                    "them against (--train FILE.h5 calibrates them on another file)")
+    elif train is None and spec(estimator.name).needs.training:
+        raise DataError(f"{dataset}: a log without a reference, and {estimator.name} is "
+                        "fitted on one; expected --train FILE.h5 with a reference or the "
+                        "truth")
     train_windows = load_windows(dataset if train is None else train)
     _check_same_beams(train, train_windows, dataset, windows)
+    fits = (estimator.calibrate if hasattr(estimator, "calibrate")
+            else spec(estimator.name).needs.training)
+    if fits:  # on a file with something to fit against
+        check_referenced(train_windows, train or dataset)
     try:
         train_w = split(train_windows, TRAIN_FRACTION)[0]
     except ValueError as e:
@@ -517,7 +541,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred), against=windows.reference,
                    availability=availability(pred), missions={})
-    if train is None and spec(estimator.name).needs.training:
+    if unfitted:
+        summary["unfitted"] = unfitted
+    if train is None and scored and spec(estimator.name).needs.training:
         summary["fitted_on_scored_pings"] = (
             f"fitted on the first {100 * TRAIN_FRACTION:.0f} % of each mission's pings of "
             "this file (its training split), which the scores include; --train OTHER.h5 "
@@ -545,7 +571,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             # is the share of pings whose measurement it accepted, and its events say when
             # its divergence watch restarted it.
             row.update(watch_scores(estimator.tracks(windows)[mission]))
-        if have.any():
+        if have.any() and scored:
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
             scores = navigation[mission]
@@ -557,13 +583,15 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         summary["availability"] = float(np.mean(np.concatenate(
             [t.accepted for t in tracks.values()])))
     target = "true" if windows.reference in TRUTHS else "reference"
-    columns = ["mission", "time", "vx", "vy", "vz", f"{target}_vx", f"{target}_vy",
-               f"{target}_vz"]
-    table = [windows.names[m] for m in windows.mission], windows.time, *pred.T, \
-        *windows.target.T
+    columns = ["mission", "time", "vx", "vy", "vz"]
+    table = [windows.names[m] for m in windows.mission], windows.time, *pred.T
+    if scored:
+        columns += [f"{target}_vx", f"{target}_vy", f"{target}_vz"]
+        table += tuple(windows.target.T)
     if positions is not None:
         # The estimator's own position, in the mission's local frame (the truth's, or
-        # the reference's: its origin is the reference's first point).
+        # the reference's: its origin is the reference's first point; without a
+        # reference, where the filter started).
         columns += ["north_m", "east_m", "down_m"]
         table += tuple(positions.T)
     lines = [",".join(columns)] + [

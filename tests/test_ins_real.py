@@ -15,12 +15,12 @@ import pytest
 from conftest import Fields, zigzag
 
 from auvsim.data.reader import open_dataset
-from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rotation_rpy
 from auvsim.runs.presets import PAPER_NOISE_CODE
 from auvsim.sensors.imu import IMU_GRADES
 from beamsnet.cli import main
+from beamsnet.data import DataError
 from beamsnet.estimators import ins
 from beamsnet.experiments.sea import sea_dataset
 
@@ -508,9 +508,21 @@ def test_run_mission_on_a_recorded_mission_starts_from_its_reference_on_a_rotati
     assert np.abs(without.position_ned[:60, :2]).max() > 1.0  # the Earth's rate mattered
     no_attitude = Fields(time=mission.reference.time, position_ned=mission.reference.position_ned,
                          velocity_ned=mission.reference.velocity_ned)
-    blind = Fields(**{**vars(mission), "reference": no_attitude, "_where": "mission rest"})
-    with pytest.raises(DatasetError, match="mission rest: its reference has no attitude"):
-        ins.run_mission(blind)  # require_attitude's refusal
+    blind = Fields(**{**vars(mission), "reference": no_attitude})
+    with pytest.raises(DataError, match="mission rest: its reference has no attitude to "
+                       "start the filter from; expected start_heading_deg"):
+        ins.run_mission(blind)
+    # Given the heading, a coarse alignment starts it: levelled from the accelerometers,
+    # at the reference's position and velocity, or (no reference at all) at the origin
+    # with the DVL's velocity; at rest, either stays put within its own 3 sigma.
+    given = ins.FilterConfig(start_heading_deg=30.0, start_heading_std_deg=2.0)
+    alone = Fields(**{**vars(mission), "has": lambda group: group in ("imu", "dvl")})
+    for log in (blind, alone):
+        aligned = ins.run_mission(log, given)
+        assert aligned.availability == 1.0 and not aligned.events
+        assert np.abs(aligned.position_ned).max() < 0.05
+        assert np.all(np.abs(aligned.position_ned) <= 3 * aligned.position_std)
+        np.testing.assert_allclose(aligned.rotation, track.rotation, atol=1e-6)
 
 
 def test_coarse_alignment_levels_a_tilted_imu_at_rest():
@@ -524,6 +536,29 @@ def test_coarse_alignment_levels_a_tilted_imu_at_rest():
     np.testing.assert_allclose(start.rotation, c, atol=1e-12)
     assert start.attitude_std[:2] == pytest.approx([1e-3, 1e-3])
     assert start.attitude_std[2] == pytest.approx(math.radians(1.0))
+
+
+def test_a_coarse_alignment_under_way_takes_the_acceleration_the_dvl_shows_out():
+    """Level, heading 120 deg, speeding up at 0.2 m/s^2 from 1.5 m/s while turning at
+    3 deg/s: the accelerometers read a - g with a = dv/dt + w x v = (0.2, u r, 0), which
+    averaged alone tilts the start by atan(a / g) (1.2 deg in pitch, 0.5 deg in roll at
+    the mean speed); the DVL's velocities (a 1 Hz ramp, mounted 180 deg in yaw) give the
+    acceleration back, and the level comes out exact."""
+    c = rotation_rpy(0.0, 0.0, math.radians(120.0))
+    t = np.arange(0.0, 20.0, 0.01)
+    r = math.radians(3.0)
+    u = 1.5 + 0.2 * t
+    f = np.column_stack([np.full(len(t), 0.2), u * r, np.full(len(t), -9.8)])
+    w = np.tile([0.0, 0.0, r], (len(t), 1))
+    pings = np.arange(0.0, 20.0)
+    mounting = rotation_rpy(0.0, 0.0, math.pi)
+    v_dvl = np.column_stack([1.5 + 0.2 * pings, 0 * pings, 0 * pings]) @ mounting  # M^T v
+    a = ins.dvl_acceleration(pings, v_dvl, mounting, t, w)
+    np.testing.assert_allclose(a, [0.2, 2.5 * r, 0.0], atol=1e-12)  # mean speed over 10 s
+    tilted = ins.coarse_alignment(t, f, heading_deg=120.0)
+    assert abs(math.degrees(math.asin(-tilted.rotation[2, 0])) - 1.17) < 0.01  # its pitch
+    level = ins.coarse_alignment(t, f, heading_deg=120.0, acceleration_body=a)
+    np.testing.assert_allclose(level.rotation, c, atol=1e-9)
 
 
 def test_a_start_from_a_reference_is_as_uncertain_as_its_clock_lets_it_be():

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from pathlib import Path
 from types import SimpleNamespace
 
+import h5py
 import numpy as np
 import pytest
 
@@ -367,6 +369,58 @@ def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsy
     assert ("INS/DVL, what its divergence watch saw (a restart when its gate keeps "
             "rejecting the measurements): trajectory1 100.0 % of the mission's pings "
             "accepted, no restart.") in (tmp_path / "ev" / "evaluation.md").read_text()
+
+
+def test_estimate_on_a_log_without_a_reference_runs_unscored(tmp_path, capsys):
+    """The weaving segment with its reference group taken out: the filter starts from a
+    coarse alignment on the heading its settings give (north, the segment's own) and its
+    track follows the one it makes from the reference's start; LS runs; neither is
+    scored; an estimator fitted on a reference, and training, are refused in one line."""
+    from auvsim.data.recorded import import_logs
+    from beamsnet.cli import main
+
+    write_akit(tmp_path / "logs", 1, weave_deg_s=3.0)
+    recorded, blind = tmp_path / "sea.h5", tmp_path / "blind.h5"
+    import_logs([tmp_path / "logs"], recorded, format="akit")
+    shutil.copy(recorded, blind)
+    with h5py.File(blind, "r+") as f:
+        m = f["missions/trajectory1"]
+        del m["reference"]
+        m.attrs["groups"] = json.dumps(["imu", "dvl"])
+    settings = tmp_path / "north.toml"
+    settings.write_text("start_heading_deg = 0.0\nstart_heading_std_deg = 0.5\n")
+    runs = {}
+    for name, path, more in (("referenced", recorded, []),
+                             ("blind", blind, ["--filter-config", str(settings)])):
+        assert main(["estimate", str(path), "--estimator", "INS/DVL", "--out",
+                     str(tmp_path / name), *more]) == 0
+        runs[name] = np.loadtxt(tmp_path / name / "estimates.csv", delimiter=",",
+                                skiprows=1, usecols=range(1, 8 if name == "blind" else 11))
+    said = capsys.readouterr().out
+    assert "INS/DVL on " + str(blind) + ", not scored: the log has no reference" in said
+    assert "its beams are used as measured" in said
+    assert (tmp_path / "blind" / "estimates.csv").read_text().startswith(
+        "mission,time,vx,vy,vz,north_m,east_m,down_m\n")
+    referenced, aligned = runs["referenced"], runs["blind"]
+    np.testing.assert_array_equal(aligned[:, 0], referenced[:, 0])  # every ping's time
+    # The reference's start is its first point, the alignment's the origin: the same.
+    # Levelled less the acceleration the DVL shows (the vehicle speeds up and weaves as
+    # the IMU is averaged: 3 to 5 mrad of tilt otherwise, and two restarts), the start
+    # needs no restart; the velocities agree within 5 mm/s, the tracks within 0.2 m.
+    drift = np.linalg.norm(aligned[:, 4:6] - referenced[:, 7:9], axis=1)
+    assert drift.max() < 0.2, drift.max()
+    np.testing.assert_allclose(aligned[:, 1:4], referenced[:, 1:4], atol=0.005)
+    summary = json.loads((tmp_path / "blind" / "summary.json").read_text())
+    assert summary["missions"]["trajectory1"]["events"] == []
+    assert "position" not in summary["missions"]["trajectory1"]
+    assert main(["estimate", str(blind), "--estimator", "LS", "--out",
+                 str(tmp_path / "ls")]) == 0
+    for args in (["estimate", str(blind), "--estimator", "Affine", "--out",
+                  str(tmp_path / "affine")],
+                 ["train", str(blind), "--model", "corr", "--out", str(tmp_path / "net")]):
+        assert main(args) == 2
+        assert "a log without a reference" in capsys.readouterr().err
+        assert not (tmp_path / args[-1]).exists()
 
 
 class OwnTrack:

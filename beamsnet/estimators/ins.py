@@ -191,8 +191,9 @@ file). None of it comes from a synthetic protocol's sigma.
 Start: a simulated mission at its truth (or drawn around it, ``initial_error_seed``); a
 recorded one at its reference's first sample within the IMU's span
 (``start_from_reference``: the reference's accuracy, widened by what the vehicle turns,
-accelerates and moves in the clock's uncertainty, ``clock_stds``); without either,
-``coarse_alignment`` (levelling from the averaged accelerometers, a given heading).
+accelerates and moves in the clock's uncertainty, ``clock_stds``); a recorded one whose log
+has no reference attitude, ``coarse_alignment`` (levelling from the averaged
+accelerometers, the heading the settings give, ``start_heading_deg``).
 
 A recorded file from ``auvsim check-log --apply`` is read as it is: the IMU's dt from its
 times (``imu_rate_hz`` only sets the rounding's density), ``imu_position_body``,
@@ -310,6 +311,11 @@ class FilterConfig:
         attitude_std_deg: initial attitude error (level axes, heading), deg; one number
             sets both. From a reference: its accuracy, to which the start adds the
             rotation over ``clock_std``; a coarse alignment has its own.
+        start_heading_deg: a recorded mission whose log has no reference attitude starts
+            from a coarse alignment (``coarse_alignment``: levelled from the
+            accelerometers) on this heading, deg from north; None: such a mission is
+            refused. A reference's attitude, where there is one, goes first.
+        start_heading_std_deg: that heading's uncertainty, deg (a compass's, say).
         accel_bias_std: initial accelerometer bias std, m/s^2 per axis; None:
             sqrt(turn-on spread^2 + bias instability^2) of the mission's IMU attributes.
         gyro_bias_std: initial gyro bias std, rad/s per axis; None: as above.
@@ -432,6 +438,8 @@ class FilterConfig:
     position_std: float = 0.1
     velocity_std: float = 0.01
     attitude_std_deg: tuple[float, float] | float = (0.01, 0.05)
+    start_heading_deg: float | None = None
+    start_heading_std_deg: float = 1.0
     accel_bias_std: float | None = None
     gyro_bias_std: float | None = None
     initial_error_seed: int | None = None
@@ -487,6 +495,10 @@ class FilterConfig:
         if not isinstance(self.dvl_updates, bool):
             raise ValueError("FilterConfig.dvl_updates: expected true or false, got "
                              f"{self.dvl_updates!r}")
+        heading = self.start_heading_deg
+        if heading is not None and not is_finite(heading):
+            raise ValueError("FilterConfig.start_heading_deg: expected a heading in deg or "
+                             f"None, got {heading!r}")
         seed = self.initial_error_seed
         if seed is not None and not (_whole(seed) and seed >= 0):
             raise ValueError("FilterConfig.initial_error_seed: expected a whole number >= 0 "
@@ -542,7 +554,7 @@ ADAPTIVE_START = 10
 
 # FilterConfig's fields by what they accept (the others are checked one by one).
 _POSITIVE = ("position_std", "velocity_std", "beam_scale_std", "beam_bias_std", "noise_scale",
-             "process_noise_scale")
+             "process_noise_scale", "start_heading_std_deg")
 _POSITIVE_OR_NONE = ("misalignment_std_deg", "lever_arm_std", "bias_time")
 _AT_LEAST_ZERO_OR_NONE = ("beam_noise_std", "velocity_noise_std", "gravity", "accel_bias_std",
                           "gyro_bias_std", "accel_noise_density", "gyro_noise_density",
@@ -1268,6 +1280,28 @@ def quantisation_density(samples: np.ndarray, rate_hz: float) -> float:
     return float(steps.min()) / math.sqrt(12.0 * rate_hz)
 
 
+ALIGN_S = 10.0  # s of IMU samples a coarse alignment averages
+
+
+def dvl_acceleration(dvl_time, velocity_dvl, mounting: np.ndarray, imu_time, angular_rate,
+                     seconds: float = ALIGN_S) -> np.ndarray:
+    """(3,) m/s^2, the body's mean acceleration over the first ``seconds`` of the IMU's
+    span as the DVL shows it: a_b = dv_b/dt + w x v_b (the body velocity's change, and
+    the turn of it), from the first and the last valid ping within the span (their
+    velocities in the DVL frame, turned to the body by ``mounting``) and the mean body
+    rate ``angular_rate`` (N, 3) rad/s over it; zeros with fewer than two such pings."""
+    t = np.asarray(dvl_time, dtype=float)
+    v = np.asarray(velocity_dvl, dtype=float) @ np.asarray(mounting, dtype=float).T
+    t_imu = np.asarray(imu_time, dtype=float)
+    inside = np.flatnonzero((t >= t_imu[0]) & (t <= t_imu[0] + seconds)
+                            & np.isfinite(v).all(axis=1))
+    if len(inside) < 2:
+        return np.zeros(3)
+    first, last = inside[0], inside[-1]
+    rate = np.asarray(angular_rate, dtype=float)[t_imu <= t_imu[0] + seconds].mean(axis=0)
+    return (v[last] - v[first]) / (t[last] - t[first]) + np.cross(rate, v[inside].mean(axis=0))
+
+
 def start_from_reference(time: float, position_ned, velocity_ned, rotation, *,
                          angular_rate, acceleration=None,
                          config: FilterConfig = FilterConfig(),
@@ -1297,17 +1331,19 @@ def start_from_reference(time: float, position_ned, velocity_ned, rotation, *,
 
 def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_ned=(0, 0, 0),
                      velocity_ned=(0, 0, 0), heading_std_deg: float = 1.0,
-                     seconds: float = 10.0, speed_std: float = 0.5) -> Start:
+                     seconds: float = ALIGN_S, speed_std: float = 0.5,
+                     acceleration_body=(0, 0, 0)) -> Start:
     """A start without a reference: level from the accelerometers averaged over the first
-    ``seconds`` (gravity is -f on average: roll = atan2(-f_y, -f_z), pitch = atan2(f_x,
-    |(f_y, f_z)|); Groves 2013 sec. 5.6.2), heading given. The level std is the spread of
-    the tilt over the window (a vehicle that moves or rolls while it is averaged) over
-    sqrt of its independent seconds, at least 1 mrad (our floor, ten times what a
-    navigation-grade accelerometer's 100 micro-g bias tilts). The velocity
-    is given (default at rest), with ``speed_std`` per axis; the DVL corrects both within
-    pings."""
+    ``seconds`` (gravity is a - f: at rest -f on average, roll = atan2(-f_y, -f_z), pitch
+    = atan2(f_x, |(f_y, f_z)|); Groves 2013 sec. 5.6.2), less the body's mean acceleration
+    over the window where it is known (``acceleration_body``, m/s^2: a vehicle that
+    speeds up or turns while it is averaged; ``dvl_acceleration``), heading given. The
+    level std is the spread of the tilt over the window (what the motion leaves in the
+    average) over sqrt of its independent seconds, at least 1 mrad (our floor, ten times
+    what a navigation-grade accelerometer's 100 micro-g bias tilts). The velocity is given
+    (default at rest), with ``speed_std`` per axis; the DVL corrects both within pings."""
     t = np.asarray(imu_time, dtype=float)
-    f = np.asarray(specific_force, dtype=float)
+    f = np.asarray(specific_force, dtype=float) - np.asarray(acceleration_body, dtype=float)
     rows = t <= t[0] + seconds
     mean = f[rows].mean(axis=0)
     roll = math.atan2(-mean[1], -mean[2])
@@ -1673,8 +1709,8 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
         NoImuError: the mission has no IMU record (an imported stream).
         DataError: settings asking for states this file's instrument gives nothing to hold
             (``SettingsError``, with the mission's name).
-        DatasetError: a recorded mission without a reference attitude to start from
-            (``auvsim.data.reader.require_attitude``'s one line).
+        DataError: a recorded mission without a reference attitude to start from and no
+            ``start_heading_deg`` in ``config`` (``_aligned_start``'s one line).
     """
     if not mission.has("imu"):
         raise NoImuError(f"mission {mission.name} has no IMU record; the INS/DVL filter "
@@ -1692,7 +1728,10 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
     if recorded:
         start_clock, timing_std = clock_stds(a, cfg, rate)
-        start = _reference_start(mission, imu_time, w, cfg, start_clock)
+        if mission.has("reference") and "quaternion" in mission.reference:
+            start = _reference_start(mission, imu_time, w, cfg, start_clock)
+        else:
+            start = _aligned_start(mission, imu_time, f, w, cfg)
     else:
         start = _truth_start(mission, r_imu, cfg)
 
@@ -1889,6 +1928,52 @@ def _reference_start(mission, imu_time: np.ndarray, w: np.ndarray,
     return start_from_reference(imu_time[i], np.asarray(ref.position_ned[k], dtype=float),
                                 v[k], c, angular_rate=w[i], acceleration=accel, config=cfg,
                                 clock_std=clock_std)
+
+
+def _aligned_start(mission, imu_time: np.ndarray, f: np.ndarray, w: np.ndarray,
+                   cfg: FilterConfig) -> Start:
+    """A recorded mission's start where its log has no reference attitude: a coarse
+    alignment on the heading the settings give (``start_heading_deg``), less the
+    acceleration the DVL shows over its window (``dvl_acceleration``), at the
+    reference's first position and velocity within the IMU's span where the log has a
+    reference, else at the local origin with the first DVL velocity turned to NED (the
+    DVL's mounting; its lever arm's share left to the start's 0.5 m/s).
+
+    Raises:
+        DataError: no heading is given, in one line saying where to give it.
+    """
+    if cfg.start_heading_deg is None:
+        what = ("its reference has no attitude" if mission.has("reference")
+                else "it has no reference")
+        raise DataError(f"mission {mission.name}: {what} to start the filter from; expected "
+                        "start_heading_deg (and start_heading_std_deg) in the filter's "
+                        "settings (--filter-config), for a start levelled from the "
+                        "accelerometers, or a reference with roll, pitch and yaw")
+    dvl = mission.dvl
+    velocity = np.asarray(dvl.velocity_ls, dtype=float)
+    mounting = rotation_rpy(*np.radians(np.asarray(
+        mission.attrs.get("dvl_mounting_rpy_deg", np.zeros(3)), dtype=float)))
+    heading = dict(heading_deg=cfg.start_heading_deg,
+                   heading_std_deg=cfg.start_heading_std_deg,
+                   acceleration_body=dvl_acceleration(dvl.time, velocity, mounting, imu_time,
+                                                      w))
+    if mission.has("reference"):
+        ref = mission.reference
+        t = np.asarray(ref.time, dtype=float)
+        k = int(np.searchsorted(t, imu_time[0]))
+        if k >= len(t):
+            raise DataError(f"mission {mission.name}: its reference ends before the IMU "
+                            "starts")
+        aligned = coarse_alignment(imu_time, f, **heading,
+                                   position_ned=np.asarray(ref.position_ned[k], float),
+                                   velocity_ned=np.asarray(ref.velocity_ned[k], float),
+                                   speed_std=cfg.velocity_std)
+        return aligned._replace(position_std=np.full(3, cfg.position_std))
+    level = coarse_alignment(imu_time, f, **heading)
+    first = np.flatnonzero(np.isfinite(velocity).all(axis=1))
+    if len(first) == 0:
+        return level
+    return level._replace(velocity_ned=level.rotation @ mounting @ velocity[first[0]])
 
 
 def _parity(dirs: np.ndarray) -> np.ndarray:

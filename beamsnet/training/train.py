@@ -71,7 +71,7 @@ from tqdm import tqdm
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
-from beamsnet.data import DataError, Windows, load_windows, split
+from beamsnet.data import DataError, Windows, check_referenced, load_windows, split
 from beamsnet.estimators import spec
 from beamsnet.estimators.baselines import least_squares
 from beamsnet.estimators.networks import build, training_threads
@@ -177,6 +177,7 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     if config.imu and windows.accel is None:
         raise ConfigError(f"False is needed: {dataset} has no IMU data (an imported DVL "
                           "stream has none) for CorrectionNet's IMU input", argument="imu")
+    check_referenced(windows, dataset)
     check_finite(windows, config.model, dataset, imu=config.imu)
     try:
         train_w, test_w = split(windows, config.train_fraction)
