@@ -279,6 +279,25 @@ def test_a_described_csv_log_in_auvsim_conventions(tmp_path):
                                np.tile([0.0, 0.0, 90.0], (2, 1)), atol=1e-9)
 
 
+def test_a_dvl_that_writes_nan_for_no_data_and_states_no_beam_noise(tmp_path):
+    """``invalid = "nan"``: a NaN cell of the DVL is no bottom lock, as the marker is; a
+    beam noise the description does not state is measured on the logged error velocity
+    (2, -1, 3 mm/s: a robust std of 1.4826 mm/s, times sqrt(2) sin 30 deg)."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    _replace("log.toml", "invalid = -32768", 'invalid = "nan"')(folder)
+    _replace("log.toml", "noise_std = 0.003\n", "")(folder)
+    _edit("dvl.csv", lambda t: t.replace("-32768.0", "nan"))(folder)
+    out = tmp_path / "dive.h5"
+    assert run_csv(folder, out) == (0, "")
+    with open_dataset(out, verify=True) as f:
+        m = f.missions["dive"]
+        assert np.isnan(m.dvl.velocity_ls[1]).all() and m.dvl.mode.tolist() == [0, -1, 0, 0]
+        assert m.attrs["dvl_noise_std"] == pytest.approx(
+            math.sqrt(2) * 0.5 * 1.4826e-3, rel=1e-9)
+        assert "noise_std" not in m.attrs["log_description"].replace("_noise_std", "")
+
+
 def test_import_velocity_is_import_format_velocity(tmp_path):
     v = np.stack([np.full(20, 1.5), np.linspace(-0.2, 0.2, 20), np.full(20, 0.05)])
     np.save(tmp_path / "rec.npy", v)
@@ -323,6 +342,10 @@ def _replace(file: str, old: str, new: str):
     return _edit(file, lambda text: text.replace(old, new))
 
 
+def _both(*damages):
+    return lambda folder: [damage(folder) for damage in damages]
+
+
 def _lines(change):
     return lambda text: "\n".join(change(text.splitlines())) + "\n"
 
@@ -365,8 +388,21 @@ BAD_LOGS = {
                             "m/s; expected them alike (is dvl.units.velocity right"),
     "unknown_key": (_replace("log.toml", "beam_angle_deg", "beam_angel_deg"),
                     "dvl.beam_angel_deg: unknown key"),
-    "no_spec": (_replace("log.toml", "noise_std = 0.003\n", ""),
-                "dvl.noise_std: missing; expected the instrument's figure"),
+    "no_spec": (_replace("log.toml", "velocity_accuracy = 0.02\n", ""),
+                "dvl.velocity_accuracy: missing; expected the instrument's figure"),
+    "no_noise_nor_error_velocity": (
+        _edit("log.toml", lambda t: t.replace("noise_std = 0.003\n", "").replace(
+            ', error_velocity = "err"', "").replace(', error_velocity = "mm/s"', "").replace(
+            "invalid = -32768\n", 'invalid = -32768\nignore = ["err"]\n')),
+        "dvl.noise_std: missing; expected the instrument's figure"),
+    "nan_cell": (_replace("dvl.csv", "\n1000.0,1490.0", "\n1000.0,nan"),
+                 "line 4: column 'vx' is nan; expected a number in every cell (a row of "
+                 "missing data is dropped from the log, not left NaN; a DVL that writes nan "
+                 "for no bottom lock: invalid = \"nan\")"),
+    "nan_time_where_nan_is_no_data": (
+        _both(_replace("log.toml", "invalid = -32768", 'invalid = "nan"'),
+              _replace("dvl.csv", "\n1000.0,", "\nnan,")),
+        "line 4: column 't_ms' is nan"),
     "one_row": (_edit("depth.csv", _lines(lambda ls: ls[:2])),
                 "depth.csv': 1 row(s) under the header; expected a stream of samples"),
     "no_rows": (_edit("depth.csv", _lines(lambda ls: ls[:1])),

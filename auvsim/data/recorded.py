@@ -18,12 +18,15 @@ files hold (``parse_description``; ``docs/guides/recorded-logs.md`` shows one wh
   reference ``frame`` NED or ENU and ``body`` FRD or FLU (its attitude's body frame);
 * where the sensors sit: ``position_body`` (m, FRD, from the reference point) for the IMU
   and the DVL, the DVL's ``mounting_rpy_deg`` and ``beam_angle_deg``; the DVL's
-  ``invalid``, its no-data value as logged (NaN in the dataset: no bottom lock);
+  ``invalid``, its no-data value as logged (NaN in the dataset: no bottom lock; ``nan``
+  for a log that writes NaN there, which a log without it may not);
 * the instruments' specifications, which estimators read from the file: ``[imu.noise]``
   (``accel_noise_density``, ``gyro_noise_density``, ``accel_bias_instability``,
   ``gyro_bias_instability``, ``bias_correlation_time``, SI units) and the DVL's
   ``noise_std`` (white beam noise) and ``velocity_accuracy`` (its stated velocity std),
-  m/s. No default: a spec the log does not state is not invented here.
+  m/s. No default: a spec the log does not state is not invented here; a beam noise it
+  does not state is measured on its error velocity where it logs one
+  (``beam_noise_from_error_velocity``).
 
 Everything is written in auvsim's conventions (``auvsim`` package docstring): body FRD,
 world NED, SI units, quaternions [w, x, y, z] body -> NED. Each stream keeps its own
@@ -66,6 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.data.beams import beam_noise_from_error_velocity
 from auvsim.data.checklog import cumulative
 from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
 from auvsim.data.writer import DatasetWriter, check_mission_name
@@ -410,13 +414,19 @@ def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
         return out
     out["mounting_rpy_deg"] = tuple(finite_numbers(
         where, "dvl.mounting_rpy_deg", table.get("mounting_rpy_deg", [0.0, 0.0, 0.0]), 3))
+    # Without a stated beam noise, the logged error velocity gives it (``_dvl_noise``).
+    estimated = "noise_std" not in table and "error_velocity" in table.get("columns", {})
     out["specs"] = {k: _spec(where, f"dvl.{k}", table.get(k), strict=k == "beam_angle_deg")
-                    for k in ("beam_angle_deg", "noise_std", "velocity_accuracy")}
+                    for k in ("beam_angle_deg", "noise_std", "velocity_accuracy")
+                    if not (k == "noise_std" and estimated)}
     if not out["specs"]["beam_angle_deg"] < 90:
         raise ConfigError(f"{where}: dvl.beam_angle_deg: expected the beams' angle from the "
                           f"DVL's axis, deg in (0, 90) (a Janus DVL's: 20 to 30), got "
                           f"{table['beam_angle_deg']!r}")
-    if "invalid" in table:
+    marker = table.get("invalid")
+    if marker == "nan" or (isinstance(marker, float) and math.isnan(marker)):
+        out["invalid"] = math.nan  # a log that writes NaN where it has no data
+    elif "invalid" in table:
         out["invalid"] = _number(where, "dvl.invalid", table["invalid"])
     return out
 
@@ -537,15 +547,19 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     # loadtxt takes a row of more cells when usecols is given: count them.
     _check_width(path, stream.delimiter, len(header), array.shape[0])
     bad = ~np.isfinite(array)
+    if stream.invalid is not None and math.isnan(stream.invalid):  # NaN: no data, declared
+        bad &= np.isinf(array) | (np.asarray(use) == header.index(stream.time))
     if bad.any():
         row, col = np.argwhere(bad)[0]
         raise ConfigError(f"{str(path)!r} line {row + 2}: column {header[use[col]]!r} is "
                           f"{array[row, col]}; expected a number in every cell (a row of "
-                          "missing data is dropped from the log, not left NaN)")
+                          "missing data is dropped from the log, not left NaN; a DVL that "
+                          "writes nan for no bottom lock: invalid = \"nan\")")
     column = {i: array[:, k] for k, i in enumerate(use)}
     out = {key: np.stack([column[header.index(c)] for c in cols], axis=1)
            for key, cols in stream.columns.items()}
-    if stream.invalid is not None:  # the instrument's no-data value, as logged: NaN from here on
+    if stream.invalid is not None and not math.isnan(stream.invalid):
+        # the instrument's no-data value, as logged: NaN from here on
         for v in out.values():
             v[v == stream.invalid] = np.nan
     out = {key: (v[:, 0] if v.shape[1] == 1 else v) * stream.units[key]
@@ -659,7 +673,7 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
             attrs.update(beam_angle_deg=s.specs["beam_angle_deg"],
                          dvl_position_body=np.array(s.position_body),
                          dvl_mounting_rpy_deg=np.array(s.mounting_rpy_deg),
-                         dvl_noise_std=s.specs["noise_std"],
+                         dvl_noise_std=_dvl_noise(table, s, where[g]),
                          dvl_velocity_accuracy=s.specs["velocity_accuracy"],
                          dvl_time_offset_s=s.offset,
                          dvl_beams_derived=int("beam_velocity" not in table))
@@ -720,6 +734,24 @@ def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
     if "beam_velocity" in out:
         fields["dvl/valid"] = np.isfinite(out["beam_velocity"])
     return fields
+
+
+def _dvl_noise(table: dict[str, np.ndarray], s: Stream, where: str) -> float:
+    """The DVL's white beam noise, m/s: its ``noise_std`` as the log description states
+    it, else what its logged error velocity shows (``beam_noise_from_error_velocity``),
+    which the description (the file's ``log_description``) then lacks.
+
+    Raises:
+        ConfigError: the error velocity has fewer than 2 values to estimate it from.
+    """
+    if "noise_std" in s.specs:
+        return s.specs["noise_std"]
+    try:
+        return beam_noise_from_error_velocity(table["error_velocity"], s.specs["beam_angle_deg"])
+    except ValueError:
+        raise ConfigError(f"{where}: dvl.noise_std is not stated and the error velocity has "
+                          "fewer than 2 values to estimate it from; expected the "
+                          "instrument's beam noise (dvl.noise_std)") from None
 
 
 def _reference(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:

@@ -287,6 +287,24 @@ def slow_velocity_error(state: np.ndarray, pings: int, *, std: float, time: floa
                              dt_over_tau=dt / time)
 
 
+def beam_noise_from_error_velocity(error_velocity: np.ndarray, beam_angle_deg: float) -> float:
+    """The white beam noise, m/s, of a 4-beam Janus DVL from its error velocity (P,) m/s
+    (NaN where a ping has none): e cancels any common velocity and keeps the beams' noise,
+    with std sigma / (sqrt(2) sin a) (``error_velocity``), so sigma = sqrt(2) sin(a)
+    std(e). The std is robust (1.4826 MAD about the median), so a DVL's outliers do not
+    inflate it.
+
+    Raises:
+        ValueError: fewer than 2 finite values.
+    """
+    e = np.asarray(error_velocity, dtype=float)
+    e = e[np.isfinite(e)]
+    if len(e) < 2:
+        raise ValueError(f"error_velocity: expected at least 2 finite values, got {len(e)}")
+    std = 1.4826 * float(np.median(np.abs(e - np.median(e))))
+    return math.sqrt(2.0) * math.sin(math.radians(beam_angle_deg)) * std
+
+
 def error_velocity(beams: np.ndarray, h: np.ndarray) -> np.ndarray:
     """(M,) the instrument's error velocity, m/s, from (M, 4) measured beams (NaN where a
     beam is missing, and then NaN).

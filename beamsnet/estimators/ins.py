@@ -245,6 +245,7 @@ import numpy as np
 
 from auvsim.checks import is_finite
 from auvsim.data.beams import beam_matrix
+from auvsim.data.beams import beam_noise_from_error_velocity as error_velocity_noise
 from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
@@ -1254,17 +1255,13 @@ def janus_velocity_std(beam_noise_std: float, beam_angle_deg: float) -> np.ndarr
 
 
 def beam_noise_from_error_velocity(error_velocity: np.ndarray, beam_angle_deg: float) -> float:
-    """The white beam noise, m/s, of a 4-beam Janus DVL from its error velocity (P,):
-    e = (b1 + b2 - b3 - b4) / (2 sqrt 2 sin a) (RD Instruments 951-6079-00, sec. 5: its
-    scale makes e's noise that of a horizontal axis) cancels any velocity and keeps the
-    beams' noise, so sigma = sqrt 2 sin(a) std(e). The std is robust (1.4826 MAD about
-    the median), so the outliers the gate handles do not inflate it."""
-    e = np.asarray(error_velocity, dtype=float)
-    e = e[np.isfinite(e)]
-    if len(e) < 2:
-        raise DataError(f"error_velocity: expected at least 2 finite values, got {len(e)}")
-    std = 1.4826 * float(np.median(np.abs(e - np.median(e))))
-    return math.sqrt(2.0) * math.sin(math.radians(beam_angle_deg)) * std
+    """The white beam noise, m/s, of a 4-beam Janus DVL from its error velocity (P,)
+    (``auvsim.data.beams.beam_noise_from_error_velocity``; RD Instruments 951-6079-00,
+    sec. 5), refused as a ``DataError``."""
+    try:
+        return error_velocity_noise(error_velocity, beam_angle_deg)
+    except ValueError as e:
+        raise DataError(str(e)) from None
 
 
 def quantisation_density(samples: np.ndarray, rate_hz: float) -> float:
