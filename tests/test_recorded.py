@@ -298,6 +298,29 @@ def test_a_dvl_that_writes_nan_for_no_data_and_states_no_beam_noise(tmp_path):
         assert "noise_std" not in m.attrs["log_description"].replace("_noise_std", "")
 
 
+def test_a_dvls_status_codes_per_beam_are_kept_as_logged(tmp_path):
+    """``columns.status``: four whole-number codes per ping, the no-data marker too (a
+    code, not a measurement); a fraction is refused in one line."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    codes = ["0,0,0,0", "-32768,3,3,3", "0,1,0,0", "0,0,0,2"]
+    _edit("dvl.csv", _lines(lambda ls: [ls[0] + ",s0,s1,s2,s3"] + [
+        f"{x},{c}" for x, c in zip(ls[1:], codes, strict=True)]))(folder)
+    _replace("log.toml", 'altitude = "alt"}', 'altitude = "alt", '
+             'status = ["s0", "s1", "s2", "s3"]}')(folder)
+    out = tmp_path / "dive.h5"
+    assert run_csv(folder, out) == (0, "")
+    with open_dataset(out, verify=True) as f:
+        status = f.missions["dive"].dvl.status
+        assert status.dtype.kind == "i"
+        np.testing.assert_array_equal(status, [[0, 0, 0, 0], [-32768, 3, 3, 3],
+                                               [0, 1, 0, 0], [0, 0, 0, 2]])
+    _replace("dvl.csv", ",0,1,0,0", ",0,1.5,0,0")(folder)
+    code, err = run_csv(folder, tmp_path / "frac.h5")
+    assert code == 2 and "dvl.columns.status: expected whole-number codes, got 1.5" in err
+    assert not (tmp_path / "frac.h5").exists()
+
+
 def test_import_velocity_is_import_format_velocity(tmp_path):
     v = np.stack([np.full(20, 1.5), np.linspace(-0.2, 0.2, 20), np.full(20, 0.05)])
     np.save(tmp_path / "rec.npy", v)

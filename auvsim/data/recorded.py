@@ -92,7 +92,7 @@ FIELDS = {
             "angular_rate": (3, {"rad/s": 1.0, "deg/s": math.pi / 180}, True)},
     "dvl": {"velocity": (3, _SPEED, True), "beam_velocity": (4, _SPEED, False),
             "beam_range": (4, {"m": 1.0}, False), "error_velocity": (1, _SPEED, False),
-            "altitude": (1, {"m": 1.0}, False)},
+            "altitude": (1, {"m": 1.0}, False), "status": (4, {"-": 1.0}, False)},
     "depth": {"depth": (1, {"m": 1.0}, True)},
     "reference": {"latitude": (1, _ANGLE, True), "longitude": (1, _ANGLE, True),
                   "height": (1, {"m": 1.0}, True), "velocity": (3, _SPEED, True),
@@ -548,7 +548,8 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     _check_width(path, stream.delimiter, len(header), array.shape[0])
     bad = ~np.isfinite(array)
     if stream.invalid is not None and math.isnan(stream.invalid):  # NaN: no data, declared
-        bad &= np.isinf(array) | (np.asarray(use) == header.index(stream.time))
+        codes = [header.index(c) for c in stream.columns.get("status", ())]
+        bad &= np.isinf(array) | np.isin(use, [header.index(stream.time), *codes])
     if bad.any():
         row, col = np.argwhere(bad)[0]
         raise ConfigError(f"{str(path)!r} line {row + 2}: column {header[use[col]]!r} is "
@@ -560,8 +561,9 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
            for key, cols in stream.columns.items()}
     if stream.invalid is not None and not math.isnan(stream.invalid):
         # the instrument's no-data value, as logged: NaN from here on
-        for v in out.values():
-            v[v == stream.invalid] = np.nan
+        for key, v in out.items():
+            if key != "status":  # a code, not a measurement: kept as logged
+                v[v == stream.invalid] = np.nan
     out = {key: (v[:, 0] if v.shape[1] == 1 else v) * stream.units[key]
            for key, v in out.items()}
     t = column[header.index(stream.time)] * stream.scale
@@ -731,6 +733,12 @@ def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
               "dvl/mode": np.where(np.isfinite(velocity).all(axis=1), 0, -1)}
     for key, values in out.items():
         fields[f"dvl/{key}"] = values
+    if "status" in out:  # the instrument's codes per beam, whole numbers as logged
+        codes = out["status"]
+        if not np.array_equal(codes, np.round(codes)):
+            raise ConfigError(f"{s.file!r}: dvl.columns.status: expected whole-number codes, "
+                              f"got {codes[codes != np.round(codes)][0]:g}")
+        fields["dvl/status"] = codes.astype(np.int64)
     if "beam_velocity" in out:
         fields["dvl/valid"] = np.isfinite(out["beam_velocity"])
     return fields
