@@ -453,6 +453,32 @@ def test_a_dvl_that_seldom_has_a_velocity_is_not_observable_and_not_applied(simu
     assert applied_dvl_errors({"check_log_json": json.dumps(report.to_json())}) == (None, None)
 
 
+def test_an_injected_dvl_scale_and_mounting_are_recovered(simulated):
+    """The simulated DVL's velocity read 1 % fast through a mounting yawed 0.5 deg and
+    pitched -0.3 deg more (logged v' = 1.01 M^T v): check-log finds the scale 1.01 times,
+    and the mounting that much further turned, as it finds them on the log as it was (the
+    simulated DVL's own drawn errors), to within its standard errors."""
+    from auvsim.physics.frames import rotation_rpy
+
+    log = recorded_log(simulated["zigzag"], axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
+                       dvl_offset=0.0)
+    turn = rotation_rpy(0.0, math.radians(-0.3), math.radians(0.5))
+    found = {}
+    for name, v in (("as logged", log.dvl_velocity),
+                    ("injected", 1.01 * log.dvl_velocity @ turn)):
+        found[name] = findings(check_arrays(dataclasses.replace(log, dvl_velocity=v), name))
+    before, after = found["as logged"], found["injected"]
+    scale = after["dvl scale"].value["scale"] / before["dvl scale"].value["scale"]
+    assert scale == pytest.approx(1.01, abs=3 * after["dvl scale"].value["se"] + 1e-4)
+    moved = (np.array(after["dvl mounting"].value["rpy_deg"])
+             - before["dvl mounting"].value["rpy_deg"])
+    se = np.array(after["dvl mounting"].value["se_deg"])
+    # Per axis, within 3 SE (roll 0.16 deg, pitch and yaw 0.05 deg here): found -0.006,
+    # -0.301, +0.504 deg, and the scale 1.0099 (SE 0.0007).
+    assert np.all(np.abs(moved - [0.0, -0.3, 0.5]) <= 3 * se + 0.01), (moved, se)
+    assert after["dvl mounting"].confidence in ("high", "medium")
+
+
 @pytest.mark.parametrize("factor", [0.0, 0.5])
 def test_a_dvl_far_off_the_reference_is_no_calibration(simulated, factor):
     """A DVL whose velocity is half the reference's, or none (zeros), fits "exactly" with
