@@ -193,7 +193,7 @@ def _import(args: argparse.Namespace) -> None:
 
     if args.format == "velocity":
         if args.description is not None:
-            raise ConfigError("--description: only for --format csv")
+            raise ConfigError("--description: only for --format csv and pd0")
         for key, default in _VELOCITY_DEFAULTS.items():
             if getattr(args, key) is None:
                 setattr(args, key, default)

@@ -298,6 +298,41 @@ def test_a_dvl_that_writes_nan_for_no_data_and_states_no_beam_noise(tmp_path):
         assert "noise_std" not in m.attrs["log_description"].replace("_noise_std", "")
 
 
+def test_a_dvls_beams_as_logged(tmp_path):
+    """``columns.beam_velocity`` and ``columns.beam_range``: the beams kept as logged (in
+    auvsim's order, mm/s to m/s), a beam at the no-data marker not valid, the file's
+    ``dvl_beams_derived`` 0; the beams of a logged velocity v are H v, so least squares
+    gives v back."""
+    from auvsim.data.beams import beam_matrix, least_squares
+
+    folder = tmp_path / "dive"
+    w = csv_log(folder)
+    h = beam_matrix(math.radians(30.0))
+    v = w["v"].copy()
+    v[1] = 0.0
+    beams = v @ h.T  # mm/s
+    beams[1] = -32768.0  # the ping without bottom lock (its velocity at the marker too)
+    beams[3, 2] = -32768.0  # and one beam of another
+    _edit("dvl.csv", _lines(lambda ls: [ls[0] + ",b0,b1,b2,b3,r0,r1,r2,r3"] + [
+        x + "," + ",".join(repr(float(b)) for b in row) + ",14.4,14.4,14.4,14.4"
+        for x, row in zip(ls[1:], beams, strict=True)]))(folder)
+    _replace("log.toml", 'altitude = "alt"}', 'altitude = "alt", beam_velocity = '
+             '["b0", "b1", "b2", "b3"], beam_range = ["r0", "r1", "r2", "r3"]}')(folder)
+    _replace("log.toml", 'error_velocity = "mm/s"}', 'error_velocity = "mm/s", '
+             'beam_velocity = "mm/s"}')(folder)
+    out = tmp_path / "beams.h5"
+    assert run_csv(folder, out) == (0, "")
+    with open_dataset(out, verify=True) as f:
+        m = f.missions["dive"]
+        assert m.attrs["dvl_beams_derived"] == 0
+        valid = m.dvl.valid
+        assert valid.sum() == 11 and not valid[1].any() and not valid[3, 2]
+        np.testing.assert_allclose(m.dvl.beam_velocity[valid], beams[valid] / 1000)
+        np.testing.assert_array_equal(m.dvl.beam_range, 14.4)
+        solved = least_squares(m.dvl.beam_velocity, h)
+        np.testing.assert_allclose(solved[[0, 2]], w["v"][[0, 2]] / 1000, atol=1e-12)
+
+
 def test_a_dvls_status_codes_per_beam_are_kept_as_logged(tmp_path):
     """``columns.status``: four whole-number codes per ping, the no-data marker too (a
     code, not a measurement); a fraction is refused in one line."""
