@@ -101,9 +101,10 @@ def test_fit_clock_keeps_a_significant_slope_and_drops_noise():
 
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
-    """Two missions of the ``navigator`` preset's sensors (noise, biases, scale factors,
-    misalignments, DVL errors): a 300 s zigzag (turns all along: lever arms, clocks) and a
-    300 s lawnmower (straight legs: gravity).
+    """Three missions of the ``navigator`` preset's sensors (noise, biases, scale factors,
+    misalignments, DVL errors): a 300 s zigzag (turns all along: lever arms, clocks), a
+    300 s lawnmower (straight legs: gravity) and a 300 s yoyo (dives and climbs: the
+    depth sensor's clock).
 
     The preset's DVL carries a slow velocity error (9 mm/s over 19 s, Gauss-Markov),
     which the DVL clock's fit sees as noise correlated over several pings. Over 300 s of
@@ -114,7 +115,9 @@ def simulated(tmp_path_factory):
     missions = (MissionConfig(name="zigzag", seed=3,
                               scenario=ScenarioConfig(name="zigzag", duration=300.0)),
                 MissionConfig(name="lawnmower", seed=4,
-                              scenario=ScenarioConfig(name="lawnmower", duration=300.0)))
+                              scenario=ScenarioConfig(name="lawnmower", duration=300.0)),
+                MissionConfig(name="yoyo", seed=5,
+                              scenario=ScenarioConfig(name="yoyo", duration=300.0)))
     path = tmp_path_factory.mktemp("checklog") / "sim.h5"
     generate(dataclasses.replace(base, missions=missions), path, workers=1, progress=False)
     out = {}
@@ -124,6 +127,7 @@ def simulated(tmp_path_factory):
                 t=m.truth.time, q=m.truth.quaternion, v=m.truth.velocity_ned,
                 p=m.truth.position_ned, imu_t=m.imu.time, f=m.imu.specific_force,
                 w=m.imu.angular_rate, dvl_t=m.dvl.time, dvl_v=m.dvl.velocity_ls,
+                depth_t=m.depth.time, depth=m.depth.depth,
                 gravity=m.attrs["gravity"],
                 imu_site=m.attrs["imu_position_body"], dvl_site=m.attrs["dvl_position_body"])
     return out
@@ -179,6 +183,40 @@ def test_injected_faults_are_recovered(simulated, axes, imu_offset, imu_rate, dv
     corrected = s + c["imu_time_offset_s"] + c["imu_rate_error"] * s
     truth = s + imu_offset + imu_rate * s
     np.testing.assert_allclose(corrected, truth, atol=OFFSET_TOL)
+
+
+@pytest.mark.parametrize("offset", [0.7, -1.3])
+def test_an_injected_depth_clock_offset_is_recovered_where_the_vehicle_dives(simulated,
+                                                                              offset, tmp_path):
+    """The yoyo's depth sensor stamped ``offset`` s early (a stamp s happened at s +
+    offset): found within 0.05 s, with high or medium confidence, and applied (the file it
+    writes checks at 0); the
+    zigzag, flown level, leaves it not observable, and nothing is applied."""
+    sim = simulated["yoyo"]
+    log = recorded_log(sim, axes=np.eye(3), imu_offset=0.0, imu_rate=0.0, dvl_offset=0.0)
+    log = dataclasses.replace(log, depth_time=sim["depth_t"] + 5.0 - offset,
+                              depth=sim["depth"])
+    report = check_arrays(log, "yoyo")
+    found = findings(report)["depth clock"]
+    assert found.confidence in ("high", "medium"), found
+    assert report.corrections["depth_time_offset_s"] == pytest.approx(offset, abs=OFFSET_TOL)
+    raw, fixed = tmp_path / "raw.h5", tmp_path / "fixed.h5"
+    write_recorded(raw, log)
+    # (--accept-low: a yoyo turns too little for the IMU's clock, which is not this test's)
+    status, out, err = run(["check-log", str(raw), "--apply", str(fixed), "--accept-low"])
+    assert status == 0, err + out
+    with open_dataset(fixed) as ds:
+        assert ds.missions["sim"].attrs["depth_time_offset_s"] == pytest.approx(
+            offset, abs=OFFSET_TOL)
+    status, out, _ = run(["check-log", str(fixed), "--json"])
+    assert status == 0 and abs(json.loads(out)[0]["corrections"]["depth_time_offset_s"]) \
+        < OFFSET_TOL
+    level = simulated["zigzag"]
+    log = recorded_log(level, axes=np.eye(3), imu_offset=0.0, imu_rate=0.0, dvl_offset=0.0)
+    report = check_arrays(dataclasses.replace(log, depth_time=level["depth_t"] + 5.0,
+                                              depth=level["depth"]), "zigzag")
+    assert findings(report)["depth clock"].confidence == "not observable"
+    assert "depth_time_offset_s" not in report.corrections
 
 
 def test_a_stream_alone_and_a_short_log(simulated):
@@ -260,10 +298,15 @@ def write_recorded(path: Path, log: Log, name: str = "sim", description: str = "
         dvl_velocity_accuracy=0.02, dvl_time_offset_s=0.0, dvl_beams_derived=1,
         reference_source="the simulator's truth at 1 Hz", reference_rate_hz=1.0,
         reference_time_offset_s=0.0, log_time_origin_s=0.0)
+    rows = {"imu": len(log.imu_time), "dvl": len(log.dvl_time), "reference": len(p)}
+    if log.depth_time is not None:  # a depth sensor too
+        fields.update({"depth/time": log.depth_time, "depth/depth": log.depth})
+        attrs.update(groups=json.dumps(["imu", "dvl", "depth", "reference"]),
+                     depth_rate_hz=1 / float(np.median(np.diff(log.depth_time))),
+                     depth_time_offset_s=0.0)
+        rows["depth"] = len(log.depth_time)
     with DatasetWriter(path, config_json="{}") as writer:
-        sink = writer.mission(name, attrs, rows={"imu": len(log.imu_time),
-                                                 "dvl": len(log.dvl_time),
-                                                 "reference": len(p)})
+        sink = writer.mission(name, attrs, rows=rows)
         sink.append(fields)
         sink.flush()
 

@@ -36,6 +36,10 @@ from its positions against its velocities (``reference_clock``), as evidence.
   ``m`` (``M ~ I + [m]x``): ``v_dvl - u = k u + u x m + w x L`` with ``u = C^T v_ref``,
   solved by least squares for the scale ``1 + k``, the mounting ``m`` and the lever arm
   ``L`` (from the reference point), with standard errors from the residuals.
+* Depth: a pressure sensor's depth against the reference's down position, less a
+  constant (the sensor's depth below the reference point and the origin's), scanned over
+  the offset as the others, in the windows where the vehicle climbs or dives (its
+  vertical speed at least ``MIN_HEAVE`` RMS); a log flown level leaves it not observable.
 * IMU lever arm: ``f_imu = f_ref + dw/dt x L + w x (w x L) + b``: the IMU's specific force
   rotated into NED with the gyro-propagated attitude and integrated over each reference
   interval, against the reference's velocity change minus gravity (and Coriolis where the
@@ -81,6 +85,7 @@ T_3SIGMA = (236, 19.2, 9.22, 6.62, 5.51, 4.9, 4.53, 4.28, 4.09, 3.96, 3.85, 3.76
             3.64, 3.59, 3.54, 3.51, 3.48, 3.45, 3.42, 3.4, 3.38, 3.36, 3.34, 3.33, 3.32,
             3.3, 3.29, 3.28, 3.27)
 MIN_TURN = math.radians(0.5)  # rad/s RMS: a window turning less says nothing of its clock
+MIN_HEAVE = 0.05  # m/s RMS vertical speed: a window climbing less says nothing of depth's
 QUIET_RATE = math.radians(0.5)  # rad/s: an interval turning less is "quiet" for gravity
 CLOCK_PROBE = 0.01  # s: the clock error an IMU lever arm's sensitivity is shown for
 QUIET_ACCEL = 0.02  # m/s^2: and accelerating less
@@ -124,6 +129,7 @@ class Log:
         imu_time: (N,) s. specific_force: (N, 3) m/s^2 and angular_rate: (N, 3) rad/s, as
             logged (axes to be found).
         dvl_time: (P,) s. dvl_velocity: (P, 3) m/s in the DVL frame (NaN where none).
+        depth_time: (D,) s. depth: (D,) m, positive down.
         gravity: m/s^2, the expected gravity (WGS-84 normal gravity at the latitude).
         latitude_deg: the latitude, or None (no Earth rate then).
         stated_rates: the rate each stream's instrument states, Hz, by stream ("imu",
@@ -140,6 +146,8 @@ class Log:
     angular_rate: np.ndarray | None = None
     dvl_time: np.ndarray | None = None
     dvl_velocity: np.ndarray | None = None
+    depth_time: np.ndarray | None = None
+    depth: np.ndarray | None = None
     gravity: float = 9.80665
     latitude_deg: float | None = None
     stated_rates: dict = field(default_factory=dict)
@@ -429,6 +437,53 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
     return clock, clock_finding("dvl clock", clock, s, "velocity against the "
                                 "reference's velocity in the body, the DVL model fitted at "
                                 "each trial offset")
+
+
+def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
+    """The depth sensor's clock: its depth against the reference's down position less a
+    constant, scanned over the offset in windows of ``OFFSET_WINDOW`` s where the
+    reference climbs or dives (vertical speed ``MIN_HEAVE`` RMS or more). None and a
+    "not observable" finding where fewer than three windows do (a log flown level)."""
+    t_ref = np.asarray(log.reference_time, float)
+    down = None if log.reference_position is None else np.asarray(
+        log.reference_position, float)[:, 2]
+    s = np.asarray(log.depth_time, float)
+    d = np.asarray(log.depth, float)
+    heave = np.asarray(log.reference_velocity, float)[:, 2]
+
+    def cost_of(sel: np.ndarray):
+        def cost(o: float) -> float:
+            inside = sel & (s + o >= t_ref[0]) & (s + o <= t_ref[-1])
+            if inside.sum() < 10:
+                return 1e9
+            r = d[inside] - np.interp(s[inside] + o, t_ref, down)
+            return float(np.var(r))
+        return cost
+
+    stamps, offsets = [], []
+    if down is not None:
+        for lo in np.arange(s[0], s[-1], OFFSET_WINDOW):
+            sel = (s >= lo) & (s < lo + OFFSET_WINDOW)
+            near = (t_ref >= lo) & (t_ref < lo + OFFSET_WINDOW)
+            if sel.sum() < 10 or not near.any():
+                continue
+            if float(np.sqrt(np.mean(heave[near] ** 2))) < MIN_HEAVE:
+                continue
+            o, curvature = scan(cost_of(sel))
+            if curvature > 0:
+                stamps.append(float(np.mean(s[sel])))
+                offsets.append(o)
+    if len(stamps) < 3:
+        return None, Finding(
+            "depth clock", {"windows": len(stamps)}, "not found",
+            f"{len(stamps)} windows of {OFFSET_WINDOW:g} s in which the reference climbs or "
+            f"dives at {MIN_HEAVE:g} m/s RMS or more; expected at least 3 (a log flown "
+            "level says nothing of its depth's clock); not applied", "not observable")
+    whole, _ = scan(cost_of(np.ones(len(s), dtype=bool)), float(np.median(offsets)), 2.0)
+    clock = fit_clock(stamps, offsets, whole)
+    return clock, clock_finding("depth clock", clock, s, "depth against the reference's "
+                                "down position less a constant, in the windows where it "
+                                "climbs or dives")
 
 
 def clock_finding(name: str, clock: Clock, t: np.ndarray, what: str) -> Finding:
@@ -840,6 +895,12 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
         corrections.update(dvl_time_offset_s=clock.offset, dvl_rate_error=clock.rate_error,
                            dvl_scale=1 + x[0], dvl_mounting_rpy_deg=np.degrees(x[1:4]).tolist(),
                            dvl_position_body=x[4:].tolist())
+    if log.depth_time is not None:
+        clock, found = depth_clock(log)
+        report.findings.append(found)
+        if found.confidence in ("high", "medium"):  # else reported, and left as it was
+            corrections.update(depth_time_offset_s=clock.offset,
+                               depth_rate_error=clock.rate_error)
     if imu_t is not None:
         lever, found = imu_lever_arm(log, imu_t, f, w)
         report.findings.append(found)
@@ -884,12 +945,15 @@ def log_of(mission) -> Log:
     latitude = mission.attrs.get("latitude_deg")
     imu = mission.imu if mission.has("imu") else None
     dvl = mission.dvl if mission.has("dvl") else None
+    depth = mission.depth if mission.has("depth") else None
     return Log(ref.time, ref.velocity_ned, quaternion, ref.position_ned,
                None if imu is None else imu.time,
                None if imu is None else imu.specific_force,
                None if imu is None else imu.angular_rate,
                None if dvl is None else dvl.time,
                None if dvl is None else dvl.velocity_ls,
+               None if depth is None else depth.time,
+               None if depth is None else depth.depth,
                gravity=float(mission.attrs["gravity"]),
                latitude_deg=None if latitude is None else float(latitude),
                stated_rates=stated_rates(mission.attrs.get("log_description", "")))
@@ -954,15 +1018,16 @@ def corrected(mission, report: Report) -> tuple[dict[str, np.ndarray], dict[str,
     * ``check_log_json``: the report (findings and corrections), JSON.
 
     The DVL's velocity is left as the instrument gave it (its scale is in the report); a
-    depth stream's clock is not checked (it is shifted with the others).
+    depth stream's clock is moved where check-log found it with high or medium
+    confidence, else shifted with the others.
     """
     c = report.corrections
     found = {f.name: f for f in report.findings}
     groups = mission.groups
     fields = fields_of(mission)
     attrs = dict(mission.attrs)
-    maps = {"imu": (c.get("imu_time_offset_s", 0.0), c.get("imu_rate_error", 0.0)),
-            "dvl": (c.get("dvl_time_offset_s", 0.0), c.get("dvl_rate_error", 0.0))}
+    maps = {g: (c.get(f"{g}_time_offset_s", 0.0), c.get(f"{g}_rate_error", 0.0))
+            for g in ("imu", "dvl", "depth")}
     # The reference's clock t = s + offset + rate * s, then onto the IMU's own when it is
     # the time base: tau = (t - imu offset) / (1 + imu rate error).
     base_offset, base_rate = maps["imu"] if c.get("time_base") == "imu" else (0.0, 0.0)
