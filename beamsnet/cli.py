@@ -109,10 +109,10 @@ def _parser() -> argparse.ArgumentParser:
     tr.add_argument("dataset", type=Path, help="auvsim dataset (.h5 file or sharded folder)")
     tr.add_argument("--model", choices=network_names(), default=train.config.model,
                     help="; ".join(f"{s.name}: {s.title}" for s in networks))
-    tr.add_argument("--protocol", choices=("paper", "fixed"), default=train.config.protocol,
-                    help="v2: 'paper' feeds the past beams raw, as published; 'fixed' feeds "
-                    "their changes to the current beams, so it stays affine outside the training "
-                    "velocities")
+    tr.add_argument("--protocol", choices=("paper", "fixed"),
+                    help="v2 only: 'paper' feeds the past beams raw, as published; 'fixed' "
+                    "feeds their changes to the current beams, so it stays affine outside the "
+                    f"training velocities (default {train.config.protocol})")
     tr.add_argument("--mask-rate", type=float, default=None,
                     help="v2m, corr: rate of beams dropped in training (default "
                     f"{TrainConfig(model='corr').drop_rate:g} for them, 0 for v1, v2)")
@@ -289,6 +289,12 @@ def _train(args) -> None:
     from beamsnet.training.runs import train_all, train_best
     from beamsnet.training.train import train
 
+    if args.protocol is not None and args.model != "v2":
+        raise ConfigError(f": only v2 has the choice; {args.model} "
+                          + ("has no past beams" if args.model == "v1" else
+                             "always takes the past beams' changes")
+                          + "; expected it without --protocol", argument="protocol")
+    args.protocol = args.protocol or PROFILES["train"].config.protocol
     config = TrainConfig(model=args.model, epochs=args.epochs, lr=args.lr,
                          batch_size=args.batch_size, seed=args.seed,
                          average_epochs=args.average_epochs,

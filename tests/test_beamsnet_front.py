@@ -163,6 +163,10 @@ def no_generation(monkeypatch):
     (["stress", "--maneuver-duration", "1e12"], "--maneuver-duration: expected at most"),
     (["stress", "--faults", "--fault-duration", "-3"], "--fault-duration"),
     (["reproduce", "paper-sim", "--data", "notes.txt"], "--data notes.txt: not an HDF5"),
+    (["train", "{data}", "--model", "v1", "--protocol", "paper"],
+     "--protocol: only v2 has the choice; v1 has no past beams; expected it without"),
+    (["train", "{data}", "--model", "corr", "--protocol", "fixed"],
+     "--protocol: only v2 has the choice; corr always takes the past beams' changes"),
     (["reproduce", "paper-sim", "--data", "{data}"],
      "has no mission speed_1, speed_2, speed_3 (it has a, b)"),
 ])
