@@ -38,8 +38,10 @@ from its positions against its velocities (``reference_clock``), as evidence.
   ``L`` (from the reference point), with standard errors from the residuals.
 * Depth: a pressure sensor's depth against the reference's down position, less a
   constant (the sensor's depth below the reference point and the origin's), scanned over
-  the offset as the others, in the windows where the vehicle climbs or dives (its
-  vertical speed at least ``MIN_HEAVE`` RMS); a log flown level leaves it not observable.
+  the offset as the others, in the windows where the vehicle's vertical speed varies
+  (its vertical speed's std at least ``MIN_HEAVE``: a steady climb only adds a constant;
+  the few cm/s a vehicle heaves in level flight can be enough); a log whose depth never
+  changes leaves it not observable.
 * IMU lever arm: ``f_imu = f_ref + dw/dt x L + w x (w x L) + b``: the IMU's specific force
   rotated into NED with the gyro-propagated attitude and integrated over each reference
   interval, against the reference's velocity change minus gravity (and Coriolis where the
@@ -85,7 +87,8 @@ T_3SIGMA = (236, 19.2, 9.22, 6.62, 5.51, 4.9, 4.53, 4.28, 4.09, 3.96, 3.85, 3.76
             3.64, 3.59, 3.54, 3.51, 3.48, 3.45, 3.42, 3.4, 3.38, 3.36, 3.34, 3.33, 3.32,
             3.3, 3.29, 3.28, 3.27)
 MIN_TURN = math.radians(0.5)  # rad/s RMS: a window turning less says nothing of its clock
-MIN_HEAVE = 0.05  # m/s RMS vertical speed: a window climbing less says nothing of depth's
+MIN_HEAVE = 0.005  # m/s, the vertical speed's std: a window varying less says nothing of
+# the depth's clock (a pressure sensor's 1 cm of noise at 10 Hz leaves a window 0.1 s here)
 QUIET_RATE = math.radians(0.5)  # rad/s: an interval turning less is "quiet" for gravity
 CLOCK_PROBE = 0.01  # s: the clock error an IMU lever arm's sensitivity is shown for
 QUIET_ACCEL = 0.02  # m/s^2: and accelerating less
@@ -442,8 +445,9 @@ def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
 def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
     """The depth sensor's clock: its depth against the reference's down position less a
     constant, scanned over the offset in windows of ``OFFSET_WINDOW`` s where the
-    reference climbs or dives (vertical speed ``MIN_HEAVE`` RMS or more). None and a
-    "not observable" finding where fewer than three windows do (a log flown level)."""
+    reference's vertical speed varies (its std ``MIN_HEAVE`` or more). None and a
+    "not observable" finding where fewer than three windows do (a depth that never
+    changes)."""
     t_ref = np.asarray(log.reference_time, float)
     down = None if log.reference_position is None else np.asarray(
         log.reference_position, float)[:, 2]
@@ -467,7 +471,9 @@ def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
             near = (t_ref >= lo) & (t_ref < lo + OFFSET_WINDOW)
             if sel.sum() < 10 or not near.any():
                 continue
-            if float(np.sqrt(np.mean(heave[near] ** 2))) < MIN_HEAVE:
+            # A steady climb shifts the depth by a constant, which the fit takes out: only
+            # a change in the vertical speed tells the clock.
+            if float(np.std(heave[near])) < MIN_HEAVE:
                 continue
             o, curvature = scan(cost_of(sel))
             if curvature > 0:
@@ -476,14 +482,15 @@ def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
     if len(stamps) < 3:
         return None, Finding(
             "depth clock", {"windows": len(stamps)}, "not found",
-            f"{len(stamps)} windows of {OFFSET_WINDOW:g} s in which the reference climbs or "
-            f"dives at {MIN_HEAVE:g} m/s RMS or more; expected at least 3 (a log flown "
-            "level says nothing of its depth's clock); not applied", "not observable")
+            f"{len(stamps)} windows of {OFFSET_WINDOW:g} s in which the reference's "
+            f"vertical speed varies by {MIN_HEAVE:g} m/s (std) or more; expected at least 3 "
+            "(a depth that never changes, or a steady climb, says nothing of its clock); "
+            "not applied", "not observable")
     whole, _ = scan(cost_of(np.ones(len(s), dtype=bool)), float(np.median(offsets)), 2.0)
     clock = fit_clock(stamps, offsets, whole)
     return clock, clock_finding("depth clock", clock, s, "depth against the reference's "
-                                "down position less a constant, in the windows where it "
-                                "climbs or dives")
+                                "down position less a constant, in the windows where its "
+                                "vertical speed varies")
 
 
 def clock_finding(name: str, clock: Clock, t: np.ndarray, what: str) -> Finding:

@@ -1705,9 +1705,9 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
     Raises:
         NoImuError: the mission has no IMU record (an imported stream).
         DataError: settings asking for states this file's instrument gives nothing to hold
-            (``SettingsError``, with the mission's name).
-        DataError: a recorded mission without a reference attitude to start from and no
-            ``start_heading_deg`` in ``config`` (``_aligned_start``'s one line).
+            (``SettingsError``, with the mission's name); a recorded mission without a
+            reference attitude to start from and no ``start_heading_deg`` in ``config``
+            (``_aligned_start``'s one line).
     """
     if not mission.has("imu"):
         raise NoImuError(f"mission {mission.name} has no IMU record; the INS/DVL filter "
