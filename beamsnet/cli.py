@@ -20,6 +20,7 @@ from beamsnet.evaluate import (
     FilterWarning,
     SensorSetupWarning,
     UnseenMissionWarning,
+    consistency_words,
 )
 from beamsnet.experiments.adaptive import DURATION as ADAPTIVE_DURATION
 from beamsnet.experiments.adaptive import SEEDS as ADAPTIVE_SEEDS
@@ -370,6 +371,8 @@ def _estimate(args) -> None:
         print(f"{summary['estimator']} on {mission}: " + ", ".join(said))
         for event in row.get("events", []):
             print(f"  {event}")
+        if "mean_nis" in row:  # a filter: are its innovations as large as it predicts?
+            print(f"  innovations: {consistency_words(row)}")
         for name, scores in row.get("baselines", {}).items():
             print(f"  {name}: {_position_words(scores)}")
     print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")

@@ -25,6 +25,7 @@ the simulator's truth, in the same words.
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from pathlib import Path
 
@@ -45,7 +46,12 @@ from beamsnet.data import (
 )
 from beamsnet.estimators import spec, specs
 from beamsnet.estimators.baselines import availability
-from beamsnet.estimators.ins import at_pings
+from beamsnet.estimators.ins import (
+    CONSISTENCY_PINGS,
+    CONSISTENCY_PROBABILITY,
+    at_pings,
+    innovation_consistency,
+)
 from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
@@ -697,9 +703,21 @@ def _track_at_pings(estimator, windows: Windows, field: str) -> np.ndarray | Non
 def watch_scores(track) -> dict:
     """A filter's track of one mission as its divergence watch saw it: its availability,
     the share of pings whose measurement it accepted (not of its finite outputs: a
-    filter that has diverged still outputs numbers), and the watch's restarts, one line
-    each."""
-    return dict(availability=track.availability, events=[e.text for e in track.events])
+    filter that has diverged still outputs numbers), the watch's restarts, one line
+    each, and whether its innovations are as large as it predicts
+    (``ins.innovation_consistency``: the mean NIS and the windows beyond its bound)."""
+    return dict(availability=track.availability, events=[e.text for e in track.events],
+                **innovation_consistency(track))
+
+
+def consistency_words(row: dict) -> str:
+    """``innovation_consistency``'s figures (in ``row``, as ``watch_scores`` gives them) in
+    words."""
+    if not math.isfinite(row.get("mean_nis", math.nan)):
+        return "no innovation to test"
+    return (f"mean NIS {row['mean_nis']:.2f} (1 where its covariance is right), "
+            f"{row['windows_above']} of {row['windows']} windows of {CONSISTENCY_PINGS} pings "
+            f"beyond the chi-square {100 * CONSISTENCY_PROBABILITY:g} % bound")
 
 
 def watch_markdown(watched: dict[str, dict[str, dict]]) -> str:
@@ -714,7 +732,8 @@ def watch_markdown(watched: dict[str, dict[str, dict]]) -> str:
             said.append(f"{mission} {100 * row['availability']:.1f} % of the mission's pings "
                         "accepted, "
                         + (f"{len(restarts)} restart{'s' if len(restarts) > 1 else ''}: "
-                           + "; ".join(restarts) if restarts else "no restart"))
+                           + "; ".join(restarts) if restarts else "no restart")
+                        + f", {consistency_words(row)}")
         lines.append(f"{name}, what its divergence watch saw (a restart when its gate keeps "
                      "rejecting the measurements): " + "; ".join(said) + ".")
     return "\n\n".join(lines)

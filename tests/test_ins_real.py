@@ -325,7 +325,38 @@ def test_estimate_reports_the_filters_accepted_pings_and_its_events(navigation, 
         track = ins.run_mission(f.missions["zz"], ins.load_config(settings))
     row = summary["missions"]["zz"]
     assert row["availability"] == track.availability and row["events"] == []
-    assert "accepted" in capsys.readouterr().out
+    # Its innovations as large as it predicts, on a simulated mission whose noise it knows.
+    assert 0.5 < row["mean_nis"] < 1.5 and row["windows"] > 0
+    said = capsys.readouterr().out
+    assert "accepted" in said and "  innovations: mean NIS " in said
+
+
+def test_the_chi_square_quantile_is_wilson_and_hilfertys_within_one_per_cent():
+    stats = pytest.importorskip("scipy.stats")
+    for dof in (10, 20, 40, 100, 400):
+        assert ins.chi2_quantile(dof, 0.999) == pytest.approx(
+            stats.chi2.ppf(0.999, dof), rel=0.01)
+
+
+def test_the_innovations_consistency_test_knows_a_right_and_a_wrong_covariance():
+    """Innovations drawn with the variance the filter predicts: mean NIS 1 and about 0.1 %
+    of windows beyond the 99.9 % bound; three times as large: mean NIS 9, every window.
+    A measurement not offered (NaN) counts in neither."""
+    rng = np.random.default_rng(5)
+    pings, k = 20_000, 3
+    var = rng.uniform(1e-6, 1e-4, (pings, k))
+    nu = rng.standard_normal((pings, k)) * np.sqrt(var)
+    nu[::7, 1] = np.nan
+    track = Fields(innovation=nu, innovation_var=var, ping_time=np.arange(pings) * 1.0)
+    right = ins.innovation_consistency(track)
+    assert right["mean_nis"] == pytest.approx(1.0, abs=0.02)
+    assert right["windows"] == pings // ins.CONSISTENCY_PINGS
+    assert right["windows_above"] <= 10  # 2 expected (0.1 % of 2000)
+    wrong = ins.innovation_consistency(Fields(innovation=3 * nu, innovation_var=var,
+                                              ping_time=track.ping_time))
+    assert wrong["mean_nis"] == pytest.approx(9.0, rel=0.03)
+    assert wrong["windows_above"] == wrong["windows"]
+    assert wrong["worst_time"] % ins.CONSISTENCY_PINGS == 0
 
 
 @pytest.mark.parametrize("text, said", [

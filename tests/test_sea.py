@@ -302,6 +302,9 @@ def test_reproduce_sea_scores_every_segment_against_its_reference(tmp_path, monk
             assert scores[label]["availability"] == pytest.approx(119 / 120)
             assert scores[label]["events"] == []
     assert "INS/DVL 99.2 % (lowest 99.2 %" in report and "restarted none of them" in report
+    assert "Whether each filter's innovations are as large as it predicts" in report
+    for scores in segments.values():
+        assert scores["INS/DVL"]["windows"] == 12 and 0 < scores["INS/DVL"]["mean_nis"] < 2
     assert "| **median** |" in report
     ours = "\n".join(line for line in report.splitlines()  # not the errors it quotes
                       if not line.startswith("Filters that did not run"))
@@ -365,10 +368,14 @@ def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsy
     assert rows["INS/DVL"]["coverage_3sigma"] == 1.0
     assert rows["DR: DVL + filter attitude (INS/DVL)"]["final_m"] == pytest.approx(
         rows["LS"]["final_m"], abs=0.01)  # its attitude all but the reference's
-    assert result["watch"]["INS/DVL"] == {"trajectory1": {"availability": 1.0, "events": []}}
+    watch = result["watch"]["INS/DVL"]["trajectory1"]
+    assert watch["availability"] == 1.0 and watch["events"] == []
+    assert watch["windows"] == 12 and watch["windows_above"] == 0  # 120 pings, exact logs
     assert ("INS/DVL, what its divergence watch saw (a restart when its gate keeps "
             "rejecting the measurements): trajectory1 100.0 % of the mission's pings "
-            "accepted, no restart.") in (tmp_path / "ev" / "evaluation.md").read_text()
+            f"accepted, no restart, mean NIS {watch['mean_nis']:.2f} (1 where its covariance "
+            "is right), 0 of 12 windows of 10 pings beyond the chi-square 99.9 % "
+            "bound.") in (tmp_path / "ev" / "evaluation.md").read_text()
 
 
 def test_estimate_on_a_log_without_a_reference_runs_unscored(tmp_path, capsys):

@@ -392,6 +392,32 @@ def watch_words(results: dict, labels) -> list[str]:
                + "; ".join(restarts) + ".")]
 
 
+def consistency_lines(results: dict, labels) -> list[str]:
+    """For each filter of ``labels``: per mission, its innovations' mean NIS and the
+    windows beyond their chi-square bound (``ins.innovation_consistency``, in each row as
+    ``watch_scores`` gives it): what the filter's covariance says of itself, with no
+    reference."""
+    from beamsnet.estimators.ins import CONSISTENCY_PINGS, CONSISTENCY_PROBABILITY
+
+    parts = []
+    for label in labels:
+        rows = {name: r["scores"][label] for name, r in results.items()
+                if "mean_nis" in r["scores"].get(label, {})}
+        if rows:
+            parts.append(f"{label}: " + ", ".join(
+                f"{name} {_fmt(row['mean_nis'])} ({row['windows_above']} of "
+                f"{row['windows']})" for name, row in rows.items()))
+    if not parts:
+        return []
+    return [f"Whether each filter's innovations are as large as it predicts, which needs no "
+            f"reference (the NIS test: each offered measurement's nu^2 / S, summed over "
+            f"windows of {CONSISTENCY_PINGS} pings against the chi-square "
+            f"{100 * CONSISTENCY_PROBABILITY:g} % bound; `beamsnet.estimators.ins"
+            ".innovation_consistency`): the mean NIS per mission (1 where the covariance "
+            "is right), and in brackets the windows beyond the bound of all. "
+            + "; ".join(parts) + "."]
+
+
 def median_score(results: dict, label: str, key: str) -> float:
     """The median over the missions of ``results`` ({mission: {"scores": {row: {key:
     value}}}}, as ``reproduce sea`` and ``reproduce adaptive`` keep them) of row ``label``'s
@@ -485,6 +511,7 @@ def report(results: dict, setup: dict) -> str:
         f"{mtriple(by_filter)} | {_fmt(med[FILTER]['velocity_rmse'], '.4f')} | "
         f"{med[by_reference]['velocity_rmse']:.4f} |")
     for words in (_coverage_words(results), watch_words(results, (FILTER, SIM_FILTER)),
+                  consistency_lines(results, (FILTER, SIM_FILTER)),
                   _earth_fixed_words(results)):
         lines += ["", *words] if words else []
     failed: dict[tuple[str, str], list[str]] = {}  # (filter, why) -> segments
