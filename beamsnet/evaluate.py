@@ -517,22 +517,18 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     estimator = find_estimator(name, dataset, filter_config=filter_config)
     windows = load_windows(dataset, every_ping=True)
     scored = windows.reference != NO_REFERENCE  # a log without one: estimates alone
-    unfitted = None
     if scored:
         check_truth(windows, dataset)
-    elif train is None and getattr(estimator, "calibrate", False):
-        estimator.calibrate = False  # the filter on the beams as measured
-        unfitted = ("its beams are used as measured: the log has no reference to calibrate "
-                    "them against (--train FILE.h5 calibrates them on another file)")
-    elif train is None and spec(estimator.name).needs.training:
+    # A filter fits its beam calibration where it can (without a reference, none: the
+    # beams as measured); any other estimator that is fitted needs a reference or truth.
+    fitted = spec(estimator.name).needs.training and not hasattr(estimator, "tracks")
+    if fitted and train is None and not scored:
         raise DataError(f"{dataset}: a log without a reference, and {estimator.name} is "
                         "fitted on one; expected --train FILE.h5 with a reference or the "
                         "truth")
     train_windows = load_windows(dataset if train is None else train)
     _check_same_beams(train, train_windows, dataset, windows)
-    fits = (estimator.calibrate if hasattr(estimator, "calibrate")
-            else spec(estimator.name).needs.training)
-    if fits:  # on a file with something to fit against
+    if fitted:
         check_referenced(train_windows, train or dataset)
     try:
         train_w = split(train_windows, TRAIN_FRACTION)[0]
@@ -547,8 +543,10 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred), against=windows.reference,
                    availability=availability(pred), missions={})
-    if unfitted:
-        summary["unfitted"] = unfitted
+    if hasattr(estimator, "tracks") and estimator.calibrate and estimator.correction is None:
+        summary["unfitted"] = (f"its beams are used as measured: {train or dataset} has no "
+                               "reference to calibrate them against (--train FILE.h5 "
+                               "calibrates them on a file that has one)")
     if train is None and scored and spec(estimator.name).needs.training:
         summary["fitted_on_scored_pings"] = (
             f"fitted on the first {100 * TRAIN_FRACTION:.0f} % of each mission's pings of "

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import Fields, zigzag
 
+from auvsim.data.beams import beam_noise_from_error_velocity
 from auvsim.data.reader import open_dataset
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rotation_rpy
@@ -462,7 +463,7 @@ def test_beam_noise_from_the_error_velocity_of_a_janus_dvl():
     a = math.radians(angle)
     error = (beams[:, 0] + beams[:, 1] - beams[:, 2] - beams[:, 3]) / (2 * math.sqrt(2)
                                                                        * math.sin(a))
-    assert ins.beam_noise_from_error_velocity(error, angle) == pytest.approx(sigma, rel=0.03)
+    assert beam_noise_from_error_velocity(error, angle) == pytest.approx(sigma, rel=0.03)
     v_x = (beams[:, 0] - beams[:, 1]) / (2 * math.sin(a))
     assert ins.janus_velocity_std(sigma, angle)[0] == pytest.approx(v_x.std(), rel=0.03)
     assert ins.janus_velocity_std(sigma, angle)[0] == pytest.approx(error.std(), rel=0.03)

@@ -455,17 +455,18 @@ def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
     d = np.asarray(log.depth, float)
     heave = np.asarray(log.reference_velocity, float)[:, 2]
 
-    def cost_of(sel: np.ndarray):
+    def offset_of(sel: np.ndarray, centre: float, half: float) -> tuple[float, float]:
         def cost(o: float) -> float:
             inside = sel & (s + o >= t_ref[0]) & (s + o <= t_ref[-1])
             if inside.sum() < 10:
                 return 1e9
             r = d[inside] - np.interp(s[inside] + o, t_ref, down)
             return float(np.var(r))
-        return cost
+        return scan(cost, centre, half)
 
     stamps, offsets = [], []
     if down is not None:
+        whole, _ = offset_of(np.ones(len(s), dtype=bool), 0.0, MAX_OFFSET)
         for lo in np.arange(s[0], s[-1], OFFSET_WINDOW):
             sel = (s >= lo) & (s < lo + OFFSET_WINDOW)
             near = (t_ref >= lo) & (t_ref < lo + OFFSET_WINDOW)
@@ -475,7 +476,7 @@ def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
             # a change in the vertical speed tells the clock.
             if float(np.std(heave[near])) < MIN_HEAVE:
                 continue
-            o, curvature = scan(cost_of(sel))
+            o, curvature = offset_of(sel, whole, 2.0)
             if curvature > 0:
                 stamps.append(float(np.mean(s[sel])))
                 offsets.append(o)
@@ -486,7 +487,6 @@ def depth_clock(log: Log) -> tuple[Clock | None, Finding]:
             f"vertical speed varies by {MIN_HEAVE:g} m/s (std) or more; expected at least 3 "
             "(a depth that never changes, or a steady climb, says nothing of its clock); "
             "not applied", "not observable")
-    whole, _ = scan(cost_of(np.ones(len(s), dtype=bool)), float(np.median(offsets)), 2.0)
     clock = fit_clock(stamps, offsets, whole)
     return clock, clock_finding("depth clock", clock, s, "depth against the reference's "
                                 "down position less a constant, in the windows where its "

@@ -731,10 +731,10 @@ def _dvl(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]:
     velocity = out.pop("velocity") @ s.axes.T
     fields = {"dvl/velocity_ls": velocity,
               "dvl/mode": np.where(np.isfinite(velocity).all(axis=1), 0, -1)}
+    codes = out.pop("status", None)
     for key, values in out.items():
         fields[f"dvl/{key}"] = values
-    if "status" in out:  # the instrument's codes per beam, whole numbers as logged
-        codes = out["status"]
+    if codes is not None:  # the instrument's codes per beam, whole numbers as logged
         if not np.array_equal(codes, np.round(codes)):
             raise ConfigError(f"{s.file!r}: dvl.columns.status: expected whole-number codes, "
                               f"got {codes[codes != np.round(codes)][0]:g}")

@@ -171,10 +171,11 @@ fixed filter's arithmetic does not change.
 Noise from the instrument: the IMU's densities, bias spreads and Gauss-Markov drives from
 the mission's attributes (a simulated file's turn-on spread from its config, where the
 attributes hold the drawn value), with a recorded log's rounding added
-(``quantisation_density``); the beams' white noise from ``dvl_noise_std``, a velocity's
-from it through the Janus geometry (``janus_velocity_std``) or from
-``dvl_velocity_accuracy``; ``beam_noise_from_error_velocity`` estimates a beam noise from
-the DVL's error velocity. A recorded DVL's time-correlated error is the one the
+(``quantisation_density``); the beams' white noise from ``dvl_noise_std`` (which the
+import measures on the logged error velocity where the log states none:
+``auvsim.data.beams.beam_noise_from_error_velocity``), a velocity's from it through the
+Janus geometry (``janus_velocity_std``) or from ``dvl_velocity_accuracy``. A recorded
+DVL's time-correlated error is the one the
 ``navigator`` preset measured on a real Navigator (9 mm/s per axis over 19 s): the biases
 c_k (per axis of the DVL's velocity) become Gauss-Markov with that std over that time; a
 simulated file's own slow error (``dvl_slow_error_std``, ``_time``) likewise, a velocity
@@ -245,13 +246,12 @@ import numpy as np
 
 from auvsim.checks import is_finite
 from auvsim.data.beams import beam_matrix
-from auvsim.data.beams import beam_noise_from_error_velocity as error_velocity_noise
 from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
-from beamsnet.data import DataError, Windows
+from beamsnet.data import NO_REFERENCE, DataError, Windows
 from beamsnet.estimators.baselines import BeamCalibration
 from beamsnet.estimators.registry import Needs, Spec
 
@@ -1258,16 +1258,6 @@ def janus_velocity_std(beam_noise_std: float, beam_angle_deg: float) -> np.ndarr
                                       1 / (math.sqrt(2) * math.sin(a)), 0.5 / math.cos(a)])
 
 
-def beam_noise_from_error_velocity(error_velocity: np.ndarray, beam_angle_deg: float) -> float:
-    """The white beam noise, m/s, of a 4-beam Janus DVL from its error velocity (P,)
-    (``auvsim.data.beams.beam_noise_from_error_velocity``; RD Instruments 951-6079-00,
-    sec. 5), refused as a ``DataError``."""
-    try:
-        return error_velocity_noise(error_velocity, beam_angle_deg)
-    except ValueError as e:
-        raise DataError(str(e)) from None
-
-
 def quantisation_density(samples: np.ndarray, rate_hz: float) -> float:
     """The white-noise density, per sqrt(Hz), of a log's rounding: its step q (the
     smallest nonzero difference between the distinct values the log holds) gives a
@@ -1333,7 +1323,7 @@ def start_from_reference(time: float, position_ned, velocity_ned, rotation, *,
 def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_ned=(0, 0, 0),
                      velocity_ned=(0, 0, 0), heading_std_deg: float = 1.0,
                      seconds: float = ALIGN_S, speed_std: float = 0.5,
-                     acceleration_body=(0, 0, 0)) -> Start:
+                     position_std: float = 1.0, acceleration_body=(0, 0, 0)) -> Start:
     """A start without a reference: level from the accelerometers averaged over the first
     ``seconds`` (gravity is a - f: at rest -f on average, roll = atan2(-f_y, -f_z), pitch
     = atan2(f_x, |(f_y, f_z)|); Groves 2013 sec. 5.6.2), less the body's mean acceleration
@@ -1342,7 +1332,8 @@ def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_n
     level std is the spread of the tilt over the window (what the motion leaves in the
     average) over sqrt of its independent seconds, at least 1 mrad (our floor, ten times
     what a navigation-grade accelerometer's 100 micro-g bias tilts). The velocity is given
-    (default at rest), with ``speed_std`` per axis; the DVL corrects both within pings."""
+    (default at rest), with ``speed_std`` per axis, the position ``position_std``; the DVL
+    corrects the velocity and the level within pings."""
     t = np.asarray(imu_time, dtype=float)
     f = np.asarray(specific_force, dtype=float) - np.asarray(acceleration_body, dtype=float)
     rows = t <= t[0] + seconds
@@ -1360,7 +1351,7 @@ def coarse_alignment(imu_time, specific_force, *, heading_deg: float, position_n
     return Start(time=float(t[0]), position_ned=np.asarray(position_ned, dtype=float),
                  velocity_ned=np.asarray(velocity_ned, dtype=float),
                  rotation=rotation_rpy(roll, pitch, math.radians(heading_deg)),
-                 position_std=np.full(3, 1.0), velocity_std=np.full(3, speed_std),
+                 position_std=np.full(3, position_std), velocity_std=np.full(3, speed_std),
                  attitude_std=np.array([level, level, math.radians(heading_std_deg)]))
 
 
@@ -1966,11 +1957,10 @@ def _aligned_start(mission, imu_time: np.ndarray, f: np.ndarray, w: np.ndarray,
         if k >= len(t):
             raise DataError(f"mission {mission.name}: its reference ends before the IMU "
                             "starts")
-        aligned = coarse_alignment(imu_time, f, **heading,
-                                   position_ned=np.asarray(ref.position_ned[k], float),
-                                   velocity_ned=np.asarray(ref.velocity_ned[k], float),
-                                   speed_std=cfg.velocity_std)
-        return aligned._replace(position_std=np.full(3, cfg.position_std))
+        return coarse_alignment(imu_time, f, **heading,
+                                position_ned=np.asarray(ref.position_ned[k], float),
+                                velocity_ned=np.asarray(ref.velocity_ned[k], float),
+                                position_std=cfg.position_std, speed_std=cfg.velocity_std)
     level = coarse_alignment(imu_time, f, **heading)
     first = np.flatnonzero(np.isfinite(velocity).all(axis=1))
     if len(first) == 0:
@@ -2089,7 +2079,11 @@ class InsDvlFilter:
         self._tracks: dict[str, FilterTrack] = {}
 
     def fit(self, train: Windows) -> InsDvlFilter:
-        if self.calibrate:
+        """Learn the beam calibration on ``train``; on a log without a reference
+        (``NO_REFERENCE``: nothing to calibrate against) the beams stay as measured, and
+        ``correction`` None says so."""
+        self.correction = None
+        if self.calibrate and train.reference != NO_REFERENCE:
             calibration = BeamCalibration().fit(train)
             self.correction = (calibration.scale, calibration.bias)
         self._tracks = {}

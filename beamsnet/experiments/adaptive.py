@@ -43,14 +43,13 @@ from auvsim.errors import ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows
-from beamsnet.evaluate import navigation_scores, reported_stds
+from beamsnet.evaluate import navigation_scores, reported_stds, watch_scores
 from beamsnet.experiments.runner import check_duration, ensure_dataset
 from beamsnet.experiments.sea import (
     DEFAULT_SEA,
     median_score,
     pooled_coverage,
     sea_dataset,
-    watch_scores,
     watch_words,
 )
 from beamsnet.navigation import truth_at_pings
