@@ -263,11 +263,20 @@ def test_a_file_opened_again_unchanged_is_not_checked_again(tmp_path, ideal_file
         with open_dataset(copy) as f:
             assert list(f.missions) == ["mission_000"]
     assert checks == ["mission_000"] * 2
+    with h5py.File(copy, "r") as f:
+        stored = dict(f["missions/mission_000"].attrs)
     monkeypatch.setattr(reader, "QUIET_S", 0.05)
     time.sleep(0.1)
-    for _ in range(3):  # quiet: checked once, then known
+    for _ in range(3):  # quiet: checked once, then known, its attributes remembered
         with open_dataset(copy) as f:
-            assert f.missions["mission_000"].attrs["origin"] == "simulated"
+            attrs = f.missions["mission_000"].attrs
+            assert attrs["origin"] == "simulated"
+            assert attrs.keys() == stored.keys()
+            for k, v in stored.items():
+                np.testing.assert_array_equal(attrs[k], v, err_msg=k)
+            # A caller's change to its copy is not the next open's.
+            attrs["dvl_scale_factor"] += 1.0
+            attrs["beam_angle_deg"] = -1.0
     assert len(checks) == 3
     with h5py.File(copy, "r+") as f:
         del f["missions/mission_000/dvl/velocity"]

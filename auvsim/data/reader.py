@@ -12,7 +12,7 @@ import time
 from collections.abc import Iterator, Mapping
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import h5py
 import numpy as np
@@ -73,11 +73,27 @@ _KINDS = {"f": "float", "b": "bool", "i": "integer"}
 # file whose ctime is ``QUIET_S`` old at its check, and which is still the same file after
 # it, is kept: the kernel stamps these times at its clock tick (a few ms), so a file
 # changed in place within a tick of its check could keep them; one changed later gets a
-# later ctime. Forgotten beyond ``CHECKED_FILES``.
-_CHECKED: dict[tuple, tuple[tuple, ...]] = {}
+# later ctime. Forgotten beyond ``CHECKED_FILES``. Each keeps its missions' attributes
+# too (``Mission.attrs``), which such a file gives again without reading them: reading a
+# mission's attributes costs h5py about 40 reads of 0.1 ms, a tool opening a file of 20
+# missions once per mission pays it 400 times over.
+_CHECKED: dict[tuple, Checked] = {}
 CHECKED_FILES = 256
 QUIET_S = 1.0
 REMEMBER_CHECKED = True  # False: check every mission at every open
+
+
+class Checked(NamedTuple):
+    """A file ``open_dataset`` checked whole: its shards' identities and its missions'
+    attributes (plain values, as ``Mission.attrs``), by mission name."""
+
+    shards: tuple[tuple, ...]
+    attrs: dict[str, dict]
+
+
+def _copied(attrs: dict) -> dict:
+    """Mission attributes a caller may change without changing the remembered ones."""
+    return {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in attrs.items()}
 
 
 class Group:
@@ -114,13 +130,16 @@ class Mission:
     A recorded mission (schema v7) has a ``reference`` (a navigation solution) where a
     simulated one has its ``truth``; asking it for ``truth`` is refused in one line."""
 
-    def __init__(self, dataset: Dataset, name: str, group: h5py.Group, origin: str) -> None:
+    def __init__(self, dataset: Dataset, name: str, group: h5py.Group, origin: str,
+                 attrs: dict | None = None) -> None:
         self.dataset = dataset
         self.name = name
         self.origin = origin
         self._group = group
+        self._field_names: dict[str, list[str]] = {}  # ``_fields``, by group
         self._where = _where(Path(group.file.filename), name, origin)  # a shard's, if one
-        self.attrs = _plain(group.attrs)
+        # ``attrs``: the group's, as remembered from a check of this very file.
+        self.attrs = _plain(group.attrs) if attrs is None else _copied(attrs)
         self.attrs.setdefault("origin", origin)
 
     @property
@@ -223,9 +242,14 @@ class Mission:
         return item
 
     def _fields(self, group: str) -> list[str]:
-        g = self._group.get(group)
-        return [k for k, v in g.items() if isinstance(v, h5py.Dataset)] \
-            if isinstance(g, h5py.Group) else []
+        # The file is open read-only: a group's fields are listed once (h5py opens each
+        # item to tell a field from a group).
+        if group not in self._field_names:
+            g = self._group.get(group)
+            self._field_names[group] = [
+                k for k in g if g.get(k, getclass=True) is h5py.Dataset
+            ] if isinstance(g, h5py.Group) else []
+        return self._field_names[group]
 
 
 class Dataset:
@@ -404,31 +428,35 @@ def _identity(path: Path) -> tuple:
 CTIME = 5  # the status-change time's place in an ``_identity``
 
 
-def _unchanged(key: tuple) -> bool:
-    """Whether ``key``'s file was checked whole and it and its shards are as they were."""
-    shards = _CHECKED.get(key)
-    if shards is None:
-        return False
+def _unchanged(key: tuple) -> Checked | None:
+    """What was remembered of ``key``'s file, checked whole, if it and its shards are as
+    they were; else None."""
+    checked = _CHECKED.get(key)
+    if checked is None:
+        return None
     try:
-        return all(_identity(Path(shard[0])) == shard for shard in shards)
+        same = all(_identity(Path(shard[0])) == shard for shard in checked.shards)
     except OSError:
-        return False
+        return None
+    return checked if same else None
 
 
-def _remember(path: Path, key: tuple, shards: list[Path]) -> None:
-    """Record ``path`` (``key``, taken before it was opened) as checked whole, if it is
-    still that file, and it and its ``shards`` were quiet for ``QUIET_S``."""
+def _remember(path: Path, key: tuple, dataset: Dataset) -> None:
+    """Record ``path`` (``key``, taken before it was opened) as checked whole, with its
+    missions' attributes, if it is still that file, and it and its shards were quiet for
+    ``QUIET_S``."""
     try:
         if _identity(path) != key:
             return
-        known = tuple(_identity(shard) for shard in shards)
+        known = tuple(_identity(shard) for shard in dataset.shards)
     except OSError:
         return
     quiet = time.time_ns() - int(QUIET_S * 1e9)
     if all(k[CTIME] < quiet for k in (key, *known)):
         if len(_CHECKED) >= CHECKED_FILES:
             _CHECKED.clear()
-        _CHECKED[key] = known
+        _CHECKED[key] = Checked(known, {name: _copied(m.attrs)
+                                        for name, m in dataset.missions.items()})
 
 
 def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
@@ -459,10 +487,10 @@ def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
                            "'file' or 'index'")
     records = _index_records(path, f) if layout == "index" else None
     try:
-        known = REMEMBER_CHECKED and _unchanged(key)
-        _check_missions(path, f, dataset, records, version, whole=not known)
-        if not known:
-            _remember(path, key, dataset.shards)
+        known = _unchanged(key) if REMEMBER_CHECKED else None
+        _check_missions(path, f, dataset, records, version, known=known)
+        if known is None:
+            _remember(path, key, dataset)
     except BaseException:
         for shard in dataset._shard_files.values():
             shard.close()
@@ -472,9 +500,10 @@ def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
 
 def _check_missions(path: Path, f: h5py.File, dataset: Dataset,
                     records: dict[str, Shard] | None, version: int, *,
-                    whole: bool = True) -> None:
-    """Check each mission's group and origin, and with ``whole`` its fields and attributes
-    (``_check_mission``), and add it to ``dataset``."""
+                    known: Checked | None = None) -> None:
+    """Check each mission's group and origin, and unless the file is ``known`` its fields
+    and attributes (``_check_mission``), and add it to ``dataset`` (a known file's
+    missions with the attributes remembered)."""
     for name in f["missions"]:
         group = (f["missions"][name] if records is None
                  else _shard_group(path, f, name, records, dataset))
@@ -488,9 +517,10 @@ def _check_missions(path: Path, f: h5py.File, dataset: Dataset,
                 origin == "recorded" and version < RECORDED_SINCE):
             raise DatasetError(f"{path}: mission {name} has origin {_show(origin)}; "
                                f"{expected}")
-        if whole:
+        if known is None:
             _check_mission(path, name, group, origin, version)
-        dataset.missions[name] = Mission(dataset, name, group, origin)
+        dataset.missions[name] = Mission(dataset, name, group, origin,
+                                         None if known is None else known.attrs[name])
 
 
 def _index_records(path: Path, f: h5py.File) -> dict[str, Shard]:
