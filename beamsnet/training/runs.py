@@ -80,6 +80,9 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
     epochs = None  # each local worker's epochs, as they end (a cluster's: its jobs)
     if cluster is None:
         context = multiprocessing.get_context("forkserver")
+        # Its workers fork from a server that has imported torch and beamsnet once (about
+        # 3 s each), unless a pool of this process started the server before.
+        context.set_forkserver_preload(["beamsnet.training.runs"])
         epochs = context.SimpleQueue()
         # Each worker ends with this process, even one killed with -9 (``exit_with``).
         runner = cf.ProcessPoolExecutor(workers, mp_context=context, initializer=_worker,
