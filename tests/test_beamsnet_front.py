@@ -394,21 +394,36 @@ def test_legends_sit_outside_the_data_and_epochs_are_whole(tmp_path, monkeypatch
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from beamsnet.plotstyle import figure_legend, styles
+    from beamsnet.plotstyle import figure_legend, panel_grid, styles
 
     def overlaps(a, b) -> bool:
         return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
 
-    fig, axes = plt.subplots(2, 5, figsize=(15, 5), layout="constrained")
     look = styles([f"estimator {i}" for i in range(13)])
-    for ax in axes.flat:
-        for name, style in look.items():
-            ax.plot([0, 1], [0, 1], label=name, **style.line())
-    figure_legend(fig, axes[0, 0], fontsize=9)
-    fig.canvas.draw()
-    legend = fig.legends[0].get_window_extent()
-    assert not any(overlaps(legend, ax.get_window_extent()) for ax in axes.flat)
-    plt.close(fig)
+    constrained = plt.subplots(2, 5, figsize=(15, 5), layout="constrained")
+    # A panel grid of stress's size, log panels labelled as its are: nothing of a panel
+    # (its tick labels, axis labels, title) reaches another, nor the legend, and the
+    # legend lies inside the figure.
+    grid = panel_grid(2, 3, panel=(2.45, 1.6), legend=2.2, wspace=0.45)
+    for fig, axes in (constrained, grid):
+        for ax in axes.flat:
+            for name, style in look.items():
+                ax.plot([0, 60], [1e-4, 1e2], label=name, **style.line())
+            if axes is grid[1]:
+                ax.set_yscale("log")
+            ax.set(title="zigzag_20_20", xlabel="time, s")
+            ax.tick_params(labelsize=6)
+        axes[0, 0].set_ylabel("horizontal position error, m", fontsize=7)
+        figure_legend(fig, axes[0, 0], fontsize=9)
+        fig.canvas.draw()
+        legend = fig.legends[0].get_window_extent()
+        assert not any(overlaps(legend, ax.get_window_extent()) for ax in axes.flat)
+        assert fig.bbox.contains(legend.x0, legend.y0) and fig.bbox.contains(legend.x1,
+                                                                             legend.y1)
+        boxes = [ax.get_tightbbox() for ax in axes.flat]
+        assert not any(overlaps(a, b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+        assert not any(overlaps(legend, box) for box in boxes)
+        plt.close(fig)
 
     figures = []
     monkeypatch.setattr(beamsnet.training.train, "save_figure",

@@ -49,7 +49,7 @@ from beamsnet.navigation import (
     own_position_error,
     truth_at_pings,
 )
-from beamsnet.plotstyle import figure_legend, styles
+from beamsnet.plotstyle import figure_legend, panel_grid, styles
 from beamsnet.training.checkpoints import SENSOR_GEOMETRY, sensor_setup
 from beamsnet.training.config import TrainConfig
 
@@ -473,12 +473,10 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     n = len(windows.names)
     cols = 2
-    fig, axes = plt.subplots(-(-n // cols), cols, figsize=(14, 2.2 * -(-n // cols)),
-                             squeeze=False, layout="constrained")
+    fig, axes = panel_grid(-(-n // cols), cols, panel=(5.2, 1.5), legend=2.2, hspace=0.6)
     look = styles(estimates)
     for i, name in enumerate(windows.names):
         ax = axes.flat[i]
@@ -511,13 +509,11 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     n = len(windows.names)
     cols = min(n, TRACK_COLUMNS)
     rows = -(-n // cols)  # each mission's track above its error, rows of ``cols`` missions
-    fig, axes = plt.subplots(2 * rows, cols, figsize=(2.9 * cols + 2.2, 4.6 * rows),
-                             squeeze=False, layout="constrained")
+    fig, axes = panel_grid(2 * rows, cols, panel=(2.45, 1.6), legend=2.2, wspace=0.45)
     look = styles(estimates)
     for i in range(n, rows * cols):  # the last row's empty places
         axes[2 * (i // cols), i % cols].set_visible(False)
