@@ -111,8 +111,8 @@ def panel_grid(rows: int, cols: int, *, panel: tuple[float, float], legend: floa
     the right for ``figure_legend``.
 
     For figures of many panels: matplotlib's constrained layout measures every tick label
-    of every panel twice before a figure is drawn, most of the drawing time of twenty
-    panels (``benchmarks/figures.py``). Returns ``(figure, axes)``, axes (rows, cols)."""
+    of every panel twice before a figure is drawn, about 40 % of the drawing time of
+    twenty panels (``benchmarks/figures.py``). Returns ``(figure, axes)``, axes (rows, cols)."""
     import matplotlib.pyplot as plt
 
     w, h = panel
