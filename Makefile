@@ -25,7 +25,11 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check auvsim beamsnet tests benchmarks
 	# The site first: a broken link, include or API reference fails here (site/ is ignored).
-	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+	# Beside it, numba compiles its kernels into their cache once, so that the test
+	# processes load them instead of each compiling them (tests/compile_kernels.py).
+	$(BIN)/python tests/compile_kernels.py & kernels=$$!; \
+		NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site; built=$$?; \
+		wait $$kernels && test $$built -eq 0
 	# Two workers, one a core of the 2-core CI machine; the ten slowest tests named at the end.
 	# One thread per numerical library in every test process (and what it starts), so
 	# that the two workers do not oversubscribe the cores (OpenMP threads that wait by
