@@ -1123,7 +1123,10 @@ def test_the_loop_called_past_numbas_dispatcher_computes_what_the_dispatcher_doe
 
 def test_an_attribute_given_an_array_of_another_type_is_read_as_its_numbers():
     """The loop's compiled entry point is chosen again when an attribute it reads gets a
-    new object: an integer or a strided current flies as the float64 one does."""
+    new object: an integer or a strided current flies as the float64 one does, by the
+    same compiled loop (the vehicle holds it as a float64 array)."""
+    from auvsim.physics.vehicle import _run
+
     references, flags = np.tile([500.0, 0.02, 0.0], (10, 1)), np.zeros(3, dtype=np.bool_)
 
     def flown(current):
@@ -1134,9 +1137,14 @@ def test_an_attribute_given_an_array_of_another_type_is_read_as_its_numbers():
         return [vehicle.advance(references, flags).velocity_water_body for _ in range(3)]
 
     expected = flown(np.array([1.0, 0.0, 0.0]))
-    for current in (np.array([1, 0, 0]), np.array([1.0, 9.0, 0.0, 9.0, 0.0, 9.0])[::2]):
+    loops = len(_run.overloads)
+    for current in (np.array([1, 0, 0]), np.array([1.0, 9.0, 0.0, 9.0, 0.0, 9.0])[::2],
+                    (1, 0, 0)):
         for got, want in zip(flown(current), expected, strict=True):
             assert got.tobytes() == want.tobytes()
+    assert len(_run.overloads) == loops
+    with pytest.raises(ValueError, match="current_ned: expected 3 numbers"):
+        Vehicle().current_ned = (1.0, 0.0)
 
 
 # The real Snapir segments (six 400 s logs), where the repository has them beside it.

@@ -338,6 +338,22 @@ class Vehicle:
         mujoco.mj_forward(self.model, data)
         return data
 
+    @property
+    def current_ned(self) -> np.ndarray:
+        """The constant ocean current, m/s, NED: (3,) float64."""
+        return self._current_ned
+
+    @current_ned.setter
+    def current_ned(self, value) -> None:
+        # Held as the compiled loop's own type (float64, contiguous; the same object when
+        # it is one), so that an integer or strided current is not a new compilation of
+        # the loop (about 15 s).
+        current = np.ascontiguousarray(value, dtype=float)
+        if current.shape != (3,):
+            raise ValueError(f"current_ned: expected 3 numbers (north, east, down), got "
+                             f"shape {current.shape}")
+        self._current_ned = current
+
     def reset(self, *, position_ned=(0.0, 0.0, 0.0), roll: float = 0.0, pitch: float = 0.0,
               yaw: float = 0.0, velocity_body=(0.0, 0.0, 0.0)) -> None:
         """Place the vehicle (m, rad, m/s in NED/FRD); a forward speed starts the shaft at
