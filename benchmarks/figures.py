@@ -33,21 +33,11 @@ from beamsnet.plotstyle import panel_grid
 FIGURES = ("plot_tracks", "_plot_time")
 
 
-_SIZES: dict[tuple, tuple[float, float]] = {}  # panel_grid's figure sizes, by arguments
-
-
 def constrained_grid(rows: int, cols: int, **kwargs):
-    """``panel_grid``'s figure size (measured once, by the untimed first drawing), laid
-    out by matplotlib's constrained layout."""
-    import matplotlib.pyplot as plt
-
-    key = (rows, cols, *sorted(kwargs.items()))
-    if key not in _SIZES:
-        fig = panel_grid(rows, cols, **kwargs)[0]
-        _SIZES[key] = tuple(fig.get_size_inches())
-        plt.close(fig)
-    return plt.subplots(rows, cols, figsize=_SIZES[key], squeeze=False,
-                        layout="constrained")
+    """``panel_grid``'s figure, laid out by matplotlib's constrained layout instead."""
+    fig, axes = panel_grid(rows, cols, **kwargs)
+    fig.set_layout_engine("constrained")
+    return fig, axes
 
 
 def inputs(folder: Path, args) -> dict[str, tuple]:
@@ -108,7 +98,7 @@ def main() -> None:
                             ("_plot_time", "velocity error over each manoeuvre")):
             a, k = kept[name]
             times = {"constrained": [], "panel_grid": []}
-            for grid in (constrained_grid, panel_grid):  # untimed: fonts, caches, sizes
+            for grid in (constrained_grid, panel_grid):  # untimed: fonts, caches
                 cpu(name, a, k, Path(tmp) / "first.png", grid)
             for _ in range(args.repeats):  # alternated: a slow spell falls on both
                 for way, grid in (("constrained", constrained_grid),
