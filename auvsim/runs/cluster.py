@@ -74,19 +74,21 @@ def local_workers(address: str) -> int | None:
 
 @contextmanager
 def executor(address: str, *, threads: int = THREADS,
-             timeout: float = CONNECT_TIMEOUT_S) -> Iterator[cf.Executor]:
+             timeout: float | None = None) -> Iterator[cf.Executor]:
     """A ``concurrent.futures`` executor whose jobs run on the Dask cluster ``address``.
 
     Args:
         address: ``local:N`` or a scheduler's address (``check_address``).
         threads: threads per worker of a ``local:N`` cluster (jobs at once in each).
-        timeout: seconds to wait for the scheduler (and a local cluster's workers).
+        timeout: seconds to wait for the scheduler (and a local cluster's workers);
+            None: ``CONNECT_TIMEOUT_S``.
 
     Raises:
         ConfigError: the address is malformed, Dask distributed is not installed, or no
             scheduler answers there within ``timeout``.
     """
     check_address(address)
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
     try:
         import dask
         import distributed
