@@ -101,6 +101,17 @@ def figure_legend(fig, ax, **kwargs) -> None:
         fig.legend(handles, labels, loc="outside right upper", **kwargs)
 
 
+def decades_only(ax) -> None:
+    """``ax``'s log y axis with a tick at each decade and no minor ticks, which a panel an
+    inch or two tall has no room to show. Ticks are most of the drawing of a figure of many
+    small log panels (each is two lines and two texts): without the minor ones,
+    ``beamsnet stress``'s figures draw in a half to two thirds of the time
+    (``benchmarks/figures.py``). After the plotting: a new scale resets the ticks."""
+    from matplotlib.ticker import NullLocator
+
+    ax.yaxis.set_minor_locator(NullLocator())
+
+
 def panel_grid(rows: int, cols: int, *, panel: tuple[float, float], legend: float = 0.0,
                left: float = 0.7, bottom: float = 0.5, top: float = 0.6, right: float = 0.15,
                wspace: float = 0.5, hspace: float = 0.75):

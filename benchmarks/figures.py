@@ -1,14 +1,16 @@
 """Drawing the figures of many panels: ``beamsnet.plotstyle.panel_grid`` (margins fixed in
-inches) against matplotlib's constrained layout, on ``beamsnet stress``'s own figures.
+inches) against matplotlib's constrained layout, and ``decades_only`` (log axes without
+minor ticks) against every tick, on ``beamsnet stress``'s own figures.
 
 A small ``beamsnet stress`` run (``--train-duration``, ``--maneuver-duration``, one epoch:
 every manoeuvre, every estimator) is made once and its figures' inputs kept; then each
 figure of many panels (the tracks and their position errors, two panels per manoeuvre;
 the velocity error over each manoeuvre) is drawn and saved ``--repeats`` times each way,
-the two ways alternating, and the median CPU seconds of this process are printed with
-their ratio. The constrained side is the same function with ``panel_grid`` swapped for a
-figure of the same size laid out by ``layout="constrained"`` (what the figures used
-before).
+the three ways alternating, and the median CPU seconds of this process are printed with
+the ratios to the last. The constrained side is the same function with ``panel_grid``
+swapped for a figure of the same size laid out by ``layout="constrained"`` and every tick
+kept (``decades_only`` swapped for nothing): what the figures drew before; the middle
+side keeps ``panel_grid`` and every tick; the last is the figures as they are.
 
     .venv/bin/python benchmarks/figures.py [--maneuver-duration 60] [--repeats 3]
 """
@@ -28,7 +30,7 @@ from pathlib import Path
 import perf_page
 
 from beamsnet.experiments import stress
-from beamsnet.plotstyle import panel_grid
+from beamsnet.plotstyle import decades_only, panel_grid
 
 FIGURES = ("plot_tracks", "_plot_time")
 
@@ -70,14 +72,23 @@ def inputs(folder: Path, args) -> dict[str, tuple]:
     return kept
 
 
-def cpu(name: str, a: tuple, k: dict, out: Path, grid) -> float:
-    stress.panel_grid = grid
+def every_tick(ax) -> None:
+    """``decades_only`` left out: the log axes keep their minor ticks."""
+
+
+# Each way: the grid and what the figures do to a small log axis.
+WAYS = {"constrained": (constrained_grid, every_tick), "panel_grid": (panel_grid, every_tick),
+        "+ decades": (panel_grid, decades_only)}
+
+
+def cpu(name: str, a: tuple, k: dict, out: Path, way: str) -> float:
+    stress.panel_grid, stress.decades_only = WAYS[way]
     try:
         start = time.process_time()
         getattr(stress, name)(*a, out, **k)
         return time.process_time() - start
     finally:
-        stress.panel_grid = panel_grid
+        stress.panel_grid, stress.decades_only = panel_grid, decades_only
 
 
 def main() -> None:
@@ -93,19 +104,20 @@ def main() -> None:
         print(f"beamsnet stress at {args.maneuver_duration:g} s per manoeuvre: {missions} "
               f"manoeuvres, {len(kept['plot_tracks'][0][1])} estimators; median of "
               f"{args.repeats}, CPU s of drawing and saving")
-        print(f"{'':46s} {'constrained':>11s} {'panel_grid':>10s} {'ratio':>6s}")
+        print(f"{'':46s} {'constrained':>11s} {'panel_grid':>10s} {'+ decades':>9s} "
+              f"{'ratios to the last':>18s}")
         for name, label in (("plot_tracks", "tracks and position errors (2 per manoeuvre)"),
                             ("_plot_time", "velocity error over each manoeuvre")):
             a, k = kept[name]
-            times = {"constrained": [], "panel_grid": []}
-            for grid in (constrained_grid, panel_grid):  # untimed: fonts, caches
-                cpu(name, a, k, Path(tmp) / "first.png", grid)
-            for _ in range(args.repeats):  # alternated: a slow spell falls on both
-                for way, grid in (("constrained", constrained_grid),
-                                  ("panel_grid", panel_grid)):
-                    times[way].append(cpu(name, a, k, Path(tmp) / f"{way}.png", grid))
-            before, after = (statistics.median(times[w]) for w in times)
-            print(f"{label:46s} {before:11.2f} {after:10.2f} {before / after:5.1f}x")
+            times: dict[str, list[float]] = {way: [] for way in WAYS}
+            for way in WAYS:  # untimed: fonts, caches
+                cpu(name, a, k, Path(tmp) / "first.png", way)
+            for _ in range(args.repeats):  # alternated: a slow spell falls on each
+                for way in WAYS:
+                    times[way].append(cpu(name, a, k, Path(tmp) / "figure.png", way))
+            grid, ticks, now = (statistics.median(times[w]) for w in WAYS)
+            print(f"{label:46s} {grid:11.2f} {ticks:10.2f} {now:9.2f} "
+                  f"{grid / now:8.1f}x {ticks / now:8.1f}x")
 
 
 if __name__ == "__main__":

@@ -49,7 +49,7 @@ from beamsnet.navigation import (
     own_position_error,
     truth_at_pings,
 )
-from beamsnet.plotstyle import figure_legend, panel_grid, styles
+from beamsnet.plotstyle import decades_only, figure_legend, panel_grid, styles
 from beamsnet.training.checkpoints import SENSOR_GEOMETRY, sensor_setup
 from beamsnet.training.config import TrainConfig
 
@@ -488,6 +488,7 @@ def _plot_time(windows, estimates, phases, path: Path) -> None:
             err = np.linalg.norm(pred[mine] - windows.target[mine], axis=1)
             ax.semilogy(windows.time[mine], err, lw=0.7, label=short_name(est),
                         **look[est].line())
+        decades_only(ax)
         ax.set_title(name, fontsize=9)
         ax.set_ylabel("|error|, m/s", fontsize=8)
         ax.tick_params(labelsize=7)
@@ -541,6 +542,7 @@ def plot_tracks(windows: Windows, estimates: dict[str, np.ndarray], truth: dict,
                 err = dead_reckoning_track(windows, held(windows, pred), truth, i) - reference
             ax_e.semilogy(t, np.maximum(np.linalg.norm(err[:, :2], axis=1), 1e-4), lw=0.8,
                           label=short_name(est), **look[est].line())
+        decades_only(ax_e)
         ax_e.set_xlabel("time, s", fontsize=7)
         ax_e.tick_params(labelsize=6)
     figure_legend(fig, axes[1, 0], fontsize=9)
