@@ -15,7 +15,14 @@ import numpy as np
 import pytest
 import torch
 from conftest import flat, mission, write
-from test_kill import as_from_a_terminal, cpu_seconds, process_tree, still_running, wait_for
+from test_kill import (
+    _processes,
+    as_from_a_terminal,
+    cpu_seconds,
+    process_tree,
+    still_running,
+    wait_for,
+)
 
 from auvsim.config import DvlConfig
 from auvsim.errors import ConfigError
@@ -182,11 +189,8 @@ def test_an_interrupt_of_parallel_training_is_one_line_and_leaves_nothing(scale_
     line on stderr, no output and no process left. Before, a worker's tqdm lock (its
     default, a multiprocessing lock, is a named semaphore in a forkserver child) was left
     to the resource tracker, which warned of "leaked semaphore objects" after the line.
-    A worker trains once its CPU time exceeds what importing the trainer costs by 2 s."""
-    started = subprocess.run(
-        [sys.executable, "-c", "import os, beamsnet.training.train; t = os.times(); "
-         "print(t.user + t.system)"], capture_output=True, text=True, check=True)
-    under_way = float(started.stdout) + 2.0
+    A pool worker is forked from the pool's server (a child of the command), which has
+    imported the trainer: its CPU clock starts at the fork, and after 1 s it trains."""
     out = tmp_path / "run"
     proc = subprocess.Popen(
         [sys.executable, "-m", "beamsnet.cli", "train", str(scale_only), "--out", str(out),
@@ -194,10 +198,12 @@ def test_an_interrupt_of_parallel_training_is_one_line_and_leaves_nothing(scale_
         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True, preexec_fn=as_from_a_terminal)
     try:
-        def training() -> bool:  # both workers well into their epochs
+        def training() -> bool:  # both workers into their epochs
             assert proc.poll() is None, proc.communicate()
-            workers = [p for p, _ in process_tree(proc.pid)
-                       if p != proc.pid and cpu_seconds(p) > under_way]
+            table = _processes()
+            servers = {p for p, (parent, _, _) in table.items() if parent == proc.pid}
+            workers = [p for p, (parent, _, _) in table.items()
+                       if parent in servers and cpu_seconds(p) > 1.0]
             return len(workers) >= 2
 
         wait_for(training, "two workers training", timeout=120)
