@@ -16,10 +16,10 @@ import pytest
 import torch
 from conftest import flat, mission, write
 from test_kill import (
-    _processes,
     as_from_a_terminal,
     cpu_seconds,
     process_tree,
+    processes,
     still_running,
     wait_for,
 )
@@ -200,7 +200,7 @@ def test_an_interrupt_of_parallel_training_is_one_line_and_leaves_nothing(scale_
     try:
         def training() -> bool:  # both workers into their epochs
             assert proc.poll() is None, proc.communicate()
-            table = _processes()
+            table = processes()
             servers = {p for p, (parent, _, _) in table.items() if parent == proc.pid}
             workers = [p for p, (parent, _, _) in table.items()
                        if parent in servers and cpu_seconds(p) > 1.0]

@@ -46,7 +46,7 @@ def _stat(pid: int | str) -> list[bytes]:
         return f.read().rsplit(b")", 1)[1].split()
 
 
-def _processes() -> dict[int, tuple[int, bytes, bytes]]:
+def processes() -> dict[int, tuple[int, bytes, bytes]]:
     """Every process: pid -> (parent pid, state, start time), from /proc."""
     table = {}
     for entry in os.listdir("/proc"):
@@ -68,7 +68,7 @@ def cpu_seconds(pid: int) -> float:
 
 def process_tree(pid: int) -> set[tuple[int, bytes]]:
     """``pid`` and its descendants, as (pid, start time): a reused pid is another."""
-    table = _processes()
+    table = processes()
     found, i = [pid], 0
     while i < len(found):
         found += [p for p, (parent, _, _) in table.items() if parent == found[i]]
@@ -78,7 +78,7 @@ def process_tree(pid: int) -> set[tuple[int, bytes]]:
 
 def still_running(tree: set[tuple[int, bytes]]) -> set[int]:
     """The processes of ``tree`` that have not ended (a zombie has)."""
-    table = _processes()
+    table = processes()
     return {p for p, start in tree if p in table and table[p][2] == start
             and table[p][1] != b"Z"}
 
