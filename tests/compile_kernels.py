@@ -53,8 +53,7 @@ def main() -> None:
         w.start()
     for w in workers:
         w.join()
-    failed = [w for w in workers if w.exitcode != 0]
-    if failed:
+    if any(w.exitcode for w in workers):
         raise SystemExit(f"compiling the kernels failed (exit codes "
                          f"{[w.exitcode for w in workers]})")
 

@@ -275,12 +275,11 @@ def test_a_bad_or_unreachable_address_gets_one_line(tmp_path, capsys, monkeypatc
 def test_a_peer_that_never_answers_is_given_up_on(tmp_path, monkeypatch):
     """Something that accepts the connection and says nothing: one line at the deadline."""
     import socket
-
-    monkeypatch.setattr("auvsim.runs.cluster.HANDSHAKE_S", 1.0)  # 5 s by default
     import threading
 
     from auvsim.runs.cluster import executor
 
+    monkeypatch.setattr("auvsim.runs.cluster.HANDSHAKE_S", 1.0)  # 5 s by default
     server = socket.create_server(("127.0.0.1", 0))
     accepted = []
     threading.Thread(target=lambda: accepted.append(server.accept()), daemon=True).start()

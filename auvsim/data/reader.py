@@ -242,18 +242,17 @@ class Mission:
             raise DatasetError(f"{self._where} has no field {path}")
         return item
 
+    # The file is open read-only, so a group or field is looked up once (a lookup costs
+    # about 80 us, and ``mission.imu.time`` takes two) and a group's fields are listed once
+    # (h5py opens each item to tell a field from a group).
     def _item(self, path: str) -> h5py.HLObject | None:
-        # The file is open read-only: each group or field is looked up once (a lookup
-        # costs about 80 us, and ``mission.imu.time`` takes two).
         if path not in self._items:
             self._items[path] = self._group.get(path)
         return self._items[path]
 
     def _fields(self, group: str) -> list[str]:
-        # The file is open read-only: a group's fields are listed once (h5py opens each
-        # item to tell a field from a group).
         if group not in self._field_names:
-            g = self._group.get(group)
+            g = self._item(group)
             self._field_names[group] = [
                 k for k in g if g.get(k, getclass=True) is h5py.Dataset
             ] if isinstance(g, h5py.Group) else []
