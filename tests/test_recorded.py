@@ -437,8 +437,16 @@ BAD_LOGS = {
     "no_overlap": (_replace("log.toml", "time_offset_s = 0.25", "time_offset_s = 1000.0"),
                    "they do not overlap"),
     "ms_as_s": (_replace("log.toml", 'time_unit = "ms"\nframe = "FLU"', 'frame = "FLU"'),
-                "the imu stream spans 1990 s and the reference stream 1 s; expected streams "
-                "of one mission (is imu.time_unit or reference.time_unit right"),
+                "imu.csv': its stamps come at 0.1 Hz; expected an IMU's rate, 1 to 10000 Hz "
+                "(is imu.time_unit right"),
+    "spans_apart": (_edit("depth.csv", _lines(lambda ls: [ls[0]] + [
+        f"{100.0 * k!r},20.0" for k in range(2001)])),  # 200 s at 10 Hz beside 1 s
+        "the depth stream spans 200 s and the reference stream 1 s; expected streams of one "
+        "mission (is depth.time_unit or reference.time_unit right"),
+    "no_data_value_unnamed": (_replace("log.toml", "invalid = -32768\n", ""),
+                              "dvl.csv' line 3: the DVL's velocity reads -32.768 m/s, beyond "
+                              "15 m/s; expected a vehicle's velocity (is it the instrument's "
+                              "no-data value? name it in dvl.invalid"),
     "m_s_as_mm_s": (_edit("dvl.csv", _lines(lambda ls: [ls[0]] + [
         ",".join([x.split(",")[0]] + [repr(float(c) / 1000) if float(c) != -32768 else c
                                       for c in x.split(",")[1:4]] + x.split(",")[4:])
@@ -689,6 +697,52 @@ def test_a_reference_whose_positions_and_velocities_part_ways_is_refused(tmp_pat
         assert code == 2 and err.count("\n") == 1 and said in err, err
         assert "the positions move in another direction than the velocities" in err
         assert not (tmp_path / "x.h5").exists()
+
+
+def _diving_reference(folder: Path, *, depth_column: bool = False) -> None:
+    """nav.csv of ``csv_log`` replaced by 60 s of a dive at 0.3 m/s on a heading of 45
+    deg (north and east alike, so that the horizontal legs cannot tell them apart), in ENU
+    as declared; with ``depth_column`` the height column holds the depth (positive down)."""
+    t = np.arange(61.0)
+    v = np.array([1.0, 1.0, 0.3])  # NED, m/s
+    lat, lon, h = _geodetic(t, v)
+    _write_csv(folder / "nav.csv", ["t_ms", "lat", "lon", "h", "ve", "vn", "vu", "roll",
+                                    "pitch", "yaw"],
+               [1000 * t, lat, lon, -h if depth_column else h, np.full_like(t, v[1]),
+                np.full_like(t, v[0]), np.full_like(t, -v[2]), 0 * t, 0 * t, 0 * t + 45.0])
+
+
+@pytest.mark.parametrize("mistake", [None, "frame", "depth"])
+def test_a_reference_whose_heights_and_vertical_velocity_part_ways_is_refused(tmp_path,
+                                                                              mistake):
+    """A dive on a heading of 45 deg whose heights are its vertical velocity's integral
+    imports; the same with its ENU velocities declared NED (up read as down), or with a
+    depth in the height column, is refused in one line: its horizontal legs agree either
+    way."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    _diving_reference(folder, depth_column=mistake == "depth")
+    if mistake == "frame":
+        _replace("log.toml", 'frame = "ENU"', 'frame = "NED"')(folder)
+    code, err = run_csv(folder, tmp_path / "x.h5")
+    if mistake is None:
+        assert (code, err) == (0, "")
+    else:
+        assert code == 2 and err.count("\n") == 1, err
+        assert "the heights go down where the vertical velocity goes up" in err, err
+        assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_reference_a_thousandfold_apart_asks_for_the_time_unit():
+    """Stamps in ms read as s: the velocities integrate over a thousand times the time the
+    positions took, and the line asks for the time unit, not the latitude's."""
+    from auvsim.data.recorded import _check_track
+
+    t = np.arange(30.0)
+    v = np.tile([1.0, 0.0, 0.0], (30, 1))
+    with pytest.raises(ConfigError, match="a thousandfold or more: is reference.time_unit"):
+        _check_track({"reference/time": 1000 * t, "reference/position_ned": t[:, None] * v,
+                      "reference/velocity_ned": v}, "nav.csv")
 
 
 def test_a_short_fast_reference_that_agrees_with_itself_passes():

@@ -117,6 +117,11 @@ MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
 # positions and velocities agree in direction to a degree or two.
 TRACK_COSINE = 0.9  # 26 deg
 TRACK_LEG = 10
+# The same legs up and down: below this vertical distance in both the heights and the
+# integrated vertical velocity, their directions say nothing (a depth sensor's noise, a few
+# cm, and a swell's heave stay far below it); above it, a consistent reference agrees in
+# direction, and one whose vertical axis is flipped disagrees (a negative cosine).
+MIN_CLIMB = 5.0  # m
 SPAN_RATIO = 100.0  # a stream may span at most this many times another's (ms read as s: 1000)
 SPEED_RATIO = 5.0  # the DVL's median speed within this factor of the reference's
 MOVING = 0.2  # m/s: the reference's median speed above which the DVL's is compared
@@ -708,6 +713,14 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
 
 
 RATE_RANGE = (0.5, 2.0)  # the stamps' median rate over the stated one that a log may have
+# Where a stream states no rate, the rates its stamps may come at, Hz: wider than any
+# instrument of its kind that we know logs (IMUs from a few Hz to a few kHz; DVLs ping
+# from every few seconds, deep, to tens of Hz; depth sensors and navigation solutions
+# alike), narrower than a time column in another unit makes them (ms read as s: a 100 Hz
+# IMU at 0.1 Hz, a 1 Hz DVL at 0.001 Hz).
+PLAUSIBLE_RATES = {"imu": ("an IMU's", 1.0, 10_000.0), "dvl": ("a DVL's", 0.02, 100.0),
+                   "depth": ("a depth sensor's", 0.02, 1000.0),
+                   "reference": ("a navigation solution's", 0.02, 1000.0)}
 
 
 def _check_rates(tables: dict[str, dict[str, np.ndarray]], streams: dict[str, Stream],
@@ -716,9 +729,15 @@ def _check_rates(tables: dict[str, dict[str, np.ndarray]], streams: dict[str, St
     than any clock's error or a log's dropped samples, narrower than a time column in
     another unit (ms read as s: a thousandth of the rate)."""
     for g, s in streams.items():
-        if s.rate_hz is None:
-            continue
         rate = 1.0 / float(np.median(np.diff(tables[g]["time"])))
+        if s.rate_hz is None:
+            kind, low, high = PLAUSIBLE_RATES[g]
+            if not low <= rate <= high:
+                raise ConfigError(f"{where[g]}: its stamps come at {rate:.4g} Hz; expected "
+                                  f"{kind} rate, {low:g} to {high:g} Hz (is "
+                                  f"{g}.time_unit right: s, ms, us or ns? a log at another "
+                                  f"rate: state it in {g}.rate_hz)")
+            continue
         if not RATE_RANGE[0] <= rate / s.rate_hz <= RATE_RANGE[1]:
             raise ConfigError(f"{where[g]}: its stamps come at {rate:.4g} Hz, the log "
                               f"description's {g}.rate_hz says {s.rate_hz:g} Hz; expected "
@@ -802,6 +821,19 @@ def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]
             raise ConfigError(
                 f"{where['dvl']}: the DVL's median speed is {speed:.4g} m/s in the declared "
                 f"unit, beyond {MAX_SPEED:g} m/s; expected m/s (is dvl.units.velocity mm/s?)")
+        # One ping beyond the bound, the rest alike: the instrument's no-data value (an
+        # RDI DVL's -32768 mm/s) that the description does not name.
+        for key in ("velocity", "beam_velocity"):
+            values = np.nan_to_num(tables["dvl"].get(key, np.zeros((1, 1))), nan=0.0)
+            row = np.flatnonzero(np.abs(values).max(axis=1) > MAX_SPEED)
+            if len(row):
+                k = int(row[0])
+                worst = values[k, np.abs(values[k]).argmax()]
+                raise ConfigError(
+                    f"{where['dvl']} line {k + 2}: the DVL's {key.replace('_', ' ')} reads "
+                    f"{worst:.6g} m/s, beyond {MAX_SPEED:g} m/s; expected a "
+                    "vehicle's velocity (is it the instrument's no-data value? name it in "
+                    "dvl.invalid, in the log's own unit)")
     if "reference" in tables:
         ref = tables["reference"]
         for key, limit, what in (("latitude", math.pi / 2, "90 deg"),
@@ -849,10 +881,14 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
     track = float(step.sum())
     if max(flown, track) > MIN_TRACK and not (
             1 / TRACK_RATIO < track / max(flown, 1e-12) < TRACK_RATIO):
+        ratio = max(track, flown) / max(min(track, flown), 1e-12)
+        time_unit = any(abs(math.log10(ratio) - k) < 0.05 for k in (3, 6, 9))
         raise ConfigError(
             f"{where}: the positions travel {track:.4g} m but the velocities "
-            f"{flown:.4g} m; expected them to agree (are reference.units.latitude and "
-            "longitude, or the velocity's, right?)")
+            f"{flown:.4g} m; expected them to agree ("
+            + ("a thousandfold or more: is reference.time_unit right, s, ms, us or ns?)"
+               if time_unit else "are reference.units.latitude and longitude, or the "
+               "velocity's, right?)"))
     if max(flown, track) > MIN_TRACK:
         p = fields["reference/position_ned"][:, :2]
         moved = cumulative(t, fields["reference/velocity_ned"][:, :2])
@@ -868,6 +904,28 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
                 f"(their legs of {TRACK_LEG} samples agree to a cosine of {cosine:.2f}, a "
                 f"mean turn of {angle:+.0f} deg); expected them to agree (is reference.frame "
                 "right, NED or ENU? are the latitude and longitude columns swapped?)")
+    _check_vertical(fields, where)
+
+
+def _check_vertical(fields: dict[str, np.ndarray], where: str) -> None:
+    """The reference's heights against its integrated vertical velocity, where both
+    travel ``MIN_CLIMB`` up and down: a frame declared NED for ENU velocities turns up into
+    down (on a heading of 45 deg the horizontal legs cannot tell), and so does a depth
+    column, positive down, given as the height."""
+    t = fields["reference/time"]
+    down = fields["reference/position_ned"][:, 2]
+    moved = cumulative(t, fields["reference/velocity_ned"][:, 2:])[:, 0]
+    legs = np.unique(np.append(np.arange(0, len(t), TRACK_LEG), len(t) - 1))
+    a, b = np.diff(down[legs]), np.diff(moved[legs])
+    if min(np.abs(a).sum(), np.abs(b).sum()) < MIN_CLIMB:
+        return
+    cosine = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-12)
+    if cosine < 0:
+        raise ConfigError(
+            f"{where}: the heights go down where the vertical velocity goes up (their legs "
+            f"of {TRACK_LEG} samples agree to a cosine of {cosine:.2f}); expected them to "
+            "agree (is reference.frame right, NED or ENU? is the height column a depth, "
+            "positive down?)")
 
 
 # ---- the import ----------------------------------------------------------------------
