@@ -529,6 +529,36 @@ def test_an_injected_dvl_scale_and_mounting_are_recovered(simulated):
     assert after["dvl mounting"].confidence in ("high", "medium")
 
 
+@pytest.mark.parametrize("dvl_axes", [np.diag([1.0, -1.0, -1.0]), SWAP])
+def test_a_dvl_logged_through_other_axes_is_named_and_not_applied(simulated, tmp_path,
+                                                                  dvl_axes):
+    """The DVL's velocity logged through other axes (FLU declared FRD; x and y swapped, z
+    flipped): check-log names the map (body = P logged), fits the DVL's clock and
+    calibration through it (the lever arm then as without the fault), and --apply refuses
+    in one line, since the description is where the axes are fixed. As logged, the same
+    mission's DVL reads "as logged"."""
+    log = recorded_log(simulated["zigzag"], axes=np.eye(3), imu_offset=0.0, imu_rate=0.0,
+                       dvl_offset=-0.8)
+    clean = findings(check_arrays(log, "clean"))
+    assert clean["dvl axes"].text == "as logged"
+    # margin 2.5x: the runner-up flips z, which the heave alone tells
+    assert clean["dvl axes"].confidence in ("high", "medium")
+    faulty = dataclasses.replace(log, dvl_velocity=log.dvl_velocity @ dvl_axes)
+    report = check_arrays(faulty, "faulty")
+    found = findings(report)
+    assert found["dvl axes"].value["matrix"] == dvl_axes.tolist()
+    assert found["dvl axes"].confidence in ("high", "medium"), found["dvl axes"].evidence
+    assert report.corrections["dvl_time_offset_s"] == pytest.approx(-0.8, abs=OFFSET_TOL)
+    np.testing.assert_allclose(report.corrections["dvl_position_body"], DVL_POSITION,
+                               atol=LEVER_TOL)
+    raw, out = tmp_path / "raw.h5", tmp_path / "out.h5"
+    write_recorded(raw, faulty)
+    status, said, err = run(["check-log", str(raw), "--apply", str(out), "--accept-low"])
+    assert status == 2 and err.count("\n") == 1, err
+    assert "the DVL's axes are not as logged (sim: [" in err and "dvl.axis_map" in err, err
+    assert "dvl axes" in said and not out.exists()
+
+
 @pytest.mark.parametrize("factor", [0.0, 0.5])
 def test_a_dvl_far_off_the_reference_is_no_calibration(simulated, factor):
     """A DVL whose velocity is half the reference's, or none (zeros), fits "exactly" with

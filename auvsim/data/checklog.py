@@ -76,6 +76,8 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 MAX_OFFSET = 5.0  # s: the clock offsets searched, either way
+AXES_STEP = 0.25  # s: the offset grid each DVL axis map is scored on (a 1 Hz DVL's pings
+# between grid points cost a turn's change of velocity over 0.125 s at most)
 MIN_REFERENCE = 30  # reference samples: fewer leave the windows' fits without data
 MIN_DVL_PINGS = 30  # DVL pings with a velocity: fewer leave its clock and calibration open
 OFFSET_WINDOW = 50.0  # s of reference per window of the offset-vs-time fit
@@ -397,6 +399,57 @@ def usable_pings(log: Log) -> np.ndarray:
     return (np.isfinite(np.asarray(log.dvl_velocity, float)).all(axis=1)
             & (s - MAX_OFFSET >= log.reference_time[0])
             & (s + MAX_OFFSET <= log.reference_time[-1]))
+
+
+def dvl_axes(log: Log, ref_body: np.ndarray, rates) -> tuple[np.ndarray, Finding]:
+    """The axis map P (body = P logged) that best explains the DVL's velocity against the
+    reference's in the body ``ref_body`` (R, 3) with the body rates ``rates(times)``:
+    each of the 48 signed permutations, with a lever arm and a bias fitted (a DVL 2 m from
+    the reference point sways by half a m/s in a hard turn; no scale or mounting, which
+    would take up the map's signs) at its best clock offset on a grid of ``AXES_STEP`` s
+    over ``MAX_OFFSET`` either way, scored by the residual's RMS. A log description that
+    declares the wrong frame (FRD for FLU) or axis map reads here as a map other than the
+    identity; ``apply`` then refuses, since the fix is the description's (logged beams
+    are not turned with the velocity)."""
+    t_ref = np.asarray(log.reference_time, float)
+    use = usable_pings(log)
+    s = np.asarray(log.dvl_time, float)[use]
+    v = np.asarray(log.dvl_velocity, float)[use]
+    maps = axis_maps(proper=False)
+    turned = np.stack([v @ p.T for p in maps], axis=-1)  # (N, 3, 48)
+    best = np.full(len(maps), np.inf)
+    for o in np.arange(-MAX_OFFSET, MAX_OFFSET + 1e-9, AXES_STEP):
+        t = s + o
+        u = np.stack([np.interp(t, t_ref, ref_body[:, d]) for d in range(3)], -1)
+        # v_map - u = w x L + b: one design for every map, a right-hand side each
+        a = np.concatenate([skew(rates(t)), np.broadcast_to(np.eye(3), (len(t), 3, 3))],
+                           axis=2).reshape(-1, 6)
+        b = (turned - u[:, :, None]).reshape(-1, len(maps))
+        x, *_ = np.linalg.lstsq(a, b, rcond=None)
+        best = np.minimum(best, np.mean((b - a @ x) ** 2, axis=0) * 3)
+    speed_rms = float(np.sqrt(np.mean(np.sum(ref_body ** 2, axis=-1))))
+    order = np.argsort(best, kind="stable")  # ties: axis_maps' order, the identity first
+    (r1, p), (r2, p2) = ((math.sqrt(best[k]), maps[k]) for k in order[:2])
+    margin = r2 / max(r1, 1e-12)
+    names = axis_map_names(p)
+    logged = bool(np.array_equal(p, np.eye(3)))
+    confidence = "high" if margin > 3 else "medium" if margin > 1.5 else "low"
+    evidence = (f"velocity against the reference's in the body over {int(use.sum())} pings, "
+                f"a lever arm and a bias fitted for each map at its best offset: residual "
+                f"{1000 * r1:.1f} mm/s RMS (the reference's speed RMS "
+                f"{speed_rms:.2f} m/s); runner-up {axis_map_names(p2)}: {1000 * r2:.1f} mm/s; "
+                f"margin {margin:.3g}x")
+    if not logged:
+        evidence += ("; the DVL's clock and calibration below are fitted with this map; "
+                     "state it in the log description (dvl.axis_map, or dvl.frame) and "
+                     "import again")
+    return p, Finding("dvl axes", {"axis_map": names, "matrix": p.tolist(),
+                                   "determinant": int(round(np.linalg.det(p))),
+                                   "residual_m_s": r1, "runner_up": axis_map_names(p2),
+                                   "runner_up_residual_m_s": r2, "margin": margin,
+                                   "as_logged": logged},
+                      "as logged" if logged else f"[{', '.join(names)}]", evidence,
+                      confidence)
 
 
 def dvl_clock(log: Log, ref_body: np.ndarray, rates) -> tuple[Clock, Finding]:
@@ -889,7 +942,12 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     elif log.dvl_time is not None:
         c = rotation_matrices(log.reference_quaternion)
         u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
-        v = np.asarray(log.dvl_velocity, float)
+        p_dvl, found = dvl_axes(log, u_ref, lambda t: rates_at(t, imu_t, w_int, ref))
+        report.findings.append(found)
+        if found.confidence == "low":  # the calibration below takes the axes as logged
+            p_dvl = np.eye(3)
+        v = np.asarray(log.dvl_velocity, float) @ p_dvl.T
+        log = dataclasses.replace(log, dvl_velocity=v)
         clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w_int, ref))
         s = np.asarray(log.dvl_time, float)
         t = s + clock.offset + clock.rate_error * s
@@ -1143,6 +1201,13 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
         ConfigError: a finding it would write is of low confidence (``low_confidence``),
             unless ``accept_low``; nothing is written.
     """
+    turned = [f"{r.mission}: {f.text}" for r in reports for f in r.findings
+              if f.name == "dvl axes" and not f.value["as_logged"] and f.confidence != "low"]
+    if turned:
+        raise ConfigError(
+            f"--apply: the DVL's axes are not as logged ({'; '.join(turned)}); expected "
+            "them fixed where they were declared: state the map in the log description "
+            "(dvl.axis_map, or dvl.frame) and import again")
     low = low_confidence(reports)
     if low and not accept_low:
         raise ConfigError(
