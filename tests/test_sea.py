@@ -16,8 +16,8 @@ import pytest
 
 from auvsim.physics.frames import rotation_rpy
 from beamsnet import metrics
-from beamsnet.data import body_rate, quaternions_at, reference_velocity
-from beamsnet.experiments.sea import DEFAULT_SEA, watch_words
+from beamsnet.data import Windows, body_rate, quaternions_at, reference_velocity
+from beamsnet.experiments.sea import DEFAULT_SEA, motion, watch_words
 from beamsnet.navigation import earth_fixed_fit
 
 
@@ -310,6 +310,33 @@ def test_reproduce_sea_scores_every_segment_against_its_reference(tmp_path, monk
                       if not line.startswith("Filters that did not run"))
     assert "against the reference: Delph INS" in report and "truth" not in ours
     assert "derived** as `H v`" in report and "## Sim-to-real" in report
+    assert "| auvsim, held out |" in report and "CorrectionNet: departure from LS" in report
+    assert set(results["motion"]) == set(segments)
+
+
+def _windows(beams: np.ndarray, past: np.ndarray) -> Windows:
+    n = len(beams)
+    return Windows(beams, past, None, None, np.zeros((n, 3)), np.tile([1.0, 0, 0], (n, 1)),
+                   np.zeros(n, np.int64), np.arange(n, dtype=float), ("m",), np.eye(4, 3))
+
+
+def test_motion_against_the_training_range_on_known_pings():
+    """Training pings span beams 0..1 and changes from the past ping 0..0.1. Of four test
+    pings (beams 0.5), one has a beam at 1.5, one changes by 0.2, one has a missing beam
+    (never outside) and changes 0.05, one changes 0: half lie outside. The changes' RMS
+    is over the 15 values there are: 0.05 on 4 + 3 beams, 0.2 on 4, 0 on 4."""
+    rng = np.random.default_rng(0)
+    beams = rng.uniform(0, 1, (200, 4))
+    beams[0], beams[1] = 0.0, 1.0
+    train = _windows(beams, beams[:, None, :] + np.linspace(0, 0.1, 200)[:, None, None])
+    test_beams = np.full((4, 4), 0.5)
+    past = test_beams[:, None, :] + np.array([0.05, 0.2, 0.05, 0.0])[:, None, None]
+    test_beams[0, 2], past[0, 0, 2] = 1.5, 1.55  # a beam beyond the training's
+    test_beams[2, 1] = np.nan  # a missing beam: no change there either
+    m = motion(_windows(test_beams, past), train)
+    assert m["pings"] == 4 and m["outside"] == 0.5  # pings 0 (a beam) and 1 (a change)
+    assert m["change_rms"] == pytest.approx(math.sqrt((7 * 0.05**2 + 4 * 0.2**2) / 15))
+    assert m["speed"] == 1.0
 
 
 def test_the_reports_say_what_each_filters_divergence_watch_did():

@@ -49,7 +49,8 @@ from auvsim.data.reader import Dataset, open_dataset
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
-from beamsnet.data import load_windows, split
+from beamsnet.data import Windows, load_windows, split
+from beamsnet.estimators import short_name
 from beamsnet.evaluate import (
     baseline_names,
     baselines,
@@ -130,8 +131,10 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
                              for key, change in LEARNED.values()},
                        runs / "sea" / Path(sim).stem, seeds, workers=workers,
                        progress=progress, cluster=cluster)
-    sim_train = split(load_windows(sim), training.train_fraction)[0]
+    sim_train, sim_test = split(load_windows(sim), training.train_fraction)
     fitted = [b.fit(sim_train) for b in baselines()]
+    held_out = dict(motion=motion(sim_test, sim_train),
+                    departure=_departures(sim_test, nets))
     with open_dataset(dataset) as f:  # each file opened once for what the report says of it
         segments, geometry, logged_noise = list(f.missions), _geometry(f), _logged_noise(f)
         speed = _logged_speed(f)
@@ -142,16 +145,17 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
         others = [s for s in segments if s != name]
         real = ([b.fit(load_windows(dataset, missions=others)) for b in baselines()]
                 if others else [])
-        results[name] = _segment(dataset, name, fitted, real, nets, noise)
+        results[name] = _segment(dataset, name, fitted, real, nets, noise, sim_train)
     # The data folder by its name only: a report names no path outside the repository.
     setup = dict(data=Path(data).name, dataset=str(dataset), sim=str(sim), duration=duration,
                  seeds=seeds, epochs=training.epochs, lr=training.lr, noise=noise,
-                 corrections=corrections,
+                 corrections=corrections, held_out=held_out,
                  geometry={"auvsim": sim_geometry, "logs": geometry},
                  logged_noise=logged_noise)
     with staged_dir(out) as stage:  # the report, its data and its figure, or none
         write_text(stage / "sea.json", json.dumps(
-            {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()}},
+            {"setup": setup, "segments": {n: r["scores"] for n, r in results.items()},
+             "motion": {n: r["shift"] for n, r in results.items()}},
             indent=1, default=float))
         _figure(results, stage / "sea.png")
         write_text(stage / "sea.md", report(results, setup))
@@ -304,9 +308,45 @@ def _filters(dataset: Path, noise: dict[str, float]) -> dict[str, object]:
     return out
 
 
+def motion(windows: Windows, train: Windows) -> dict[str, float]:
+    """What a network trained on ``train`` meets of the motion in ``windows``: their
+    pings, median speed (m/s, least squares), the RMS of the beams' change from the last
+    past ping to the current one (m/s a ping: the vehicle's acceleration between pings,
+    which CorrectionNet and BeamsNetV2M take as input), and the share of pings with a
+    current beam or a change from any past ping outside the range ``train`` spans (where
+    CorrectionNet clips its inputs to that range)."""
+    def features(w: Windows) -> np.ndarray:
+        changes = w.past_beams - w.beams[:, None, :]
+        return np.concatenate([w.beams, changes.reshape(len(w.beams), -1)], axis=1)
+
+    x, seen = features(windows), features(train)
+    low, high = np.nanmin(seen, axis=0), np.nanmax(seen, axis=0)
+    outside = ((x < low) | (x > high)).any(axis=1)  # a missing value is never outside
+    change = windows.past_beams[:, -1] - windows.beams
+    return dict(pings=len(x),
+                speed=float(np.nanmedian(np.linalg.norm(windows.velocity_ls, axis=1))),
+                change_rms=float(np.sqrt(np.nanmean(change ** 2))),
+                outside=float(outside.mean()))
+
+
+def _departures(windows: Windows, nets: dict) -> dict[str, float]:
+    """Each trained network's RMS departure from least squares on ``windows``, m/s
+    (vector, over the pings where both give a velocity), by its row's label."""
+    out = {}
+    for label, (key, _) in LEARNED.items():
+        for run, model, checkpoint in nets[key]:
+            gap = predict(model, trimmed(windows, checkpoint)) - windows.velocity_ls
+            have = np.isfinite(gap).all(axis=1)
+            out[f"{label} ({run.name})"] = (float(np.sqrt(np.mean(np.sum(gap[have] ** 2, 1))))
+                                            if have.any() else math.nan)
+    return out
+
+
 def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
-             noise: dict[str, float]) -> dict:
-    """Every estimator on segment ``name``: velocities, positions and their scores."""
+             noise: dict[str, float], sim_train: Windows) -> dict:
+    """Every estimator on segment ``name``: velocities, positions and their scores, and
+    its motion against the training set's (``motion``) with each network's departure
+    from least squares."""
     windows = load_windows(dataset, missions=[name])
     truth = truth_at_pings(dataset, windows)
     predictions = {b.name: b.predict(windows) for b in fitted}
@@ -362,7 +402,9 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     return dict(scores=dict(scores, failed=failed, pings=len(windows.time),
                             against=windows.reference, derived=bool(windows.derived),
                             earth_fixed=earth, reference_departure_m=float(departure.max())),
-                time=windows.time, reference=truth["position"], tracks=tracks)
+                time=windows.time, reference=truth["position"], tracks=tracks,
+                shift=dict(motion=motion(windows, sim_train),
+                           departure=_departures(windows, nets)))
 
 
 def watch_words(results: dict, labels) -> list[str]:
@@ -646,7 +688,78 @@ def _sim_to_real(results: dict, setup: dict, by_reference: str) -> list[str]:
                      f"{_fmt(median_score(results, label, 'final_m'))} | "
                      f"{_fmt(median_score(results, label, 'rmse_m'))} | {_fmt(real, '.4f')} |")
     lines += ["", "### What transfers, and why", "",
-              *_transfers(results, sim, ls, noise, setup["logged_noise"])]
+              *_transfers(results, sim, ls, noise, setup["logged_noise"]),
+              "", *_motion_lines(results, setup["held_out"])]
+    return lines
+
+
+def _rank_correlation(a: list[float], b: list[float]) -> float:
+    """Spearman's rank correlation of ``a`` and ``b`` (no ties expected)."""
+    ranks = [np.argsort(np.argsort(np.asarray(x, float))) for x in (a, b)]
+    return float(np.corrcoef(*ranks)[0, 1])
+
+
+def _motion_lines(results: dict, held_out: dict) -> list[str]:
+    """Where the networks trained on auvsim meet motion their training never showed:
+    a table of each segment's motion against the training set's (``motion``) beside
+    each network's departure from least squares, and what the numbers say."""
+    nets = list(dict.fromkeys(short_name(k) for k in held_out["departure"]))
+    if not nets:
+        return []
+    lines = [
+        "Where the networks meet motion their training never showed, measured: each "
+        "segment's pings against the training set's (the preset's missions' first "
+        "75 %), beside the held-out simulated pings (its last 25 %). The beams' change "
+        "from ping to ping is the vehicle's acceleration between pings, an input of "
+        "CorrectionNet; a ping is outside the training range where a current beam or a "
+        "change from a past ping lies beyond what the training pings span (there "
+        "CorrectionNet clips its inputs). The departure is how far a network's velocity "
+        "lies from least squares' (RMS, vector), the median over its seeds.",
+        "",
+        "| pings of | pings | median speed (m/s) | beams' change from ping to ping, RMS "
+        "(m/s) | outside the training range (%) | "
+        + " | ".join(f"{k}: departure from LS (m/s)" for k in nets) + " |",
+        "|---|---|---|---|---|" + "---|" * len(nets),
+    ]
+
+    def row(label: str, shift: dict) -> tuple[str, dict]:
+        m = shift["motion"]
+        by_net: dict[str, list[float]] = {}
+        for k, v in shift["departure"].items():
+            by_net.setdefault(short_name(k), []).append(v)
+        med = {k: float(np.median(v)) for k, v in by_net.items()}
+        lines.append(f"| {label} | {m['pings']} | {m['speed']:.2f} | {m['change_rms']:.4f} | "
+                     f"{100 * m['outside']:.1f} | "
+                     + " | ".join(f"{v:.4f}" for v in med.values()) + " |")
+        return label, med
+
+    _, sim_med = row("auvsim, held out", held_out)
+    real = {name: row(name, r["shift"])[1] for name, r in results.items()}
+    net = next(iter(sim_med))
+    dep = {n: real[n][net] for n in real}
+    out = {n: results[n]["shift"]["motion"]["outside"] for n in real}
+    change = {n: results[n]["shift"]["motion"]["change_rms"] for n in real}
+    train_change = held_out["motion"]["change_rms"]
+    worst = sorted(dep, key=dep.get, reverse=True)[:2]
+    lines += [
+        "",
+        f"- {net} departs from least squares by {1000 * sim_med[net]:.1f} mm/s on the "
+        f"held-out simulated pings and by {1000 * min(dep.values()):.1f} to "
+        f"{1000 * max(dep.values()):.1f} mm/s on the real segments, most on "
+        f"{' and '.join(worst)}. Their beams change from ping to ping "
+        f"{min(change.values()) / train_change:.2g} to "
+        f"{max(change.values()) / train_change:.2g} times as much as the held-out "
+        f"simulated pings' ({train_change:.4f} m/s RMS), and {100 * min(out.values()):.1f} "
+        f"to {100 * max(out.values()):.1f} % of their pings lie outside the training range, "
+        f"against {100 * held_out['motion']['outside']:.1f} % of the held-out ones.",
+    ]
+    if len(real) >= 3:
+        lines.append(
+            f"- Over the {len(real)} segments, the departure's rank correlation (Spearman) "
+            f"with the share of pings outside the training range is "
+            f"{_rank_correlation(list(dep.values()), list(out.values())):+.2f}, and with "
+            "the change from ping to ping "
+            f"{_rank_correlation(list(dep.values()), list(change.values())):+.2f}.")
     return lines
 
 
