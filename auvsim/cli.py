@@ -256,6 +256,8 @@ def _check_log_parser(sub) -> None:
 
 
 def _check_log(args: argparse.Namespace) -> None:
+    from tqdm import tqdm
+
     from auvsim.data.checklog import apply, check_file, to_json
     from auvsim.data.reader import open_dataset
     from auvsim.data.writer import check_output_path
@@ -265,14 +267,25 @@ def _check_log(args: argparse.Namespace) -> None:
                           "file (the log stays as recorded)")
     if args.apply is not None:  # refused now, not after the checks' work
         check_output_path(args.apply, "apply")
-    reports = check_file(args.file, args.missions)
-    print(to_json(reports) if args.json else "\n\n".join(r.table() for r in reports))
+    with open_dataset(args.file) as ds:  # refused in one line if it is no dataset
+        total = len(args.missions or ds.missions)
+    # Each mission's table as soon as it is checked, under a bar (on a terminal) of the
+    # missions: the first check of a session compiles its kernels, some 30 s.
+    with tqdm(total=total, desc="checking", unit=" mission", disable=None, leave=False,
+              file=sys.stderr) as bar:
+        def done(report) -> None:
+            if not args.json:
+                bar.write(report.table() + "\n", file=sys.stdout)
+            bar.update()
+        reports = check_file(args.file, args.missions, each=done)
+    if args.json:
+        print(to_json(reports))
     if args.apply is not None:
         apply(args.file, args.apply, reports, accept_low=args.accept_low)
         if not args.json:
             with open_dataset(args.file) as ds:
                 others = len(ds.missions) - len(reports)
-            print(f"\nwrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
+            print(f"wrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
                   + (f", {others} other mission(s) as they were" if others > 0 else ""))
 
 

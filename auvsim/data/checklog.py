@@ -1043,9 +1043,11 @@ def check_log(mission) -> Report:
                         gravity_source="WGS-84 normal gravity at the origin")
 
 
-def check_file(path: str | os.PathLike, missions: list[str] | None = None) -> list[Report]:
+def check_file(path: str | os.PathLike, missions: list[str] | None = None, *,
+               each=None) -> list[Report]:
     """``check_log`` of each named mission of the dataset ``path`` (default: all, in
-    file order): the reports ``apply`` writes a corrected dataset from.
+    file order): the reports ``apply`` writes a corrected dataset from. ``each(report)``,
+    if given, is called as each mission's report is done (a command line's table).
 
     Raises:
         ConfigError: a name in ``missions`` is not a mission of the dataset.
@@ -1058,7 +1060,12 @@ def check_file(path: str | os.PathLike, missions: list[str] | None = None) -> li
         if unknown:
             raise ConfigError(f": {unknown[0]!r} is not in {str(path)!r}; expected one of "
                               f"{', '.join(ds.missions)}", argument="missions")
-        return [check_log(ds.missions[n]) for n in names]
+        reports = []
+        for n in names:
+            reports.append(check_log(ds.missions[n]))
+            if each is not None:
+                each(reports[-1])
+        return reports
 
 
 def fields_of(mission) -> dict[str, np.ndarray]:

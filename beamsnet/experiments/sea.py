@@ -43,6 +43,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.data.reader import Dataset, open_dataset
@@ -141,7 +142,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     with open_dataset(sim) as f:
         noise, sim_geometry = simulated_noise(f, speed), _geometry(f)
     results = {}
-    for name in segments:
+    for name in tqdm(segments, desc="segments", unit=" segment", leave=False,
+                     disable=None if progress else True):
         others = [s for s in segments if s != name]
         real = ([b.fit(load_windows(dataset, missions=others)) for b in baselines()]
                 if others else [])
