@@ -564,7 +564,8 @@ def clock_finding(name: str, clock: Clock, t: np.ndarray, what: str) -> Finding:
     return Finding(name, {"offset_s": clock.offset, "offset_se_s": se,
                           "rate_error": clock.rate_error, "rate_error_se": clock.rate_se,
                           "windows": clock.windows},
-                   text, f"{what}; {len(clock.windows)} windows of {OFFSET_WINDOW:g} s, "
+                   text, f"{what}; {len(clock.windows)} "
+                   f"{'window' if len(clock.windows) == 1 else 'windows'} of {OFFSET_WINDOW:g} s, "
                    f"{spread}{rate}", confidence)
 
 
@@ -648,9 +649,14 @@ def time_base(log: Log, imu_clock_found: Clock | None, reference: Finding) -> Fi
     explained = abs(found - predicted) <= tolerance
     value.update(predicted_imu_rate_error=predicted, imu_rate_error=found,
                  imu_rate_error_se=imu_clock_found.rate_se)
+    se = imu_clock_found.rate_se
     parts.append(f"they predict the IMU's rate error against the reference "
-                 f"{1e6 * predicted:+.0f} ppm, found {1e6 * found:+.0f} ppm"
-                 f" (+-{1e6 * tolerance:.0f})")
+                 f"{1e6 * predicted:+.0f} ppm; "
+                 + (f"found {1e6 * found:+.0f} ppm" if found else
+                    "the IMU clock's found none significant")
+                 + (f" (SE {1e6 * se:.0f} ppm)" if math.isfinite(se) else "")
+                 + f", {'within' if explained else 'beyond'} the {1e6 * tolerance:.0f} ppm "
+                 "the two may differ by")
     scale = reference.value.get("scale")
     if scale is not None:
         parts.append(f"the reference's positions move x{scale:.4f} its velocities over its "
