@@ -74,6 +74,10 @@ def plot(path: str | os.PathLike, *, missions: list[str] | None = None,
     return list(pngs)
 
 
+# No offset on an axis: a steady depth reads 20.0005 m, not 5e-4 + 2e1.
+NO_OFFSET = {"axes.formatter.useoffset": False}
+
+
 def _render(m: Mission, path: Path) -> bytes:
     """One mission's figure as PNG bytes; values matplotlib cannot draw (limits beyond
     float range) are refused with a ``DatasetError`` naming the mission."""
@@ -86,13 +90,14 @@ def _render(m: Mission, path: Path) -> bytes:
         rows = 3
     else:
         rows = (4 if "current_ned" in m.truth else 3) if m.has("truth") else 1
-    fig, axes = plt.subplots(rows, 2, figsize=(15, 3.2 * rows), squeeze=False,
-                             layout="constrained")
+    with plt.rc_context(NO_OFFSET):
+        fig, axes = plt.subplots(rows, 2, figsize=(15, 3.2 * rows), squeeze=False,
+                                 layout="constrained")
     buffer = io.BytesIO()
     try:
         # NaN and huge values are valid data (no bottom lock, a diverged filter): numpy's
         # and matplotlib's warnings about them would only clutter the command's output.
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
+        with warnings.catch_warnings(), np.errstate(all="ignore"), plt.rc_context(NO_OFFSET):
             warnings.simplefilter("ignore")
             (_draw_recorded if m.origin == "recorded" else _draw)(m, axes)
             fig.suptitle(f"{path.name}: {m.name}")
@@ -279,6 +284,8 @@ def _draw_recorded(m: Mission, axes: np.ndarray) -> None:
         twin.plot(t, np.linalg.norm(m.imu.specific_force, axis=1), color="0.6", lw=0.3,
                   label="|specific force|")
         twin.set_ylabel("m/s^2")
+        ax.set_zorder(twin.get_zorder() + 1)  # the gyros over the grey |f|, not under it
+        ax.patch.set_visible(False)
         ax.set_title(f"IMU (body FRD), {rate['imu']:.4g} Hz")
         _legend_beside(ax, twin)
     else:

@@ -159,7 +159,7 @@ def _parser() -> argparse.ArgumentParser:
                  "dataset")
     es.add_argument("dataset", type=Path, help="auvsim dataset to estimate on")
     es.add_argument("--estimator", required=True, metavar="NAME",
-                    help="its name in the tables (case, spaces and dashes do not matter): "
+                    help="its name in the tables (case, spaces and punctuation do not matter): "
                     + ", ".join(s.name for s in runnable))
     es.add_argument("--train", type=Path, dest="train", metavar="DATASET",
                     help="fit on this file's training split (default: the dataset's own, "

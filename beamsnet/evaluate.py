@@ -458,19 +458,23 @@ def error_spread(error) -> float:
     return float(np.percentile(error, 99)) if error.size else 0.0
 
 
+def estimator_key(name: str) -> str:
+    """What of an estimator's name ``find_estimator`` matches: its letters and digits,
+    lower case (``INS/DVL (adaptive)`` and ``ins-dvl-adaptive`` alike)."""
+    return "".join(c for c in name.lower() if c.isalnum())
+
+
 def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> object:
     """The model-based estimator (or filter on ``dataset``) whose table name is ``name``,
-    unfitted; case, spaces and dashes do not matter (``beam-calibration``).
+    unfitted; case, spaces and punctuation do not matter (``beam-calibration``,
+    ``ins-dvl``).
 
     Raises:
         ConfigError: no estimator has that name (the message lists them); or the INS/DVL
             filter on a file without an IMU record (its own one-line reason).
     """
-    def key(text: str) -> str:
-        return "".join(c for c in text.lower() if c not in " -_")
-
     for s in specs():
-        if s.kind == "network" or key(s.name) != key(name):
+        if s.kind == "network" or estimator_key(s.name) != estimator_key(name):
             continue
         if s.kind == "model-based":
             return s.make()

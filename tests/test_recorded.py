@@ -419,7 +419,18 @@ BAD_LOGS = {
     "short_row": (_edit("imu.csv", _lines(lambda ls: ls[:5] + [ls[5].rsplit(",", 1)[0]]
                                           + ls[6:])), "line 6: 7 cells, the header has 8"),
     "not_a_number": (_edit("depth.csv", lambda t: t.replace("20.0", "deep", 1)),
-                     "line 2: 'deep' is not a number"),
+                     "line 2: 'deep' under 'depth' is not a number"),
+    "empty_cell": (_edit("depth.csv", lambda t: t.replace("20.0", "", 1)),
+                   "line 2: '' under 'depth' is not a number"),
+    "trailing_delimiter": (_edit("depth.csv", _lines(lambda ls: [x + "," for x in ls])),
+                           "column 3 of the header has no name; expected a name for every "
+                           "column (a delimiter at the end of each line?)"),
+    "semicolons": (_edit("depth.csv", lambda t: t.replace(",", ";")),
+                   "no column 't_ms' (the log description's depth.time); the file has "
+                   "'t_ms;depth' (its cells are separated by ';': say depth.delimiter = ';')"),
+    "units_key_typo": (_replace("log.toml", "angular_rate = \"deg/s\"",
+                                "angular_rates = \"deg/s\""),
+                       "imu.units: unknown field 'angular_rates'; expected one of"),
     "nan_row": (_edit("dvl.csv", _lines(lambda ls: ls[:3] + [",".join(["nan"] * 6)]
                                         + ls[4:])), "line 4: column 't_ms' is nan"),
     "time_backwards": (_edit("depth.csv", _lines(lambda ls: ls[:4] + [ls[5], ls[4]] + ls[6:])),
@@ -516,6 +527,18 @@ def test_bad_logs_are_refused_in_one_line(case, tmp_path):
     assert err.count("\n") == 1 and err.startswith("auvsim: error: "), err
     assert message in err, err
     assert not out.exists() and not (tmp_path / "out").exists()
+
+
+def test_a_header_of_quoted_names_reads_as_the_names(tmp_path):
+    """R's write.csv and spreadsheets quote the header's names (and not the numbers):
+    the names are those inside the quotes."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    _edit("depth.csv", _lines(lambda ls: ['"t_ms","depth"'] + ls[1:]))(folder)
+    out = tmp_path / "x.h5"
+    assert run_csv(folder, out) == (0, "")
+    with open_dataset(out) as ds:
+        np.testing.assert_array_equal(ds.missions["dive"].depth.depth, 20.0)
 
 
 def test_the_output_is_never_a_file_it_would_destroy(tmp_path):

@@ -343,10 +343,11 @@ def _stream(where: str, group: str, table: object) -> Stream:
     units_in = table.get("units", {})
     if not isinstance(units_in, dict):
         raise ConfigError(f"{name}.units: expected a table of field = unit")
-    for key in list(columns_in) + list(units_in):
-        if key not in specs:
-            raise ConfigError(f"{name}: unknown field {key!r}; expected one of "
-                              f"{', '.join(specs)}")
+    for table_name, keys in (("columns", columns_in), ("units", units_in)):
+        for key in keys:
+            if key not in specs:
+                raise ConfigError(f"{name}.{table_name}: unknown field {key!r}; expected one "
+                                  f"of {', '.join(specs)}")
     for key, (n, choices, required) in specs.items():
         if key not in columns_in:
             if required:
@@ -514,7 +515,9 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
                           f"{stream.group}.file)")
     try:
         with open(path, encoding="utf-8-sig") as f:
-            header = [c.strip() for c in f.readline().rstrip("\r\n").split(stream.delimiter)]
+            # A name in double quotes (R's write.csv, spreadsheets) is the name inside them.
+            header = [_unquoted(c.strip())
+                      for c in f.readline().rstrip("\r\n").split(stream.delimiter)]
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError(f"{str(path)!r}: cannot read it as text ({e})") from None
     if header == [""]:
@@ -531,9 +534,17 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
             if c not in header:
                 has = ", ".join(map(repr, header))
                 said = f"{stream.group}.time" if key == "time" else f"{stream.group}.columns"
+                other = next((d for d in ",;\t " if d != stream.delimiter
+                              and len(header) == 1 and d in header[0]), None)
+                hint = (f" (its cells are separated by {other!r}: say {stream.group}."
+                        f"delimiter = {other!r})" if other else "")
                 raise ConfigError(f"{str(path)!r}: no column {c!r} (the log description's "
-                                  f"{said}); the file has {has}")
+                                  f"{said}); the file has {has}{hint}")
     extra = [c for c in header if c not in named and c not in stream.ignore]
+    if "" in extra:
+        raise ConfigError(f"{str(path)!r}: column {header.index('') + 1} of the header has no "
+                          "name; expected a name for every column (a delimiter at the end of "
+                          "each line?)")
     if extra:
         raise ConfigError(f"{str(path)!r}: column {extra[0]!r} is not in the log description; "
                           f"expected it mapped in {stream.group}.columns or listed in "
@@ -545,12 +556,12 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
             array = np.loadtxt(path, delimiter=stream.delimiter, skiprows=1, usecols=use,
                                ndmin=2, encoding="utf-8-sig", comments=None)
     except ValueError:
-        raise ConfigError(_bad_row(path, stream.delimiter, len(header))) from None
+        raise ConfigError(_bad_row(path, stream.delimiter, header)) from None
     if array.shape[0] < 2:
         raise ConfigError(f"{str(path)!r}: {array.shape[0]} row(s) under the header; expected "
                           "a stream of samples (at least 2)")
     # loadtxt takes a row of more cells when usecols is given: count them.
-    _check_width(path, stream.delimiter, len(header), array.shape[0])
+    _check_width(path, stream.delimiter, header, array.shape[0])
     bad = ~np.isfinite(array)
     if stream.invalid is not None and math.isnan(stream.invalid):  # NaN: no data, declared
         codes = [header.index(c) for c in stream.columns.get("status", ())]
@@ -582,18 +593,24 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
     return out
 
 
-def _check_width(path: Path, delimiter: str, width: int, rows: int) -> None:
-    """Every row has as many cells as the header (loadtxt does not check the cells it
+def _check_width(path: Path, delimiter: str, header: list[str], rows: int) -> None:
+    """Every row has as many cells as the ``header`` (loadtxt does not check the cells it
     skips); cheap when they do: only a file whose delimiters do not add up is scanned."""
     with open(path, "rb") as f:
         data = f.read()
-    if data.count(delimiter.encode()) == (width - 1) * (rows + 1):
+    if data.count(delimiter.encode()) == (len(header) - 1) * (rows + 1):
         return
-    raise ConfigError(_bad_row(path, delimiter, width))
+    raise ConfigError(_bad_row(path, delimiter, header))
 
 
-def _bad_row(path: Path, delimiter: str, width: int) -> str:
-    """The first row that is not ``width`` numbers, said in one line."""
+def _unquoted(name: str) -> str:
+    return name[1:-1] if len(name) >= 2 and name[0] == name[-1] == '"' else name
+
+
+def _bad_row(path: Path, delimiter: str, header: list[str]) -> str:
+    """The first row that is not numbers under each of ``header``'s columns, said in one
+    line."""
+    width = len(header)
     with open(path, encoding="utf-8-sig") as f:
         next(f, None)
         for number, line in enumerate(f, start=2):
@@ -603,12 +620,12 @@ def _bad_row(path: Path, delimiter: str, width: int) -> str:
             if len(cells) != width:
                 return (f"{str(path)!r} line {number}: {len(cells)} cells, the header has "
                         f"{width}; expected every row to have the header's columns")
-            for cell in cells:
+            for column, cell in zip(header, cells, strict=True):
                 try:
                     float(cell)
                 except ValueError:
-                    return (f"{str(path)!r} line {number}: {cell.strip()!r} is not a "
-                            "number; expected numbers under the header")
+                    return (f"{str(path)!r} line {number}: {cell.strip()!r} under "
+                            f"{column!r} is not a number; expected numbers under the header")
     return f"{str(path)!r}: cannot be read as a table of numbers"
 
 
