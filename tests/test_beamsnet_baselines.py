@@ -123,6 +123,27 @@ def test_kalman_filter_beats_least_squares_on_noisy_constant_velocity(noisy):
         assert kf.q < 1e-2  # m/s per sqrt(s): at constant speed, q goes to the small end
 
 
+def test_kalman_filter_on_beams_derived_from_a_velocity_takes_r_from_the_target():
+    """A log without beams: the beams are H v of the instrument's velocity, which carries
+    white noise of 0.01 m/s per axis, so the four-beam residual is zero. R is then the
+    measurement's error covariance against the training target (0.01^2 I), r its axes'
+    RMS, and the filter averages the noise as on measured beams, where it was the
+    calibration alone (R = 0) before."""
+    rng = np.random.default_rng(3)
+    v = [np.tile([1.5, 0.0, 0.1], (400, 1)), np.tile([0.8, 0.2, 0.0], (400, 1))]
+    noisy_v = [x + 0.01 * rng.standard_normal(x.shape) for x in v]
+    windows = synthetic(v, beams=[x @ H.T for x in noisy_v])._replace(derived=("m0", "m1"))
+    train, test = split(windows)
+    kf = KalmanFilter(calibrate=False).fit(train)
+    assert kf.r == pytest.approx(0.01, rel=0.1)
+    np.testing.assert_allclose(kf.r_velocity, 1e-4 * np.eye(3), atol=2e-5)
+    ls = rmse(LeastSquares().predict(test), test.target)
+    assert rmse(kf.predict(test), test.target) < 0.5 * ls
+    calibrated = KalmanFilter().fit(train)
+    assert calibrated.r > 0
+    assert not np.allclose(calibrated.predict(test), calibrated.calibration.predict(test))
+
+
 def test_kalman_filter_restarts_at_each_mission(noisy):
     train, test = split(noisy)
     kf = KalmanFilter().fit(train)

@@ -223,7 +223,10 @@ class KalmanFilter:
 
     r is the RMS residual of the four-beam least-squares fit on the training beams
     (``|y - H v_ls|^2`` has one degree of freedom per ping: ``E = r^2``), so it needs no
-    truth. q is the value of ``Q_GRID`` with the least velocity RMSE on the training split.
+    truth. On beams derived from a log's velocity (``Windows.derived``: no residual, and
+    the noise is the velocity's), R is instead the covariance of the measurement's error
+    against the training target (``r_velocity``), and r the RMS of its axes. q is the
+    value of ``Q_GRID`` with the least velocity RMSE on the training split.
     Each mission starts from its first measurement (``x_0 = z_0``, ``P_0 = R``: the same as
     a diffuse prior), so nothing carries over a mission boundary.
 
@@ -250,8 +253,8 @@ class KalmanFilter:
     the estimate holds and its covariance grows; before a mission's first measurement
     there is no estimate (NaN).
 
-    Attributes (after fit): r (m/s), q (m/s per sqrt(s)), calibration (or None),
-    train_rmse (q -> training RMSE, m/s).
+    Attributes (after fit): r (m/s), r_velocity (R, (m/s)^2, on derived beams; else None),
+    q (m/s per sqrt(s)), calibration (or None), train_rmse (q -> training RMSE, m/s).
     """
 
     def __init__(self, *, calibrate: bool | str = True, q_grid: np.ndarray | None = None,
@@ -275,14 +278,31 @@ class KalmanFilter:
         self.calibration: AffineCalibration | BeamCalibration | None = None
         self.h: np.ndarray | None = None
         self.r = self.q = None
+        self.r_velocity: np.ndarray | None = None  # R where the beams are derived
         self.train_rmse: dict[float, float] = {}
 
     def fit(self, train: Windows) -> KalmanFilter:
         self.h = train.h
-        residual = train.beams - least_squares(train.beams, train.h) @ train.h.T
-        self.r = float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))  # 4 - 3 = 1 dof
         self.calibration = (BeamCalibration().fit(train) if self.calibrate == "beam" else
                             AffineCalibration().fit(train) if self.calibrate else None)
+        derived = [k for k, name in enumerate(train.names) if name in train.derived]
+        measured = ~np.isin(train.mission, derived)
+        self.r_velocity = None
+        if measured.any():
+            beams = train.beams[measured]
+            residual = beams - least_squares(beams, train.h) @ train.h.T
+            self.r = float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))  # 4 - 3 = 1 dof
+        else:
+            # Beams derived from the instrument's velocity (H v, a log without beams) leave
+            # no residual to measure their noise by (r would be 0, and the filter the
+            # calibration alone), and their noise is the velocity's, not the beams'
+            # through H: R is the measurement's error covariance against the training
+            # target, and r the RMS of its axes.
+            z = self._measurement(train, velocity_only=True)
+            ok = np.isfinite(z).all(axis=1) & np.isfinite(train.target).all(axis=1)
+            error = z[ok] - train.target[ok]
+            self.r_velocity = error.T @ error / max(len(error) - 1, 1)
+            self.r = float(np.sqrt(np.trace(self.r_velocity) / 3))
         z, cov = self._measurement(train)
         sse = _filter(z, cov, train.mission, train.time, self.q_grid, gate=self.gate,
                       target=train.target)
@@ -297,9 +317,14 @@ class KalmanFilter:
         return _filter(z, cov, windows.mission, windows.time, np.array([self.q]),
                        gate=self.gate)
 
-    def _measurement(self, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
-        """z (S, 3) m/s and its noise covariance R (S, 3, 3), (m/s)^2."""
+    def _measurement(self, windows: Windows, *, velocity_only: bool = False):
+        """z (S, 3) m/s and its noise covariance R (S, 3, 3), (m/s)^2; z alone with
+        ``velocity_only``."""
         c = self.calibration
+        if velocity_only or self.r_velocity is not None:
+            z = least_squares(windows.beams, windows.h) if c is None else c.predict(windows)
+            return z if velocity_only else (
+                z, np.broadcast_to(self.r_velocity, (len(windows.beams), 3, 3)))
         if isinstance(c, AffineCalibration):
             r = self.r ** 2 * c.a @ c.a.T
             return c.predict(windows), np.broadcast_to(r, (len(windows.beams), 3, 3))
