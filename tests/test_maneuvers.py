@@ -103,6 +103,20 @@ def test_lawnmower_flies_legs_both_ways(vehicle):
     assert abs(yaw[np.searchsorted(t, legs[0].end - 1.0)]) < 1.0
 
 
+def test_a_straight_line_on_survey_lines_has_its_legs_as_phases(vehicle):
+    """``straight`` with ``leg_m`` turns at each leg's end: its phases are the legs and
+    the cross legs (the turns between them), not one straight phase; without legs, one."""
+    t, _, yaw, m = fly(vehicle, "straight", leg_m=200.0, spacing_m=40.0, duration=400.0)
+    phases = m.phases()
+    assert [p.label for p in phases][:3] == ["survey leg", "cross leg", "survey leg"]
+    assert phases[0].start == 0.0 and phases[-1].end == 400.0
+    assert all(a.end == b.start for a, b in zip(phases, phases[1:], strict=False))
+    legs = [p for p in phases if p.label == "survey leg"]
+    assert abs(yaw[np.searchsorted(t, legs[1].end - 5.0)] - 180.0) < 3.0  # it turned
+    plain = make_maneuver(ScenarioConfig(name="straight", duration=60.0))
+    assert [(p.start, p.end, p.label) for p in plain.phases()] == [(0.0, 60.0, "straight")]
+
+
 def test_lawnmower_refuses_legs_shorter_than_a_metre_zero_included():
     """0 holds one heading for the manoeuvres flown on survey lines as an option; a
     lawnmower has legs, so it refuses 0 (and a spacing of 0) as it does any leg below 1 m,

@@ -268,6 +268,13 @@ class _OnSurveyLines(Maneuver):
             self.legs = survey_legs(self.heading, self.speed, self.duration, o.leg_m,
                                     o.spacing_m)
 
+    def phases(self) -> list[Phase]:
+        """Each survey leg and cross leg (its turns) where there are legs, else the one
+        phase of the manoeuvre."""
+        if self.options.leg_m == 0.0:
+            return super().phases()
+        return [Phase(a, min(b, self.duration), label) for a, b, _, label in self.legs]
+
     def headings(self, t: np.ndarray) -> np.ndarray | None:
         """(N,) heading references (rad) at times ``t``, or None for the scenario's."""
         if self.options.leg_m == 0.0:
@@ -409,9 +416,6 @@ class Lawnmower(_OnSurveyLines):
 
     def schedule(self, t):
         return self._hold(len(t), heading=self.headings(t)), np.tile(ALL_CLOSED, (len(t), 1))
-
-    def phases(self):
-        return [Phase(a, min(b, self.duration), label) for a, b, _, label in self.legs]
 
 
 class _Steps(_OnSurveyLines):
