@@ -83,6 +83,29 @@ def test_another_error_model_is_a_robustness_test_said_in_one_line(run, data, tm
     assert "beam_angle" not in err and "robustness" in err
 
 
+def test_other_draws_of_one_error_model_are_held_out_seeds_said_nothing(tmp_path):
+    """Trained on one seed of a DVL whose scale factors and biases are drawn per mission,
+    evaluated on another seed of the same config: the realised values differ, the model
+    they were drawn from does not, so no warning; a file of another model still warns."""
+    spread = dict(scale_factor=0.0, scale_factor_std=0.003, bias_std=0.001, noise_std=0.002)
+    files = {}
+    for name, seed, dvl in (("train", 1, spread), ("seed", 2, spread),
+                            ("other", 2, {**spread, "scale_factor_std": 0.01})):
+        files[name] = write(flat(mission("a", seed, speed=2.0, duration=90.0, start_speed=0.0),
+                                 dvl=DvlConfig(beam_angle_deg=20.0, **dvl)),
+                            tmp_path / f"{name}.h5")
+    run = tmp_path / "run"
+    train(files["train"], TrainConfig(model="v2", epochs=1), run, progress=False)
+    _, checkpoint = load(run)
+    assert sensor_setup(files["seed"])["a"]["dvl_scale_factor"] != \
+        checkpoint["sensors"]["a"]["dvl_scale_factor"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SensorSetupWarning)
+        check_sensors(run, checkpoint, files["seed"])
+    with pytest.warns(SensorSetupWarning, match="its DVL error model differs"):
+        check_sensors(run, checkpoint, files["other"])
+
+
 def test_a_run_from_before_the_sensor_record_is_evaluated_with_a_warning(
         run, data, tmp_path, capsys):
     old = tmp_path / "old"
