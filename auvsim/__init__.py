@@ -31,6 +31,7 @@ __version__ = "0.1.0"
 # ``import auvsim`` stays light (MuJoCo and numba load with the first name that needs them).
 _PUBLIC = {
     "Config": "auvsim.config", "ScenarioConfig": "auvsim.config",
+    "load_config": "auvsim.config",
     "preset": "auvsim.runs.presets", "generate": "auvsim.runs.generate",
     "open_dataset": "auvsim.data.reader",
     "Vehicle": "auvsim.physics.vehicle", "Seafloor": "auvsim.world.seafloor",

@@ -13,7 +13,7 @@ import threading
 from pathlib import Path
 
 from auvsim.cli_support import exit_with, run_command
-from auvsim.config import SCENARIOS, Config, ScenarioConfig
+from auvsim.config import SCENARIOS, Config, ScenarioConfig, load_config
 from auvsim.errors import ConfigError, OneLineErrorParser
 
 DESCRIPTION = """Simulate a torpedo-shaped AUV with MuJoCo and write what its DVL, IMU and
@@ -438,46 +438,12 @@ def _file_out(path: str) -> Path:
     return Path(path)
 
 
-def _load_toml(path: Path) -> Config:
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise ConfigError(f"--config {str(path)!r}: no such file") from None
-    except OSError as e:
-        raise ConfigError(f"--config {str(path)!r}: cannot read it ({e.strerror})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise ConfigError(f"--config {str(path)!r}: not valid TOML ({e})") from None
-    except RecursionError:  # the parser recurses once per level of arrays or tables
-        raise ConfigError(f"--config {str(path)!r}: not valid TOML (arrays or tables nested "
-                          "too deeply to read)") from None
-    floor = data.get("seafloor")
-    for key, what in (("heightmap", "a .npy file"), ("grid", "a GeoTIFF or NetCDF file")):
-        if not (isinstance(floor, dict) and isinstance(floor.get(key), str)):
-            continue
-        # A heightmap or grid named in a config file is found next to that file.
-        try:
-            floor[key] = str((path.parent / Path(floor[key]).expanduser()).resolve())
-        except (RuntimeError, ValueError, OSError) as e:  # ~nobody, a NUL byte, a loop
-            raise ConfigError(f"seafloor.{key}: expected a path to {what}, got "
-                              f"{floor[key][:200]!r} ({e})") from None
-    try:
-        return Config.from_dict(data)
-    except RecursionError:  # a deep value in a field that Python walks (its repr, say)
-        raise ConfigError(f"--config {str(path)!r}: a setting is arrays or tables nested too "
-                          "deeply to read") from None
-
-
 def build_config(args: argparse.Namespace) -> Config:
     """The config a ``generate`` command line asks for."""
     from auvsim.runs.presets import DEFAULT_PRESET, preset
 
     if args.config is not None:
-        config = _load_toml(args.config)
+        config = load_config(args.config)
     else:
         config = preset(args.preset or DEFAULT_PRESET)
     overrides = {name: getattr(args, flag) for flag, (name, _) in _SCENARIO_FLAGS.items()

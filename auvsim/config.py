@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import reprlib
 from dataclasses import dataclass, field
 
@@ -1031,3 +1032,49 @@ def _vector(name: str, value, n: int) -> tuple[float, ...]:
     _check(len(out) == n and all(math.isfinite(v) for v in out), name,
            f"{n} finite numbers", value)
     return out
+
+
+def load_config(config: str | os.PathLike) -> Config:
+    """The ``Config`` of a TOML file (what ``auvsim generate --config`` reads): a heightmap
+    or grid it names is found next to the file.
+
+    Raises:
+        ConfigError: the file is missing, unreadable or not TOML, or a setting is wrong
+            (one line each).
+    """
+    import sys
+    from pathlib import Path
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    path = Path(config)
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"{str(path)!r}: no such file", argument="config") from None
+    except OSError as e:
+        raise ConfigError(f"{str(path)!r}: cannot read it ({e.strerror})",
+                          argument="config") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{str(path)!r}: not valid TOML ({e})", argument="config") from None
+    except RecursionError:  # the parser recurses once per level of arrays or tables
+        raise ConfigError(f"{str(path)!r}: not valid TOML (arrays or tables nested too "
+                          "deeply to read)", argument="config") from None
+    floor = data.get("seafloor")
+    for key, what in (("heightmap", "a .npy file"), ("grid", "a GeoTIFF or NetCDF file")):
+        if not (isinstance(floor, dict) and isinstance(floor.get(key), str)):
+            continue
+        # A heightmap or grid named in a config file is found next to that file.
+        try:
+            floor[key] = str((path.parent / Path(floor[key]).expanduser()).resolve())
+        except (RuntimeError, ValueError, OSError) as e:  # ~nobody, a NUL byte, a loop
+            raise ConfigError(f"seafloor.{key}: expected a path to {what}, got "
+                              f"{floor[key][:200]!r} ({e})") from None
+    try:
+        return Config.from_dict(data)
+    except RecursionError:  # a deep value in a field that Python walks (its repr, say)
+        raise ConfigError(f"{str(path)!r}: a setting is arrays or tables nested too deeply "
+                          "to read", argument="config") from None

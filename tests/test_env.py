@@ -156,11 +156,24 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
     (dict(max_episode_seconds="20"), "max_episode_seconds: expected a positive number"),
     (dict(frame_skip=True), "frame_skip: expected a whole number >= 1"),
     (dict(frame_skip=2.5), "frame_skip: expected a whole number >= 1"),
-    (dict(config="paper-sim"), "config: expected an auvsim Config"),
+    (dict(config=20), "config: expected an auvsim Config"),
+    (dict(config="nosuch.toml"), "config 'nosuch.toml': no such file"),
 ])
 def test_bad_environment_settings_are_refused_by_name(settings, said):
     with pytest.raises(ConfigError, match=said):
         AuvEnv(**settings)
+
+
+def test_the_config_may_be_a_presets_name_or_a_toml_file(tmp_path):
+    """As ``auvsim generate`` takes them: a preset's name, or a TOML file (read by
+    ``auvsim.load_config``), each the same config as its Config."""
+    from auvsim import load_config, preset
+
+    assert AuvEnv(config="navigator").config == preset("navigator")
+    toml = tmp_path / "mine.toml"
+    toml.write_text('[dvl]\nbeam_angle_deg = 25.0\n\n[[missions]]\nname = "m"\n')
+    env = AuvEnv(config=toml)
+    assert env.config == load_config(str(toml)) and env.config.dvl.beam_angle_deg == 25.0
 
 
 def test_a_policy_refuses_a_speed_its_vehicle_cannot_hold():

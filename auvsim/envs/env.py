@@ -100,13 +100,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 from auvsim.checks import is_finite
-from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig
+from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig, load_config
 from auvsim.data.reader import Block
 from auvsim.data.schema import phases_json
 from auvsim.data.writer import DatasetWriter, check_mission_name, check_output_path
@@ -115,7 +116,7 @@ from auvsim.physics.control import autopilot
 from auvsim.physics.frames import EULER, STATE
 from auvsim.physics.maneuvers import Maneuver, check_scenario, make_maneuver
 from auvsim.runs.mission import MissionRun, check_reachable
-from auvsim.runs.presets import preset
+from auvsim.runs.presets import PRESETS, preset
 
 G0 = 9.80665  # m/s^2
 # Observation bounds (module docstring): specific force, angular rate, beams, lock, depth.
@@ -152,9 +153,11 @@ class AuvEnv(gym.Env):
     action and observation tables).
 
     Args:
-        config: vehicle, seafloor and sensors (default: the ``paper-sim`` preset's: flat
-            floor 60 m deep, 20 deg beams at 1 Hz, navigation-grade IMU at 100 Hz). Its
-            first mission's scenario sets the start: speed, heading and depth.
+        config: vehicle, seafloor and sensors: a ``Config``, a preset's name, or a TOML
+            file's path (as ``auvsim generate --config`` reads it: ``auvsim.load_config``;
+            default: the ``paper-sim`` preset's: flat floor 60 m deep, 20 deg beams at 1
+            Hz, navigation-grade IMU at 100 Hz). Its first mission's scenario sets the
+            start: speed, heading and depth.
         frame_skip: physics steps per environment step (10: dt = 0.1 s).
         max_episode_seconds: truncation time, s.
     """
@@ -163,11 +166,15 @@ class AuvEnv(gym.Env):
 
     def __init__(self, config: Config | None = None, *, frame_skip: int = 10,
                  max_episode_seconds: float = 600.0) -> None:
+        if isinstance(config, str) and config in PRESETS:  # a preset's name
+            config = preset(config)
+        elif isinstance(config, (str, os.PathLike)):  # a TOML file, as generate --config
+            config = load_config(config)
         self.config = preset("paper-sim") if config is None else config
         if not isinstance(self.config, Config):
             raise ConfigError(f"config: expected an auvsim Config (auvsim.runs.presets.preset"
-                              f"(NAME), or auvsim.config.load_config(FILE)), got "
-                              f"{type(config).__name__} {config!r}")
+                              f"(NAME), or auvsim.load_config(FILE)), a preset's name or a TOML "
+                              f"file's path, got {type(config).__name__} {config!r}")
         # numpy scalars as the Python numbers they hold (np.bool_ as a bool: refused)
         frame_skip, max_episode_seconds = (x.item() if isinstance(x, np.generic) else x
                                            for x in (frame_skip, max_episode_seconds))
