@@ -156,7 +156,8 @@ def _parser() -> argparse.ArgumentParser:
     ev.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     runnable = [s for s in specs() if s.kind != "network"]
     es = command("estimate", "run one model-based estimator or filter over every ping of a "
-                 "dataset")
+                 "dataset (from each mission's fourth: every estimator is scored on the pings "
+                 "that have three before them)")
     es.add_argument("dataset", type=Path, help="auvsim dataset to estimate on")
     es.add_argument("--estimator", required=True, metavar="NAME",
                     help="its name in the tables (case, spaces and punctuation do not matter): "

@@ -221,7 +221,7 @@ def _check_each_has_samples(path, group, names: Sequence[str], parts: list[dict]
         else:
             why = f"no ping has all {n_past + 1} beam epochs valid (bottom lock)"
         raise DataError(f"{path}: mission {name}: {why}, so it gives no samples; expected "
-                        "DVL data to use (pass missions= without it)")
+                        "DVL data to use (or leave the mission out)")
 
 
 def check_dataset(path: str | os.PathLike, *, argument: str,

@@ -520,7 +520,8 @@ TRAIN_FRACTION = 0.75  # ``estimate``'s training split of a file (the paper's 75
 
 def estimate(name: str, dataset: str | Path, out: str | Path, *,
              train: str | Path | None = None, filter_config=None) -> dict:
-    """Run one model-based estimator over every ping of ``dataset`` and write its
+    """Run one model-based estimator over every ping of ``dataset`` (from each mission's
+    fourth: every estimator is scored on the pings with three past pings) and write its
     velocity (and position, for a filter) beside the truth: ``out/estimates.csv``, and
     ``out/summary.json`` with its availability, vector RMSE and position scores per
     mission (``navigation_scores``: its own position, or its velocity dead-reckoned; and

@@ -56,7 +56,7 @@ def test_full_disk_generate_one_file(tmp_path, capsys, monkeypatch):
     assert cli.main(["generate", *SHORT, "--out", str(out)]) == 2
     _one_line(capsys, "auvsim: error: ", str(out), "No space left on device",
               "free some space")
-    assert [p.name for p in (tmp_path / "out").iterdir()] == []
+    assert list(tmp_path.iterdir()) == []  # the folder made for it goes too
 
 
 def test_full_disk_as_the_file_is_made(tmp_path, capsys, monkeypatch):
@@ -209,9 +209,15 @@ def test_ctrl_c_before_the_rename_leaves_nothing(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(writer.h5py.File, "close", close)
     assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.h5")]) == 130
+    # Into folders it made for the file: they go too, as the file did.
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "new" / "sub" / "x.h5")]) \
+        == 130
     monkeypatch.undo()
-    assert capsys.readouterr().err == "auvsim: interrupted; nothing was written\n"
+    assert capsys.readouterr().err == "auvsim: interrupted; nothing was written\n" * 2
     assert list(tmp_path.iterdir()) == []
+    # A dataset written whole into a folder made for it stays, folder and all.
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "kept" / "x.h5")]) == 0
+    assert os.listdir(tmp_path / "kept") == ["x.h5"]
 
 
 def test_ctrl_c_names_the_models_its_workers_finished(small, tmp_path, capsys):

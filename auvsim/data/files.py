@@ -28,6 +28,7 @@ delivers them after the step.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import os
@@ -276,6 +277,20 @@ def check_out_file(out: str | os.PathLike) -> Path:
     return out
 
 
+def make_parent_dirs(folder: Path) -> None:
+    """Make ``folder`` (and its parents) for a file to be written into it; inside
+    ``all_or_nothing``, a failure removes again the folders made here that are left empty
+    (a dataset written whole into one stays: a cache for the next run).
+
+    Raises:
+        OSError: the folder cannot be made.
+    """
+    made = [p for p in (folder, *folder.parents) if not p.exists()]  # innermost first
+    folder.mkdir(parents=True, exist_ok=True)
+    for scope in _scopes:
+        scope.parents += made
+
+
 def make_out_dir(out: Path, *, whole: bool = True) -> None:
     """Make the directory ``out`` (and its parents), or raise ConfigError naming it.
 
@@ -309,6 +324,8 @@ class Outputs:
     Attributes:
         folders: the output folders it made or wrote into (``make_out_dir``).
         made: the outermost folders it made.
+        parents: the folders made for a file written into them (``make_parent_dirs``),
+            innermost first: removed on failure where left empty.
         written: the files it wrote whole (``commit``), in order.
         removed: those it removed again on failure.
         finished: what its workers finished whole and it keeps whatever follows (a
@@ -317,6 +334,7 @@ class Outputs:
 
     folders: list[Path] = field(default_factory=list)
     made: list[Path] = field(default_factory=list)
+    parents: list[Path] = field(default_factory=list)
     written: list[Path] = field(default_factory=list)
     removed: list[Path] = field(default_factory=list)
     finished: list[Path] = field(default_factory=list)
@@ -373,6 +391,9 @@ def _roll_back(scope: Outputs) -> None:
         for folder in reversed(scope.made):
             scope.removed += [p for p in scope.written if folder in p.parents]
             shutil.rmtree(folder, ignore_errors=True)
+        for folder in scope.parents:
+            with contextlib.suppress(OSError):  # not empty: a file written whole stays
+                folder.rmdir()
         for outer in _scopes:
             if outer is not scope:
                 outer.removed += scope.removed

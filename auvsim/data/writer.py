@@ -17,7 +17,15 @@ import h5py
 import numpy as np
 
 from auvsim import __version__
-from auvsim.data.files import Claim, commit, interrupts_held, is_write_error, output_error, writing
+from auvsim.data.files import (
+    Claim,
+    commit,
+    interrupts_held,
+    is_write_error,
+    make_parent_dirs,
+    output_error,
+    writing,
+)
 from auvsim.data.schema import FORMAT, FORMAT_VERSION, data_digest
 from auvsim.errors import ConfigError
 
@@ -102,7 +110,7 @@ class DatasetWriter:
         self.filters = COMPRESSION[compression]
         try:
             check_writable_path(self.path, argument)
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            make_parent_dirs(self.path.parent)  # removed on failure, if left empty
             # Temporaries of killed runs in this folder go first (``files.sweep``).
             self.claim = Claim(self.path)
         except OSError as e:
