@@ -43,7 +43,8 @@ FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--miss
          "allow_mismatch": "--allow-mismatch", "faults": "--faults",
          "fault_duration": "--fault-duration", "fault_missions": "--fault-mission",
          "seeds": "--seeds", "duration": "--duration", "noise": "--noise",
-         "estimator": "--estimator", "train": "--train", "protocol": "--protocol",
+         "estimator": "--estimator", "train": "--train", "datasets": "DATASET",
+         "protocol": "--protocol",
          "mask_rate": "--mask-rate", "imu": "--imu", "cluster": "--cluster",
          "refresh_reports": "--refresh-reports", "train_duration": "--train-duration",
          "maneuver_duration": "--maneuver-duration", "filter_config": "--filter-config"}
@@ -466,6 +467,7 @@ def _reproduce(args) -> None:
 MADE_BESIDE = ("its datasets are in datasets/ (but one --data names) and its trained models "
                "under runs/ (each reused by a run of the same settings on the same data, and "
                "trained again in its place otherwise)")
+STRESS_MADE_BESIDE = MADE_BESIDE.replace("--data", "--train or --maneuvers")
 
 
 def _stress(args) -> None:
@@ -484,7 +486,7 @@ def _stress(args) -> None:
                     else tuple(args.fault_missions), noise=args.noise,
                     progress=not args.quiet, cluster=args.cluster)
     print(f"wrote {report} and its figures")
-    print(MADE_BESIDE)
+    print(STRESS_MADE_BESIDE)
 
 
 # The commands whose --out folder a user names and may name again: each says which files

@@ -58,7 +58,7 @@ def test_other_beams_are_refused_unless_allowed(run, data, tmp_path, capsys):
     out = tmp_path / "report"
     assert main(["evaluate", str(run), str(data["wide"]), "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"beamsnet: error: datasets "
+    assert err.count("\n") == 1 and err.startswith(f"beamsnet: error: DATASET "
                                                    f"'{data['wide']}': its sensors differ")
     assert f"run '{run}'" in err and "beam_angle_deg 30 (mission a) against 20;" in err
     # Named by its flag, as the user can give it.

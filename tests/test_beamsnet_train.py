@@ -130,8 +130,8 @@ def test_polyak_averaging_keeps_the_mean_of_the_last_epochs_weights(scale_only, 
     with pytest.raises(ConfigError, match="average_epochs") as refused:
         TrainConfig(epochs=3, average_epochs=4)
     assert refused.value.argument == "average_epochs"
-    with pytest.raises(ConfigError, match=r"expected False for v2 \(only corr takes the IMU "
-                       r"as an option; the others always or never\), got True"):
+    with pytest.raises(ConfigError, match=r"expected it off \(False\) for v2 \(only corr "
+                       r"takes the IMU as an option; the others always or never\), got True"):
         TrainConfig(model="v2", imu=True)
 
 

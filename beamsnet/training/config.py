@@ -98,8 +98,8 @@ class TrainConfig:
               f"{MASK_RATE:g}), 0 for {' and '.join(unmasked)} (no masks)")
         optional = [k for k, m in known.items() if m.imu_option]
         check(isinstance(self.imu, bool) and (known[self.model].imu_option or not self.imu),
-              "imu", f"False for {self.model} (only {' or '.join(optional)} takes the IMU "
-              "as an option; the others always or never)")
+              "imu", f"it off (False) for {self.model} (only {' or '.join(optional)} takes "
+              "the IMU as an option; the others always or never)")
         for name in ("epochs", "batch_size", "n_past", "lr_step"):
             check(_whole(getattr(self, name), 1), name, "a whole number >= 1")
         check(_whole(self.average_epochs, 0) and self.average_epochs <= self.epochs,
