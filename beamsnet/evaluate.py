@@ -745,7 +745,10 @@ def consistency_words(row: dict) -> str:
     words."""
     if not math.isfinite(row.get("mean_nis", math.nan)):
         return "no innovation to test"
-    return (f"mean NIS {row['mean_nis']:.2f} (1 where its covariance is right), "
+    gated = row.get("gated_nis", math.nan)
+    return (f"mean NIS {row['mean_nis']:.2f} (1 where its covariance is right"
+            + (f"; {gated:.2f} with each capped at the gate, which an outlier moves little"
+               if math.isfinite(gated) else "") + "), "
             f"{row['windows_above']} of {row['windows']} windows of {CONSISTENCY_PINGS} pings "
             f"beyond the chi-square {100 * CONSISTENCY_PROBABILITY:g} % bound")
 

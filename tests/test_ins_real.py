@@ -358,6 +358,16 @@ def test_the_innovations_consistency_test_knows_a_right_and_a_wrong_covariance()
     assert wrong["mean_nis"] == pytest.approx(9.0, rel=0.03)
     assert wrong["windows_above"] == wrong["windows"]
     assert wrong["worst_time"] % ins.CONSISTENCY_PINGS == 0
+    # Capped at the gate, the mean is 1 where the covariance is right, and one outlier of
+    # a thousand sigma (nu^2 / S = 1e6), which the plain mean takes to 17, moves it by at
+    # most the gate over the count; a covariance three times too small still shows.
+    assert right["gated_nis"] == pytest.approx(1.0, abs=0.02)
+    nu[100, 0] = 1000 * math.sqrt(var[100, 0])
+    one = ins.innovation_consistency(Fields(innovation=nu, innovation_var=var,
+                                            ping_time=track.ping_time))
+    assert one["mean_nis"] > 15 and one["gated_nis"] == pytest.approx(right["gated_nis"],
+                                                                      abs=1e-3)
+    assert wrong["gated_nis"] > 3
 
 
 @pytest.mark.parametrize("text, said", [

@@ -2011,13 +2011,21 @@ def innovation_consistency(track: FilterTrack, window: int = CONSISTENCY_PINGS,
     consecutive windows of ``window`` pings, each chi-square with as many degrees of
     freedom as measurements where the filter's model holds (Bar-Shalom, Li and
     Kirubarajan 2001, sec. 5.4: the NIS test). Returns ``mean_nis`` (1 where the
-    covariance is right; NaN without innovations), ``windows``, ``windows_above`` (sums
-    beyond their ``probability`` quantile) and ``worst_time`` (s, the first ping of the
-    window furthest beyond it; NaN if none is)."""
+    covariance is right; NaN without innovations), ``gated_nis`` (the mean of each NIS
+    capped at the default gate's chi-square quantile, over what that cap keeps of a
+    consistent filter's, ``_gated_variance_share``: 1 where the covariance is right too,
+    and an outlier the gate rejected moves it by at most the gate over the count, where
+    one of 0.3 m/s takes the plain mean to a hundred), ``windows``, ``windows_above``
+    (sums beyond their ``probability`` quantile) and ``worst_time`` (s, the first ping of
+    the window furthest beyond it; NaN if none is)."""
     nis = (np.asarray(track.innovation, dtype=float) ** 2
            / np.asarray(track.innovation_var, dtype=float))
     offered = np.isfinite(nis)
+    gate = chi2_1dof(FilterConfig.gate_probability)
+    capped = np.minimum(nis[offered], gate)
     out = dict(mean_nis=float(nis[offered].mean()) if offered.any() else math.nan,
+               gated_nis=(float(capped.mean()) / _gated_variance_share(
+                   FilterConfig.gate_probability) if offered.any() else math.nan),
                windows=0, windows_above=0, worst_time=math.nan)
     worst = 1.0
     for start in range(0, len(nis) - window + 1, window):
