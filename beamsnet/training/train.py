@@ -259,7 +259,8 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
     with staged_dir(out) as stage:  # the whole run or nothing (a full disk, Ctrl-C)
         torch.save(checkpoint, stage / "model.pt")
         write_text(stage / "history.json", json.dumps(history, indent=1))
-        _plot_losses(history, stage / "losses.png", config)
+        _plot_losses(history, stage / "losses.png", config,
+                     final=(final_train_loss, final_test_loss))
     return dict(checkpoint=str(out / "model.pt"), plot=str(out / "losses.png"),
                 history=history,
                 seconds=seconds, samples_per_second=config.epochs * n / seconds,
@@ -274,7 +275,12 @@ def _diverged(config: TrainConfig, loss: float, where: str) -> DivergedError:
 
 
 
-def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
+def _plot_losses(history: dict, path: Path, config: TrainConfig, *,
+                 final: tuple[float, float] | None = None) -> Path:
+    """The losses per epoch: training as its steps saw it (each batch's loss as the
+    weights moved, with dropout and masks), the test split's at the epoch's last weights,
+    and, at the last epoch, the saved weights' on both (``final``: averaged over the last
+    epochs where ``average_epochs``; what ``train`` prints)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -283,8 +289,12 @@ def _plot_losses(history: dict, path: Path, config: TrainConfig) -> Path:
 
     fig, ax = plt.subplots(figsize=(7.5, 4), layout="constrained")
     epochs = np.arange(1, len(history["train"]) + 1)
-    ax.semilogy(epochs, history["train"], label="training")
-    ax.semilogy(epochs, history["test"], label="test split")
+    ax.semilogy(epochs, history["train"], label="training, over the epoch's steps")
+    ax.semilogy(epochs, history["test"], label="test split, at the epoch's end")
+    if final is not None:
+        for loss, marker, what in zip(final, "os", ("training", "test split"), strict=True):
+            ax.semilogy([epochs[-1]], [loss], marker, color="k", fillstyle="none",
+                        label=f"the saved weights: {what}")
     ax.set_xlabel("epoch")
     ax.set_ylabel("MSE loss, (m/s)^2")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # epochs are whole
