@@ -1006,13 +1006,25 @@ def _from_dict(cls, d, path: str):
         if cls is Config and key == "missions":
             if not isinstance(value, (list, tuple)):
                 raise ConfigError(f"{path}.missions: expected a list of missions, got {value!r}")
-            kwargs[key] = tuple(_from_dict(MissionConfig, m, f"{path}.missions[{i}]")
+            kwargs[key] = tuple(_mission_from_dict(m, f"{path}.missions[{i}]")
                                 for i, m in enumerate(value))
         elif (cls, key) in _NESTED:
             kwargs[key] = _from_dict(_NESTED[cls, key], value, f"{path}.{key}")
         else:
             kwargs[key] = tuple(value) if isinstance(value, list) else value
     return cls(**kwargs)
+
+
+def _mission_from_dict(d, path: str) -> MissionConfig:
+    """A mission's settings, whose errors say which mission (of several in a file)."""
+    try:
+        return _from_dict(MissionConfig, d, path)
+    except ConfigError as e:
+        if str(e).startswith(path):
+            raise
+        name = d.get("name") if isinstance(d, dict) else None
+        raise ConfigError(f"{path}" + (f" ({name!r})" if isinstance(name, str) else "")
+                          + f": {e}") from None
 
 
 def _series(name: str, value) -> tuple[float, ...]:

@@ -401,7 +401,8 @@ def test_evaluate_on_a_recorded_mission_adds_the_position_scores(tmp_path, capsy
     assert ("INS/DVL, what its divergence watch saw (a restart when its gate keeps "
             "rejecting the measurements): trajectory1 100.0 % of the mission's pings "
             f"accepted, no restart, mean NIS {watch['mean_nis']:.2f} (1 where its covariance "
-            "is right), 0 of 12 windows of 10 pings beyond the chi-square 99.9 % "
+            f"is right; {watch['gated_nis']:.2f} with each capped at the gate, which an "
+            "outlier moves little), 0 of 12 windows of 10 pings beyond the chi-square 99.9 % "
             "bound.") in (tmp_path / "ev" / "evaluation.md").read_text()
 
 
