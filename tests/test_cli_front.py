@@ -466,3 +466,13 @@ def test_kill_9_mid_training_leaves_no_worker_training_on(small, tmp_path):
         with contextlib.suppress(ProcessLookupError):  # none is left, as it should be
             os.killpg(proc.pid, signal.SIGKILL)
     assert alive == [], [p.cmdline() for p in alive]
+
+
+def test_a_dataset_is_not_written_under_another_formats_name(tmp_path, capsys):
+    """``--out x.csv`` would be HDF5 under a CSV's name: refused in one line, nothing
+    written; a .h5 or any other name is a dataset's."""
+    for name in ("x.csv", "x.json", "x.CSV"):
+        assert cli.main(["generate", *SHORT, "--out", str(tmp_path / name)]) == 2
+        _one_line(capsys, "name for an HDF5 dataset; expected a .h5 name")
+    assert list(tmp_path.iterdir()) == []
+    assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.hdf5")]) == 0

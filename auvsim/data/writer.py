@@ -69,6 +69,12 @@ def check_writable_path(path: Path, argument: str = "out", *, hint: str = "") ->
                           "expected a path in a folder", argument=argument)
 
 
+# Names of files in other formats, which a dataset is written under by mistake only (a
+# user who asked for CSV would get HDF5 under a .csv name): refused as an output's name.
+OTHER_FORMATS = {".csv", ".txt", ".json", ".toml", ".md", ".png", ".npy", ".npz", ".pt",
+                 ".mcap", ".pd0", ".nc", ".tif", ".tiff"}
+
+
 def check_output_path(path: str | os.PathLike, argument: str = "out", *,
                       hint: str = "") -> Path:
     """A user's output path for a dataset file, checked before a command's work: what
@@ -90,6 +96,9 @@ def check_output_path(path: str | os.PathLike, argument: str = "out", *,
                 raise ConfigError(f"{str(path)!r}: a file that is not HDF5 is there; "
                                   "expected a new path, or a dataset to replace",
                                   argument=argument)
+    if path.suffix.lower() in OTHER_FORMATS:
+        raise ConfigError(f"{str(path)!r}: a {path.suffix} name for an HDF5 dataset; "
+                          f"expected a .h5 name{hint}", argument=argument)
     return path
 
 
