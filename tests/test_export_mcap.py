@@ -522,6 +522,13 @@ def test_a_recorded_mission_exports_its_reference_never_a_truth(tmp_path):
         dvl = [msg for _, msg in topics["/dvl/data"]]
         np.testing.assert_array_equal(vec(x.velocity for x in dvl), m.dvl.velocity_ls)
         assert not dvl[0].beam_velocities_valid  # A-KIT logs no beams
+        # ... but a velocity, known to the instrument's stated accuracy (0.02 m/s for the
+        # Navigator): not the "no velocity" marker
+        accuracy = m.attrs["dvl_velocity_accuracy"]
+        assert accuracy > 0
+        for x in dvl:
+            np.testing.assert_allclose(np.reshape(x.velocity_covar, (3, 3)),
+                                       accuracy**2 * np.eye(3))
 
 
 @pytest.mark.parametrize("to, option, value", [("mcap", "--coordinates", "beam"),

@@ -73,7 +73,10 @@ def ping_errors(mission) -> PingErrors:
     flagged = dvl.valid if "valid" in dvl else np.isfinite(beams)
     measured = usable_beams(flagged, beams)
     velocity = np.asarray(dvl.velocity_ls, dtype=float)
-    has_velocity = np.isfinite(velocity).all(axis=1) & (measured.sum(axis=1) >= 3)
+    # A log without beams (the instrument's velocity alone: an A-KIT log, a PD0 file in
+    # instrument coordinates) has a velocity wherever it logged one.
+    has_velocity = np.isfinite(velocity).all(axis=1) & (
+        (measured.sum(axis=1) >= 3) if "beam_velocity" in dvl else True)
     mode = np.asarray(dvl.mode) if "mode" in dvl \
         else np.where(has_velocity, int(Mode.BOTTOM_TRACK), int(Mode.NO_VELOCITY))
     bottom = mode == int(Mode.BOTTOM_TRACK)
