@@ -256,6 +256,7 @@ def test_the_first_failure_stops_the_run(tmp_path, capsys):
 @pytest.mark.parametrize("address, said", [
     ("nonsense", "--cluster 'nonsense': not a cluster address; expected local:N"),
     ("local:0", "--cluster 'local:0': expected at least one worker"),
+    ("127.0.0.1:99999", "--cluster '127.0.0.1:99999': port 99999 is not a TCP port"),
     ("tcp://127.0.0.1:9", "--cluster 'tcp://127.0.0.1:9': no Dask scheduler answered "
      "within 2 s"),
 ])
@@ -288,6 +289,33 @@ def test_a_peer_that_never_answers_is_given_up_on(tmp_path, monkeypatch):
         with executor(f"tcp://127.0.0.1:{server.getsockname()[1]}", timeout=1):
             pass
     assert time.perf_counter() - started < 15
+    server.close()
+
+
+def test_a_peer_that_answers_in_another_protocol_is_named_so(tmp_path, monkeypatch):
+    """A web server where the scheduler was expected (its dashboard's port, say): its
+    reply reads as no Dask message, and the line says something answered, not that
+    nothing did."""
+    import socket
+    import threading
+
+    from auvsim.runs.cluster import executor
+
+    server = socket.create_server(("127.0.0.1", 0))
+
+    def answer() -> None:
+        conn, _ = server.accept()
+        conn.recv(1024)
+        conn.sendall(b"HTTP/1.0 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 64)
+        time.sleep(3)
+        conn.close()
+
+    threading.Thread(target=answer, daemon=True).start()
+    with pytest.raises(ConfigError, match="something answered there, but not as a Dask "
+                                          "scheduler") as said:
+        with executor(f"tcp://127.0.0.1:{server.getsockname()[1]}", timeout=2):
+            pass
+    assert "\n" not in str(said.value)
     server.close()
 
 

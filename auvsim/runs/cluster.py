@@ -63,6 +63,11 @@ def check_address(address: str) -> str:
     if local is None and not _REMOTE.fullmatch(address):
         raise ConfigError(f"{address!r}: not a cluster address; {EXPECTED} "
                           "(tcp://10.0.0.5:8786)", argument="cluster")
+    if local is None:
+        port = int(re.search(r":(\d+)/?$", address).group(1))
+        if not 1 <= port <= 65535:
+            raise ConfigError(f"{address!r}: port {port} is not a TCP port (1 to 65535); "
+                              f"{EXPECTED}", argument="cluster")
     return address
 
 
@@ -193,6 +198,12 @@ def _connect(distributed, address: str, timeout: float):
     error = made.get("error")
     reason = ("it accepted the connection but never answered as a Dask scheduler"
               if error is None else " ".join(str(error).split()) or type(error).__name__)
+    if error is not None and not isinstance(error, (OSError, TimeoutError)):
+        # A peer answered, in another protocol: its bytes read as no Dask message (an
+        # HTTP server's as a 3 EiB frame, say).
+        raise ConfigError(f"{address!r}: something answered there, but not as a Dask "
+                          f"scheduler ({reason[:200]}); {EXPECTED} (a scheduler listens on "
+                          "8786 by default, its dashboard on 8787)", argument="cluster")
     raise ConfigError(f"{address!r}: no Dask scheduler answered within {timeout:g} s "
                       f"({reason[:200]}); {EXPECTED}", argument="cluster")
 
