@@ -55,6 +55,13 @@ class DatasetError(AuvsimError):
     """A file is not an auvsim dataset, is corrupt, or has another format version."""
 
 
+class MissingFieldError(DatasetError, AttributeError):
+    """A dataset group has no field of the name asked for as an attribute
+    (``mission.dvl.beam_velocity`` of a log without beams): one line at a command line, as
+    any ``DatasetError``, and an ``AttributeError`` to ``hasattr`` and ``getattr``'s
+    default."""
+
+
 class OutputError(AuvsimError):
     """An output cannot be written: a full disk, a quota, a read-only or vanished folder."""
 

@@ -249,6 +249,17 @@ def test_reader_refuses_a_mission_missing_a_field(tmp_path, ideal_file):
     assert main(["inspect", str(broken)]) == 2
 
 
+def test_a_field_a_group_does_not_have_is_an_attribute_error_and_a_dataset_error(ideal_file):
+    """``hasattr(mission.dvl, "fields")`` is False, as Python's protocol asks, and reading
+    it names the file, the mission and the field in one line, as a ``DatasetError``."""
+    with open_dataset(ideal_file) as f:
+        dvl = f.missions["mission_000"].dvl
+        assert hasattr(dvl, "velocity") and not hasattr(dvl, "fields")
+        assert getattr(dvl, "fields", None) is None
+        with pytest.raises(DatasetError, match="mission_000.* has no field dvl/fields$"):
+            dvl.fields  # noqa: B018
+
+
 def test_a_file_opened_again_unchanged_is_not_checked_again(tmp_path, ideal_file, monkeypatch):
     """The per-mission check runs once per file as long as the file stays as it was (and
     was quiet when checked); changed in place, it is checked again and refused."""

@@ -33,7 +33,7 @@ from auvsim.data.schema import (
     recorded_schema,
     schema,
 )
-from auvsim.errors import ConfigError, DatasetError
+from auvsim.errors import ConfigError, DatasetError, MissingFieldError
 from auvsim.sensors.dvl import usable_beams
 
 if TYPE_CHECKING:
@@ -119,6 +119,9 @@ class Group:
     def __getattr__(self, field: str) -> np.ndarray:
         if field.startswith("_"):
             raise AttributeError(field)
+        if field not in self._mission._fields(self._name):
+            raise MissingFieldError(f"{self._mission._where} has no field "
+                                    f"{self._name}/{field}")
         return self._mission.read(f"{self._name}/{field}")
 
 
