@@ -364,7 +364,9 @@ def test_bad_input_one_line_exit_2(dataset, tmp_path):
             (["--mission", "nope"], "--mission 'nope': no such mission; expected one of a, b"),
             ([], "--mission: the dataset has 2 missions (a, b); expected one named"),
             (["--mission", "a", "--speed", "0"], "--speed expected a factor > 0"),
-            (["--mission", "a", "--port", "70000"], "--port expected a TCP port in [0, 65535]")):
+            (["--mission", "a", "--port", "70000"], "--port expected a TCP port in [0, 65535]"),
+            (["--mission", "a", "--host", "nosuchhost.invalid"],
+             "--host 'nosuchhost.invalid': not a host name or address here")):
         process = run_cli("serve", str(dataset), "--dvl", "a50", *args)
         out, err = process.communicate(timeout=60)
         assert process.returncode == 2 and len(err.splitlines()) == 1 and says in err, err

@@ -455,10 +455,13 @@ def _listen(host: str, port: int) -> socket.socket:
     """A listening socket, or a ConfigError naming the host or port that cannot be used."""
     try:
         return socket.create_server((host, port))  # SO_REUSEADDR: a closed port rebinds
-    except socket.gaierror as e:
-        raise ConfigError(f"{host[:80]!r}: not a host name or address here ({e.strerror}); "
-                          "expected one such as 127.0.0.1", argument="host") from None
     except OSError as e:
+        # A name that does not resolve: gaierror from getaddrinfo, or, from bind, an
+        # OSError with getaddrinfo's (negative) EAI code.
+        if isinstance(e, socket.gaierror) or (e.errno is not None and e.errno < 0):
+            raise ConfigError(f"{host[:80]!r}: not a host name or address here "
+                              f"({e.strerror}); expected one such as 127.0.0.1",
+                              argument="host") from None
         if e.errno == errno.EADDRINUSE:
             raise ConfigError(f"{port} is in use on {host}; expected a free port (another "
                               "server, or an A50 driver's simulator, holds it)",
