@@ -584,7 +584,7 @@ def test_an_output_path_a_user_gives(tmp_path):
     code, err = run_csv(folder, fifo)
     assert code == 2 and "not a regular file" in err, err
     code, err = run_csv(folder, tmp_path)
-    assert code == 2 and "is a directory: expected a file name\n" in err, err
+    assert code == 2 and "is a directory; expected a file name\n" in err, err
 
 
 def test_a_symlinked_log_keeps_its_links_name(tmp_path):

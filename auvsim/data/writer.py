@@ -61,7 +61,7 @@ def check_writable_path(path: Path, argument: str = "out", *, hint: str = "") ->
         ConfigError: naming ``argument``.
     """
     if path.is_dir():
-        raise ConfigError(f"{str(path)!r} is a directory: expected a file name{hint}",
+        raise ConfigError(f"{str(path)!r}: is a directory; expected a file name{hint}",
                           argument=argument)
     above = next((p for p in path.parents if p.exists()), None)
     if above is not None and not above.is_dir():
