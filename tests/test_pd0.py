@@ -290,6 +290,26 @@ def test_failures_are_counted_each_and_a_cut_off_tail_once(exported):
     assert found.ensembles == spans[:5] + spans[7:-1]
 
 
+def test_lengths_all_corrupt_and_a_clock_that_goes_back_are_said_so(exported, tmp_path):
+    """Every ensemble's length field corrupt: not a file cut off, but headers that frame
+    nothing whole. Two exports joined: the ensemble where the clock goes back is named,
+    not the count of them all."""
+    data = bytearray(exported["beam"].read_bytes())
+    spans = scan(bytes(data)).ensembles
+    for start, _ in spans:
+        data[start + 3] = 0xFF
+    path = tmp_path / "lengths.pd0"
+    path.write_bytes(bytes(data))
+    (code, out, err), h5 = import_file(path, tmp_path, name="lengths.h5")
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"none of its {len(spans)} headers frames one with a good checksum" in err, err
+    joined = tmp_path / "joined.pd0"
+    joined.write_bytes(exported["beam"].read_bytes() * 2)
+    (code, out, err), h5 = import_file(joined, tmp_path, name="joined.h5")
+    assert code == 2 and err.count("\n") == 1 and not h5.exists(), err
+    assert f"ensemble {len(spans) + 1} of {2 * len(spans)} is stamped" in err, err
+
+
 def test_truncated_file_skips_the_cut_ensemble(exported, hdf5, tmp_path):
     def cut(data, spans):
         del data[spans[-1][0] + 100:]

@@ -342,6 +342,11 @@ def scan(data: bytes, *, where: str = "PD0 file") -> Scan:
     if cut is not None:  # what failed from there on is the cut-off ensemble's
         bad = cut
     if not good:
+        headers = data.count(HEADER_ID)
+        if headers > 1:
+            raise ConfigError(f"{where}: no whole ensemble: none of its {headers} headers "
+                              "frames one with a good checksum (lengths or checksums "
+                              "corrupt); expected a Teledyne RDI PD0 file")
         what = "fails its checksum" if bad else "is cut off"
         raise ConfigError(f"{where}: no whole ensemble (its first {what}); expected a "
                           "Teledyne RDI PD0 file")
@@ -563,9 +568,15 @@ def import_pd0(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
     if len(set(names)) != len(names):
         raise ConfigError(f"mission names must differ, got {names}; rename a file")
     for (path, log) in logs:
-        if len(log.time) < 2 or np.any(np.diff(log.time) <= 0):
-            raise ConfigError(f"{str(path)!r}: {len(log.time)} ensembles whose clock does not "
-                              "increase; expected a stream of pings")
+        if len(log.time) < 2:
+            raise ConfigError(f"{str(path)!r}: {len(log.time)} whole ensemble(s); expected a "
+                              "stream of pings (at least 2)")
+        back = np.flatnonzero(np.diff(log.time) <= 0)
+        if len(back):
+            k = int(back[0])
+            raise ConfigError(f"{str(path)!r}: ensemble {k + 2} of {len(log.time)} is stamped "
+                              f"{log.time[k + 1] - log.time[k]:+.2f} s after the one before; "
+                              "expected a clock that increases (two files joined?)")
     lat, lon, height = spec["origin"]
     settings = dict(format="pd0", sources=[str(s) for s in sources],
                     description=str(description))
