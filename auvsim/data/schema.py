@@ -74,7 +74,7 @@ RECORDED_SINCE = 7  # the first version with recorded missions
 CORE_FIELDS = (
     Field("truth/time", (), "f", "imu", "s", "at the IMU rate"),
     Field("truth/position_ned", (3,), "f", "imu", "m", "body origin"),
-    Field("truth/velocity_ned", (3,), "f", "imu", "m/s", ""),
+    Field("truth/velocity_ned", (3,), "f", "imu", "m/s", "body origin, over the ground"),
     Field("truth/velocity_body", (3,), "f", "imu", "m/s", "at the vehicle origin"),
     Field("truth/quaternion", (4,), "f", "imu", "-", "body -> NED, [w, x, y, z]"),
     Field("truth/angular_rate", (3,), "f", "imu", "rad/s", "body"),
