@@ -31,15 +31,16 @@ to the instrument, X, Y, Z, error: ``-R v`` with ``R`` auvsim's DVL frame -> RDI
 (``RDI_FROM_DVL``), and RDI's error velocity is minus auvsim's (whose beam pairs are
 numbered the other way: ``auvsim.data.beams.error_velocity``).
 
-What is written: the simulated-data flag set; 600 kHz, convex, down-facing, 4-beam Janus,
-the mission's beam angle; no water profile (0 cells), bottom track only; no attitude,
-depth or temperature sensor (the sensor-source byte 0; their fields 0); sound speed
-1500 m/s. A bottom-track range is the vertical range from the instrument (the slant range
-times the beam angle's cosine), cm; a beam without bottom lock, or a ping not in bottom
-track (a water-track ping: auvsim does not write the reference layer), has range 0,
-velocity -32768 and percent good 0; a measured beam percent good 100. Correlation and
-amplitude are not simulated: 0, with the screening thresholds (BC, BA, BE) 0. Clocks
-start at 2000-01-01 00:00:00 UTC, in hundredths of a second.
+What is written: the simulated-data flag set for a simulated mission (not for a recorded
+one); 600 kHz, convex, down-facing, 4-beam Janus, the mission's beam angle; no water
+profile (0 cells), bottom track only; no attitude, depth or temperature sensor (the
+sensor-source byte 0; their fields 0); sound speed 1500 m/s. A bottom-track range is the
+vertical range from the instrument (the slant range times the beam angle's cosine), cm; a
+beam without bottom lock, or a ping not in bottom track (a water-track ping: auvsim does
+not write the reference layer), has range 0, velocity -32768 and percent good 0; a measured
+beam percent good 100. Correlation and amplitude are not simulated: 0, with the screening
+thresholds (BC, BA, BE) 0. Clocks start at 2000-01-01 00:00:00 UTC, in hundredths of a
+second.
 
 Reading: ``scan`` frames the file itself (every ensemble's length and checksum, its data
 types and fixed leader) and refuses, in one line, a file that is not PD0 or is another
@@ -122,6 +123,7 @@ class Pings:
         bottom: (N,) bool, the ping is in bottom track.
         beam_angle_deg: the beams' angle from the DVL's axis.
         max_range: m, the bottom track's maximum (0: not stated).
+        simulated: the pings are a simulator's (PD0's simulated-data flag), not a log's.
     """
 
     time: np.ndarray
@@ -132,6 +134,7 @@ class Pings:
     bottom: np.ndarray
     beam_angle_deg: float
     max_range: float = 0.0
+    simulated: bool = True
 
 
 def encode(pings: Pings, *, coordinates: str = "beam") -> bytes:
@@ -166,7 +169,7 @@ def encode(pings: Pings, *, coordinates: str = "beam") -> bytes:
     vertical = np.where(ok, np.round(pings.beam_range * cos * 100), 0)
     ranges = np.clip(vertical, 0, 2**24 - 1).astype(np.int64)[:, RDI_BEAM]
     good = np.where(ok, 100, 0)[:, RDI_BEAM]
-    fixed = _fixed_leader(angle, coordinates)
+    fixed = _fixed_leader(angle, coordinates, pings.simulated)
     offsets = (12, 12 + _FIXED.size, 12 + _FIXED.size + _VARIABLE.size)
     length = offsets[-1] + _BOTTOM.size + 2  # the two reserved bytes before the checksum
     header = struct.pack("<2sHBB3H", HEADER_ID, length, 0, 3, *offsets)
@@ -184,12 +187,12 @@ def _mm(values: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(values), mm, BAD_VELOCITY).astype(np.int64)
 
 
-def _fixed_leader(angle: int, coordinates: str) -> bytes:
+def _fixed_leader(angle: int, coordinates: str, simulated: bool) -> bytes:
     system = (0x40 | 0x08 | FREQUENCY_CODE, JANUS_4_BEAM << 4 | BEAM_ANGLE_CODE[angle])
     ex = 0b00000 if coordinates == "beam" else 0b01010  # instrument, 3-beam solutions
     return _FIXED.pack(
         FIXED_ID, *FIRMWARE, *system,
-        1,  # simulated data
+        int(simulated),  # the simulated-data flag
         # No water profile: 0 cells and pings (a 1 m cell length, which readers divide
         # by); the time between pings 0, the bottom-track pings set the pace.
         0, 4, 0, 0, 100,  # lag, beams, cells, pings, cell length cm
@@ -277,7 +280,8 @@ def _pings(m) -> Pings:
     error = (np.asarray(dvl.error_velocity, dtype=float) if "dvl/error_velocity" in fields
              else error_velocity(beams, h))
     return Pings(np.asarray(dvl.time, dtype=float), beams, ranges, velocity, error,
-                 mode == bottom, angle, float(m.attrs.get("dvl_max_range", 0.0)))
+                 mode == bottom, angle, float(m.attrs.get("dvl_max_range", 0.0)),
+                 simulated=m.origin == "simulated")
 
 
 # ---- reading -------------------------------------------------------------------------
