@@ -254,6 +254,11 @@ def window_means(t: np.ndarray, integral: np.ndarray, a: np.ndarray,
 # ---- IMU axes ---------------------------------------------------------------------------
 
 
+def margin_confidence(margin: float) -> str:
+    """An axis map's confidence by its margin (the runner-up's score over the winner's)."""
+    return "high" if margin > 3 else "medium" if margin > 1.5 else "low"
+
+
 def imu_axes(log: Log, ref: Intervals) -> tuple[np.ndarray, Finding]:
     """The axis map P (body = P logged) that best explains the reference's attitude change
     and levelled gravity. Every signed permutation is scored, the 24 proper ones (det +1)
@@ -301,7 +306,7 @@ def imu_axes(log: Log, ref: Intervals) -> tuple[np.ndarray, Finding]:
         evidence += (f"; a REFLECTION (det -1): no physical triad is left-handed, the log's "
                      f"transformation is; best proper map {axis_map_names(pp)}: "
                      f"{math.degrees(gp):.3g} deg/s, {fp:.3g} m/s^2, {sp / s1:.3g}x worse")
-    confidence = "high" if margin > 3 else "medium" if margin > 1.5 else "low"
+    confidence = margin_confidence(margin)
     return p, Finding("imu axes", {"axis_map": names, "matrix": p.tolist(),
                                    "determinant": int(round(np.linalg.det(p))),
                                    "score": s1, "runner_up": axis_map_names(p2),
@@ -433,7 +438,7 @@ def dvl_axes(log: Log, ref_body: np.ndarray, rates) -> tuple[np.ndarray, Finding
     margin = r2 / max(r1, 1e-12)
     names = axis_map_names(p)
     logged = bool(np.array_equal(p, np.eye(3)))
-    confidence = "high" if margin > 3 else "medium" if margin > 1.5 else "low"
+    confidence = margin_confidence(margin)
     evidence = (f"velocity against the reference's in the body over {int(use.sum())} pings, "
                 f"a lever arm and a bias fitted for each map at its best offset: residual "
                 f"{1000 * r1:.1f} mm/s RMS (the reference's speed RMS "
@@ -948,19 +953,22 @@ def check_arrays(log: Log, name: str = "log", *, gravity_source: str = "expected
     elif log.dvl_time is not None:
         c = rotation_matrices(log.reference_quaternion)
         u_ref = np.einsum("kji,kj->ki", c, np.asarray(log.reference_velocity, float))
-        p_dvl, found = dvl_axes(log, u_ref, lambda t: rates_at(t, imu_t, w_int, ref))
+        def rates(t: np.ndarray) -> np.ndarray:
+            return rates_at(t, imu_t, w_int, ref)
+
+        p_dvl, found = dvl_axes(log, u_ref, rates)
         report.findings.append(found)
         if found.confidence == "low":  # the calibration below takes the axes as logged
             p_dvl = np.eye(3)
         v = np.asarray(log.dvl_velocity, float) @ p_dvl.T
         log = dataclasses.replace(log, dvl_velocity=v)
-        clock, clock_found = dvl_clock(log, u_ref, lambda t: rates_at(t, imu_t, w_int, ref))
+        clock, clock_found = dvl_clock(log, u_ref, rates)
         s = np.asarray(log.dvl_time, float)
         t = s + clock.offset + clock.rate_error * s
         u = np.stack([np.interp(t, log.reference_time, u_ref[:, d]) for d in range(3)], -1)
         inside = (t >= log.reference_time[0]) & (t <= log.reference_time[-1])
         u[~inside] = np.nan
-        x, calibration = dvl_calibration(u, rates_at(t, imu_t, w_int, ref), v)
+        x, calibration = dvl_calibration(u, rates(t), v)
         report.findings.append(clock_found)
         report.findings.extend(calibration)
         corrections.update(dvl_time_offset_s=clock.offset, dvl_rate_error=clock.rate_error,

@@ -841,7 +841,9 @@ def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]
         # One ping beyond the bound, the rest alike: the instrument's no-data value (an
         # RDI DVL's -32768 mm/s) that the description does not name.
         for key in ("velocity", "beam_velocity"):
-            values = np.nan_to_num(tables["dvl"].get(key, np.zeros((1, 1))), nan=0.0)
+            if key not in tables["dvl"]:
+                continue
+            values = np.nan_to_num(tables["dvl"][key], nan=0.0)
             row = np.flatnonzero(np.abs(values).max(axis=1) > MAX_SPEED)
             if len(row):
                 k = int(row[0])
@@ -907,10 +909,7 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
                if time_unit else "are reference.units.latitude and longitude, or the "
                "velocity's, right?)"))
     if max(flown, track) > MIN_TRACK:
-        p = fields["reference/position_ned"][:, :2]
-        moved = cumulative(t, fields["reference/velocity_ned"][:, :2])
-        legs = np.unique(np.append(np.arange(0, len(t), TRACK_LEG), len(t) - 1))
-        a, b = np.diff(p[legs], axis=0), np.diff(moved[legs], axis=0)
+        a, b = _legs(fields, slice(0, 2))
         dot = float(np.sum(a * b))
         cosine = dot / max(math.sqrt(float(np.sum(a * a)) * float(np.sum(b * b))), 1e-12)
         if cosine < TRACK_COSINE:
@@ -924,16 +923,23 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
     _check_vertical(fields, where)
 
 
+def _legs(fields: dict[str, np.ndarray], axes: slice) -> tuple[np.ndarray, np.ndarray]:
+    """The reference's moves over legs of ``TRACK_LEG`` samples (and the last, shorter
+    one), in the NED ``axes``: (K, n) by its positions and (K, n) by its velocities'
+    integral."""
+    t = fields["reference/time"]
+    moved = cumulative(t, fields["reference/velocity_ned"][:, axes])
+    legs = np.unique(np.append(np.arange(0, len(t), TRACK_LEG), len(t) - 1))
+    return (np.diff(fields["reference/position_ned"][legs, axes], axis=0),
+            np.diff(moved[legs], axis=0))
+
+
 def _check_vertical(fields: dict[str, np.ndarray], where: str) -> None:
     """The reference's heights against its integrated vertical velocity, where both
     travel ``MIN_CLIMB`` up and down: a frame declared NED for ENU velocities turns up into
     down (on a heading of 45 deg the horizontal legs cannot tell), and so does a depth
     column, positive down, given as the height."""
-    t = fields["reference/time"]
-    down = fields["reference/position_ned"][:, 2]
-    moved = cumulative(t, fields["reference/velocity_ned"][:, 2:])[:, 0]
-    legs = np.unique(np.append(np.arange(0, len(t), TRACK_LEG), len(t) - 1))
-    a, b = np.diff(down[legs]), np.diff(moved[legs])
+    a, b = (x[:, 0] for x in _legs(fields, slice(2, 3)))
     if min(np.abs(a).sum(), np.abs(b).sum()) < MIN_CLIMB:
         return
     cosine = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-12)

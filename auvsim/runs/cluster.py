@@ -46,7 +46,7 @@ LOCAL_CONFIG = {
     "distributed.admin.tick.interval": "1s",
 }
 _LOCAL = re.compile(r"local:(\d+)")
-_REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?[\w.\-\[\]:]+:\d+/?")
+_REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?[\w.\-\[\]:]+:(\d+)/?")
 EXPECTED = "expected local:N (N worker processes here) or a scheduler's address, host:port"
 
 
@@ -60,11 +60,12 @@ def check_address(address: str) -> str:
     if local is not None and int(local.group(1)) < 1:
         raise ConfigError(f"{address!r}: expected at least one worker (local:1 or more)",
                           argument="cluster")
-    if local is None and not _REMOTE.fullmatch(address):
+    remote = None if local is not None else _REMOTE.fullmatch(address)
+    if local is None and remote is None:
         raise ConfigError(f"{address!r}: not a cluster address; {EXPECTED} "
                           "(tcp://10.0.0.5:8786)", argument="cluster")
-    if local is None:
-        port = int(re.search(r":(\d+)/?$", address).group(1))
+    if remote is not None:
+        port = int(remote.group(2))
         if not 1 <= port <= 65535:
             raise ConfigError(f"{address!r}: port {port} is not a TCP port (1 to 65535); "
                               f"{EXPECTED}", argument="cluster")

@@ -298,7 +298,7 @@ class KalmanFilter:
             # calibration alone), and their noise is the velocity's, not the beams'
             # through H: R is the measurement's error covariance against the training
             # target, and r the RMS of its axes.
-            z = self._measurement(train, velocity_only=True)
+            z = self._velocity(train)
             ok = np.isfinite(z).all(axis=1) & np.isfinite(train.target).all(axis=1)
             error = z[ok] - train.target[ok]
             self.r_velocity = error.T @ error / max(len(error) - 1, 1)
@@ -317,19 +317,19 @@ class KalmanFilter:
         return _filter(z, cov, windows.mission, windows.time, np.array([self.q]),
                        gate=self.gate)
 
-    def _measurement(self, windows: Windows, *, velocity_only: bool = False):
-        """z (S, 3) m/s and its noise covariance R (S, 3, 3), (m/s)^2; z alone with
-        ``velocity_only``."""
+    def _velocity(self, windows: Windows) -> np.ndarray:
+        """z (S, 3) m/s: the calibration's velocity, or LS's without one."""
         c = self.calibration
-        if velocity_only or self.r_velocity is not None:
-            z = least_squares(windows.beams, windows.h) if c is None else c.predict(windows)
-            return z if velocity_only else (
-                z, np.broadcast_to(self.r_velocity, (len(windows.beams), 3, 3)))
+        return least_squares(windows.beams, windows.h) if c is None else c.predict(windows)
+
+    def _measurement(self, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
+        """z (S, 3) m/s and its noise covariance R (S, 3, 3), (m/s)^2."""
+        c, z, n = self.calibration, self._velocity(windows), len(windows.beams)
+        if self.r_velocity is not None:
+            return z, np.broadcast_to(self.r_velocity, (n, 3, 3))
         if isinstance(c, AffineCalibration):
-            r = self.r ** 2 * c.a @ c.a.T
-            return c.predict(windows), np.broadcast_to(r, (len(windows.beams), 3, 3))
+            return z, np.broadcast_to(self.r ** 2 * c.a @ c.a.T, (n, 3, 3))
         std = np.full(4, self.r) if c is None else self.r / (1.0 + c.scale)
-        z = least_squares(windows.beams, windows.h) if c is None else c.predict(windows)
         return z, _ls_covariance(np.isfinite(windows.beams), windows.h, std)
 
 

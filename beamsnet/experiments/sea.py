@@ -135,7 +135,8 @@ def sea(data: Path = DEFAULT_SEA, *, out: Path, duration: float = DURATION,
     sim_train, sim_test = split(load_windows(sim), training.train_fraction)
     fitted = [b.fit(sim_train) for b in baselines()]
     held_out = dict(motion=motion(sim_test, sim_train),
-                    departure=_departures(sim_test, nets))
+                    departure=_departures(sim_test, _learned(sim_test, nets)),
+                    train_fraction=training.train_fraction)
     with open_dataset(dataset) as f:  # each file opened once for what the report says of it
         segments, geometry, logged_noise = list(f.missions), _geometry(f), _logged_noise(f)
         speed = _logged_speed(f)
@@ -331,16 +332,21 @@ def motion(windows: Windows, train: Windows) -> dict[str, float]:
                 outside=float(outside.mean()))
 
 
-def _departures(windows: Windows, nets: dict) -> dict[str, float]:
-    """Each trained network's RMS departure from least squares on ``windows``, m/s
-    (vector, over the pings where both give a velocity), by its row's label."""
+def _learned(windows: Windows, nets: dict) -> dict[str, np.ndarray]:
+    """Each trained network's (S, 3) velocity on ``windows``, by its row's label."""
+    return {f"{label} ({run.name})": predict(model, trimmed(windows, checkpoint))
+            for label, (key, _) in LEARNED.items() for run, model, checkpoint in nets[key]}
+
+
+def _departures(windows: Windows, learned: dict[str, np.ndarray]) -> dict[str, float]:
+    """Each network's RMS departure from least squares on ``windows``, m/s (vector, over
+    the pings where both give a velocity), by its row's label (``_learned``)."""
     out = {}
-    for label, (key, _) in LEARNED.items():
-        for run, model, checkpoint in nets[key]:
-            gap = predict(model, trimmed(windows, checkpoint)) - windows.velocity_ls
-            have = np.isfinite(gap).all(axis=1)
-            out[f"{label} ({run.name})"] = (float(np.sqrt(np.mean(np.sum(gap[have] ** 2, 1))))
-                                            if have.any() else math.nan)
+    for label, velocity in learned.items():
+        gap = velocity - windows.velocity_ls
+        have = np.isfinite(gap).all(axis=1)
+        out[label] = (float(np.sqrt(np.mean(np.sum(gap[have] ** 2, axis=1))))
+                      if have.any() else math.nan)
     return out
 
 
@@ -352,9 +358,8 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     windows = load_windows(dataset, missions=[name])
     truth = truth_at_pings(dataset, windows)
     predictions = {b.name: b.predict(windows) for b in fitted}
-    for label, (key, _) in LEARNED.items():
-        for run, model, checkpoint in nets[key]:
-            predictions[f"{label} ({run.name})"] = predict(model, trimmed(windows, checkpoint))
+    learned = _learned(windows, nets)
+    predictions.update(learned)
     predictions.update({f"{b.name}{OTHERS}": b.predict(windows) for b in real})
     positions, stds, rotations, failed, watched = {}, {}, {}, {}, {}
     for label, estimator in _filters(dataset, noise).items():
@@ -406,7 +411,7 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
                             earth_fixed=earth, reference_departure_m=float(departure.max())),
                 time=windows.time, reference=truth["position"], tracks=tracks,
                 shift=dict(motion=motion(windows, sim_train),
-                           departure=_departures(windows, nets)))
+                           departure=_departures(windows, learned)))
 
 
 def watch_words(results: dict, labels) -> list[str]:
@@ -711,7 +716,8 @@ def _motion_lines(results: dict, held_out: dict) -> list[str]:
     lines = [
         "Where the networks meet motion their training never showed, measured: each "
         "segment's pings against the training set's (the preset's missions' first "
-        "75 %), beside the held-out simulated pings (its last 25 %). The beams' change "
+        f"{100 * held_out['train_fraction']:g} %), beside the held-out simulated pings (its "
+        f"last {100 * (1 - held_out['train_fraction']):g} %). The beams' change "
         "from ping to ping is the vehicle's acceleration between pings, an input of "
         "CorrectionNet; a ping is outside the training range where a current beam or a "
         "change from a past ping lies beyond what the training pings span (there "
