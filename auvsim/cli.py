@@ -268,7 +268,8 @@ def _check_log(args: argparse.Namespace) -> None:
     if args.apply is not None:  # refused now, not after the checks' work
         check_output_path(args.apply, "apply")
     with open_dataset(args.file) as ds:  # refused in one line if it is no dataset
-        total = len(args.missions or ds.missions)
+        in_file = len(ds.missions)
+    total = len(args.missions) if args.missions else in_file
     # Each mission's table as soon as it is checked, under a bar (on a terminal) of the
     # missions: the first check of a session compiles its kernels, some 30 s.
     with tqdm(total=total, desc="checking", unit=" mission", disable=None, leave=False,
@@ -283,8 +284,7 @@ def _check_log(args: argparse.Namespace) -> None:
     if args.apply is not None:
         apply(args.file, args.apply, reports, accept_low=args.accept_low)
         if not args.json:
-            with open_dataset(args.file) as ds:
-                others = len(ds.missions) - len(reports)
+            others = in_file - len(reports)
             print(f"wrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
                   + (f", {others} other mission(s) as they were" if others > 0 else ""))
 

@@ -382,6 +382,11 @@ def test_export_refuses_and_writes_nothing(dataset, tmp_path):
                        str(tmp_path / "nowhere" / "x.pd0"))  # as the MCAP export says it
     assert code == 2 and "the folder" in err and "does not exist; expected a file in an " \
         "existing folder" in err
+    (tmp_path / "afile").write_text("")
+    code, _, err = run("export", str(dataset), "--to", "pd0", "--out",
+                       str(tmp_path / "afile" / "x.pd0"))
+    assert code == 2 and "is a file, not a folder" in err, err
+    (tmp_path / "afile").unlink()
     code, _, err = run("import", str(dataset), "--format", "pd0", "--out",
                        str(tmp_path / "y.h5"))
     assert code == 2 and "--description" in err

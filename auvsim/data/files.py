@@ -260,17 +260,32 @@ def check_out_dir(out: str | os.PathLike) -> Path:
     return out
 
 
+def check_writable_path(path: Path, argument: str = "out", *, hint: str = "") -> None:
+    """Refuse an output file's path that is a folder (``hint`` adds what to give
+    instead) or lies under a file: what nothing can write.
+
+    Raises:
+        ConfigError: naming ``argument``.
+    """
+    if path.is_dir():
+        raise ConfigError(f"{str(path)!r}: is a directory; expected a file name{hint}",
+                          argument=argument)
+    above = next((p for p in path.parents if p.exists()), None)
+    if above is not None and not above.is_dir():
+        raise ConfigError(f"{str(path)!r}: {str(above)!r} is a file, not a folder; "
+                          "expected a path in a folder", argument=argument)
+
+
 def check_out_file(out: str | os.PathLike) -> Path:
     """``out`` as a Path, after checking that it names a file in an existing folder (an
     export's output: refused before any work).
 
     Raises:
-        ConfigError: ``out`` is a directory, or its folder does not exist.
+        ConfigError: ``out`` is a directory or lies under a file (``check_writable_path``),
+            or its folder does not exist.
     """
     out = Path(out)
-    if out.is_dir():
-        raise ConfigError(f"{str(out)!r}: is a directory; expected a file name",
-                          argument="out")
+    check_writable_path(out)
     if not out.parent.is_dir():
         raise ConfigError(f"{str(out)!r}: the folder {str(out.parent)!r} does not exist; "
                           "expected a file in an existing folder", argument="out")

@@ -19,6 +19,7 @@ import numpy as np
 from auvsim import __version__
 from auvsim.data.files import (
     Claim,
+    check_writable_path,
     commit,
     interrupts_held,
     is_write_error,
@@ -51,22 +52,6 @@ def check_mission_name(name: object, where: str) -> None:
             and name not in (".", "..")):
         raise ConfigError(f"{where}: expected a name without '/' (not empty, '.' or '..'), "
                           f"got {name!r}")
-
-
-def check_writable_path(path: Path, argument: str = "out", *, hint: str = "") -> None:
-    """Refuse a dataset file's path that is a folder (``hint`` adds what to give
-    instead) or lies under a file: what no writer can write.
-
-    Raises:
-        ConfigError: naming ``argument``.
-    """
-    if path.is_dir():
-        raise ConfigError(f"{str(path)!r}: is a directory; expected a file name{hint}",
-                          argument=argument)
-    above = next((p for p in path.parents if p.exists()), None)
-    if above is not None and not above.is_dir():
-        raise ConfigError(f"{str(path)!r}: {str(above)!r} is a file, not a folder; "
-                          "expected a path in a folder", argument=argument)
 
 
 # Names of files in other formats, which a dataset is written under by mistake only (a
