@@ -360,10 +360,14 @@ def _draw_water(m: Mission, ax_current, ax_error) -> None:
     ax_current.set_xlabel("time, s")
     ax_current.set_ylabel("m/s")
     twin = ax_current.twinx()
-    twin.plot(t, toward_deg(current), "k.", ms=1, label="toward (right axis)")
+    # The direction in its own colour, with the right axis it reads on: in black it
+    # looked like a third speed on the left axis.
+    twin.plot(t, toward_deg(current), ".", color="tab:green", ms=1.5,
+              label="toward (right axis)")
     twin.set_ylim(0, 360)
     twin.set_yticks([0, 90, 180, 270, 360])
-    twin.set_ylabel("flowing toward, deg from north")
+    twin.set_ylabel("flowing toward, deg from north", color="tab:green")
+    twin.tick_params(axis="y", colors="tab:green")
     ax_current.set_title("current at the vehicle (truth/current_ned)")
     _legend_beside(ax_current, twin)
 

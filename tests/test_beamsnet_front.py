@@ -324,6 +324,19 @@ def test_a_command_says_which_files_in_its_folder_it_replaced(data, tmp_path, ca
     assert (out / "mine.txt").read_text() == "kept"
 
 
+def test_a_new_output_folder_named_as_a_file_is_refused(tmp_path, monkeypatch):
+    """--out plot.png for the PNGs' folder is a slip that made a folder of that name; an
+    existing folder so named is the user's own and is written into."""
+    from auvsim.data.files import check_out_dir
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ConfigError, match="'plot.png': a .png file's name; expected a folder"):
+        check_out_dir("plot.png")
+    (tmp_path / "old.pt").mkdir()
+    assert check_out_dir("old.pt") == Path("old.pt")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.pt"]
+
+
 def test_a_staged_folder_named_dot_is_the_current_one(tmp_path, monkeypatch):
     """``--out .`` (or ``keep/..``) writes into that folder, which exists; ``/`` and a
     place that cannot be written in are refused in one line before any work."""

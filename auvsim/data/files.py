@@ -227,21 +227,32 @@ def names_folder(out: str | os.PathLike) -> bool:
     return os.fspath(out).endswith((os.sep, "/"))
 
 
+# Names of single files, never of a folder to write several into: ``--out run.png`` or
+# ``--out model.pt`` for a folder is a slip that would have made a folder of that name.
+FILE_SUFFIXES = frozenset({".h5", ".hdf5", ".csv", ".txt", ".json", ".toml", ".md", ".png",
+                           ".pdf", ".svg", ".npy", ".npz", ".pt", ".mcap", ".pd0", ".nc",
+                           ".tif", ".tiff"})
+
+
 def check_out_dir(out: str | os.PathLike) -> Path:
     """``out`` as a Path, after checking that it can be made a directory (it is one, or the
     nearest existing path above it is), so that no work is spent before a bad output path
     is refused.
 
     Raises:
-        ConfigError: ``out`` is the root directory; ``out``, or a path above it, exists and
-            is not a directory; or the nearest existing one cannot be written in (a file
-            is made there and removed, so that a read-only place is refused before the
-            work, not after it).
+        ConfigError: ``out`` is the root directory; ``out`` is new and named as a file
+            (``FILE_SUFFIXES``); ``out``, or a path above it, exists and is not a
+            directory; or the nearest existing one cannot be written in (a file is made
+            there and removed, so that a read-only place is refused before the work, not
+            after it).
     """
     out = Path(out)
     if not Path(os.path.abspath(out)).name:
         raise ConfigError(f"{str(out)!r}: the root directory; expected a directory below it "
                           "to write into", argument="out")
+    if not out.exists() and out.suffix.lower() in FILE_SUFFIXES:
+        raise ConfigError(f"{str(out)!r}: a {out.suffix} file's name; expected a folder to "
+                          "write the files into", argument="out")
     for path in (out, *out.parents):
         if path.exists():
             if not path.is_dir():

@@ -18,6 +18,7 @@ import numpy as np
 
 from auvsim import __version__
 from auvsim.data.files import (
+    FILE_SUFFIXES,
     Claim,
     check_writable_path,
     commit,
@@ -56,8 +57,7 @@ def check_mission_name(name: object, where: str) -> None:
 
 # Names of files in other formats, which a dataset is written under by mistake only (a
 # user who asked for CSV would get HDF5 under a .csv name): refused as an output's name.
-OTHER_FORMATS = {".csv", ".txt", ".json", ".toml", ".md", ".png", ".npy", ".npz", ".pt",
-                 ".mcap", ".pd0", ".nc", ".tif", ".tiff"}
+OTHER_FORMATS = FILE_SUFFIXES - {".h5", ".hdf5"}
 
 
 def check_output_path(path: str | os.PathLike, argument: str = "out", *,
