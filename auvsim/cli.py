@@ -75,7 +75,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="seed of the first mission; the others follow (default: the "
                      "preset's, 0 otherwise)")
     gen.add_argument("--vehicle", metavar="NAME",
-                     help="auv (A18-D class), remus100, or a MuJoCo model file (default: auv)")
+                     help="auv (A18-D class), remus100, or a MuJoCo model file (default: the "
+                     "preset's, auv); the preset's sensor sites and turbulence follow it")
     gen.add_argument("--workers", type=int, metavar="N",
                      help="worker processes, each running two missions at a time "
                      "(default: one per two cores)")
@@ -440,7 +441,7 @@ def _file_out(path: str) -> Path:
 
 def build_config(args: argparse.Namespace) -> Config:
     """The config a ``generate`` command line asks for."""
-    from auvsim.runs.presets import DEFAULT_PRESET, preset
+    from auvsim.runs.presets import DEFAULT_PRESET, preset, with_vehicle
 
     if args.config is not None:
         config = load_config(args.config)
@@ -448,6 +449,18 @@ def build_config(args: argparse.Namespace) -> Config:
         config = preset(args.preset or DEFAULT_PRESET)
     overrides = {name: getattr(args, flag) for flag, (name, _) in _SCENARIO_FLAGS.items()
                  if getattr(args, flag) is not None}
+    for flag, (name, _) in _SCENARIO_FLAGS.items():
+        # One value over missions that differ in it would leave them named for what they
+        # no longer are (maneuvers' turning_circle flying a zigzag, paper-sim's speed_1 at 2).
+        values = list(dict.fromkeys(getattr(m.scenario, name) for m in config.missions))
+        if name in overrides and len(values) > 1:
+            source = (f"config {str(args.config)!r}" if args.config is not None
+                      else f"preset {args.preset or DEFAULT_PRESET!r}")
+            shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in values)
+            raise ConfigError(f"--{flag.replace('_', '-')}: the missions of {source} differ "
+                              f"in it ({shown}) and are named for that; expected it without "
+                              f"--{flag.replace('_', '-')}, or a config file (--config) with "
+                              "the missions you want")
     def scenario(old: ScenarioConfig) -> ScenarioConfig:
         fields = {**dataclasses.asdict(old), **overrides}
         if fields["name"] != old.name:
@@ -459,11 +472,10 @@ def build_config(args: argparse.Namespace) -> Config:
                             seed=m.seed if args.seed is None else args.seed + i)
         for i, m in enumerate(config.missions))
     changes: dict = {"missions": missions}
-    if args.vehicle is not None:
-        changes["vehicle"] = dataclasses.replace(config.vehicle, model=args.vehicle)
     if args.compression is not None:
         changes["compression"] = args.compression
-    return dataclasses.replace(config, **changes)
+    config = dataclasses.replace(config, **changes)
+    return config if args.vehicle is None else with_vehicle(config, args.vehicle)
 
 
 def _generate(args: argparse.Namespace) -> None:

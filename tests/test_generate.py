@@ -378,3 +378,58 @@ def test_progress_comes_back_from_any_executor(tmp_path, monkeypatch):
     assert sum(updates) == 260
     assert_same_contents(tmp_path / "pool.h5", tmp_path / "threads.h5")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pool.h5", "threads.h5"]
+
+
+def test_another_vehicle_on_a_preset_takes_its_own_sensors_and_turbulence(tmp_path):
+    """--vehicle remus100 on the navigator preset (the default): the preset's sensor sites
+    (the Snapir's, 1.8 m aft, behind a REMUS 100's tail) go back to the model's own, and
+    its turbulent wrench, sized through the A18-D's force model, is scaled by the two
+    models' coefficients (read here from the model files' hydrodynamics). With the A18-D's
+    wrench the 31 kg vehicle rolled over; with its own it holds its attitude and depth."""
+    from auvsim.physics.vehicle import Vehicle
+    from auvsim.runs.presets import preset, with_vehicle
+
+    navigator = preset("navigator")
+    assert with_vehicle(navigator, "auv") is navigator
+    remus = with_vehicle(navigator, "remus100")
+    assert remus.vehicle.model == "remus100"
+    assert remus.vehicle.imu_position is remus.vehicle.dvl_position is None
+    assert remus.vehicle.speed_control == navigator.vehicle.speed_control
+    a, r = Vehicle("auv").hydro, Vehicle("remus100").hydro
+    lift = (r.hull_lift + r.fin_lift) / (a.hull_lift + a.fin_lift)
+    moment = ((r.hull_lift * -r.hull_lift_x + r.fin_lift * -r.fin_x)
+              / (a.hull_lift * -a.hull_lift_x + a.fin_lift * -a.fin_x))
+    old, new = navigator.water, remus.water
+    assert np.allclose(new.turbulence_force_std,
+                       np.multiply(old.turbulence_force_std,
+                                   (r.axial_drag / a.axial_drag, lift, lift)))
+    assert np.allclose(new.turbulence_moment_std,
+                       np.multiply(old.turbulence_moment_std, moment))
+
+    out = tmp_path / "remus.h5"
+    assert main(["generate", "--vehicle", "remus100", "--scenario", "zigzag", "--speed", "1.5",
+                 "--duration", "120", "--out", str(out), "--quiet"]) == 0
+    with h5py.File(out) as f:
+        truth = f["missions/mission_000/truth"]
+        q, depth = truth["quaternion"][:], truth["position_ned"][:, 2]
+    roll = np.degrees(np.arctan2(2 * (q[:, 0] * q[:, 1] + q[:, 2] * q[:, 3]),
+                                 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2)))
+    assert np.abs(roll).max() < 10.0 and np.abs(depth - 20.0).max() < 1.0
+
+
+@pytest.mark.parametrize("flags,field", [
+    (["--preset", "maneuvers", "--scenario", "zigzag"], "--scenario"),
+    (["--preset", "paper-sim", "--speed", "2"], "--speed"),
+    (["--preset", "realistic-maneuvers", "--speed", "1"], "--speed")])
+def test_an_override_of_what_names_a_presets_missions_is_refused(flags, field, tmp_path,
+                                                                 capsys):
+    """One manoeuvre or speed over missions named for theirs would leave maneuvers'
+    turning_circle flying a zigzag and paper-sim's speed_1 at 2 m/s: refused in one line,
+    nothing written; an override the missions share (--duration) is not."""
+    out = tmp_path / "x.h5"
+    assert main(["generate", *flags, "--duration", "5", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{field}: the missions of preset" in err, err
+    assert "differ in it" in err and not out.exists()
+    assert main(["generate", flags[0], flags[1], "--duration", "5", "--out", str(out),
+                 "--quiet"]) == 0

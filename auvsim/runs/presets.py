@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
+
 from auvsim.config import (
     MAX_DURATION,  # noqa: F401  (re-exported for the experiments that size presets)
     Config,
@@ -374,6 +376,49 @@ def sim2real(duration: float = 600.0, mounting_yaw_deg: float = SNAPIR_MOUNTING_
     dvl = dataclasses.replace(_paper(PAPER_NOISE_CODE).dvl,
                               mounting_rpy_deg=(0.0, 0.0, float(mounting_yaw_deg)))
     return dataclasses.replace(realistic_maneuvers(duration), dvl=dvl)
+
+
+def _force_coefficients(model: str) -> tuple[float, float, float]:
+    """A vehicle's coefficients that turn a velocity fluctuation into force: its axial
+    drag (surge), its hull and fin-pair lift (sway, heave), and those lifts' moments about
+    the origin (pitch, yaw), from its model (``hydro.Hydro``)."""
+    from auvsim.physics.vehicle import Vehicle  # MuJoCo only where a vehicle is swapped
+
+    h = Vehicle(model).hydro
+    return (h.axial_drag, h.hull_lift + h.fin_lift,
+            h.hull_lift * abs(h.hull_lift_x) + h.fin_lift * abs(h.fin_x))
+
+
+def with_vehicle(config: Config, model: str) -> Config:
+    """``config`` flown by the vehicle ``model`` (``--vehicle``), with what it sized for its
+    own vehicle made the new one's:
+
+    * the IMU's and the DVL's sites, where set (the presets' are the Snapir's, 1.8 m aft on
+      the A18-D's 5.5 m hull: behind a REMUS 100's tail), go back to the model's own;
+    * the water's turbulent wrench, which ``NAVIGATOR_WATER`` derives through the A18-D's
+      force model from a velocity fluctuation, is that fluctuation through the new
+      vehicle's: each force scaled by the ratio of the two vehicles' coefficients
+      (``_force_coefficients``: surge by the axial drag, sway and heave by the hull and
+      fin lift) and each moment by that of the lifts' moments, roll with pitch and yaw
+      (the fins' span, roll's arm, taken to scale with the hull as their lever does).
+      The A18-D's wrench unscaled turned a 31 kg REMUS 100 upside down.
+
+    The same model returns ``config`` unchanged.
+    """
+    old = config.vehicle
+    if model == old.model:
+        return config
+    vehicle = dataclasses.replace(old, model=model, imu_position=None, dvl_position=None)
+    water = config.water
+    if any(water.turbulence_force_std) or any(water.turbulence_moment_std):
+        (old_x, old_y, old_m), (x, y, m) = (_force_coefficients(old.model),
+                                            _force_coefficients(model))
+        force = np.multiply(water.turbulence_force_std, (x / old_x, y / old_y, y / old_y))
+        water = dataclasses.replace(
+            water, turbulence_force_std=tuple(float(f) for f in force),
+            turbulence_moment_std=tuple(float(t) * m / old_m
+                                        for t in water.turbulence_moment_std))
+    return dataclasses.replace(config, vehicle=vehicle, water=water)
 
 
 PRESETS = {
