@@ -318,3 +318,14 @@ def test_kalman_filter_on_the_beam_calibration_filters_three_beam_pings():
     np.testing.assert_allclose(cov[-1], g @ np.diag(std ** 2) @ g.T, rtol=1e-12, atol=0)
     affine = KalmanFilter().fit(train).predict(w)
     assert rmse(affine, w.target) > 10 * rmse(pred, w.target)
+
+
+@pytest.mark.parametrize("estimator", [AffineCalibration(), BeamCalibration(), ScaleOffset()])
+def test_a_fit_on_too_few_samples_asks_for_more_data(estimator):
+    """Too short a training set (``stress --train-duration 5``: 3 samples) is the user's
+    data, not a bug: a DataError, which a command line prints as one line."""
+    from beamsnet.data import DataError
+
+    few = synthetic([np.tile([1.0, 0.0, 0.0], (4, 1))])  # one sample, one velocity
+    with pytest.raises(DataError, match="expected more training data"):
+        estimator.fit(few)

@@ -24,7 +24,7 @@ from typing import Protocol
 import numpy as np
 
 from auvsim.data.beams import least_squares
-from beamsnet.data import Windows
+from beamsnet.data import DataError, Windows
 from beamsnet.estimators.registry import Needs, Spec
 
 # q grid of the Kalman filter, m/s per sqrt(s): from "velocity constant to 10 um/s over
@@ -59,6 +59,10 @@ class LeastSquares:
         return least_squares(windows.beams, windows.h)
 
 
+# What a fit on too few training samples asks for (a DataError: a command line's one line).
+MORE_DATA = "expected more training data (a longer dataset, or more of it in the training split)"
+
+
 class AffineCalibration:
     """``v = A y + c``, A (3, 4), c (3,), by linear least squares from the measured beams
     to the true velocity of the training split.
@@ -87,8 +91,8 @@ class AffineCalibration:
 
     def fit(self, train: Windows) -> AffineCalibration:
         if len(train.target) < 5:
-            raise ValueError(f"{type(self).__name__}.fit: 15 parameters need at least 5 "
-                             f"training samples, got {len(train.target)}")
+            raise DataError(f"{type(self).__name__}.fit: 15 parameters need at least 5 "
+                            f"training samples, got {len(train.target)}; {MORE_DATA}")
         # Centred, so the intercept does not couple with A: better conditioned, same fit.
         y_mean, v_mean = train.beams.mean(axis=0), train.target.mean(axis=0)
         coef, *_ = np.linalg.lstsq(train.beams - y_mean, train.target - v_mean,
@@ -145,9 +149,9 @@ class BeamCalibration:
         for k in range(4):
             ok = np.isfinite(train.beams[:, k]) & np.isfinite(u[:, k])
             if ok.sum() < 2 or np.ptp(u[ok, k]) == 0:
-                raise ValueError(f"{type(self).__name__}.fit: beam {k} needs at least two "
-                                 f"training samples with different velocities along it, got "
-                                 f"{ok.sum()} sample(s)")
+                raise DataError(f"{type(self).__name__}.fit: beam {k} needs at least two "
+                                f"training samples with different velocities along it, got "
+                                f"{ok.sum()} sample(s); {MORE_DATA}")
             design = np.column_stack([u[ok, k], np.ones(ok.sum())])
             (gain, bias[k]), *_ = np.linalg.lstsq(design, train.beams[ok, k], rcond=None)
             scale[k] = gain - 1.0
@@ -186,8 +190,8 @@ class ScaleOffset:
         v_ls = least_squares(train.beams, train.h)
         ok = np.isfinite(v_ls).all(axis=1) & np.isfinite(train.target).all(axis=1)
         if ok.sum() < 2:
-            raise ValueError(f"{type(self).__name__}.fit: 4 parameters need at least 2 "
-                             f"training samples with an LS velocity, got {ok.sum()}")
+            raise DataError(f"{type(self).__name__}.fit: 4 parameters need at least 2 "
+                            f"training samples with an LS velocity, got {ok.sum()}; {MORE_DATA}")
         n = int(ok.sum())
         design = np.column_stack([v_ls[ok].ravel(), np.tile(np.eye(3), (n, 1))])
         coef, *_ = np.linalg.lstsq(design, train.target[ok].ravel(), rcond=None)
