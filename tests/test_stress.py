@@ -36,6 +36,10 @@ def test_stress_writes_a_table_with_every_manoeuvre_and_estimator(tmp_path, monk
                    for c in row.values())
         assert f"| {name} |" in report
     assert "## What it shows" in report
+    # At 60 s four manoeuvres end before their first change (a 120 s depth step period):
+    # said, not tabled as if they were tested.
+    assert ("At this size lawnmower, depth_steps, speed_steps, random_waypoints flew one "
+            "phase only") in report
     # The filter is scored by its own position, the others by their dead reckoning.
     assert all(row["INS/DVL"]["dr_error"] < row["LS"]["dr_error"] for row in rows.values())
     for figure in ("stress_intensity.png", "stress_time.png", "stress_tracks.png"):
@@ -80,9 +84,15 @@ def test_truth_at_pings_rotates_the_dvl_velocity_into_ned(tmp_path):
     from auvsim.data.reader import open_dataset
     from beamsnet.navigation import truth_at_pings
 
+    import dataclasses
+
+    from auvsim.runs.generate import generate
+    from auvsim.runs.presets import preset
+
     path = tmp_path / "turn.h5"
-    assert auvsim_main(["generate", "--preset", "maneuvers", "--scenario", "turning_circle",
-                        "--duration", "90", "--out", str(path), "--quiet"]) == 0
+    config = preset("maneuvers").with_duration(90.0)
+    generate(dataclasses.replace(config, missions=tuple(
+        m for m in config.missions if m.name == "turning_circle")), path, progress=False)
     windows = load_windows(path, missions=["turning_circle"])
     truth = truth_at_pings(path, windows)
     with open_dataset(path) as f:

@@ -27,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -170,6 +171,11 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
                             duration=fault_duration, missions=fault_missions,
                             noise_std=noise_std, progress=progress)
     trained_on = _scenarios(train_data)
+    unstarted = _unstarted(maneuver_data, phases)
+    if unstarted:
+        warnings.warn(f"{', '.join(unstarted)}: flew one phase only, their manoeuvre starting "
+                      "later than the mission ends; their rows are of straight flight "
+                      "(expected a longer --maneuver-duration to test them)", stacklevel=2)
     positions: dict[str, np.ndarray] = {}
     estimates = predictions(models, train_w, test_w, dataset=maneuver_data,
                             positions=positions)
@@ -183,7 +189,8 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
         plot_tracks(test_w, estimates, truth, positions, stage / "stress_tracks.png")
         write_text(stage / "stress.json", json.dumps(rows, indent=1))
         write_text(stage / "stress.md",
-                   _report(train_data, trained_on, maneuver_data, models, binned, rows))
+                   _report(train_data, trained_on, maneuver_data, models, binned, rows,
+                           unstarted))
     return Path(out) / "stress.md"
 
 
@@ -248,6 +255,14 @@ def _phases(path: Path) -> dict[str, list[tuple[float, float, str]]]:
         return {m["name"]: list(f.missions[m["name"]].phases) for m in missions}
 
 
+def _unstarted(path: Path, phases: dict[str, list]) -> list[str]:
+    """The missions whose manoeuvre never started: not a straight line by their config,
+    yet flown as one phase (a 60 s depth_steps, whose first step is at 60 s)."""
+    kinds = {m["name"]: m["scenario"]["name"] for m in _generated_missions(path) or []}
+    return [name for name, parts in phases.items()
+            if kinds.get(name, "straight") != "straight" and len(parts) <= 1]
+
+
 def _check_geometry(train_data: Path, maneuver_data: Path) -> None:
     """Refuse test data whose DVL or IMU geometry and rates (``SENSOR_GEOMETRY``) are not
     the training data's, before anything is trained: every estimator learned one beam
@@ -267,7 +282,8 @@ def _check_geometry(train_data: Path, maneuver_data: Path) -> None:
                           argument="maneuver_data")
 
 
-def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
+def _report(train_data, trained_on, maneuver_data, models, binned, rows, unstarted=()
+            ) -> str:
     names = list(next(iter(rows.values())))
     head = "| manoeuvre | pings | " + " | ".join(short_name(n) for n in names) + " |"
     rule = "|---|---|" + "---|" * len(names)
@@ -290,6 +306,9 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows) -> str:
         f"{trained}; the calibrations, the Kalman filters, the missing-beam regressor and "
         "the INS/DVL filter's beam calibration were fitted on the same "
         "training split. Every row uses the same pings of each manoeuvre.",
+        *([] if not unstarted else [
+            "", f"At this size {', '.join(unstarted)} flew one phase only: their manoeuvre "
+            "starts later than the mission ends, so their rows are of straight flight."]),
         "",
         "## Speed RMSE (m/s) / vector RMSE (m/s)",
         "",
