@@ -26,10 +26,17 @@ def why(row: str) -> str:
         return UNKNOWN_WHY
 
 
-def why_worse(rows: dict[str, dict], key: str, *, availability: bool = False) -> list[str]:
+# Why an estimator that has not learned the instrument is worse than LS (``unlearned``).
+NOT_LEARNED = ("far off even on the calmest pings: it has not learned the instrument (too few "
+               "epochs or too little training data: a smoke run)")
+
+
+def why_worse(rows: dict[str, dict], key: str, *, availability: bool = False,
+              unlearned: list[str] = ()) -> list[str]:
     """One line per estimator worse than LS by ``key`` (e.g. ``rmse_vector``) in some of
     ``rows`` (setting or mission -> estimator -> scores), saying where and why: fewer pings
-    with an estimate than LS (gaps held through), or what the estimator is."""
+    with an estimate than LS (gaps held through), what the estimator is, or, for one in
+    ``unlearned``, that it has not learned the instrument at all."""
     names = [n for n in next(iter(rows.values())) if n != "LS"]
     lines = []
     for n in names:
@@ -37,7 +44,7 @@ def why_worse(rows: dict[str, dict], key: str, *, availability: bool = False) ->
                  if math.isfinite(r[n][key]) and r[n][key] > r["LS"][key]]
         if not worse:
             continue
-        reasons = [why(n)]
+        reasons = [NOT_LEARNED if n in unlearned else why(n)]
         if availability and any(rows[m][n]["availability"] < rows[m]["LS"]["availability"]
                                 for m in worse):
             reasons.insert(0, "it gives no estimate on pings where LS does, and a gap holds "
