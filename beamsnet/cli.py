@@ -200,7 +200,9 @@ def _parser() -> argparse.ArgumentParser:
                     help="snapir, sim2real, sea, adaptive: seeds per network, every one "
                     "scored (default "
                     + ", ".join(f"{n} for {name}" for name, n in SIM2REAL_SEEDS.items())
-                    + f" in snapir; {SIM_SEEDS} in sim2real; {SEA_SEEDS} in sea; "
+                    + f" in snapir; {SIM_SEEDS} in sim2real on its auvsim set, whose V.npy "
+                    "column takes snapir's runs and counts; "
+                    f"{SEA_SEEDS} in sea; "
                     f"{ADAPTIVE_SEEDS} noise models in adaptive)")
     rp.add_argument("--epochs", type=int,
                     help="default: " + _per_experiment("epochs", "paper-sim", "snapir"))

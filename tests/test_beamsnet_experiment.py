@@ -16,7 +16,12 @@ from auvsim.config import DvlConfig
 from auvsim.data.reader import read_attrs
 from auvsim.runs.generate import config_sha256
 from beamsnet.experiments import runner
-from beamsnet.experiments.runner import StaleDatasetWarning, ensure_dataset, train_runs
+from beamsnet.experiments.runner import (
+    ReplacedRunWarning,
+    StaleDatasetWarning,
+    ensure_dataset,
+    train_runs,
+)
 from beamsnet.training.checkpoints import load
 from beamsnet.training.config import TrainConfig
 from beamsnet.training.train import DivergedError
@@ -127,9 +132,12 @@ def test_train_runs_keeps_each_models_best_seed_and_reuses_what_is_trained(data,
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
     assert {n: k.kept for n, k in again.items()} == {n: k.kept for n, k in kept.items()}
 
-    # Another config of one model trains that model's seeds again, and only those.
-    changed = train_runs(data, {"a/v2": dataclasses.replace(configs["a/v2"], lr=0.005)},
-                         tmp_path, 2, workers=1, progress=False)
+    # Another config of one model trains that model's seeds again, and only those, and
+    # says so: the runs are a cache another report may have used.
+    with pytest.warns(ReplacedRunWarning, match=r"2 run\(s\) trained with other settings "
+                      r"\(lr 0.01 -> 0.005\) are trained again in their place, from "):
+        changed = train_runs(data, {"a/v2": dataclasses.replace(configs["a/v2"], lr=0.005)},
+                             tmp_path, 2, workers=1, progress=False)
     assert changed["a/v2"].checkpoint["train_config"]["lr"] == 0.005
     moved = {p for p, stamp in stamps.items() if p.stat().st_mtime_ns != stamp}
     assert {tmp_path / "a" / "v2" / f"seed_{s}" / "model.pt" for s in (0, 1)} <= moved

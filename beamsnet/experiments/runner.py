@@ -35,7 +35,13 @@ from auvsim.data.files import check_out_dir
 from auvsim.data.reader import open_dataset
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
-from beamsnet.training.checkpoints import file_identity, load, trained
+from beamsnet.training.checkpoints import (
+    CheckpointError,
+    file_identity,
+    load,
+    read_checkpoint,
+    trained,
+)
 from beamsnet.training.config import PROFILES, TrainConfig, check_restarts
 from beamsnet.training.runs import keep_best, seed_runs, train_all
 
@@ -202,6 +208,39 @@ def _differences(stored: str, wanted: str) -> str:
     return "; ".join(said)
 
 
+class ReplacedRunWarning(UserWarning):
+    """Runs that held a model trained with other settings, or on another file, are
+    trained again in their place (an experiment's runs are a cache of its last settings:
+    another report that used them no longer has its models)."""
+
+
+def warn_replaced(jobs: list[tuple], sha256: str) -> None:
+    """One ``ReplacedRunWarning`` for the (data, config, run) jobs whose run holds a
+    readable model of other settings (``train_config`` fields, or the data's SHA-256),
+    naming what differs, before they are trained again in its place."""
+    replaced, what = [], {}
+    for _, config, run in jobs:
+        path = Path(run) / "model.pt"
+        try:
+            old = read_checkpoint(path) if path.is_file() else None
+        except CheckpointError:
+            old = None
+        if old is None:  # none, or not readable: nothing of value is replaced
+            continue
+        stored, wanted = old.get("train_config", {}), dataclasses.asdict(config)
+        for key in sorted(set(stored) | set(wanted)):
+            if key != "seed" and stored.get(key) != wanted.get(key):
+                what.setdefault(key, f"{key} {stored.get(key)} -> {wanted.get(key)}")
+        if old.get("dataset", {}).get("sha256") != sha256:
+            what.setdefault("data", "another dataset")
+        replaced.append(str(run))
+    if replaced:
+        warnings.warn(f"{len(replaced)} run(s) trained with other settings "
+                      f"({'; '.join(what.values()) or 'an unfinished training'}) are trained "
+                      f"again in their place, from {replaced[0]}", ReplacedRunWarning,
+                      stacklevel=3)
+
+
 @dataclass(frozen=True)
 class KeptRun:
     """One model of an experiment: trained from several seeds, the best one kept.
@@ -265,6 +304,7 @@ def train_runs(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         pairs = seed_runs(config, runs_dir / name, restarts)
         seeds[name] = [run for _, run in pairs]
         jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
+    warn_replaced(jobs, sha256)
     summaries = train_all(jobs, workers=workers, progress=progress, diverged="record",
                           cluster=cluster)
     diverged = {Path(run): s["diverged"]
@@ -314,5 +354,6 @@ def train_seeds(data: str | os.PathLike, configs: Mapping[str, TrainConfig],
         pairs = seed_runs(dataclasses.replace(config, seed=0), runs_dir / name, counts[name])
         runs[name] = [run for _, run in pairs]
         jobs += [(data, c, run) for c, run in pairs if not trained(run, c, sha256)]
+    warn_replaced(jobs, sha256)
     train_all(jobs, workers=workers, progress=progress, cluster=cluster)
     return {name: [(run, *load(run)) for run in seed_list] for name, seed_list in runs.items()}
