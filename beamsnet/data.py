@@ -154,8 +154,8 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
                             f"{', '.join(available)}")
         unknown = [n for n in names if n not in group]
         if unknown:
-            raise DataError(f"missions: {', '.join(map(repr, unknown))} not in {path}; it has "
-                            f"{', '.join(available) or 'no missions'}")
+            raise DataError(f"mission {', '.join(map(repr, unknown))}: not in {path}; "
+                            f"expected one of its missions: {', '.join(available)}")
         if len(set(names)) != len(names):
             raise DataError(f"missions: each mission at most once, got {list(names)}")
         angles = {n: float(group[n].attrs["beam_angle_deg"]) for n in names}

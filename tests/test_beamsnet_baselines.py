@@ -18,6 +18,7 @@ from beamsnet.estimators.baselines import (
     ScaleOffset,
     availability,
 )
+from beamsnet.estimators.missing import MissingBeamRegressor
 from beamsnet.metrics import rmse_vector as rmse
 
 H = beam_matrix(np.radians(20.0))
@@ -320,7 +321,8 @@ def test_kalman_filter_on_the_beam_calibration_filters_three_beam_pings():
     assert rmse(affine, w.target) > 10 * rmse(pred, w.target)
 
 
-@pytest.mark.parametrize("estimator", [AffineCalibration(), BeamCalibration(), ScaleOffset()])
+@pytest.mark.parametrize("estimator", [AffineCalibration(), BeamCalibration(), ScaleOffset(),
+                                       MissingBeamRegressor()])
 def test_a_fit_on_too_few_samples_asks_for_more_data(estimator):
     """Too short a training set (``stress --train-duration 5``: 3 samples) is the user's
     data, not a bug: a DataError, which a command line prints as one line."""

@@ -155,7 +155,8 @@ def test_errors_say_what_is_wrong(path, tmp_path):
         load_windows(plain)
     with pytest.raises(DataError, match="no such file"):
         load_windows(tmp_path / "missing.h5")
-    with pytest.raises(DataError, match=r"'c' not in .*; it has a, b"):
+    with pytest.raises(DataError,
+                       match=r"mission 'c': not in .*; expected one of its missions: a, b"):
         load_windows(path, missions=["a", "c"])
     with pytest.raises(DataError, match="mission a: 120 DVL ping.*needs at least 201"):
         load_windows(path, n_past=200)

@@ -116,6 +116,19 @@ def test_v1_on_a_file_without_imu_gives_one_line_and_exit_2(npy, tmp_path, capsy
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no IMU data" in err and "--model v2" in err
     assert not (tmp_path / "run").exists()
+    # A V1 run evaluated on it: no --model flag named (evaluate has none), the data blamed.
+    sim = tmp_path / "sim.h5"
+    assert auvsim_main(["generate", "--preset", "paper-sim", "--duration", "40", "--out",
+                        str(sim), "--quiet"]) == 0
+    assert beamsnet_main(["train", str(sim), "--model", "v1", "--epochs", "1", "--out",
+                          str(tmp_path / "v1"), "--quiet"]) == 0
+    capsys.readouterr()
+    assert beamsnet_main(["evaluate", str(tmp_path / "v1"), str(out), "--out",
+                          str(tmp_path / "ev"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    error = [line for line in err.splitlines() if line.startswith("beamsnet: error")]
+    assert len(error) == 1 and "no IMU data, which BeamsNetV1 takes" in error[0], err
+    assert "--model" not in error[0] and not (tmp_path / "ev").exists()
 
 
 def test_an_imported_stream_is_scored_against_itself_not_a_simulator(npy, tmp_path, capsys):

@@ -81,13 +81,12 @@ def test_truth_at_pings_rotates_the_dvl_velocity_into_ned(tmp_path):
     """In a turn, attitude x mounting x the true DVL velocity, less the lever arm's
     omega x r, is the vehicle's true NED velocity at each ping: the frames and the rows
     that dead reckoning integrates are the right ones."""
-    from auvsim.data.reader import open_dataset
-    from beamsnet.navigation import truth_at_pings
-
     import dataclasses
 
+    from auvsim.data.reader import open_dataset
     from auvsim.runs.generate import generate
     from auvsim.runs.presets import preset
+    from beamsnet.navigation import truth_at_pings
 
     path = tmp_path / "turn.h5"
     config = preset("maneuvers").with_duration(90.0)

@@ -30,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 
 from auvsim.data.beams import least_squares
-from beamsnet.data import Windows
-from beamsnet.estimators.baselines import check_fitted
+from beamsnet.data import DataError, Windows
+from beamsnet.estimators.baselines import MORE_DATA, check_fitted
 from beamsnet.estimators.registry import Needs, Spec
 
 # Singular values below this fraction of the largest are round-off: a noise-free training
@@ -89,9 +89,10 @@ class MissingBeamRegressor:
         n_past = train.past_beams.shape[1]
         ok = np.isfinite(train.beams).all(axis=1) & np.isfinite(train.past_beams).all(axis=(1, 2))
         if ok.sum() < 4 * n_past:
-            raise ValueError(f"{type(self).__name__}.fit: {4 * n_past - 1} inputs need at "
-                             f"least {4 * n_past} complete training pings (all beams of "
-                             f"the ping and its {n_past} past pings valid), got {ok.sum()}")
+            raise DataError(f"{type(self).__name__}.fit: {4 * n_past - 1} inputs need at "
+                            f"least {4 * n_past} complete training pings (all beams of "
+                            f"the ping and its {n_past} past pings valid), got {ok.sum()}; "
+                            f"{MORE_DATA}")
         y, past, h = train.beams[ok], train.past_beams[ok], train.h
         self.coef = {}
         for code in range(1, 16):

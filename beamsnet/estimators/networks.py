@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, ClassVar
 import torch
 from torch import nn
 
-from auvsim.errors import ConfigError
+from beamsnet.data import DataError
 from beamsnet.estimators.registry import Needs, Spec
 
 if TYPE_CHECKING:
@@ -119,8 +119,9 @@ def _imu(windows: Windows) -> list[torch.Tensor]:
     """[accel, gyro], each (S, 3, W) float32: the axes are the conv's channels, time runs
     along W."""
     if windows.accel is None:
-        raise ConfigError("v2 is needed: the windows have no IMU data, which "
-                          "BeamsNetV1 takes", argument="model")
+        raise DataError("the windows have no IMU data, which BeamsNetV1 takes (an imported "
+                        "DVL stream has none); expected a dataset with an IMU for it, or a "
+                        "network that takes none (BeamsNetV2)")
     return [torch.as_tensor(x, dtype=torch.float32).transpose(1, 2).contiguous()
             for x in (windows.accel, windows.gyro)]
 
@@ -174,7 +175,7 @@ class BeamsNetV1(nn.Module):
         """What ``forward`` takes, float32, for every sample of ``windows``.
 
         Raises:
-            ConfigError: the windows have no IMU data.
+            DataError: the windows have no IMU data.
         """
         return [*_imu(windows), _beams(windows)]
 

@@ -36,8 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 from auvsim.data.beams import least_squares
-from beamsnet.data import Windows
-from beamsnet.estimators.baselines import check_fitted
+from beamsnet.data import DataError, Windows
+from beamsnet.estimators.baselines import MORE_DATA, check_fitted
 from beamsnet.estimators.registry import Needs, Spec
 
 K = 3.5  # the modified z-score's outlier cut (Iglewicz & Hoaglin 1993)
@@ -79,8 +79,8 @@ class RobustLeastSquares:
         e = error_velocity(train.beams, train.h)
         e = e[np.isfinite(e)]
         if len(e) == 0:
-            raise ValueError(f"{type(self).__name__}.fit: needs training samples with four "
-                             "valid beams, got none")
+            raise DataError(f"{type(self).__name__}.fit: needs training samples with four "
+                            f"valid beams, got none; {MORE_DATA}")
         self.center = float(np.median(e))
         self.scale = max(MAD_TO_STD * float(np.median(np.abs(e - self.center))), MIN_SCALE)
         self.h = train.h
