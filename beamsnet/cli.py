@@ -435,6 +435,11 @@ def _reproduce(args) -> None:
     if seeded and args.restarts is not None:
         raise ConfigError(f"is not used by {args.experiment}, which scores every seed; "
                           "expected --seeds N", argument="restarts")
+    if args.experiment.startswith("paper-sim") and args.data is not None \
+            and args.duration is not None:
+        raise ConfigError("is not used with --data, whose file is the data as it is; "
+                          "expected one of the two (--duration sizes the dataset generated "
+                          "without --data)", argument="duration")
     if args.experiment == "snapir" and args.duration is not None:
         raise ConfigError("is not used by snapir, whose data are the recorded streams; "
                           "expected it with paper-sim or sim2real", argument="duration")

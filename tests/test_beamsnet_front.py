@@ -169,6 +169,8 @@ def no_generation(monkeypatch):
      "--protocol: only v2 has the choice; corr always takes the past beams' changes"),
     (["reproduce", "paper-sim", "--data", "{data}"],
      "has no mission speed_1, speed_2, speed_3 (it has a, b)"),
+    (["reproduce", "paper-sim", "--data", "{data}", "--duration", "100"],
+     "--duration is not used with --data, whose file is the data as it is"),
 ])
 def test_bad_inputs_are_refused_before_any_data_is_generated(args, said, data, tmp_path,
                                                              monkeypatch, capsys,
