@@ -176,10 +176,15 @@ def test_the_config_may_be_a_presets_name_or_a_toml_file(tmp_path):
     assert env.config == load_config(str(toml)) and env.config.dvl.beam_angle_deg == 25.0
 
 
-def test_a_policy_refuses_a_speed_its_vehicle_cannot_hold():
+def test_a_policy_refuses_a_speed_or_depth_its_vehicle_cannot_hold():
     env = AuvEnv()
     with pytest.raises(ConfigError, match="speed 9 m/s is beyond what vehicle 'auv' can hold"):
         ManeuverPolicy(ScenarioConfig(name="zigzag", speed=9.0), env)
+    # Below the environment's seafloor (60 m for paper-sim), as generate refuses it, where
+    # it used to fly into the seabed.
+    floor = env.config.seafloor.depth
+    with pytest.raises(ConfigError, match=f"expected a depth above the seafloor at {floor:g}"):
+        ManeuverPolicy(ScenarioConfig(name="straight", depth=floor + 20.0), env)
 
 
 def test_a_numpy_frame_skip_is_a_whole_number_and_step_needs_a_reset():
@@ -264,3 +269,15 @@ def test_sync_and_async_vector_environments_fly_the_same_episodes():
     alone = [single.step(np.array([0.6, np.sin(k / 5), 0.1], dtype=np.float32))[0]
              for k in range(10)]
     np.testing.assert_array_equal(a[1:11, 0], alone)
+
+
+def test_render_mode_and_reset_options_are_refused_not_ignored():
+    """gym.make passes render_mode: None is taken (render draws nothing), another mode is
+    refused in one line; reset's options, which nothing reads, are refused too."""
+    env = gym.make("auvsim/AUV-v0", render_mode=None, max_episode_seconds=5.0)
+    env.reset(seed=0)
+    assert env.unwrapped.render() is None
+    with pytest.raises(ConfigError, match="render_mode: expected None, got 'rgb_array'"):
+        AuvEnv(render_mode="rgb_array")
+    with pytest.raises(ConfigError, match="options: expected None, got"):
+        env.unwrapped.reset(options={"depth": 30.0})

@@ -160,12 +160,19 @@ class AuvEnv(gym.Env):
             start: speed, heading and depth.
         frame_skip: physics steps per environment step (10: dt = 0.1 s).
         max_episode_seconds: truncation time, s.
+        render_mode: None, the one mode (``metadata``): it draws nothing; an episode is
+            drawn by recording it (``EpisodeRecorder``) and ``auvsim plot``.
     """
 
     metadata = {"render_modes": []}
 
     def __init__(self, config: Config | None = None, *, frame_skip: int = 10,
-                 max_episode_seconds: float = 600.0) -> None:
+                 max_episode_seconds: float = 600.0, render_mode: str | None = None) -> None:
+        if render_mode is not None:  # gymnasium passes it; this environment draws nothing
+            raise ConfigError(f"render_mode: expected None, got {render_mode!r} (AuvEnv "
+                              "draws nothing: record an episode with EpisodeRecorder and "
+                              "draw it with auvsim plot)")
+        self.render_mode = None
         if isinstance(config, str) and config in PRESETS:  # a preset's name
             config = preset(config)
         elif isinstance(config, (str, os.PathLike)):  # a TOML file, as generate --config
@@ -218,7 +225,14 @@ class AuvEnv(gym.Env):
                                                              options={}, duration=duration))
         return MissionRun(self.config, mission)
 
+    def render(self) -> None:
+        """Nothing: ``render_mode`` is None (see ``metadata``)."""
+        return None
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if options:  # none are read: a start to change is the config's (its first mission)
+            raise ConfigError(f"options: expected None, got {options!r} (the start is the "
+                              "config's first mission's scenario)")
         super().reset(seed=seed)
         self.run = self._mission(seed=int(self.np_random.integers(2**63)))
         self.run.vehicle.reset(**self.run.scenario.initial_state())
@@ -307,7 +321,8 @@ class ManeuverPolicy:
 
     Raises:
         ConfigError: a ``ScenarioConfig`` whose speeds the vehicle cannot hold
-            (``Vehicle.check_speed``), as ``auvsim generate`` refuses it.
+            (``Vehicle.check_speed``) or that ``Config`` refuses in the environment's config
+            (a depth below its seafloor), as ``auvsim generate`` refuses it.
     """
 
     def __init__(self, maneuver: Maneuver | ScenarioConfig, env: AuvEnv) -> None:
@@ -318,6 +333,9 @@ class ManeuverPolicy:
         if self.scenario is not None:  # refused as auvsim generate refuses it
             for speed in check_scenario(self.scenario).speeds():
                 self.env.run.vehicle.check_speed(speed)
+            # The config's own checks of a mission (its depth above the seafloor).
+            dataclasses.replace(self.env.config,
+                                missions=(MissionConfig(scenario=self.scenario),))
 
     def reset(self) -> None:
         if self.scenario is not None:

@@ -234,8 +234,9 @@ class MissionRun:
         problems = (
             (altitude <= 0, "reached the seafloor", "a scenario depth that stays above the "
              "terrain"),
-            (pos[:, 2] < 0, "broke the surface", "a speed, buoyancy and current it can hold "
-             "depth in"),
+            (pos[:, 2] < 0, "broke the surface", "a set depth well under the surface (the "
+             "model has no free surface) and a speed, buoyancy and current it can hold depth "
+             "in"),
             (np.isnan(altitude), "left the terrain", "a track that stays over the heightmap "
              "(a grid's: seafloor.extent around the location)"),
         )
