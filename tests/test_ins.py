@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -537,3 +538,44 @@ def test_a_ping_is_applied_at_the_imu_sample_nearest_its_time():
     assert np.all(np.abs(lag) <= 0.005 + 1e-12)
     # One sample: every ping at or after it is its.
     np.testing.assert_array_equal(ins.nearest_samples(t[:1], pings), [-1, -1, 0, 0, 0, 0, 0, 0])
+
+
+def _rest(n: int = 201):
+    """A vehicle at rest for (n - 1) / 100 s, level, heading north: IMU at 100 Hz, a DVL
+    reading zero at 1 Hz, and the start and instrument run_arrays takes."""
+    t = np.arange(n) / 100.0
+    f = np.tile([0.0, 0.0, -9.8], (n, 1))
+    return dict(imu_time=t, specific_force=f, angular_rate=np.zeros((n, 3)),
+                dvl_time=np.arange(0.0, t[-1] + 1e-9, 1.0),
+                velocity=np.zeros((len(np.arange(0.0, t[-1] + 1e-9, 1.0)), 3)),
+                start=ins.coarse_alignment(t, f, heading_deg=0.0),
+                instrument=ins.Instrument(1e-4, 1e-6, 1e-4, 1e-7, 0.0, 0.0, np.full(3, 0.01)),
+                gravity=9.8)
+
+
+@pytest.mark.parametrize("change, said", [
+    (lambda a: a["specific_force"].__setitem__((50, 0), np.nan),
+     "specific_force: expected finite samples, got [nan, 0.0, -9.8] at sample 50 (t = 0.5 s);"),
+    (lambda a: a.__setitem__("dvl_time", a["dvl_time"] + 300.0),
+     "dvl_time: 3 ping(s) outside the IMU's span 0 to 2 s (the first at 300 s)"),
+    (lambda a: a.__setitem__("dvl_time", a["dvl_time"] * 1000.0),
+     "dvl_time: 2 ping(s) outside the IMU's span"),
+    (lambda a: a.__setitem__("start", a["start"]._replace(time=5.0)),
+     "start: its time 5 s is outside the IMU's span"),
+    (lambda a: a.__setitem__("ping_row", np.arange(10)), "ping_row: expected (3,)"),
+    (lambda a: a.__setitem__("valid", np.ones(5, bool)), "valid: expected shape (3,)"),
+    (lambda a: a.__setitem__("mounting_rpy_deg", (0.0, 1.0)), "mounting_rpy_deg: expected 3"),
+    (lambda a: a.__setitem__("start", a["start"]._replace(rotation=2 * np.eye(3))),
+     "start.rotation: expected a 3 x 3 rotation matrix"),
+    (lambda a: a.__setitem__("latitude_deg", 95.0), "latitude_deg: expected deg in [-90, 90]"),
+    (lambda a: a.__setitem__("gravity", -9.8), "gravity: expected its magnitude in m/s^2"),
+])
+def test_run_arrays_names_a_bad_argument(change, said):
+    """An argument the filter would take silently into a wrong answer (a NaN sample that
+    made every later state NaN yet "accepted"; stamps in ms; a start outside the data) is
+    refused, naming it and what is expected."""
+    arrays = _rest()
+    assert np.isfinite(ins.run_arrays(**arrays).position_ned).all()
+    change(arrays)
+    with pytest.raises(ValueError, match=re.escape(said)):
+        ins.run_arrays(**arrays)

@@ -1465,16 +1465,42 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                          f"(N, 3) with N >= 2, got {t.shape}, {f.shape}, {w.shape}")
     if not (np.diff(t) > 0).all():
         raise ValueError("imu_time: expected increasing times")
+    for name, x in (("specific_force", f), ("angular_rate", w)):
+        bad = np.flatnonzero(~np.isfinite(x).all(axis=1))
+        if bad.size:  # one would make every state after it NaN, and still "accepted"
+            raise ValueError(f"{name}: expected finite samples, got {x[bad[0]].tolist()} "
+                             f"at sample {bad[0]} (t = {t[bad[0]]:g} s)"
+                             + (f" and {bad.size - 1} more" if bad.size > 1 else "")
+                             + "; drop or fill them first")
     if imu_samples not in IMU_SAMPLES:
         raise ValueError(f"imu_samples: expected one of {', '.join(IMU_SAMPLES)}, got "
                          f"{imu_samples!r}")
     tp = np.asarray(dvl_time, dtype=float)
+    if tp.ndim != 1 or not np.isfinite(tp).all():
+        raise ValueError(f"dvl_time: expected (P,) finite times, got shape {tp.shape}")
+    # A ping may lie a ping's interval (at most 1 s) beyond the IMU's ends (a clock offset
+    # check-log applied leaves the last one 20 ms past); further, applied at the nearest
+    # sample, it would be a stamp in another unit or of another log.
+    slack = max(min(float(np.median(np.diff(tp))), 1.0) if len(tp) > 1 else 0.0,
+                10.0 * float(np.median(np.diff(t))))
+    outside = (tp < t[0] - slack) | (tp > t[-1] + slack)
+    if outside.any():
+        k = np.flatnonzero(outside)[0]
+        raise ValueError(f"dvl_time: {outside.sum()} ping(s) outside the IMU's span "
+                         f"{t[0]:g} to {t[-1]:g} s (the first at {tp[k]:g} s); expected "
+                         "pings on the IMU's clock, in s, within its samples")
+    if not (t[0] <= start.time <= t[-1]):
+        raise ValueError(f"start: its time {start.time:g} s is outside the IMU's span "
+                         f"{t[0]:g} to {t[-1]:g} s; expected a start among the samples")
     if (beams is None) == (velocity is None):
         raise ValueError("beams, velocity: expected one of the two")
     if beams is not None:
         meas = np.asarray(beams, dtype=float)
         if beam_angle_deg is None:
             raise ValueError("beam_angle_deg: expected the beams' angle with beams")
+        if not 0.0 < float(beam_angle_deg) < 90.0:  # NaN too
+            raise ValueError(f"beam_angle_deg: expected deg from the vertical in (0, 90), "
+                             f"got {beam_angle_deg!r}")
         dirs = beam_matrix(math.radians(float(beam_angle_deg)))
     else:
         meas = np.asarray(velocity, dtype=float)
@@ -1485,9 +1511,22 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     usable = np.isfinite(meas)
     if valid is not None:
         valid = np.asarray(valid, dtype=bool)
+        if valid.shape not in ((len(tp),), meas.shape):
+            raise ValueError(f"valid: expected shape ({len(tp)},) or {meas.shape}, got "
+                             f"{valid.shape}")
         usable &= valid[:, None] if valid.ndim == 1 else valid
     usable &= bool(config.dvl_updates)
 
+    for name, x in (("mounting_rpy_deg", mounting_rpy_deg),
+                    ("imu_position_body", imu_position_body),
+                    ("dvl_position_body", dvl_position_body)):
+        if np.shape(x) != (3,) or not np.isfinite(np.asarray(x, dtype=float)).all():
+            raise ValueError(f"{name}: expected 3 finite numbers, got {x!r}")
+    rotation = np.asarray(start.rotation, dtype=float)
+    if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3),
+                                                   atol=1e-6):
+        raise ValueError("start.rotation: expected a 3 x 3 rotation matrix, body -> NED "
+                         f"(rotation_rpy, or start_from_reference), got {rotation.tolist()}")
     # The start: IMU sample i0 at or just before start.time; the IMU point's state.
     i0 = max(int(np.searchsorted(t, start.time, side="right")) - 1, 0)
     r_imu = np.asarray(imu_position_body, dtype=float)
@@ -1498,7 +1537,11 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     v0 = np.asarray(start.velocity_ned, dtype=float) + c0 @ np.cross(w0, r_imu)
     if ping_row is None:
         ping_row = nearest_samples(t, tp)
-    ping_row = np.asarray(ping_row, dtype=np.int64) - i0
+    ping_row = np.asarray(ping_row, dtype=np.int64)
+    if ping_row.shape != tp.shape or ((ping_row < 0) | (ping_row >= len(t))).any():
+        raise ValueError(f"ping_row: expected ({len(tp)},) IMU sample indices in [0, "
+                         f"{len(t)}), one per ping, got shape {ping_row.shape}")
+    ping_row = ping_row - i0
     ping_row[ping_row < 0] = -1
     if ping_row.size and (np.diff(ping_row) < 0).any():
         raise ValueError("dvl_time: expected increasing times")
@@ -1509,11 +1552,16 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     earth = (cfg.earth_rate if cfg.earth_rate is not None else latitude_deg is not None)
     if earth and latitude_deg is None:
         raise ValueError("latitude_deg: the Earth's rate needs the latitude")
+    if latitude_deg is not None and not -90.0 <= float(latitude_deg) <= 90.0:
+        raise ValueError(f"latitude_deg: expected deg in [-90, 90], got {latitude_deg!r}")
     omega_ie = earth_rate_ned(latitude_deg) if earth else np.zeros(3)
     g = (cfg.gravity if cfg.gravity is not None else gravity if gravity is not None
          else normal_gravity(latitude_deg, height_m) if latitude_deg is not None else None)
     if g is None:
         raise ValueError("gravity: expected it, or latitude_deg for the normal gravity")
+    if not 0.0 < g < 100.0:  # NaN too; 9.78-9.83 on the Earth
+        raise ValueError(f"gravity: expected its magnitude in m/s^2 (positive: down is the "
+                         f"NED frame's +z), got {g!r}")
     # On the Earth, g is the gravity at the frame's origin and grows with the depth below
     # it as the normal gravity's free-air term does (3.1e-6 m/s^2 per m), as auvsim's
     # IMU reads it; in the flat world it is the same everywhere.
