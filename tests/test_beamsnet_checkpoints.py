@@ -227,3 +227,23 @@ def test_the_command_prints_no_traceback(run, dataset, tmp_path):
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
     assert done.stderr.startswith(f"beamsnet: error: run '{bad / 'model.pt'}': ")
     assert not out.exists()
+
+
+def test_predict_refuses_windows_of_another_beam_angle(run, dataset, tmp_path):
+    """A loaded network knows the beam angle it learned: predict on 30 deg beams with a
+    model of 20 deg ones is refused (it was 0.69 m/s off where LS is 0.013), unless the
+    caller allows it, as evaluate's allow_mismatch does."""
+    from auvsim.errors import ConfigError
+    from beamsnet.data import load_windows
+    from beamsnet.training.train import predict
+
+    model, _ = load(run)
+    assert model.trained_beam_angles_deg == (20.0,)
+    assert predict(model, load_windows(dataset)).shape[1] == 3  # its own geometry
+    other = write(flat(mission("b", 2, speed=2.0, duration=30.0, start_speed=0.0),
+                       dvl=DvlConfig(beam_angle_deg=30.0)), tmp_path / "thirty.h5")
+    windows = load_windows(other)
+    with pytest.raises(ConfigError, match="windows' beams are at 30 deg and the model was "
+                                          "trained on beams at 20 deg"):
+        predict(model, windows)
+    assert predict(model, windows, allow_mismatch=True).shape == (len(windows.target), 3)

@@ -111,6 +111,11 @@ def load(run: str | Path) -> tuple[torch.nn.Module, dict]:
     _check_weights(model, checkpoint, path)
     model.load_state_dict(checkpoint["state_dict"])
     model.eval()
+    # The beam angles it learned (``predict`` refuses others); empty: not recorded.
+    sensors = checkpoint.get("sensors")
+    model.trained_beam_angles_deg = tuple(sorted(
+        {float(s["beam_angle_deg"]) for s in sensors.values()
+         if isinstance(s, dict) and "beam_angle_deg" in s})) if isinstance(sensors, dict) else ()
     return model, checkpoint
 
 

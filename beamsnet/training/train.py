@@ -86,7 +86,8 @@ from beamsnet.training.config import TrainConfig
 
 
 @torch.no_grad()
-def predict(model: torch.nn.Module, windows: Windows) -> np.ndarray:
+def predict(model: torch.nn.Module, windows: Windows, *,
+            allow_mismatch: bool = False) -> np.ndarray:
     """(S, 3) velocity estimates, m/s, of a network on the inputs it cuts from
     ``windows`` (its ``inputs``).
 
@@ -94,7 +95,21 @@ def predict(model: torch.nn.Module, windows: Windows) -> np.ndarray:
     (v2m, corr) use the valid beams and give NaN rows only where fewer than 3 current
     beams are valid; the others take no masks, and give NaN rows wherever one of their
     input beams is NaN.
+
+    Raises:
+        ConfigError: the windows' beam angle is not one the model was trained on (a
+            model from ``checkpoints.load`` knows them), unless ``allow_mismatch``: it
+            learned one beam geometry, and on another its output is far off (a V2 of 20
+            deg beams on 30 deg ones, 0.69 m/s in x where LS is 0.013 off).
     """
+    trained = getattr(model, "trained_beam_angles_deg", ())
+    if trained and not allow_mismatch:
+        angle = math.degrees(math.acos(min(abs(float(windows.h[0, 2])), 1.0)))
+        if not any(abs(angle - a) < 1e-6 for a in trained):
+            raise ConfigError(f"the windows' beams are at {angle:g} deg and the model was "
+                              f"trained on beams at {', '.join(f'{a:g}' for a in trained)} "
+                              "deg; expected windows of its training data's geometry "
+                              "(allow_mismatch runs it anyway)", argument="windows")
     model.eval()
     return model(*model.inputs(windows)).double().numpy()
 
