@@ -30,7 +30,8 @@ __version__ = "0.1.0"
 # What users import, from the top level; each is loaded when first asked for, so that
 # ``import auvsim`` stays light (MuJoCo and numba load with the first name that needs them).
 _PUBLIC = {
-    "Config": "auvsim.config", "ScenarioConfig": "auvsim.config",
+    "Config": "auvsim.config", "MissionConfig": "auvsim.config",
+    "ScenarioConfig": "auvsim.config",
     "load_config": "auvsim.config",
     "preset": "auvsim.runs.presets", "generate": "auvsim.runs.generate",
     "open_dataset": "auvsim.data.reader",

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import operator
 import os
 import reprlib
 from dataclasses import dataclass, field
@@ -247,8 +248,12 @@ class MissionConfig:
     def __post_init__(self) -> None:
         _check(isinstance(self.name, str) and self.name.isidentifier(), "mission.name",
                "a name of letters, digits and underscores", self.name)
+        if not isinstance(self.seed, (int, float)) and hasattr(type(self.seed), "__index__"):
+            object.__setattr__(self, "seed", operator.index(self.seed))  # a numpy integer
         _check(isinstance(self.seed, int) and not isinstance(self.seed, bool)
                and 0 <= self.seed < 2**63, "seed", "an integer in [0, 2**63)", self.seed)
+        _check(isinstance(self.scenario, ScenarioConfig), "mission.scenario",
+               "a ScenarioConfig", type(self.scenario).__name__)
 
 
 @dataclass(frozen=True)
@@ -930,6 +935,10 @@ class Config:
     def __post_init__(self) -> None:
         object.__setattr__(self, "missions", tuple(self.missions))
         _check(len(self.missions) > 0, "missions", "at least one mission", self.missions)
+        kinds = sorted({type(m).__name__ for m in self.missions
+                        if not isinstance(m, MissionConfig)})
+        _check(not kinds, "missions", "MissionConfigs (MissionConfig(scenario=ScenarioConfig"
+               "(...)), each with a name and a seed)", ", ".join(kinds))
         if len(self.missions) > MAX_MISSIONS:
             raise ConfigError(f"missions: expected at most {MAX_MISSIONS} missions (make "
                               f"several datasets), got {len(self.missions)}")

@@ -433,3 +433,22 @@ def test_an_override_of_what_names_a_presets_missions_is_refused(flags, field, t
     assert "differ in it" in err and not out.exists()
     assert main(["generate", flags[0], flags[1], "--duration", "5", "--out", str(out),
                  "--quiet"]) == 0
+
+
+def test_configs_built_in_python_take_numpy_seeds_and_name_what_is_wrong(tmp_path):
+    """A numpy integer seed is the number it holds; a ScenarioConfig where a MissionConfig
+    belongs, or a preset's name where a Config belongs, is named in one line instead of
+    failing deep inside (an AttributeError)."""
+    import auvsim
+
+    assert auvsim.MissionConfig(seed=np.int64(7)).seed == 7
+    assert type(auvsim.MissionConfig(seed=np.int64(7)).seed) is int
+    with pytest.raises(ConfigError, match="missions: expected MissionConfigs .* got "
+                                          "'ScenarioConfig'"):
+        Config(missions=[ScenarioConfig()])
+    with pytest.raises(ConfigError, match="mission.scenario: expected a ScenarioConfig"):
+        MissionConfig(scenario="zigzag")
+    with pytest.raises(ConfigError, match="config: expected an auvsim Config .* got str "
+                                          "'navigator'"):
+        generate("navigator", tmp_path / "x.h5")
+    assert not (tmp_path / "x.h5").exists()

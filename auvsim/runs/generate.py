@@ -183,7 +183,7 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
     """Simulate every mission of ``config`` into the dataset ``out``.
 
     Args:
-        config: what to simulate.
+        config: what to simulate (a ``Config``).
         out: the HDF5 file to write (replaced only once it is complete), or a folder (a
             path ending in a separator) for a sharded dataset.
         workers: worker processes (default ``default_workers``); with 1 the missions run
@@ -210,6 +210,10 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
         (``compile_s``: a first run's, 0 once numba's cache has it); for a sharded dataset
         also its shards and how many were kept from an earlier run.
     """
+    if not isinstance(config, Config):  # a preset's name, say: one line, not deep inside
+        raise ConfigError(f"config: expected an auvsim Config (auvsim.preset(NAME), "
+                          f"auvsim.load_config(FILE), or Config(...)), got "
+                          f"{type(config).__name__} {config!r}")
     with _compile_clock() as compiling:
         summary = _generate(config, out, workers=workers, executor=executor,
                             cluster=cluster, shards=shards, progress=progress)
