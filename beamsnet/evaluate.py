@@ -52,6 +52,7 @@ from beamsnet.estimators.ins import (
     at_pings,
     innovation_consistency,
 )
+from beamsnet.estimators.registry import estimator_key
 from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
@@ -484,12 +485,6 @@ def error_spread(error) -> float:
     error = np.abs(np.asarray(error, dtype=float))
     error = error[np.isfinite(error)]
     return float(np.percentile(error, 99)) if error.size else 0.0
-
-
-def estimator_key(name: str) -> str:
-    """What of an estimator's name ``find_estimator`` matches: its letters and digits,
-    lower case (``INS/DVL (adaptive)`` and ``ins-dvl-adaptive`` alike)."""
-    return "".join(c for c in name.lower() if c.isalnum())
 
 
 def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> object:

@@ -33,6 +33,15 @@ def test_every_estimators_name_has_a_key_of_its_own():
     assert len(set(keys)) == len(keys) and estimator_key("ins-dvl") == estimator_key("INS/DVL")
 
 
+def test_spec_matches_as_the_command_line_does_and_lists_the_names_it_knows():
+    from beamsnet.estimators import spec
+
+    assert spec("ls").name == "LS" and spec("robust-ls").name == "Robust LS"
+    assert spec("BeamsNetV2 (seed_0)").name == "v2"  # a table row's
+    with pytest.raises(KeyError, match="no estimator 'nope'; expected one of LS, Affine"):
+        spec("nope")
+
+
 @pytest.mark.parametrize("name", ["LS", "beam-calibration", "missing beam ls", "MissingBeam_LS"])
 def test_estimate_writes_every_ping_beside_the_truth(turning, tmp_path, name, capsys):
     out = tmp_path / "est"

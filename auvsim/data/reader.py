@@ -210,7 +210,7 @@ class Mission:
         schema read whole (``auvsim.data.xarray_views.group_datasets``): each on its
         group's own ``time`` coordinate (s), fields with ``units`` and ``description``
         attributes and component coordinates (``axis`` x/y/z, ``ned`` N/E/D, ``component``
-        w/x/y/z, ``beam`` 1-4), the mission's attributes on each Dataset. A recorded
+        w/x/y/z, ``beam`` 0-3, the columns), the mission's attributes on each Dataset. A recorded
         mission's ``reference`` says it is a reference. Needs xarray
         (``pip install 'auvsim[io]'``).
 

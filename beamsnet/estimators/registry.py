@@ -122,17 +122,36 @@ def specs(kind: str | None = None) -> tuple[Spec, ...]:
     return tuple(s for s in _all() if kind is None or s.kind == kind)
 
 
+def estimator_key(name: str) -> str:
+    """What of an estimator's name a loose match compares: its letters and digits, lower
+    case (``INS/DVL (adaptive)`` and ``ins-dvl-adaptive`` alike)."""
+    return "".join(c for c in name.lower() if c.isalnum())
+
+
+class UnknownEstimator(KeyError):
+    """No estimator has the name asked for; the message lists those there are."""
+
+    def __str__(self) -> str:  # KeyError's own quotes its argument, message and all
+        return str(self.args[0])
+
+
 def spec(name: str) -> Spec:
-    """The estimator called ``name`` (a spec's ``name``, or a table row's, such as
-    ``BeamsNetV2 (seed_0)``).
+    """The estimator called ``name``: a spec's ``name`` or ``short``, a table row's (such
+    as ``BeamsNetV2 (seed_0)``), or either matched on its letters and digits alone
+    (``estimator_key``: ``ls``, ``robust-ls``, ``ins-dvl``), as the command line matches.
 
     Raises:
-        KeyError: no estimator has that name.
+        UnknownEstimator (a KeyError): no estimator has that name.
     """
     for s in _all():
         if name in (s.name, s.short) or _is_run_of(name, s):
             return s
-    raise KeyError(name)
+    key = estimator_key(name)
+    for s in _all():
+        if key in (estimator_key(s.name), estimator_key(s.short)):
+            return s
+    raise UnknownEstimator(f"no estimator {name!r}; expected one of "
+                           + ", ".join(s.name for s in _all()))
 
 
 def short_name(row: str) -> str:
