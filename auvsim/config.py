@@ -301,7 +301,10 @@ class SeafloorConfig:
     """
 
     kind: str = "flat"
-    depth: float = 100.0
+    # 60 m, the presets' coastal floor: the default DVL (30 deg beams, 90 m range) reaches
+    # it from the default 20 m (46 m away), where a 100 m floor left every beam 92 m away,
+    # beyond its range, and a bare Config() without bottom lock.
+    depth: float = 60.0
     roughness: float = 0.0
     correlation_length: float = 30.0
     slope_deg: float = 0.0

@@ -452,3 +452,15 @@ def test_configs_built_in_python_take_numpy_seeds_and_name_what_is_wrong(tmp_pat
                                           "'navigator'"):
         generate("navigator", tmp_path / "x.h5")
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_bare_config_has_bottom_lock():
+    """The defaults fly 20 m deep over a floor the default DVL reaches (a 100 m floor left
+    its 30 deg beams 92 m away, beyond its 90 m range: a dataset with no lock at all)."""
+    config = Config()
+    altitude = config.seafloor.depth - config.missions[0].scenario.depth
+    slant = altitude / math.cos(math.radians(config.dvl.beam_angle_deg))
+    assert config.dvl.min_range < slant < config.dvl.max_range
+    short = MissionConfig(scenario=ScenarioConfig(duration=20.0))
+    data = truth(dataclasses.replace(config, missions=(short,)))
+    assert np.isfinite(data["dvl/beam_velocity"]).mean() > 0.9
