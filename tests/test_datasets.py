@@ -499,3 +499,17 @@ def test_a_version_6_file_without_gravity_is_refused(facts_file, tmp_path):
         del f["missions/zigzag"].attrs["gravity"]
     with pytest.raises(DatasetError, match="zigzag .*lacks attribute gravity"):
         open_dataset(bad)
+
+
+def test_a_mission_read_after_its_dataset_closed_says_so(ideal_file):
+    """In a notebook a mission outlives its ``with`` block easily: reading it then is one
+    DatasetError saying the dataset is closed, not h5py's "Not an id of a file object"."""
+    with open_dataset(ideal_file) as f:
+        mission = next(iter(f.missions.values()))
+        velocity = mission.dvl.velocity  # read inside: kept
+    assert velocity.shape[1] == 3
+    for read in (lambda: mission.dvl.velocity, lambda: mission.groups,
+                 lambda: mission.has("truth")):
+        with pytest.raises(DatasetError, match="its dataset is closed; expected reads inside "
+                                               "the `with open_dataset"):
+            read()

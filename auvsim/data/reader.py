@@ -149,6 +149,7 @@ class Mission:
     @property
     def groups(self) -> list[str]:
         """The groups it holds (``truth``, ``imu``, ``dvl``, ...), in name order."""
+        self._check_open()
         return sorted(k for k, v in self._group.items() if isinstance(v, h5py.Group))
 
     def has(self, group: str) -> bool:
@@ -236,8 +237,15 @@ class Mission:
         refused with ``DatasetError`` naming the file, the mission and the field, and so
         is any field of a shard whose data differ from its seal (``Dataset.check_seal``,
         at the first read from each shard)."""
+        self._check_open()
         self.dataset.check_seal(self._group.file)
         return _read(self._where, path, self._dataset(path))
+
+    def _check_open(self) -> None:
+        if not self._group.id.valid:  # h5py's own error says "Not an id of a file object"
+            raise DatasetError(f"{self._where}: its dataset is closed; expected reads inside "
+                               "the `with open_dataset(...)` block (or the arrays copied out "
+                               "before it ends)")
 
     def _dataset(self, path: str) -> h5py.Dataset:
         item = self._item(path)
@@ -249,6 +257,7 @@ class Mission:
     # about 80 us, and ``mission.imu.time`` takes two) and a group's fields are listed once
     # (h5py opens each item to tell a field from a group).
     def _item(self, path: str) -> h5py.HLObject | None:
+        self._check_open()
         if path not in self._items:
             self._items[path] = self._group.get(path)
         return self._items[path]
