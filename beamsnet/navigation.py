@@ -138,13 +138,19 @@ def own_position_error(windows: Windows, position: np.ndarray, truth: dict[str, 
 
 def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
     """``pred`` (S, 3) with each NaN row replaced by the mission's last estimate before
-    it, and by zero before its first (a navigator without a velocity stands still)."""
-    out = np.zeros_like(pred)
+    it, and before its first by the velocity the navigator started with: the target's
+    (the truth's, or a recorded mission's reference's) at the mission's first sample, as
+    the INS/DVL filter starts from the truth's (or the reference's) state. A gap at the
+    start then costs what a gap anywhere does, the velocity's change over it, not the
+    whole distance flown before the first estimate (which had made an estimator that
+    starts three pings late on a turn look as if gaps ruined it)."""
+    out = np.empty_like(pred)
     have = np.isfinite(pred).all(axis=1)
     for m in np.unique(windows.mission):
         rows = np.flatnonzero(windows.mission == m)  # in time order (``load_windows``)
         last = np.maximum.accumulate(np.where(have[rows], np.arange(len(rows)), -1))
-        out[rows] = np.where((last >= 0)[:, None], pred[rows][np.maximum(last, 0)], 0.0)
+        out[rows] = np.where((last >= 0)[:, None], pred[rows][np.maximum(last, 0)],
+                             windows.target[rows[0]])
     return out
 
 

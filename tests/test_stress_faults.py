@@ -53,11 +53,18 @@ def _dropped(w: Windows, pings: list[int], beam: int = 0) -> Windows:
     return w._replace(beams=beams, past_beams=past)
 
 
-def test_held_fills_a_gap_with_the_last_estimate_and_zero_before_the_first():
+def test_held_fills_a_gap_with_the_last_estimate_and_the_start_before_the_first():
+    """Before its first estimate the navigator holds the velocity it started with, the
+    target's at the mission's first sample (each mission its own), as the INS/DVL filter
+    starts from the truth's state."""
     w = _windows(6)._replace(mission=np.array([0, 0, 0, 0, 1, 1]))
+    w = w._replace(target=np.arange(18.0).reshape(6, 3) + 10.0)
     pred = np.array([[np.nan] * 3, [1.0, 0, 0], [np.nan] * 3, [3.0, 0, 0],
                      [np.nan] * 3, [5.0, 0, 0]])
-    np.testing.assert_array_equal(held(w, pred)[:, 0], [0, 1, 1, 3, 0, 5])
+    filled = held(w, pred)
+    np.testing.assert_array_equal(filled[:, 0], [10, 1, 1, 3, 22, 5])
+    np.testing.assert_array_equal(filled[0], w.target[0])
+    np.testing.assert_array_equal(filled[4], w.target[4])
 
 
 def test_each_estimator_on_pings_with_a_lost_beam():

@@ -28,8 +28,9 @@ table gives:
   ping, BeamsNetV2 all four of the ping and its three past pings; the Kalman filter
   predicts through a ping without a measurement;
 * the dead-reckoning error at the end of a mission (``beamsnet.navigation.dead_reckoning_error``),
-  where an estimator without an estimate holds its last one (zero before its first, as a
-  navigator with no velocity would), so a gap costs what it costs at sea.
+  where an estimator without an estimate holds its last one (before its first, the true
+  velocity the navigator started with, as the INS/DVL filter starts from the truth), so a
+  gap costs what it costs at sea, at the start as anywhere.
 
 Water-track pings measure the velocity relative to a water layer. They never train
 anything (``load_windows`` drops them, and the training data have none); here they are
@@ -43,6 +44,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import textwrap
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -413,7 +415,8 @@ def _report(summary: dict) -> str:
         "pings the estimator gives an estimate for) / **availability** (share of pings "
         "with an estimate) / **dead-reckoning error** (m, horizontal, at the end of a "
         "mission, mean over the missions; a ping without an estimate holds the last one, "
-        "zero before the first; the INS/DVL filter's own position is scored instead). LS "
+        "before the first the true velocity at the start, as the INS/DVL filter starts "
+        "from the truth; the INS/DVL filter's own position is scored instead). LS "
         "solves three beams exactly and is the baseline, and so do the beam calibration and "
         "LS scale+offset; the affine calibration, BeamsNetV1 and the first Kalman filter's "
         "measurement need all four beams of a ping, BeamsNetV2 all four of the ping and of "
@@ -568,12 +571,16 @@ def _plot(results: dict, path: Path) -> None:
                 ax.set_xticks(levels)
                 ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
                 ax.xaxis.set_minor_locator(NullLocator())
+            elif len(levels) == 1:  # one setting: its tick alone, not a 0.48-0.52 axis
+                ax.set_xticks(levels)
+                ax.set_xlim(levels[0] - 1.0, levels[0] + 1.0)
+                ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
             ax.grid(True, alpha=0.3)
             ax.tick_params(labelsize=7)
             if j == 0:
                 ax.set_ylabel(label, fontsize=8)
         axes[0, j].set_title(sweep, fontsize=9)
-        axes[-1, j].set_xlabel(SWEEPS[sweep], fontsize=7)
+        axes[-1, j].set_xlabel(textwrap.fill(SWEEPS[sweep], 44), fontsize=7)  # no overlap
     figure_legend(fig, axes[0, 0], fontsize=8)
     fig.suptitle("Every estimator against DVL fault rate (trained on clean data)")
     save_figure(fig, path, dpi=100)
