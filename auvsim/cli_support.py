@@ -62,12 +62,15 @@ def run_command(prog: str, command: Callable[[], object],
             return _say(prog, f"error: {_os_error(e)}", ERROR)
         except KeyboardInterrupt:
             kept = outputs.kept
+            gone = (f"; it had removed {', '.join(str(p) for p in outputs.dropped)} (run "
+                    "it again to finish)" if outputs.dropped else "")
             if not kept:
-                return _say(prog, "interrupted; nothing was written", INTERRUPTED)
+                return _say(prog, f"interrupted; nothing was written{gone}", INTERRUPTED)
             named = ", ".join(str(p) for p in kept[:3])
             more = f" and {len(kept) - 3} more" if len(kept) > 3 else ""
+            said = f"{gone}" if gone else ", nothing else was"
             return _say(prog, f"interrupted; {named}{more} had been written whole before "
-                        "it, nothing else was", INTERRUPTED)
+                        f"it{said}", INTERRUPTED)
     return 0
 
 

@@ -476,3 +476,28 @@ def test_a_dataset_is_not_written_under_another_formats_name(tmp_path, capsys):
         _one_line(capsys, "name for an HDF5 dataset; expected a .h5 name")
     assert list(tmp_path.iterdir()) == []
     assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "x.hdf5")]) == 0
+
+
+def test_ctrl_c_in_a_rerun_into_a_sharded_dataset_says_its_index_went(tmp_path, capsys,
+                                                                      monkeypatch):
+    """Another command into a finished sharded dataset removes its index before it
+    replaces shards: stopped then, it says so (the folder is no dataset until a run
+    finishes), where it had said nothing else was changed."""
+    import auvsim.runs.generate as gen
+
+    out = tmp_path / "rm"
+    assert cli.main(["generate", "--preset", "maneuvers", "--duration", "5", "--quiet",
+                     "--workers", "1", "--out", f"{out}/"]) == 0
+    assert (out / "index.h5").is_file()
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(gen, "write_index", stopped)
+    capsys.readouterr()
+    assert cli.main(["generate", "--preset", "maneuvers", "--duration", "6", "--quiet",
+                     "--workers", "1", "--out", f"{out}/"]) == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "had been written whole before it; it had removed " \
+        f"{out / 'index.h5'} (run it again to finish)" in err, err
+    assert not (out / "index.h5").exists()

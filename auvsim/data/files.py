@@ -364,6 +364,7 @@ class Outputs:
     written: list[Path] = field(default_factory=list)
     removed: list[Path] = field(default_factory=list)
     finished: list[Path] = field(default_factory=list)
+    dropped: list[Path] = field(default_factory=list)  # a user's files the block removed
 
     @property
     def kept(self) -> list[Path]:
@@ -379,6 +380,14 @@ def finished(path: str | os.PathLike) -> None:
     among what an interrupted command leaves; no block removes it."""
     for scope in _scopes:
         scope.finished.append(Path(path))
+
+
+def dropped(path: str | os.PathLike) -> None:
+    """Record ``path``, a file that was there before the command (a sharded dataset's old
+    index), as removed by it: an interrupted command names it among what it changed,
+    where it would otherwise say nothing else was."""
+    for scope in _scopes:
+        scope.dropped.append(Path(path))
 
 
 _scopes: list[Outputs] = []  # the open ``all_or_nothing`` blocks, outermost first

@@ -55,6 +55,7 @@ from auvsim.data.files import (
     Claim,
     check_out_dir,
     commit,
+    dropped,
     finished,
     interrupt_handler,
     interrupts_held,
@@ -321,7 +322,10 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
             todo = [k for k, shard in enumerate(shards) if shard is None]
             if todo:
                 with _jobs_executor(executor, cluster) as given:
-                    index.unlink(missing_ok=True)  # it would list shards about to change
+                    if index.exists():  # it would list shards about to change
+                        index.unlink()
+                        dropped(index)  # said if the run is stopped: the folder is no
+                        # dataset until it is run again
                     claim.folder.mkdir()
                     parent = None if cluster is not None else this_process()
                     jobs = [(write_shard, (config, plan[k][1],
