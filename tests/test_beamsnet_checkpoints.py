@@ -82,6 +82,18 @@ def _damaged_inside(run, dataset, tmp_path):
     return bad
 
 
+def _bit_flipped(run, dataset, tmp_path):
+    """One bit of a stored tensor's bytes flipped: torch.load would read it."""
+    bad = _copy(run, tmp_path)
+    with zipfile.ZipFile(bad / "model.pt") as archive:
+        tensor = next(i for i in archive.infolist() if i.filename.endswith("/data/0"))
+    data = bytearray((bad / "model.pt").read_bytes())
+    start = tensor.header_offset + 30 + len(tensor.filename.encode()) + len(tensor.extra)
+    data[start + tensor.compress_size // 2] ^= 0x01
+    (bad / "model.pt").write_bytes(bytes(data))
+    return bad
+
+
 def _model_pt_is_a_directory(run, dataset, tmp_path):
     bad = _copy(run, tmp_path)
     (bad / "model.pt").unlink()
@@ -112,13 +124,16 @@ BAD_RUNS = {
     "empty": (_write(b""), "is empty"),
     "truncated": (_write(cut=0.5), "truncated, corrupt"),
     "text": (_write(b"a model, honest\n"), "not a PyTorch checkpoint"),
-    "damaged inside": (_damaged_inside, "is a corrupt PyTorch checkpoint (RuntimeError: "),
+    "damaged inside": (_damaged_inside, "is a corrupt PyTorch checkpoint"),
+    "bit flipped": (_bit_flipped, "fails its CRC-32 check (changed or damaged since"),
     "missing key": (_rewrite(lambda c: c.pop("state_dict")), "lacks state_dict"),
     "shape mismatch": (_rewrite(_bigger_output_layer),
                        "out.weight has shape (3, 7), the model's is (3, 6)"),
     "nan weights": (_rewrite(_nan_weight), "out.bias holds NaN"),
     "bad kwargs": (_rewrite(lambda c: c["kwargs"].update(n_past="3")),
                    "do not build BeamsNetV2"),
+    "absurd kwargs": (_rewrite(lambda c: c["kwargs"].update(n_past=10**9)),
+                      "n_past must be an int in [1, 10000]"),
     "bad train_config": (_rewrite(lambda c: c["train_config"].update(epochs=0)),
                          "train_config is not a training config"),
     "other format": (_rewrite(lambda c: c.update(format="other")),
@@ -214,6 +229,23 @@ def test_train_refuses_a_file_as_out_before_training(dataset, tmp_path, capsys,
     assert main(["train", str(dataset), "--out", str(out), "--restarts", "2", "--quiet"]) == 2
     assert "exists and is not a directory" in _one_line_error(capsys)
     assert out.read_text() == "mine\n"
+
+
+def test_a_checkpoint_that_cannot_be_saved_is_one_line_and_no_run(dataset, tmp_path,
+                                                                    capsys, monkeypatch):
+    """torch.save on a full disk raises a RuntimeError without an errno: named as the run's
+    output that cannot be written, in one line, and no run folder is left."""
+    def full(*args, **kwargs):
+        raise RuntimeError("[enforce fail at inline_container.cc:603] . unexpected pos "
+                           "1600 vs 1496\nPytorchStreamWriter failed writing file")
+
+    monkeypatch.setattr(torch, "save", full)
+    out = tmp_path / "run"
+    assert main(["train", str(dataset), "--epochs", "1", "--out", str(out), "--quiet"]) == 2
+    err = _one_line_error(capsys)
+    assert f"'{out / 'model.pt'}': cannot be written ([enforce fail" in err
+    assert "expected room for it there" in err and not out.exists()
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_the_command_prints_no_traceback(run, dataset, tmp_path):

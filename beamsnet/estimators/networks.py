@@ -53,6 +53,9 @@ N_BEAMS = 4  # Janus DVL
 N_AXES = 3  # x, y, z of an accelerometer or gyroscope triad, and of the velocity
 CONV_CHANNELS = 6  # "six filters of size 2 x 1" (paper, sec. 3.1)
 CONV_KERNEL = 2  # the smallest kernel that sees a change between neighbouring samples
+# The longest input window a network takes (IMU samples, past pings): its layers grow
+# with it, and a checkpoint asking for more (n_past = 10**9: 48 GB) is not one of ours.
+MAX_WINDOW = 10_000
 N_FEATURES = 2  # what the context branch hands to the output layer, next to the 4 beams
 PAST_INPUTS = ("beams", "changes")  # what V2's conv sees of the past epochs (see BeamsNetV2)
 MIN_BEAMS = 3  # valid beams for a 3-D velocity: any 3 of a Janus DVL's 4 are independent
@@ -182,8 +185,9 @@ class BeamsNetV1(nn.Module):
     def __init__(self, *, imu_window: int = 100, dropout: float = 0.2,
                  shared_imu_conv: bool = False) -> None:
         super().__init__()
-        if not (isinstance(imu_window, int) and imu_window >= CONV_KERNEL):
-            raise ValueError(f"imu_window must be an int >= {CONV_KERNEL}, got {imu_window!r}")
+        if not (isinstance(imu_window, int) and CONV_KERNEL <= imu_window <= MAX_WINDOW):
+            raise ValueError(f"imu_window must be an int in [{CONV_KERNEL}, {MAX_WINDOW}], "
+                             f"got {imu_window!r}")
         if not 0.0 <= dropout < 1.0:
             raise ValueError(f"dropout must be in [0, 1), got {dropout!r}")
         self.kwargs = dict(imu_window=imu_window, dropout=dropout,
@@ -281,8 +285,8 @@ class BeamsNetV2(nn.Module):
 
     def __init__(self, *, n_past: int = 3, past_input: str = "beams") -> None:
         super().__init__()
-        if not (isinstance(n_past, int) and n_past >= 1):
-            raise ValueError(f"n_past must be an int >= 1, got {n_past!r}")
+        if not (isinstance(n_past, int) and 1 <= n_past <= MAX_WINDOW):
+            raise ValueError(f"n_past must be an int in [1, {MAX_WINDOW}], got {n_past!r}")
         if past_input not in PAST_INPUTS:
             raise ValueError(f"past_input must be one of {PAST_INPUTS}, got {past_input!r}")
         self.kwargs = dict(n_past=n_past, past_input=past_input)
@@ -390,8 +394,8 @@ class BeamsNetV2M(nn.Module):
 
     def __init__(self, *, n_past: int = 3) -> None:
         super().__init__()
-        if not (isinstance(n_past, int) and n_past >= 1):
-            raise ValueError(f"n_past must be an int >= 1, got {n_past!r}")
+        if not (isinstance(n_past, int) and 1 <= n_past <= MAX_WINDOW):
+            raise ValueError(f"n_past must be an int in [1, {MAX_WINDOW}], got {n_past!r}")
         self.kwargs = dict(n_past=n_past)
         self.n_past = n_past
         self.head = _conv_head(2 * n_past)

@@ -105,7 +105,7 @@ def load(run: str | Path) -> tuple[torch.nn.Module, dict]:
     checkpoint = read_checkpoint(path)
     try:
         model = build(checkpoint["model"], **checkpoint["kwargs"])
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, RuntimeError, MemoryError) as e:  # absurd sizes too
         raise _refused(path, f"its model arguments {checkpoint['kwargs']} do not build "
                        f"{spec(checkpoint['model']).short} ({e})") from None
     _check_weights(model, checkpoint, path)
@@ -136,6 +136,16 @@ def read_checkpoint(path: str | Path) -> dict:
         raise _refused(path, "is empty" if size == 0 else
                        f"is not a PyTorch checkpoint ({size} bytes, not a zip archive: "
                        "truncated, corrupt or another kind of file)")
+    # torch.load reads the archive without checking its members' CRC-32s: a flipped bit
+    # in the weights would load, and score otherwise. The zip's own check finds it.
+    try:
+        with zipfile.ZipFile(path) as archive:
+            damaged = archive.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError) as e:
+        raise _refused(path, f"is a corrupt PyTorch checkpoint ({_first_line(e)})") from None
+    if damaged is not None:
+        raise _refused(path, f"is a corrupt PyTorch checkpoint: its member {damaged!r} "
+                       "fails its CRC-32 check (changed or damaged since it was written)")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # torch's notes on pickle protocols

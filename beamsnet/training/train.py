@@ -70,7 +70,7 @@ import torch
 from tqdm import tqdm
 
 from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
-from auvsim.errors import ConfigError
+from auvsim.errors import ConfigError, OutputError
 from beamsnet.data import DataError, Windows, check_referenced, load_windows, split
 from beamsnet.estimators import spec
 from beamsnet.estimators.baselines import least_squares
@@ -272,7 +272,12 @@ def train(dataset: str | Path, config: TrainConfig, out: str | Path, *,
                       history=history, samples=dict(train=n, test=len(y_test)),
                       final_train_loss=final_train_loss, final_test_loss=final_test_loss)
     with staged_dir(out) as stage:  # the whole run or nothing (a full disk, Ctrl-C)
-        torch.save(checkpoint, stage / "model.pt")
+        try:
+            torch.save(checkpoint, stage / "model.pt")
+        except RuntimeError as e:  # torch's writer says a failed write so, without errno
+            raise OutputError(f"{str(Path(out) / 'model.pt')!r}: cannot be written "
+                              f"({str(e).splitlines()[0][:200]}); expected room for it "
+                              "there and a folder that can be written") from None
         write_text(stage / "history.json", json.dumps(history, indent=1))
         _plot_losses(history, stage / "losses.png", config,
                      final=(final_train_loss, final_test_loss))
