@@ -164,6 +164,11 @@ H5_EDITS = {
                     "attribute dvl_rate_hz is '1 Hz'"),
     "seed_string": ("good", lambda f: f[M].attrs.__setitem__("seed", "three"),
                     "attribute seed is 'three'"),
+    "config_json_broken": ("good", lambda f: f.attrs.__setitem__("config_json", "{not json"),
+                           "its config_json is not a JSON dict ('{not json')"),
+    "config_json_a_list": ("good", lambda f: f.attrs.__setitem__("config_json", "[1, 2]"),
+                           "its config_json is not a JSON dict"),
+
     "rate_zero": ("good", lambda f: f[M].attrs.__setitem__("dvl_rate_hz", 0.0),
                   "attribute dvl_rate_hz is 0.0; expected a number above 0"),
     "seed_fraction": ("good", lambda f: f[M].attrs.__setitem__("seed", 1.5),

@@ -790,7 +790,10 @@ def test_a_recorded_mission_is_checked_by_the_reader(akit, tmp_path):
             (lambda g: g.attrs.__setitem__("groups", '["imu", "reference"]'),
              "holds group dvl, which its groups attribute"),
             (lambda g: g.__delitem__("reference/velocity_ned"), "lacks reference/velocity_ned"),
-            (lambda g: g.attrs.__delitem__("dvl_noise_std"), "lacks attribute dvl_noise_std")):
+            (lambda g: g.attrs.__delitem__("dvl_noise_std"), "lacks attribute dvl_noise_std"),
+            # a hand-edited JSON attribute: refused at opening, not met by inspect's parser
+            (lambda g: g.attrs.__setitem__("source_files", "IMU.csv"),
+             r"its source_files attribute is not a JSON list \('IMU.csv'\)")):
         bad.write_bytes(out.read_bytes())
         with h5py.File(bad, "r+") as f:
             change(f["missions/trajectory3"])

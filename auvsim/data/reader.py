@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import reprlib
 import time
 from collections.abc import Iterator, Mapping
 from functools import lru_cache
@@ -125,6 +126,28 @@ class Group:
         return self._mission.read(f"{self._name}/{field}")
 
 
+# A mission's attributes that hold JSON, and what each holds: checked as it is opened,
+# so that a damaged or hand-edited one is refused in one line, not met as a traceback by
+# whichever reader parses it.
+JSON_ATTRS = {"source_files": list, "check_log_json": dict}  # phases, groups: their parsers
+
+
+def _json_of(text, kind: type, what: str):
+    """``text`` parsed as JSON holding a ``kind``.
+
+    Raises:
+        DatasetError: it is not (``what`` names the file and the attribute).
+    """
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError):
+        value = None
+    if not isinstance(value, kind):
+        raise DatasetError(f"{what} is not a JSON {kind.__name__} ({reprlib.repr(text)}): "
+                           "damaged, or edited by hand; expected the file as auvsim wrote it")
+    return value
+
+
 class Mission:
     """A mission of an open dataset: its ``name``, ``origin``, ``attrs`` (plain Python
     values and numpy arrays, the realised error parameters among them) and groups as
@@ -145,6 +168,9 @@ class Mission:
         # ``attrs``: the group's, as remembered from a check of this very file.
         self.attrs = _plain(group.attrs) if attrs is None else _copied(attrs)
         self.attrs.setdefault("origin", origin)
+        for key, kind in JSON_ATTRS.items():
+            if key in self.attrs:
+                _json_of(self.attrs[key], kind, f"{self._where}: its {key} attribute")
 
     @property
     def groups(self) -> list[str]:
@@ -286,6 +312,8 @@ class Dataset:
         self.path = path
         self._file = file
         self.attrs = _plain(file.attrs)
+        if self.attrs.get("config_json"):
+            _json_of(self.attrs["config_json"], dict, f"{str(path)!r}: its config_json")
         self.version = int(self.attrs["format_version"])
         self.missions: dict[str, Mission] = {}
         self.shards: list[Path] = []
