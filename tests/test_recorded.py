@@ -409,6 +409,12 @@ def _lines(change):
 
 
 BAD_LOGS = {
+    "lever_arm_absurd": (_replace("log.toml", "position_body = [0.5, 0.0, 0.1]",
+                                  "position_body = [-1e300, 0.0, 0.1]"),
+                         "imu.position_body: expected each at most 10 m from the reference "
+                         "point (a sensor on the vehicle) either way"),
+    "noise_absurd": (_replace("log.toml", "noise_std = 0.003", "noise_std = 1e300"),
+                     "dvl.noise_std: expected m/s, at most 1"),
     "missing_column": (_edit("imu.csv", _lines(lambda ls: [",".join(x.split(",")[:-2])
                                                             for x in ls])),
                        "no column 'wz' (the log description's imu.columns)"),

@@ -69,6 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.config import MAX_SENSOR_OFFSET
 from auvsim.data.beams import beam_noise_from_error_velocity
 from auvsim.data.checklog import cumulative
 from auvsim.data.schema import RECORDED_GROUPS, mission_attrs
@@ -407,8 +408,9 @@ def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
     (none for ``depth`` and ``reference``)."""
     if group not in ("imu", "dvl"):
         return {}
-    out: dict[str, object] = {"position_body": tuple(finite_numbers(
-        where, f"{group}.position_body", table.get("position_body", [0.0, 0.0, 0.0]), 3))}
+    out: dict[str, object] = {"position_body": tuple(_bounded(
+        where, f"{group}.position_body", table.get("position_body", [0.0, 0.0, 0.0]),
+        MAX_SENSOR_OFFSET, "m from the reference point (a sensor on the vehicle)"))}
     if group == "imu":
         noise = table.get("noise")
         if not isinstance(noise, dict):
@@ -418,13 +420,18 @@ def _instrument(where: str, group: str, table: dict) -> dict[str, object]:
         out["specs"] = {k: _spec(where, f"imu.noise.{k}", noise.get(k),
                                  strict=k == "bias_correlation_time") for k in IMU_NOISE}
         return out
-    out["mounting_rpy_deg"] = tuple(finite_numbers(
-        where, "dvl.mounting_rpy_deg", table.get("mounting_rpy_deg", [0.0, 0.0, 0.0]), 3))
+    out["mounting_rpy_deg"] = tuple(_bounded(
+        where, "dvl.mounting_rpy_deg", table.get("mounting_rpy_deg", [0.0, 0.0, 0.0]),
+        360.0, "deg"))
     # Without a stated beam noise, the logged error velocity gives it (``_dvl_noise``).
     estimated = "noise_std" not in table and "error_velocity" in table.get("columns", {})
     out["specs"] = {k: _spec(where, f"dvl.{k}", table.get(k), strict=k == "beam_angle_deg")
                     for k in ("beam_angle_deg", "noise_std", "velocity_accuracy")
                     if not (k == "noise_std" and estimated)}
+    for k in ("noise_std", "velocity_accuracy"):
+        if out["specs"].get(k, 0.0) > MAX_DVL_NOISE:
+            raise ConfigError(f"{where}: dvl.{k}: expected m/s, at most {MAX_DVL_NOISE:g} (a "
+                              f"DVL's: a few mm/s to cm/s), got {table[k]!r}")
     if not out["specs"]["beam_angle_deg"] < 90:
         raise ConfigError(f"{where}: dvl.beam_angle_deg: expected the beams' angle from the "
                           f"DVL's axis, deg in (0, 90) (a Janus DVL's: 20 to 30), got "
@@ -469,6 +476,18 @@ def _number(where: str, key: str, value: object) -> float:
             value):
         raise ConfigError(f"{where}: {key}: expected a finite number, got {value!r}")
     return float(value)
+
+
+MAX_DVL_NOISE = 1.0  # m/s: a DVL's white noise or stated accuracy beyond it is a unit slip
+
+
+def _bounded(where: str, key: str, value: object, most: float, unit: str) -> list[float]:
+    """Three finite numbers of at most ``most`` either way (``finite_numbers``)."""
+    numbers = finite_numbers(where, key, value, 3)
+    if any(abs(x) > most for x in numbers):
+        raise ConfigError(f"{where}: {key}: expected each at most {most:g} {unit} either way, "
+                          f"got {value!r}")
+    return numbers
 
 
 def finite_numbers(where: str, key: str, value: object, n: int) -> list[float]:
