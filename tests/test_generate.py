@@ -464,3 +464,36 @@ def test_a_bare_config_has_bottom_lock():
     short = MissionConfig(scenario=ScenarioConfig(duration=20.0))
     data = truth(dataclasses.replace(config, missions=(short,)))
     assert np.isfinite(data["dvl/beam_velocity"]).mean() > 0.9
+
+
+def test_another_programs_hdf5_file_is_never_replaced(tmp_path, capsys):
+    """An HDF5 file that is not an auvsim dataset (another program's) at --out, as a
+    sharded folder's index, or among its shards is the user's: refused, or left, never
+    replaced or deleted; a dataset at --out is replaced as before."""
+    def foreign(path):
+        with h5py.File(path, "w") as f:
+            f["temperature"] = np.zeros(3)
+
+    theirs = tmp_path / "theirs.h5"
+    foreign(theirs)
+    assert main(["generate", "--duration", "5", "--out", str(theirs), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "an HDF5 file that is not an auvsim dataset is there" in err, err
+    with h5py.File(theirs) as f:
+        assert list(f) == ["temperature"]
+    ours = tmp_path / "ours.h5"
+    for _ in range(2):
+        assert main(["generate", "--duration", "5", "--out", str(ours), "--quiet"]) == 0
+
+    folder = tmp_path / "rm"
+    folder.mkdir()
+    foreign(folder / "index.h5")
+    assert main(["generate", "--preset", "maneuvers", "--duration", "5", "--workers", "1",
+                 "--out", f"{folder}/", "--quiet"]) == 2
+    assert "not an auvsim index is there" in capsys.readouterr().err
+    (folder / "index.h5").unlink()
+    (folder / "shards").mkdir()
+    foreign(folder / "shards" / "part-00099.h5")
+    assert main(["generate", "--preset", "maneuvers", "--duration", "5", "--workers", "1",
+                 "--out", f"{folder}/", "--quiet"]) == 0
+    assert (folder / "shards" / "part-00099.h5").is_file()  # not taken for a stale shard

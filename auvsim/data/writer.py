@@ -60,6 +60,17 @@ def check_mission_name(name: object, where: str) -> None:
 OTHER_FORMATS = FILE_SUFFIXES - {".h5", ".hdf5"}
 
 
+def foreign_hdf5(path: Path) -> bool:
+    """Whether ``path`` is an HDF5 file that opens and is not auvsim's (no ``format``
+    attribute of ``FORMAT``): another program's file, which no command replaces. One that
+    does not open (damaged) is not called foreign: it may be a dataset to replace."""
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("format") != FORMAT
+    except (OSError, ValueError):
+        return False
+
+
 def check_output_path(path: str | os.PathLike, argument: str = "out", *,
                       hint: str = "") -> Path:
     """A user's output path for a dataset file, checked before a command's work: what
@@ -81,6 +92,10 @@ def check_output_path(path: str | os.PathLike, argument: str = "out", *,
                 raise ConfigError(f"{str(path)!r}: a file that is not HDF5 is there; "
                                   "expected a new path, or a dataset to replace",
                                   argument=argument)
+        if foreign_hdf5(path):
+            raise ConfigError(f"{str(path)!r}: an HDF5 file that is not an auvsim dataset is "
+                              "there (another program's); expected a new path, or a dataset "
+                              "to replace", argument=argument)
     if path.suffix.lower() in OTHER_FORMATS:
         raise ConfigError(f"{str(path)!r}: a {path.suffix} name for an HDF5 dataset; "
                           f"expected a .h5 name{hint}", argument=argument)

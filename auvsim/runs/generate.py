@@ -67,7 +67,7 @@ from auvsim.data.files import (
 from auvsim.data.reader import Block
 from auvsim.data.schema import INDEX, SHARDS, Shard
 from auvsim.data.shards import shard_state, write_index
-from auvsim.data.writer import DatasetWriter, copy_mission
+from auvsim.data.writer import DatasetWriter, copy_mission, foreign_hdf5
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
 from auvsim.runs.cluster import check_address, lost_worker
@@ -305,6 +305,10 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
             kind = "a folder" if path.is_dir() else "a file"
             raise ConfigError(f"{str(path)!r} is {kind}: expected {what} of a sharded "
                               "dataset there (or nothing); move it aside", argument="out")
+    if index.is_file() and foreign_hdf5(index):
+        raise ConfigError(f"{str(index)!r}: an HDF5 file that is not an auvsim index is "
+                          "there (another program's); expected a new folder, or a sharded "
+                          "dataset's to write again", argument="out")
     fresh = not folder.exists()
     make_out_dir(folder / SHARDS, whole=False)  # each shard is whole on its own
     # The temporaries of runs that were killed (kill -9, a lost node) go before any work.
@@ -359,7 +363,7 @@ def _sharded(config: Config, folder: Path, per_shard: int, workers: int,
         raise
     planned = {name for name, _ in plan}
     for stale in (folder / SHARDS).glob("part-*.h5"):
-        if stale.name not in planned:
+        if stale.name not in planned and not foreign_hdf5(stale):  # a shard, not a user's
             stale.unlink()
     return dict(out=str(index), shards=len(plan), kept=len(plan) - len(todo),
                 simulated_s=sum(config.missions[i].scenario.duration
