@@ -501,3 +501,20 @@ def test_ctrl_c_in_a_rerun_into_a_sharded_dataset_says_its_index_went(tmp_path, 
     assert err.count("\n") == 1 and "had been written whole before it; it had removed " \
         f"{out / 'index.h5'} (run it again to finish)" in err, err
     assert not (out / "index.h5").exists()
+
+
+def test_ctrl_c_while_beamsnet_loads_is_one_line():
+    """The beamsnet program loads torch and every estimator (some 2 s) inside exit_with's
+    catch (``beamsnet.console``): a Ctrl-C then is one line and 130, not a traceback. The
+    interrupt is made to come while beamsnet.cli is being imported."""
+    code = ("import sys, types\n"
+            "class Loading(types.ModuleType):\n"
+            "    def __getattr__(self, name):\n"
+            "        raise KeyboardInterrupt\n"
+            "sys.modules['beamsnet.cli'] = Loading('beamsnet.cli')\n"
+            "from beamsnet.console import run\n"
+            "run()\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "beamsnet: interrupted; nothing was written\n"
