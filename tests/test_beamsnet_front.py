@@ -452,3 +452,25 @@ def test_legends_sit_outside_the_data_and_epochs_are_whole(tmp_path, monkeypatch
     assert ticks and all(float(t).is_integer() for t in ticks)
     assert not overlaps(ax.get_legend().get_window_extent(), ax.get_window_extent())
     plt.close(fig)
+
+
+def test_a_full_disk_in_a_staged_folder_names_the_output_not_its_stage(tmp_path, monkeypatch):
+    """A report's files are written into a hidden stage beside --out: an error writing
+    one names it in the folder the user gave, not in the stage, which is then gone."""
+    import errno
+
+    from auvsim.data.files import staged_dir, write_text
+    from auvsim.errors import OutputError
+
+    def full(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    out = tmp_path / "report"
+    with pytest.raises(OutputError) as refused:
+        with staged_dir(out) as stage:
+            monkeypatch.setattr(Path, "write_bytes", full)
+            write_text(stage / "summary.json", "{}")
+    monkeypatch.undo()
+    assert str(refused.value).startswith(f"'{out / 'summary.json'}': cannot be written (No "
+                                         "space left on device); expected room for it")
+    assert list(tmp_path.iterdir()) == []

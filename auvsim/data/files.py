@@ -474,7 +474,19 @@ def writing(path: str | os.PathLike) -> Iterator[None]:
     except OSError as e:
         if not is_write_error(e):
             raise
-        raise output_error(path, e) from e
+        raise output_error(_as_named(Path(path)), e) from e
+
+
+_staged: list[tuple[Path, Path]] = []  # open ``staged_dir`` blocks: (stage, out)
+
+
+def _as_named(path: Path) -> Path:
+    """``path`` by the name the user gave its folder: a file in a ``staged_dir``'s hidden
+    stage is named in ``out``, where it was to go."""
+    for stage, out in reversed(_staged):
+        if path.is_relative_to(stage):
+            return out / path.relative_to(stage)
+    return path
 
 
 def is_write_error(error: BaseException) -> bool:
@@ -570,7 +582,11 @@ def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
     try:
         with Claim(out) as claim:
             claim.folder.mkdir()
-            yield claim.folder
+            _staged.append((claim.folder, out))
+            try:
+                yield claim.folder
+            finally:
+                _staged.remove((claim.folder, out))
             _move_into(claim.folder, out)
     except BaseException:
         for folder in made:
