@@ -149,8 +149,9 @@ def held(windows: Windows, pred: np.ndarray) -> np.ndarray:
     for m in np.unique(windows.mission):
         rows = np.flatnonzero(windows.mission == m)  # in time order (``load_windows``)
         last = np.maximum.accumulate(np.where(have[rows], np.arange(len(rows)), -1))
-        out[rows] = np.where((last >= 0)[:, None], pred[rows][np.maximum(last, 0)],
-                             windows.target[rows[0]])
+        out[rows] = pred[rows][np.maximum(last, 0)]
+        if last[0] < 0:  # pings before its first estimate
+            out[rows[last < 0]] = windows.target[rows[0]]
     return out
 
 
