@@ -403,8 +403,8 @@ def _findings(binned: dict, rows: dict) -> list[str]:
 # An estimator fitted to data whose error on the calmest pings is this many times least
 # squares' has not learned the instrument: one trained on it sits near LS there or below
 # (within 6 % above it on the straight line of the realistic manoeuvres, reports/stress-rm),
-# one trained for a
-# single epoch some hundred times above (a smoke run: BeamsNetV1 at 1.96 m/s against 0.014).
+# one trained for a single epoch some hundred times above (a smoke run: BeamsNetV1 at
+# 1.96 m/s against 0.014).
 UNLEARNED_FACTOR = 2.0
 
 
