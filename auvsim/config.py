@@ -222,7 +222,8 @@ class ScenarioConfig:
                f"at most {MAX_DURATION:g} s (72 h, three times the A18-D's 24 h endurance)",
                self.duration)
         _check(self.speed > 0, "speed", "a positive speed in m/s", self.speed)
-        _check(self.speed <= MAX_SPEED, "speed", f"at most {MAX_SPEED:g} m/s", self.speed)
+        _check(self.speed <= MAX_SPEED, "speed", f"at most {MAX_SPEED:g} m/s, any vehicle's "
+               "bound (the vehicle's own top speed, lower, is checked next)", self.speed)
         _check(self.depth > 0, "depth", "a positive depth in m", self.depth)
         _check(self.depth <= MAX_DEPTH, "depth",
                f"at most {MAX_DEPTH:g} m (the deepest ocean)", self.depth)
