@@ -453,14 +453,15 @@ def build_config(args: argparse.Namespace) -> Config:
         # One value over missions that differ in it would leave them named for what they
         # no longer are (maneuvers' turning_circle flying a zigzag, paper-sim's speed_1 at 2).
         values = list(dict.fromkeys(getattr(m.scenario, name) for m in config.missions))
-        if name in overrides and len(values) > 1:
-            source = (f"config {str(args.config)!r}" if args.config is not None
-                      else f"preset {args.preset or DEFAULT_PRESET!r}")
-            shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in values)
-            raise ConfigError(f"--{flag.replace('_', '-')}: the missions of {source} differ "
-                              f"in it ({shown}) and are named for that; expected it without "
-                              f"--{flag.replace('_', '-')}, or a config file (--config) with "
-                              "the missions you want")
+        if name not in overrides or len(values) == 1:
+            continue
+        option = f"--{flag.replace('_', '-')}"
+        source = (f"config {str(args.config)!r}" if args.config is not None
+                  else f"preset {args.preset or DEFAULT_PRESET!r}")
+        shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in values)
+        raise ConfigError(f"{option}: the missions of {source} differ in it ({shown}) and are "
+                          f"named for that; expected it without {option}, or a config file "
+                          "(--config) with the missions you want")
     def scenario(old: ScenarioConfig) -> ScenarioConfig:
         fields = {**dataclasses.asdict(old), **overrides}
         if fields["name"] != old.name:

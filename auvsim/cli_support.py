@@ -68,9 +68,8 @@ def run_command(prog: str, command: Callable[[], object],
                 return _say(prog, f"interrupted; nothing was written{gone}", INTERRUPTED)
             named = ", ".join(str(p) for p in kept[:3])
             more = f" and {len(kept) - 3} more" if len(kept) > 3 else ""
-            said = f"{gone}" if gone else ", nothing else was"
             return _say(prog, f"interrupted; {named}{more} had been written whole before "
-                        f"it{said}", INTERRUPTED)
+                        f"it{gone or ', nothing else was'}", INTERRUPTED)
     return 0
 
 

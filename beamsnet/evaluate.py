@@ -52,7 +52,6 @@ from beamsnet.estimators.ins import (
     at_pings,
     innovation_consistency,
 )
-from beamsnet.estimators.registry import estimator_key
 from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
@@ -496,19 +495,21 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
         ConfigError: no estimator has that name (the message lists them); or the INS/DVL
             filter on a file without an IMU record (its own one-line reason).
     """
-    for s in specs():
-        if s.kind == "network" or estimator_key(s.name) != estimator_key(name):
-            continue
-        if s.kind == "model-based":
-            return s.make()
-        try:
-            return next(f for f in filters(dataset, strict=True, filter_config=filter_config)
-                        if f.name == s.name)
-        except DataError as e:
-            raise ConfigError(str(e), argument="estimator") from None
-    known = [s.name for s in specs() if s.kind != "network"]
-    raise ConfigError(f": no estimator is called {name!r}; expected one of "
-                      f"{', '.join(map(repr, known))}", argument="estimator")
+    try:
+        s = spec(name)  # matched as the command line matches (``estimator_key``)
+    except KeyError:
+        s = None
+    if s is None or s.kind == "network":
+        known = [s.name for s in specs() if s.kind != "network"]
+        raise ConfigError(f": no estimator is called {name!r}; expected one of "
+                          f"{', '.join(map(repr, known))}", argument="estimator")
+    if s.kind == "model-based":
+        return s.make()
+    try:
+        return next(f for f in filters(dataset, strict=True, filter_config=filter_config)
+                    if f.name == s.name)
+    except DataError as e:
+        raise ConfigError(str(e), argument="estimator") from None
 
 
 TRAIN_FRACTION = 0.75  # ``estimate``'s training split of a file (the paper's 75 %)

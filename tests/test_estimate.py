@@ -27,7 +27,7 @@ def test_every_estimators_name_has_a_key_of_its_own():
     """Names match on their letters and digits alone (``ins-dvl`` is INS/DVL), so no two
     estimators may share those."""
     from beamsnet.estimators import specs
-    from beamsnet.evaluate import estimator_key
+    from beamsnet.estimators.registry import estimator_key
 
     keys = [estimator_key(s.name) for s in specs() if s.kind != "network"]
     assert len(set(keys)) == len(keys) and estimator_key("ins-dvl") == estimator_key("INS/DVL")

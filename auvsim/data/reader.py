@@ -126,9 +126,9 @@ class Group:
         return self._mission.read(f"{self._name}/{field}")
 
 
-# A mission's attributes that hold JSON, and what each holds: checked as it is opened,
-# so that a damaged or hand-edited one is refused in one line, not met as a traceback by
-# whichever reader parses it.
+# A mission's attributes that hold JSON, and what each holds: checked with its others
+# (``_check_mission``), so that a damaged or hand-edited one is refused in one line, not
+# met as a traceback by whichever reader parses it.
 JSON_ATTRS = {"source_files": list, "check_log_json": dict}  # phases, groups: their parsers
 
 
@@ -168,9 +168,6 @@ class Mission:
         # ``attrs``: the group's, as remembered from a check of this very file.
         self.attrs = _plain(group.attrs) if attrs is None else _copied(attrs)
         self.attrs.setdefault("origin", origin)
-        for key, kind in JSON_ATTRS.items():
-            if key in self.attrs:
-                _json_of(self.attrs[key], kind, f"{self._where}: its {key} attribute")
 
     @property
     def groups(self) -> list[str]:
@@ -312,8 +309,6 @@ class Dataset:
         self.path = path
         self._file = file
         self.attrs = _plain(file.attrs)
-        if self.attrs.get("config_json"):
-            _json_of(self.attrs["config_json"], dict, f"{str(path)!r}: its config_json")
         self.version = int(self.attrs["format_version"])
         self.missions: dict[str, Mission] = {}
         self.shards: list[Path] = []
@@ -527,6 +522,8 @@ def _checked(path: Path, f: h5py.File, key: tuple) -> Dataset:
     version = int(version)
     if not isinstance(f.get("missions"), h5py.Group):
         raise DatasetError(f"{path}: corrupt auvsim dataset (no missions group)")
+    if f.attrs.get("config_json"):
+        _json_of(f.attrs["config_json"], dict, f"{str(path)!r}: its config_json")
     dataset = Dataset(path, f)
     layout = f.attrs.get("layout", "file")
     if layout not in ("file", "index"):
@@ -667,6 +664,9 @@ def _check_mission(path: Path, name: str, group: h5py.Group, origin: str,
             raise DatasetError(f"{where}: attribute phases is {_show(group.attrs['phases'])}; "
                                f"expected a JSON list of [start s, end s, label] ({_reason(e)})"
                                ) from None
+    for key, kind in JSON_ATTRS.items():
+        if key in group.attrs:
+            _json_of(group.attrs[key], kind, f"{where}: its {key} attribute")
     rows: dict[str, tuple[int, str]] = {}
     for fl in fields:
         ds = group[fl.path]

@@ -172,7 +172,6 @@ class AuvEnv(gym.Env):
             raise ConfigError(f"render_mode: expected None, got {render_mode!r} (AuvEnv "
                               "draws nothing: record an episode with EpisodeRecorder and "
                               "draw it with auvsim plot)")
-        self.render_mode = None
         if isinstance(config, str) and config in PRESETS:  # a preset's name
             config = preset(config)
         elif isinstance(config, (str, os.PathLike)):  # a TOML file, as generate --config

@@ -6,8 +6,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
-
 from auvsim.config import (
     MAX_DURATION,  # noqa: F401  (re-exported for the experiments that size presets)
     Config,
@@ -413,11 +411,12 @@ def with_vehicle(config: Config, model: str) -> Config:
     if any(water.turbulence_force_std) or any(water.turbulence_moment_std):
         (old_x, old_y, old_m), (x, y, m) = (_force_coefficients(old.model),
                                             _force_coefficients(model))
-        force = np.multiply(water.turbulence_force_std, (x / old_x, y / old_y, y / old_y))
+        force = (x / old_x, y / old_y, y / old_y)  # surge, sway, heave
         water = dataclasses.replace(
-            water, turbulence_force_std=tuple(float(f) for f in force),
-            turbulence_moment_std=tuple(float(t) * m / old_m
-                                        for t in water.turbulence_moment_std))
+            water, turbulence_force_std=tuple(f * k for f, k in
+                                              zip(water.turbulence_force_std, force,
+                                                  strict=True)),
+            turbulence_moment_std=tuple(t * m / old_m for t in water.turbulence_moment_std))
     return dataclasses.replace(config, vehicle=vehicle, water=water)
 
 

@@ -1531,7 +1531,7 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     i0 = max(int(np.searchsorted(t, start.time, side="right")) - 1, 0)
     r_imu = np.asarray(imu_position_body, dtype=float)
     r_dvl = np.asarray(dvl_position_body, dtype=float)
-    c0 = np.asarray(start.rotation, dtype=float)
+    c0 = rotation
     p0 = np.asarray(start.position_ned, dtype=float) + c0 @ r_imu
     w0 = w[i0] if start.angular_rate is None else np.asarray(start.angular_rate, float)
     v0 = np.asarray(start.velocity_ned, dtype=float) + c0 @ np.cross(w0, r_imu)

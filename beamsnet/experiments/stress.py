@@ -288,6 +288,8 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows, unstart
     head = "| manoeuvre | pings | " + " | ".join(short_name(n) for n in names) + " |"
     rule = "|---|---|" + "---|" * len(names)
 
+    raw = unlearned(binned)
+
     def table(cell) -> list[str]:
         return [head, rule] + [
             f"| {m} | {next(iter(r.values()))['pings']} | "
@@ -342,11 +344,11 @@ def _report(train_data, trained_on, maneuver_data, models, binned, rows, unstart
         "",
         "By vector RMSE:",
         "",
-        *why_worse(rows, "rmse_vector", unlearned=unlearned(binned)),
+        *why_worse(rows, "rmse_vector", unlearned=raw),
         "",
         "By dead-reckoning error:",
         "",
-        *why_worse(rows, "dr_error", unlearned=unlearned(binned)),
+        *why_worse(rows, "dr_error", unlearned=raw),
         "",
         "## What it shows",
         "",
@@ -413,11 +415,21 @@ def unlearned(binned: dict) -> list[str]:
     far off as least squares even on the calmest pings (the first bin of every intensity
     in ``binned``): they have not learned the instrument (too few epochs or too little
     data, a smoke run), so how their error grows says nothing of their premise."""
-    names = list(next(iter(binned.values()))[1])
-    calm = {n: min(rmse[n][0] for _, rmse in binned.values()) for n in names}
-    filters = {s.name for s in specs("filter")}
-    return [n for n in names if n != "LS" and n not in filters
+    calm = _calmest(binned)
+    return [n for n in calm if n != "LS" and n not in _filters()
             and calm[n] > UNLEARNED_FACTOR * calm["LS"]]
+
+
+def _calmest(binned: dict) -> dict[str, float]:
+    """Each estimator's error on the calmest pings: the least of every intensity's first
+    bin (``_binned``)."""
+    names = list(next(iter(binned.values()))[1])
+    return {n: min(rmse[n][0] for _, rmse in binned.values()) for n in names}
+
+
+def _filters() -> set[str]:
+    """The filters' rows: they integrate the IMU, where the others are fitted to data."""
+    return {s.name for s in specs("filter")}
 
 
 def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
@@ -428,10 +440,8 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
     names = list(next(iter(rows.values())))
     growth = {n: max(rmse[n][-1] / rmse[n][0] for _, rmse in binned.values()) for n in names}
     lines = []
-    # Estimators fitted to the training data; the filter integrates the IMU instead.
-    filters = {s.name for s in specs("filter")}
     raw = unlearned(binned)
-    grows = [n for n in names if n != "LS" and n not in filters and n not in raw
+    grows = [n for n in names if n != "LS" and n not in _filters() and n not in raw
              and growth[n] > 2 * growth["LS"]]
     if grows:
         lines.append(
@@ -442,8 +452,8 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
             + f" against {growth['LS']:.1f}x (LS). Much of it is extrapolation: training data "
             "of straight lines never show a sway or heave velocity, so what an estimator "
             "learns for them is a constant, which a turn contradicts even when it is steady.")
-    calm = {n: min(rmse[n][0] for _, rmse in binned.values()) for n in names}
     if raw:
+        calm = _calmest(binned)
         lines.append(
             f"- At least {UNLEARNED_FACTOR:g}x as far off as least squares even on the "
             "calmest pings (" + ", ".join(f"{short_name(n)} {calm[n]:.4f}" for n in raw)
@@ -452,27 +462,8 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
             "how their error grows with the manoeuvres says nothing of what they assume"
             + (" (BeamsNetV2: that the past pings show the motion of the current one)"
                if v2 in raw else "") + ".")
-    # BeamsNetV2's premise, where it has learned the instrument.
-    if v2 not in raw:
-        if growth[v2] <= 1.5 * growth["LS"]:
-            lines.append(
-                f"- BeamsNetV2's error grows no more with the manoeuvres' intensity than least "
-                f"squares' ({growth[v2]:.1f}x against {growth['LS']:.1f}x): at these "
-                "manoeuvres' rates its premise, that the past pings show the motion of the "
-                "current one, holds.")
-        elif "Affine" in growth and growth[v2] > 1.5 * growth["Affine"]:
-            lines.append(
-                f"- BeamsNetV2 degrades more than the affine calibration fitted on the same "
-                f"data but blind to the past ({growth[v2]:.1f}x against {growth['Affine']:.1f}x):"
-                " the difference is its premise, that the past pings show the motion of the "
-                "current one, failing.")
-        elif "Affine" in growth:
-            lines.append(
-                f"- BeamsNetV2 degrades no more than the affine calibration fitted on the same "
-                f"data and blind to the past ({growth[v2]:.1f}x against "
-                f"{growth['Affine']:.1f}x), so here its past-ping premise is not what fails "
-                "first: the training data's reach is. Training on manoeuvres (`beamsnet "
-                "stress --train FILE`) separates the two.")
+    if v2 not in raw:  # its premise, where it has learned the instrument
+        lines += _premise(growth, v2)
     worst = {n: max(rows, key=lambda m, n=n: rows[m][n]["rmse_vector"]) for n in names}
     lines.append("- Worst manoeuvre per estimator (vector RMSE): " + "; ".join(
         f"{short_name(n)}: {m} ({rows[m][n]['rmse_vector']:.4f} m/s)" for n, m in worst.items())
@@ -483,6 +474,29 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
         "the error, so a small bias (LS's scale factor) costs more there than a large "
         "error that changes sign (a zigzag's).")
     return lines
+
+
+def _premise(growth: dict[str, float], v2: str) -> list[str]:
+    """What BeamsNetV2's growth with the intensity says of its premise, that the past
+    pings show the motion of the current one: held, failing (more than the memoryless
+    affine calibration's), or not what fails first."""
+    if growth[v2] <= 1.5 * growth["LS"]:
+        return [f"- BeamsNetV2's error grows no more with the manoeuvres' intensity than least "
+                f"squares' ({growth[v2]:.1f}x against {growth['LS']:.1f}x): at these "
+                "manoeuvres' rates its premise, that the past pings show the motion of the "
+                "current one, holds."]
+    if "Affine" not in growth:
+        return []
+    if growth[v2] > 1.5 * growth["Affine"]:
+        return [f"- BeamsNetV2 degrades more than the affine calibration fitted on the same "
+                f"data but blind to the past ({growth[v2]:.1f}x against "
+                f"{growth['Affine']:.1f}x): the difference is its premise, that the past "
+                "pings show the motion of the current one, failing."]
+    return [f"- BeamsNetV2 degrades no more than the affine calibration fitted on the same "
+            f"data and blind to the past ({growth[v2]:.1f}x against "
+            f"{growth['Affine']:.1f}x), so here its past-ping premise is not what fails "
+            "first: the training data's reach is. Training on manoeuvres (`beamsnet "
+            "stress --train FILE`) separates the two."]
 
 
 TRACK_COLUMNS = 5  # missions per row of the tracks figure
