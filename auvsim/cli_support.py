@@ -43,7 +43,7 @@ def run_command(prog: str, command: Callable[[], object],
         flags: the flag each library argument is given on this command line, so errors
             name ``--out`` rather than ``out`` (``AuvsimError.for_cli``).
     """
-    with _sigterm_as_interrupt():
+    with _sigterm_as_interrupt(), _swallowed_interrupts_sent_again():
         try:
             with all_or_nothing() as outputs:
                 command()
@@ -61,16 +61,25 @@ def run_command(prog: str, command: Callable[[], object],
         except OSError as e:
             return _say(prog, f"error: {_os_error(e)}", ERROR)
         except KeyboardInterrupt:
-            kept = outputs.kept
-            gone = (f"; it had removed {', '.join(str(p) for p in outputs.dropped)} (run "
-                    "it again to finish)" if outputs.dropped else "")
-            if not kept:
-                return _say(prog, f"interrupted; nothing was written{gone}", INTERRUPTED)
-            named = ", ".join(str(p) for p in kept[:3])
-            more = f" and {len(kept) - 3} more" if len(kept) > 3 else ""
-            return _say(prog, f"interrupted; {named}{more} had been written whole before "
-                        f"it{gone or ', nothing else was'}", INTERRUPTED)
+            return _interrupted(prog, outputs)
+        except SystemError as e:  # numba's call that an interrupt broke into
+            if not isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
+                raise
+            return _interrupted(prog, outputs)
     return 0
+
+
+def _interrupted(prog: str, outputs) -> int:
+    """The line for a command that Ctrl-C or SIGTERM stopped: what it left whole, if any."""
+    kept = outputs.kept
+    gone = (f"; it had removed {', '.join(str(p) for p in outputs.dropped)} (run it again "
+            "to finish)" if outputs.dropped else "")
+    if not kept:
+        return _say(prog, f"interrupted; nothing was written{gone}", INTERRUPTED)
+    named = ", ".join(str(p) for p in kept[:3])
+    more = f" and {len(kept) - 3} more" if len(kept) > 3 else ""
+    return _say(prog, f"interrupted; {named}{more} had been written whole before "
+                f"it{gone or ', nothing else was'}", INTERRUPTED)
 
 
 def exit_with(prog: str, main: Callable[[], int]) -> NoReturn:
@@ -128,3 +137,30 @@ def _sigterm_as_interrupt() -> Iterator[None]:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+RESEND_S = 0.01  # after a swallowed interrupt, s: its callback has returned by then
+
+
+@contextmanager
+def _swallowed_interrupts_sent_again() -> Iterator[None]:
+    """A Ctrl-C (or SIGTERM, which ``_stop`` makes one) whose handler ran inside a C
+    callback is swallowed there: Python prints "Exception ignored on calling ctypes
+    callback function" and goes on, and the run went on to its end (numba loads compiled
+    code from its cache through such callbacks of LLVM's, for a second or so at a
+    command's first call of a kernel). While the block runs, such an interrupt is not
+    printed but sent again, as SIGINT, from a thread a moment later, once the callback has
+    returned (again if that one lands in a callback too)."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            threading.Timer(RESEND_S, os.kill, (os.getpid(), signal.SIGINT)).start()
+        else:
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous

@@ -38,9 +38,11 @@ ENDLESS = ["--preset", "maneuvers", "--duration", "3600", "--quiet"]
 
 def _children() -> set[int]:
     """This process's descendants but multiprocessing's resource tracker and forkserver,
-    which it starts once and which end with it."""
-    return {p.pid for p in psutil.Process().children(recursive=True)
-            if not any(s in " ".join(p.cmdline()) for s in ("resource_tracker", "forkserver"))}
+    which it starts once and which end with it (the workers the forkserver forks count)."""
+    me = psutil.Process()
+    servers = {p.pid for p in me.children()
+               if any(s in " ".join(p.cmdline()) for s in ("resource_tracker", "forkserver"))}
+    return {p.pid for p in me.children(recursive=True)} - servers
 
 
 @pytest.fixture(autouse=True)
@@ -115,8 +117,10 @@ def test_kill_9_of_the_client_resumes_to_the_same_data(tmp_path, reference):
 
 
 def _workers(pid: int) -> list[psutil.Process]:
-    return [p for p in psutil.Process(pid).children(recursive=True)
-            if "spawn_main" in " ".join(p.cmdline())]
+    """The local cluster's workers: what its forkserver, a child of ``pid``, forked."""
+    return [w for server in psutil.Process(pid).children()
+            if "forkserver import main" in " ".join(server.cmdline())
+            for w in server.children()]
 
 
 def test_kill_9_of_a_worker_midway_retries_its_mission(tmp_path, reference):
@@ -172,6 +176,31 @@ def test_ctrl_c_cancels_the_run_and_ends_the_cluster(tmp_path):
             + " had been written whole before it, nothing else was" if whole
             else "auvsim: interrupted; nothing was written")
     assert err.splitlines() == [said]
+
+
+def test_ctrl_c_while_the_cluster_starts_stops_the_run_once_it_has(tmp_path):
+    """The workers fork from a forkserver deaf to the group's Ctrl-C, so none stops in its
+    imports with a traceback of its own; the client holds the Ctrl-C until the cluster
+    has started (one stopped half-started would leave its workers), then stops."""
+    out = tmp_path / "rm"
+    proc = _cli(*ENDLESS, "--cluster", "local:2", "--out", f"{out}/")
+    try:
+        def starting() -> bool:
+            assert proc.poll() is None, proc.communicate()
+            return any("forkserver import main" in " ".join(p.cmdline())
+                       for p in psutil.Process(proc.pid).children())
+
+        wait_for(starting, "the cluster's forkserver", timeout=60)
+        tree = process_tree(proc.pid)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        with suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert (proc.returncode, err) == (130, "auvsim: interrupted; nothing was written\n")
+    wait_for(lambda: not still_running(tree), "the cluster to end", timeout=20)
+    assert not any((out / SHARDS).glob("*")) if out.exists() else True
 
 
 def test_a_local_cluster_that_does_not_close_in_time_has_its_workers_killed(monkeypatch):

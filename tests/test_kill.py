@@ -242,3 +242,37 @@ def test_a_ctrl_c_in_the_teardown_changes_nothing(status):
     done = subprocess.run([sys.executable, "-c", bare], capture_output=True, text=True,
                           timeout=60, preexec_fn=as_from_a_terminal)
     assert "KeyboardInterrupt" in done.stderr  # what the test guards against
+
+
+def test_an_interrupt_held_through_a_failed_step_is_what_the_step_raises():
+    """A Ctrl-C held while a step ran (a cluster starting, whose worker it stopped) is
+    delivered even when the step then failed: the run ends as interrupted, its error only
+    the context, where the interrupt had been lost with it."""
+    with pytest.raises(KeyboardInterrupt) as raised:
+        with files.interrupts_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the handler runs: held, not raised
+            raise RuntimeError("Nanny failed to start.")
+    assert isinstance(raised.value.__context__, RuntimeError)
+    with files.interrupts_held():  # nothing held, nothing raised
+        pass
+
+
+def test_a_ctrl_c_swallowed_by_a_c_callback_still_stops_the_command():
+    """numba loads a kernel's compiled code from its cache through LLVM's callbacks, and a
+    KeyboardInterrupt raised in one is printed as "Exception ignored" and lost: the
+    command ran to its end with status 0. It is sent again once the callback returns."""
+    code = ("import ctypes, os, signal, time\n"
+            "from auvsim.cli_support import exit_with, run_command\n"
+            "def callback():\n"
+            "    os.kill(os.getpid(), signal.SIGINT)\n"
+            "    time.sleep(0.1)\n"
+            "def work():\n"
+            "    ctypes.CFUNCTYPE(None)(callback)()\n"
+            "    time.sleep(5)\n"
+            "    print('ran to its end')\n"
+            "exit_with('auvsim', lambda: run_command('auvsim', work, {}))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, preexec_fn=as_from_a_terminal)
+    assert (done.returncode, done.stdout, done.stderr) == (
+        130, "", "auvsim: interrupted; nothing was written\n")

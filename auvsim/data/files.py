@@ -31,6 +31,8 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import multiprocessing
+import multiprocessing.forkserver
 import os
 import re
 import shlex
@@ -200,10 +202,24 @@ def interrupts_held() -> Iterator[None]:
     and some swallow it, so the run goes on: MuJoCo's extension init, importing, and
     LLVM's callbacks as numba loads compiled code from its cache."""
     held: list[int] = []
-    with interrupt_handler(lambda signum, frame: held.append(signum)):
-        yield
-    if held:
-        signal.raise_signal(held[0])
+    try:
+        with interrupt_handler(lambda signum, frame: held.append(signum)):
+            yield
+    finally:  # an error the interrupt caused (a worker it stopped) gives way to it
+        if held:
+            signal.raise_signal(held[0])
+
+
+def start_forkserver(preload: list[str]) -> None:
+    """Start multiprocessing's forkserver, importing ``preload``, deaf to Ctrl-C and SIGTERM
+    (if it runs already: nothing). Ignored signals stay ignored across exec and fork, and
+    Python then installs no KeyboardInterrupt handler: the server and the workers it forks
+    (a pool's, a local cluster's; and the resource tracker it starts) never see the group's
+    Ctrl-C or SIGTERM, even while they import; this process stops them. A signal to this
+    process in these milliseconds is lost."""
+    multiprocessing.get_context("forkserver").set_forkserver_preload(preload)
+    with interrupt_handler(signal.SIG_IGN):
+        multiprocessing.forkserver.ensure_running()
 
 
 @contextmanager

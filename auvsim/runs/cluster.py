@@ -26,7 +26,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
-from auvsim.data.files import interrupt_handler, interrupts_held
+from auvsim.data.files import interrupts_held, start_forkserver
 from auvsim.errors import ConfigError, SimulationError
 
 CONNECT_TIMEOUT_S = 10.0
@@ -45,6 +45,7 @@ LOCAL_CONFIG = {
     "distributed.worker.profile.enabled": False,
     "distributed.admin.tick.interval": "1s",
 }
+FORKED = {"distributed.worker.multiprocessing-method": "forkserver"}  # see _local
 _LOCAL = re.compile(r"local:(\d+)")
 _REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?[\w.\-\[\]:]+:(\d+)/?")
 EXPECTED = "expected local:N (N worker processes here) or a scheduler's address, host:port"
@@ -143,13 +144,17 @@ def _stop_local(client, cluster) -> None:
 def _local(dask, distributed, n: int, threads: int, timeout: float):
     """A client of a new ``LocalCluster`` of ``n`` workers, and the cluster.
 
-    Its workers ignore SIGINT, which a terminal sends to the whole process group: this
-    process stops them (the first, started while SIGINT is ignored here, inherit that; a
-    worker the nanny restarts later is told by ``_IgnoreSigint``). A Ctrl-C while it
-    starts is lost, as one to the built-in pool's forkserver is."""
+    Its workers never see SIGINT, which a terminal sends to the whole process group: this
+    process stops them. They fork from the forkserver (``start_forkserver``), so they
+    ignore it from their start, where spawned ones would stop in their imports with a
+    traceback each; a worker the nanny restarts later is told by ``_IgnoreSigint``
+    as well. A Ctrl-C or SIGTERM to this process while the cluster starts is held
+    (a cluster stopped half-started would leave its workers), and stops it once started.
+    """
     cluster = None
+    start_forkserver(["distributed"])
     try:
-        with interrupt_handler(signal.SIG_IGN), dask.config.set(LOCAL_CONFIG):
+        with interrupts_held(), dask.config.set({**LOCAL_CONFIG, **FORKED}):
             # ":0": the scheduler's HTTP server (and dashboard) on any free port; the
             # workers' logs silenced (a failed task is this process's error to report).
             cluster = distributed.LocalCluster(

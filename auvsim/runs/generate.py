@@ -34,10 +34,8 @@ import dataclasses
 import fcntl
 import hashlib
 import multiprocessing
-import multiprocessing.forkserver
 import os
 import select
-import signal
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -57,10 +55,10 @@ from auvsim.data.files import (
     commit,
     dropped,
     finished,
-    interrupt_handler,
     interrupts_held,
     make_out_dir,
     names_folder,
+    start_forkserver,
     sweep,
     writing,
 )
@@ -521,15 +519,9 @@ def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolE
     auvsim (numba, MuJoCo) once, so they start in milliseconds, without inheriting this
     process's threads. Each watches this process from its start (``exit_with``), so an
     idle one also ends with it."""
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["auvsim.runs.generate"])
-    # Ignored signals stay ignored across exec and fork, and Python then installs no
-    # KeyboardInterrupt handler: the server and its workers (and the resource tracker it
-    # starts) never see the group's Ctrl-C or SIGTERM, even while they import. A signal
-    # to this process in these milliseconds is lost.
-    with interrupt_handler(signal.SIG_IGN):
-        multiprocessing.forkserver.ensure_running()
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
+    start_forkserver(["auvsim.runs.generate"])
+    return cf.ProcessPoolExecutor(max_workers=workers,
+                                  mp_context=multiprocessing.get_context("forkserver"),
                                   initializer=exit_with, initargs=(parent, folder))
 
 
