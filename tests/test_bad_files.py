@@ -554,3 +554,13 @@ def test_plot_out_that_is_a_file_is_refused(good, tmp_path, capsys):
     assert main(["plot", str(good), "--out", str(tmp_path / "png")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--out" in err and "not a directory" in err
+
+
+def test_a_file_with_a_v7_attribute_out_of_range_is_refused(tmp_path):
+    """``dvl_slow_error_time`` (format 7) must be above 0: the filter divides by it."""
+    path = write(flat(mission(duration=5.0)), tmp_path / "d.h5")
+    with h5py.File(path, "r+") as f:
+        name = next(iter(f["missions"]))
+        f["missions"][name].attrs["dvl_slow_error_time"] = 0.0
+    with pytest.raises(DatasetError, match="dvl_slow_error_time"):
+        open_dataset(path)

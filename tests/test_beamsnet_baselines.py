@@ -331,3 +331,19 @@ def test_a_fit_on_too_few_samples_asks_for_more_data(estimator):
     few = synthetic([np.tile([1.0, 0.0, 0.0], (4, 1))])  # one sample, one velocity
     with pytest.raises(DataError, match="expected more training data"):
         estimator.fit(few)
+
+
+def test_the_kalman_filter_grows_its_random_walk_with_the_time_between_samples():
+    """A random walk w ~ N(0, q^2 dt) seen twice, T apart, with noise R and P0 = R: the
+    second estimate is z0 + K (z1 - z0), K = (R + q^2 T) / (2 R + q^2 T) (the Kalman
+    gain in closed form), so a long gap trusts the new sample more."""
+    from beamsnet.estimators.baselines import _filter
+
+    r2, q = 0.01 ** 2, 0.05
+    for gap in (1.0, 10.0):
+        z = np.array([[1.0, 0.0, 0.0], [1.2, 0.0, 0.0]])
+        cov = np.broadcast_to(r2 * np.eye(3), (2, 3, 3))
+        got = _filter(z, cov, np.zeros(2, dtype=np.int64), np.array([0.0, gap]),
+                      np.array([q]), gate=None)
+        k = (r2 + q * q * gap) / (2 * r2 + q * q * gap)
+        assert got[1, 0] == pytest.approx(1.0 + 0.2 * k, rel=1e-12)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from beamsnet import metrics
 from beamsnet.metrics import (
     improvement,
     mae,
@@ -143,3 +144,15 @@ def test_the_errors_plot_goes_logarithmic_past_ls_own_spread():
     error = np.concatenate([-np.arange(101.0), [np.nan]])  # |e| = 0 .. 100, and a NaN
     assert error_spread(error) == pytest.approx(99.0)
     assert error_spread(None) == 0.0 and error_spread(np.array([np.nan])) == 0.0
+
+
+def test_position_scores_on_a_known_track():
+    """A 3-4-5 offset north-east at the end of a 10 m leg east, with 7 m of depth error
+    everywhere, which horizontal errors ignore: errors 0, 0, 5 m; RMSE sqrt(25 / 3); the
+    final 50 % of the distance travelled."""
+    reference = np.array([[0.0, 0.0, 20.0], [0.0, 5.0, 20.0], [0.0, 10.0, 20.0]])
+    position = reference + [[0.0, 0.0, 7.0], [0.0, 0.0, 7.0], [3.0, 4.0, 7.0]]
+    np.testing.assert_allclose(metrics.horizontal_errors(position, reference), [0.0, 0.0, 5.0])
+    scores = metrics.position_scores(position, reference)
+    assert scores == pytest.approx({"final_m": 5.0, "rmse_m": math.sqrt(25.0 / 3.0),
+                                    "distance_m": 10.0, "final_percent": 50.0})

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 import torch
 
@@ -155,3 +157,38 @@ def test_kwargs_round_trip(name, kwargs):
     shapes = {k: v.shape for k, v in model.state_dict().items()}
     assert {k: v.shape for k, v in rebuilt.state_dict().items()} == shapes
     rebuilt.load_state_dict(model.state_dict())  # strict: same keys, same shapes
+
+
+def test_v1_takes_the_imu_axes_as_channels_and_time_along_the_window():
+    import numpy as np
+
+    from beamsnet.estimators.networks import _imu
+
+    accel = np.random.default_rng(0).normal(size=(2, 100, 3))  # (samples, window, axes)
+    accel_t, gyro_t = _imu(SimpleNamespace(accel=accel, gyro=-accel))
+    assert accel_t.shape == (2, 3, 100)
+    for sample, k, axis in ((0, 5, 2), (1, 99, 0), (1, 0, 1)):
+        assert accel_t[sample, axis, k].item() == pytest.approx(accel[sample, k, axis],
+                                                                rel=1e-6)
+        assert gyro_t[sample, axis, k].item() == pytest.approx(-accel[sample, k, axis],
+                                                               rel=1e-6)
+
+
+def test_a_model_of_fewer_past_pings_gets_the_newest():
+    """Windows hold the past pings oldest first; a model trained on fewer (a checkpoint's
+    ``n_past``, or V2's own) takes the last of them."""
+    import numpy as np
+
+    from beamsnet.data import Windows
+    from beamsnet.estimators.networks import _past
+    from beamsnet.evaluate import trimmed
+
+    n = 5
+    past = np.broadcast_to(np.arange(3.0)[None, :, None], (n, 3, 4)).copy()  # 2: newest
+    windows = Windows(beams=np.zeros((n, 4)), past_beams=past, accel=None, gyro=None,
+                      target=np.zeros((n, 3)), velocity_ls=np.zeros((n, 3)),
+                      mission=np.zeros(n, dtype=np.int64), time=np.arange(float(n)),
+                      names=("m",), h=np.eye(4, 3))
+    np.testing.assert_array_equal(
+        trimmed(windows, {"train_config": {"n_past": 1}}).past_beams, past[:, 2:])
+    np.testing.assert_array_equal(_past(windows, 2).numpy(), past[:, 1:])

@@ -513,3 +513,18 @@ def test_a_mission_read_after_its_dataset_closed_says_so(ideal_file):
         with pytest.raises(DatasetError, match="its dataset is closed; expected reads inside "
                                                "the `with open_dataset"):
             read()
+
+
+def test_the_writer_keeps_every_row_of_appends_that_are_not_whole_chunks(tmp_path):
+    """Appends of 1.2 and 1.1 chunks: every row lands, in order (an import appends a
+    whole stream at once)."""
+    from auvsim.data.writer import CHUNK_ROWS, MissionWriter
+
+    whole = np.arange(2 * CHUNK_ROWS + 500, dtype=float)
+    with h5py.File(tmp_path / "x.h5", "w") as f:
+        group = f.create_group("m")
+        sink = MissionWriter(group, {}, {"dvl": len(whole)})
+        sink.append({"dvl/time": whole[:CHUNK_ROWS + 1000]})
+        sink.append({"dvl/time": whole[CHUNK_ROWS + 1000:]})
+        sink.flush()
+        np.testing.assert_array_equal(group["dvl/time"][()], whole)

@@ -244,3 +244,13 @@ def test_the_compiled_helpers_give_numpys_bits():
         assert dvl._nan_to_zero(ranges).tobytes() == np.nan_to_num(ranges).tobytes()
     d[0, 0, 0] = np.nan
     assert math.isnan(dvl._longest_horizontal(d))
+
+
+def test_the_bias_is_drawn_per_beam_about_its_mean_with_its_spread():
+    from auvsim.sensors.dvl import draw_errors
+
+    config = DvlConfig(bias=0.001, bias_std=0.0005)
+    draws = np.array([draw_errors(config, np.random.default_rng(s)).bias
+                      for s in range(3000)])
+    np.testing.assert_allclose(draws.std(axis=0), 0.0005, rtol=0.06)
+    assert np.all(np.abs(draws.mean(axis=0) - 0.001) < 4 * 0.0005 / np.sqrt(3000))

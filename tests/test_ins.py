@@ -307,8 +307,9 @@ def test_the_velocity_is_given_in_the_dvl_frame_the_filter_estimates(dataset_of)
     the true DVL frame's to 1.5 mm/s rms over the last 100 s, where the same velocity in
     the nominal frame is off by the speed times the misalignment (42 mm/s rms down). Its
     covariance holds the misalignment's (and the lever arm's) share: the mean velocity
-    NEES lies between 0.9 and 3 (1.3; with the misalignment's cross term of the wrong
-    sign it was 0.6)."""
+    NEES lies within a factor 3.3 of a consistent filter's 3, either way (0.9 to 10: 1.3,
+    pessimistic as the filter is on simulated data; with the misalignment's cross term of
+    the wrong sign it was 0.6)."""
     dvl = DvlConfig(noise_std=0.001, misalignment_std_deg=1.0)
     path = dataset_of(flat(zigzag(200.0, seed=45), imu=IMU_GRADES["navigation"], dvl=dvl),
                       "misaligned")
@@ -326,7 +327,7 @@ def test_the_velocity_is_given_in_the_dvl_frame_the_filter_estimates(dataset_of)
     rms = np.sqrt(np.mean(error**2, axis=0))
     assert np.all(rms < 1.5e-3), rms
     assert np.sqrt(np.mean((nominal[late] - truth[late]) ** 2, axis=0)).max() > 10 * rms.max()
-    assert 0.9 < np.nanmean(track.nees_velocity) < 3.0
+    assert 0.9 < np.nanmean(track.nees_velocity) < 10.0
 
 
 def test_a_sound_speed_error_shared_by_the_beams_is_held_by_a_correlated_scale_prior(
@@ -336,7 +337,8 @@ def test_a_sound_speed_error_shared_by_the_beams_is_held_by_a_correlated_scale_p
     shared part from the file (``common_scale_std``), and each beam's total scale, (1 + s_k)
     / ratio - 1, is estimated within 3 sigma; the velocity over the last 100 s is better
     than half as far from the truth along x as with independent priors, which take the
-    shared scale for velocity (their NEES: above 4 where the file's prior's is under 3)."""
+    shared scale for velocity: their mean NEES lies above 4 and twice the file's prior's
+    (5.7 against 1.6), which lies within a factor 3.3 of a consistent filter's 3."""
     dvl = DvlConfig(noise_std=0.001, sound_speed_std=0.01)
     path = dataset_of(flat(zigzag(200.0, seed=47), imu=IMU_GRADES["navigation"], dvl=dvl),
                       "sound_speed")
@@ -353,7 +355,7 @@ def test_a_sound_speed_error_shared_by_the_beams_is_held_by_a_correlated_scale_p
            for t in (shared, apart)]
     assert rms[0] < 0.5 * rms[1], rms
     nees = [np.nanmean(t.nees_velocity[late]) for t in (shared, apart)]
-    assert nees[0] < 3.0 < 4.0 < nees[1], nees
+    assert 0.9 < nees[0] < 10.0 and nees[1] > max(4.0, 2.0 * nees[0]), nees
 
 
 @pytest.mark.parametrize("beams, slow, gyro", [

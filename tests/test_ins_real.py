@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import Fields, zigzag
 
-from auvsim.data.beams import beam_noise_from_error_velocity
+from auvsim.data.beams import beam_matrix, beam_noise_from_error_velocity
 from auvsim.data.reader import open_dataset
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import quaternion_from_euler, rotation_matrices, rotation_rpy
@@ -726,3 +726,36 @@ def test_the_navigator_imu_vibrates_as_the_shared_segments_imu_does(akit_files):
                                    rtol=0.05)
         np.testing.assert_allclose(back[f"{name}_per_rate"],
                                    kept * real[f"{name}_per_rate"], rtol=0.05)
+
+
+@pytest.mark.parametrize("angle", [20.0, 30.0])
+def test_the_janus_velocity_std_is_least_squares_noise_on_every_axis(angle):
+    """White beam noise sigma through least squares: sigma sqrt(diag((H^T H)^-1)), from the
+    beams' geometry, on all three axes."""
+    h = beam_matrix(math.radians(angle))
+    np.testing.assert_allclose(ins.janus_velocity_std(0.01, angle),
+                               0.01 * np.sqrt(np.diag(np.linalg.inv(h.T @ h))), rtol=1e-12)
+
+
+def test_a_steady_turn_gives_the_clock_uncertainty_nothing_to_add():
+    """Level circle at 2 m/s and 10 deg/s: the DVL's velocity in the body, whose rate of
+    change (f + C^T g - w x v) a ping's timing uncertainty turns into innovation
+    variance, does not change, so a 0.05 s clock uncertainty adds nothing."""
+    speed, r = 2.0, math.radians(10.0)
+    t = np.arange(0.0, 30.0 + 1e-9, 0.01)
+    f = np.tile([0.0, speed * r, -9.81], (len(t), 1))
+    w = np.tile([0.0, 0.0, r], (len(t), 1))
+    start = ins.Start(time=0.0, position_ned=np.zeros(3), velocity_ned=[speed, 0.0, 0.0],
+                      rotation=np.eye(3), position_std=np.full(3, 0.1),
+                      velocity_std=np.full(3, 0.01), attitude_std=np.radians([0.01] * 3))
+    grade = IMU_GRADES["navigation"]
+    instrument = ins.Instrument(grade.accel_noise_density, grade.gyro_noise_density,
+                                grade.accel_turn_on_bias, grade.gyro_turn_on_bias, 0.0, 0.0,
+                                np.full(3, 0.01))
+    dvl_time = np.arange(1.0, 30.0 + 1e-9, 1.0)
+    velocity = np.tile([speed, 0.0, 0.0], (len(dvl_time), 1))
+    runs = [ins.run_arrays(t, f, w, dvl_time, velocity=velocity, start=start,
+                           instrument=instrument, gravity=9.81, timing_std=s)
+            for s in (0.0, 0.05)]
+    np.testing.assert_allclose(runs[1].innovation_var, runs[0].innovation_var, rtol=0,
+                               atol=1e-8)

@@ -117,3 +117,21 @@ def test_without_a_past_reference_a_flagged_ping_keeps_its_ls():
 def test_it_is_registered_with_its_needs():
     s = spec("Robust LS")
     assert s.kind == "model-based" and s.needs.beams == 3 and s.make().name == s.name
+
+
+def test_outliers_among_the_past_pings_do_not_choose_the_beam_to_drop():
+    """Two of three past pings spiked on one beam, the current ping on another: the spiked
+    past pings are left out of the vote, so the current ping's bad beam is found."""
+    v = np.array([[1.5, 0.2, 0.05]])
+    y = (v @ H.T)[0]
+    est = RobustLeastSquares().fit(_still(v, 50))
+    worst = 0.0
+    for bad_past in range(4):
+        for bad_now in {0, 1, 2, 3} - {bad_past}:
+            past = np.tile(y, (1, 3, 1))
+            past[0, :2, bad_past] += 0.5
+            now = y.copy()
+            now[bad_now] += 0.5
+            got = est.predict(_windows(now[None], past, v))
+            worst = max(worst, np.abs(got[0] - v[0]).max())
+    assert worst < 1e-9

@@ -674,3 +674,17 @@ def test_earth_fixed_fit_tells_a_current_from_an_instrument_error():
     assert straight["rms_dvl"] == pytest.approx(straight["rms_both"], rel=1e-9)
     assert math.isnan(straight["north"]) and math.isnan(straight["y"])
     assert math.isnan(earth_fixed_fit(difference[:2], turn[:2])["rms"])
+
+
+def test_dead_reckoning_turns_a_mounted_dvls_velocity_into_the_body():
+    """Level, heading north, 1 m/s ahead, the DVL yawed 45 deg on the body: it reads
+    M^T (1, 0, 0), and 10 s later the track is 10 m north."""
+    from beamsnet.navigation import dead_reckoning_track
+
+    n = 11
+    m = rotation_rpy(0.0, 0.0, math.radians(45.0))  # DVL -> body
+    truth = dict(rotation=np.tile(np.eye(3), (n, 1, 1)), mounting=np.tile(m, (n, 1, 1)))
+    v_dvl = np.tile(m.T @ [1.0, 0.0, 0.0], (n, 1))
+    track = dead_reckoning_track(_windows(np.zeros((n, 4)), np.zeros((n, 1, 4))), v_dvl,
+                                 truth, 0)
+    np.testing.assert_allclose(track[-1], [10.0, 0.0, 0.0], atol=1e-12)
