@@ -325,7 +325,7 @@ class Vehicle:
         if speed < MIN_SPEED:
             raise ConfigError(
                 f"speed {speed:g} m/s is too slow to hold depth: expected at least "
-                f"{MIN_SPEED:g} m/s (below about 0.4 m/s the stern planes reverse)")
+                f"{MIN_SPEED:g} m/s (the stern planes reverse below 0.33 to 0.36 m/s)")
         if speed > limit:
             raise ConfigError(
                 f"speed {speed:g} m/s is beyond what vehicle {self.name!r} can hold: "

@@ -210,7 +210,11 @@ def navigator() -> Config:
     Janus beams; bottom track about 0.7 to 90 m; long-term accuracy about 0.2 % of speed
     +/- 1 mm/s (taken here as the per-mission spread of the scale factor and bias;
     ../shared/reference/sensors.md). 1 Hz as in the paper's data. The terrain (1 m
-    roughness, 25 m features, 60 m deep) is our choice.
+    roughness, 25 m features, 60 m deep) is our choice. The range is each beam's slant
+    range, as sensors.md has a beam lock only where it meets the floor within range; were
+    the 90 m an altitude, as DVL datasheets often quote it, this DVL would lose lock early,
+    at 90 cos 30 = 78 m over a flat floor (the 60 m floor keeps every mission far inside
+    either).
 
     Its velocity error, split into what one ping adds and what survives averaging
     (``benchmarks/dvl_error.py`` prints the figures):
