@@ -471,14 +471,9 @@ class DvlConfig:
     slow_error_time: float = 600.0
 
     def __post_init__(self) -> None:
-        for name in ("rate_hz", "beam_angle_deg", "min_range", "max_range",
-                     "scale_factor_std", "bias_std", "noise_std", "echo_loss_width",
-                     "grazing_loss_width_deg", "dropout_rate", "dropout_burst",
-                     "ping_dropout_rate", "noise_range_coeff", "noise_speed_coeff",
-                     "outlier_rate", "outlier_std", "sound_speed_std", "misalignment_std_deg",
-                     "water_track_range", "water_track_noise_std", "slow_error_std",
-                     "slow_error_time"):
-            _finite(f"dvl.{name}", getattr(self, name))
+        for f in dataclasses.fields(self):  # every plain number; the rest below
+            if f.type == "float":
+                _finite(f"dvl.{f.name}", getattr(self, f.name))
         _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
         _check(self.rate_hz >= MIN_DVL_RATE, "dvl.rate_hz",
                f"a rate of at least {MIN_DVL_RATE:g} Hz", self.rate_hz)

@@ -97,3 +97,14 @@ def test_a_filter_the_file_cannot_feed_is_left_out_with_a_warning(turning, monke
     monkeypatch.setattr(evaluate, "baselines", lambda: [unfed_ls])
     with pytest.raises(DataError, match="no attitude"):
         evaluate.predictions([], train_w, test_w, dataset=turning)
+
+
+def test_every_estimator_made_carries_its_specs_name(turning):
+    """The tables, the command line and ``estimate`` find what a spec makes by the spec's
+    name, so it must carry that name: a model-based estimator, and each filter on a file
+    that feeds them."""
+    from beamsnet.estimators import specs
+    from beamsnet.evaluate import filters
+
+    assert all(s.make().name == s.name for s in specs("model-based"))
+    assert sorted(f.name for f in filters(turning)) == sorted(s.name for s in specs("filter"))

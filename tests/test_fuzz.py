@@ -818,3 +818,18 @@ def test_fuzz_summary(capsys):
     with capsys.disabled():
         print(f"\nfuzz: {CASES} cases, seed {SEED}: "
               + ", ".join(f"{k} {v}" for k, v in sorted(_outcomes.items())))
+
+
+@pytest.mark.parametrize("section", ["dvl", "imu", "depth"])
+def test_every_number_of_a_sensor_section_refuses_a_string_in_one_line(section):
+    """Each field typed as a number, given a string (a TOML ``"2"``): a ConfigError naming
+    it, never a TypeError from a comparison further on (a field left out of a hand-kept
+    list of names did that)."""
+    from auvsim.errors import ConfigError
+
+    kind = type(getattr(Config(), section))
+    numbers = [f.name for f in dataclasses.fields(kind) if f.type in ("float", "float | None")]
+    assert numbers
+    for name in numbers:
+        with pytest.raises(ConfigError, match=re.escape(f"{section}.{name}")):
+            kind(**{name: "2"})

@@ -61,7 +61,7 @@ def ping_errors(mission) -> PingErrors:
     """The pings of a mission (``auvsim.data.reader.Mission`` with a ``dvl`` group) as the
     module docstring defines them."""
     from auvsim.data.beams import beam_matrix, usable_beams
-    from auvsim.sensors.dvl import Mode, Status
+    from auvsim.sensors.dvl import Mode, Status, beam_noise_std
 
     a, dvl = mission.attrs, mission.dvl
     m = len(dvl.time)
@@ -99,9 +99,7 @@ def ping_errors(mission) -> PingErrors:
         speed = np.linalg.norm(np.asarray(dvl.velocity, dtype=float), axis=1)
     else:
         speed = np.zeros(m)  # the coefficients of speed and range are the simulator's
-    sigma = (noise.noise_std + noise.noise_range_coeff * np.where(np.isfinite(ranges),
-                                                                  ranges, 0.0)
-             + noise.noise_speed_coeff * speed[:, None])
+    sigma = beam_noise_std(ranges, speed, noise)  # the simulator's own noise model
     water = mode == int(Mode.WATER_TRACK)
     sigma = np.where(water[:, None], noise.water_track_noise_std if noise.water_track else 0.0,
                      sigma)

@@ -69,7 +69,9 @@ class Spec:
             reports' "worse than LS, and why".
         short: its name in report tables (default ``name``).
         make: model-based: ``make()`` -> the estimator, unfitted; filter:
-            ``make(dataset)``; network: None.
+            ``make(dataset, filter_config)`` (None: its defaults); network: None. What it
+            makes is called ``name`` (its ``name`` attribute): the tables, the command
+            line and ``beamsnet estimate`` find it by that.
         model: a network's ``torch.nn.Module`` class (its ``name`` is ``name``).
         order: where its row goes among those of its kind (tables keep one order).
     """

@@ -1,0 +1,88 @@
+"""What must not move without a schema version and a word in the change: the realistic
+presets' data and their missions' seeds.
+
+A pin, not a known answer: the arrays below are what this code wrote for a 120 s
+``navigator`` mission (every DVL failure and error on, a navigation-grade IMU), kept in
+``tests/data/pinned-navigator.npz``. A change that moves a random draw (a wider block in
+``Dvl.effects``, a stream spawned in another order) changes them by the size of the noise;
+the machine's floating point, by far less than the tolerance. A deliberate change of the
+data rewrites the file, ``python tests/test_pinned_data.py --write``, and says so
+(``benchmarks/same_data.py`` names the arrays that moved). The paper presets have their
+own, stricter check against the code that first wrote them
+(``tests/test_protocol_unchanged.py``).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from auvsim.runs.generate import generate
+from auvsim.runs.presets import preset
+
+PINNED = Path(__file__).resolve().parent / "data" / "pinned-navigator.npz"
+DURATION = 120.0  # s: long enough for dropouts of both kinds (status 5 and 6)
+EVERY = 100  # the IMU and truth kept at every 100th sample (1 Hz), the DVL at every ping
+FIELDS = ("dvl/beam_velocity", "dvl/beam_range", "dvl/status", "dvl/mode",
+          "imu/specific_force", "imu/angular_rate", "depth/depth", "truth/position_ned")
+
+# The manoeuvre presets seed mission i of their list by position: appending a manoeuvre
+# keeps these, inserting one reseeds every later mission (docs/ARCHITECTURE.md).
+SEEDS = {
+    "maneuvers": [("straight", 100), ("turning_circle", 101), ("zigzag_10_10", 102),
+                  ("zigzag_20_20", 103), ("lawnmower", 104), ("depth_steps", 105),
+                  ("yoyo", 106), ("speed_steps", 107), ("spiral_dive", 108),
+                  ("random_waypoints", 109)],
+    "realistic-maneuvers": [(name + slow, base + i + (100 if slow else 0))
+                            for i, name in enumerate(
+                                ("straight", "turning_circle", "zigzag_10_10",
+                                 "zigzag_20_20", "lawnmower", "depth_steps", "yoyo",
+                                 "speed_steps", "spiral_dive", "random_waypoints"))
+                            for base in (200,) for slow in ("", "_slow")],
+}
+SEEDS["sim2real"] = SEEDS["realistic-maneuvers"]
+
+
+def arrays(path: Path) -> dict[str, np.ndarray]:
+    """``FIELDS`` of the file's one mission, the high-rate ones thinned to ``EVERY``."""
+    with h5py.File(path, "r") as f:
+        (mission,) = f["missions"].values()
+        return {name: mission[name][()][::EVERY if name.split("/")[0] in ("imu", "truth")
+                                         else (10 if name.startswith("depth") else 1)]
+                for name in FIELDS}
+
+
+def written(tmp: Path) -> dict[str, np.ndarray]:
+    out = tmp / "navigator.h5"
+    generate(preset("navigator").with_duration(DURATION), out, workers=1, progress=False)
+    return arrays(out)
+
+
+def test_the_navigator_preset_writes_the_pinned_data(tmp_path):
+    pinned = np.load(PINNED)
+    got = written(tmp_path)
+    assert set(pinned.files) == set(got)
+    assert (got["dvl/status"] == 5).any() and (got["dvl/status"] == 6).any()
+    for name, value in got.items():
+        if value.dtype.kind == "f":
+            np.testing.assert_allclose(value, pinned[name], rtol=1e-7, atol=1e-9,
+                                       equal_nan=True, err_msg=name)
+        else:
+            np.testing.assert_array_equal(value, pinned[name], err_msg=name)
+
+
+@pytest.mark.parametrize("name", sorted(SEEDS))
+def test_the_manoeuvre_presets_keep_their_missions_seeds(name):
+    assert [(m.name, m.seed) for m in preset(name).missions] == SEEDS[name]
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--write"]:
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        np.savez_compressed(PINNED, **written(Path(tmp)))
+    print(f"wrote {PINNED}")
