@@ -14,12 +14,14 @@ sweep end to end (``experiments``). Frames, units and names are auvsim's (see
 from auvsim.lazy import exports
 
 # What users import, from the top level; loaded when first asked for (torch is heavy).
+# Not ``evaluate``: that name is the module ``beamsnet.evaluate``, and a function of the
+# same name here made ``beamsnet.evaluate`` the one or the other by the order of imports
+# (``from beamsnet.evaluate import evaluate``).
 _PUBLIC = {
     "load_windows": "beamsnet.data", "split": "beamsnet.data",
     "TrainConfig": "beamsnet.training.config", "PROFILES": "beamsnet.training.config",
     "train": "beamsnet.training.train", "load": "beamsnet.training.checkpoints",
-    "predict": "beamsnet.training.train",
-    "evaluate": "beamsnet.evaluate", "estimate": "beamsnet.evaluate",
+    "predict": "beamsnet.training.train", "estimate": "beamsnet.evaluate",
 }
 __all__ = list(_PUBLIC)
 

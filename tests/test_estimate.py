@@ -77,7 +77,7 @@ def test_an_unknown_estimator_gets_one_line_and_exit_2(turning, tmp_path, capsys
 def test_a_filter_the_file_cannot_feed_is_left_out_with_a_warning(turning, monkeypatch):
     """``evaluate.predictions``: a filter raising an ``AuvsimError`` loses its row and
     says why in one line (``FilterWarning``); a baseline's error is never hidden."""
-    from beamsnet import evaluate
+    import beamsnet.evaluate as evaluate
     from beamsnet.data import DataError, load_windows, split
 
     class Unfed:

@@ -53,3 +53,15 @@ def test_every_module_imports_first_and_alone():
     assert done.returncode == 0, done.stderr[-2000:]
     failed = sorted({line for line in done.stdout.splitlines() if line.strip()})
     assert not failed, failed
+
+
+def test_beamsnet_evaluate_is_the_module_whatever_was_imported_first():
+    """No top-level name shadows a submodule: ``beamsnet.evaluate`` had been the function
+    ``evaluate`` or the module by the order of the imports."""
+    code = ("import beamsnet\nfrom beamsnet import estimate\nimport beamsnet.evaluate\n"
+            "import types\nassert isinstance(beamsnet.evaluate, types.ModuleType)\n"
+            "assert callable(beamsnet.evaluate.evaluate) and estimate is "
+            "beamsnet.evaluate.estimate\n")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    for package in (auvsim, beamsnet):
+        assert not set(package.__all__) & {m.name for m in pkgutil.iter_modules(package.__path__)}

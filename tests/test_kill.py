@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from auvsim.data import files
+from auvsim.errors import OutputError
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
                                 reason="follows the process tree in /proc")
@@ -174,6 +175,28 @@ def test_sweep_removes_the_temporaries_of_dead_claims_only(tmp_path):
         assert not left & {*dead, *straggler}
         assert left >= {*elsewhere, *others, live.file, live.folder}
     assert not live.file.exists() and not live.folder.exists()
+
+
+def test_a_second_run_into_an_output_being_written_is_refused(tmp_path):
+    """Two runs writing one output would each rename theirs over the other's at the end:
+    the second is refused in one line, naming the first, whose claim it leaves alone."""
+    out = tmp_path / "x.h5"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\nfrom auvsim.data.files import Claim\n"
+         f"with Claim({str(out)!r}):\n    print('held', flush=True)\n    time.sleep(60)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        with pytest.raises(OutputError, match=rf"is being written by another run \(pid "
+                           rf"{holder.pid} on this machine\); expected one run per output"):
+            files.Claim(out)
+        assert [p.name for p in tmp_path.iterdir()] == [
+            f".x.h5.{files.TAG}.{files.HOST}.{holder.pid}.lock"]
+    finally:
+        holder.kill()
+        holder.communicate()
+    with files.Claim(out):  # once it has ended, its claim is swept and the name is free
+        pass
 
 
 def _claimed(proc: subprocess.Popen, folder: Path) -> None:

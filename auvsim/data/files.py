@@ -91,6 +91,12 @@ class Claim:
             os.close(fd)  # a sweep removed a dead namesake's lock as we opened it
         self._fd = fd
         _held.add(self._lock)
+        others = _writers(path)
+        if others:  # after ours is held, so that of two runs started at once one sees the other
+            self.release()
+            raise OutputError(f"{str(path)!r} is being written by another run (pid "
+                              f"{', '.join(map(str, others))} on this machine); expected one "
+                              "run per output at a time: wait for it to end, or stop it")
 
     def release(self) -> None:
         """Remove the temporaries (the lock last: see ``sweep``) and let the name go; a
@@ -110,6 +116,30 @@ class Claim:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _writers(path: Path) -> list[int]:
+    """The pids of the other processes of this host whose claim on ``path`` is live (its
+    lock held; ``sweep`` has removed the dead ones)."""
+    name = re.compile(rf"\.{re.escape(path.name)}\.{TAG}\.{re.escape(HOST)}\.(\d+)\.lock")
+    live = []
+    for entry in sorted(os.listdir(path.parent)):
+        match = name.fullmatch(entry)
+        if match is None or int(match[1]) == os.getpid():
+            continue
+        try:
+            fd = os.open(path.parent / entry, os.O_RDONLY | os.O_CLOEXEC)
+        except OSError:
+            continue  # ended meanwhile, or not ours to judge
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            live.append(int(match[1]))
+        except OSError:
+            pass  # a file system without flock: nothing can be told
+        finally:
+            os.close(fd)
+    return live
 
 
 def sweep(folder: str | os.PathLike) -> None:
