@@ -617,6 +617,20 @@ def synthesise(velocity: np.ndarray, config: DvlConfig,
     return out, config_attrs(config, errors)
 
 
+# The columns of a block's draws from ``dvl_faults``' children (``Dvl.effects``), each
+# block drawn whole in ping order. A new drawn effect takes a child of its own, spawned
+# after these three, never a column more: one more column moves every later draw of
+# every realistic dataset (``tests/test_pinned_data.py``).
+_UNIFORMS = 17  # per ping:
+_U_LOSS = slice(0, 8)  # echo loss 4, grazing loss 4
+_U_DROPOUT = slice(8, 12)  # the dropout chain 4
+_U_PING = slice(12, 13)  # ping dropout 1
+_U_OUTLIER = slice(13, 17)  # outliers 4
+_NORMALS = 8  # per ping:
+_N_EXTRA = slice(0, 4)  # the noise beyond noise_std 4
+_N_WATER = slice(4, 8)  # water-track noise 4
+
+
 class Dvl(Sensor):
     """The Janus DVL: beams ray-cast on the seafloor from the DVL site, with the lever
     arm and the true mounting, then ``ping`` with the effects of ``DvlConfig``. Pings
@@ -759,8 +773,8 @@ class Dvl(Sensor):
         (M, 3) m/s, slant ranges (M, 4) m, beam origins (M, 3) m and directions
         (M, 4, 3) in NED, and body -> NED rotations (M, 3, 3)."""
         c, m = self.config, len(time)
-        u = self.uniform.random((m, 17))
-        n = self.normal.standard_normal((m, 8))
+        u = self.uniform.random((m, _UNIFORMS))
+        n = self.normal.standard_normal((m, _NORMALS))
         t = self.heavy.standard_t(3, (m, 4))
         incidence = None
         if c.grazing_loss_angle_deg is not None:
@@ -769,17 +783,17 @@ class Dvl(Sensor):
             cos_incidence = np.clip(-np.einsum("mki,mki->mk", directions, normal), -1, 1)
             incidence = np.where(np.isfinite(ranges), np.degrees(np.arccos(cos_incidence)),
                                  np.nan)
-        dropout = markov_dropouts(u[:, 8:12], self.in_burst, rate=c.dropout_rate,
+        dropout = markov_dropouts(u[:, _U_DROPOUT], self.in_burst, rate=c.dropout_rate,
                                   burst=c.dropout_burst)
         if m:
             self.in_burst = dropout[-1]
         status = lock_status(time, ranges, config=c, incidence_deg=incidence,
-                             u=np.concatenate([u[:, 0:8], u[:, 12:13]], axis=1),
+                             u=np.concatenate([u[:, _U_LOSS], u[:, _U_PING]], axis=1),
                              dropout=dropout)
         extra = None
         if c.noise_range_coeff > 0 or c.noise_speed_coeff > 0:
             std = beam_noise_std(ranges, np.linalg.norm(velocity, axis=1), c)
-            extra = np.sqrt(np.maximum(std**2 - c.noise_std**2, 0.0)) * n[:, 0:4]
+            extra = np.sqrt(np.maximum(std**2 - c.noise_std**2, 0.0)) * n[:, _N_EXTRA]
         water, water_lock = None, np.zeros((m, 4), dtype=bool)
         if c.water_track:
             water = self.water_velocity(time, origins, rotation)
@@ -796,10 +810,11 @@ class Dvl(Sensor):
                                        rng=self.slow_rng)
         return Effects(status=status, sound_speed_ratio=self.calibration.sound_speed_ratio,
                        extra_noise=extra,
-                       outlier=u[:, 13:17] < c.outlier_rate if c.outlier_rate > 0 else None,
+                       outlier=(u[:, _U_OUTLIER] < c.outlier_rate if c.outlier_rate > 0
+                                else None),
                        outlier_error=c.outlier_std / math.sqrt(3.0) * t,
                        water_velocity=water, water_lock=water_lock,
-                       water_noise=c.water_track_noise_std * n[:, 4:8], slow_error=slow)
+                       water_noise=c.water_track_noise_std * n[:, _N_WATER], slow_error=slow)
 
     def water_velocity(self, time: np.ndarray, origins: np.ndarray,
                        rotation: np.ndarray) -> np.ndarray:
