@@ -301,13 +301,13 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
         except AuvsimError as e:
             _left_out(estimator, dataset, e)
             continue
-        if positions is not None and hasattr(estimator, "positions"):
+        if positions is not None:  # every filter has its own position
             positions[estimator.name] = estimator.positions(test_w)
         if stds is not None:
             stds.update(reported_stds(estimator, test_w))
         if rotations is not None:
             rotations.update(own_rotations(estimator, test_w))
-        if watched is not None and hasattr(estimator, "tracks"):
+        if watched is not None:
             watched[estimator.name] = {mission: watch_scores(track) for mission, track
                                        in estimator.tracks(test_w).items()}
     for run, model, checkpoint in models:
@@ -550,7 +550,8 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         check_truth(windows, dataset)
     # A filter fits its beam calibration where it can (without a reference, none: the
     # beams as measured); any other estimator that is fitted needs a reference or truth.
-    fitted = spec(estimator.name).needs.training and not hasattr(estimator, "tracks")
+    is_filter = spec(estimator.name).kind == "filter"  # tracks, positions and a config
+    fitted = spec(estimator.name).needs.training and not is_filter
     if fitted and train is None and not scored:
         raise DataError(f"{dataset}: a log without a reference, and {estimator.name} is "
                         "fitted on one; expected --train FILE.h5 with a reference or the "
@@ -568,11 +569,11 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     except ValueError as e:  # a training split it cannot be fitted on, in one line
         raise DataError(f"{train or dataset}: {e}") from None
     pred = estimator.predict(windows)
-    positions = estimator.positions(windows) if hasattr(estimator, "positions") else None
+    positions = estimator.positions(windows) if is_filter else None
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred), against=windows.reference,
                    availability=availability(pred), missions={})
-    if hasattr(estimator, "tracks") and estimator.calibrate and estimator.correction is None:
+    if is_filter and estimator.calibrate and estimator.correction is None:
         summary["unfitted"] = (f"its beams are used as measured: {train or dataset} has no "
                                "reference to calibrate them against (--train FILE.h5 "
                                "calibrates them on a file that has one)")
@@ -583,7 +584,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             "fits it on another file")
     if windows.derived:
         summary["beams_derived"] = list(windows.derived)
-    if hasattr(estimator, "config"):
+    if is_filter:
         import dataclasses
 
         summary["filter_config"] = dataclasses.asdict(estimator.config)
@@ -599,7 +600,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         mine = windows.mission == i
         have = mine & np.isfinite(pred).all(axis=1)
         row = dict(pings=int(mine.sum()), availability=float(have.sum() / mine.sum()))
-        if hasattr(estimator, "tracks"):
+        if is_filter:
             # A filter outputs a number at every ping, diverged or not: its availability
             # is the share of pings whose measurement it accepted, and its events say when
             # its divergence watch restarted it.
@@ -611,7 +612,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             row["position"] = scores.pop(estimator.name)
             row["baselines"] = scores
         summary["missions"][mission] = row
-    if hasattr(estimator, "tracks"):
+    if is_filter:
         tracks = estimator.tracks(windows)
         summary["availability"] = float(np.mean(np.concatenate(
             [t.accepted for t in tracks.values()])))
