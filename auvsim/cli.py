@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import errno
+import math
 import os
 import re
 import signal
@@ -71,6 +72,10 @@ def _parser() -> argparse.ArgumentParser:
         gen.add_argument(f"--{flag.replace('_', '-')}", dest=flag, type=kind,
                          metavar="NAME" if flag == "scenario" else "X",
                          help=f"{text} (default: {default if kind is str else f'{default:g}'})")
+    gen.add_argument("--option", action="append", type=_option, metavar="NAME=X",
+                     dest="options", help="a scenario option, any number of times "
+                     "(--scenario zigzag --option rudder_deg=20); each scenario's are in "
+                     "the guide's table of scenarios (default: the scenario's)")
     gen.add_argument("--seed", type=int, metavar="N",
                      help="seed of the first mission; the others follow (default: the "
                      "preset's, 0 otherwise)")
@@ -439,6 +444,19 @@ def _file_out(path: str) -> Path:
     return Path(path)
 
 
+def _option(text: str) -> tuple[str, float]:
+    """``--option NAME=X``: a scenario option's name and number."""
+    name, sep, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not sep or not name.strip() or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected NAME=X, an option's name and a finite "
+                                         f"number (rudder_deg=20), got {text!r}")
+    return name.strip(), number
+
+
 def build_config(args: argparse.Namespace) -> Config:
     """The config a ``generate`` command line asks for."""
     from auvsim.runs.presets import DEFAULT_PRESET, preset, with_vehicle
@@ -466,6 +484,7 @@ def build_config(args: argparse.Namespace) -> Config:
         fields = {**dataclasses.asdict(old), **overrides}
         if fields["name"] != old.name:
             fields["options"] = {}  # another manoeuvre: the old one's options do not apply
+        fields["options"] = {**fields["options"], **dict(args.options or ())}
         return ScenarioConfig(**fields)
 
     missions = tuple(

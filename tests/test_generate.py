@@ -180,6 +180,10 @@ BAD_INPUTS = [
     (["--speed", "1e300"], "speed: expected at most 10 m/s"),
     (["--seed", "9223372036854775808"], "seed"),
     (["--workers", "0"], "--workers: expected a whole number >= 1"),
+    (["--option", "rudder_deg"], "--option: expected NAME=X"),
+    (["--option", "rudder_deg=inf"], "--option: expected NAME=X"),
+    (["--scenario", "zigzag", "--option", "rudder=30"],
+     "unknown option(s) rudder for zigzag; expected some of angle_deg"),
 ]
 
 
@@ -497,3 +501,17 @@ def test_another_programs_hdf5_file_is_never_replaced(tmp_path, capsys):
     assert main(["generate", "--preset", "maneuvers", "--duration", "5", "--workers", "1",
                  "--out", f"{folder}/", "--quiet"]) == 0
     assert (folder / "shards" / "part-00099.h5").is_file()  # not taken for a stale shard
+
+
+def test_option_sets_a_scenario_option_of_every_mission():
+    """``--option NAME=X``, any number of times, over the scenario's own options (those of a
+    preset's missions too), into the config the file records."""
+    from auvsim.cli import _parser, build_config
+
+    def options(*flags: str) -> list[dict]:
+        args = _parser().parse_args(["generate", *flags, "--out", "x.h5"])
+        return [m.scenario.options for m in build_config(args).missions]
+
+    assert options("--scenario", "zigzag", "--option", "rudder_deg=30",
+                   "--option", "angle_deg=10") == [{"rudder_deg": 30.0, "angle_deg": 10.0}]
+    assert options("--preset", "paper-sim", "--option", "leg_m=300") == [{"leg_m": 300.0}] * 3
