@@ -1,15 +1,22 @@
 """The ``beamsnet`` program's entry point, light on purpose: ``beamsnet.cli`` loads torch
 and every estimator (some 2 s), and a Ctrl-C while it does is then one line and exit
-status 130, as one during a command is, where it had been a traceback."""
+status 130, as one during a command is, where it had been a traceback; so is an error
+found as it loads (another package's estimator that cannot be loaded)."""
 
 from __future__ import annotations
 
-from auvsim.cli_support import exit_with
+import sys
+
+from auvsim.cli_support import ERROR, exit_with
+from auvsim.errors import AuvsimError
 
 
 def _main() -> int:
-    from beamsnet.cli import main  # the heavy imports, inside exit_with's catch
-
+    try:
+        from beamsnet.cli import main  # the heavy imports, inside exit_with's catch
+    except AuvsimError as e:
+        print(f"beamsnet: error: {e}", file=sys.stderr)
+        return ERROR
     return main()
 
 

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import csv
+import inspect
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -108,3 +112,78 @@ def test_every_estimator_made_carries_its_specs_name(turning):
 
     assert all(s.make().name == s.name for s in specs("model-based"))
     assert sorted(f.name for f in filters(turning)) == sorted(s.name for s in specs("filter"))
+
+
+class HalfLS:
+    """A user's own estimator, outside beamsnet: least squares, halved (an exact known
+    answer against the truth of a noise-free file: half of it)."""
+
+    name = "Half LS"
+
+    def fit(self, train):
+        return self
+
+    def predict(self, windows):
+        from auvsim.data.beams import least_squares
+
+        return 0.5 * least_squares(windows.beams, windows.h)
+
+
+def half_ls_spec():
+    from beamsnet.estimators import Needs, Spec
+
+    return Spec(name="Half LS", title="least squares, halved", kind="model-based",
+                needs=Needs(training=False), why="it halves", make=HalfLS, order=999)
+
+
+def test_a_users_own_estimator_registered_runs_beside_the_others(turning, tmp_path):
+    from beamsnet.estimators import Spec, register, spec, specs, unregister
+    from beamsnet.evaluate import estimate
+
+    register(half_ls_spec())
+    try:
+        assert spec("half-ls").name == "Half LS" and specs("model-based")[-1].name == "Half LS"
+        summary = estimate("half ls", turning, tmp_path / "est")
+        rows = list(csv.DictReader((tmp_path / "est" / "estimates.csv").open()))
+        pred = np.array([[float(r[k]) for k in ("vx", "vy", "vz")] for r in rows])
+        true = np.array([[float(r[k]) for k in ("true_vx", "true_vy", "true_vz")]
+                         for r in rows])
+        np.testing.assert_allclose(pred, 0.5 * true, atol=1e-6)
+        assert summary["estimator"] == "Half LS"
+        with pytest.raises(ValueError, match="'Half LS' is the name of the estimator 'Half LS'"):
+            register(half_ls_spec())
+        with pytest.raises(ValueError, match="'ls' is the name of the estimator 'LS'"):
+            register(Spec(name="ls", title="", kind="model-based", needs=spec("LS").needs,
+                          why="", make=HalfLS))
+    finally:
+        unregister("Half LS")
+    assert "Half LS" not in {s.name for s in specs()}
+
+
+def test_an_installed_packages_estimator_reaches_the_command_line(turning, tmp_path):
+    """Declared as an entry point of the group beamsnet.estimators (here a package on
+    PYTHONPATH with its dist-info), it runs as ``beamsnet estimate --estimator``; one that
+    cannot be loaded is one line."""
+    site = tmp_path / "site"
+    (site / "halfls-0.1.dist-info").mkdir(parents=True)
+    (site / "halfls-0.1.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: halfls\nVersion: 0.1\n")
+    points = site / "halfls-0.1.dist-info" / "entry_points.txt"
+    points.write_text("[beamsnet.estimators]\nhalf = halfls:ESTIMATORS\n")
+    (site / "halfls.py").write_text(  # the code above, as a package of its own holds it
+        "import numpy as np\n" + inspect.getsource(HalfLS) + inspect.getsource(half_ls_spec)
+        + "ESTIMATORS = (half_ls_spec(),)\n")
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        env = dict(os.environ, PYTHONPATH=str(site))
+        return subprocess.run([sys.executable, "-c", "from beamsnet.console import run; run()",
+                               *args], capture_output=True, text=True, env=env, timeout=300)
+
+    done = run("estimate", str(turning), "--estimator", "half-ls", "--out",
+               str(tmp_path / "est"))
+    assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "est" / "summary.json").read_text())["estimator"] == "Half LS"
+    points.write_text("[beamsnet.estimators]\nhalf = halfls:NOTHING\n")
+    done = run("estimate", str(turning), "--estimator", "LS", "--out", str(tmp_path / "e2"))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "entry point 'half' (halfls:NOTHING) could not be loaded" in done.stderr

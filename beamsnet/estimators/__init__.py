@@ -7,9 +7,12 @@ from beamsnet.estimators.registry import (
     Spec,
     models,
     network_names,
+    register,
     short_name,
     spec,
     specs,
+    unregister,
 )
 
-__all__ = ["Needs", "Spec", "models", "network_names", "short_name", "spec", "specs"]
+__all__ = ["Needs", "Spec", "models", "network_names", "register", "short_name", "spec",
+           "specs", "unregister"]

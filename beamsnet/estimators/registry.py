@@ -4,7 +4,9 @@ why it can be worse than least squares, and how to make it.
 An estimator's module declares its own ``ESTIMATORS``, a tuple of ``Spec``; this module
 finds them in every module of ``beamsnet.estimators`` (no list of modules to keep), so a
 new model-based estimator is one file there, and a new network its model class plus its
-spec. Everything that runs or reports estimators (``evaluate``, ``estimate``, the
+spec. A model-based estimator of a user's own package joins them through ``register``
+(in a process) or an entry point of the group ``beamsnet.estimators`` (for the command
+lines as well). Everything that runs or reports estimators (``evaluate``, ``estimate``, the
 experiments, both command lines' choices, the report tables' columns and texts) iterates
 over ``specs()`` or looks a name up with ``spec()``.
 
@@ -30,6 +32,8 @@ import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
+
+from auvsim.errors import ConfigError
 
 KINDS = ("model-based", "filter", "network")
 
@@ -100,20 +104,83 @@ class Spec:
             object.__setattr__(self, "short", self.name)
 
 
+ENTRY_POINTS = "beamsnet.estimators"  # the group of other packages' estimators
+_added: dict[str, Spec] = {}  # register()'s
+
+
 @cache
 def _all() -> tuple[Spec, ...]:
-    """Every ``ESTIMATORS`` of the modules of ``beamsnet.estimators``, by kind then order."""
+    """Every ``ESTIMATORS`` of the modules of ``beamsnet.estimators``, every spec of the
+    installed packages' ``ENTRY_POINTS`` and every registered one, by kind then order."""
     import beamsnet.estimators as package
 
     found: list[Spec] = []
     for module in pkgutil.iter_modules(package.__path__):
         found += getattr(importlib.import_module(f"{package.__name__}.{module.name}"),
                          "ESTIMATORS", ())
-    names = [s.name for s in found]
-    twice = sorted({n for n in names if names.count(n) > 1})
+    found += _plugged_in()
+    found += _added.values()
+    keys = [estimator_key(s.name) for s in found]
+    twice = sorted({s.name for s, k in zip(found, keys, strict=True) if keys.count(k) > 1})
     if twice:
-        raise RuntimeError(f"estimators declared twice: {', '.join(twice)}")
+        raise ConfigError(f"estimators declared twice (names alike once case and punctuation "
+                         f"are set aside): {', '.join(twice)}; expected one name each")
     return tuple(sorted(found, key=lambda s: (KINDS.index(s.kind), s.order, s.name)))
+
+
+def _plugged_in() -> list[Spec]:
+    """The specs of the installed packages' entry points in ``ENTRY_POINTS``: each names a
+    ``Spec`` or a tuple of them (a module's ``ESTIMATORS``)."""
+    from importlib.metadata import entry_points
+
+    found: list[Spec] = []
+    for point in entry_points(group=ENTRY_POINTS):
+        try:
+            loaded = point.load()
+        except Exception as e:  # whatever it is, it is that package's, named here
+            raise ConfigError(f"estimator entry point {point.name!r} ({point.value}) could "
+                             f"not be loaded: {type(e).__name__}: {e}") from None
+        for s in loaded if isinstance(loaded, (tuple, list)) else (loaded,):
+            _check_plugged(s, f"entry point {point.name!r} ({point.value})")
+            found.append(s)
+    return found
+
+
+def _check_plugged(s: object, where: str) -> None:
+    """An estimator from outside beamsnet: a ``Spec`` of a model-based estimator (a filter
+    or a network needs more of beamsnet than a spec says)."""
+    if not isinstance(s, Spec):
+        raise ConfigError(f"{where}: expected a beamsnet.estimators.Spec, got "
+                         f"{type(s).__name__}")
+    if s.kind != "model-based":
+        raise ConfigError(f"{where}: estimator {s.name!r} is a {s.kind}; expected a "
+                         "model-based one (make() -> an object with name, fit and predict)")
+
+
+def register(s: Spec) -> Spec:
+    """Add a model-based estimator defined outside beamsnet, by its ``Spec``: from then on
+    ``estimate``, ``evaluate``, ``stress`` and the reports run it beside the others (in
+    this process; for the command lines, declare it as an entry point of the group
+    ``ENTRY_POINTS`` of the package that defines it).
+
+    Raises:
+        ConfigError (a ValueError): not a model-based ``Spec``, or its name is taken
+            (letters and digits compared, as the command line matches names).
+    """
+    _check_plugged(s, "register")
+    taken = [t.name for t in _all() if estimator_key(t.name) == estimator_key(s.name)]
+    if taken:
+        raise ConfigError(f"register: {s.name!r} is the name of the estimator {taken[0]!r} "
+                          "(names compare on their letters and digits); expected a new name")
+    _added[s.name] = s
+    _all.cache_clear()
+    return s
+
+
+def unregister(name: str) -> None:
+    """Remove an estimator that ``register`` added (nothing if none is called ``name``)."""
+    if _added.pop(name, None) is not None:
+        _all.cache_clear()
 
 
 def specs(kind: str | None = None) -> tuple[Spec, ...]:
