@@ -4,13 +4,14 @@ known answers for every effect, and every effect off giving the idealised data."
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
 import pytest
 from conftest import flat, mission
 
-from auvsim.config import DvlConfig, SeafloorConfig
+from auvsim.config import Config, DvlConfig, SeafloorConfig
 from auvsim.errors import ConfigError
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.runs import mission as mission_module
@@ -450,6 +451,26 @@ def test_inspect_shows_the_calibration_the_lost_lock_and_the_modes(tmp_path, cap
     assert "DVL calibration: sound-speed ratio " in text
     assert "DVL beam status: ok 75.0 %, lock_lost 25.0 %" in text
     assert "DVL modes: no velocity 25.0 %, bottom track 75.0 %, water track 0.0 %" in text
+    # What the config turns on and no attribute records: said, and only that.
+    assert "    DVL effects (config): lock lost 5-10 s\n" in text
+
+
+def test_config_effects_name_every_effect_the_config_turns_on():
+    from auvsim.sensors.dvl import config_effects
+
+    c = DvlConfig(noise_speed_coeff=0.002, noise_range_coeff=1e-4, echo_loss_range=80.0,
+                  grazing_loss_angle_deg=60.0, dropout_rate=0.02, dropout_burst=3.0,
+                  ping_dropout_rate=0.005, beam_failures=((2, 300.0, 360.0),),
+                  lock_loss_intervals=((450.0, 480.0),), outlier_rate=0.002, outlier_std=0.3,
+                  water_track=True, water_track_noise_std=0.05)
+    assert config_effects(json.loads(Config(dvl=c).to_json())["dvl"]) == [
+        "beam noise + 0.002 m/s per m/s of speed + 0.0001 m/s per m of range",
+        "echoes fade at 80 m of range (width 5 m)", "grazing loss from 60 deg of incidence",
+        "dropouts 2 % of beams in bursts of 3 pings", "0.5 % of pings lost",
+        "beam 2 dead 300-360 s", "lock lost 450-480 s",
+        "outliers 0.2 % of beams, std 0.3 m/s", "water track 10 m below, noise 0.05 m/s"]
+    assert config_effects(json.loads(Config().to_json())["dvl"]) == []
+    assert config_effects({"no_such_setting": 1}) == []
 
 
 def test_inspect_gives_the_error_velocity_of_the_pings_without_an_outlier(tmp_path, capsys):

@@ -34,6 +34,7 @@ from ``dvl_faults``, dv from ``dvl_slow_error``.
 from __future__ import annotations
 
 import enum
+import json
 import math
 from typing import NamedTuple
 
@@ -868,6 +869,10 @@ def describe_mission(mission) -> list[str]:
     if a.get("dvl_slow_error_std", 0) > 0:
         lines[-1] += (f", slow error std {a['dvl_slow_error_std']:g} m/s over "
                       f"{a['dvl_slow_error_time']:g} s (Gauss-Markov)")
+    effects = (config_effects(json.loads(mission.dataset.config_json or "{}").get("dvl", {}))
+               if mission.origin == "simulated" else [])
+    if effects:  # the config's (no attribute holds them)
+        lines.append(f"    DVL effects (config): {'; '.join(effects)}")
     if "dvl_sound_speed_ratio" in a:
         lines.append(f"    DVL calibration: sound-speed ratio {a['dvl_sound_speed_ratio']:.6f}, "
                      f"misalignment {shown(a['dvl_misalignment_rpy_deg'])} deg (roll, pitch, "
@@ -893,6 +898,42 @@ def describe_mission(mission) -> list[str]:
                 lines[-1] += (f" ({np.sqrt(np.mean(error[clean] ** 2)):.3g} m/s over the "
                               f"{int(clean.sum())} bottom-track pings without an outlier)")
     return lines
+
+
+def config_effects(dvl: dict) -> list[str]:
+    """In words, the effects a DVL config (``config_json``'s ``dvl`` table) turns on
+    beyond eq. 7 that no attribute records: the noise's growth, the losses, dropouts,
+    failures, outliers and water track; none for a config without them (or none)."""
+    def interval(start, end) -> str:
+        return f"{start:g}-{end:g} s"
+
+    try:
+        c = DvlConfig(**dvl)
+    except (TypeError, ValueError):  # none, or another version's: nothing to say of it
+        return []
+    growth = [f"{coeff:g} {unit}" for coeff, unit in ((c.noise_speed_coeff, "m/s per m/s of "
+                                                       "speed"),
+                                                      (c.noise_range_coeff, "m/s per m of "
+                                                       "range")) if coeff > 0]
+    out = ["beam noise + " + " + ".join(growth)] if growth else []
+    if c.echo_loss_range is not None:
+        out.append(f"echoes fade at {c.echo_loss_range:g} m of range "
+                   f"(width {c.echo_loss_width:g} m)")
+    if c.grazing_loss_angle_deg is not None:
+        out.append(f"grazing loss from {c.grazing_loss_angle_deg:g} deg of incidence")
+    if c.dropout_rate > 0:
+        out.append(f"dropouts {100 * c.dropout_rate:g} % of beams in bursts of "
+                   f"{c.dropout_burst:g} pings")
+    if c.ping_dropout_rate > 0:
+        out.append(f"{100 * c.ping_dropout_rate:g} % of pings lost")
+    out += [f"beam {beam} dead {interval(start, end)}" for beam, start, end in c.beam_failures]
+    out += [f"lock lost {interval(start, end)}" for start, end in c.lock_loss_intervals]
+    if c.outlier_rate > 0:
+        out.append(f"outliers {100 * c.outlier_rate:g} % of beams, std {c.outlier_std:g} m/s")
+    if c.water_track:
+        out.append(f"water track {c.water_track_range:g} m below, noise "
+                   f"{c.water_track_noise_std:g} m/s")
+    return out
 
 
 def _no_pings() -> dict[str, np.ndarray]:
