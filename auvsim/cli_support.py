@@ -21,6 +21,7 @@ import select
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from typing import NoReturn
@@ -43,10 +44,11 @@ def run_command(prog: str, command: Callable[[], object],
         flags: the flag each library argument is given on this command line, so errors
             name ``--out`` rather than ``out`` (``AuvsimError.for_cli``).
     """
-    with _sigterm_as_interrupt(), _swallowed_interrupts_sent_again():
+    with _interrupts_as_one():
         try:
             with all_or_nothing() as outputs:
-                command()
+                with _swallowed_interrupts_sent_again():
+                    command()
                 sys.stdout.flush()  # a closed pipe is found here, not at exit
         except AuvsimError as e:
             return _say(prog, f"error: {e.for_cli(flags)}", ERROR)
@@ -120,23 +122,32 @@ def _stdout_closed() -> bool:
         return False
 
 
+_last = [signal.SIGINT]  # the last interrupt ``_stop`` took, which a swallowed one was
+
+
 def _stop(signum, frame) -> None:
+    _last[0] = signum
     raise KeyboardInterrupt
 
 
 @contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def _interrupts_as_one() -> Iterator[None]:
     """A scheduler's SIGTERM unwinds like Ctrl-C while the block runs: workers stop,
-    temporary files go (main thread only, where Python runs signal handlers)."""
+    temporary files go; both are taken by ``_stop``, which records which it was (main
+    thread only, where Python runs signal handlers; a SIGINT this process ignores, as a
+    background job does, stays ignored)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGTERM, _stop)
+    previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _stop)}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, _stop)
     try:
         yield
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            if handler is not None:
+                signal.signal(signum, handler)
 
 
 RESEND_S = 0.01  # after a swallowed interrupt, s: its callback has returned by then
@@ -144,23 +155,46 @@ RESEND_S = 0.01  # after a swallowed interrupt, s: its callback has returned by 
 
 @contextmanager
 def _swallowed_interrupts_sent_again() -> Iterator[None]:
-    """A Ctrl-C (or SIGTERM, which ``_stop`` makes one) whose handler ran inside a C
-    callback is swallowed there: Python prints "Exception ignored on calling ctypes
-    callback function" and goes on, and the run went on to its end (numba loads compiled
-    code from its cache through such callbacks of LLVM's, for a second or so at a
-    command's first call of a kernel). While the block runs, such an interrupt is not
-    printed but sent again, as SIGINT, from a thread a moment later, once the callback has
-    returned (again if that one lands in a callback too)."""
+    """A Ctrl-C or SIGTERM whose handler ran inside a C callback is swallowed there: Python
+    prints "Exception ignored on calling ctypes callback function" and goes on, and the
+    run went on to its end (numba loads compiled code from its cache through such
+    callbacks of LLVM's, for a second or so at a command's first call of a kernel). While
+    the block runs, such an interrupt is not printed but sent again, the same signal,
+    from a thread a moment later, once the callback has returned (again if that one lands
+    in a callback too); one the block outran is raised as it ends, so none outlives it."""
     previous = sys.unraisablehook
+    lock = threading.Lock()
+    state = {"pending": None, "sent": False, "over": False}
+
+    def resend() -> None:
+        with lock:
+            if state["over"]:
+                return
+            state["sent"] = True
+            os.kill(os.getpid(), state["pending"])
 
     def hook(unraisable) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
-            threading.Timer(RESEND_S, os.kill, (os.getpid(), signal.SIGINT)).start()
+            with lock:
+                state.update(pending=_last[0], sent=False)
+            timer = threading.Timer(RESEND_S, resend)
+            timer.daemon = True
+            timer.start()
         else:
             previous(unraisable)
 
     sys.unraisablehook = hook
     try:
         yield
+    except KeyboardInterrupt:
+        state["pending"] = None  # taken
+        raise
     finally:
         sys.unraisablehook = previous
+        with lock:
+            state["over"] = True
+            sent = state["sent"]
+    if state["pending"] is not None:  # swallowed, and not yet taken
+        if sent:
+            time.sleep(RESEND_S)  # the signal is on its way: its handler raises here
+        raise KeyboardInterrupt

@@ -472,7 +472,7 @@ class DvlConfig:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):  # every plain number; the rest below
-            if f.type == "float":
+            if f.type in ("float", float):
                 _finite(f"dvl.{f.name}", getattr(self, f.name))
         _check(self.rate_hz > 0, "dvl.rate_hz", "a positive rate in Hz", self.rate_hz)
         _check(self.rate_hz >= MIN_DVL_RATE, "dvl.rate_hz",

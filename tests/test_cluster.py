@@ -134,6 +134,10 @@ def test_kill_9_of_a_worker_midway_retries_its_mission(tmp_path, reference):
         wait_for(simulating, "a mission under way", timeout=240)
         victim = _workers(proc.pid)[0]
         victim.kill()
+        # The nanny's new worker forks from the forkserver too, as the first did.
+        wait_for(lambda: proc.poll() is None and len(_workers(proc.pid)) == 2
+                 and victim.pid not in {w.pid for w in _workers(proc.pid)},
+                 "the nanny's new worker, forked", timeout=120)
         out_text, err = proc.communicate(timeout=300)
     finally:
         proc.kill()
@@ -191,16 +195,26 @@ def test_ctrl_c_while_the_cluster_starts_stops_the_run_once_it_has(tmp_path):
                        for p in psutil.Process(proc.pid).children())
 
         wait_for(starting, "the cluster's forkserver", timeout=60)
-        tree = process_tree(proc.pid)
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=60)
+        # Its session (it has one of its own): the workers started after the Ctrl-C too.
+        wait_for(lambda: not _in_session(proc.pid), "the cluster to end", timeout=20)
     finally:
         with suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
     assert (proc.returncode, err) == (130, "auvsim: interrupted; nothing was written\n")
-    wait_for(lambda: not still_running(tree), "the cluster to end", timeout=20)
     assert not any((out / SHARDS).glob("*")) if out.exists() else True
+
+
+def _in_session(sid: int) -> list[int]:
+    """The processes of session ``sid`` still running (a zombie has ended)."""
+    found = []
+    for p in psutil.process_iter():
+        with suppress(psutil.Error, OSError):  # ended meanwhile
+            if os.getsid(p.pid) == sid and p.status() != psutil.STATUS_ZOMBIE:
+                found.append(p.pid)
+    return found
 
 
 def test_a_local_cluster_that_does_not_close_in_time_has_its_workers_killed(monkeypatch):

@@ -281,21 +281,49 @@ def test_an_interrupt_held_through_a_failed_step_is_what_the_step_raises():
         pass
 
 
-def test_a_ctrl_c_swallowed_by_a_c_callback_still_stops_the_command():
+@pytest.mark.parametrize("sig, after", [("SIGINT", "time.sleep(5)"), ("SIGINT", "pass"),
+                                        ("SIGTERM", "time.sleep(5)")],
+                         ids=["ctrl-c", "ctrl-c-at-the-end", "sigterm-with-sigint-ignored"])
+def test_an_interrupt_swallowed_by_a_c_callback_still_stops_the_command(sig, after):
     """numba loads a kernel's compiled code from its cache through LLVM's callbacks, and a
     KeyboardInterrupt raised in one is printed as "Exception ignored" and lost: the
-    command ran to its end with status 0. It is sent again once the callback returns."""
+    command ran to its end with status 0. It is sent again once the callback returns, the
+    same signal (a SIGTERM where SIGINT is ignored, as in a background job, too), or
+    raised as the command ends if that comes first."""
     code = ("import ctypes, os, signal, time\n"
             "from auvsim.cli_support import exit_with, run_command\n"
-            "def callback():\n"
-            "    os.kill(os.getpid(), signal.SIGINT)\n"
+            + ("signal.signal(signal.SIGINT, signal.SIG_IGN)\n" if sig == "SIGTERM" else "")
+            + "def callback():\n"
+            f"    os.kill(os.getpid(), signal.{sig})\n"
             "    time.sleep(0.1)\n"
             "def work():\n"
             "    ctypes.CFUNCTYPE(None)(callback)()\n"
-            "    time.sleep(5)\n"
+            f"    {after}\n"
             "    print('ran to its end')\n"
             "exit_with('auvsim', lambda: run_command('auvsim', work, {}))\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, preexec_fn=as_from_a_terminal)
+    ran = "ran to its end\n" if after == "pass" else ""  # it ends before the resend
     assert (done.returncode, done.stdout, done.stderr) == (
-        130, "", "auvsim: interrupted; nothing was written\n")
+        130, ran, "auvsim: interrupted; nothing was written\n")
+
+
+def test_a_numba_call_an_interrupt_broke_into_is_the_interrupt():
+    """A compiled call that an interrupt broke into raises SystemError ("returned a result
+    with an exception set") from the KeyboardInterrupt: one line, 130; any other
+    SystemError is not hidden."""
+    from auvsim.cli_support import run_command
+
+    def broken():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as e:
+            raise SystemError("CPUDispatcher returned a result with an exception set") from e
+
+    assert run_command("auvsim", broken, {}) == 130
+
+    def other():
+        raise SystemError("something else")
+
+    with pytest.raises(SystemError, match="something else"):
+        run_command("auvsim", other, {})

@@ -1,8 +1,9 @@
 """What must not move without a schema version and a word in the change: the realistic
 presets' data and their missions' seeds.
 
-A pin, not a known answer: the arrays below are what this code wrote for a 120 s
-``navigator`` mission (every DVL failure and error on, a navigation-grade IMU), kept in
+A pin, not a known answer: the arrays below are what this code wrote for a 500 s
+``navigator`` mission (every DVL failure and error on, among them a dead beam from 300 s
+and lost lock, so water track, from 450 s; a navigation-grade IMU), kept in
 ``tests/data/pinned-navigator.npz``. A change that moves a random draw (a wider block in
 ``Dvl.effects``, a stream spawned in another order) changes them by the size of the noise;
 the machine's floating point, by far less than the tolerance. A deliberate change of the
@@ -23,9 +24,10 @@ import pytest
 
 from auvsim.runs.generate import generate
 from auvsim.runs.presets import preset
+from auvsim.sensors.dvl import Mode, Status
 
 PINNED = Path(__file__).resolve().parent / "data" / "pinned-navigator.npz"
-DURATION = 120.0  # s: long enough for dropouts of both kinds (status 5 and 6)
+DURATION = 500.0  # s: long enough for every kind of loss, and water track
 EVERY = 100  # the IMU and truth kept at every 100th sample (1 Hz), the DVL at every ping
 FIELDS = ("dvl/beam_velocity", "dvl/beam_range", "dvl/status", "dvl/mode",
           "imu/specific_force", "imu/angular_rate", "depth/depth", "truth/position_ned")
@@ -66,7 +68,9 @@ def test_the_navigator_preset_writes_the_pinned_data(tmp_path):
     pinned = np.load(PINNED)
     got = written(tmp_path)
     assert set(pinned.files) == set(got)
-    assert (got["dvl/status"] == 5).any() and (got["dvl/status"] == 6).any()
+    assert set(np.unique(got["dvl/status"])) >= {Status.DROPOUT, Status.PING_DROPOUT,
+                                                  Status.BEAM_FAILED, Status.LOCK_LOST}
+    assert (got["dvl/mode"] == Mode.WATER_TRACK).any()
     for name, value in got.items():
         if value.dtype.kind == "f":
             np.testing.assert_allclose(value, pinned[name], rtol=1e-7, atol=1e-9,

@@ -67,13 +67,21 @@ class Claim:
 
     Args:
         path: the final output, whose folder exists.
+        exclusive: refuse an output that a live run of this host writes (two would each
+            rename theirs over the other's); not for a run's own jobs, a cancelled one of
+            which may still be writing the shard its retry writes, the same data.
 
     Attributes:
         file: the temporary file to build the output in (``temporary(path)``).
         folder: a folder for pieces, ``file`` + ``.parts``, made by whoever needs it.
+
+    Raises:
+        OutputError: ``exclusive``, and another process of this host holds a claim on
+            ``path`` (where the file system has no flock, nothing can be told).
+        FileExistsError: this process holds one.
     """
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike, *, exclusive: bool = True) -> None:
         path = Path(path)
         self.file = temporary(path)
         self.folder, self._lock = _parts(self.file), _lock(self.file)
@@ -91,8 +99,12 @@ class Claim:
             os.close(fd)  # a sweep removed a dead namesake's lock as we opened it
         self._fd = fd
         _held.add(self._lock)
-        others = _writers(path)
-        if others:  # after ours is held, so that of two runs started at once one sees the other
+        try:  # after ours is held: of two runs started at once, one at least sees the other
+            others = _writers(path) if exclusive else []
+        except BaseException:
+            self.release()
+            raise
+        if others:
             self.release()
             raise OutputError(f"{str(path)!r} is being written by another run (pid "
                               f"{', '.join(map(str, others))} on this machine); expected one "
@@ -240,16 +252,32 @@ def interrupts_held() -> Iterator[None]:
             signal.raise_signal(held[0])
 
 
+# The numerical libraries' threads in a forked worker: one, as the workers are one
+# process per core (a library reads them as it loads, in the forkserver).
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
 def start_forkserver(preload: list[str]) -> None:
     """Start multiprocessing's forkserver, importing ``preload``, deaf to Ctrl-C and SIGTERM
-    (if it runs already: nothing). Ignored signals stay ignored across exec and fork, and
-    Python then installs no KeyboardInterrupt handler: the server and the workers it forks
-    (a pool's, a local cluster's; and the resource tracker it starts) never see the group's
+    and with ``ONE_THREAD`` in its environment (if it runs already: nothing; one per
+    process, so the first start's preload and settings hold). Ignored signals stay ignored
+    across exec and fork, and Python then installs no KeyboardInterrupt handler: the
+    server and the workers it forks (a pool's, a local cluster's) never see the group's
     Ctrl-C or SIGTERM, even while they import; this process stops them. A signal to this
-    process in these milliseconds is lost."""
+    process in these milliseconds is lost. From a thread other than the main one, the
+    signals cannot be set, and the workers then hear Ctrl-C."""
     multiprocessing.get_context("forkserver").set_forkserver_preload(preload)
-    with interrupt_handler(signal.SIG_IGN):
-        multiprocessing.forkserver.ensure_running()
+    saved = {k: os.environ.get(k) for k in ONE_THREAD}
+    os.environ.update(ONE_THREAD)
+    try:
+        with interrupt_handler(signal.SIG_IGN):
+            multiprocessing.forkserver.ensure_running()
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 @contextmanager

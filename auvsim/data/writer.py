@@ -111,17 +111,19 @@ class DatasetWriter:
         config_json: the resolved configuration, stored in the root attributes.
         compression: a key of ``COMPRESSION``.
         argument: the argument that gave ``path``, which its errors name (``--out``).
+        exclusive: refuse a path a live run of this host is writing (``files.Claim``).
     """
 
     def __init__(self, path: str | os.PathLike, *, config_json: str,
-                 compression: str = "lzf", argument: str = "out") -> None:
+                 compression: str = "lzf", argument: str = "out",
+                 exclusive: bool = True) -> None:
         self.path = Path(path)
         self.filters = COMPRESSION[compression]
         try:
             check_writable_path(self.path, argument)
             make_parent_dirs(self.path.parent)  # removed on failure, if left empty
             # Temporaries of killed runs in this folder go first (``files.sweep``).
-            self.claim = Claim(self.path)
+            self.claim = Claim(self.path, exclusive=exclusive)
         except OSError as e:
             raise ConfigError(
                 f"{str(self.path)!r}: cannot write there ({e.strerror or e}); "

@@ -83,13 +83,15 @@ import signal
 import time
 import traceback
 import weakref
-from multiprocessing import forkserver, shared_memory
+from multiprocessing import shared_memory
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
+
+from auvsim.data.files import start_forkserver
 
 # The pipe protocol, one raw byte per message and answer on the fast path (no pickling,
 # no framing: one write and one read per worker per step). Parent to worker: STEP, NOOP,
@@ -366,8 +368,7 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         if self.workers and context == "forkserver":
             # Started now, it imports auvsim.envs.env (once for all workers) while this
             # process builds its probe env.
-            self._context.set_forkserver_preload(["auvsim.envs.env"])
-            forkserver.ensure_running()
+            start_forkserver(["auvsim.envs.env"])
         env_kwargs = dict(config=config, frame_skip=frame_skip,
                           max_episode_seconds=max_episode_seconds)
         # One env here for the spaces (and to refuse a bad config before any process

@@ -103,15 +103,18 @@ def executor(address: str, *, threads: int = THREADS,
         raise ConfigError("needs Dask distributed, which is not installed: expected "
                           "pip install 'auvsim[cluster]'", argument="cluster") from None
     if local_workers(address) is None:
-        client, cluster = _connect(distributed, address, timeout), None
-    else:
-        client, cluster = _local(dask, distributed, local_workers(address), threads, timeout)
-    try:
-        yield client.get_executor(pure=False)
-    finally:
-        if cluster is None:
+        client = _connect(distributed, address, timeout)
+        try:
+            yield client.get_executor(pure=False)
+        finally:
             client.close()
-        else:
+        return
+    # For the cluster's whole life: a worker its nanny restarts is made as the first were.
+    with dask.config.set({**LOCAL_CONFIG, **FORKED}):
+        client, cluster = _local(distributed, local_workers(address), threads, timeout)
+        try:
+            yield client.get_executor(pure=False)
+        finally:
             _stop_local(client, cluster)
 
 
@@ -141,20 +144,23 @@ def _stop_local(client, cluster) -> None:
                     process.kill()
 
 
-def _local(dask, distributed, n: int, threads: int, timeout: float):
-    """A client of a new ``LocalCluster`` of ``n`` workers, and the cluster.
+def _local(distributed, n: int, threads: int, timeout: float):
+    """A client of a new ``LocalCluster`` of ``n`` workers, and the cluster, under
+    ``LOCAL_CONFIG`` and ``FORKED`` (the caller's ``dask.config.set``).
 
     Its workers never see SIGINT, which a terminal sends to the whole process group: this
-    process stops them. They fork from the forkserver (``start_forkserver``), so they
-    ignore it from their start, where spawned ones would stop in their imports with a
-    traceback each; a worker the nanny restarts later is told by ``_IgnoreSigint``
-    as well. A Ctrl-C or SIGTERM to this process while the cluster starts is held
-    (a cluster stopped half-started would leave its workers), and stops it once started.
+    process stops them. They fork from the forkserver (``start_forkserver``; restarted
+    ones too), so they ignore it from their start, where spawned ones would stop in their
+    imports with a traceback each, and they have its one thread per numerical library
+    (the nanny's environment reaches a spawned worker only); ``_IgnoreSigint`` tells
+    every worker as well. A Ctrl-C or SIGTERM to this process while the cluster starts is
+    held (a cluster stopped half-started would leave its workers), and stops it once
+    started.
     """
     cluster = None
     start_forkserver(["distributed"])
     try:
-        with interrupts_held(), dask.config.set({**LOCAL_CONFIG, **FORKED}):
+        with interrupts_held():
             # ":0": the scheduler's HTTP server (and dashboard) on any free port; the
             # workers' logs silenced (a failed task is this process's error to report).
             cluster = distributed.LocalCluster(

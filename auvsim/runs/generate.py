@@ -103,7 +103,8 @@ def write_mission(config: Config, index: int, path: str, parent: Parent | None =
     if parent is not None:
         exit_with(parent, part.parent.parent)
     report = _reporter(part.with_name(part.name + ".progress"))
-    with DatasetWriter(part, config_json="", compression=config.compression) as writer:
+    with DatasetWriter(part, config_json="", compression=config.compression,
+                       exclusive=False) as writer:
         _stream_mission(config, index, writer, report=report,
                         stop=lambda: (part.parent / "STOP").exists() or not part.parent.is_dir())
 
@@ -124,7 +125,10 @@ def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
         exit_with(parent, part.parent)
     sub = shard_config(config, indices)
     report = _reporter(run / f"{part.stem}.progress")
-    with DatasetWriter(part, config_json=sub.to_json(), compression=config.compression) as w:
+    # Not exclusive: a cancelled job of this run (a straggler after a Ctrl-C, on a
+    # cluster's host) may still be writing the shard its retry writes, the same data.
+    with DatasetWriter(part, config_json=sub.to_json(), compression=config.compression,
+                       exclusive=False) as w:
         for i in indices:
             _stream_mission(config, i, w,
                             stop=lambda: (run / "STOP").exists() or not run.is_dir(),
