@@ -223,3 +223,19 @@ def test_fault_sweep_writes_its_table_for_every_setting(tmp_path, monkeypatch, c
     assert "### Dead reckoning per mission: " + combined["label"] in report
     for c in combined["estimators"].values():
         assert c["availability"] == 0 or set(c["dr_missions"]) == {"straight"}
+
+
+def test_the_rows_worse_than_ls_are_counted_over_the_distinct_settings():
+    """The clean setting starts several sweeps and one dropout setting is in two: each is
+    one setting, named by its first row, for the list of rows worse than LS as for the
+    findings' counts (the report had counted 20 rows of its 17 settings)."""
+    from beamsnet.experiments.faults import _distinct
+
+    clean, shared, other = {"LS": 1}, {"LS": 2}, {"LS": 3}
+    sweeps = {"dropout": [dict(dataset="clean.h5", label="none", estimators=clean),
+                          dict(dataset="d20.h5", label="20 %", estimators=shared)],
+              "burst": [dict(dataset="d20.h5", label="20 %, bursts of 5", estimators=shared),
+                        dict(dataset="b20.h5", label="bursts of 20", estimators=other)],
+              "outliers": [dict(dataset="clean.h5", label="none", estimators=clean)]}
+    assert _distinct(sweeps) == {"none (dropout)": clean, "20 % (dropout)": shared,
+                                 "bursts of 20 (burst)": other}

@@ -445,9 +445,7 @@ def _report(summary: dict) -> str:
     lines += ["![error, availability and dead reckoning against fault rate](faults.png)",
               "", "## Rows worse than LS, and why", "",
               "By dead-reckoning error, over the distinct settings:", "",
-              *why_worse({f"{r['label']} ({sweep})": r["estimators"]
-                          for sweep, rows in sweeps_.items() for r in rows}, "dr_error",
-                         availability=True),
+              *why_worse(_distinct(sweeps_), "dr_error", availability=True),
               "", "## What it shows", "", *_findings(sweeps_, names)]
     return "\n".join(lines) + "\n"
 
@@ -478,6 +476,16 @@ def _per_mission(rows: list[dict], names: list[str]) -> list[str]:
     return lines
 
 
+def _distinct(sweeps_: dict) -> dict[str, dict]:
+    """Each distinct setting once (the clean one starts four sweeps; one dropout setting
+    is in two), named by its first row, ``label (sweep)``: its estimators' results."""
+    found: dict[str, tuple[str, dict]] = {}
+    for sweep, rows in sweeps_.items():
+        for r in rows:
+            found.setdefault(r["dataset"], (f"{r['label']} ({sweep})", r["estimators"]))
+    return dict(found.values())
+
+
 def _findings(sweeps_: dict, names: list[str]) -> list[str]:
     """Plain sentences computed from the results: per sweep, its strongest setting
     against its first; per estimator, how often it dead-reckons worse than LS."""
@@ -500,8 +508,7 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
                         f"{b['rmse_vector']:.4f} m/s, {b['dr_error']:.1f} m (from {was})")
         lines.append(f"- {sweep.capitalize()}, from {start['label']} to "
                      f"{rows[-1]['label']}: " + "; ".join(said) + ".")
-    # Each distinct setting once (the clean one starts four sweeps).
-    settings = {r["dataset"]: r["estimators"] for rows in sweeps_.values() for r in rows}
+    settings = _distinct(sweeps_)
     counts = []
     for n in [n for n in names if n != "LS"]:
         both = [e for e in settings.values()
