@@ -15,15 +15,15 @@ filter at sea sees of its own errors, cannot tell a Q ten times larger from the 
 And not R alone: the slow error's drive, into the states that hold it, is the DVL's
 other noise, and a noise mis-stated in both parts needs both scaled; with the real
 Navigator's slow error (9 mm/s over 19 s) the two together make most of the innovation
-variance (the "scaled noise share" of ``reports/adaptive.md``'s inputs table, median 0.76
-on auvsim's missions and 0.68 at sea). A-KIT (Cohen & Klein 2025, "Adaptive
+variance (the "scaled noise share" of ``reports/adaptive.md``'s inputs table, median 0.83
+on auvsim's missions and 0.73 at sea). A-KIT (Cohen & Klein 2025, "Adaptive
 Kalman-informed transformer", EAAI) adapts the IMU's process noise instead, trained on
 real segments with a reference. At sea a constant Q hardly moves this filter's median:
 ``beamsnet reproduce adaptive`` runs the fixed filter with the IMU's Q std times 0.5 to 10
-(``FilterConfig.process_noise_scale``); the best one scale for every segment ends 4.8 %
+(``FilterConfig.process_noise_scale``); the best one scale for every segment ends 3.9 %
 below the stated Q's median final, though single segments move by tens of per cent
-either way, and each segment's own best, chosen in hindsight against the reference, 8.7 %
-(its DVL scale: 19.1 %). A choice per segment in hindsight gains much of its figure by
+either way, and each segment's own best, chosen in hindsight against the reference, 6.7 %
+(its DVL scale: 11.7 %). A choice per segment in hindsight gains much of its figure by
 picking the least of noisy finals: on the held-out simulated missions, where the filter
 is told the DVL noise the simulator drew, it adds 27.3 points to the best one DVL scale
 for all (the report's "How much of a choice in hindsight is chance").

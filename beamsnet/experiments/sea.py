@@ -786,7 +786,7 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
     worse = [k for k in sim if k not in ("LS", FILTER, SIM_FILTER) and v(k) > ls]
     lines = [
         f"- Better than LS (the DVL's own velocity) against the reference, by the median "
-        f"velocity RMSE: {said(better)}. Worse: {said(worse)}.",
+        f"velocity RMSE: {said(better)}. Worse: {said(worse)}. (The filters: below.)",
         "- Why a calibration learned in auvsim cannot remove the real DVL's errors: each "
         "simulated mission draws its own scale factors and biases (the simulated DVL's "
         f"spreads: {100 * noise['dvl_scale_factor_std']:g} % and "
@@ -805,10 +805,11 @@ def _transfers(results: dict, sim: list[str], ls: float, noise: dict,
     ratio = noise["dvl_beam_noise"] / logged if logged > 0 else math.nan
     lines.append(
         f"- Noise: the simulated DVL's white beam noise is {noise['dvl_beam_noise']:.2g} m/s "
-        f"at the logs' speed, the logged instrument's (its specification in the log "
-        f"description) {logged:g} m/s:"
-        + (f" the simulated one is {ratio:.2g} times as noisy." if ratio >= 1 else
-           f" the logged one is {1 / ratio:.2g} times as noisy.")
+        f"at the logs' speed, the figure the log description states {logged:g} m/s "
+        f"({ratio:.2g} times that; the built-in A-KIT description's is the same Navigator's "
+        "error velocity over every speed of a long log, and the simulated noise follows "
+        "that error velocity speed by speed, `benchmarks/dvl_error.py`, so at one speed "
+        "the two are alike)."
         + (" An estimator that learned to average the simulated noise (the Kalman filters' "
            "random walk, CorrectionNet's past pings) smooths the real velocity's changes "
            "instead, which the real DVL, quieter, did not need: that is how we read the "
