@@ -57,7 +57,7 @@ per rad/s and 83 / 32 / 23 deg/h + 1037 / 1570 / 390 deg/h per rad/s (r^2 0.62 t
 which the ``navigator`` preset takes (``SNAPIR_VIBRATION``). A steady vibration of the
 median std (tried first) left the learned noise's input further off than before, narrow
 where the real one is wide: 67 % of the recorded pings outside its simulated range (32 %
-without vibration); with the line, 13.6 % (``reports/adaptive.md``). The simulated
+without vibration); with the line, 13.5 % (``reports/adaptive.md``). The simulated
 missions give the line back (8.6 / 10.1 / 6.4 mm/s^2 + 180 / 341 / 351 per rad/s, 82 / 32 /
 23 deg/h + 1029 / 1549 / 387) but turn less than the segments, so over a whole mission
 they hold less of it: std above 10 Hz 9 to 13 / 12 to 19 / 8 to 18 mm/s^2 against the

@@ -111,7 +111,7 @@ def test_the_navigators_velocity_error_per_axis_is_its_budget():
     LS (white beam noise, per-beam scale factors and biases, the sound speed, the slow
     error, each drawn per mission as the plugin draws them) has the RMS of the analytic
     budget: sigma / (sqrt(2) sin a), s_std U / 2, c_std U, b_std / (sqrt(2) sin a) and
-    the slow std, in quadrature (12.3 mm/s; the preset's docstring gives the terms'
+    the slow std, in quadrature (12.2 mm/s; the preset's docstring gives the terms'
     sources). With 400 missions the per-mission terms and the Gauss-Markov (19 s) give
     thousands of independent samples: the RMS within about 2 % (1 sigma), 6 % asked."""
     c = preset("navigator").dvl

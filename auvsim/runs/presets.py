@@ -255,7 +255,7 @@ def navigator() -> Config:
       accuracy (0.2 % +/- 1 mm/s); in dead reckoning over 400 s it adds 9 mm/s
       sqrt(2 tau T) = 1.1 m per axis, below the 1.78 m median final error of the six real
       segments' DVL dead reckoning with the reference's attitude (``reports/sea.md``). Per
-      axis at 2 m/s the error then totals sqrt(5.1^2 + 2^2 + 6^2 + 1.4^2 + 9^2) = 12.3
+      axis at 2 m/s the error then totals sqrt(5.1^2 + 2^2 + 6^2 + 1.4^2 + 9^2) = 12.2
       mm/s, below the velocity std of 0.02 m/s the A-KIT publication states for this DVL
       (``../shared/reference/sensors.md``), a single figure that says nothing of how its
       error splits in time.

@@ -185,7 +185,8 @@ std would put a third of its variance into the vertical (5.2 mm/s where it has 9
 deg) and some into the error velocity, which it has none of. On the 20 held-out
 ``realistic-maneuvers`` missions of ``beamsnet reproduce adaptive`` the states took the
 fixed filter's median final from 1.52 to 1.19 m and its RMSE from 0.95 to 0.68 m (better
-on 18 of 20; ``reports/adaptive.md`` before and after the commit that added them), and
+on 18 of 20; ``reports/adaptive.md`` before and after the commit that added them, and
+its re-run at commit 5f09509: the report has moved since), and
 its median velocity NEES from 2.60 to 2.94 (a scratch run on the report's held-out
 file). None of it comes from a synthetic protocol's sigma.
 

@@ -255,8 +255,9 @@ class BeamsNetV2(nn.Module):
     every ping (the network is then exactly an affine calibration there) or on for every
     ping (linear: part of the calibration); at velocities outside the training range it
     switches, and an off feature comes on with weights that training never moved: the
-    network extrapolates badly where an affine calibration does not (seed 2: -51 % against
-    LS on the test mission, +38 % with the features held at their training mean).
+    network extrapolates badly where an affine calibration does not (seed 2: -55.8 % against
+    LS on the test mission in ``reports/snapir.md``; in an earlier run of that seed, -51 %,
+    and +38 % with the features held at their training mean).
     The changes do not depend on the velocity level (a constant velocity gives zero changes,
     whatever it is), only on the accelerations between pings: the velocity then reaches the
     output through the linear path alone, and the network stays affine in the current beams

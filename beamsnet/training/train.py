@@ -28,8 +28,9 @@ of ``beamsnet reproduce paper-sim`` lists every seed):
 
 One correction of the paper, ON by default (``protocol="fixed"``; ``"paper"`` keeps
 BeamsNetV2 exactly as published): V2's past beams enter as their changes to the current
-beams. Trained on the Snapir stream, the published-input V2 scored from -51 % to +59 %
-over LS on the separate test mission across seeds 0..4 (65 % on validation): its two ReLU
+beams. Trained on the Snapir stream, the published-input V2 scored from -55.8 % to +58.5 %
+over LS on the separate test mission across seeds 0..2 (61.4 to 64.9 % on validation;
+``reports/snapir.md``): its two ReLU
 features were dead on the training split (or always on), so the output layer acted as an
 affine calibration there, but their pre-activations grow with the velocity, and at the
 test mission's velocities outside the training range they switched on with weights that
