@@ -446,12 +446,12 @@ def _file_out(path: str) -> Path:
 
 def _option(text: str) -> tuple[str, float]:
     """``--option NAME=X``: a scenario option's name and number."""
-    name, sep, value = text.partition("=")
+    name, _, value = text.partition("=")
     try:
-        number = float(value)
+        number = float(value)  # "" (no "=") is no number either
     except ValueError:
         number = math.nan
-    if not sep or not name.strip() or not math.isfinite(number):
+    if not name.strip() or not math.isfinite(number):
         raise argparse.ArgumentTypeError(f"expected NAME=X, an option's name and a finite "
                                          f"number (rudder_deg=20), got {text!r}")
     return name.strip(), number

@@ -550,8 +550,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         check_truth(windows, dataset)
     # A filter fits its beam calibration where it can (without a reference, none: the
     # beams as measured); any other estimator that is fitted needs a reference or truth.
-    is_filter = spec(estimator.name).kind == "filter"  # tracks, positions and a config
-    fitted = spec(estimator.name).needs.training and not is_filter
+    made_by = spec(estimator.name)
+    is_filter = made_by.kind == "filter"  # tracks, positions and a config
+    fitted = made_by.needs.training and not is_filter
     if fitted and train is None and not scored:
         raise DataError(f"{dataset}: a log without a reference, and {estimator.name} is "
                         "fitted on one; expected --train FILE.h5 with a reference or the "
@@ -577,7 +578,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         summary["unfitted"] = (f"its beams are used as measured: {train or dataset} has no "
                                "reference to calibrate them against (--train FILE.h5 "
                                "calibrates them on a file that has one)")
-    if train is None and scored and spec(estimator.name).needs.training:
+    if train is None and scored and made_by.needs.training:
         summary["fitted_on_scored_pings"] = (
             f"fitted on the first {100 * TRAIN_FRACTION:.0f} % of each mission's pings of "
             "this file (its training split), which the scores include; --train OTHER.h5 "

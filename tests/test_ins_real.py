@@ -741,21 +741,9 @@ def test_a_steady_turn_gives_the_clock_uncertainty_nothing_to_add():
     """Level circle at 2 m/s and 10 deg/s: the DVL's velocity in the body, whose rate of
     change (f + C^T g - w x v) a ping's timing uncertainty turns into innovation
     variance, does not change, so a 0.05 s clock uncertainty adds nothing."""
-    speed, r = 2.0, math.radians(10.0)
-    t = np.arange(0.0, 30.0 + 1e-9, 0.01)
-    f = np.tile([0.0, speed * r, -9.81], (len(t), 1))
-    w = np.tile([0.0, 0.0, r], (len(t), 1))
-    start = ins.Start(time=0.0, position_ned=np.zeros(3), velocity_ned=[speed, 0.0, 0.0],
-                      rotation=np.eye(3), position_std=np.full(3, 0.1),
-                      velocity_std=np.full(3, 0.01), attitude_std=np.radians([0.01] * 3))
-    grade = IMU_GRADES["navigation"]
-    instrument = ins.Instrument(grade.accel_noise_density, grade.gyro_noise_density,
-                                grade.accel_turn_on_bias, grade.gyro_turn_on_bias, 0.0, 0.0,
-                                np.full(3, 0.01))
-    dvl_time = np.arange(1.0, 30.0 + 1e-9, 1.0)
-    velocity = np.tile([speed, 0.0, 0.0], (len(dvl_time), 1))
-    runs = [ins.run_arrays(t, f, w, dvl_time, velocity=velocity, start=start,
-                           instrument=instrument, gravity=9.81, timing_std=s)
-            for s in (0.0, 0.05)]
+    data, _ = circle(30.0)  # at 2 m/s and 10 deg/s, the DVL measuring (2, 0, 0) m/s
+    data.update(velocity=np.tile([2.0, 0.0, 0.0], (len(data["dvl_time"]), 1)),
+                config=ins.FilterConfig())
+    runs = [ins.run_arrays(**data, timing_std=s) for s in (0.0, 0.05)]
     np.testing.assert_allclose(runs[1].innovation_var, runs[0].innovation_var, rtol=0,
                                atol=1e-8)

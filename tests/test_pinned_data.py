@@ -28,34 +28,27 @@ from auvsim.sensors.dvl import Mode, Status
 
 PINNED = Path(__file__).resolve().parent / "data" / "pinned-navigator.npz"
 DURATION = 500.0  # s: long enough for every kind of loss, and water track
-EVERY = 100  # the IMU and truth kept at every 100th sample (1 Hz), the DVL at every ping
-FIELDS = ("dvl/beam_velocity", "dvl/beam_range", "dvl/status", "dvl/mode",
-          "imu/specific_force", "imu/angular_rate", "depth/depth", "truth/position_ned")
+# Each field pinned, and the step it is kept at: the IMU and truth at 1 Hz (every 100th
+# sample), depth at 1 Hz (every 10th), the DVL at every ping.
+FIELDS = {"dvl/beam_velocity": 1, "dvl/beam_range": 1, "dvl/status": 1, "dvl/mode": 1,
+          "imu/specific_force": 100, "imu/angular_rate": 100, "depth/depth": 10,
+          "truth/position_ned": 100}
 
 # The manoeuvre presets seed mission i of their list by position: appending a manoeuvre
 # keeps these, inserting one reseeds every later mission (docs/ARCHITECTURE.md).
-SEEDS = {
-    "maneuvers": [("straight", 100), ("turning_circle", 101), ("zigzag_10_10", 102),
-                  ("zigzag_20_20", 103), ("lawnmower", 104), ("depth_steps", 105),
-                  ("yoyo", 106), ("speed_steps", 107), ("spiral_dive", 108),
-                  ("random_waypoints", 109)],
-    "realistic-maneuvers": [(name + slow, base + i + (100 if slow else 0))
-                            for i, name in enumerate(
-                                ("straight", "turning_circle", "zigzag_10_10",
-                                 "zigzag_20_20", "lawnmower", "depth_steps", "yoyo",
-                                 "speed_steps", "spiral_dive", "random_waypoints"))
-                            for base in (200,) for slow in ("", "_slow")],
-}
-SEEDS["sim2real"] = SEEDS["realistic-maneuvers"]
+MANEUVERS = ("straight", "turning_circle", "zigzag_10_10", "zigzag_20_20", "lawnmower",
+             "depth_steps", "yoyo", "speed_steps", "spiral_dive", "random_waypoints")
+REALISTIC = [pair for i, name in enumerate(MANEUVERS)
+             for pair in ((name, 200 + i), (f"{name}_slow", 300 + i))]
+SEEDS = {"maneuvers": [(name, 100 + i) for i, name in enumerate(MANEUVERS)],
+         "realistic-maneuvers": REALISTIC, "sim2real": REALISTIC}
 
 
 def arrays(path: Path) -> dict[str, np.ndarray]:
-    """``FIELDS`` of the file's one mission, the high-rate ones thinned to ``EVERY``."""
+    """``FIELDS`` of the file's one mission, each at its step."""
     with h5py.File(path, "r") as f:
         (mission,) = f["missions"].values()
-        return {name: mission[name][()][::EVERY if name.split("/")[0] in ("imu", "truth")
-                                         else (10 if name.startswith("depth") else 1)]
-                for name in FIELDS}
+        return {name: mission[name][::step] for name, step in FIELDS.items()}
 
 
 def written(tmp: Path) -> dict[str, np.ndarray]:

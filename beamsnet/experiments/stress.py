@@ -415,8 +415,8 @@ def unlearned(binned: dict) -> list[str]:
     far off as least squares even on the calmest pings (the first bin of every intensity
     in ``binned``): they have not learned the instrument (too few epochs or too little
     data, a smoke run), so how their error grows says nothing of their premise."""
-    calm = _calmest(binned)
-    return [n for n in calm if n != "LS" and n not in _filters()
+    calm, filters = _calmest(binned), _filters()
+    return [n for n in calm if n != "LS" and n not in filters
             and calm[n] > UNLEARNED_FACTOR * calm["LS"]]
 
 
@@ -441,7 +441,8 @@ def _verdict(binned: dict, rows: dict, v2: str) -> list[str]:
     growth = {n: max(rmse[n][-1] / rmse[n][0] for _, rmse in binned.values()) for n in names}
     lines = []
     raw = unlearned(binned)
-    grows = [n for n in names if n != "LS" and n not in _filters() and n not in raw
+    fitted = set(names) - _filters() - set(raw) - {"LS"}  # fitted to data, and learned
+    grows = [n for n in names if n in fitted
              and growth[n] > 2 * growth["LS"]]
     if grows:
         lines.append(
