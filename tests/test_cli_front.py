@@ -518,3 +518,18 @@ def test_ctrl_c_while_beamsnet_loads_is_one_line():
                           timeout=120)
     assert done.returncode == 130, done.stderr
     assert done.stderr == "beamsnet: interrupted; nothing was written\n"
+
+
+def test_beamsnet_without_torch_says_what_to_install():
+    """A plain install leaves out the learn extra: beamsnet then says in one line what to
+    install and exits 2, where it had printed the import's traceback."""
+    code = ("import sys\n"
+            "sys.modules['torch'] = None  # as if it were not installed\n"
+            "from beamsnet.console import run\n"
+            "run()\n")
+    done = subprocess.run([sys.executable, "-c", code, "--help"], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith("beamsnet: error: PyTorch is not installed") and \
+        "pip install 'auvsim[learn]'" in done.stderr, done.stderr

@@ -67,6 +67,14 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def deaf_to_interrupts(pid: int) -> bool:
+    """Whether process ``pid`` ignores both SIGINT and SIGTERM (its SigIgn mask in
+    /proc/PID/status: bit n - 1 for signal n)."""
+    with open(f"/proc/{pid}/status") as f:
+        mask = next(int(line.split()[1], 16) for line in f if line.startswith("SigIgn:"))
+    return all(mask >> (sig - 1) & 1 for sig in (signal.SIGINT, signal.SIGTERM))
+
+
 def process_tree(pid: int) -> set[tuple[int, bytes]]:
     """``pid`` and its descendants, as (pid, start time): a reused pid is another."""
     table = processes()

@@ -21,7 +21,13 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from auvsim.data.files import check_out_dir, finished, staged_dir, write_text
+from auvsim.data.files import (
+    check_out_dir,
+    finished,
+    staged_dir,
+    start_forkserver,
+    write_text,
+)
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
 from auvsim.runs.generate import exit_with, this_process
@@ -81,8 +87,10 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
     if cluster is None:
         context = multiprocessing.get_context("forkserver")
         # Its workers fork from a server that has imported torch and beamsnet once (about
-        # 3 s each), unless a pool of this process started the server before.
-        context.set_forkserver_preload(["beamsnet.training.runs"])
+        # 3 s each), unless a pool of this process started the server before; a server
+        # deaf to Ctrl-C and SIGTERM, as every pool's and cluster's of auvsim: this
+        # process hears them and stops the workers (``_stop_workers``).
+        start_forkserver(["beamsnet.training.runs"])
         epochs = context.SimpleQueue()
         # Each worker ends with this process, even one killed with -9 (``exit_with``).
         runner = cf.ProcessPoolExecutor(workers, mp_context=context, initializer=_worker,
@@ -126,16 +134,17 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
 
 
 def _stop_workers(pool: cf.ProcessPoolExecutor) -> None:
-    """End a local pool's workers now. A SIGTERM reaches this process alone (Ctrl-C reaches
-    the whole process group), and the pool would otherwise wait minutes for its running
-    jobs before this process could exit."""
-    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14+
-    if terminate is not None:
-        terminate()
+    """End a local pool's workers now, with SIGKILL: they ignore Ctrl-C and SIGTERM
+    (``start_forkserver``), and the pool would otherwise wait minutes for its running jobs
+    before this process could exit. What they leave is a run folder's temporary, which
+    this process removes."""
+    kill = getattr(pool, "kill_workers", None)  # Python 3.14+
+    if kill is not None:
+        kill()
         return
     workers = getattr(pool, "_processes", None) or {}  # before 3.14: the pool's own record
     for process in list(workers.values()):
-        process.terminate()
+        process.kill()
     pool.shutdown(wait=False, cancel_futures=True)
 
 
