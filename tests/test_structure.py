@@ -13,11 +13,12 @@ PACKAGES = ("auvsim", "beamsnet")
 # What beamsnet may import of auvsim: its lazy top-level exports, the dataset API (beam
 # geometry included), frames, the Earth (WGS-84), the error vocabulary, the value checks
 # (a leaf) and the command-line boundary both CLIs share, and, for the experiment runner,
-# the presets, generation and the cluster helpers its Dask options share with auvsim.
+# the presets, generation, the cluster helpers its Dask options share with auvsim and the
+# worker processes its training pool shares.
 BEAMSNET_MAY_IMPORT = ("auvsim.lazy", "auvsim.data", "auvsim.physics.frames",
                        "auvsim.physics.earth", "auvsim.errors", "auvsim.checks",
                        "auvsim.cli_support", "auvsim.runs.presets", "auvsim.runs.generate",
-                       "auvsim.runs.cluster")
+                       "auvsim.runs.cluster", "auvsim.processes")
 
 
 def _modules() -> dict[str, Path]:

@@ -31,8 +31,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import multiprocessing
-import multiprocessing.forkserver
 import os
 import re
 import shlex
@@ -250,34 +248,6 @@ def interrupts_held() -> Iterator[None]:
     finally:  # an error the interrupt caused (a worker it stopped) gives way to it
         if held:
             signal.raise_signal(held[0])
-
-
-# The numerical libraries' threads in a forked worker: one, as the workers are one
-# process per core (a library reads them as it loads, in the forkserver).
-ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-
-
-def start_forkserver(preload: list[str]) -> None:
-    """Start multiprocessing's forkserver, importing ``preload``, deaf to Ctrl-C and SIGTERM
-    and with ``ONE_THREAD`` in its environment (if it runs already: nothing; one per
-    process, so the first start's preload and settings hold). Ignored signals stay ignored
-    across exec and fork, and Python then installs no KeyboardInterrupt handler: the
-    server and the workers it forks (a pool's, a local cluster's) never see the group's
-    Ctrl-C or SIGTERM, even while they import; this process stops them. A signal to this
-    process in these milliseconds is lost. From a thread other than the main one, the
-    signals cannot be set, and the workers then hear Ctrl-C."""
-    multiprocessing.get_context("forkserver").set_forkserver_preload(preload)
-    saved = {k: os.environ.get(k) for k in ONE_THREAD}
-    os.environ.update(ONE_THREAD)
-    try:
-        with interrupt_handler(signal.SIG_IGN):
-            multiprocessing.forkserver.ensure_running()
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
 
 
 @contextmanager

@@ -91,7 +91,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from auvsim.data.files import start_forkserver
+from auvsim.processes import start_forkserver
 
 # The pipe protocol, one raw byte per message and answer on the fast path (no pickling,
 # no framing: one write and one read per worker per step). Parent to worker: STEP, NOOP,

@@ -26,8 +26,9 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
-from auvsim.data.files import interrupts_held, start_forkserver
+from auvsim.data.files import interrupts_held
 from auvsim.errors import ConfigError, SimulationError
+from auvsim.processes import start_forkserver
 
 CONNECT_TIMEOUT_S = 10.0
 CLOSE_S = 30.0  # a local cluster's shutdown, client and all; past it, its workers are killed

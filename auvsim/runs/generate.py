@@ -19,10 +19,10 @@ folder holds ``STOP`` (the first error, Ctrl-C or SIGTERM in this process) or ha
 This process then waits for them, so nothing is left behind.
 
 A killed parent (``kill -9``) cannot write ``STOP``: each job's process watches it instead
-(``exit_with``) and ends at once when it has gone, first removing the run's temporaries
-(``auvsim.data.files.sweep``); the forkserver ends with its last client, a ``local:N``
-cluster's workers with their nannies (``auvsim.runs.cluster``). The default pool's
-forkserver, and so its workers, ignore SIGINT and SIGTERM, which a terminal or a
+(``auvsim.processes.end_with``) and ends at once when it has gone, first removing the
+run's temporaries (``auvsim.data.files.sweep``); the forkserver ends with its last
+client, a ``local:N`` cluster's workers with their nannies (``auvsim.runs.cluster``). The
+default pool's forkserver, and so its workers, ignore SIGINT and SIGTERM, which a terminal or a
 scheduler sends to the whole process group: only this process acts on them, stopping its
 jobs through ``STOP``, and no worker prints a traceback.
 """
@@ -35,7 +35,6 @@ import fcntl
 import hashlib
 import multiprocessing
 import os
-import select
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -58,7 +57,6 @@ from auvsim.data.files import (
     interrupts_held,
     make_out_dir,
     names_folder,
-    start_forkserver,
     sweep,
     writing,
 )
@@ -68,13 +66,13 @@ from auvsim.data.shards import shard_state, write_index
 from auvsim.data.writer import DatasetWriter, copy_mission, foreign_hdf5
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
+from auvsim.processes import Parent, end_with, start_forkserver, this_process
 from auvsim.runs.cluster import check_address, lost_worker
 from auvsim.runs.mission import MissionRun, check_reachable
 from auvsim.world.grid import pin_grid
 
 MISSIONS_IN_FLIGHT = 2  # per process: missions simulated at once on threads
-POLL_S = 0.5  # how often the parent looks at its jobs (and, without pidfd, a job at it)
-Parent = tuple[str, int, str | None]  # host, pid, start time (``this_process``)
+POLL_S = 0.5  # how often the parent looks at its jobs
 
 
 def _stream_mission(config: Config, index: int, writer: DatasetWriter, *,
@@ -101,7 +99,7 @@ def write_mission(config: Config, index: int, path: str, parent: Parent | None =
     part = Path(path)
     _check_run_folder(part.parent)
     if parent is not None:
-        exit_with(parent, part.parent.parent)
+        end_with(parent, part.parent.parent)
     report = _reporter(part.with_name(part.name + ".progress"))
     with DatasetWriter(part, config_json="", compression=config.compression,
                        exclusive=False) as writer:
@@ -122,7 +120,7 @@ def write_shard(config: Config, indices: Sequence[int], path: str, folder: str,
     part, run = Path(path), Path(folder)
     _check_run_folder(run)
     if parent is not None:
-        exit_with(parent, part.parent)
+        end_with(parent, part.parent)
     sub = shard_config(config, indices)
     report = _reporter(run / f"{part.stem}.progress")
     # Not exclusive: a cancelled job of this run (a straggler after a Ctrl-C, on a
@@ -521,84 +519,12 @@ def _reporter(progress: Path) -> Callable[[float], None]:
 def _process_pool(workers: int, parent: Parent, folder: Path) -> cf.ProcessPoolExecutor:
     """The default pool: forkserver workers, which fork from a server that has imported
     auvsim (numba, MuJoCo) once, so they start in milliseconds, without inheriting this
-    process's threads. Each watches this process from its start (``exit_with``), so an
+    process's threads. Each watches this process from its start (``end_with``), so an
     idle one also ends with it."""
     start_forkserver(["auvsim.runs.generate"])
     return cf.ProcessPoolExecutor(max_workers=workers,
                                   mp_context=multiprocessing.get_context("forkserver"),
-                                  initializer=exit_with, initargs=(parent, folder))
-
-
-def this_process() -> Parent:
-    """This process as ``write_mission`` watches it: host, pid and start time."""
-    pid = os.getpid()
-    return HOST, pid, _start_time(pid)
-
-
-_watched: dict[Parent, set[Path]] = {}  # parent -> the folders of its temporaries
-_watched_lock = threading.Lock()
-
-
-def exit_with(parent: Parent, folder: Path | None = None) -> None:
-    """End this process as soon as ``parent`` has ended, first sweeping ``folder`` (if
-    given) of the temporaries that run left (``auvsim.data.files.sweep``): a job is of no
-    use once the process that submitted it has gone, and a pool's workers would wait for
-    it forever, idle ones too (so the watch outlives the job). Not in ``parent`` itself (a
-    thread pool), nor on another host, where its pid means nothing. A pool's initializer
-    (beamsnet's training pools use it too)."""
-    host, pid, _ = parent
-    if host != HOST or pid == os.getpid():
-        return
-    with _watched_lock:
-        if parent not in _watched:
-            _watched[parent] = set()
-            threading.Thread(target=_watch, args=(parent, _watched[parent]), daemon=True,
-                             name="auvsim-parent-watch").start()
-        if folder is not None:
-            _watched[parent].add(Path(folder))
-
-
-def _watch(parent: Parent, folders: set[Path]) -> None:
-    _wait_for_end(*parent[1:])
-    try:
-        for folder in list(folders):
-            sweep(folder)  # the dead parent's lock is free: the kernel dropped it first
-    finally:
-        os._exit(1)
-
-
-def _wait_for_end(pid: int, started: str | None) -> None:
-    """Return once process ``pid``, started at ``started``, has ended."""
-    try:
-        fd = os.pidfd_open(pid)  # Linux 5.3+: readable once the process has ended
-    except (AttributeError, OSError):  # elsewhere, or it has ended already
-        fd = None
-    while _alive(pid, started):
-        if fd is None:
-            time.sleep(POLL_S)
-        else:
-            select.select([fd], [], [])
-
-
-def _alive(pid: int, started: str | None) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        pass  # a process of another user: the start time tells
-    return _start_time(pid) == started  # another start time: the pid was reused
-
-
-def _start_time(pid: int) -> str | None:
-    """When process ``pid`` started, in clock ticks after boot (Linux); None where there
-    is no ``/proc``, and for a process that has gone or is a zombie (ended)."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()  # after the command's name
-    except (OSError, IndexError):
-        return None
-    return None if fields[0] == b"Z" else fields[19].decode()
+                                  initializer=end_with, initargs=(parent, folder))
 
 
 def _progress(path: Path) -> float:

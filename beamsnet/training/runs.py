@@ -25,12 +25,11 @@ from auvsim.data.files import (
     check_out_dir,
     finished,
     staged_dir,
-    start_forkserver,
     write_text,
 )
 from auvsim.errors import ConfigError, SimulationError
+from auvsim.processes import end_with, start_forkserver, this_process
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
-from auvsim.runs.generate import exit_with, this_process
 from beamsnet.training.checkpoints import load
 from beamsnet.training.config import TrainConfig, check_restarts
 from beamsnet.training.train import DivergedError, train
@@ -92,7 +91,7 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
         # process hears them and stops the workers (``_stop_workers``).
         start_forkserver(["beamsnet.training.runs"])
         epochs = context.SimpleQueue()
-        # Each worker ends with this process, even one killed with -9 (``exit_with``).
+        # Each worker ends with this process, even one killed with -9 (``end_with``).
         runner = cf.ProcessPoolExecutor(workers, mp_context=context, initializer=_worker,
                                         initargs=(this_process(), epochs))
         total, unit = sum(c.epochs for _, c, _ in jobs), " epochs"
@@ -152,7 +151,7 @@ _epochs = None  # a local pool worker's queue to its parent's progress bar (``_w
 
 
 def _worker(parent, epochs) -> None:
-    """A local training pool's initializer: end with the parent (``exit_with``), and
+    """A local training pool's initializer: end with the parent (``end_with``), and
     report each epoch that ends into ``epochs`` (a queue the parent's bar reads).
 
     tqdm's lock here is a thread lock: its default, a multiprocessing lock, is a named
@@ -160,7 +159,7 @@ def _worker(parent, epochs) -> None:
     (``_stop_workers``) never unlinks, and the resource tracker then warned of "leaked
     semaphore objects" after the one-line interrupt. A worker draws no bar of its own."""
     global _epochs
-    exit_with(parent)
+    end_with(parent)
     tqdm.set_lock(threading.RLock())
     _epochs = epochs
 
