@@ -47,7 +47,7 @@ def run_command(prog: str, command: Callable[[], object],
     with _interrupts_as_one():
         try:
             with all_or_nothing() as outputs:
-                with _swallowed_interrupts_sent_again():
+                with _deferred_interrupts():
                     command()
                 sys.stdout.flush()  # a closed pipe is found here, not at exit
         except AuvsimError as e:
@@ -65,10 +65,19 @@ def run_command(prog: str, command: Callable[[], object],
         except KeyboardInterrupt:
             return _interrupted(prog, outputs)
         except SystemError as e:  # numba's call that an interrupt broke into
-            if not isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
+            if not _interrupt_beneath(e):
                 raise
             return _interrupted(prog, outputs)
     return 0
+
+
+def _interrupt_beneath(error: BaseException) -> bool:
+    """Whether a KeyboardInterrupt lies beneath ``error``, however deep its chain."""
+    while error is not None:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        error = error.__cause__ or error.__context__
+    return False
 
 
 def _interrupted(prog: str, outputs) -> int:
@@ -127,7 +136,21 @@ _last = [signal.SIGINT]  # the last interrupt ``_stop`` took, which a swallowed 
 
 def _stop(signum, frame) -> None:
     _last[0] = signum
+    if _in_compiled_callback(frame):
+        _later.send(signum)
+        return
     raise KeyboardInterrupt
+
+
+def _in_compiled_callback(frame) -> bool:
+    """Whether ``frame`` is Python that compiled code calls back into and that cannot take
+    an exception: numba's ``_numba_unpickle``, which a kernel calls as it hands back a
+    tuple of arrays, and where Python first runs a handler for a signal that came while
+    the kernel ran. An interrupt raised there was a chain of SystemErrors, an interrupt
+    swallowed (the command went on to exit 0), or a segmentation fault."""
+    code = getattr(frame, "f_code", None)
+    return code is not None and code.co_name == "_numba_unpickle" and \
+        code.co_filename.endswith(os.path.join("numba", "core", "serialize.py"))
 
 
 @contextmanager
@@ -150,51 +173,68 @@ def _interrupts_as_one() -> Iterator[None]:
                 signal.signal(signum, handler)
 
 
-RESEND_S = 0.01  # after a swallowed interrupt, s: its callback has returned by then
+RESEND_S = 0.01  # after a deferred interrupt, s: its callback has returned by then
+
+
+class _SentAgain:
+    """Interrupts sent again, the same signal, from a thread a moment later (again if that
+    one lands in a callback too), while a command runs (``_deferred_interrupts``); one
+    the command outran is raised as it ends, so none outlives it."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.pending: int | None = None  # the signal on its way, not yet taken
+        self.sent = False
+        self.over = True
+
+    def send(self, signum: int) -> None:
+        with self.lock:
+            self.pending, self.sent = signum, False
+        timer = threading.Timer(RESEND_S, self._resend)
+        timer.daemon = True
+        timer.start()
+
+    def _resend(self) -> None:
+        with self.lock:
+            if self.over or self.pending is None:
+                return
+            self.sent = True
+            os.kill(os.getpid(), self.pending)
+
+
+_later = _SentAgain()
 
 
 @contextmanager
-def _swallowed_interrupts_sent_again() -> Iterator[None]:
-    """A Ctrl-C or SIGTERM whose handler ran inside a C callback is swallowed there: Python
-    prints "Exception ignored on calling ctypes callback function" and goes on, and the
-    run went on to its end (numba loads compiled code from its cache through such
-    callbacks of LLVM's, for a second or so at a command's first call of a kernel). While
-    the block runs, such an interrupt is not printed but sent again, the same signal,
-    from a thread a moment later, once the callback has returned (again if that one lands
-    in a callback too); one the block outran is raised as it ends, so none outlives it."""
+def _deferred_interrupts() -> Iterator[None]:
+    """While the block runs, an interrupt taken where it cannot be raised is sent again
+    (``_SentAgain``). Two such places: a callback of compiled code (``_stop``), and a
+    C callback that swallows what its Python raises: Python prints "Exception ignored
+    on calling ctypes callback function" and goes on, and the run went on to its end
+    (numba loads compiled code from its cache through such callbacks of LLVM's, for a
+    second or so at a command's first call of a kernel); such an interrupt is not
+    printed but sent again."""
     previous = sys.unraisablehook
-    lock = threading.Lock()
-    state = {"pending": None, "sent": False, "over": False}
-
-    def resend() -> None:
-        with lock:
-            if state["over"]:
-                return
-            state["sent"] = True
-            os.kill(os.getpid(), state["pending"])
 
     def hook(unraisable) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
-            with lock:
-                state.update(pending=_last[0], sent=False)
-            timer = threading.Timer(RESEND_S, resend)
-            timer.daemon = True
-            timer.start()
+            _later.send(_last[0])
         else:
             previous(unraisable)
 
     sys.unraisablehook = hook
+    _later.over, _later.pending = False, None
     try:
         yield
     except KeyboardInterrupt:
-        state["pending"] = None  # taken
+        _later.pending = None  # taken
         raise
     finally:
         sys.unraisablehook = previous
-        with lock:
-            state["over"] = True
-            sent = state["sent"]
-    if state["pending"] is not None:  # swallowed, and not yet taken
+        with _later.lock:
+            _later.over = True
+            sent = _later.sent
+    if _later.pending is not None:  # deferred, and not yet taken
         if sent:
             time.sleep(RESEND_S)  # the signal is on its way: its handler raises here
         raise KeyboardInterrupt

@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -581,3 +583,39 @@ def test_run_arrays_names_a_bad_argument(change, said):
     change(arrays)
     with pytest.raises(ValueError, match=re.escape(said)):
         ins.run_arrays(**arrays)
+
+
+def test_ctrl_c_while_the_filter_runs_is_a_keyboard_interrupt():
+    """From Python, with Python's own Ctrl-C handler: a signal that came while the
+    compiled loop ran was handled as it handed back its arrays, inside numba's
+    unpickling, and the call raised a chain of SystemErrors (or crashed). It is held
+    until the loop has returned, and raised as the KeyboardInterrupt it is."""
+    code = ("import os, signal, sys, threading, time\n"
+            "import numpy as np\n"
+            "from beamsnet.estimators import ins\n"
+            "n = 100001\n"
+            "t = np.arange(n) / 100.0\n"
+            "f = np.tile([0.0, 0.0, -9.8], (n, 1))\n"
+            "pings = np.arange(0.0, t[-1] + 1e-9, 1.0)\n"
+            "arrays = dict(imu_time=t, specific_force=f, angular_rate=np.zeros((n, 3)),\n"
+            "    dvl_time=pings, velocity=np.zeros((len(pings), 3)),\n"
+            "    start=ins.coarse_alignment(t, f, heading_deg=0.0),\n"
+            "    instrument=ins.Instrument(1e-4, 1e-6, 1e-4, 1e-7, 0.0, 0.0,\n"
+            "                              np.full(3, 0.01)), gravity=9.8)\n"
+            "ins.run_arrays(**arrays)  # compiled, or loaded from the cache\n"
+            "started = time.perf_counter()\n"
+            "ins.run_arrays(**arrays)\n"
+            "took = time.perf_counter() - started\n"
+            "threading.Timer(float(sys.argv[1]) * took, os.kill,\n"
+            "                (os.getpid(), signal.SIGINT)).start()\n"
+            "try:\n"
+            "    for _ in range(20):\n"
+            "        ins.run_arrays(**arrays)\n"
+            "    print('ran to its end')\n"
+            "except KeyboardInterrupt as e:\n"
+            "    print('KeyboardInterrupt', type(e.__context__).__name__)\n")
+    for share in (0.3, 0.7):  # into the first run of the loop
+        done = subprocess.run([sys.executable, "-c", code, str(share)], capture_output=True,
+                              text=True, timeout=300)
+        assert (done.returncode, done.stdout) == (0, "KeyboardInterrupt NoneType\n"), \
+            done.stderr[-2000:]

@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+import types
 from pathlib import Path
 
 import pytest
@@ -322,10 +323,14 @@ def test_a_numba_call_an_interrupt_broke_into_is_the_interrupt():
     SystemError is not hidden."""
     from auvsim.cli_support import run_command
 
-    def broken():
+    def broken():  # each array the kernel hands back after the first adds a link
         try:
-            raise KeyboardInterrupt
-        except KeyboardInterrupt as e:
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as e:
+                raise SystemError("_numba_unpickle returned a result with an exception "
+                                  "set") from e
+        except SystemError as e:
             raise SystemError("CPUDispatcher returned a result with an exception set") from e
 
     assert run_command("auvsim", broken, {}) == 130
@@ -335,3 +340,62 @@ def test_a_numba_call_an_interrupt_broke_into_is_the_interrupt():
 
     with pytest.raises(SystemError, match="something else"):
         run_command("auvsim", other, {})
+
+
+def test_an_interrupt_in_a_kernels_callback_is_taken_after_it():
+    """Python first runs a signal's handler that came while a numba kernel ran as the
+    kernel hands back a tuple of arrays, inside numba's ``_numba_unpickle``. A
+    KeyboardInterrupt raised there was a chain of SystemErrors (a traceback), a swallowed
+    interrupt (exit 0) or a segmentation fault. The command's handler sends it again
+    instead, and takes it outside the kernel: one line and 130, every time, and no
+    kernel call broken into. The loop leaves Python a short time between the kernel's
+    runs, as a command does."""
+    code = ("import os, signal, sys, threading, time\n"
+            "import numba, numpy as np\n"
+            "from auvsim.cli_support import exit_with, run_command\n"
+            "@numba.njit\n"
+            "def kernel(n):\n"
+            "    s = 0.0\n"
+            "    for i in range(n):\n"
+            "        s += np.sin(i * 1e-9)\n"
+            "    return np.full(2, s), np.zeros((2, 3)), np.zeros(4)\n"
+            "kernel(10)  # compiled\n"
+            "n, took = 10, 0.0\n"
+            "while took < 0.2:  # a run of the kernel takes 0.2 s or more\n"
+            "    n *= 2\n"
+            "    started = time.perf_counter()\n"
+            "    kernel(n)\n"
+            "    took = time.perf_counter() - started\n"
+            "def work():\n"
+            "    threading.Timer(float(sys.argv[1]), os.kill,\n"
+            "                    (os.getpid(), signal.SIGINT)).start()\n"
+            "    for _ in range(100):\n"
+            "        try:\n"
+            "            kernel(n)\n"
+            "        except SystemError:  # the interrupt, raised in the callback\n"
+            "            print('broken into')\n"
+            "            raise\n"
+            "        time.sleep(0.01)\n"
+            "    print('ran to its end')\n"
+            "exit_with('auvsim', lambda: run_command('auvsim', work, {}))\n")
+    for delay in (0.03, 0.09, 0.15):  # into the first kernel run
+        done = subprocess.run([sys.executable, "-c", code, str(delay)], capture_output=True,
+                              text=True, timeout=120, preexec_fn=as_from_a_terminal)
+        assert (done.returncode, done.stdout, done.stderr) == (
+            130, "", "auvsim: interrupted; nothing was written\n"), delay
+
+
+def test_an_interrupt_that_lands_in_a_compiled_callback_is_deferred(monkeypatch):
+    """The command's handler, run in ``_numba_unpickle``'s frame, raises nothing there and
+    sends the same signal again a moment later, which raises where it lands."""
+    from numba.core import serialize
+
+    from auvsim import cli_support
+
+    sent = []
+    monkeypatch.setattr(cli_support._later, "send", sent.append)
+    frame = types.SimpleNamespace(f_code=serialize._numba_unpickle.__code__)
+    cli_support._stop(signal.SIGTERM, frame)  # no KeyboardInterrupt
+    assert sent == [signal.SIGTERM]
+    with pytest.raises(KeyboardInterrupt):
+        cli_support._stop(signal.SIGTERM, sys._getframe())

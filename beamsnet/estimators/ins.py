@@ -248,6 +248,7 @@ import numpy as np
 from auvsim.checks import is_finite
 from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
+from auvsim.data.files import interrupts_held
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
@@ -1651,21 +1652,25 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
            else _NO_NET)
     if cfg.adaptive == "learned":
         floor, ceiling = noise_model.bounds
-    (out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used, features, innovations,
-     hph, scale, stated_std, innovation_var) = _filter(
-        f[i0:], w[i0:], dt, float(g), float(g_grad), omega_ie, imu_samples == "interval",
-        ping_row, np.nan_to_num(meas),
-        np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
-        rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
-        v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), np.zeros((3, 3)), P, q,
-        np.ascontiguousarray(r_meas), np.ascontiguousarray(r_growth, dtype=float),
-        chi2_1dof(cfg.gate_probability), n, si, gi, decay,
-        2.0 * bias_std**2 * decay,
-        cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
-        _clock_setting(cfg) if timing_std is None else float(timing_std),
-        cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
-        float(floor**2), float(ceiling**2),
-        _gated_variance_share(cfg.gate_probability), *net)
+    # A signal that comes while the loop runs is handled as it hands back its arrays,
+    # inside numba's unpickling, where a KeyboardInterrupt became a chain of SystemErrors
+    # or a segmentation fault: held until it has returned, then raised here.
+    with interrupts_held():
+        (out_v, cov, pos, x, sd, used, rejected, reset, rot, r_used, features, innovations,
+         hph, scale, stated_std, innovation_var) = _filter(
+            f[i0:], w[i0:], dt, float(g), float(g_grad), omega_ie, imu_samples == "interval",
+            ping_row, np.nan_to_num(meas),
+            np.ascontiguousarray(usable), np.ascontiguousarray(dirs, dtype=float),
+            rotation_rpy(*np.radians(mounting_rpy_deg)), r_dvl - r_imu, r_imu, p0.copy(),
+            v0.copy(), c0.copy(), np.zeros(3), np.zeros(3), np.zeros((3, 3)), P, q,
+            np.ascontiguousarray(r_meas), np.ascontiguousarray(r_growth, dtype=float),
+            chi2_1dof(cfg.gate_probability), n, si, gi, decay,
+            2.0 * bias_std**2 * decay,
+            cfg.watch_pings, float(cfg.watch_share), _parity(dirs),
+            _clock_setting(cfg) if timing_std is None else float(timing_std),
+            cfg.adaptive_window if cfg.adaptive == "innovation" else 0,
+            float(floor**2), float(ceiling**2),
+            _gated_variance_share(cfg.gate_probability), *net)
     nees = np.full(len(tp), np.nan)
     if truth_velocity_dvl is not None:
         err = out_v - np.asarray(truth_velocity_dvl, dtype=float)
