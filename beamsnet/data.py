@@ -28,10 +28,11 @@ as the paper does (75 % / 25 %, no shuffling).
 A water-track ping (``dvl/mode`` 1, written when bottom lock is lost and the DVL config
 allows it) measures the velocity relative to a water layer, not the velocity over ground
 that is the target, so it is never a sample: training and ``evaluate`` see bottom-track
-pings only. The fault stress test (``beamsnet.experiments.faults``) asks for ``every_ping=True``
-instead: every ping with its IMU interval, beams without bottom lock as NaN, and
-water-track beams as the instrument reports them, so that it can score what an estimator
-makes of a ping it cannot fully use.
+pings only. ``beamsnet estimate`` asks for ``every_ping=True`` instead: every ping with its
+IMU interval, beams without bottom lock as NaN, and a water-track ping's beams NaN too
+(``water_track=False``), as the INS/DVL filter leaves them; the fault stress test
+(``beamsnet.experiments.faults``) keeps the water-track beams as the instrument reports
+them, so that it can score what an estimator makes of a ping it cannot fully use.
 
 The file is read only through ``auvsim.data.open_dataset``, the one reader that knows
 the file format and checks it; its ``Mission`` views give the arrays by name.
@@ -111,7 +112,8 @@ _PER_SAMPLE = ("beams", "past_beams", "accel", "gyro", "target", "velocity_ls", 
 
 
 def load_windows(path: str | os.PathLike, *, n_past: int = 3,
-                 missions: Sequence[str] | None = None, every_ping: bool = False) -> Windows:
+                 missions: Sequence[str] | None = None, every_ping: bool = False,
+                 water_track: bool = True) -> Windows:
     """Cut the samples of every (or the named) mission of a dataset.
 
     Args:
@@ -121,8 +123,12 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
             (h5py lists a group's members by name).
         every_ping: keep every ping that has n_past earlier pings and an IMU interval,
             whatever its beams: a beam without bottom lock is NaN (in ``beams`` and
-            ``past_beams``), a water-track ping keeps its water-track beams. Default: only
-            pings whose current and past beams all have bottom lock.
+            ``past_beams``), a water-track ping keeps its water-track beams (or, with
+            ``water_track`` False, has NaN beams: it measured no velocity over ground, as
+            a navigator that reads the instrument's mode takes it). Default: only pings
+            whose current and past beams all have bottom lock.
+        water_track: with ``every_ping``, keep a water-track ping's beams (the fault
+            sweep's misuse of them) or make them NaN.
 
     Returns:
         The samples (see ``Windows``).
@@ -164,7 +170,7 @@ def load_windows(path: str | os.PathLike, *, n_past: int = 3,
                             f"({', '.join(f'{n} {a:g} deg' for n, a in angles.items())}); "
                             "one beam matrix is needed: pass missions= with one angle")
         with_imu = all(group[n].has("imu") for n in names)
-        parts = [_mission_windows(group[n], n, i, n_past, with_imu, every_ping)
+        parts = [_mission_windows(group[n], n, i, n_past, with_imu, every_ping, water_track)
                  for i, n in enumerate(names)]
         _check_each_has_samples(path, group, names, parts, n_past)
 
@@ -285,7 +291,7 @@ def check_truth(windows: Windows, dataset: str | os.PathLike) -> None:
 
 
 def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
-                     every_ping: bool = False) -> dict:
+                     every_ping: bool = False, water_track: bool = True) -> dict:
     """The samples of one mission (an ``auvsim.data.reader.Mission``), as a dict of Windows
     fields (and ``reference``, ``derived``: what the target is, whether the beams are
     derived)."""
@@ -303,7 +309,9 @@ def _mission_windows(m, name: str, index: int, n_past: int, with_imu: bool,
         usable = np.ones(n_pings, dtype=bool)
         # A beam counts if it has bottom lock or measures the water layer; any other
         # beam is NaN, whatever the file holds there.
-        beams = np.where(valid | (mode == 1)[:, None], beams, np.nan)
+        keep = (valid | (mode == 1)[:, None] if water_track
+                else valid & (mode != 1)[:, None])
+        beams = np.where(keep, beams, np.nan)
     else:
         # A water-track ping does not measure the velocity over ground: no sample.
         usable = valid.all(axis=1) & np.isfinite(beams).all(axis=1) & (mode == 0)

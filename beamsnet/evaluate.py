@@ -527,7 +527,8 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     Args:
         name: the estimator's table name (``find_estimator``).
         dataset: the file to estimate on: every ping with its past pings
-            (``load_windows(every_ping=True)``).
+            (``load_windows(every_ping=True, water_track=False)``: a water-track ping's
+            beams are NaN, a ping no estimator measures the velocity over ground at).
         out: the directory to write, made once every input has been checked.
         train: the file whose training split the estimator is fitted on (default the
             training split of ``dataset`` itself: the first ``TRAIN_FRACTION`` of each
@@ -544,7 +545,9 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
     """
     out = check_out_dir(out)
     estimator = find_estimator(name, dataset, filter_config=filter_config)
-    windows = load_windows(dataset, every_ping=True)
+    # A water-track ping measured no velocity over ground: no estimator is handed its
+    # beams as if it had (the filter leaves it too), and its velocity is held over it.
+    windows = load_windows(dataset, every_ping=True, water_track=False)
     scored = windows.reference != NO_REFERENCE  # a log without one: estimates alone
     if scored:
         check_truth(windows, dataset)
