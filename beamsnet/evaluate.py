@@ -44,7 +44,7 @@ from beamsnet.data import (
     load_windows,
     split,
 )
-from beamsnet.estimators import spec, specs
+from beamsnet.estimators import predicted, spec, specs
 from beamsnet.estimators.baselines import availability
 from beamsnet.estimators.ins import (
     CONSISTENCY_PINGS,
@@ -293,11 +293,11 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     position solution of its own; ``stds`` its reported (S, 3) 1 sigma where it reports
     one, ``rotations`` its (S, 3, 3) body -> NED attitude where it has one, ``watched``
     a filter's ``watch_scores`` per mission."""
-    out = {b.name: b.fit(train_w).predict(test_w) for b in baselines()}
+    out = {b.name: predicted(b.fit(train_w), test_w) for b in baselines()}
     own = [] if dataset is None else fit_filters(dataset, train_w, filter_config=filter_config)
     for estimator in own:
         try:
-            out[estimator.name] = estimator.predict(test_w)
+            out[estimator.name] = predicted(estimator, test_w)
         except AuvsimError as e:
             _left_out(estimator, dataset, e)
             continue
@@ -492,8 +492,8 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
     ``ins-dvl``).
 
     Raises:
-        ConfigError: no estimator has that name (the message lists them); or the INS/DVL
-            filter on a file without an IMU record (its own one-line reason).
+        ConfigError: no estimator has that name (the message lists them).
+        DataError: the INS/DVL filter on a file without an IMU record.
     """
     try:
         s = spec(name)  # matched as the command line matches (``estimator_key``)
@@ -505,11 +505,9 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
                           f"{', '.join(map(repr, known))}", argument="estimator")
     if s.kind == "model-based":
         return s.make()
-    try:
-        return next(f for f in filters(dataset, strict=True, filter_config=filter_config)
-                    if f.name == s.name)
-    except DataError as e:
-        raise ConfigError(str(e), argument="estimator") from None
+    # A file that cannot feed the filter (no IMU record) raises DataError naming the file.
+    return next(f for f in filters(dataset, strict=True, filter_config=filter_config)
+                if f.name == s.name)
 
 
 TRAIN_FRACTION = 0.75  # ``estimate``'s training split of a file (the paper's 75 %)
@@ -572,7 +570,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
         estimator.fit(train_w)
     except ValueError as e:  # a training split it cannot be fitted on, in one line
         raise DataError(f"{train or dataset}: {e}") from None
-    pred = estimator.predict(windows)
+    pred = predicted(estimator, windows)
     positions = estimator.positions(windows) if is_filter else None
     summary = dict(estimator=estimator.name, dataset=str(dataset),
                    train=str(train or dataset), pings=len(pred), against=windows.reference,

@@ -160,6 +160,33 @@ def test_a_users_own_estimator_registered_runs_beside_the_others(turning, tmp_pa
     assert "Half LS" not in {s.name for s in specs()}
 
 
+class TwoAxes(HalfLS):
+    name = "Two axes"
+
+    def predict(self, windows):
+        return super().predict(windows)[:, :2]
+
+
+def test_a_users_estimator_of_the_wrong_shape_gets_one_line_naming_it(turning, tmp_path,
+                                                                     capsys):
+    """Its predictions were read as they came, into a traceback three calls on."""
+    import dataclasses
+
+    from beamsnet.estimators import register, unregister
+
+    register(dataclasses.replace(half_ls_spec(), name="Two axes", make=TwoAxes))
+    try:
+        assert main(["estimate", str(turning), "--estimator", "two-axes",
+                     "--out", str(tmp_path / "est")]) == 2
+    finally:
+        unregister("Two axes")
+    err = capsys.readouterr().err
+    assert err.startswith("beamsnet: error: estimator 'Two axes': its predict returned shape "
+                          "(") and err.endswith(", 3), a velocity (m/s, DVL frame) per "
+                                                "sample\n") and err.count("\n") == 1, err
+    assert not (tmp_path / "est").exists()
+
+
 def test_an_installed_packages_estimator_reaches_the_command_line(turning, tmp_path):
     """Declared as an entry point of the group beamsnet.estimators (here a package on
     PYTHONPATH with its dist-info), it runs as ``beamsnet estimate --estimator``; one that

@@ -520,13 +520,19 @@ def test_fit_learns_the_beams_scale_factor_that_the_imu_cannot_see(dataset_of):
     assert np.abs(calibrated - test.target).max() < 2e-4
 
 
-def test_a_mission_without_imu_raises_no_imu_error(tmp_path):
+def test_a_mission_without_imu_raises_no_imu_error(tmp_path, capsys):
     source = tmp_path / "V.npy"
     np.save(source, np.tile([[1.0], [0.0], [0.0]], 20))
     path = tmp_path / "imported.h5"
     import_velocity([source], path, dvl=DvlConfig())
     with pytest.raises(ins.NoImuError, match=r"^mission V has no IMU record; [^\n]*skipped$"):
         ins.run(path, "V")
+    # The command line names the file, not the --estimator flag as if it were wrong.
+    assert main(["estimate", str(path), "--estimator", "INS/DVL",
+                 "--out", str(tmp_path / "est")]) == 2
+    assert capsys.readouterr().err == (
+        f"beamsnet: error: {path}: mission V has no IMU record; the INS/DVL filter "
+        "integrates the IMU, so it cannot run on it\n")
 
 
 def test_a_ping_is_applied_at_the_imu_sample_nearest_its_time():
@@ -619,3 +625,17 @@ def test_ctrl_c_while_the_filter_runs_is_a_keyboard_interrupt():
                               text=True, timeout=300)
         assert (done.returncode, done.stdout) == (0, "KeyboardInterrupt NoneType\n"), \
             done.stderr[-2000:]
+
+
+def test_run_arrays_names_a_noise_of_the_wrong_length():
+    """Three velocity-axis stds beside four beams was numpy's broadcasting traceback."""
+    arrays = _rest()
+    speed = arrays.pop("velocity")
+    arrays["beams"] = speed @ beam_matrix(30.0).T
+    arrays["beam_angle_deg"] = 30.0
+    with pytest.raises(ValueError, match=re.escape(
+            "instrument.measurement_std: expected one number or (4,), one per beam (the "
+            "filter is given beams); got shape (3,)")):
+        ins.run_arrays(**arrays)
+    arrays["instrument"] = arrays["instrument"]._replace(measurement_std=0.01)
+    assert np.isfinite(ins.run_arrays(**arrays).position_ned).all()

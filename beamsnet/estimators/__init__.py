@@ -7,6 +7,7 @@ from beamsnet.estimators.registry import (
     Spec,
     models,
     network_names,
+    predicted,
     register,
     short_name,
     spec,
@@ -14,5 +15,5 @@ from beamsnet.estimators.registry import (
     unregister,
 )
 
-__all__ = ["Needs", "Spec", "models", "network_names", "register", "short_name", "spec",
-           "specs", "unregister"]
+__all__ = ["Needs", "Spec", "models", "network_names", "predicted", "register", "short_name",
+           "spec", "specs", "unregister"]

@@ -1366,8 +1366,9 @@ class Instrument(NamedTuple):
     gyro_bias_std: float  # rad/s, initial
     accel_bias_psd: float  # (m/s^2)^2/s
     gyro_bias_psd: float  # (rad/s)^2/s
-    measurement_std: np.ndarray  # (K,) m/s, white noise of each beam or velocity axis
-    # (NaN: not stated; the settings' ``beam_noise_std`` or ``velocity_noise_std`` give it)
+    measurement_std: np.ndarray  # (K,) m/s, white noise of each beam (K = 4, given beams)
+    # or velocity axis (K = 3, given a velocity), or one number for all (NaN: not stated;
+    # the settings' ``beam_noise_std`` or ``velocity_noise_std`` give it)
     noise_growth: np.ndarray | float = 0.0  # (K,) m/s per m/s: how much that noise grows
     # with the DVL's speed (a simulated instrument's ``noise_speed_coeff``, per beam or
     # through the Janus geometry per axis); the noise at speed U is measurement_std +
@@ -1618,6 +1619,13 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
         ins.accel_bias_psd if cfg.accel_bias_psd is None else cfg.accel_bias_psd,
         ins.gyro_bias_psd if cfg.gyro_bias_psd is None else cfg.gyro_bias_psd]
     ) * cfg.process_noise_scale**2
+    k = 4 if beams is not None else 3
+    for name in ("measurement_std", "noise_growth"):
+        given = np.shape(getattr(ins, name))
+        if given not in ((), (1,), (k,)):
+            raise ValueError(f"instrument.{name}: expected one number or ({k},), one per "
+                             f"{'beam' if k == 4 else 'velocity axis'} (the filter is given "
+                             f"{'beams' if k == 4 else 'a velocity'}); got shape {given}")
     white, growth = _measurement_std(cfg, ins.measurement_std, ins.noise_growth,
                                      beams=beams is not None, beam_angle_deg=beam_angle_deg)
     r_meas = (white * cfg.noise_scale) ** 2

@@ -33,6 +33,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 
+import numpy as np
+
 from auvsim.errors import ConfigError
 
 KINDS = ("model-based", "filter", "network")
@@ -245,3 +247,19 @@ def models() -> dict[str, type]:
 def _is_run_of(row: str, s: Spec) -> bool:
     """Whether ``row`` is a trained network's row, ``<short> (<run>)``."""
     return s.kind == "network" and row.startswith(f"{s.short} (") and row.endswith(")")
+
+
+def predicted(estimator, windows) -> np.ndarray:
+    """``estimator.predict(windows)``, checked to be what every caller reads: (S, 3)
+    velocities, one per sample (m/s, DVL frame; NaN where it gives none).
+
+    Raises:
+        ConfigError: it returned anything else (a user's estimator, say), naming it.
+    """
+    out = estimator.predict(windows)
+    shape = np.shape(out)
+    if shape != (len(windows.beams), 3):
+        raise ConfigError(f"estimator {estimator.name!r}: its predict returned shape {shape}; "
+                          f"expected ({len(windows.beams)}, 3), a velocity (m/s, DVL frame) "
+                          "per sample")
+    return np.asarray(out, dtype=float)

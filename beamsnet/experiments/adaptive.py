@@ -43,6 +43,7 @@ from auvsim.errors import ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows
+from beamsnet.estimators import predicted
 from beamsnet.evaluate import navigation_scores, reported_stds, watch_scores
 from beamsnet.experiments.runner import check_duration, ensure_dataset
 from beamsnet.experiments.sea import (
@@ -237,7 +238,7 @@ def _scored(name: str, windows, truth, filters: dict) -> dict:
     against ``truth`` and the learned and model-based filters' tracks (None without)."""
     predictions, positions, stds, tracks = {}, {}, {}, {}
     for label, estimator in filters.items():
-        predictions[label] = estimator.predict(windows)
+        predictions[label] = predicted(estimator, windows)
         positions[label] = estimator.positions(windows)
         stds.update(reported_stds(estimator, windows))
         tracks[label] = estimator.tracks(windows)[name]

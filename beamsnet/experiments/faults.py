@@ -55,7 +55,7 @@ from auvsim.data.files import save_figure, staged_dir, write_text
 from auvsim.errors import ConfigError
 from beamsnet import metrics
 from beamsnet.data import Windows, load_windows, select
-from beamsnet.estimators import short_name, spec
+from beamsnet.estimators import predicted, short_name, spec
 from beamsnet.evaluate import FilterWarning, baselines, fit_filters, trimmed
 from beamsnet.experiments.runner import ensure_dataset
 from beamsnet.experiments.wording import as_published, count, why_worse
@@ -306,7 +306,7 @@ def _estimates(baselines: list, models: list, windows: Windows) -> dict[str, np.
     are all there (its spec's ``needs``), since its output on a NaN input is NaN anyway
     and it cannot be told which beam is missing.
     """
-    out = {b.name: b.predict(windows) for b in baselines}
+    out = {b.name: predicted(b, windows) for b in baselines}
     for run, model, checkpoint in models:
         network = spec(checkpoint["model"])
         mine = trimmed(windows, checkpoint)

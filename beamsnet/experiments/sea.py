@@ -51,7 +51,7 @@ from auvsim.errors import AuvsimError, ConfigError
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import Windows, load_windows, split
-from beamsnet.estimators import short_name
+from beamsnet.estimators import predicted, short_name
 from beamsnet.evaluate import (
     baseline_names,
     baselines,
@@ -357,14 +357,14 @@ def _segment(dataset: Path, name: str, fitted: list, real: list, nets: dict,
     from least squares."""
     windows = load_windows(dataset, missions=[name])
     truth = truth_at_pings(dataset, windows)
-    predictions = {b.name: b.predict(windows) for b in fitted}
+    predictions = {b.name: predicted(b, windows) for b in fitted}
     learned = _learned(windows, nets)
     predictions.update(learned)
-    predictions.update({f"{b.name}{OTHERS}": b.predict(windows) for b in real})
+    predictions.update({f"{b.name}{OTHERS}": predicted(b, windows) for b in real})
     positions, stds, rotations, failed, watched = {}, {}, {}, {}, {}
     for label, estimator in _filters(dataset, noise).items():
         try:
-            predictions[label] = estimator.predict(windows)
+            predictions[label] = predicted(estimator, windows)
             positions[label] = estimator.positions(windows)
             stds.update(reported_stds(estimator, windows))
             watched[label] = watch_scores(estimator.tracks(windows)[name])

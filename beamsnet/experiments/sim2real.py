@@ -33,6 +33,7 @@ from auvsim.data.files import check_out_dir, save_figure, staged_dir, write_text
 from auvsim.runs.cluster import check_address
 from beamsnet import metrics
 from beamsnet.data import load_windows, split
+from beamsnet.estimators import predicted
 from beamsnet.estimators.baselines import availability
 from beamsnet.evaluate import baselines, trimmed
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
@@ -132,7 +133,7 @@ def sim2real(snapir_h5: Path, *, out: Path, duration: float = DURATION,
         fitted = [b.fit(train_w) for b in baselines()]
         results[source] = {}
         for test, windows in tests.items():
-            rows = {b.name: [_score(b.predict(windows), windows)] for b in fitted}
+            rows = {b.name: [_score(predicted(b, windows), windows)] for b in fitted}
             for name, (key, _) in LEARNED.items():
                 rows[name] = [_score(predict(m, trimmed(windows, c)), windows)
                               for _, m, c in nets[source][key]]
