@@ -77,8 +77,9 @@ def _parser() -> argparse.ArgumentParser:
                      "(--scenario zigzag --option rudder_deg=20); each scenario's are in "
                      "the guide's table of scenarios (default: the scenario's)")
     gen.add_argument("--seed", type=int, metavar="N",
-                     help="seed of the first mission; the others follow (default: the "
-                     "preset's, 0 otherwise)")
+                     help="seed of the first mission; the others follow, N+1, N+2, ... (so "
+                     "two datasets' seeds closer than their mission count share missions' "
+                     "draws; default: the preset's, 0 otherwise)")
     gen.add_argument("--vehicle", metavar="NAME",
                      help="auv (A18-D class), remus100, or a MuJoCo model file (default: the "
                      "preset's, auv); the preset's sensor sites and turbulence follow it")
@@ -457,6 +458,23 @@ def _option(text: str) -> tuple[str, float]:
     return name.strip(), number
 
 
+def _check_options_fit(options, flown: list[str], source: str) -> None:
+    """Refuse an ``--option`` that some of the missions' manoeuvres take and others do not
+    (each would have said only that the first one lacking it does not take it)."""
+    from auvsim.physics.maneuvers import MANEUVERS
+
+    flown = [n for n in dict.fromkeys(flown) if n in MANEUVERS]
+    for key, _ in options:
+        taking = [n for n in flown
+                  if key in {f.name for f in dataclasses.fields(MANEUVERS[n].Options)}]
+        if taking and len(taking) < len(flown):
+            lacking = [n for n in flown if n not in taking]
+            raise ConfigError(f"--option {key}: the missions of {source} fly different "
+                              f"manoeuvres, and {', '.join(lacking)} take no such option "
+                              f"(only {', '.join(taking)}); expected --scenario NAME with it, "
+                              "or a config file (--config) with each mission's options")
+
+
 def build_config(args: argparse.Namespace) -> Config:
     """The config a ``generate`` command line asks for."""
     from auvsim.runs.presets import DEFAULT_PRESET, preset, with_vehicle
@@ -467,6 +485,8 @@ def build_config(args: argparse.Namespace) -> Config:
         config = preset(args.preset or DEFAULT_PRESET)
     overrides = {name: getattr(args, flag) for flag, (name, _) in _SCENARIO_FLAGS.items()
                  if getattr(args, flag) is not None}
+    source = (f"config {str(args.config)!r}" if args.config is not None
+              else f"preset {args.preset or DEFAULT_PRESET!r}")
     for flag, (name, _) in _SCENARIO_FLAGS.items():
         # One value over missions that differ in it would leave them named for what they
         # no longer are (maneuvers' turning_circle flying a zigzag, paper-sim's speed_1 at 2).
@@ -474,12 +494,13 @@ def build_config(args: argparse.Namespace) -> Config:
         if name not in overrides or len(values) == 1:
             continue
         option = f"--{flag.replace('_', '-')}"
-        source = (f"config {str(args.config)!r}" if args.config is not None
-                  else f"preset {args.preset or DEFAULT_PRESET!r}")
         shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in values)
         raise ConfigError(f"{option}: the missions of {source} differ in it ({shown}) and are "
                           f"named for that; expected it without {option}, or a config file "
                           "(--config) with the missions you want")
+    _check_options_fit(args.options or (), [overrides.get("name", m.scenario.name)
+                                            for m in config.missions], source)
+
     def scenario(old: ScenarioConfig) -> ScenarioConfig:
         fields = {**dataclasses.asdict(old), **overrides}
         if fields["name"] != old.name:
@@ -516,16 +537,17 @@ def _generate(args: argparse.Namespace) -> None:
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
                        shards=args.shards, progress=not args.quiet)
     # numba's cache did not have it: said on the first run only, and not under --quiet
-    if summary["compile_s"] > 0 and not args.quiet:
-        print(f"compiling the physics once (first run): {summary['compile_s']:.0f} s; later "
-              "runs skip it")
+    compiling = summary["compile_s"]
+    said = f"{compiling:.0f} s" if compiling >= 1 else f"{compiling:.1f} s"
+    if compiling > 0 and not args.quiet:
+        print(f"compiling the physics once (first run): {said}; later runs skip it")
     sharded = "" if "shards" not in summary else (
         f" in {summary['shards']} shard(s), {summary['kept']} kept from an earlier run "
         f"(index {summary['out']})")
     simulated = summary["simulated_s"]
     running = summary["wall_s"] - summary["compile_s"]  # the speed a later run will have
     rate = (f" ({simulated / running:.0f}x real time"
-            + (", the compiling aside" if summary["compile_s"] > 0 else "") + ")"
+            + (f", the {said} of compiling aside" if compiling > 0 else "") + ")"
             if simulated > 0 and running > 0 else "")
     print(f"wrote {args.out}: {summary['missions']} mission(s){sharded}, "
           f"{simulated:g} s simulated in {summary['wall_s']:.1f} s{rate}")

@@ -151,6 +151,8 @@ def _parser() -> argparse.ArgumentParser:
                     "new runs/evaluation-DATE-TIME)")
     ev.add_argument("--filter-config", type=Path, metavar="FILE.toml",
                     help=FILTER_CONFIG_HELP)
+    ev.add_argument("--mission", action="append", dest="missions", metavar="NAME",
+                    help="score this mission of every dataset only (repeatable; default: all)")
     ev.add_argument("--allow-mismatch", action="store_true",
                     help="evaluate on data whose beam geometry or DVL/IMU rates differ from "
                     "a run's training data (with a warning) instead of refusing it")
@@ -336,7 +338,7 @@ def _evaluate(args) -> None:
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate([args.run, *args.also], args.datasets, args.out,
                        allow_mismatch=args.allow_mismatch, filter_config=config,
-                       progress=not args.quiet)
+                       progress=not args.quiet, missions=args.missions)
     for dataset, result in results.items():
         print(markdown(result["rows"], f"{dataset}, against {result['against']}"))
         if "navigation" in result:

@@ -93,7 +93,8 @@ def check_missions(run: str | Path, checkpoint: dict, dataset: str | Path,
         warnings.warn(f"run {str(run)!r} was trained on mission {', '.join(trained_on)} only; "
                       f"{str(dataset)!r} scores it on {', '.join(missions)}, and "
                       f"{', '.join(unseen)} {'is' if len(unseen) == 1 else 'are'} new to it "
-                      "(evaluate on its training missions to compare like with like)",
+                      "(evaluate --mission NAME, once per mission it trained on, compares "
+                      "like with like)",
                       UnseenMissionWarning, stacklevel=2)
 
 
@@ -351,8 +352,8 @@ def _or_na(value: float, spec: str) -> str:
 
 
 def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path, *,
-             allow_mismatch: bool = False, filter_config=None, progress: bool = False
-             ) -> dict:
+             allow_mismatch: bool = False, filter_config=None, progress: bool = False,
+             missions: list[str] | None = None) -> dict:
     """Tables (terminal, Markdown, JSON) and plots for every dataset; returns the rows.
 
     Args:
@@ -365,6 +366,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
         filter_config: the INS/DVL filter's settings (``FilterConfig``; None: defaults).
         progress: a progress bar on a terminal, over each dataset's stages (estimates,
             scores, plots).
+        missions: score these missions of every dataset only (default: all of each).
 
     Raises:
         ConfigError: ``out`` cannot be a directory; a dataset's sensors do not match.
@@ -384,8 +386,9 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
                 check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
             own, watched = dict(positions={}, stds={}, rotations={}), {}
             bar.set_postfix_str(f"every estimator on {Path(dataset).name}")
-            windows, predictions = _estimates(models, dataset, filter_config=filter_config,
-                                              watched=watched, **own)
+            windows, predictions = _estimates(models, dataset, missions,
+                                              filter_config=filter_config, watched=watched,
+                                              **own)
             bar.update()
             bar.set_postfix_str(f"scores on {Path(dataset).name}")
             for run, _, checkpoint in models:

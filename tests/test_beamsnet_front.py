@@ -5,6 +5,7 @@ nothing behind when they fail, and --help for users."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import errno
 import os
 import re
@@ -213,6 +214,16 @@ def test_evaluate_warns_when_a_run_is_scored_on_missions_it_never_saw(run_on_a, 
     assert err.count("\n") == 1 and err.startswith("beamsnet: warning: ")
     assert f"run '{run_on_a}' was trained on mission a only" in err
     assert "scores it on a, b, and b is new to it" in err
+    # What the warning advises: its own mission alone, which it does without a word.
+    assert "evaluate --mission NAME" in err
+    assert main(["evaluate", str(run_on_a), str(data), "--mission", "a",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert capsys.readouterr().err == ""
+    scored = json.loads((tmp_path / "a" / "evaluation.json").read_text())
+    assert list(scored[str(data)]["rmse_per_mission"]["LS"]) == ["a"]
+    assert main(["evaluate", str(run_on_a), str(data), "--mission", "c",
+                 "--out", str(tmp_path / "c")]) == 2
+    assert "mission 'c': not in" in capsys.readouterr().err
 
 
 def test_a_run_trained_on_every_mission_evaluates_without_a_word(data, tmp_path, capsys):

@@ -310,6 +310,10 @@ def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
     first, wrote = capsys.readouterr().out.splitlines()
     assert first.startswith("compiling the physics once (first run): ")
     assert first.endswith(" s; later runs skip it") and wrote.startswith("wrote ")
+    # Under a second, it is said to a tenth ("0 s" had been a first run's figure).
+    took = first.split(": ")[1].split(" s;")[0]
+    assert took != "0" and f"the {took} s of compiling aside)" in wrote, (first, wrote)
+    monkeypatch.setattr(gen, "check_reachable", real)
     assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "c.h5")]) == 0
     assert capsys.readouterr().out.startswith("wrote ")  # --quiet: the one line only
 

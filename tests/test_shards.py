@@ -208,6 +208,21 @@ def test_inspect_and_plot_read_the_folder(sharded, capsys, tmp_path):
     assert [p.name for p in (tmp_path / "png").iterdir()] == ["rm_b.png"]
 
 
+def test_inspect_sweeps_a_folder_whose_run_was_killed_before_its_index(tmp_path, capsys):
+    """A run killed before it wrote ``index.h5`` leaves its shards' temporaries; inspect
+    (which the clusters guide says removes them) refused the folder and left them."""
+    from auvsim.data import files
+
+    folder = tmp_path / "rm"
+    (folder / SHARDS).mkdir(parents=True)
+    dead = folder / SHARDS / f".part-00000.h5.{files.TAG}.{files.HOST}.999999999"
+    dead.write_bytes(b"x" * 100)
+    dead.with_name(dead.name + ".lock").write_bytes(b"")  # nobody holds it
+    assert auvsim_cli.main(["inspect", str(folder)]) == 2
+    assert "no index.h5" in capsys.readouterr().err
+    assert list((folder / SHARDS).iterdir()) == []
+
+
 def test_beamsnet_reads_an_index_as_a_file(single, sharded, tmp_path):
     for name, path in (("one", single), ("sharded", sharded)):
         assert beamsnet_cli.main(["estimate", str(path), "--estimator", "LS", "--out",

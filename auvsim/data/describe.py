@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auvsim.data.files import leftovers, leftovers_note
+from auvsim.data.files import leftovers, leftovers_note, sweep
 from auvsim.data.reader import Group, Mission, open_dataset
 from auvsim.data.schema import SHARDS
 from auvsim.sensors import registry
@@ -28,7 +28,11 @@ def describe(path: str | os.PathLike) -> str:
     is read (and every shard's seal checked), so a corrupt one is refused here
     (``DatasetError``). Temporaries that ended runs left beside the data are removed
     (``auvsim.data.files.leftovers``); any others are named in a last line, with the
-    command that removes them."""
+    command that removes them. A sharded run's folder is swept before it is opened, so
+    the temporaries of a run killed before it wrote its index go too."""
+    if Path(path).is_dir():
+        sweep(path)
+        sweep(Path(path) / SHARDS)
     with open_dataset(path, verify=True) as f:
         sharded = f" in {len(f.shards)} shard(s) of {f.path.parent / SHARDS}" if f.shards \
             else ""
