@@ -208,6 +208,28 @@ def test_inspect_and_plot_read_the_folder(sharded, capsys, tmp_path):
     assert [p.name for p in (tmp_path / "png").iterdir()] == ["rm_b.png"]
 
 
+def test_inspect_gives_one_data_digest_for_the_same_data_however_written(single, sharded,
+                                                                       tmp_path, capsys):
+    """A repeated run writes the same data but not the same bytes (the time it was made,
+    and HDF5's layout of several missions): inspect's digest is the same for the file,
+    the sharded folder and a pool's file, and another seed changes it."""
+    pool = tmp_path / "pool.h5"
+    generate(CONFIG, pool, workers=2, progress=False)
+    other = tmp_path / "other.h5"
+    generate(dataclasses.replace(CONFIG, missions=tuple(
+        dataclasses.replace(m, seed=m.seed + 100) for m in CONFIG.missions)), other,
+        workers=1, progress=False)
+
+    def digest(path) -> str:
+        assert auvsim_cli.main(["inspect", str(path)]) == 0
+        line = [t for t in capsys.readouterr().out.splitlines() if "data SHA-256" in t]
+        assert len(line) == 1
+        return line[0].split()[2]
+
+    assert digest(single) == digest(sharded) == digest(pool) != digest(other)
+    assert len(digest(single)) == 64
+
+
 def test_inspect_sweeps_a_folder_whose_run_was_killed_before_its_index(tmp_path, capsys):
     """A run killed before it wrote ``index.h5`` leaves its shards' temporaries; inspect
     (which the clusters guide says removes them) refused the folder and left them."""

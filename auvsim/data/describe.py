@@ -59,6 +59,9 @@ def describe(path: str | os.PathLike) -> str:
             lines.append("  fields of each mission:")
             for group in first.groups:
                 lines.append(f"    {group}: " + ", ".join(sorted(Group(first, group))))
+        lines.append(f"  data SHA-256: {f.digest()} (every mission's attributes and fields: "
+                     "the same for the same data, however and wherever written; the file's "
+                     "bytes also hold when it was made)")
         if f.shards:
             left = leftovers(f.path.parent) + leftovers(f.path.parent / SHARDS)
         else:
