@@ -473,10 +473,12 @@ def _reproduce(args) -> None:
 
 
 # What reproduce and stress make outside --out, said after their reports.
-MADE_BESIDE = ("its datasets are in datasets/ (but one --data names) and its trained models "
-               "under runs/ (each reused by a run of the same settings on the same data, and "
-               "trained again in its place otherwise)")
-STRESS_MADE_BESIDE = MADE_BESIDE.replace("--data", "--train or --maneuvers")
+MADE_BESIDE = ("its datasets are in datasets/ and its trained models under runs/: a later "
+               "run of the same settings on the same data reuses them, any other replaces "
+               "them")
+STRESS_MADE_BESIDE = MADE_BESIDE.replace("its datasets are in datasets/",
+                                         "its datasets are in datasets/ (those --train and "
+                                         "--maneuvers name stay where they are)")
 
 
 def _stress(args) -> None:

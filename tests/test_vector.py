@@ -210,3 +210,20 @@ def test_ctrl_c_during_this_processs_own_slice_closes_the_env():
     with pytest.raises(KeyboardInterrupt):
         env.step(np.zeros((2, 3)))
     assert env.closed and not mp.active_children()
+
+
+def test_a_script_that_makes_the_env_unguarded_is_told_why_its_worker_died(tmp_path):
+    """A worker imports the main script again as it starts; one that makes the env at its
+    top level made another there, which multiprocessing refused, and the parent said only
+    "worker 0 died, exit code 1"."""
+    script = tmp_path / "unguarded.py"
+    script.write_text("import gymnasium as gym\n"
+                      "import auvsim.envs\n"
+                      "env = gym.make_vec('auvsim/AUV-v0', num_envs=2, workers=1)\n"
+                      "env.close()\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path)
+    assert done.returncode == 1
+    assert done.stderr.splitlines()[-1].endswith(
+        "died, exit code 1 as it started (a script that makes the env must do so under if "
+        "__name__ == \"__main__\":, as the worker imports it again)"), done.stderr[-1000:]

@@ -440,16 +440,16 @@ class AuvVectorEnv(gym.vector.VectorEnv):
             self._fds.append(parent.fileno())
             start += size
         self._starts.append(start)
-        self._wait()
+        self._wait(starting=True)
 
     @property
     def worker_pids(self) -> list[int]:
         """The worker processes' ids (empty with ``workers=0``)."""
         return [process.pid for process in self._processes]
 
-    def _wait(self, own: Exception | None = None) -> None:
-        """Each worker's answer to the last command; on a failure (``own``: this
-        process's slice's, first), close the env and raise it."""
+    def _wait(self, own: Exception | None = None, *, starting: bool = False) -> None:
+        """Each worker's answer to the last command (``starting``: to its start); on a
+        failure (``own``: this process's slice's, first), close the env and raise it."""
         failure = None if own is None else (own, None)
         for k, conn in enumerate(self._conns):
             try:
@@ -465,9 +465,15 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                 raise
             if answer != OK:  # EOF: the worker died
                 self._processes[k].join(timeout=1.0)  # for its exit code
+                # A worker imports the main script again as it starts: one that makes the
+                # env at its top level, not under ``if __name__ == "__main__":``, made
+                # another env there, which multiprocessing refused in the worker.
+                unguarded = (" as it started (a script that makes the env must do so under "
+                             "if __name__ == \"__main__\":, as the worker imports it again)"
+                             if starting and self._processes[k].exitcode == 1 else "")
                 failure = failure or (RuntimeError(
                     f"AuvVectorEnv: worker {k} (pid {self._processes[k].pid}) died, exit "
-                    f"code {self._processes[k].exitcode}"), None)
+                    f"code {self._processes[k].exitcode}{unguarded}"), None)
         if failure is not None:
             exc, text = failure
             self.close()

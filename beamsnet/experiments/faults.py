@@ -486,6 +486,9 @@ def _distinct(sweeps_: dict) -> dict[str, dict]:
     return dict(found.values())
 
 
+MIN_RANKED = 0.5  # the availability an estimator needs to be named the best of a setting
+
+
 def _findings(sweeps_: dict, names: list[str]) -> list[str]:
     """Plain sentences computed from the results: per sweep, its strongest setting
     against its first; per estimator, how often it dead-reckons worse than LS."""
@@ -523,13 +526,18 @@ def _findings(sweeps_: dict, names: list[str]) -> list[str]:
     for sweep, rows in sweeps_.items():
         last = rows[-1]["estimators"]
         have = [n for n in names if math.isfinite(last[n]["dr_error"])]
-        n = min(have, key=lambda n: last[n]["dr_error"])
+        # One that answers on few pings holds what it had (or the start's true velocity):
+        # on a straight mission that can beat every estimator that answers.
+        answering = [n for n in have if last[n]["availability"] >= MIN_RANKED] or have
+        n = min(answering, key=lambda n: last[n]["dr_error"])
         best.append(f"{sweep} ({rows[-1]['label']}): {short_name(n)}, "
-                    f"{last[n]['dr_error']:.1f} m")
-    lines.append("- Smallest dead-reckoning error at each sweep's strongest setting: "
-                 + "; ".join(best) + ". A ping without an estimate holds the last one, "
-                 "which in a turn is soon wrong, so a gap costs dead reckoning even where "
-                 "the estimates an estimator does give are accurate.")
+                    f"{last[n]['dr_error']:.2f} m, {_percent(last[n]['availability'])} "
+                    "available")
+    lines.append("- Smallest dead-reckoning error at each sweep's strongest setting, among "
+                 f"the estimators available on at least {100 * MIN_RANKED:.0f} % of its "
+                 "pings: " + "; ".join(best) + ". A ping without an estimate holds the last "
+                 "one, which in a turn is soon wrong, so a gap costs dead reckoning even "
+                 "where the estimates an estimator does give are accurate.")
     water = sweeps_.get("water track")
     clean = sweeps_.get("dropout", [{}])[0].get("estimators")
     if water and clean:
