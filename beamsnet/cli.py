@@ -21,6 +21,7 @@ from beamsnet.evaluate import (
     SensorSetupWarning,
     UnseenMissionWarning,
     consistency_words,
+    noise_words,
 )
 from beamsnet.experiments.adaptive import DURATION as ADAPTIVE_DURATION
 from beamsnet.experiments.adaptive import SEEDS as ADAPTIVE_SEEDS
@@ -379,6 +380,8 @@ def _estimate(args) -> None:
             print(f"  {event}")
         if "mean_nis" in row:  # a filter: are its innovations as large as it predicts?
             print(f"  innovations: {consistency_words(row)}")
+        if "noise" in row:  # and what it was told to expect
+            print(f"  noise it used: {noise_words(row['noise'])}")
         for name, scores in row.get("baselines", {}).items():
             print(f"  {name}: {_position_words(scores)}")
     print(f"wrote {args.out / 'estimates.csv'} and {args.out / 'summary.json'}")

@@ -609,7 +609,10 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             # A filter outputs a number at every ping, diverged or not: its availability
             # is the share of pings whose measurement it accepted, and its events say when
             # its divergence watch restarted it.
-            row.update(watch_scores(estimator.tracks(windows)[mission]))
+            track = estimator.tracks(windows)[mission]
+            row.update(watch_scores(track))
+            if track.noise is not None:
+                row["noise"] = noise_record(track.noise)
         if have.any() and scored:
             row["rmse_vector"] = metrics.rmse_vector(pred[have], windows.target[have])
         if truth is not None:
@@ -743,17 +746,55 @@ def watch_scores(track) -> dict:
                 **innovation_consistency(track))
 
 
+def noise_record(noise) -> dict:
+    """The noise a filter used (``FilterTrack.noise``) as plain numbers for a summary."""
+    return {k: (np.asarray(v, dtype=float).tolist() if v is not None else None)
+            for k, v in noise._asdict().items()}
+
+
+def noise_words(noise: dict) -> str:
+    """``noise_record``'s figures in words: what a user checks against the datasheet."""
+    def mm(values) -> str:
+        shown = [f"{1e3 * v:.3g}" for v in np.atleast_1d(values)]
+        return (shown[0] if len(set(shown)) == 1 else ", ".join(shown)) + " mm/s"
+
+    white = np.atleast_1d(noise["measurement_std"])
+    growth = np.atleast_1d(noise["noise_growth"])
+    each = "per beam" if len(white) == 4 else "per axis (x, y, z)"
+    words = [f"DVL white {mm(white)}" + (f" + {mm(growth)} per m/s" if np.any(growth > 0)
+                                         else "") + f" {each}"]
+    if noise["slow_error_std"] > 0:
+        words.append(f"slow error {1e3 * noise['slow_error_std']:.3g} mm/s over "
+                     f"{noise['slow_error_time']:.3g} s" if noise["slow_error_time"]
+                     else f"slow error {1e3 * noise['slow_error_std']:.3g} mm/s")
+    words.append(f"accelerometer {noise['accel_noise_density']:.3g} m/s^2/sqrt(Hz), bias "
+                 f"{noise['accel_bias_std']:.3g} m/s^2")
+    words.append(f"gyro {noise['gyro_noise_density']:.3g} rad/s/sqrt(Hz), bias "
+                 f"{noise['gyro_bias_std']:.3g} rad/s")
+    return "; ".join(words)
+
+
+# A mean NIS (capped at the gate) this far above 1 says the noise the filter was given is
+# too small for the data.
+NIS_TOO_LARGE = 2.0
+
+
 def consistency_words(row: dict) -> str:
     """``innovation_consistency``'s figures (in ``row``, as ``watch_scores`` gives them) in
     words."""
     if not math.isfinite(row.get("mean_nis", math.nan)):
         return "no innovation to test"
     gated = row.get("gated_nis", math.nan)
+    # Outliers the gate rejects inflate the mean; the capped mean is the pings' typical size.
+    typical = gated if math.isfinite(gated) else row["mean_nis"]
     return (f"mean NIS {row['mean_nis']:.2f} (1 where its covariance is right"
             + (f"; {gated:.2f} with each capped at the gate, which an outlier moves little"
                if math.isfinite(gated) else "") + "), "
             f"{row['windows_above']} of {row['windows']} windows of {CONSISTENCY_PINGS} pings "
-            f"beyond the chi-square {100 * CONSISTENCY_PROBABILITY:g} % bound")
+            f"beyond the chi-square {100 * CONSISTENCY_PROBABILITY:g} % bound"
+            + (f"; its innovations are {math.sqrt(typical):.1f} times the size it predicts: "
+               "the noise it was given (the DVL's white noise first) is likely too small for "
+               "these data" if typical > NIS_TOO_LARGE else ""))
 
 
 def watch_markdown(watched: dict[str, dict[str, dict]]) -> str:

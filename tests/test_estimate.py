@@ -239,3 +239,28 @@ def test_a_water_track_ping_is_no_velocity_over_ground(dataset_of, tmp_path):
     assert soft_run["rmse_vector"] < 1e-6  # noise-free bottom track
     # Held over the gap on a straight line, where the water's velocity had put it 6 m off.
     assert soft_run["position"]["final_m"] < 0.1
+
+
+def test_the_filter_says_what_noise_it_used_and_when_it_is_too_small(dataset_of, tmp_path,
+                                                                      capsys):
+    """Its settings in the summary were None wherever the file gave the value: a user
+    could not see the noise it used. Each mission's row, and a line, give it; a noise
+    set five times too small makes the innovations too large, which the line says."""
+    from conftest import zigzag
+
+    path = dataset_of(zigzag(0.01, 120.0), "zz-noise")
+    out = tmp_path / "ins"
+    assert main(["estimate", str(path), "--estimator", "INS/DVL", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    noise = json.loads((out / "summary.json").read_text())["missions"]["zz"]["noise"]
+    assert noise["measurement_std"] == [0.01] * 4
+    assert "  noise it used: DVL white 10 mm/s per beam; accelerometer " in said
+    assert "likely too small" not in said
+    settings = tmp_path / "small.toml"
+    settings.write_text("beam_noise_std = 0.002\n")
+    assert main(["estimate", str(path), "--estimator", "INS/DVL", "--filter-config",
+                 str(settings), "--out", str(tmp_path / "small")]) == 0
+    said = capsys.readouterr().out
+    assert "noise it used: DVL white 2 mm/s per beam" in said
+    assert "times the size it predicts: the noise it was given (the DVL's white noise " \
+        "first) is likely too small for these data" in said

@@ -677,6 +677,8 @@ class FilterTrack(NamedTuple):
     # noise at each ping (the instrument's at the ping's speed, or the setting's)
     noise_scale: np.ndarray | None = None  # (P,) the scale of the DVL's noise (white and
     # slow drive) at each ping: 1, or the learned one (the model-based one scales R only)
+    noise: Instrument | None = None  # the noise the filter used: the instrument's with the
+    # settings applied (scales included; at rest, for a noise that grows with the speed)
 
     @property
     def availability(self) -> float:
@@ -1702,7 +1704,16 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                        measurement_std=np.sqrt(r_used), features=features,
                        innovation=innovations, innovation_hph=hph,
                        innovation_var=innovation_var, stated_std=stated_std,
-                       noise_scale=scale)
+                       noise_scale=scale, noise=Instrument(
+                           accel_noise_density=math.sqrt(q[0]),
+                           gyro_noise_density=math.sqrt(q[1]), accel_bias_std=float(std[9]),
+                           gyro_bias_std=float(std[12]), accel_bias_psd=float(q[2]),
+                           gyro_bias_psd=float(q[3]),
+                           measurement_std=np.sqrt(r_meas), noise_growth=r_growth,
+                           slow_error_std=ins.slow_error_std,
+                           slow_error_time=ins.slow_error_time, common_scale_std=common,
+                           gyro_scale_factor_std=scale_std,
+                           gyro_misalignment_std=cross_std))
 
 
 def _measurement_std(cfg: FilterConfig, stated, growth=0.0, *, beams: bool,
