@@ -298,6 +298,26 @@ def test_a_dvl_that_writes_nan_for_no_data_and_states_no_beam_noise(tmp_path):
         assert "noise_std" not in m.attrs["log_description"].replace("_noise_std", "")
 
 
+def test_a_dvl_that_leaves_its_no_data_cells_empty(tmp_path):
+    """An empty cell is what pandas writes for NaN: with ``invalid = "nan"`` it is no data,
+    as a nan cell is (it was refused as not a number); elsewhere it is still refused, with
+    what to say."""
+    folder = tmp_path / "dive"
+    csv_log(folder)
+    _replace("log.toml", "invalid = -32768", 'invalid = "nan"')(folder)
+    _edit("dvl.csv", lambda t: t.replace("-32768.0", ""))(folder)
+    out = tmp_path / "dive.h5"
+    assert run_csv(folder, out) == (0, "")
+    with open_dataset(out) as f:
+        m = f.missions["dive"]
+        assert np.isnan(m.dvl.velocity_ls[1]).all() and m.dvl.mode.tolist() == [0, -1, 0, 0]
+    _edit("depth.csv", lambda t: t.replace("20.0", "", 1))(folder)
+    status, err = run_csv(folder, tmp_path / "again.h5")
+    assert status == 2 and err.endswith(
+        "an empty cell is missing data, which only a DVL's no-data value may be: invalid = "
+        "\"nan\" takes empty cells too\n"), err
+
+
 def test_a_dvls_beams_as_logged(tmp_path):
     """``columns.beam_velocity`` and ``columns.beam_range``: the beams kept as logged (in
     auvsim's order, mm/s to m/s), a beam at the no-data marker not valid, the file's
@@ -443,6 +463,11 @@ BAD_LOGS = {
                        "line 6: time runs backwards"),
     "time_repeats": (_edit("depth.csv", _lines(lambda ls: ls[:5] + [ls[4]] + ls[6:])),
                      "line 6: time repeats"),
+    # Epoch stamps differ in their last digits: the message gives them as written.
+    "epoch_backwards": (_edit("depth.csv", _lines(lambda ls: [ls[0]] + [
+        f"{1717000050000 + 100 * (k ^ (k == 4 or k == 5))},20.0" for k in range(1, 40)])),
+        "line 6: time runs backwards (1717000050500.0, then 1717000050400.0 in column "
+        "'t_ms'); expected increasing stamps"),
     "deg_s_as_rad_s": (_replace("log.toml", 'angular_rate = "deg/s"', 'angular_rate = "rad/s"'),
                        "the angular rate reaches 37.42 rad/s"),  # |(10, 20, 30)|
     "g_as_m_s2": (_replace("log.toml", 'specific_force = "g"', 'specific_force = "m/s^2"'),

@@ -569,11 +569,15 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
                           f"expected it mapped in {stream.group}.columns or listed in "
                           f"{stream.group}.ignore")
     use = sorted({header.index(c) for c in named})
+    # A stream whose no-data value is NaN reads an empty cell (what pandas writes for NaN)
+    # as NaN too; any other stream needs a number in every cell.
+    empty_is_nan = stream.invalid is not None and math.isnan(stream.invalid)
     try:
         with warnings.catch_warnings():  # a header alone: refused below, in one line
             warnings.filterwarnings("ignore", "loadtxt: input contained no data")
             array = np.loadtxt(path, delimiter=stream.delimiter, skiprows=1, usecols=use,
-                               ndmin=2, encoding="utf-8-sig", comments=None)
+                               ndmin=2, encoding="utf-8-sig", comments=None,
+                               converters=_empty_as_nan if empty_is_nan else None)
     except ValueError:
         raise ConfigError(_bad_row(path, stream.delimiter, header)) from None
     if array.shape[0] < 2:
@@ -601,13 +605,16 @@ def read_table(path: Path, stream: Stream) -> dict[str, np.ndarray]:
                 v[v == stream.invalid] = np.nan
     out = {key: (v[:, 0] if v.shape[1] == 1 else v) * stream.units[key]
            for key, v in out.items()}
-    t = column[header.index(stream.time)] * stream.scale
+    stamps = column[header.index(stream.time)]
+    t = stamps * stream.scale
     back = np.flatnonzero(np.diff(t) <= 0)
     if len(back):
         k = back[0]
         what = "repeats" if t[k + 1] == t[k] else "runs backwards"
-        raise ConfigError(f"{str(path)!r} line {k + 3}: time {what} ({t[k]:.9g} s, then "
-                          f"{t[k + 1]:.9g} s); expected increasing stamps")
+        # As written (in full: an epoch's stamps differ in their last digits).
+        raise ConfigError(f"{str(path)!r} line {k + 3}: time {what} ({float(stamps[k])!r}, "
+                          f"then {float(stamps[k + 1])!r} in column {stream.time!r}); "
+                          "expected increasing stamps")
     out["time"] = t
     return out
 
@@ -620,6 +627,10 @@ def _check_width(path: Path, delimiter: str, header: list[str], rows: int) -> No
     if data.count(delimiter.encode()) == (len(header) - 1) * (rows + 1):
         return
     raise ConfigError(_bad_row(path, delimiter, header))
+
+
+def _empty_as_nan(cell: str) -> float:
+    return float(cell) if cell.strip() else math.nan
 
 
 def _unquoted(name: str) -> str:
@@ -643,8 +654,12 @@ def _bad_row(path: Path, delimiter: str, header: list[str]) -> str:
                 try:
                     float(cell)
                 except ValueError:
+                    empty = ("; an empty cell is missing data, which only a DVL's no-data "
+                             "value may be: invalid = \"nan\" takes empty cells too"
+                             if not cell.strip() else "")
                     return (f"{str(path)!r} line {number}: {cell.strip()!r} under "
-                            f"{column!r} is not a number; expected numbers under the header")
+                            f"{column!r} is not a number; expected numbers under the "
+                            f"header{empty}")
     return f"{str(path)!r}: cannot be read as a table of numbers"
 
 
