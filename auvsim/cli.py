@@ -289,11 +289,13 @@ def _check_log(args: argparse.Namespace) -> None:
     if args.json:
         print(to_json(reports))
     if args.apply is not None:
-        apply(args.file, args.apply, reports, accept_low=args.accept_low)
+        said = apply(args.file, args.apply, reports, accept_low=args.accept_low)
         if not args.json:
             others = in_file - len(reports)
             print(f"wrote {args.apply}: {', '.join(r.mission for r in reports)} corrected"
                   + (f", {others} other mission(s) as they were" if others > 0 else ""))
+            for mission, changed in said.items():
+                print(f"  {mission}: " + ("; ".join(changed) or "nothing to correct"))
 
 
 # ---- auvsim export: a mission in another tool's format (auvsim.interop, auvsim.data.pd0) --

@@ -5,8 +5,8 @@ nothing behind when they fail, and --help for users."""
 from __future__ import annotations
 
 import dataclasses
-import json
 import errno
+import json
 import os
 import re
 import shutil

@@ -326,6 +326,10 @@ def test_check_log_apply_writes_a_file_that_checks_clean(simulated, tmp_path):
     status, out, err = run(["check-log", str(raw), "--apply", str(fixed)])
     assert (status, err) == (0, "")
     assert "imu axes" in out and "[y, x, -z]" in out and f"wrote {fixed}" in out
+    # What it corrected, said (it had said only "sim corrected").
+    said = out.splitlines()[-1]
+    assert said.startswith("  sim: IMU axes [y, x, -z]; onto the ") and "DVL -0.8" in said \
+        and "; IMU at [" in said and "; DVL at [" in said, said
     with open_dataset(fixed) as ds:
         m = ds.missions["sim"]
         report = json.loads(m.attrs["check_log_json"])

@@ -1212,11 +1212,44 @@ def low_confidence(reports: list[Report]) -> list[str]:
             and not (f.name == "time base" and f.value["clock"] == "reference")]
 
 
+def changes(before, after: dict, report: Report) -> list[str]:
+    """What ``corrected`` changed of a mission, in words, from its attributes ``before``
+    and ``after`` (and the IMU's axis map, which moves samples, not attributes)."""
+    said = []
+    c = report.corrections
+    axes = c.get("imu_axis_map")
+    if axes is not None and list(axes) != ["x", "y", "z"]:
+        said.append(f"IMU axes [{', '.join(axes)}]")
+    base = "IMU" if c.get("time_base") == "imu" else "reference"
+    clocks = []
+    for g, name in (("imu", "IMU"), ("dvl", "DVL"), ("depth", "depth"),
+                    ("reference", "reference")):
+        key = f"{g}_time_offset_s"
+        if key in before and float(after[key]) != float(before[key]):
+            rate = c.get(f"{g}_rate_error", 0.0) if name != base else 0.0
+            clocks.append(f"{name} {float(after[key]) - float(before[key]):+.3f} s"
+                          + (f" and {1e6 * rate:+.0f} ppm" if rate else ""))
+    if clocks:
+        rate = c.get("imu_rate_error", 0.0) if base == "IMU" else 0.0
+        said.append(f"onto the {base}'s clock"
+                    + (f" (it runs {1e6 * rate:+.0f} ppm against the reference's)" if rate
+                       else "") + ": " + ", ".join(clocks))
+    for key, words, unit in (("imu_position_body", "IMU at", "m"),
+                             ("dvl_position_body", "DVL at", "m"),
+                             ("dvl_mounting_rpy_deg", "DVL mounted", "deg")):
+        if key in after and (key not in before or not np.array_equal(after[key], before[key])):
+            said.append(f"{words} [{', '.join(f'{v:+.3f}' for v in after[key])}] {unit}")
+    return said
+
+
 def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report], *,
-          compression: str = "lzf", accept_low: bool = False) -> None:
+          compression: str = "lzf", accept_low: bool = False) -> dict[str, list[str]]:
     """Write ``out``: the dataset ``path`` with each reported mission corrected
     (``corrected``) and every other mission as it was. Built under a temporary name and
     renamed when complete (``DatasetWriter``).
+
+    Returns:
+        What was corrected, in words, per corrected mission (``changes``).
 
     Raises:
         ConfigError: a finding it would write is of low confidence (``low_confidence``),
@@ -1236,6 +1269,7 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
             f"({'; '.join(low)}); expected medium or high (the table says what each rests "
             "on: state it in the log description, or give --accept-low to write it anyway)")
     by_name = {r.mission: r for r in reports}
+    said = {}
     with open_dataset(path) as ds:
         config = json.dumps({"check_log": {"source": str(path),
                                            "missions": sorted(by_name)},
@@ -1245,6 +1279,7 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
             for name, mission in ds.missions.items():
                 if name in by_name:
                     fields, attrs = corrected(mission, by_name[name])
+                    said[name] = changes(mission.attrs, attrs, by_name[name])
                 else:
                     fields, attrs = fields_of(mission), dict(mission.attrs)
                 groups = sorted({p.split("/")[0] for p in fields})
@@ -1253,3 +1288,4 @@ def apply(path: str | os.PathLike, out: str | os.PathLike, reports: list[Report]
                                             if f"{g}/time" in fields})
                 sink.append(fields)
                 sink.flush()
+    return said
