@@ -141,10 +141,11 @@ def _parser() -> argparse.ArgumentParser:
     tr.add_argument("--cluster", metavar="ADDRESS", help=CLUSTER_HELP)
     tr.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     ev = command("evaluate", "compare trained runs with the model-based estimators on the "
-                 "test split of datasets")
-    ev.add_argument("run", type=Path, help="run folder written by beamsnet train")
-    ev.add_argument("datasets", type=Path, nargs="+", metavar="dataset",
-                    help="auvsim datasets to evaluate on")
+                 "test split of datasets (or the model-based estimators alone)")
+    ev.add_argument("paths", type=Path, nargs="+", metavar="[run] dataset",
+                    help="a run folder written by beamsnet train (optional: without one, the "
+                    "model-based estimators and filters alone), then the auvsim datasets to "
+                    "evaluate on")
     ev.add_argument("--also", type=Path, action="append", default=[], metavar="RUN",
                     help="another run to put in the same tables (repeatable)")
     ev.add_argument("--out", type=Path, metavar="FOLDER",
@@ -336,8 +337,15 @@ def _evaluate(args) -> None:
     from beamsnet.evaluate import evaluate, markdown, navigation_markdown
 
     config = _filter_config(args.filter_config)
+    first, *datasets = args.paths
+    runs = [*([first] if _is_run(first) else []), *args.also]
+    if not _is_run(first):
+        datasets.insert(0, first)
+    if not datasets:
+        raise ConfigError(f": {str(first)!r} is a run; expected the datasets to evaluate it "
+                          "on after it", argument="datasets")
     args.out = report_dir(args.out, False, "evaluation")
-    results = evaluate([args.run, *args.also], args.datasets, args.out,
+    results = evaluate(runs, datasets, args.out,
                        allow_mismatch=args.allow_mismatch, filter_config=config,
                        progress=not args.quiet, missions=args.missions)
     for dataset, result in results.items():
@@ -346,6 +354,19 @@ def _evaluate(args) -> None:
             print()
             print(navigation_markdown(result["navigation"], result["against"]))
     print(f"wrote {args.out / 'evaluation.md'}, evaluation.json and the plots")
+
+
+def _is_run(path: Path) -> bool:
+    """Whether ``evaluate``'s first path is a run rather than a dataset: anything but an
+    HDF5 file or a sharded dataset's folder (so a run whose training did not finish is
+    refused as a run, saying so)."""
+    if path.is_dir():
+        return not (path / "index.h5").exists()
+    try:
+        with open(path, "rb") as f:
+            return f.read(8) != b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return path.suffix not in (".h5", ".hdf5")
 
 
 def _estimate(args) -> None:

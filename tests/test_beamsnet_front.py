@@ -226,6 +226,20 @@ def test_evaluate_warns_when_a_run_is_scored_on_missions_it_never_saw(run_on_a, 
     assert "mission 'c': not in" in capsys.readouterr().err
 
 
+def test_evaluate_without_a_run_compares_the_model_based_estimators(data, run_on_a,
+                                                                    tmp_path, capsys):
+    """A dataset first: the model-based estimators and filters alone (a user's own
+    beside LS needed a network trained first); a run alone is refused in one line."""
+    assert main(["evaluate", str(data), "--out", str(tmp_path / "alone")]) == 0
+    rows = json.loads((tmp_path / "alone" / "evaluation.json").read_text())[str(data)]["rows"]
+    assert "LS" in rows and "INS/DVL" in rows and not any("BeamsNet" in r for r in rows)
+    capsys.readouterr()
+    assert main(["evaluate", str(run_on_a), "--out", str(tmp_path / "run")]) == 2
+    assert capsys.readouterr().err == (f"beamsnet: error: DATASET: '{run_on_a}' is a run; "
+                                       "expected the datasets to evaluate it on after it\n")
+    assert not (tmp_path / "run").exists()
+
+
 def test_a_run_trained_on_every_mission_evaluates_without_a_word(data, tmp_path, capsys):
     run = tmp_path / "all"
     train(data, TrainConfig(model="v2", epochs=1), run, progress=False)
