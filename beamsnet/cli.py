@@ -344,6 +344,11 @@ def _evaluate(args) -> None:
     if not datasets:
         raise ConfigError(f": {str(first)!r} is a run; expected the datasets to evaluate it "
                           "on after it", argument="datasets")
+    twice = next((d for d in datasets if datasets.count(d) > 1), None)
+    if twice is not None:
+        raise ConfigError(f": {str(twice)!r} is given twice; expected each dataset once (a "
+                          "dataset first evaluates the model-based estimators alone)",
+                          argument="datasets")
     args.out = report_dir(args.out, False, "evaluation")
     results = evaluate(runs, datasets, args.out,
                        allow_mismatch=args.allow_mismatch, filter_config=config,

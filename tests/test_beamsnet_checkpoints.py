@@ -165,8 +165,11 @@ def test_evaluate_refuses_a_bad_run_on_one_line_and_leaves_no_output(
     out = tmp_path / "report"
     assert main(["evaluate", str(bad), str(dataset), "--out", str(out)]) == 2
     err = _one_line_error(capsys)
-    assert f"run '{bad}" in err  # the run path (or its model.pt), named as the run
-    assert what in err and "expected a run directory with the model.pt" in err
+    if case == "dataset as run":  # a dataset first is no run: the same dataset twice
+        assert f"DATASET: '{bad}' is given twice; expected each dataset once" in err
+    else:
+        assert f"run '{bad}" in err  # the run path (or its model.pt), named as the run
+        assert what in err and "expected a run directory with the model.pt" in err
     assert not out.exists()
     # The same run given with --also is refused the same way.
     assert main(["evaluate", str(run), str(dataset), "--also", str(bad), "--out",
