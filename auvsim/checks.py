@@ -14,3 +14,21 @@ def is_finite(value: object) -> bool:
         return math.isfinite(value)
     except OverflowError:
         return False
+
+
+def did_you_mean(word: object, choices) -> str:
+    """`` (did you mean 'paper-sim'?)`` for the choice ``word`` was meant as, if one is
+    near enough: the same letters and digits (``paper_sim``, ``Paper-Sim``), or a close
+    spelling (``watch_ping``); else ``""``."""
+    import difflib
+
+    if not isinstance(word, str):
+        return ""
+    choices = [c for c in choices if isinstance(c, str)]
+
+    def key(text: str) -> str:
+        return "".join(c for c in text.lower() if c.isalnum())
+
+    same = [c for c in choices if key(c) == key(word)]
+    near = same or difflib.get_close_matches(word, choices, n=1, cutoff=0.75)
+    return f" (did you mean {near[0]!r}?)" if near else ""

@@ -14,7 +14,7 @@ import os
 import reprlib
 from dataclasses import dataclass, field
 
-from auvsim.checks import is_finite
+from auvsim.checks import did_you_mean, is_finite
 from auvsim.errors import ConfigError
 from auvsim.physics.maneuvers import MANEUVERS, check_scenario
 from auvsim.sensors import registry
@@ -214,7 +214,9 @@ class ScenarioConfig:
     options: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        _check(self.name in SCENARIOS, "scenario", f"one of {', '.join(SCENARIOS)}", self.name)
+        if self.name not in SCENARIOS:
+            raise ConfigError(f"scenario: expected one of {', '.join(SCENARIOS)}, got "
+                              f"{_shown(self.name)}{did_you_mean(self.name, SCENARIOS)}")
         for name in ("speed", "heading_deg", "depth", "duration"):
             _finite(f"scenario.{name}", getattr(self, name))
         _check(self.duration > 0, "duration", "a positive number of seconds", self.duration)
@@ -1007,7 +1009,8 @@ def _from_dict(cls, d, path: str):
     known = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(d) - known)
     if unknown:
-        raise ConfigError(f"{path}: unknown setting(s) {', '.join(unknown)}; expected some of "
+        raise ConfigError(f"{path}: unknown setting(s) {', '.join(unknown)}"
+                          f"{did_you_mean(unknown[0], known)}; expected some of "
                           f"{', '.join(sorted(known))}")
     kwargs = {}
     for key, value in d.items():

@@ -306,7 +306,8 @@ BAD = [
     ("[dvl]\nnoise_std = -0.1\n", "dvl.noise_std"),
     ("[dvl]\nbias = nan\n", "dvl.bias"),
     ("[imu]\ngyro_noise_density = nan\n", "imu.gyro_noise_density"),
-    ("[dvl]\nbeam_angel_deg = 30\n", "unknown setting(s) beam_angel_deg"),
+    ("[dvl]\nbeam_angel_deg = 30\n", "unknown setting(s) beam_angel_deg (did you mean "
+                                          "'beam_angle_deg'?)"),
     ("[seafloor]\nkind = \"moon\"\n", "seafloor.kind"),
     ("this is not toml", "not valid TOML"),
     ("[seafloor]\nkind = \"heightmap\"\nheightmap = 5\n", "seafloor.heightmap"),

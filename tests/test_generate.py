@@ -184,6 +184,8 @@ BAD_INPUTS = [
     (["--option", "rudder_deg=inf"], "--option: expected NAME=X"),
     (["--scenario", "zigzag", "--option", "rudder=30"],
      "unknown option(s) rudder for zigzag; expected some of angle_deg"),
+    (["--preset", "paper_sim"], "unknown preset 'paper_sim' (did you mean 'paper-sim'?)"),
+    (["--scenario", "zig-zag"], "got 'zig-zag' (did you mean 'zigzag'?)"),
     (["--preset", "maneuvers", "--option", "rudder_deg=10"],
      "--option rudder_deg: the missions of preset 'maneuvers' fly different manoeuvres, and "
      "straight, lawnmower, depth_steps, yoyo, speed_steps, random_waypoints take no such "

@@ -371,7 +371,9 @@ def test_the_innovations_consistency_test_knows_a_right_and_a_wrong_covariance()
 
 
 @pytest.mark.parametrize("text, said", [
-    ("gain = 3\n", "'gain', which is not a filter setting"),
+    ("gain = 3\n", "'gain', which is not a filter setting; expected some of"),
+    ("watch_ping = 5\n", "'watch_ping', which is not a filter setting (did you mean "
+                         "'watch_pings'?); expected some of"),
     ("watch_share = 2.0\n", "watch_share: expected a share"),
     ("watch_pings = \n", "is not TOML"),
     ('dvl_updates = "no"\n', "dvl_updates: expected true or false, got 'no'"),

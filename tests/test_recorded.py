@@ -456,7 +456,8 @@ BAD_LOGS = {
                    "'t_ms;depth' (its cells are separated by ';': say depth.delimiter = ';')"),
     "units_key_typo": (_replace("log.toml", "angular_rate = \"deg/s\"",
                                 "angular_rates = \"deg/s\""),
-                       "imu.units: unknown field 'angular_rates'; expected one of"),
+                       "imu.units: unknown field 'angular_rates' (did you mean "
+                       "'angular_rate'?); expected one of"),
     "nan_row": (_edit("dvl.csv", _lines(lambda ls: ls[:3] + [",".join(["nan"] * 6)]
                                         + ls[4:])), "line 4: column 't_ms' is nan"),
     "time_backwards": (_edit("depth.csv", _lines(lambda ls: ls[:4] + [ls[5], ls[4]] + ls[6:])),

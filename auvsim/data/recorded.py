@@ -69,6 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
+from auvsim.checks import did_you_mean
 from auvsim.config import MAX_SENSOR_OFFSET
 from auvsim.data.beams import beam_noise_from_error_velocity
 from auvsim.data.checklog import cumulative
@@ -347,8 +348,9 @@ def _stream(where: str, group: str, table: object) -> Stream:
     for table_name, keys in (("columns", columns_in), ("units", units_in)):
         for key in keys:
             if key not in specs:
-                raise ConfigError(f"{name}.{table_name}: unknown field {key!r}; expected one "
-                                  f"of {', '.join(specs)}")
+                raise ConfigError(f"{name}.{table_name}: unknown field {key!r}"
+                                  f"{did_you_mean(key, specs)}; expected one of "
+                                  f"{', '.join(specs)}")
     for key, (n, choices, required) in specs.items():
         if key not in columns_in:
             if required:

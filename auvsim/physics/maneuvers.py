@@ -48,7 +48,7 @@ from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
-from auvsim.checks import is_finite
+from auvsim.checks import did_you_mean, is_finite
 from auvsim.errors import ConfigError
 
 # A rudder beyond a fin's limit is held at the limit; beyond a right angle it means nothing.
@@ -621,7 +621,7 @@ def make_maneuver(config: Scenario, rng: np.random.Generator | None = None) -> M
     """
     if config.name not in MANEUVERS:
         raise ConfigError(f"scenario: expected one of {', '.join(MANEUVERS)}, got "
-                          f"{config.name!r}")
+                          f"{config.name!r}{did_you_mean(config.name, MANEUVERS)}")
     return MANEUVERS[config.name](config, rng)
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from auvsim.checks import did_you_mean
 from auvsim.config import (
     MAX_DURATION,  # noqa: F401  (re-exported for the experiments that size presets)
     Config,
@@ -449,6 +450,7 @@ DEFAULT_PRESET = "navigator"
 
 def preset(name: str) -> Config:
     if name not in PRESETS:
-        raise ConfigError(f"unknown preset {name!r}: expected one of {', '.join(PRESETS)} "
+        raise ConfigError(f"unknown preset {name!r}{did_you_mean(name, PRESETS)}: expected "
+                          f"one of {', '.join(PRESETS)} "
                           "(auvsim presets lists them)")
     return PRESETS[name][1]()

@@ -245,7 +245,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from auvsim.checks import is_finite
+from auvsim.checks import did_you_mean, is_finite
 from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
 from auvsim.data.files import interrupts_held
@@ -595,7 +595,8 @@ def load_config(path) -> FilterConfig:
     unknown = [k for k in table if k not in fields]
     if unknown:
         raise ConfigError(f": {str(path)!r} has key {unknown[0]!r}, which is not a filter "
-                          f"setting; expected some of {', '.join(fields)}",
+                          f"setting{did_you_mean(unknown[0], fields)}; expected some of "
+                          f"{', '.join(fields)}",
                           argument="filter_config")
     table = {k: tuple(v) if isinstance(v, list) else v for k, v in table.items()}
     try:
