@@ -260,6 +260,16 @@ def test_a_field_a_group_does_not_have_is_an_attribute_error_and_a_dataset_error
             dvl.fields  # noqa: B018
 
 
+def test_dir_lists_a_missions_groups_and_a_groups_fields(ideal_file):
+    """What a notebook completes after ``mission.`` and ``mission.dvl.`` (it offered only
+    ``rows``; iterating listed the fields)."""
+    with open_dataset(ideal_file) as f:
+        m = f.missions["mission_000"]
+        assert set(m.groups) <= set(dir(m)) and "read" in dir(m)
+        assert set(m.dvl) <= set(dir(m.dvl)) and "rows" in dir(m.dvl)
+        assert "velocity" in dir(m.dvl) and "position_ned" in dir(m.truth)
+
+
 def test_a_file_opened_again_unchanged_is_not_checked_again(tmp_path, ideal_file, monkeypatch):
     """The per-mission check runs once per file as long as the file stays as it was (and
     was quiet when checked); changed in place, it is checked again and refused."""

@@ -453,8 +453,8 @@ def test_gyro_matrix_states_without_a_spread_get_one_line_and_exit_2(navigation,
     assert err.count("\n") == 1 and "its IMU states no gyro scale factor or misalignment" in err
     assert not out.exists()
     with pytest.raises(ValueError, match="^gyro_matrix_states: expected gyro_scale_factor_std"):
-        ins.run_arrays(np.arange(3.0), np.zeros((3, 3)), np.zeros((3, 3)), np.arange(2.0),
-                       velocity=np.zeros((2, 3)), start=ins.coarse_alignment(
+        ins.run_arrays(np.arange(3.0), np.tile([0.0, 0.0, -9.8], (3, 1)), np.zeros((3, 3)),
+                       np.arange(2.0), velocity=np.zeros((2, 3)), start=ins.coarse_alignment(
                            np.arange(3.0), np.tile([0.0, 0.0, -9.8], (3, 1)), heading_deg=0.0),
                        instrument=ins.Instrument(1e-4, 1e-6, 1e-4, 1e-7, 0.0, 0.0,
                                                  np.full(3, 0.01)), gravity=9.8,
@@ -579,6 +579,12 @@ def _rest(n: int = 201):
      "start.rotation: expected a 3 x 3 rotation matrix"),
     (lambda a: a.__setitem__("latitude_deg", 95.0), "latitude_deg: expected deg in [-90, 90]"),
     (lambda a: a.__setitem__("gravity", -9.8), "gravity: expected its magnitude in m/s^2"),
+    # Gyros in deg/s, accelerometers in g: filtered, they had run to 651 m off.
+    (lambda a: a["angular_rate"].__setitem__((100, 2), 15.0),
+     "angular_rate: reaches 15 rad/s at sample 100 (t = 1 s), beyond a full turn per "
+     "second; expected rad/s (in deg/s? np.radians them first)"),
+    (lambda a: a.__setitem__("specific_force", a["specific_force"] / 9.80665),
+     "specific_force: its median magnitude is 0.9993 m/s^2; expected about g"),
 ])
 def test_run_arrays_names_a_bad_argument(change, said):
     """An argument the filter would take silently into a wrong answer (a NaN sample that

@@ -117,6 +117,9 @@ class Group:
         first = next(iter(self._mission._fields(self._name)))
         return self._mission._dataset(f"{self._name}/{first}").shape[0]
 
+    def __dir__(self) -> list[str]:  # its fields too, for a notebook's completion
+        return sorted({*super().__dir__(), *self._mission._fields(self._name)})
+
     def __getattr__(self, field: str) -> np.ndarray:
         if field.startswith("_"):
             raise AttributeError(field)
@@ -220,6 +223,9 @@ class Mission:
         if self.origin != "simulated":
             return []
         return list(self.dataset._derived_phases().get(self.name, []))
+
+    def __dir__(self) -> list[str]:  # its groups too, for a notebook's completion
+        return sorted({*super().__dir__(), *self.groups})
 
     def __getattr__(self, group: str) -> Group:
         if group == "truth" and self.origin == "recorded":

@@ -108,6 +108,8 @@ IMU_NOISE = ("accel_noise_density", "gyro_noise_density", "accel_bias_instabilit
 # once the vehicle turns faster than 360 deg/s / 57.3 = 6.3 deg/s, which every log with a
 # turn does; a log of a straight line alone may pass.
 MAX_RATE = 2 * math.pi  # rad/s
+# An IMU's median |specific force| is about g: outside these bounds it is in g (or cm/s^2).
+FORCE_BOUNDS = (G0 / 2, 2 * G0)  # m/s^2
 MAX_SPEED = 15.0  # m/s: five times an AUV's top speed (the A18-D's 3 m/s, vehicles.md)
 TRACK_RATIO = 2.0  # positions and integrated velocities may disagree by at most this factor
 MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
@@ -862,7 +864,7 @@ def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]
                 "beyond a full turn per second; expected rad/s as declared (are the gyros in "
                 "deg/s? say imu.units.angular_rate = \"deg/s\")")
         force = float(np.median(np.linalg.norm(tables["imu"]["specific_force"], axis=1)))
-        if not G0 / 2 < force < 2 * G0:
+        if not FORCE_BOUNDS[0] < force < FORCE_BOUNDS[1]:
             raise ConfigError(
                 f"{where['imu']}: the specific force's median magnitude is {force:.4g} m/s^2 "
                 "in the declared unit; expected about gravity, 9.8 m/s^2 (is "

@@ -250,6 +250,7 @@ from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
 from auvsim.data.files import interrupts_held
 from auvsim.data.reader import open_dataset, require_attitude
+from auvsim.data.recorded import FORCE_BOUNDS, MAX_RATE
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
@@ -1478,6 +1479,17 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                              f"at sample {bad[0]} (t = {t[bad[0]]:g} s)"
                              + (f" and {bad.size - 1} more" if bad.size > 1 else "")
                              + "; drop or fill them first")
+    # Values no vehicle's IMU reads in SI units: another unit (auvsim import's bounds).
+    rate = np.linalg.norm(w, axis=1)
+    if rate.max() > MAX_RATE:
+        k = int(rate.argmax())
+        raise ValueError(f"angular_rate: reaches {rate[k]:.4g} rad/s at sample {k} (t = "
+                         f"{t[k]:g} s), beyond a full turn per second; expected rad/s (in "
+                         "deg/s? np.radians them first)")
+    force = float(np.median(np.linalg.norm(f, axis=1)))
+    if not FORCE_BOUNDS[0] < force < FORCE_BOUNDS[1]:
+        raise ValueError(f"specific_force: its median magnitude is {force:.4g} m/s^2; "
+                         "expected about g, 9.8 m/s^2 (in g? multiply by 9.80665 first)")
     if imu_samples not in IMU_SAMPLES:
         raise ValueError(f"imu_samples: expected one of {', '.join(IMU_SAMPLES)}, got "
                          f"{imu_samples!r}")
