@@ -14,6 +14,7 @@ import io
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import h5py
@@ -34,7 +35,7 @@ SHARED = next((p / "shared/data/snapir-akit" for p in REPO.parents
 LAT0, LON0, H0 = 32.85, 34.89, -20.0  # deg, deg, m: where the Snapir dived
 T = 30.0  # s of log
 V_NED = np.array([1.5, -0.5, 0.02])  # m/s, the reference's constant velocity
-RPY = np.radians([2.0, -3.0, 120.0])  # constant attitude
+RPY = np.radians([2.0, -3.0, -15.0])  # constant attitude: the course, -18.4 deg, and a crab
 
 
 def _write_csv(path: Path, header: list[str], columns: list[np.ndarray]) -> None:
@@ -893,3 +894,25 @@ def test_every_group_is_optional(tmp_path, capsys):
     assert "dvl: 4 samples at 2 Hz" in capsys.readouterr().out
     assert main(["plot", str(out), "--out", str(tmp_path)]) == 0
     assert (tmp_path / "only_dvl_only.png").is_file()
+
+
+def test_a_yaw_of_another_frame_than_the_velocity_is_refused():
+    """A compass heading in an ENU yaw column (read as 90 - h) passed the import, and
+    check-log then found nonsense in every stream; a yaw that is the velocity's course,
+    or off it by a current's crab angle, passes."""
+    from auvsim.data.recorded import _check_heading
+
+    north = np.tile([1.5, 0.0, 0.0], (50, 1))
+    velocity = np.concatenate([north, -north])  # a lawnmower's two legs: north, south
+    right = np.zeros((100, 3))
+    right[50:, 2] = 180.0
+    crabbed = right + [0.0, 0.0, 25.0]  # a current on the beam: 25 deg off the course
+    compass = right.copy()
+    compass[:, 2] = 90.0 - right[:, 2]  # h written where an ENU yaw goes
+    for yaw in (right, crabbed):
+        _check_heading({"reference/velocity_ned": velocity, "reference/rpy_deg": yaw}, "nav")
+    with pytest.raises(ConfigError, match=re.escape(
+            "nav: the yaw differs from the course over the ground by 90 deg (median, where it "
+            "moves faster than 1 m/s); expected them within 45 deg")):
+        _check_heading({"reference/velocity_ned": velocity, "reference/rpy_deg": compass},
+                       "nav")

@@ -126,6 +126,13 @@ TRACK_LEG = 10
 # cm, and a swell's heave stay far below it); above it, a consistent reference agrees in
 # direction, and one whose vertical axis is flipped disagrees (a negative cosine).
 MIN_CLIMB = 5.0  # m
+# The yaw against the course over the ground: a torpedo AUV's sideslip is a few degrees
+# (the model card's turns: under 10 deg), and a current's crab angle asin(current / speed)
+# is 30 deg for a 0.5 m/s current at 1 m/s: beyond 45 deg at 1 m/s or more (median), the
+# yaw is not of the frame it is declared in.
+MAX_CRAB = 45.0  # deg
+CRABBING_SPEED = 1.0  # m/s
+MIN_MOVING_SAMPLES = 30
 SPAN_RATIO = 100.0  # a stream may span at most this many times another's (ms read as s: 1000)
 SPEED_RATIO = 5.0  # the DVL's median speed within this factor of the reference's
 MOVING = 0.2  # m/s: the reference's median speed above which the DVL's is compared
@@ -757,6 +764,7 @@ def read_log(folder: str | os.PathLike, description: LogDescription, *,
             fields["reference/latitude_deg"], fields["reference/longitude_deg"],
             fields["reference/height_m"], origin)
         _check_track(fields, where["reference"])
+        _check_heading(fields, where["reference"])
         _check_speeds(tables, where)  # the reference agrees with itself: now the DVL
     groups = [g for g in RECORDED_GROUPS if g in tables]
     duration = max(float(fields[f"{g}/time"][-1]) for g in groups)
@@ -959,6 +967,28 @@ def _check_track(fields: dict[str, np.ndarray], where: str) -> None:
                 f"mean turn of {angle:+.0f} deg); expected them to agree (is reference.frame "
                 "right, NED or ENU? are the latitude and longitude columns swapped?)")
     _check_vertical(fields, where)
+
+
+def _check_heading(fields: dict[str, np.ndarray], where: str) -> None:
+    """The reference's yaw and its course over the ground agree to ``MAX_CRAB`` (median,
+    where it moves faster than ``CRABBING_SPEED``): a compass heading in an ENU frame's
+    yaw column (``90 - h`` is the ENU yaw) passed the import, and every finding of
+    check-log was then nonsense."""
+    if "reference/rpy_deg" not in fields:
+        return
+    v = fields["reference/velocity_ned"]
+    moving = np.hypot(v[:, 0], v[:, 1]) > CRABBING_SPEED
+    if moving.sum() < MIN_MOVING_SAMPLES:
+        return
+    course = np.degrees(np.arctan2(v[moving, 1], v[moving, 0]))
+    off = (course - fields["reference/rpy_deg"][moving, 2] + 180.0) % 360.0 - 180.0
+    median = float(np.median(np.abs(off)))
+    if median > MAX_CRAB:
+        raise ConfigError(
+            f"{where}: the yaw differs from the course over the ground by {median:.0f} deg "
+            f"(median, where it moves faster than {CRABBING_SPEED:g} m/s); expected them "
+            f"within {MAX_CRAB:g} deg, a vehicle's sideslip and a current's crab angle (is "
+            "the yaw column in reference.frame? a compass heading h is an ENU yaw of 90 - h)")
 
 
 def _legs(fields: dict[str, np.ndarray], axes: slice) -> tuple[np.ndarray, np.ndarray]:
