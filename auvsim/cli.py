@@ -426,7 +426,10 @@ def _serve(args: argparse.Namespace) -> None:
 
 
 def _nameable(path: str) -> str:
-    """A path the operating system can name (no component or whole too long for it)."""
+    """A path the operating system can name (not empty; no component or whole too long for
+    it)."""
+    if not path.strip():
+        raise argparse.ArgumentTypeError(f"{path!r}: empty; expected a path")
     try:
         os.stat(path)
     except OSError as e:

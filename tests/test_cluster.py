@@ -300,8 +300,9 @@ def test_the_first_failure_stops_the_run(tmp_path, capsys):
     ("nonsense", "--cluster 'nonsense': not a cluster address; expected local:N"),
     ("local:0", "--cluster 'local:0': expected at least one worker"),
     ("127.0.0.1:99999", "--cluster '127.0.0.1:99999': port 99999 is not a TCP port"),
-    ("tcp://127.0.0.1:9", "--cluster 'tcp://127.0.0.1:9': no Dask scheduler answered "
-     "within 2 s"),
+    # Refused at once: said so, where the client had retried for its whole timeout.
+    ("tcp://127.0.0.1:9", "--cluster 'tcp://127.0.0.1:9': nothing listens there (the "
+     "connection was refused)"),
 ])
 def test_a_bad_or_unreachable_address_gets_one_line(tmp_path, capsys, monkeypatch, address,
                                                     said):

@@ -521,3 +521,13 @@ def test_option_sets_a_scenario_option_of_every_mission():
     assert options("--scenario", "zigzag", "--option", "rudder_deg=30",
                    "--option", "angle_deg=10") == [{"rudder_deg": 30.0, "angle_deg": 10.0}]
     assert options("--preset", "paper-sim", "--option", "leg_m=300") == [{"leg_m": 300.0}] * 3
+
+
+def test_an_empty_out_is_refused_as_empty(tmp_path, capsys, monkeypatch):
+    """``--out ""`` was read as '.', "a directory; expected a file name (or '', ...)"."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        main(["generate", "--duration", "5", "--out", ""])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.endswith("argument --out: '': empty; expected a path\n")
+    assert list(tmp_path.iterdir()) == []

@@ -21,6 +21,7 @@ import concurrent.futures as cf
 import logging
 import re
 import signal
+import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -195,6 +196,7 @@ def _connect(distributed, address: str, timeout: float):
     Raises:
         ConfigError: nothing answered there as a Dask scheduler in time.
     """
+    _refused_at_once(address)
     made: dict = {}
 
     def connect() -> None:
@@ -219,6 +221,25 @@ def _connect(distributed, address: str, timeout: float):
                           "8786 by default, its dashboard on 8787)", argument="cluster")
     raise ConfigError(f"{address!r}: no Dask scheduler answered within {timeout:g} s "
                       f"({reason[:200]}); {EXPECTED}", argument="cluster")
+
+
+def _refused_at_once(address: str) -> None:
+    """Refuse a TCP address whose host refuses the connection: Dask's client retries it
+    until its timeout (10 s), where the host has said at once that nothing listens there.
+    Any other outcome (accepted, no answer, unreachable) is left to the client."""
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp", "tls", "ws", "wss"):
+        return
+    host, _, port = rest.rstrip("/").rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=1.0):
+            return
+    except ConnectionRefusedError:
+        raise ConfigError(f"{address!r}: nothing listens there (the connection was "
+                          f"refused); {EXPECTED} (a scheduler listens on 8786 by default)",
+                          argument="cluster") from None
+    except (OSError, ValueError):
+        return
 
 
 def lost_worker(error: BaseException) -> SimulationError | None:
