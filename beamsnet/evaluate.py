@@ -218,9 +218,18 @@ def _differences(setup: dict[str, dict], trained_on: dict[str, dict], keys) -> s
                     and np.allclose(attrs[key], r, rtol=rtol, atol=atol) for r in reference):
                 seen.setdefault(_value(attrs[key]), []).append(name)
         theirs = " or ".join(dict.fromkeys(_value(r) for r in reference))
-        said += [f"{key} {value} (mission {', '.join(names)}) against {theirs}"
+        said += [f"{key} {value} ({_missions(names, len(setup))}) against {theirs}"
                  for value, names in seen.items()]
     return "; ".join(said)
+
+
+def _missions(names: list[str], of: int) -> str:
+    """``mission a``, ``missions a, b, c and 17 more``, ``every mission``: short, for a
+    line that a file of 20 missions filled."""
+    if len(names) == of and of > 1:
+        return "every mission"
+    shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+    return f"mission{'s' if len(names) > 1 else ''} {shown}"
 
 
 def _value(value) -> str:

@@ -152,3 +152,12 @@ def test_rates_and_mounting_are_geometry(run, data):
         beyond["sensors"]["a"].update(change)
         with pytest.raises(ConfigError, match=next(iter(change))):
             check_sensors(run, beyond, data["trained"])
+
+
+def test_a_mismatch_over_many_missions_names_a_few():
+    """A file of 20 missions had each difference list all 20 names."""
+    from beamsnet.evaluate import _missions
+
+    assert _missions(["a"], 1) == "mission a"
+    assert _missions(list("abcde"), 20) == "missions a, b, c and 2 more"
+    assert _missions(list("ab"), 2) == "every mission"
