@@ -143,14 +143,18 @@ def _stop(signum, frame) -> None:
 
 
 def _in_compiled_callback(frame) -> bool:
-    """Whether ``frame`` is Python that compiled code calls back into and that cannot take
-    an exception: numba's ``_numba_unpickle``, which a kernel calls as it hands back a
-    tuple of arrays, and where Python first runs a handler for a signal that came while
-    the kernel ran. An interrupt raised there was a chain of SystemErrors, an interrupt
-    swallowed (the command went on to exit 0), or a segmentation fault."""
-    code = getattr(frame, "f_code", None)
-    return code is not None and code.co_name == "_numba_unpickle" and \
-        code.co_filename.endswith(os.path.join("numba", "core", "serialize.py"))
+    """Whether ``frame`` is (or was called by) Python that compiled code calls back into
+    and that cannot take an exception: numba's ``_numba_unpickle``, which a kernel calls as
+    it hands back a tuple of arrays, and where Python first runs a handler for a signal
+    that came while the kernel ran. An interrupt raised there was a chain of SystemErrors,
+    an interrupt swallowed (the command went on to exit 0), or a segmentation fault."""
+    while frame is not None:  # the handler may run in a function it called, too
+        code = getattr(frame, "f_code", None)
+        if code is not None and code.co_name == "_numba_unpickle" and \
+                code.co_filename.endswith(os.path.join("numba", "core", "serialize.py")):
+            return True
+        frame = getattr(frame, "f_back", None)
+    return False
 
 
 @contextmanager

@@ -338,6 +338,9 @@ def _evaluate(args) -> None:
 
     config = _filter_config(args.filter_config)
     first, *datasets = args.paths
+    if not first.exists() and not datasets:
+        raise ConfigError(f": {str(first)!r} does not exist; expected a run folder and the "
+                          "datasets to evaluate it on, or datasets alone", argument="datasets")
     runs = [*([first] if _is_run(first) else []), *args.also]
     if not _is_run(first):
         datasets.insert(0, first)

@@ -44,7 +44,7 @@ from beamsnet.data import (
     load_windows,
     split,
 )
-from beamsnet.estimators import predicted, spec, specs
+from beamsnet.estimators import checked, predicted, spec, specs
 from beamsnet.estimators.baselines import availability
 from beamsnet.estimators.ins import (
     CONSISTENCY_PINGS,
@@ -307,10 +307,11 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
     own = [] if dataset is None else fit_filters(dataset, train_w, filter_config=filter_config)
     for estimator in own:
         try:
-            out[estimator.name] = predicted(estimator, test_w)
+            made = estimator.predict(test_w)
         except AuvsimError as e:
             _left_out(estimator, dataset, e)
             continue
+        out[estimator.name] = checked(estimator, made, test_w)  # a wrong shape: refused
         if positions is not None:  # every filter has its own position
             positions[estimator.name] = estimator.positions(test_w)
         if stds is not None:
@@ -390,7 +391,7 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
     with tqdm(total=3 * len(datasets), disable=None if progress else True, leave=False,
               unit=" stages", desc="evaluating") as bar:  # closed on an error too
         for dataset in datasets:
-            setup = sensor_setup(dataset)  # read once for every run
+            setup = sensor_setup(dataset, missions)  # read once for every run
             for run, _, checkpoint in models:
                 check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
             own, watched = dict(positions={}, stds={}, rotations={}), {}

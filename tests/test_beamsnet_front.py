@@ -238,6 +238,11 @@ def test_evaluate_without_a_run_compares_the_model_based_estimators(data, run_on
     assert capsys.readouterr().err == (f"beamsnet: error: DATASET: '{run_on_a}' is a run; "
                                        "expected the datasets to evaluate it on after it\n")
     assert not (tmp_path / "run").exists()
+    missing = tmp_path / "datasets" / "paper_sim.h5"
+    assert main(["evaluate", str(missing), "--out", str(tmp_path / "run")]) == 2
+    assert capsys.readouterr().err == (f"beamsnet: error: DATASET: '{missing}' does not "
+                                       "exist; expected a run folder and the datasets to "
+                                       "evaluate it on, or datasets alone\n")
 
 
 def test_a_run_trained_on_every_mission_evaluates_without_a_word(data, tmp_path, capsys):

@@ -257,10 +257,30 @@ def test_the_filter_says_what_noise_it_used_and_when_it_is_too_small(dataset_of,
     assert "  noise it used: DVL white 10 mm/s per beam; accelerometer " in said
     assert "likely too small" not in said
     settings = tmp_path / "small.toml"
-    settings.write_text("beam_noise_std = 0.002\n")
+    settings.write_text("beam_noise_std = 0.002\nbias_time = 500.0\n")
     assert main(["estimate", str(path), "--estimator", "INS/DVL", "--filter-config",
                  str(settings), "--out", str(tmp_path / "small")]) == 0
     said = capsys.readouterr().out
     assert "noise it used: DVL white 2 mm/s per beam" in said
+    noise = json.loads((tmp_path / "small" / "summary.json").read_text())["missions"]["zz"][
+        "noise"]
+    assert noise["slow_error_time"] == 500.0  # the setting's, not the instrument's
     assert "times the size it predicts: the noise it was given (the DVL's white noise " \
         "first) is likely too small for these data" in said
+
+
+def test_the_fault_sweep_still_reads_water_track_beams(dataset_of):
+    """Every ping, with the water-track ping's beams as measured (the fault sweep's reading,
+    the default), or NaN (``estimate``'s)."""
+    from beamsnet.data import load_windows
+
+    dvl = DvlConfig(lock_loss_intervals=((30.0, 50.0),), water_track=True)
+    mission = MissionConfig(name="soft", seed=0, scenario=ScenarioConfig(
+        name="straight", speed=1.5, duration=80.0))
+    path = dataset_of(flat(mission, dvl=dvl, vehicle=VehicleConfig(current_ned=(0.0, 0.3, 0.0))),
+                      "soft")
+    kept = load_windows(path, every_ping=True)
+    dropped = load_windows(path, every_ping=True, water_track=False)
+    soft = (kept.time >= 30.0) & (kept.time < 50.0)
+    assert np.isfinite(kept.beams[soft]).all() and np.isnan(dropped.beams[soft]).all()
+    np.testing.assert_array_equal(kept.beams[~soft], dropped.beams[~soft])

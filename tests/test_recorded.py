@@ -913,6 +913,6 @@ def test_a_yaw_of_another_frame_than_the_velocity_is_refused():
         _check_heading({"reference/velocity_ned": velocity, "reference/rpy_deg": yaw}, "nav")
     with pytest.raises(ConfigError, match=re.escape(
             "nav: the yaw differs from the course over the ground by 90 deg (median, where it "
-            "moves faster than 1 m/s); expected them within 45 deg")):
+            "moves faster than 1 m/s); expected them within 60 deg")):
         _check_heading({"reference/velocity_ned": velocity, "reference/rpy_deg": compass},
                        "nav")

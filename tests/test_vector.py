@@ -225,5 +225,6 @@ def test_a_script_that_makes_the_env_unguarded_is_told_why_its_worker_died(tmp_p
                           timeout=300, cwd=tmp_path)
     assert done.returncode == 1
     assert done.stderr.splitlines()[-1].endswith(
-        "died, exit code 1 as it started (a script that makes the env must do so under if "
-        "__name__ == \"__main__\":, as the worker imports it again)"), done.stderr[-1000:]
+        "died, exit code 1 as it started (if a script makes the env at its top level, it "
+        "must do so under if __name__ == \"__main__\":, as the worker imports it again)"), \
+        done.stderr[-1000:]

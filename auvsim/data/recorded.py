@@ -108,8 +108,9 @@ IMU_NOISE = ("accel_noise_density", "gyro_noise_density", "accel_bias_instabilit
 # once the vehicle turns faster than 360 deg/s / 57.3 = 6.3 deg/s, which every log with a
 # turn does; a log of a straight line alone may pass.
 MAX_RATE = 2 * math.pi  # rad/s
-# An IMU's median |specific force| is about g: outside these bounds it is in g (or cm/s^2).
-FORCE_BOUNDS = (G0 / 2, 2 * G0)  # m/s^2
+# An IMU's median |specific force| is about g: outside these factors of it, it is in another
+# unit (g, or cm/s^2).
+FORCE_FACTORS = (0.5, 2.0)
 MAX_SPEED = 15.0  # m/s: five times an AUV's top speed (the A18-D's 3 m/s, vehicles.md)
 TRACK_RATIO = 2.0  # positions and integrated velocities may disagree by at most this factor
 MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
@@ -128,9 +129,9 @@ TRACK_LEG = 10
 MIN_CLIMB = 5.0  # m
 # The yaw against the course over the ground: a torpedo AUV's sideslip is a few degrees
 # (the model card's turns: under 10 deg), and a current's crab angle asin(current / speed)
-# is 30 deg for a 0.5 m/s current at 1 m/s: beyond 45 deg at 1 m/s or more (median), the
-# yaw is not of the frame it is declared in.
-MAX_CRAB = 45.0  # deg
+# is 30 deg for a 0.5 m/s current at 1 m/s, 60 deg for one of 0.87 m/s: beyond 60 deg at
+# 1 m/s or more over the ground (median), the yaw is not of the frame it is declared in.
+MAX_CRAB = 60.0  # deg
 CRABBING_SPEED = 1.0  # m/s
 MIN_MOVING_SAMPLES = 30
 SPAN_RATIO = 100.0  # a stream may span at most this many times another's (ms read as s: 1000)
@@ -872,7 +873,7 @@ def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]
                 "beyond a full turn per second; expected rad/s as declared (are the gyros in "
                 "deg/s? say imu.units.angular_rate = \"deg/s\")")
         force = float(np.median(np.linalg.norm(tables["imu"]["specific_force"], axis=1)))
-        if not FORCE_BOUNDS[0] < force < FORCE_BOUNDS[1]:
+        if not FORCE_FACTORS[0] * G0 < force < FORCE_FACTORS[1] * G0:
             raise ConfigError(
                 f"{where['imu']}: the specific force's median magnitude is {force:.4g} m/s^2 "
                 "in the declared unit; expected about gravity, 9.8 m/s^2 (is "

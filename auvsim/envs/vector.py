@@ -468,8 +468,9 @@ class AuvVectorEnv(gym.vector.VectorEnv):
                 # A worker imports the main script again as it starts: one that makes the
                 # env at its top level, not under ``if __name__ == "__main__":``, made
                 # another env there, which multiprocessing refused in the worker.
-                unguarded = (" as it started (a script that makes the env must do so under "
-                             "if __name__ == \"__main__\":, as the worker imports it again)"
+                unguarded = (" as it started (if a script makes the env at its top level, "
+                             "it must do so under if __name__ == \"__main__\":, as the worker "
+                             "imports it again)"
                              if starting and self._processes[k].exitcode == 1 else "")
                 failure = failure or (RuntimeError(
                     f"AuvVectorEnv: worker {k} (pid {self._processes[k].pid}) died, exit "

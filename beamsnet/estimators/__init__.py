@@ -5,6 +5,7 @@ module (``registry``: ``specs()``, ``spec(name)``)."""
 from beamsnet.estimators.registry import (
     Needs,
     Spec,
+    checked,
     models,
     network_names,
     predicted,
@@ -15,5 +16,5 @@ from beamsnet.estimators.registry import (
     unregister,
 )
 
-__all__ = ["Needs", "Spec", "models", "network_names", "predicted", "register", "short_name",
-           "spec", "specs", "unregister"]
+__all__ = ["Needs", "Spec", "checked", "models", "network_names", "predicted", "register",
+           "short_name", "spec", "specs", "unregister"]

@@ -256,7 +256,15 @@ def predicted(estimator, windows) -> np.ndarray:
     Raises:
         ConfigError: it returned anything else (a user's estimator, say), naming it.
     """
-    out = estimator.predict(windows)
+    return checked(estimator, estimator.predict(windows), windows)
+
+
+def checked(estimator, out, windows) -> np.ndarray:
+    """``out``, what ``estimator`` predicted on ``windows``, checked as ``predicted`` does.
+
+    Raises:
+        ConfigError: it is not (S, 3), naming the estimator.
+    """
     shape = np.shape(out)
     if shape != (len(windows.beams), 3):
         raise ConfigError(f"estimator {estimator.name!r}: its predict returned shape {shape}; "

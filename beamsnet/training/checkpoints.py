@@ -65,11 +65,12 @@ def sensor_setup(path: str | Path, missions: Sequence[str] | None = None) -> dic
     """Per mission of a dataset (the named ones, default all): its sensor geometry and
     rates (``SENSOR_GEOMETRY``) and realised DVL error model (``SENSOR_ERRORS``), as
     floats and lists of floats (what a checkpoint stores). An attribute a mission does
-    not have (an imported stream has no IMU rate or mounting) is left out."""
+    not have (an imported stream has no IMU rate or mounting) is left out, and so is a
+    named mission the file does not hold (its reader refuses it, in its words)."""
     from auvsim.data.reader import read_attrs
 
     _, attrs = read_attrs(path)
-    names = list(attrs) if missions is None else missions
+    names = list(attrs) if missions is None else [n for n in missions if n in attrs]
     return {name: {key: np.asarray(attrs[name][key], dtype=float).tolist()
                    for key in SENSOR_GEOMETRY + SENSOR_ERRORS if key in attrs[name]}
             for name in names}

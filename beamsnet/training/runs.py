@@ -21,12 +21,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from auvsim.data.files import (
-    check_out_dir,
-    finished,
-    staged_dir,
-    write_text,
-)
+from auvsim.data.files import check_out_dir, finished, staged_dir, sweep, write_text
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.processes import end_with, start_forkserver, this_process
 from auvsim.runs.cluster import check_address, executor, local_workers, lost_worker
@@ -121,6 +116,8 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
                 future.cancel()  # the jobs not started yet; the running ones finish
             if isinstance(e, KeyboardInterrupt) and cluster is None:
                 _stop_workers(pool)  # Ctrl-C or SIGTERM: no job of the run is wanted now
+                for out in futures.values():  # the killed jobs' staged run folders
+                    sweep(Path(out).parent)
             lost = lost_worker(e)
             if lost is not None:  # Dask's KilledWorker: its traceback would say no more
                 raise lost from None
@@ -135,16 +132,18 @@ def train_all(jobs: list[tuple[str | Path, TrainConfig, str | Path]], *,
 def _stop_workers(pool: cf.ProcessPoolExecutor) -> None:
     """End a local pool's workers now, with SIGKILL: they ignore Ctrl-C and SIGTERM
     (``start_forkserver``), and the pool would otherwise wait minutes for its running jobs
-    before this process could exit. What they leave is a run folder's temporary, which
-    this process removes."""
+    before this process could exit. Returns once they have gone, so the claims of the
+    run folders they staged can be swept."""
+    workers = list((getattr(pool, "_processes", None) or {}).values())  # the pool's record
     kill = getattr(pool, "kill_workers", None)  # Python 3.14+
     if kill is not None:
         kill()
-        return
-    workers = getattr(pool, "_processes", None) or {}  # before 3.14: the pool's own record
-    for process in list(workers.values()):
-        process.kill()
-    pool.shutdown(wait=False, cancel_futures=True)
+    else:
+        for process in workers:
+            process.kill()
+        pool.shutdown(wait=False, cancel_futures=True)
+    for process in workers:
+        process.join(timeout=5.0)
 
 
 _epochs = None  # a local pool worker's queue to its parent's progress bar (``_worker``)
