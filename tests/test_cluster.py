@@ -348,11 +348,15 @@ def test_a_peer_that_answers_in_another_protocol_is_named_so(tmp_path, monkeypat
     server = socket.create_server(("127.0.0.1", 0))
 
     def answer() -> None:
-        conn, _ = server.accept()
-        conn.recv(1024)
-        conn.sendall(b"HTTP/1.0 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 64)
-        time.sleep(3)
-        conn.close()
+        while True:  # as a web server answers every connection (the address's probe too)
+            conn, _ = server.accept()
+            if not conn.recv(1024):  # the probe: connected, then gone
+                conn.close()
+                continue
+            conn.sendall(b"HTTP/1.0 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 64)
+            time.sleep(3)
+            conn.close()
+            return
 
     threading.Thread(target=answer, daemon=True).start()
     with pytest.raises(ConfigError, match="something answered there, but not as a Dask "
