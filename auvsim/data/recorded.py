@@ -105,12 +105,16 @@ IMU_NOISE = ("accel_noise_density", "gyro_noise_density", "accel_bias_instabilit
 # Bounds that no recording of an underwater vehicle reaches, so a value beyond one means a
 # unit other than the declared one. A full turn per second is ten times the fastest rate in
 # the Snapir logs (a 33 deg/s roll oscillation). Gyros in deg/s declared rad/s are caught
-# once the vehicle turns faster than 360 deg/s / 57.3 = 6.3 deg/s, which every log with a
-# turn does; a log of a straight line alone may pass.
+# once the vehicle turns faster than 360 deg/s / 57.3 = 6.3 deg/s for 1 % of the log
+# (``UNIT_SLIP_SHARE``), which a log with turns does; a log of a straight line alone may
+# pass.
 MAX_RATE = 2 * math.pi  # rad/s
 # An IMU's median |specific force| is about g: outside these factors of it, it is in another
 # unit (g, or cm/s^2).
 FORCE_FACTORS = (0.5, 2.0)
+# The share of gyro samples beyond ``MAX_RATE`` that says the record is in another unit; a
+# spike of a sample or two is a glitch.
+UNIT_SLIP_SHARE = 0.01
 MAX_SPEED = 15.0  # m/s: five times an AUV's top speed (the A18-D's 3 m/s, vehicles.md)
 TRACK_RATIO = 2.0  # positions and integrated velocities may disagree by at most this factor
 MIN_TRACK = 20.0  # m: below this distance travelled, the ratio says nothing
@@ -862,18 +866,32 @@ def _reference(table: dict[str, np.ndarray], s: Stream) -> dict[str, np.ndarray]
     return out
 
 
+def rate_slip(angular_rate: np.ndarray) -> int | None:
+    """The first sample of a gyro record (N, 3) beyond ``MAX_RATE``, where more than
+    ``UNIT_SLIP_SHARE`` of them are (the record is in another unit); None otherwise."""
+    beyond = np.linalg.norm(angular_rate, axis=1) > MAX_RATE
+    return int(np.argmax(beyond)) if np.mean(beyond) > UNIT_SLIP_SHARE else None
+
+
+def force_slip(specific_force: np.ndarray, g: float) -> float | None:
+    """The median |specific force| of an accelerometer record (N, 3) where it lies outside
+    ``FORCE_FACTORS`` of ``g`` (the record is in another unit); None otherwise."""
+    force = float(np.median(np.linalg.norm(specific_force, axis=1)))
+    return None if FORCE_FACTORS[0] * g < force < FORCE_FACTORS[1] * g else force
+
+
 def _check_units(tables: dict[str, dict[str, np.ndarray]], where: dict[str, str]) -> None:
     """Refuse values no vehicle's log holds in the declared unit (see the bounds above)."""
     if "imu" in tables:
-        rate = np.linalg.norm(tables["imu"]["angular_rate"], axis=1)
-        k = int(rate.argmax())
-        if rate[k] > MAX_RATE:
+        k = rate_slip(tables["imu"]["angular_rate"])
+        if k is not None:
+            rate = float(np.linalg.norm(tables["imu"]["angular_rate"][k]))
             raise ConfigError(
-                f"{where['imu']} line {k + 2}: the angular rate reaches {rate[k]:.4g} rad/s, "
+                f"{where['imu']} line {k + 2}: the angular rate reaches {rate:.4g} rad/s, "
                 "beyond a full turn per second; expected rad/s as declared (are the gyros in "
                 "deg/s? say imu.units.angular_rate = \"deg/s\")")
-        force = float(np.median(np.linalg.norm(tables["imu"]["specific_force"], axis=1)))
-        if not FORCE_FACTORS[0] * G0 < force < FORCE_FACTORS[1] * G0:
+        force = force_slip(tables["imu"]["specific_force"], G0)
+        if force is not None:
             raise ConfigError(
                 f"{where['imu']}: the specific force's median magnitude is {force:.4g} m/s^2 "
                 "in the declared unit; expected about gravity, 9.8 m/s^2 (is "

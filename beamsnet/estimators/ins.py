@@ -250,7 +250,7 @@ from auvsim.data.beams import beam_matrix
 from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
 from auvsim.data.files import interrupts_held
 from auvsim.data.reader import open_dataset, require_attitude
-from auvsim.data.recorded import FORCE_FACTORS, MAX_RATE
+from auvsim.data.recorded import MAX_RATE, force_slip, rate_slip
 from auvsim.errors import DatasetError
 from auvsim.physics.earth import earth_rate_ned, normal_gravity
 from auvsim.physics.frames import rotation_matrices, rotation_rpy
@@ -291,9 +291,6 @@ IMU_SAMPLES = ("interval", "held")
 # 0.9 m/s sideways, so 0.1 m there is 0.05 m/s, over twice a Navigator's noise: the states
 # make it observable instead of gated.
 LEVER_ARM_STD = 0.1
-# The share of IMU samples beyond a bound of auvsim import's (``MAX_RATE``) that says the
-# arrays are in another unit, not that a glitch spiked.
-UNIT_SLIP_SHARE = 0.01
 
 
 class NoImuError(DataError):
@@ -1482,22 +1479,13 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
                              f"at sample {bad[0]} (t = {t[bad[0]]:g} s)"
                              + (f" and {bad.size - 1} more" if bad.size > 1 else "")
                              + "; drop or fill them first")
-    # Values no vehicle's IMU reads in SI units: another unit (auvsim import's bounds).
-    # (A spike is a glitch to filter through; many samples beyond it, another unit.)
-    rate = np.linalg.norm(w, axis=1)
-    if np.mean(rate > MAX_RATE) > UNIT_SLIP_SHARE:
-        k = int(np.argmax(rate > MAX_RATE))
-        raise ValueError(f"angular_rate: reaches {rate[k]:.4g} rad/s at sample {k} (t = "
-                         f"{t[k]:g} s), beyond a full turn per second, as "
-                         f"{100 * np.mean(rate > MAX_RATE):.1f} % of the samples do; expected "
-                         "rad/s (in deg/s? np.radians them first)")
-    force = float(np.median(np.linalg.norm(f, axis=1)))
-    # The Earth's, or a gravity given (one that cannot be is refused below, as such).
-    g_about = float(gravity) if is_finite(gravity) and 0.0 < gravity < 100.0 else 9.8
-    if not FORCE_FACTORS[0] * g_about < force < FORCE_FACTORS[1] * g_about:
-        raise ValueError(f"specific_force: its median magnitude is {force:.4g} m/s^2; "
-                         f"expected about g, {g_about:.4g} m/s^2 (in g? multiply by 9.80665 "
-                         "first)")
+    # Values no vehicle's IMU reads in SI units: another unit (auvsim import's rule).
+    k = rate_slip(w)
+    if k is not None:
+        raise ValueError(f"angular_rate: reaches {np.linalg.norm(w[k]):.4g} rad/s at sample "
+                         f"{k} (t = {t[k]:g} s), beyond a full turn per second, as "
+                         f"{100 * np.mean(np.linalg.norm(w, axis=1) > MAX_RATE):.1f} % of the "
+                         "samples do; expected rad/s (in deg/s? np.radians them first)")
     if imu_samples not in IMU_SAMPLES:
         raise ValueError(f"imu_samples: expected one of {', '.join(IMU_SAMPLES)}, got "
                          f"{imu_samples!r}")
@@ -1588,6 +1576,10 @@ def run_arrays(imu_time, specific_force, angular_rate, dvl_time, *, beams=None,
     if not 0.0 < g < 100.0:  # NaN too; 9.78-9.83 on the Earth
         raise ValueError(f"gravity: expected its magnitude in m/s^2 (positive: down is the "
                          f"NED frame's +z), got {g!r}")
+    force = force_slip(f, g)
+    if force is not None:
+        raise ValueError(f"specific_force: its median magnitude is {force:.4g} m/s^2; "
+                         f"expected about g, {g:.4g} m/s^2 (in g? multiply by 9.80665 first)")
     # On the Earth, g is the gravity at the frame's origin and grows with the depth below
     # it as the normal gravity's free-air term does (3.1e-6 m/s^2 per m), as auvsim's
     # IMU reads it; in the flat world it is the same everywhere.
