@@ -611,6 +611,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
                                     stds=reported_stds(estimator, windows),
                                     rotations=own_rotations(estimator, windows))
                   if truth is not None else {})
+    tracks = estimator.tracks(windows) if is_filter else {}
     for i, mission in enumerate(windows.names):
         mine = windows.mission == i
         have = mine & np.isfinite(pred).all(axis=1)
@@ -619,7 +620,7 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             # A filter outputs a number at every ping, diverged or not: its availability
             # is the share of pings whose measurement it accepted, and its events say when
             # its divergence watch restarted it.
-            track = estimator.tracks(windows)[mission]
+            track = tracks[mission]
             row.update(watch_scores(track))
             if track.noise is not None:
                 row["noise"] = noise_record(track.noise)
@@ -631,7 +632,6 @@ def estimate(name: str, dataset: str | Path, out: str | Path, *,
             row["baselines"] = scores
         summary["missions"][mission] = row
     if is_filter:
-        tracks = estimator.tracks(windows)
         summary["availability"] = float(np.mean(np.concatenate(
             [t.accepted for t in tracks.values()])))
     target = "true" if windows.reference in TRUTHS else "reference"

@@ -49,7 +49,7 @@ LOCAL_CONFIG = {
 }
 FORKED = {"distributed.worker.multiprocessing-method": "forkserver"}  # see _local
 _LOCAL = re.compile(r"local:(\d+)")
-_REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?[\w.\-\[\]:]+:(\d+)/?")
+_REMOTE = re.compile(r"(?:(tcp|tls|ws|wss|inproc|ucx)://)?([\w.\-\[\]:]+):(\d+)/?")
 EXPECTED = "expected local:N (N worker processes here) or a scheduler's address, host:port"
 
 
@@ -68,7 +68,7 @@ def check_address(address: str) -> str:
         raise ConfigError(f"{address!r}: not a cluster address; {EXPECTED} "
                           "(tcp://10.0.0.5:8786)", argument="cluster")
     if remote is not None:
-        port = int(remote.group(2))
+        port = int(remote.group(3))
         if not 1 <= port <= 65535:
             raise ConfigError(f"{address!r}: port {port} is not a TCP port (1 to 65535); "
                               f"{EXPECTED}", argument="cluster")
@@ -227,12 +227,11 @@ def _refused_at_once(address: str) -> None:
     """Refuse a TCP address whose host refuses the connection: Dask's client retries it
     until its timeout (10 s), where the host has said at once that nothing listens there.
     Any other outcome (accepted, no answer, unreachable) is left to the client."""
-    scheme, _, rest = address.rpartition("://")
-    if scheme not in ("", "tcp", "tls", "ws", "wss"):
+    remote = _REMOTE.fullmatch(address)  # checked by check_address
+    if remote is None or remote[1] in ("inproc", "ucx"):
         return
-    host, _, port = rest.rstrip("/").rpartition(":")
     try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=1.0):
+        with socket.create_connection((remote[2].strip("[]"), int(remote[3])), timeout=1.0):
             return
     except ConnectionRefusedError:
         raise ConfigError(f"{address!r}: nothing listens there (the connection was "
