@@ -27,6 +27,21 @@ POLL_S = 0.5  # how often a worker looks at its parent where there is no pidfd, 
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
+def refuse_while_bootstrapping(what: str) -> None:
+    """Raise, saying ``what`` happened, if this process is a worker still importing its
+    parent's main script (as multiprocessing's forkserver and spawn start one): a script
+    that does ``what`` at its top level, not under ``if __name__ == "__main__":``, would
+    otherwise do it again in every worker, which then fails on something further away
+    (the output another run holds) or starts workers of its own. multiprocessing's own
+    check (``spawn._check_not_importing_main``) reads the same flag, but only where a
+    process is started."""
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        raise RuntimeError(f"{what} in a worker process importing the main script as it "
+                           "started: a script that does so at its top level must do it under "
+                           "if __name__ == \"__main__\":, as each worker imports the script "
+                           "again")
+
+
 def start_forkserver(preload: list[str]) -> None:
     """Start multiprocessing's forkserver, importing ``preload``, deaf to Ctrl-C and SIGTERM
     and with ``ONE_THREAD`` in its environment (if it runs already: nothing; one per
@@ -35,7 +50,9 @@ def start_forkserver(preload: list[str]) -> None:
     server and the workers it forks (a pool's, a local cluster's) never see the group's
     Ctrl-C or SIGTERM, even while they import; this process stops them. A signal to this
     process in these milliseconds is lost. From a thread other than the main one, the
-    signals cannot be set, and the workers then hear Ctrl-C."""
+    signals cannot be set, and the workers then hear Ctrl-C. Refused in a worker still
+    importing the main script (``refuse_while_bootstrapping``)."""
+    refuse_while_bootstrapping("a pool of worker processes was started")
     multiprocessing.get_context("forkserver").set_forkserver_preload(preload)
     saved = {k: os.environ.get(k) for k in ONE_THREAD}
     os.environ.update(ONE_THREAD)

@@ -292,6 +292,24 @@ def test_console_script_error_has_no_traceback(tmp_path):
         "auvsim: error: duration: expected a positive number of seconds, got -1.0"]
 
 
+def test_a_script_that_generates_at_its_top_level_is_told_to_guard_it(tmp_path):
+    """Each worker of the pool imports the main script again as it starts: there an
+    unguarded ``generate`` now says what to do, where it had failed on the output its
+    parent holds, and the parent only said that a worker ended abruptly."""
+    script = tmp_path / "unguarded.py"
+    script.write_text("import auvsim\n"
+                      "config = auvsim.preset('paper-sim')\n"
+                      "auvsim.generate(config, 'out.h5', workers=2, progress=False)\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path)
+    assert done.returncode == 1
+    assert ("RuntimeError: generate() was called in a worker process importing the main "
+            "script as it started: a script that does so at its top level must do it under "
+            "if __name__ == \"__main__\":") in done.stderr, done.stderr[-2000:]
+    assert "its error is printed above" in done.stderr.splitlines()[-1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["unguarded.py"]
+
+
 def test_failure_midway_leaves_nothing(tmp_path, monkeypatch):
     import auvsim.runs.generate as gen
 

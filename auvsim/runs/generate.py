@@ -66,7 +66,13 @@ from auvsim.data.shards import shard_state, write_index
 from auvsim.data.writer import DatasetWriter, copy_mission, foreign_hdf5
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
-from auvsim.processes import Parent, end_with, start_forkserver, this_process
+from auvsim.processes import (
+    Parent,
+    end_with,
+    refuse_while_bootstrapping,
+    start_forkserver,
+    this_process,
+)
 from auvsim.runs.cluster import check_address, lost_worker
 from auvsim.runs.mission import MissionRun, check_reachable
 from auvsim.world.grid import pin_grid
@@ -215,6 +221,7 @@ def generate(config: Config, out: str | os.PathLike, *, workers: int | None = No
         raise ConfigError(f"config: expected an auvsim Config (auvsim.preset(NAME), "
                           f"auvsim.load_config(FILE), or Config(...)), got "
                           f"{type(config).__name__} {config!r}")
+    refuse_while_bootstrapping("generate() was called")  # before it claims ``out``
     with _compile_clock() as compiling:
         summary = _generate(config, out, workers=workers, executor=executor,
                             cluster=cluster, shards=shards, progress=progress)
@@ -490,8 +497,9 @@ def _raise_error_of(future: cf.Future) -> None:
     try:
         future.result()
     except BrokenProcessPool:  # a traceback would say no more
-        raise SimulationError("a worker process ended abruptly (killed, or out of memory?): "
-                              "expected it to finish its missions") from None
+        raise SimulationError("a worker process ended abruptly (killed, out of memory, or it "
+                              "failed as it started: its error is printed above): expected "
+                              "it to finish its missions") from None
     except cf.CancelledError:
         raise SimulationError("the cluster cancelled a job (its scheduler restarted, or lost "
                               "this client?): expected it to run every job") from None
