@@ -22,6 +22,7 @@ from auvsim.config import (
 from auvsim.errors import ConfigError
 from auvsim.physics.maneuvers import Lawnmower, SpiralDive
 from auvsim.physics.maneuvers import missions as maneuver_missions
+from auvsim.sensors.dvl import NAVIGATOR_SLOW_ERROR_STD, NAVIGATOR_SLOW_ERROR_TIME
 from auvsim.sensors.imu import IMU_GRADES
 
 # The BeamsNet paper's simulation (sec. 4.1) as its published code ran it: straight lines
@@ -318,7 +319,8 @@ def navigator() -> Config:
                       noise_speed_coeff=0.0012, outlier_rate=0.002, outlier_std=0.3,
                       sound_speed_std=0.003, misalignment_std_deg=0.1, water_track=True,
                       water_track_range=10.0, water_track_noise_std=0.05,
-                      slow_error_std=0.009, slow_error_time=19.0),
+                      slow_error_std=NAVIGATOR_SLOW_ERROR_STD,
+                      slow_error_time=NAVIGATOR_SLOW_ERROR_TIME),
         imu=dataclasses.replace(IMU_GRADES["navigation-full"], **SNAPIR_VIBRATION),
         depth=DepthConfig(rate_hz=10.0, noise_std=0.002, bias_std=0.04, resolution=0.001),
         water=NAVIGATOR_WATER,

@@ -47,6 +47,14 @@ from auvsim.physics.frames import rotation_matrices, rotation_rpy
 from auvsim.sensors import Attr, Field, Sensor, sample_rows, samples_in, shown
 from auvsim.sensors.gauss_markov import gauss_markov_rows
 
+# The slow velocity error of the Snapir's Teledyne RDI Navigator, measured against the
+# A-KIT logs' reference (``auvsim.runs.presets.navigator`` gives the measurement): its std
+# per axis, m/s, and its correlation time, s. The only DVL whose slow error auvsim has
+# measured: the ``navigator`` preset's, and what a recorded log is taken to have where it
+# states none (the INS/DVL filter, ``auvsim check-log``'s standard errors).
+NAVIGATOR_SLOW_ERROR_STD = 0.009
+NAVIGATOR_SLOW_ERROR_TIME = 19.0
+
 
 def beam_matrix(beam_angle: float) -> np.ndarray:
     """(4, 3) matrix H whose rows are the unit beam directions in the DVL frame.
