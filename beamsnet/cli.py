@@ -23,18 +23,23 @@ from beamsnet.evaluate import (
     consistency_words,
     noise_words,
 )
-from beamsnet.experiments.adaptive import DURATION as ADAPTIVE_DURATION
-from beamsnet.experiments.adaptive import SEEDS as ADAPTIVE_SEEDS
-from beamsnet.experiments.faults import FAULT_DURATION, FAULT_MISSIONS
-from beamsnet.experiments.reproduce import DEFAULT_SNAPIR
-from beamsnet.experiments.sea import DEFAULT_SEA
-from beamsnet.experiments.sea import DURATION as SEA_DURATION
-from beamsnet.experiments.sea import SEEDS as SEA_SEEDS
-from beamsnet.experiments.sim2real import DURATION as SIM2REAL_DURATION
-from beamsnet.experiments.sim2real import SEEDS as SIM2REAL_SEEDS
-from beamsnet.experiments.sim2real import SIM_SEEDS
-from beamsnet.experiments.stress import MANEUVER_DURATION, NOISE, TRAIN_DURATION
-from beamsnet.training.config import PROFILES, TrainConfig
+from beamsnet.experiments.defaults import (
+    ADAPTIVE_DURATION,
+    ADAPTIVE_SEEDS,
+    DEFAULT_SEA,
+    DEFAULT_SNAPIR,
+    FAULT_DURATION,
+    FAULT_MISSIONS,
+    MANEUVER_DURATION,
+    NOISE,
+    SEA_DURATION,
+    SEA_SEEDS,
+    SIM2REAL_DURATION,
+    SIM2REAL_SEEDS,
+    SIM_SEEDS,
+    TRAIN_DURATION,
+)
+from beamsnet.training.config import MASK_RATE, PROFILES, TrainConfig
 
 # The flag each library argument is given on this command line (errors name arguments).
 FLAGS = {"out": "--out", "data": "--data", "seed": "--seed", "missions": "--mission",
@@ -118,7 +123,7 @@ def _parser() -> argparse.ArgumentParser:
                     f"training velocities (default {train.config.protocol})")
     tr.add_argument("--mask-rate", type=float, default=None,
                     help="v2m, corr: rate of beams dropped in training (default "
-                    f"{TrainConfig(model='corr').drop_rate:g} for them, 0 for v1, v2)")
+                    f"{MASK_RATE:g} for them, 0 for v1, v2)")
     tr.add_argument("--imu", action="store_true", help="corr: take the IMU window too")
     tr.add_argument("--out", type=Path, required=True, metavar="FOLDER",
                     help="run folder to write (model.pt, history.json, losses.png)")
@@ -437,7 +442,7 @@ def _filter_config(path: Path | None):
 
 def _reproduce(args) -> None:
     from beamsnet.experiments.adaptive import adaptive
-    from beamsnet.experiments.reproduce import DEFAULT_SNAPIR, paper_sim, sim2real, snapir
+    from beamsnet.experiments.reproduce import paper_sim, sim2real, snapir
     from beamsnet.experiments.sea import sea
 
     if args.experiment == "adaptive":

@@ -1,8 +1,10 @@
-"""The ``beamsnet`` program's entry point, light on purpose: ``beamsnet.cli`` loads torch
-and every estimator (some 2 s), and a Ctrl-C while it does is then one line and exit
-status 130, as one during a command is, where it had been a traceback; so is an error
-found as it loads (another package's estimator that cannot be loaded), and so is a
-missing PyTorch: the package's ``learn`` extra, which a plain install leaves out."""
+"""The ``beamsnet`` program's entry point, light on purpose: ``beamsnet.cli`` loads every
+estimator (some 2 s, PyTorch's among them where it is installed), and a Ctrl-C while it
+does is then one line and exit status 130, as one during a command is, where it had been a
+traceback; so is an error found as it loads (another package's estimator that cannot be
+loaded), and so is a command that needs PyTorch where it is not installed (the package's
+``learn`` extra, which a plain install leaves out: the model-based estimators and the
+filters run without it)."""
 
 from __future__ import annotations
 
@@ -11,24 +13,22 @@ import sys
 from auvsim.cli_support import ERROR, exit_with
 from auvsim.errors import AuvsimError
 
-NO_TORCH = ("PyTorch is not installed, and beamsnet needs it: install the package's learn "
-            "extra, pip install 'auvsim[learn]' (the CPU build of torch first, to keep pip "
-            "from pulling CUDA: pip install torch --index-url "
-            "https://download.pytorch.org/whl/cpu)")
-
 
 def _main() -> int:
     try:
         from beamsnet.cli import main  # the heavy imports, inside exit_with's catch
-    except AuvsimError as e:
+
+        return main()
+    except AuvsimError as e:  # as it loads; a command's own are main's to report
         print(f"beamsnet: error: {e}", file=sys.stderr)
         return ERROR
     except ModuleNotFoundError as e:
         if e.name != "torch":
             raise
+        from beamsnet.estimators.registry import NO_TORCH
+
         print(f"beamsnet: error: {NO_TORCH}", file=sys.stderr)
         return ERROR
-    return main()
 
 
 def run() -> None:

@@ -52,10 +52,9 @@ from beamsnet.estimators.ins import (
     at_pings,
     innovation_consistency,
 )
+from beamsnet.estimators.registry import NO_TORCH, torch_missing
 from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
-from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, load, sensor_setup
-from beamsnet.training.train import predict
 
 COLUMNS = ("rmse", "mae", "r2", "vaf", "improvement", "rmse_vector", "rmse_x", "rmse_y",
            "rmse_z")
@@ -102,7 +101,18 @@ def estimates(runs: list[str | Path], dataset: str | Path,
               missions: list[str] | None = None) -> tuple[Windows, dict]:
     """Test-split windows of ``dataset`` (its ``missions``, default all) and every
     estimator's (S, 3) predictions on them."""
-    return _estimates([(Path(r), *load(r)) for r in runs], dataset, missions)
+    return _estimates(_loaded(runs), dataset, missions)
+
+
+def _loaded(runs: list[str | Path]) -> list[tuple[Path, object, dict]]:
+    """(run, model, checkpoint) of each trained network's run. PyTorch is imported here,
+    and only where there are runs: the model-based estimators and the filters run
+    without it (``beamsnet.estimators.registry.NO_TORCH``)."""
+    if not runs:
+        return []
+    from beamsnet.training.checkpoints import load
+
+    return [(Path(r), *load(r)) for r in runs]
 
 
 def _estimates(models: list[tuple[Path, object, dict]], dataset: str | Path,
@@ -150,6 +160,8 @@ def check_sensors(run: str | Path, checkpoint: dict, dataset: str | Path, *,
                       "beam geometry, rates and DVL errors cannot be checked against them",
                       SensorSetupWarning, stacklevel=2)
         return
+    from beamsnet.training.checkpoints import SENSOR_ERRORS, SENSOR_GEOMETRY, sensor_setup
+
     setup = sensor_setup(dataset) if setup is None else setup
     geometry = _differences(setup, trained_on, SENSOR_GEOMETRY)
     if geometry and not allow_mismatch:
@@ -321,6 +333,8 @@ def predictions(models: list[tuple[Path, object, dict]], train_w: Windows,
         if watched is not None:
             watched[estimator.name] = {mission: watch_scores(track) for mission, track
                                        in estimator.tracks(test_w).items()}
+    if models:
+        from beamsnet.training.train import predict
     for run, model, checkpoint in models:
         name = f"{spec(checkpoint['model']).short} ({run.name})"
         # check_sensors refused a mismatch, or allowed it: the caller's choice stands
@@ -386,12 +400,15 @@ def evaluate(runs: list[str | Path], datasets: list[str | Path], out: str | Path
     from tqdm import tqdm
 
     out = check_out_dir(out)
-    models = [(Path(r), *load(r)) for r in runs]
+    models = _loaded(runs)
     results, sections, figures = {}, [], []
     with tqdm(total=3 * len(datasets), disable=None if progress else True, leave=False,
               unit=" stages", desc="evaluating") as bar:  # closed on an error too
         for dataset in datasets:
-            setup = sensor_setup(dataset, missions)  # read once for every run
+            if models:
+                from beamsnet.training.checkpoints import sensor_setup
+
+                setup = sensor_setup(dataset, missions)  # read once for every run
             for run, _, checkpoint in models:
                 check_sensors(run, checkpoint, dataset, allow_mismatch=allow_mismatch, setup=setup)
             own, watched = dict(positions={}, stds={}, rotations={}), {}
@@ -515,7 +532,9 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
     if s is None or s.kind == "network":
         known = [s.name for s in specs() if s.kind != "network"]
         raise ConfigError(f": no estimator is called {name!r}; expected one of "
-                          f"{', '.join(map(repr, known))}", argument="estimator")
+                          f"{', '.join(map(repr, known))}"
+                          + (f" ({NO_TORCH})" if torch_missing() else ""),
+                          argument="estimator")
     if s.kind == "model-based":
         return s.make()
     # A file that cannot feed the filter (no IMU record) raises DataError naming the file.

@@ -524,16 +524,35 @@ def test_ctrl_c_while_beamsnet_loads_is_one_line():
     assert done.stderr == "beamsnet: interrupted; nothing was written\n"
 
 
-def test_beamsnet_without_torch_says_what_to_install():
-    """A plain install leaves out the learn extra: beamsnet then says in one line what to
-    install and exits 2, where it had printed the import's traceback."""
+def test_beamsnet_without_torch_runs_the_model_based_estimators(tmp_path):
+    """A plain install leaves out the learn extra (PyTorch). The model-based estimators
+    and the filters then run, and evaluate scores them; a network, the learned-noise
+    filter and training say in one line what to install and exit 2. Before, every
+    beamsnet command said so, even --help."""
+    data = tmp_path / "d.h5"
+    assert cli.main(["generate", "--duration", "30", "--out", str(data), "--quiet"]) == 0
     code = ("import sys\n"
             "sys.modules['torch'] = None  # as if it were not installed\n"
             "from beamsnet.console import run\n"
             "run()\n")
-    done = subprocess.run([sys.executable, "-c", code, "--help"], capture_output=True,
-                          text=True, timeout=120)
-    assert done.returncode == 2, done.stderr
-    assert done.stderr.count("\n") == 1, done.stderr
-    assert done.stderr.startswith("beamsnet: error: PyTorch is not installed") and \
-        "pip install 'auvsim[learn]'" in done.stderr, done.stderr
+
+    def beamsnet(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
+                              text=True, timeout=300, cwd=tmp_path)
+
+    assert beamsnet("--help").returncode == 0
+    done = beamsnet("estimate", str(data), "--estimator", "INS/DVL", "--out", "ins")
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "ins" / "estimates.csv").is_file()
+    done = beamsnet("evaluate", str(data), "--out", "evaluation")
+    assert done.returncode == 0, done.stderr
+    table = (tmp_path / "evaluation" / "evaluation.md").read_text()
+    assert "| LS |" in table and "| INS/DVL |" in table and "learned noise" not in table
+    for args in (("estimate", str(data), "--estimator", "INS/DVL (learned noise)"),
+                 ("train", str(data), "--out", "run")):
+        done = beamsnet(*args)
+        assert done.returncode == 2, done.stderr
+        assert done.stderr.count("\n") == 1, done.stderr
+        assert "PyTorch is not installed" in done.stderr and \
+            "pip install 'auvsim[learn]'" in done.stderr, done.stderr
+    assert not (tmp_path / "run").exists()

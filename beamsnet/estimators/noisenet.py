@@ -435,7 +435,7 @@ def _check_windows_of(dataset, windows: Windows) -> None:
 ESTIMATORS = (
     Spec("INS/DVL (learned noise)", "INS/DVL filter whose beam noise a small network sets "
          "from the recent IMU samples and innovations, trained on auvsim data", "filter",
-         make=LearnedInsDvlFilter, order=12,
+         make=LearnedInsDvlFilter, order=12, torch=True,
          needs=Needs(beams=0, imu=True, text="needs the IMU record"),
          why="its noise network learned auvsim's instrument and manoeuvres; where the real "
              "ones differ, its scale is an extrapolation"),

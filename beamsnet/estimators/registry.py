@@ -38,6 +38,13 @@ import numpy as np
 from auvsim.errors import ConfigError
 
 KINDS = ("model-based", "filter", "network")
+# Where PyTorch is not installed (the package's ``learn`` extra, which a plain install
+# leaves out), the estimators whose modules need it (the networks, the learned-noise
+# filter) are not there; the model-based estimators and the other filters are.
+NO_TORCH = ("PyTorch is not installed, and the networks and the learned-noise filter need "
+            "it: install the package's learn extra, pip install 'auvsim[learn]' (the CPU "
+            "build of torch first, to keep pip from pulling CUDA: pip install torch "
+            "--index-url https://download.pytorch.org/whl/cpu)")
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,9 @@ class Spec:
             line and ``beamsnet estimate`` find it by that.
         model: a network's ``torch.nn.Module`` class (its ``name`` is ``name``).
         order: where its row goes among those of its kind (tables keep one order).
+        torch: it needs PyTorch, though its module loads without it (the learned-noise
+            filter, which imports it as it trains): left out where PyTorch is not
+            installed, as the networks are, whose modules need it to load.
     """
 
     name: str
@@ -91,6 +101,7 @@ class Spec:
     make: Callable | None = None
     model: type | None = None
     order: int = 0
+    torch: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -108,6 +119,7 @@ class Spec:
 
 ENTRY_POINTS = "beamsnet.estimators"  # the group of other packages' estimators
 _added: dict[str, Spec] = {}  # register()'s
+_without_torch: set[str] = set()  # the modules of estimators left out: no PyTorch here
 
 
 @cache
@@ -118,8 +130,23 @@ def _all() -> tuple[Spec, ...]:
 
     found: list[Spec] = []
     for module in pkgutil.iter_modules(package.__path__):
-        found += getattr(importlib.import_module(f"{package.__name__}.{module.name}"),
-                         "ESTIMATORS", ())
+        try:
+            loaded = importlib.import_module(f"{package.__name__}.{module.name}")
+        except ModuleNotFoundError as e:
+            if e.name != "torch":
+                raise
+            _without_torch.add(module.name)
+            continue
+        found += getattr(loaded, "ESTIMATORS", ())
+    if not _without_torch and any(s.torch for s in found):
+        try:
+            import torch  # noqa: F401  (loaded already where the networks' module is)
+        except ModuleNotFoundError as e:
+            if e.name != "torch":
+                raise
+            _without_torch.add("torch")
+    if _without_torch:
+        found = [s for s in found if not s.torch]
     found += _plugged_in()
     found += _added.values()
     keys = [estimator_key(s.name) for s in found]
@@ -222,7 +249,14 @@ def spec(name: str) -> Spec:
         if key in (estimator_key(s.name), estimator_key(s.short)):
             return s
     raise UnknownEstimator(f"no estimator {name!r}; expected one of "
-                           + ", ".join(s.name for s in _all()))
+                           + ", ".join(s.name for s in _all())
+                           + (f" ({NO_TORCH})" if torch_missing() else ""))
+
+
+def torch_missing() -> bool:
+    """Whether estimators were left out for want of PyTorch (``NO_TORCH``)."""
+    _all()
+    return bool(_without_torch)
 
 
 def short_name(row: str) -> str:

@@ -45,6 +45,7 @@ from beamsnet import metrics
 from beamsnet.data import load_windows
 from beamsnet.estimators import predicted
 from beamsnet.evaluate import navigation_scores, reported_stds, watch_scores
+from beamsnet.experiments.defaults import ADAPTIVE_DURATION, ADAPTIVE_SEEDS
 from beamsnet.experiments.runner import check_duration, ensure_dataset
 from beamsnet.experiments.sea import (
     DEFAULT_SEA,
@@ -58,12 +59,9 @@ from beamsnet.navigation import truth_at_pings
 if TYPE_CHECKING:
     from beamsnet.estimators.ins import FilterConfig
 
-DURATION = 300.0  # s per manoeuvre of the training and held-out sets
+DURATION = ADAPTIVE_DURATION  # beamsnet.experiments.defaults
 SEED = 0
-# Noise models trained, each from its own seed, every one scored: at sea their median
-# gains over the fixed filter spread several times wider over nine seeds than over the
-# first three (reports/adaptive.md, "Every seed"); nine show the spread that three hid.
-SEEDS = 9
+SEEDS = ADAPTIVE_SEEDS
 # The DVL noise's std multiples (white part and drive together) of the constant scales
 # the report runs the filter with at sea: how far any constant scale moves it.
 CONSTANT_STD = (0.6, 0.8, 1.25, 1.6, 2.0, 3.0, 5.0, 8.0)

@@ -57,17 +57,14 @@ from beamsnet import metrics
 from beamsnet.data import Windows, load_windows, select
 from beamsnet.estimators import predicted, short_name, spec
 from beamsnet.evaluate import FilterWarning, baselines, fit_filters, trimmed
+from beamsnet.experiments.defaults import FAULT_DURATION, FAULT_MISSIONS
 from beamsnet.experiments.runner import ensure_dataset
 from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import dead_reckoning_error, held, own_position_error, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.train import predict
 
-# The default test set: s per manoeuvre, and which manoeuvres of the maneuvers preset (a
-# straight line, a steady turn, a hard zigzag and random waypoints span the stress test's
-# range of intensity). 16 datasets of 4 x 300 s take about 3 minutes to generate on 2 cores.
-FAULT_DURATION = 300.0
-FAULT_MISSIONS = ("straight", "turning_circle", "zigzag_20_20", "random_waypoints")
+# The default test set (FAULT_DURATION, FAULT_MISSIONS): ``beamsnet.experiments.defaults``.
 # Shorter missions leave too few pings for a leg, a burst and the past pings of V2.
 MIN_FAULT_DURATION = 30.0
 

@@ -58,7 +58,6 @@ PAPER_TABLE_3 = {"LS": 0.009938, "BeamsNetV2": 0.003690, "BeamsNetV1": 0.003503,
                  "improvement_v2": 62.86, "improvement_v1": 64.75}
 PUBLISHED_V2_RERUN = {"validation": (0.00371, 0.00994, 62.7), "test": (0.00419, 0.00911, 54.0)}
 SNAPIR_FILES = ("V.npy", "V_test.npy")  # training + validation stream, test mission
-DEFAULT_SNAPIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "snapir"
 
 
 def paper_sim(experiment: str, *, data: Path | None, duration: float, out: Path,

@@ -61,6 +61,7 @@ from beamsnet.evaluate import (
     trimmed,
     watch_scores,
 )
+from beamsnet.experiments.defaults import DEFAULT_SEA, SEA_DURATION, SEA_SEEDS
 from beamsnet.experiments.runner import check_duration, ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
 from beamsnet.navigation import (
@@ -74,14 +75,9 @@ from beamsnet.plotstyle import figure_legend, styles
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
 
-DEFAULT_SEA = Path(__file__).resolve().parents[3] / "shared" / "data" / "snapir-akit"
-# s per manoeuvre of the auvsim training set: 20 missions (10 manoeuvres at 2 and 0.8
-# m/s), 4,897 samples, generated in 11 s; 3,668 of them train, and CorrectionNet takes
-# 3,668 x 50 epochs / 816 samples/s = 3.7 min of a core per seed (measured: ``beamsnet
-# train`` at 3 epochs, 18 s), so 3 seeds on 2 cores (two rounds) and the import,
-# check-log and the filters (about a minute) make 9-10 min on 2 free cores.
-DURATION = 300.0
-SEEDS = 3  # CorrectionNet seeds, every one scored
+# The default logs and the training set's size and seeds: ``beamsnet.experiments.defaults``.
+DURATION = SEA_DURATION
+SEEDS = SEA_SEEDS
 FILTER = "INS/DVL"
 SIM_FILTER = "INS/DVL (simulated instrument's noise)"
 OTHERS = " (other segments)"  # the rows of estimators fitted on the other real segments

@@ -36,21 +36,21 @@ from beamsnet.data import load_windows, split
 from beamsnet.estimators import predicted
 from beamsnet.estimators.baselines import availability
 from beamsnet.evaluate import baselines, trimmed
+from beamsnet.experiments.defaults import (
+    BODY_SEEDS,
+    SIM2REAL_DURATION,
+    SIM2REAL_SEEDS,
+    SIM_SEEDS,
+)
 from beamsnet.experiments.runner import ensure_dataset, train_seeds
 from beamsnet.experiments.wording import count
 from beamsnet.plotstyle import figure_legend
 from beamsnet.training.config import PROFILES, TrainConfig
 from beamsnet.training.train import predict
 
-# Seeds per network. Each costs minutes of a core (10,000 pings x 50 epochs at batch 4),
-# so: on the sea data (``reproduce snapir``, whose runs the V.npy column reuses) 5 for
-# BeamsNetV2, whose seed spread is part of the question, 3 for the others; 3 on the
-# auvsim set flown with the Snapir's mounting (the spread, and whether any seed is worse
-# than LS), 1 on the set with the DVL along the body (what the frame costs).
-SEEDS = {"v2": 5, "v2-paper": 3, "corr": 3}
-SIM_SEEDS = 3
-BODY_SEEDS = 1
-DURATION = 300.0  # s per manoeuvre of the generated training sets: 4,500 training pings
+# Seeds per network and the training sets' size: ``beamsnet.experiments.defaults``.
+SEEDS = SIM2REAL_SEEDS
+DURATION = SIM2REAL_DURATION
 # The learned estimators, each trained from SEEDS seeds: table name -> (run directory,
 # what it changes from the profile's config). None takes the IMU: the Snapir streams have
 # none. BeamsNetV2 is trained with the fixed input (its past beams as changes,

@@ -35,12 +35,17 @@ import numpy as np
 from auvsim.data.files import save_figure, staged_dir, write_text
 from auvsim.data.reader import open_dataset
 from auvsim.errors import ConfigError
-from auvsim.runs.presets import PAPER_NOISE_CODE, PAPER_NOISE_TEXT
 from beamsnet import metrics
 from beamsnet.data import Windows, check_dataset, load_windows, split
 from beamsnet.estimators import short_name, spec, specs
 from beamsnet.evaluate import predictions
-from beamsnet.experiments.faults import FAULT_DURATION, check_options, fault_stress
+from beamsnet.experiments.defaults import (
+    FAULT_DURATION,
+    MANEUVER_DURATION,
+    NOISE,
+    TRAIN_DURATION,
+)
+from beamsnet.experiments.faults import check_options, fault_stress
 from beamsnet.experiments.runner import check_duration, ensure_dataset, settings, train_runs
 from beamsnet.experiments.wording import as_published, count, why_worse
 from beamsnet.navigation import (
@@ -57,13 +62,6 @@ from beamsnet.training.config import TrainConfig
 INTENSITY = {"yaw_rate": "true yaw rate |r|, deg/s",
              "acceleration": "change of the true DVL-frame velocity since the last ping, "
                              "m/s^2"}
-# The beam noise of the generated data: the straight-line preset trained on, the
-# manoeuvres' noise (m/s) and their file's suffix.
-NOISE = {"code": ("paper-sim", PAPER_NOISE_CODE, ""),
-         "text": ("paper-sim-text", PAPER_NOISE_TEXT, "-text")}
-# The generated datasets' sizes: s per speed of paper-sim, s per manoeuvre.
-TRAIN_DURATION = 1800.0
-MANEUVER_DURATION = 600.0
 
 
 def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,

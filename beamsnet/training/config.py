@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from auvsim.errors import ConfigError
 from beamsnet.estimators import models
+from beamsnet.estimators.registry import torch_missing
 
 # Their default rate of dropped beams: one sample in ten loses a current beam, one past
 # value in ten is missing; most samples stay whole, so the full-beam fit is not traded away.
@@ -87,19 +88,13 @@ class TrainConfig:
                                   argument=name)
 
         known = models()
-        check(self.model in known, "model", " or ".join(known))
+        # Without PyTorch no network is here to train, nor to check the model against:
+        # a config is still made (the command line's defaults), and training says why not.
+        networks = bool(known) or not torch_missing()
+        check(self.model in known or not networks, "model", " or ".join(known))
         check(self.protocol in PROTOCOLS, "protocol", " or ".join(PROTOCOLS))
-        masked = [k for k, m in known.items() if m.masked]
-        unmasked = [k for k, m in known.items() if not m.masked]
-        check(self.mask_rate is None or (_real(self.mask_rate) and 0 <= self.mask_rate < 1
-                                         and (known[self.model].masked
-                                              or self.mask_rate == 0)),
-              "mask_rate", f"a probability in [0, 1) for {' or '.join(masked)} (left out: "
-              f"{MASK_RATE:g}), 0 for {' and '.join(unmasked)} (no masks)")
-        optional = [k for k, m in known.items() if m.imu_option]
-        check(isinstance(self.imu, bool) and (known[self.model].imu_option or not self.imu),
-              "imu", f"it off (False) for {self.model} (only {' or '.join(optional)} takes "
-              "the IMU as an option; the others always or never)")
+        if networks:
+            self._check_masks_and_imu(known, check)
         for name in ("epochs", "batch_size", "n_past", "lr_step"):
             check(_whole(getattr(self, name), 1), name, "a whole number >= 1")
         check(_whole(self.average_epochs, 0) and self.average_epochs <= self.epochs,
@@ -118,6 +113,21 @@ class TrainConfig:
                   "a sequence of mission names (or None: all)")
             # A list and a tuple of the same names are one config (``trained`` compares).
             object.__setattr__(self, "missions", tuple(self.missions))
+
+    def _check_masks_and_imu(self, known: dict, check) -> None:
+        """``mask_rate`` and ``imu`` against what ``model`` (one of the networks ``known``)
+        takes."""
+        masked = [k for k, m in known.items() if m.masked]
+        unmasked = [k for k, m in known.items() if not m.masked]
+        check(self.mask_rate is None or (_real(self.mask_rate) and 0 <= self.mask_rate < 1
+                                         and (known[self.model].masked
+                                              or self.mask_rate == 0)),
+              "mask_rate", f"a probability in [0, 1) for {' or '.join(masked)} (left out: "
+              f"{MASK_RATE:g}), 0 for {' and '.join(unmasked)} (no masks)")
+        optional = [k for k, m in known.items() if m.imu_option]
+        check(isinstance(self.imu, bool) and (known[self.model].imu_option or not self.imu),
+              "imu", f"it off (False) for {self.model} (only {' or '.join(optional)} takes "
+              "the IMU as an option; the others always or never)")
 
 
 def _whole(value: object, least: int) -> bool:
