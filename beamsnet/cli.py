@@ -15,6 +15,7 @@ from auvsim.errors import ConfigError, OneLineErrorParser
 from auvsim.runs.cluster import check_address
 from beamsnet.data import NO_REFERENCE
 from beamsnet.estimators import network_names, spec, specs
+from beamsnet.estimators.registry import WITHOUT_TORCH
 from beamsnet.evaluate import (
     TRAIN_FRACTION,
     FilterWarning,
@@ -112,11 +113,13 @@ def _parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help, description=f"{help[0].upper()}{help[1:]}.",
                               formatter_class=_Defaults)
 
-    networks = specs("network")
-    tr = command("train", f"train {', '.join(s.short for s in networks)} on a dataset")
+    networks = specs("network")  # none without PyTorch: then train says what to install
+    tr = command("train", f"train {', '.join(s.short for s in networks) or 'a network'} on "
+                 "a dataset")
     tr.add_argument("dataset", type=Path, help="auvsim dataset (.h5 file or sharded folder)")
-    tr.add_argument("--model", choices=network_names(), default=train.config.model,
-                    help="; ".join(f"{s.name}: {s.title}" for s in networks))
+    tr.add_argument("--model", choices=network_names() or None, default=train.config.model,
+                    help="; ".join(f"{s.name}: {s.title}" for s in networks)
+                    or f"the network ({WITHOUT_TORCH})")
     tr.add_argument("--protocol", choices=("paper", "fixed"),
                     help="v2 only: 'paper' feeds the past beams raw, as published; 'fixed' "
                     "feeds their changes to the current beams, so it stays affine outside the "

@@ -52,7 +52,7 @@ from beamsnet.estimators.ins import (
     at_pings,
     innovation_consistency,
 )
-from beamsnet.estimators.registry import NO_TORCH, torch_missing
+from beamsnet.estimators.registry import WITHOUT_TORCH, torch_missing
 from beamsnet.navigation import dead_reckoning_positions, position_report, truth_at_pings
 from beamsnet.plotstyle import figure_legend, styles
 
@@ -533,7 +533,7 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
         known = [s.name for s in specs() if s.kind != "network"]
         raise ConfigError(f": no estimator is called {name!r}; expected one of "
                           f"{', '.join(map(repr, known))}"
-                          + (f" ({NO_TORCH})" if torch_missing() else ""),
+                          + (f" ({WITHOUT_TORCH})" if torch_missing() else ""),
                           argument="estimator")
     if s.kind == "model-based":
         return s.make()

@@ -541,18 +541,22 @@ def test_beamsnet_without_torch_runs_the_model_based_estimators(tmp_path):
                               text=True, timeout=300, cwd=tmp_path)
 
     assert beamsnet("--help").returncode == 0
+    listed = beamsnet("estimate", "--help").stdout
+    assert "INS/DVL (adaptive)" in listed and "learned noise" not in listed, listed
     done = beamsnet("estimate", str(data), "--estimator", "INS/DVL", "--out", "ins")
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "ins" / "estimates.csv").is_file()
     done = beamsnet("evaluate", str(data), "--out", "evaluation")
     assert done.returncode == 0, done.stderr
     table = (tmp_path / "evaluation" / "evaluation.md").read_text()
-    assert "| LS |" in table and "| INS/DVL |" in table and "learned noise" not in table
+    assert "| LS |" in table and "| INS/DVL |" in table
     for args in (("estimate", str(data), "--estimator", "INS/DVL (learned noise)"),
-                 ("train", str(data), "--out", "run")):
+                 ("train", str(data), "--out", "run"),
+                 ("train", str(data), "--out", "run", "--model", "v2")):
         done = beamsnet(*args)
         assert done.returncode == 2, done.stderr
         assert done.stderr.count("\n") == 1, done.stderr
-        assert "PyTorch is not installed" in done.stderr and \
-            "pip install 'auvsim[learn]'" in done.stderr, done.stderr
+        assert "PyTorch, which is not installed" in done.stderr or \
+            "PyTorch is not installed" in done.stderr, done.stderr
+        assert "pip install 'auvsim[learn]'" in done.stderr, done.stderr
     assert not (tmp_path / "run").exists()

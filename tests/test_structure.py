@@ -182,3 +182,26 @@ def test_beamsnet_imports_only_the_dataset_api_and_the_runners_of_auvsim():
 def test_auvsim_never_imports_beamsnet():
     assert not [name for name in MODULES if name.startswith("auvsim")
                 for module, _ in _imports(name) if module.split(".")[0] == "beamsnet"]
+
+
+def test_scipy_is_installed_with_the_package_where_numba_does_linear_algebra():
+    """numba compiles np.linalg into calls of SciPy's LAPACK: a compiled function that
+    uses it aborts the process where SciPy is not installed. Every module whose source
+    holds ``np.linalg`` in a numba-compiled function needs SciPy in the package's own
+    dependencies, not in an extra (the INS/DVL filter's loop had it only in ``test``)."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    compiled = []
+    for path in sorted((ROOT / "auvsim").rglob("*.py")) + sorted((ROOT / "beamsnet").rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef) and any(
+                    "njit" in ast.unparse(d) for d in node.decorator_list) and \
+                    "np.linalg" in ast.unparse(node):
+                compiled.append(f"{path.relative_to(ROOT)}:{node.name}")
+    assert compiled  # the INS/DVL filter's loop, at least
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert any(d.split(">")[0].split("=")[0].strip() == "scipy"
+               for d in project["dependencies"]), compiled

@@ -144,7 +144,8 @@ class Log:
         dvl_slow_error_time: s, the correlation time of the DVL's velocity error against
             the reference, which the DVL calibration's standard errors allow for
             (``serial_least_squares``); default the Snapir's Navigator's, measured against
-            its reference (``NAVIGATOR_SLOW_ERROR_TIME``).
+            its reference (``NAVIGATOR_SLOW_ERROR_TIME``); ``log_of`` reads a mission's own
+            where its attributes state one (``slow_error_time``).
     """
 
     reference_time: np.ndarray
@@ -729,7 +730,14 @@ def serial_least_squares(a: np.ndarray, b: np.ndarray, times: np.ndarray | None 
       each equation k modelled as white noise plus a first-order Gauss-Markov error of
       that correlation time (covariance ``w_k^2 delta_ij + s_k^2 exp(-|t_i - t_j| /
       correlation_time)``), the two variances from the residuals' variance and their
-      covariance between consecutive epochs, and the OLS sandwich with that covariance.
+      products over the pairs up to 2 correlation times apart, and the OLS sandwich with
+      that covariance. Where the residuals are correlated over a few epochs only, it comes
+      out wider than it should, and the larger of the two with it (the simulated DVL's
+      own error is this model's: ``tests/test_checklog.py`` measures both cases).
+
+    Raises:
+        ValueError: ``correlation_time`` not a positive number, or ``times`` not finite
+            and increasing, one per epoch.
 
     Returns the solution, its standard errors, the residual RMS and the Newey-West
     bandwidth (epochs)."""
@@ -754,7 +762,14 @@ def serial_least_squares(a: np.ndarray, b: np.ndarray, times: np.ndarray | None 
     small_sample = resid.size / dof  # the sandwich's small-sample factor
     variance = np.diag(bread @ meat @ bread) * small_sample
     if times is not None and correlation_time is not None and t > 1:
-        modelled = _gauss_markov_meat(np.asarray(times, float), a, resid, correlation_time)
+        times = np.asarray(times, float)
+        if not (correlation_time > 0 and math.isfinite(correlation_time)):
+            raise ValueError(f"correlation_time: expected a positive number of seconds, got "
+                             f"{correlation_time!r}")
+        if times.shape != (t,) or not (np.all(np.isfinite(times))
+                                       and np.all(np.diff(times) > 0)):
+            raise ValueError(f"times: expected {t} finite, increasing times, one per epoch")
+        modelled = _gauss_markov_meat(times, a, resid, correlation_time)
         variance = np.maximum(variance, np.diag(bread @ modelled @ bread) * small_sample)
     rms = math.sqrt(float((resid ** 2).sum()) / dof)
     return x, np.sqrt(np.maximum(variance, 0.0)), rms, lags
@@ -763,17 +778,24 @@ def serial_least_squares(a: np.ndarray, b: np.ndarray, times: np.ndarray | None 
 def _gauss_markov_meat(times: np.ndarray, a: np.ndarray, resid: np.ndarray, tau: float
                        ) -> np.ndarray:
     """(n, n) ``sum_k A_k^T Sigma_k A_k`` for ``serial_least_squares``'s residual model:
-    ``Sigma_k = w_k^2 I + s_k^2 R``, ``R_ij = exp(-|t_i - t_j| / tau)``. ``s_k^2`` is the
-    residuals' covariance between consecutive epochs over the correlation there (at the
-    median step), at most their variance; ``w_k^2`` the rest of the variance. ``A_k^T R
-    A_k`` in O(T) by the recursion the exponential allows (``_exponential_sum``)."""
-    step = float(np.median(np.diff(times)))
-    rho = math.exp(-step / tau)
+    ``Sigma_k = w_k^2 I + s_k^2 R``, ``R_ij = exp(-|t_i - t_j| / tau)``. ``s_k^2`` is
+    fitted to the residuals' products ``r_i r_j`` of the pairs up to 2 ``tau`` apart (in
+    epochs at the median step; least squares on ``s^2 R_ij``, so a gap's pair counts at
+    its own time apart), at most their variance: a correlation that lasts only a few
+    epochs then gives a small ``s_k^2``, not one the size of its first lag's; ``w_k^2`` is
+    the rest of the variance. ``A_k^T R A_k`` in O(T) by the recursion the exponential
+    allows (``_exponential_sum``)."""
+    lags = int(min(math.ceil(2 * tau / float(np.median(np.diff(times)))), len(times) // 2))
     meat = np.zeros((a.shape[2], a.shape[2]))
     for k in range(a.shape[1]):
         r = resid[:, k]
         variance = float(r @ r) / len(r)
-        slow = min(max(float(r[1:] @ r[:-1]) / (len(r) - 1) / rho, 0.0), variance)
+        products = fits = 0.0
+        for lag in range(1, lags + 1):
+            decay = np.exp(-(times[lag:] - times[:-lag]) / tau)
+            products += float((r[lag:] * r[:-lag]) @ decay)
+            fits += float(decay @ decay)
+        slow = min(max(products / fits, 0.0), variance) if fits > 0 else 0.0
         design = np.ascontiguousarray(a[:, k, :])
         meat += (variance - slow) * (design.T @ design)
         if slow > 0:
@@ -1106,7 +1128,18 @@ def log_of(mission) -> Log:
                None if depth is None else depth.depth,
                gravity=float(mission.attrs["gravity"]),
                latitude_deg=None if latitude is None else float(latitude),
-               stated_rates=stated_rates(mission.attrs.get("log_description", "")))
+               stated_rates=stated_rates(mission.attrs.get("log_description", "")),
+               dvl_slow_error_time=slow_error_time(mission.attrs))
+
+
+def slow_error_time(attrs) -> float:
+    """s, the correlation time of a mission's DVL error against its reference: the one
+    its attributes state with a slow error (``dvl_slow_error_std`` above 0,
+    ``dvl_slow_error_time``), as the INS/DVL filter reads it; else the Navigator's
+    (``NAVIGATOR_SLOW_ERROR_TIME``)."""
+    if float(attrs.get("dvl_slow_error_std", 0.0)) > 0 and "dvl_slow_error_time" in attrs:
+        return float(attrs["dvl_slow_error_time"])
+    return NAVIGATOR_SLOW_ERROR_TIME
 
 
 def stated_rates(description: str) -> dict[str, float]:

@@ -45,6 +45,9 @@ NO_TORCH = ("PyTorch is not installed, and the networks and the learned-noise fi
             "it: install the package's learn extra, pip install 'auvsim[learn]' (the CPU "
             "build of torch first, to keep pip from pulling CUDA: pip install torch "
             "--index-url https://download.pytorch.org/whl/cpu)")
+# What an unknown name's error adds where they are left out: the name may be a typo too.
+WITHOUT_TORCH = ("without PyTorch, which is not installed, the networks and the "
+                 "learned-noise filter are not among them: pip install 'auvsim[learn]'")
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,7 @@ def _all() -> tuple[Spec, ...]:
     import beamsnet.estimators as package
 
     found: list[Spec] = []
+    _without_torch.clear()  # found again on every load (``register`` clears the cache)
     for module in pkgutil.iter_modules(package.__path__):
         try:
             loaded = importlib.import_module(f"{package.__name__}.{module.name}")
@@ -138,17 +142,10 @@ def _all() -> tuple[Spec, ...]:
             _without_torch.add(module.name)
             continue
         found += getattr(loaded, "ESTIMATORS", ())
-    if not _without_torch and any(s.torch for s in found):
-        try:
-            import torch  # noqa: F401  (loaded already where the networks' module is)
-        except ModuleNotFoundError as e:
-            if e.name != "torch":
-                raise
-            _without_torch.add("torch")
-    if _without_torch:
-        found = [s for s in found if not s.torch]
     found += _plugged_in()
     found += _added.values()
+    if _without_torch:
+        found = [s for s in found if not s.torch]
     keys = [estimator_key(s.name) for s in found]
     twice = sorted({s.name for s, k in zip(found, keys, strict=True) if keys.count(k) > 1})
     if twice:
@@ -250,7 +247,7 @@ def spec(name: str) -> Spec:
             return s
     raise UnknownEstimator(f"no estimator {name!r}; expected one of "
                            + ", ".join(s.name for s in _all())
-                           + (f" ({NO_TORCH})" if torch_missing() else ""))
+                           + (f" ({WITHOUT_TORCH})" if torch_missing() else ""))
 
 
 def torch_missing() -> bool:

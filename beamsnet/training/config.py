@@ -95,6 +95,11 @@ class TrainConfig:
         check(self.protocol in PROTOCOLS, "protocol", " or ".join(PROTOCOLS))
         if networks:
             self._check_masks_and_imu(known, check)
+        else:  # what needs no network's description
+            check(self.mask_rate is None or (_real(self.mask_rate)
+                                             and 0 <= self.mask_rate < 1),
+                  "mask_rate", "a probability in [0, 1)")
+            check(isinstance(self.imu, bool), "imu", "True or False")
         for name in ("epochs", "batch_size", "n_past", "lr_step"):
             check(_whole(getattr(self, name), 1), name, "a whole number >= 1")
         check(_whole(self.average_epochs, 0) and self.average_epochs <= self.epochs,
