@@ -541,11 +541,12 @@ def _generate(args: argparse.Namespace) -> None:
                           "trailing /, for a sharded dataset)")
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
                        shards=args.shards, progress=not args.quiet)
-    # numba's cache did not have it: said on the first run only, and not under --quiet
+    # numba's cache did not have it (all of it on a first run; on a later one, the code
+    # of a scenario not flown before): said where it happened, and not under --quiet
     compiling = summary["compile_s"]
     said = f"{compiling:.0f} s" if compiling >= 1 else f"{compiling:.1f} s"
     if compiling > 0 and not args.quiet:
-        print(f"compiling the physics once (first run): {said}; later runs skip it")
+        print(f"compiling the physics: {said}, kept in numba's cache for later runs")
     sharded = "" if "shards" not in summary else (
         f" in {summary['shards']} shard(s), {summary['kept']} kept from an earlier run "
         f"(index {summary['out']})")

@@ -420,6 +420,9 @@ def main(argv: list[str] | None = None) -> int:
                         "quotes (the DVL's error against the reference, the gyros' heading, "
                         "the reference's positions against its velocities)")
     args = parser.parse_args(argv)
+    if not args.data.is_dir():
+        parser.error(f"--data {str(args.data)!r}: not a folder; expected a folder of A-KIT "
+                     "logs (TrajectoryK/ folders)")
     config = ins.FilterConfig() if args.filter_config is None else ins.load_config(
         args.filter_config)
     with tempfile.TemporaryDirectory() as tmp:

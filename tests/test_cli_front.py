@@ -308,10 +308,11 @@ def test_compiling_is_said_once_with_its_time(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(gen, "check_reachable", compiling)
     assert cli.main(["generate", *loud, "--out", str(tmp_path / "b.h5")]) == 0
     first, wrote = capsys.readouterr().out.splitlines()
-    assert first.startswith("compiling the physics once (first run): ")
-    assert first.endswith(" s; later runs skip it") and wrote.startswith("wrote ")
+    assert first.startswith("compiling the physics: ")
+    assert first.endswith(" s, kept in numba's cache for later runs") and \
+        wrote.startswith("wrote ")
     # Under a second, it is said to a tenth ("0 s" had been a first run's figure).
-    took = first.split(": ")[1].split(" s;")[0]
+    took = first.split(": ")[1].split(" s,")[0]
     assert took != "0" and f"the {took} s of compiling aside)" in wrote, (first, wrote)
     monkeypatch.setattr(gen, "check_reachable", real)
     assert cli.main(["generate", *SHORT, "--out", str(tmp_path / "c.h5")]) == 0
@@ -560,3 +561,18 @@ def test_beamsnet_without_torch_runs_the_model_based_estimators(tmp_path):
             "PyTorch is not installed" in done.stderr, done.stderr
         assert "pip install 'auvsim[learn]'" in done.stderr, done.stderr
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("experiment, default", [("sea", "DEFAULT_SEA"),
+                                                 ("snapir", "DEFAULT_SNAPIR")])
+def test_reproduce_without_its_default_data_asks_for_data(experiment, default, tmp_path,
+                                                          monkeypatch, capsys):
+    """The default data folders are beside a checkout of this project; elsewhere (an
+    installed package, another clone) the command asks for --data in one line, where it
+    had said only that the default path was not a folder."""
+    monkeypatch.setattr(bcli, default, tmp_path / "absent")
+    assert bcli.main(["reproduce", experiment, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--data: not given, and the default" in err and \
+        "expected --data FOLDER" in err, err
+    assert not (tmp_path / "out").exists()

@@ -171,9 +171,11 @@ def stress(*, train_data: Path | None, maneuver_data: Path | None, out: Path,
     trained_on = _scenarios(train_data)
     unstarted = _unstarted(maneuver_data, phases)
     if unstarted:
+        longer = ("longer missions in --maneuvers" if maneuver_config is None
+                  else "a longer --maneuver-duration")  # it generated the file, or not
         warnings.warn(f"{', '.join(unstarted)}: flew one phase only, their manoeuvre starting "
                       "later than the mission ends; their rows are of straight flight "
-                      "(expected a longer --maneuver-duration to test them)", stacklevel=2)
+                      f"(expected {longer} to test them)", stacklevel=2)
     positions: dict[str, np.ndarray] = {}
     estimates = predictions(models, train_w, test_w, dataset=maneuver_data,
                             positions=positions)
