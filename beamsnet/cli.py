@@ -302,22 +302,6 @@ def report_dir(out: Path | None, refresh: bool, name: str, *,
     return out
 
 
-AKIT_LOGS = "A-KIT logs (TrajectoryK/ folders)"  # what --data names, by experiment
-SNAPIR_STREAMS = "Snapir streams (V.npy, V_test.npy)"
-
-
-def _data(args, default: Path, what: str) -> Path:
-    """``--data``, or the experiment's default folder where it is there; where neither is,
-    one line that asks for ``--data`` (the default is beside a checkout of this project,
-    which an installed package has not)."""
-    if args.data is not None:
-        return args.data
-    if not default.is_dir():
-        raise ConfigError(f": not given, and the default {str(default)!r} is not a folder; "
-                          f"expected --data FOLDER, a folder of the {what}", argument="data")
-    return default
-
-
 def _train(args) -> None:
     from beamsnet.training.runs import train_all, train_best
     from beamsnet.training.train import train
@@ -473,7 +457,7 @@ def _reproduce(args) -> None:
                                   "expected --data, --duration, --seeds, --out",
                                   argument=name)
         args.out = report_dir(args.out, args.refresh_reports, args.experiment)
-        report = adaptive(_data(args, DEFAULT_SEA, AKIT_LOGS), out=args.out,
+        report = adaptive(DEFAULT_SEA if args.data is None else args.data, out=args.out,
                           duration=ADAPTIVE_DURATION if args.duration is None
                           else args.duration,
                           seeds=ADAPTIVE_SEEDS if args.seeds is None else args.seeds,
@@ -506,17 +490,17 @@ def _reproduce(args) -> None:
                           "its seeds; expected --restarts N", argument="seeds")
     args.out = report_dir(args.out, args.refresh_reports, args.experiment)
     if args.experiment == "sea":
-        report = sea(_data(args, DEFAULT_SEA, AKIT_LOGS), out=args.out,
+        report = sea(DEFAULT_SEA if args.data is None else args.data, out=args.out,
                      duration=SEA_DURATION if args.duration is None else args.duration,
                      seeds=SEA_SEEDS if args.seeds is None else args.seeds,
                      training=training, progress=not args.quiet, cluster=args.cluster)
     elif args.experiment == "sim2real":
-        report = sim2real(_data(args, DEFAULT_SNAPIR, SNAPIR_STREAMS), out=args.out,
+        report = sim2real(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                           duration=SIM2REAL_DURATION if args.duration is None
                           else args.duration, training=training, seeds=args.seeds,
                           progress=not args.quiet, cluster=args.cluster)
     elif args.experiment == "snapir":
-        report = snapir(_data(args, DEFAULT_SNAPIR, SNAPIR_STREAMS), out=args.out,
+        report = snapir(DEFAULT_SNAPIR if args.data is None else args.data, out=args.out,
                         training=training, seeds=args.seeds, progress=not args.quiet,
                         cluster=args.cluster)
     else:

@@ -179,12 +179,17 @@ def sea_dataset(data: Path, datasets: Path = Path("datasets")) -> tuple[Path, di
         value, confidence)]}).
 
     Raises:
-        ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line).
+        ConfigError: ``data`` is not a folder of A-KIT segments (the importer's line), named
+            as the argument ``data`` (``--data``: its default is beside a checkout of this
+            project, which an installed package has not).
     """
     from auvsim.data.checklog import apply, check_file
     from auvsim.data.recorded import akit_segments, import_logs
 
-    segments = akit_segments(data)
+    try:
+        segments = akit_segments(data)
+    except ConfigError as e:
+        raise ConfigError(e.message, argument="data") from None
     digests = sorted(hashlib.sha256(p.read_bytes()).hexdigest()
                      for folder, _ in segments for p in sorted(folder.glob("*.csv")))
     logged, dataset = datasets / "sea-logged.h5", datasets / "sea.h5"
