@@ -103,6 +103,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import torch  # it trains its network; without PyTorch the registry leaves it out
 
 from beamsnet.data import Windows
 from beamsnet.estimators.ins import FilterConfig, InsDvlFilter
@@ -198,7 +199,7 @@ def training_records(dataset, missions: Sequence[str], config=None, model=None, 
     return Records.concatenate(parts)
 
 
-def _nll(torch, net, bounds, rec):
+def _nll(net, bounds, rec):
     lo, hi = (2 * math.log(b) for b in bounds)
     z = net(rec["inputs"])[:, 0]
     log_scale = 0.5 * (lo + hi) + 0.5 * (hi - lo) * torch.tanh(z)
@@ -230,8 +231,6 @@ def fit(rec: Records, *, seed: int = 0, epochs: int = EPOCHS, lr: float = LR,
 def _fit(rec: Records, seed: int, epochs: int, lr: float, bounds: tuple[float, float],
          trained_on: dict | None) -> NoiseModel:
     """``fit``'s work, in the torch threads it sets."""
-    import torch
-
     torch.manual_seed(seed)
     held = rec.group % 5 == 4
     if held.all() or not held.any():
@@ -268,11 +267,11 @@ def _fit(rec: Records, seed: int, epochs: int, lr: float, bounds: tuple[float, f
     best, best_state = math.inf, None
     for _ in range(epochs):
         opt.zero_grad()
-        loss = _nll(torch, net, bounds, t)
+        loss = _nll(net, bounds, t)
         loss.backward()
         opt.step()
         with torch.no_grad():
-            score = float(_nll(torch, net, bounds, v))
+            score = float(_nll(net, bounds, v))
         if score < best:
             best, best_state = score, [p.detach().clone() for p in net.parameters()]
     w1, b1, w2, b2 = (p.numpy() for p in best_state)
@@ -435,7 +434,7 @@ def _check_windows_of(dataset, windows: Windows) -> None:
 ESTIMATORS = (
     Spec("INS/DVL (learned noise)", "INS/DVL filter whose beam noise a small network sets "
          "from the recent IMU samples and innovations, trained on auvsim data", "filter",
-         make=LearnedInsDvlFilter, order=12, torch=True,
+         make=LearnedInsDvlFilter, order=12,
          needs=Needs(beams=0, imu=True, text="needs the IMU record"),
          why="its noise network learned auvsim's instrument and manoeuvres; where the real "
              "ones differ, its scale is an extrapolation"),

@@ -90,9 +90,6 @@ class Spec:
             line and ``beamsnet estimate`` find it by that.
         model: a network's ``torch.nn.Module`` class (its ``name`` is ``name``).
         order: where its row goes among those of its kind (tables keep one order).
-        torch: it needs PyTorch, though its module loads without it (the learned-noise
-            filter, which imports it as it trains): left out where PyTorch is not
-            installed, as the networks are, whose modules need it to load.
     """
 
     name: str
@@ -104,7 +101,6 @@ class Spec:
     make: Callable | None = None
     model: type | None = None
     order: int = 0
-    torch: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -144,8 +140,6 @@ def _all() -> tuple[Spec, ...]:
         found += getattr(loaded, "ESTIMATORS", ())
     found += _plugged_in()
     found += _added.values()
-    if _without_torch:
-        found = [s for s in found if not s.torch]
     keys = [estimator_key(s.name) for s in found]
     twice = sorted({s.name for s, k in zip(found, keys, strict=True) if keys.count(k) > 1})
     if twice:
