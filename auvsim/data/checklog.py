@@ -69,7 +69,7 @@ from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import earth_rate_ned
 from auvsim.physics.frames import attitude_rates, rotation_matrices, skew
-from auvsim.sensors.dvl import NAVIGATOR_SLOW_ERROR_TIME
+from auvsim.sensors.dvl import NAVIGATOR_SLOW_ERROR_STD, NAVIGATOR_SLOW_ERROR_TIME
 
 try:
     import tomllib
@@ -145,7 +145,7 @@ class Log:
             the reference, which the DVL calibration's standard errors allow for
             (``serial_least_squares``); default the Snapir's Navigator's, measured against
             its reference (``NAVIGATOR_SLOW_ERROR_TIME``); ``log_of`` reads a mission's own
-            where its attributes state one (``slow_error_time``).
+            where its attributes state one (``slow_error``).
     """
 
     reference_time: np.ndarray
@@ -786,15 +786,13 @@ def _gauss_markov_meat(times: np.ndarray, a: np.ndarray, resid: np.ndarray, tau:
     the rest of the variance. ``A_k^T R A_k`` in O(T) by the recursion the exponential
     allows (``_exponential_sum``)."""
     lags = int(min(math.ceil(2 * tau / float(np.median(np.diff(times)))), len(times) // 2))
+    decays = [np.exp(-(times[lag:] - times[:-lag]) / tau) for lag in range(1, lags + 1)]
+    fits = sum(float(d @ d) for d in decays)  # the same pairs for every equation
     meat = np.zeros((a.shape[2], a.shape[2]))
     for k in range(a.shape[1]):
         r = resid[:, k]
         variance = float(r @ r) / len(r)
-        products = fits = 0.0
-        for lag in range(1, lags + 1):
-            decay = np.exp(-(times[lag:] - times[:-lag]) / tau)
-            products += float((r[lag:] * r[:-lag]) @ decay)
-            fits += float(decay @ decay)
+        products = sum(float((r[lag:] * r[:-lag]) @ d) for lag, d in enumerate(decays, 1))
         slow = min(max(products / fits, 0.0), variance) if fits > 0 else 0.0
         design = np.ascontiguousarray(a[:, k, :])
         meat += (variance - slow) * (design.T @ design)
@@ -1129,17 +1127,18 @@ def log_of(mission) -> Log:
                gravity=float(mission.attrs["gravity"]),
                latitude_deg=None if latitude is None else float(latitude),
                stated_rates=stated_rates(mission.attrs.get("log_description", "")),
-               dvl_slow_error_time=slow_error_time(mission.attrs))
+               dvl_slow_error_time=slow_error(mission.attrs)[1])
 
 
-def slow_error_time(attrs) -> float:
-    """s, the correlation time of a mission's DVL error against its reference: the one
-    its attributes state with a slow error (``dvl_slow_error_std`` above 0,
-    ``dvl_slow_error_time``), as the INS/DVL filter reads it; else the Navigator's
-    (``NAVIGATOR_SLOW_ERROR_TIME``)."""
+def slow_error(attrs) -> tuple[float, float]:
+    """A mission's DVL slow error (std per axis, m/s; correlation time, s): the one its
+    attributes state (``dvl_slow_error_std`` above 0, ``dvl_slow_error_time``), else the
+    Navigator's, the only DVL whose slow error auvsim has measured
+    (``NAVIGATOR_SLOW_ERROR_STD``, ``_TIME``). check-log's standard errors and the INS/DVL
+    filter read it."""
     if float(attrs.get("dvl_slow_error_std", 0.0)) > 0 and "dvl_slow_error_time" in attrs:
-        return float(attrs["dvl_slow_error_time"])
-    return NAVIGATOR_SLOW_ERROR_TIME
+        return float(attrs["dvl_slow_error_std"]), float(attrs["dvl_slow_error_time"])
+    return NAVIGATOR_SLOW_ERROR_STD, NAVIGATOR_SLOW_ERROR_TIME
 
 
 def stated_rates(description: str) -> dict[str, float]:

@@ -247,7 +247,7 @@ import numpy as np
 
 from auvsim.checks import did_you_mean, is_finite
 from auvsim.data.beams import beam_matrix
-from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors
+from auvsim.data.checklog import applied_clock_errors, applied_dvl_errors, slow_error
 from auvsim.data.files import interrupts_held
 from auvsim.data.reader import open_dataset, require_attitude
 from auvsim.data.recorded import MAX_RATE, force_slip, rate_slip
@@ -1928,18 +1928,12 @@ def run_mission(mission, config: FilterConfig = FilterConfig(), *,
 
 def _slow_error(a: dict, *, recorded: bool) -> tuple[float, float | None]:
     """The DVL's time-correlated velocity error (std per axis, m/s; correlation time, s):
-    a simulated file's own (``dvl_slow_error_std``, ``_time``); for a recorded log that
-    states none, the slow error measured on a real Teledyne RDI Navigator (the
-    ``navigator`` preset's, ``auvsim.runs.presets.navigator`` gives the measurement), the
-    only DVL whose slow error auvsim has measured."""
-    if "dvl_slow_error_std" in a and float(a["dvl_slow_error_std"]) > 0:
-        return float(a["dvl_slow_error_std"]), float(a["dvl_slow_error_time"])
-    if not recorded:
+    a file's own (``dvl_slow_error_std``, ``_time``); for a recorded log that states none,
+    the slow error measured on a real Teledyne RDI Navigator
+    (``auvsim.data.checklog.slow_error``); for a simulated file that states none, none."""
+    if not recorded and float(a.get("dvl_slow_error_std", 0.0)) <= 0:
         return 0.0, None
-    from auvsim.runs.presets import navigator
-
-    measured = navigator().dvl
-    return measured.slow_error_std, measured.slow_error_time
+    return slow_error(a)
 
 
 def _truth_start(mission, r_imu: np.ndarray, cfg: FilterConfig) -> Start:
