@@ -25,4 +25,18 @@ _PUBLIC = {
 }
 __all__ = list(_PUBLIC)
 
-__getattr__, __dir__ = exports(__name__, _PUBLIC, globals())
+_load, __dir__ = exports(__name__, _PUBLIC, globals())
+
+
+def __getattr__(name: str) -> object:
+    """A public name, loaded; where it needs PyTorch and PyTorch is not installed (a plain
+    install leaves out the ``learn`` extra), the error says what to install, as the
+    command line does (``beamsnet.estimators.registry.NO_TORCH``)."""
+    try:
+        return _load(name)
+    except ModuleNotFoundError as e:
+        if e.name != "torch":
+            raise
+        from beamsnet.estimators.registry import NO_TORCH
+
+        raise ModuleNotFoundError(f"beamsnet.{name}: {NO_TORCH}", name="torch") from None

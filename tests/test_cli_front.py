@@ -576,3 +576,26 @@ def test_reproduce_without_its_default_data_asks_for_data(experiment, default, t
     assert err.count("\n") == 1 and \
         err.startswith(f"beamsnet: error: --data '{tmp_path / 'absent'}'"), err
     assert not (tmp_path / "out").exists()
+
+
+def test_python_api_without_torch_says_what_to_install():
+    """``from beamsnet import train`` (or ``load``, ``predict``) without PyTorch: an
+    ImportError naming the extra to install, where it had been a bare "No module named
+    'torch'"; what needs no PyTorch still loads."""
+    code = ("import sys\n"
+            "sys.modules['torch'] = None  # as if it were not installed\n"
+            "import beamsnet\n"
+            "assert callable(beamsnet.load_windows)\n"
+            "for name in ('train', 'load', 'predict', 'TrainConfig'):\n"
+            "    try:\n"
+            "        getattr(beamsnet, name)\n"
+            "    except ModuleNotFoundError as e:\n"
+            "        assert e.name == 'torch', e\n"
+            "        print(name, e)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    lines = dict(line.split(" ", 1) for line in done.stdout.splitlines())
+    assert {"train", "load", "predict"} <= set(lines), done.stdout
+    for message in lines.values():
+        assert message.startswith("beamsnet.") and "pip install 'auvsim[learn]'" in message
