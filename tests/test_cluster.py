@@ -372,11 +372,12 @@ def test_a_peer_that_answers_in_another_protocol_is_named_so(tmp_path, monkeypat
             return
 
     threading.Thread(target=answer, daemon=True).start()
-    with pytest.raises(ConfigError, match="something answered there, but not as a Dask "
-                                          "scheduler") as said:
+    with pytest.raises(ConfigError, match="something answered there, but its reply read "
+                                          "as no Dask message") as said:
         with executor(f"tcp://127.0.0.1:{server.getsockname()[1]}", timeout=2):
             pass
     assert "\n" not in str(said.value)
+    assert "allocate" not in str(said.value)  # the misread bytes' size is not the user's
     server.close()
 
 

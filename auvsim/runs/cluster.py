@@ -215,10 +215,11 @@ def _connect(distributed, address: str, timeout: float):
               if error is None else " ".join(str(error).split()) or type(error).__name__)
     if error is not None and not isinstance(error, (OSError, TimeoutError)):
         # A peer answered, in another protocol: its bytes read as no Dask message (an
-        # HTTP server's as a 3 EiB frame, say).
-        raise ConfigError(f"{address!r}: something answered there, but not as a Dask "
-                          f"scheduler ({reason[:200]}); {EXPECTED} (a scheduler listens on "
-                          "8786 by default, its dashboard on 8787)", argument="cluster")
+        # HTTP server's as a 3 EiB frame, say), so what the reading made of them (a
+        # MemoryError, "Unable to allocate 3.07 EiB ...") says nothing of the peer.
+        raise ConfigError(f"{address!r}: something answered there, but its reply read as "
+                          f"no Dask message; {EXPECTED} (a scheduler listens on 8786 by "
+                          "default, its dashboard on 8787)", argument="cluster")
     raise ConfigError(f"{address!r}: no Dask scheduler answered within {timeout:g} s "
                       f"({reason[:200]}); {EXPECTED}", argument="cluster")
 
