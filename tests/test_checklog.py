@@ -27,11 +27,13 @@ from auvsim.config import MissionConfig, ScenarioConfig
 from auvsim.data.checklog import (
     T_3SIGMA,
     Log,
+    Report,
     _exponential_sum,
     applied_clock_errors,
     applied_dvl_errors,
     axis_map_names,
     axis_maps,
+    changes,
     check_arrays,
     check_file,
     fit_clock,
@@ -711,3 +713,16 @@ def test_apply_records_how_well_it_knows_the_clocks(simulated):
         assert found[name].value["offset_se_s"] <= se < 0.05
         assert abs(found[name].value["offset_s"] - injected) < 4 * math.hypot(se, 0.005)
     assert applied_clock_errors({}) == (None, None)
+
+
+def test_a_clock_found_stretched_but_not_shifted_is_named_among_the_changes():
+    """``changes`` names every stream whose stamps ``corrected`` moved: one with a rate
+    error and no offset moves too, and had gone unsaid."""
+    report = Report("m", corrections={"time_base": "reference",
+                                               "dvl_time_offset_s": 0.0,
+                                               "dvl_rate_error": 400e-6})
+    before = {"dvl_time_offset_s": 0.0, "imu_time_offset_s": 0.0}
+    said = changes(before, dict(before), report)
+    assert said == ["onto the reference's clock: DVL +0.000 s and +400 ppm"], said
+    report.corrections["dvl_rate_error"] = 0.0
+    assert changes(before, dict(before), report) == []

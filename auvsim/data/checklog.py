@@ -1328,8 +1328,10 @@ def changes(before, after: dict, report: Report) -> list[str]:
     for g, name in (("imu", "IMU"), ("dvl", "DVL"), ("depth", "depth"),
                     ("reference", "reference")):
         key = f"{g}_time_offset_s"
-        if key in before and float(after[key]) != float(before[key]):
-            rate = c.get(f"{g}_rate_error", 0.0) if name != base else 0.0
+        rate = c.get(f"{g}_rate_error", 0.0) if name != base else 0.0
+        # A stream is moved by its offset, by its rate, or both (a clock found stretched
+        # but not shifted moves every stamp but the first).
+        if key in before and (float(after[key]) != float(before[key]) or rate):
             clocks.append(f"{name} {float(after[key]) - float(before[key]):+.3f} s"
                           + (f" and {1e6 * rate:+.0f} ppm" if rate else ""))
     if clocks:
