@@ -773,6 +773,344 @@ def _gyro_rate_into(w_i, bg, kg, gi, out):
             out[r] -= kg[r, 0] * a0 + kg[r, 1] * a1 + kg[r, 2] * a2
 
 
+@numba.njit(cache=True, inline="always")
+def _strapdown(f_i, w_i, h, interval, earth, omega_ie, g_i, p, v, c, ba, bg, kg, gi, vec,
+               mat):
+    """One IMU step over ``h`` s (the module docstring's mechanisation): ``p``, ``v`` and
+    ``c`` moved in place by the specific force ``f_i`` (sample i, or i - 1 held: see
+    ``_filter``'s ``interval``) and the rate ``w_i`` (sample i), gravity ``g_i`` at the
+    IMU's depth. Leaves what the covariance's step reads: vec[CF] C f (its Earth terms
+    included, the Coriolis term not), vec[WR] the rate the gyro matrix's error acts on,
+    mat[C_OLD] the attitude before the step. Returns |w_nb| and |f| - g of the sample,
+    the noise model's features' sums (``_ping_features``)."""
+    fb, wb, cf, dphi, cor, rate, wr = vec[FB], vec[WB], vec[CF], vec[DPHI], vec[COR], \
+        vec[RATE], vec[WR]
+    rot, c_old, m_c = mat[ROT], mat[C_OLD], mat[M_C]
+    for r in range(3):
+        fb[r] = f_i[r] - ba[r]
+    _gyro_rate_into(w_i, bg, kg, gi, wb)
+    if gi >= 0:  # the rate the gyro matrix's error acts on, before the Earth's
+        for r in range(3):
+            wr[r] = wb[r]
+    if earth:  # w_nb = w - C^T Omega_ie, the Earth's rate at sample i's attitude
+        for r in range(3):
+            dphi[r] = h * wb[r]
+        _exp_into(dphi, rot)
+        _matmul_into(c, rot, c_old)  # the attitude at sample i, to O(dt Omega_ie)
+        np.dot(c_old.T, omega_ie, rate)
+        for r in range(3):
+            wb[r] -= rate[r]
+    if interval:  # C at the interval's middle: C_{i-1} Exp(dt w_nb / 2)
+        for r in range(3):
+            dphi[r] = 0.5 * h * wb[r]
+        _exp_into(dphi, rot)
+        _matmul_into(c, rot, m_c)
+        for r in range(3):
+            cf[r] = m_c[r, 0] * fb[0] + m_c[r, 1] * fb[1] + m_c[r, 2] * fb[2]
+    else:
+        for r in range(3):
+            cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
+    if earth:  # C f less the Coriolis term 2 Omega_ie x v
+        cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
+        cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
+        cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
+        for r in range(3):
+            cf[r] -= 2.0 * cor[r]
+    cf[2] += g_i
+    # Position: by the new velocity (MuJoCo's step, for held samples), or by the mean of
+    # the old and the new (Groves eq. 5.38, for a real IMU's intervals).
+    lean = 0.5 * h if interval else 0.0
+    for r in range(3):
+        v[r] += h * cf[r]
+        p[r] += h * (v[r] - lean * cf[r])
+        dphi[r] = h * wb[r]
+        c_old[r, :] = c[r, :]
+    cf[2] -= g_i  # C f (less the Coriolis term) is what the error dynamics see
+    turn = math.sqrt(wb[0] * wb[0] + wb[1] * wb[1] + wb[2] * wb[2])
+    excess = math.sqrt(fb[0] * fb[0] + fb[1] * fb[1] + fb[2] * fb[2]) - g_i
+    if earth:
+        for r in range(3):
+            cf[r] += 2.0 * cor[r]
+    _exp_into(dphi, rot)
+    _matmul_into(c_old, rot, c)
+    return turn, excess
+
+
+@numba.njit(cache=True, inline="always")
+def _propagate(P, n, h, q, earth, omega_ie, g_grad, gi, vec, mat, m_kg):
+    """P <- Phi P Phi^T + Q h over one IMU step (the module docstring's error dynamics),
+    from what ``_strapdown`` left in ``vec`` and ``mat``."""
+    cf, wr = vec[CF], vec[WR]
+    c_old, m_va, m_c, m_vv, m_aa = mat[C_OLD], mat[M_VA], mat[M_C], mat[M_VV], mat[M_AA]
+    if earth:  # -2 dt [Omega_ie x] on v <- v, half of it on theta <- theta
+        m_vv[0, 1], m_vv[0, 2], m_vv[1, 2] = 2.0 * h * omega_ie[2], \
+            -2.0 * h * omega_ie[1], 2.0 * h * omega_ie[0]
+        m_vv[1, 0], m_vv[2, 0], m_vv[2, 1] = -m_vv[0, 1], -m_vv[0, 2], -m_vv[1, 2]
+        for r in range(3):
+            for j in range(3):
+                m_aa[r, j] = 0.5 * m_vv[r, j]
+    # Phi P Phi^T: columns, then rows of the result.
+    m_va[0, 1], m_va[0, 2], m_va[1, 2] = h * cf[2], -h * cf[1], h * cf[0]
+    m_va[1, 0], m_va[2, 0], m_va[2, 1] = -h * cf[2], h * cf[1], -h * cf[0]
+    for r in range(3):
+        for j in range(3):
+            m_c[r, j] = -h * c_old[r, j]
+    if gi >= 0:  # theta' = -C dK_g w: element (a, b) drives -C[:, a] w_b
+        for r in range(3):
+            for a_ in range(3):
+                for b_ in range(3):
+                    m_kg[r, 3 * a_ + b_] = m_c[r, a_] * wr[b_]
+    for j in range(n):
+        _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg, h * g_grad)
+    for j in range(n):
+        _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg, h * g_grad)
+    for r in range(3):
+        P[3 + r, 3 + r] += q[0] * h
+        P[6 + r, 6 + r] += q[1] * h
+        P[9 + r, 9 + r] += q[2] * h
+        P[12 + r, 12 + r] += q[3] * h
+
+
+@numba.njit(cache=True, inline="always")
+def _decay_slow_error(P, decay, drive, si, cb, se):
+    """The DVL's slow error over one IMU step, a first-order Gauss-Markov process: its
+    states (the biases c_k where ``si`` < 0, else the velocity error e) times ``decay``
+    (1 - h / tau), their variance driven by ``drive`` (PSD times h), (m/s)^2."""
+    if si < 0:  # in the biases c_k
+        for k in range(4):
+            cb[k] *= decay
+            P[19 + k, :] *= decay
+            P[:, 19 + k] *= decay
+            P[19 + k, 19 + k] += drive
+    else:  # in the DVL's velocity error e
+        for k in range(N_SLOW):
+            se[k] *= decay
+            P[si + k, :] *= decay
+            P[:, si + k] *= decay
+            P[si + k, si + k] += drive
+
+
+@numba.njit(cache=True)
+def _parity_agrees(parity, meas, s, cb, r_use, P, nb, gate):
+    """Whether a ping's measurements ``meas`` (K,) agree among themselves (the module
+    docstring's parity check): a common velocity, misalignment or timing error cancels in
+    a . z; an outlier on one beam does not. Its rejections are then the instrument's, not
+    the state's."""
+    pz, pvar = 0.0, 0.0
+    for k in range(meas.shape[0]):
+        pz += parity[k] * (meas[k] - cb[k]) / (1.0 + s[k])
+        pvar += parity[k] * parity[k] * (r_use[k] + (P[19 + k, 19 + k] if nb > N_CORE
+                                                     else 0.0))
+    return pz * pz <= gate * pvar
+
+
+@numba.njit(cache=True)
+def _innovation(k, y, dirs, mounting, c, v, wb, w_imu, lever, P, s, cb, mis, se, nb, si, gi,
+                hrow):
+    """Measurement ``y`` along direction ``k`` (the module docstring's y_k): its
+    innovation nu, its Jacobian row (into ``hrow``), P h^T, and the direction in the body
+    (gm: where the ping's timing term reads the rate y changes at)."""
+    u = c.T @ v + np.cross(wb, lever)  # DVL point velocity, body
+    # Direction k of the DVL frame as mounted, in the body: d turned by the
+    # misalignment, d + mis x d (d . (x + x x mis) = (d + mis x d) . x).
+    d_k = dirs[k] + np.cross(mis, dirs[k])
+    gm = mounting @ d_k
+    gk = (1.0 + s[k]) * gm
+    a = c @ gk
+    along = gm[0] * u[0] + gm[1] * u[1] + gm[2] * u[2]
+    y_hat = (1.0 + s[k]) * along + cb[k]
+    if si >= 0:
+        y_hat += dirs[k, 0] * se[0] + dirs[k, 1] * se[1] + dirs[k, 2] * se[2]
+    hrow[:] = 0.0
+    hrow[3:6] = a
+    hrow[6:9] = np.cross(a, v)
+    hrow[12:15] = np.cross(gk, lever)
+    if nb > N_CORE:
+        hrow[15 + k] = along
+        hrow[19 + k] = 1.0
+        hrow[23:26] = (1.0 + s[k]) * np.cross(dirs[k], mounting.T @ u)
+        hrow[26:29] = np.cross(gk, wb)  # g . (w x dL) = dL . (g x w)
+    if si >= 0:
+        hrow[si:si + N_SLOW] = dirs[k]
+    if gi >= 0:  # the rate's error dK_g w in g . (w x L), as b_g's above
+        gl = np.cross(gk, lever)
+        for a_ in range(3):
+            for b_ in range(3):
+                hrow[gi + 3 * a_ + b_] = gl[a_] * w_imu[b_]
+    return y - y_hat, P @ hrow, gm
+
+
+@numba.njit(cache=True)
+def _correct(P, ph, s_inn, nu, p, v, c, ba, bg, s, cb, mis, lever, se, kg, nb, si, gi):
+    """The Kalman update of one accepted measurement (P h^T ``ph``, innovation ``nu`` of
+    variance ``s_inn``), and the error estimate injected into the nominal state (which it
+    is then reset to 0 from)."""
+    gain = ph / s_inn
+    dx = gain * nu
+    P -= np.outer(gain, ph)
+    P[:, :] = 0.5 * (P + P.T)
+    p += dx[0:3]
+    v += dx[3:6]
+    c[:, :] = _exp(dx[6:9]) @ c
+    ba += dx[9:12]
+    bg += dx[12:15]
+    if nb > N_CORE:
+        s += dx[15:19]
+        cb += dx[19:23]
+        mis += dx[23:26]
+        lever += dx[26:29]
+    if si >= 0:
+        se += dx[si:si + N_SLOW]
+    if gi >= 0:
+        for a_ in range(3):
+            for b_ in range(3):
+                kg[a_, b_] += dx[gi + 3 * a_ + b_]
+
+
+@numba.njit(cache=True)
+def _ping_features(feat, usable, nu, hph, r_use, r_base, drive, gate, scale_used, acc_w, acc_f,
+                   acc_f2, acc_n, v):
+    """The noise model's features of a ping (``noisemodel.FEATURES``) into ``feat``: from
+    its measurements (``usable``, innovations ``nu``, their h P h^T ``hph``, the variances
+    in use and stated, the slow error's drive since the last ping) and from the IMU since
+    the last ping (the sums of |w|, of |f| - g and of its squares over ``acc_n``
+    samples)."""
+    n_dir = nu.shape[0]
+    offered, nis_sum, share_sum = 0, 0.0, 0.0
+    for k in range(n_dir):
+        if usable[k]:
+            offered += 1
+            s_k = hph[k] + r_use[k]
+            nis_sum += min(nu[k] ** 2, gate * s_k) / s_k
+            share_sum += min(scale_used * (r_base[k] + drive) / s_k, 1.0)
+    mean_w = acc_w / acc_n if acc_n > 0 else 0.0
+    mean_f = acc_f / acc_n if acc_n > 0 else 0.0
+    var_f = max(acc_f2 / acc_n - mean_f * mean_f, 0.0) if acc_n > 0 else 0.0
+    feat[0] = math.log(mean_w + 1e-3)
+    feat[1] = math.log(math.sqrt(var_f + mean_f * mean_f) + 1e-3)
+    feat[2] = math.log(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.1)
+    # The scale the ping's innovations imply, lambda nu^2 / S: the mean NIS times the
+    # scale in use, which the noise model's own output does not move (to first order), so
+    # that training on its own runs converges (noisenet).
+    feat[3] = (math.log(scale_used * nis_sum / offered + 0.01) if offered > 0
+               else math.log(0.01))
+    feat[4] = share_sum / offered if offered > 0 else 0.0
+    feat[5] = offered / n_dir
+
+
+@numba.njit(cache=True)
+def _network_scale(feat_ring, feat_n, net_w1, net_b1, net_w2, net_b2, feat_mean, feat_std,
+                   hidden, r_low, r_high):
+    """The learned noise model's std scale from the last pings' features (``feat_ring``,
+    ``feat_n`` pushed so far; ``beamsnet.estimators.noisenet``), bounded by construction:
+    log lambda in (log r_low, log r_high)."""
+    net_window = feat_ring.shape[0]
+    z = net_b2[0]
+    for h_ in range(hidden.shape[0]):
+        acc = net_b1[h_]
+        for j in range(net_window):  # newest first
+            row = feat_ring[(feat_n - 1 - j) % net_window]
+            for m_ in range(N_FEATURES):
+                col = j * N_FEATURES + m_
+                acc += net_w1[h_, col] * (row[m_] - feat_mean[col]) / feat_std[col]
+        hidden[h_] = math.tanh(acc)
+        z += net_w2[h_] * hidden[h_]
+    lo, hi = math.log(r_low), math.log(r_high)
+    return math.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * math.tanh(z))
+
+
+@numba.njit(cache=True)
+def _dvl_velocity(c, v, wb, w_imu, lever, mounting, mis, P, nb, gi):
+    """The velocity at the DVL (its frame, m/s) and its covariance: its Jacobian on (dv,
+    theta, db_g) and on the states it also depends on where they are on: the lever arm,
+    M^T [w x] dL, the misalignment (in the DVL's frame as the filter has it, the nominal
+    one turned by mu, a - mu x a = a + a x mu, so [a x] dmu), and the gyro matrix through
+    the rate, M^T [L x] e_a w_b per element."""
+    extra = (6 if nb > N_CORE else 0) + (N_GYRO_MATRIX if gi >= 0 else 0)
+    idx = np.empty(9 + extra, dtype=np.int64)
+    jac = np.zeros((3, 9 + extra))
+    mt = mounting.T
+    jv = mt @ c.T
+    ml = mt @ _skew(lever)
+    jac[:, 0:3] = jv
+    jac[:, 3:6] = jv @ _skew(v)
+    jac[:, 6:9] = ml
+    for r in range(3):
+        idx[r], idx[3 + r], idx[6 + r] = 3 + r, 6 + r, 12 + r
+    out = mt @ (c.T @ v + np.cross(wb, lever))
+    col = 9
+    if nb > N_CORE:
+        a_v = out.copy()
+        jac[:, col:col + 3] = mt @ _skew(wb)
+        jac[:, col + 3:col + 6] = _skew(a_v)
+        for r in range(3):
+            idx[col + r] = 26 + r
+            idx[col + 3 + r] = 23 + r
+        col += 6
+        out += np.cross(a_v, mis)
+    if gi >= 0:
+        for a_ in range(3):
+            for b_ in range(3):
+                jac[:, col] = ml[:, a_] * w_imu[b_]
+                idx[col] = gi + 3 * a_ + b_
+                col += 1
+    sub = np.empty((9 + extra, 9 + extra))
+    for a_ in range(9 + extra):
+        for b_ in range(9 + extra):
+            sub[a_, b_] = P[idx[a_], idx[b_]]
+    return out, jac @ sub @ jac.T
+
+
+@numba.njit(cache=True)
+def _record_states(x, sd, P, column, ba, bg, s, cb, mis, lever, se, kg, nb, si, gi):
+    """A ping's instrument states (``x``, by ``_STATES``) and every state's std (``sd``,
+    sqrt(diag P), by each state's ``column``)."""
+    for j in range(P.shape[0]):
+        sd[column[j]] = math.sqrt(P[j, j])
+    for r in range(3):
+        x[9 + r] = ba[r]
+        x[12 + r] = bg[r]
+    if nb > N_CORE:
+        for k in range(4):
+            x[15 + k] = s[k]
+            x[19 + k] = cb[k]
+        for r in range(3):
+            x[23 + r] = mis[r]
+            x[26 + r] = lever[r]
+    if si >= 0:
+        for r in range(N_SLOW):
+            x[N_BEAM + r] = se[r]
+    if gi >= 0:
+        for a_ in range(3):
+            for b_ in range(3):
+                x[N_BEAM + N_SLOW + 3 * a_ + b_] = kg[a_, b_]
+
+
+@numba.njit(cache=True)
+def _restart(P, worst, span, r_max, attitude_prior):
+    """The divergence watch's restart: the gate has rejected most measurements for a
+    window, so the state, not the instrument, is wrong. The velocity restarts from the
+    measurements (its variance covers the worst innovation ``worst``, m/s, and the largest
+    stated variance ``r_max``; its correlations dropped), the attitude widens back to its
+    prior and the position by what the velocity error could have moved it over the
+    window (``span`` s)."""
+    for r in range(3):
+        for j in range(P.shape[0]):
+            P[3 + r, j] = 0.0
+            P[j, 3 + r] = 0.0
+        P[3 + r, 3 + r] = 4.0 * worst * worst + r_max
+        P[6 + r, 6 + r] += attitude_prior[r]
+        P[r, r] += (worst * span) ** 2
+
+
+# The scratch vectors and matrices of ``_filter``'s IMU step, by row (no allocation per
+# sample): the corrected specific force and rate, C f, a rotation vector, the Coriolis
+# term, the Earth's rate in the body, the gyro matrix's rate; an incremental rotation, the
+# attitude before the step, the blocks of Phi.
+FB, WB, CF, DPHI, COR, RATE, WR = range(7)
+ROT, C_OLD, M_C, M_VA, M_VV, M_AA = range(6)
+
+
 @numba.njit(cache=True)
 def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dirs, mounting,
             lever, r_imu,
@@ -883,116 +1221,30 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
     cb = np.zeros(4)
     mis = np.zeros(3)  # the DVL frame's small rotation from its nominal mounting, rad
     se = np.zeros(3)  # the DVL's slow velocity error, its frame, m/s (where si >= 0)
-    m_vv = np.zeros((3, 3))
-    m_aa = np.zeros((3, 3))
     earth = omega_ie[0] != 0.0 or omega_ie[1] != 0.0 or omega_ie[2] != 0.0
     check_parity = np.abs(parity).sum() > 0.0
     k_ping = 0
     while k_ping < n_ping and ping_row[k_ping] < 0:
         k_ping += 1
     hrow = np.zeros(n)
-    fb, wb, cf, dphi, cor = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
-    rate = np.zeros(3)
-    wr = np.zeros(3)  # the corrected gyro sample (w - b_g - K_g (w - b_g))
-    w_imu = np.zeros(3)  # likewise at a ping
+    vec = np.zeros((7, 3))  # the IMU step's scratch (FB ... WR)
+    mat = np.zeros((6, 3, 3))  # (ROT ... M_AA)
     m_kg = np.zeros((3, N_GYRO_MATRIX))  # -dt C [w^T in row a] on theta <- K_g
-    c_old, rot, m_va, m_c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
+    w_imu = np.zeros(3)  # the corrected gyro sample at a ping
     for i in range(f.shape[0]):
         if i > 0:
             h = dt[i]
-            if earth:  # -2 dt [Omega_ie x] on v <- v, half of it on theta <- theta
-                m_vv[0, 1], m_vv[0, 2], m_vv[1, 2] = 2.0 * h * omega_ie[2], \
-                    -2.0 * h * omega_ie[1], 2.0 * h * omega_ie[0]
-                m_vv[1, 0], m_vv[2, 0], m_vv[2, 1] = -m_vv[0, 1], -m_vv[0, 2], -m_vv[1, 2]
-                for r in range(3):
-                    for j in range(3):
-                        m_aa[r, j] = 0.5 * m_vv[r, j]
-            src = i if interval else i - 1
-            for r in range(3):
-                fb[r] = f[src, r] - ba[r]
-            _gyro_rate_into(w[i], bg, kg, gi, wb)
-            if gi >= 0:  # the rate the gyro matrix's error acts on, before the Earth's
-                for r in range(3):
-                    wr[r] = wb[r]
-            if earth:  # w_nb = w - C^T Omega_ie, the Earth's rate at sample i's attitude
-                for r in range(3):
-                    dphi[r] = h * wb[r]
-                _exp_into(dphi, rot)
-                _matmul_into(c, rot, c_old)  # the attitude at sample i, to O(dt Omega_ie)
-                np.dot(c_old.T, omega_ie, rate)
-                for r in range(3):
-                    wb[r] -= rate[r]
-            if interval:  # C at the interval's middle: C_{i-1} Exp(dt w_nb / 2)
-                for r in range(3):
-                    dphi[r] = 0.5 * h * wb[r]
-                _exp_into(dphi, rot)
-                _matmul_into(c, rot, m_c)
-                for r in range(3):
-                    cf[r] = m_c[r, 0] * fb[0] + m_c[r, 1] * fb[1] + m_c[r, 2] * fb[2]
-            else:
-                for r in range(3):
-                    cf[r] = c[r, 0] * fb[0] + c[r, 1] * fb[1] + c[r, 2] * fb[2]
-            if earth:  # C f less the Coriolis term 2 Omega_ie x v
-                cor[0] = omega_ie[1] * v[2] - omega_ie[2] * v[1]
-                cor[1] = omega_ie[2] * v[0] - omega_ie[0] * v[2]
-                cor[2] = omega_ie[0] * v[1] - omega_ie[1] * v[0]
-                for r in range(3):
-                    cf[r] -= 2.0 * cor[r]
             g_i = g + g_grad * p[2] if g_grad != 0.0 else g  # at the IMU's depth at i - 1
-            cf[2] += g_i
-            # Position: by the new velocity (MuJoCo's step, for held samples), or by the
-            # mean of the old and the new (Groves eq. 5.38, for a real IMU's intervals).
-            lean = 0.5 * h if interval else 0.0
-            for r in range(3):
-                v[r] += h * cf[r]
-                p[r] += h * (v[r] - lean * cf[r])
-                dphi[r] = h * wb[r]
-                c_old[r, :] = c[r, :]
-            cf[2] -= g_i  # C f (less the Coriolis term) is what the error dynamics see
-            acc_w += math.sqrt(wb[0] * wb[0] + wb[1] * wb[1] + wb[2] * wb[2])
-            excess = math.sqrt(fb[0] * fb[0] + fb[1] * fb[1] + fb[2] * fb[2]) - g_i
+            turn, excess = _strapdown(f[i if interval else i - 1], w[i], h, interval, earth,
+                                      omega_ie, g_i, p, v, c, ba, bg, kg, gi, vec, mat)
+            acc_w += turn
             acc_f += excess
             acc_f2 += excess * excess
             acc_n += 1
-            if earth:
-                for r in range(3):
-                    cf[r] += 2.0 * cor[r]
-            _exp_into(dphi, rot)
-            _matmul_into(c_old, rot, c)
-            # Covariance: Phi P Phi^T (columns, then rows of the result), + Q dt.
-            m_va[0, 1], m_va[0, 2], m_va[1, 2] = h * cf[2], -h * cf[1], h * cf[0]
-            m_va[1, 0], m_va[2, 0], m_va[2, 1] = -h * cf[2], h * cf[1], -h * cf[0]
-            for r in range(3):
-                for j in range(3):
-                    m_c[r, j] = -h * c_old[r, j]
-            if gi >= 0:  # theta' = -C dK_g w: element (a, b) drives -C[:, a] w_b
-                for r in range(3):
-                    for a_ in range(3):
-                        for b_ in range(3):
-                            m_kg[r, 3 * a_ + b_] = m_c[r, a_] * wr[b_]
-            for j in range(n):
-                _phi_apply(P[:, j], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg, h * g_grad)
-            for j in range(n):
-                _phi_apply(P[j, :], h, m_va, m_c, m_c, m_vv, m_aa, gi, m_kg, h * g_grad)
-            for r in range(3):
-                P[3 + r, 3 + r] += q[0] * h
-                P[6 + r, 6 + r] += q[1] * h
-                P[9 + r, 9 + r] += q[2] * h
-                P[12 + r, 12 + r] += q[3] * h
+            _propagate(P, n, h, q, earth, omega_ie, g_grad, gi, vec, mat, m_kg)
             if nb > N_CORE and bias_decay > 0.0:  # the first-order Gauss-Markov slow error
                 decay = 1.0 - h * bias_decay
-                if si < 0:  # in the biases c_k
-                    for k in range(4):
-                        cb[k] *= decay
-                        P[19 + k, :] *= decay
-                        P[:, 19 + k] *= decay
-                        P[19 + k, 19 + k] += bias_psd_use * h
-                else:  # in the DVL's velocity error e
-                    for k in range(N_SLOW):
-                        se[k] *= decay
-                        P[si + k, :] *= decay
-                        P[:, si + k] *= decay
-                        P[si + k, si + k] += bias_psd_use * h
+                _decay_slow_error(P, decay, bias_psd_use * h, si, cb, se)
                 drive = drive * decay * decay + bias_psd * h
         while k_ping < n_ping and ping_row[k_ping] == i:
             # The DVL's lever arm turns with the body relative to the Earth: w_nb.
@@ -1008,18 +1260,9 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
                     r_base[k] = (math.sqrt(r_meas[k]) + r_growth[k] * speed) ** 2
                 r_use[k] = mult * r_base[k]
                 out_stated[k_ping, k] = math.sqrt(r_base[k])
-            # Do the ping's measurements agree among themselves (the parity check)? A
-            # common velocity, misalignment or timing error cancels in a . z; an outlier
-            # on one beam does not. Its rejections are then the instrument's, not the
-            # state's.
             agree = True
             if check_parity and usable[k_ping].all():
-                pz, pvar = 0.0, 0.0
-                for k in range(n_dir):
-                    pz += parity[k] * (meas[k_ping, k] - cb[k]) / (1.0 + s[k])
-                    pvar += parity[k] * parity[k] * (
-                        r_use[k] + (P[19 + k, 19 + k] if nb > N_CORE else 0.0))
-                agree = pz * pz <= gate * pvar
+                agree = _parity_agrees(parity, meas[k_ping], s, cb, r_use, P, nb, gate)
             u_dot = np.zeros(3)
             if timing_std > 0.0:
                 alpha = (w[i] - w[i - 1]) / dt[i] if i > 0 else np.zeros(3)
@@ -1028,38 +1271,11 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
             for k in range(n_dir):
                 if not usable[k_ping, k]:
                     continue
-                u = c.T @ v + np.cross(wb, lever)  # DVL point velocity, body
-                # Direction k of the DVL frame as mounted, in the body: d turned by the
-                # misalignment, d + mis x d (d . (x + x x mis) = (d + mis x d) . x).
-                d_k = dirs[k] + np.cross(mis, dirs[k])
-                gm = mounting @ d_k
-                gk = (1.0 + s[k]) * gm
-                a = c @ gk
-                along = gm[0] * u[0] + gm[1] * u[1] + gm[2] * u[2]
-                y_hat = (1.0 + s[k]) * along + cb[k]
-                if si >= 0:
-                    y_hat += dirs[k, 0] * se[0] + dirs[k, 1] * se[1] + dirs[k, 2] * se[2]
-                hrow[:] = 0.0
-                hrow[3:6] = a
-                hrow[6:9] = np.cross(a, v)
-                hrow[12:15] = np.cross(gk, lever)
-                if nb > N_CORE:
-                    hrow[15 + k] = along
-                    hrow[19 + k] = 1.0
-                    hrow[23:26] = (1.0 + s[k]) * np.cross(dirs[k], mounting.T @ u)
-                    hrow[26:29] = np.cross(gk, wb)  # g . (w x dL) = dL . (g x w)
-                if si >= 0:
-                    hrow[si:si + N_SLOW] = dirs[k]
-                if gi >= 0:  # the rate's error dK_g w in g . (w x L), as b_g's above
-                    gl = np.cross(gk, lever)
-                    for a_ in range(3):
-                        for b_ in range(3):
-                            hrow[gi + 3 * a_ + b_] = gl[a_] * w_imu[b_]
-                ph = P @ hrow
+                nu, ph, gm = _innovation(k, meas[k_ping, k], dirs, mounting, c, v, wb, w_imu,
+                                         lever, P, s, cb, mis, se, nb, si, gi, hrow)
                 rate_k = gm[0] * u_dot[0] + gm[1] * u_dot[1] + gm[2] * u_dot[2]
                 hph = hrow @ ph
                 s_inn = hph + r_use[k] + (timing_std * rate_k) ** 2
-                nu = meas[k_ping, k] - y_hat
                 out_nu[k_ping, k] = nu
                 out_hph[k_ping, k] = hph + (timing_std * rate_k) ** 2
                 out_s[k_ping, k] = s_inn
@@ -1076,27 +1292,8 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
                     worst = max(worst, abs(nu))
                     continue
                 used[k_ping] += 1
-                gain = ph / s_inn
-                dx = gain * nu
-                P -= np.outer(gain, ph)
-                P[:, :] = 0.5 * (P + P.T)
-                # Inject the error estimate into the nominal state (it is reset to 0).
-                p += dx[0:3]
-                v += dx[3:6]
-                c[:, :] = _exp(dx[6:9]) @ c
-                ba += dx[9:12]
-                bg += dx[12:15]
-                if nb > N_CORE:
-                    s += dx[15:19]
-                    cb += dx[19:23]
-                    mis += dx[23:26]
-                    lever += dx[26:29]
-                if si >= 0:
-                    se += dx[si:si + N_SLOW]
-                if gi >= 0:
-                    for a_ in range(3):
-                        for b_ in range(3):
-                            kg[a_, b_] += dx[gi + 3 * a_ + b_]
+                _correct(P, ph, s_inn, nu, p, v, c, ba, bg, s, cb, mis, lever, se, kg, nb, si,
+                         gi)
             held = min(ring_n, adapt_window)
             if adapt_window > 0 and held >= adapt_start:
                 # Innovation-based R (the module docstring), for the next ping's updates:
@@ -1104,52 +1301,22 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
                 mult = min(max(ring[:held].sum() / held, r_low), r_high)
                 for k in range(n_dir):
                     r_use[k] = mult * r_base[k]
-            # The noise model's features of this ping (``noisemodel.FEATURES``), and its
-            # scale for the next ping's measurements.
+            # The noise model's features of this ping, and its scale for the next ping's
+            # measurements.
             out_scale[k_ping] = scale_used
-            offered, nis_sum, share_sum = 0, 0.0, 0.0
-            for k in range(n_dir):
-                if usable[k_ping, k]:
-                    offered += 1
-                    nu2 = out_nu[k_ping, k] ** 2
-                    s_k = out_hph[k_ping, k] + r_use[k]
-                    nis_sum += min(nu2, gate * s_k) / s_k
-                    share_sum += min(scale_used * (r_base[k] + drive) / s_k, 1.0)
+            _ping_features(out_feat[k_ping], usable[k_ping], out_nu[k_ping], out_hph[k_ping],
+                           r_use, r_base, drive, gate, scale_used, acc_w, acc_f, acc_f2,
+                           acc_n, v)
             drive = 0.0
-            mean_w = acc_w / acc_n if acc_n > 0 else 0.0
-            mean_f = acc_f / acc_n if acc_n > 0 else 0.0
-            var_f = max(acc_f2 / acc_n - mean_f * mean_f, 0.0) if acc_n > 0 else 0.0
             acc_w, acc_f, acc_f2, acc_n = 0.0, 0.0, 0.0, 0
-            feat = out_feat[k_ping]
-            feat[0] = math.log(mean_w + 1e-3)
-            feat[1] = math.log(math.sqrt(var_f + mean_f * mean_f) + 1e-3)
-            feat[2] = math.log(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.1)
-            # The scale the ping's innovations imply, lambda nu^2 / S: the mean NIS times
-            # the scale in use, which the noise model's own output does not move (to first
-            # order), so that training on its own runs converges (noisenet).
-            feat[3] = (math.log(scale_used * nis_sum / offered + 0.01) if offered > 0
-                       else math.log(0.01))
-            feat[4] = share_sum / offered if offered > 0 else 0.0
-            feat[5] = offered / n_dir
             if net_window > 0:
                 if feat_n == 0:  # the first ping's features fill the window
                     for j in range(net_window):
-                        feat_ring[j] = feat
-                feat_ring[feat_n % net_window] = feat
+                        feat_ring[j] = out_feat[k_ping]
+                feat_ring[feat_n % net_window] = out_feat[k_ping]
                 feat_n += 1
-                z = net_b2[0]
-                for h_ in range(hidden.shape[0]):
-                    acc = net_b1[h_]
-                    for j in range(net_window):  # newest first
-                        row = feat_ring[(feat_n - 1 - j) % net_window]
-                        for m_ in range(N_FEATURES):
-                            col = j * N_FEATURES + m_
-                            acc += net_w1[h_, col] * (row[m_] - feat_mean[col]) / feat_std[col]
-                    hidden[h_] = math.tanh(acc)
-                    z += net_w2[h_] * hidden[h_]
-                # Bounded by construction: log lambda in (log r_low, log r_high).
-                lo, hi = math.log(r_low), math.log(r_high)
-                scale_used = math.exp(0.5 * (lo + hi) + 0.5 * (hi - lo) * math.tanh(z))
+                scale_used = _network_scale(feat_ring, feat_n, net_w1, net_b1, net_w2,
+                                            net_b2, feat_mean, feat_std, hidden, r_low, r_high)
                 mult = scale_used
                 for k in range(n_dir):
                     r_use[k] = mult * r_base[k]
@@ -1161,87 +1328,23 @@ def _filter(f, w, dt, g, g_grad, omega_ie, interval, ping_row, meas, usable, dir
                 offered = ring_used.sum()
                 if (ring_rejected[slot] > 0 and offered >= window
                         and ring_rejected.sum() >= watch_share * offered):
-                    # The gate has rejected most measurements for a window: the state, not
-                    # the instrument, is wrong. Restart the velocity from the measurements
-                    # (its variance covers the worst innovation, uncorrelated), widen the
-                    # attitude back to its prior and the position by what the velocity
-                    # error could have moved it over the window.
                     first = ping_row[max(0, k_ping - window + 1)]
-                    span = (i - first) * dt[i] if first >= 0 else 0.0
-                    for r in range(3):
-                        for j in range(n):
-                            P[3 + r, j] = 0.0
-                            P[j, 3 + r] = 0.0
-                        P[3 + r, 3 + r] = 4.0 * worst * worst + r_base.max()
-                        P[6 + r, 6 + r] += attitude_prior[r]
-                        P[r, r] += (worst * span) ** 2
+                    span = (i - first) * dt[i] if first >= 0 else 0.0  # the window, s
+                    _restart(P, worst, span, r_base.max(), attitude_prior)
                     reset[k_ping] = True
                     ring_used[:] = 0
                     ring_rejected[:] = 0
             _gyro_rate_into(w[i], bg, kg, gi, w_imu)  # after the ping's updates
             wb = w_imu - c.T @ omega_ie
-            # The velocity at the DVL's covariance: its Jacobian on (dv, theta, db_g) and
-            # on the states it also depends on where they are on: the lever arm,
-            # M^T [w x] dL, the misalignment (in the DVL's frame as the filter has it, the
-            # nominal one turned by mu, a - mu x a = a + a x mu, so [a x] dmu), and the
-            # gyro matrix through the rate, M^T [L x] e_a w_b per element.
-            extra = (6 if nb > N_CORE else 0) + (N_GYRO_MATRIX if gi >= 0 else 0)
-            idx = np.empty(9 + extra, dtype=np.int64)
-            jac = np.zeros((3, 9 + extra))
-            mt = mounting.T
-            jv = mt @ c.T
-            ml = mt @ _skew(lever)
-            jac[:, 0:3] = jv
-            jac[:, 3:6] = jv @ _skew(v)
-            jac[:, 6:9] = ml
-            for r in range(3):
-                idx[r], idx[3 + r], idx[6 + r] = 3 + r, 6 + r, 12 + r
-            out_v[k_ping] = mt @ (c.T @ v + np.cross(wb, lever))
-            col = 9
-            if nb > N_CORE:
-                a_v = out_v[k_ping].copy()
-                jac[:, col:col + 3] = mt @ _skew(wb)
-                jac[:, col + 3:col + 6] = _skew(a_v)
-                for r in range(3):
-                    idx[col + r] = 26 + r
-                    idx[col + 3 + r] = 23 + r
-                col += 6
-                out_v[k_ping] += np.cross(a_v, mis)
-            if gi >= 0:
-                for a_ in range(3):
-                    for b_ in range(3):
-                        jac[:, col] = ml[:, a_] * w_imu[b_]
-                        idx[col] = gi + 3 * a_ + b_
-                        col += 1
-            sub = np.empty((9 + extra, 9 + extra))
-            for a_ in range(9 + extra):
-                for b_ in range(9 + extra):
-                    sub[a_, b_] = P[idx[a_], idx[b_]]
-            out_cov[k_ping] = jac @ sub @ jac.T
+            out_v[k_ping], out_cov[k_ping] = _dvl_velocity(c, v, wb, w_imu, lever, mounting,
+                                                           mis, P, nb, gi)
             out_p[k_ping] = p - c @ r_imu
             out_c[k_ping] = c
             out_r[k_ping] = r_use
             # The origin's position error adds theta x (C r_imu); r_imu is short, and its
             # share is below the position std's first digit: the IMU point's std.
-            for j in range(n):
-                out_sd[k_ping, column[j]] = math.sqrt(P[j, j])
-            for r in range(3):
-                out_x[k_ping, 9 + r] = ba[r]
-                out_x[k_ping, 12 + r] = bg[r]
-            if nb > N_CORE:
-                for k in range(4):
-                    out_x[k_ping, 15 + k] = s[k]
-                    out_x[k_ping, 19 + k] = cb[k]
-                for r in range(3):
-                    out_x[k_ping, 23 + r] = mis[r]
-                    out_x[k_ping, 26 + r] = lever[r]
-            if si >= 0:
-                for r in range(N_SLOW):
-                    out_x[k_ping, N_BEAM + r] = se[r]
-            if gi >= 0:
-                for a_ in range(3):
-                    for b_ in range(3):
-                        out_x[k_ping, N_BEAM + N_SLOW + 3 * a_ + b_] = kg[a_, b_]
+            _record_states(out_x[k_ping], out_sd[k_ping], P, column, ba, bg, s, cb, mis,
+                           lever, se, kg, nb, si, gi)
             k_ping += 1
     return (out_v, out_cov, out_p, out_x, out_sd, used, rejected, reset, out_c, out_r,
             out_feat, out_nu, out_hph, out_scale, out_stated, out_s)
