@@ -526,7 +526,7 @@ def find_estimator(name: str, dataset: str | Path, *, filter_config=None) -> obj
         DataError: the INS/DVL filter on a file without an IMU record.
     """
     try:
-        s = spec(name)  # matched as the command line matches (``estimator_key``)
+        s = spec(name)  # matched as the command line matches (``auvsim.checks.loose_key``)
     except KeyError:
         s = None
     if s is None or s.kind == "network":

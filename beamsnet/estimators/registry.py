@@ -35,6 +35,7 @@ from functools import cache
 
 import numpy as np
 
+from auvsim.checks import loose_key
 from auvsim.errors import ConfigError
 
 KINDS = ("model-based", "filter", "network")
@@ -140,7 +141,7 @@ def _all() -> tuple[Spec, ...]:
         found += getattr(loaded, "ESTIMATORS", ())
     found += _plugged_in()
     found += _added.values()
-    keys = [estimator_key(s.name) for s in found]
+    keys = [loose_key(s.name) for s in found]
     twice = sorted({s.name for s, k in zip(found, keys, strict=True) if keys.count(k) > 1})
     if twice:
         raise ConfigError(f"estimators declared twice (names alike once case and punctuation "
@@ -188,7 +189,7 @@ def register(s: Spec) -> Spec:
             (letters and digits compared, as the command line matches names).
     """
     _check_plugged(s, "register")
-    taken = [t.name for t in _all() if estimator_key(t.name) == estimator_key(s.name)]
+    taken = [t.name for t in _all() if loose_key(t.name) == loose_key(s.name)]
     if taken:
         raise ConfigError(f"register: {s.name!r} is the name of the estimator {taken[0]!r} "
                           "(names compare on their letters and digits); expected a new name")
@@ -211,12 +212,6 @@ def specs(kind: str | None = None) -> tuple[Spec, ...]:
     return tuple(s for s in _all() if kind is None or s.kind == kind)
 
 
-def estimator_key(name: str) -> str:
-    """What of an estimator's name a loose match compares: its letters and digits, lower
-    case (``INS/DVL (adaptive)`` and ``ins-dvl-adaptive`` alike)."""
-    return "".join(c for c in name.lower() if c.isalnum())
-
-
 class UnknownEstimator(KeyError):
     """No estimator has the name asked for; the message lists those there are."""
 
@@ -227,7 +222,7 @@ class UnknownEstimator(KeyError):
 def spec(name: str) -> Spec:
     """The estimator called ``name``: a spec's ``name`` or ``short``, a table row's (such
     as ``BeamsNetV2 (seed_0)``), or either matched on its letters and digits alone
-    (``estimator_key``: ``ls``, ``robust-ls``, ``ins-dvl``), as the command line matches.
+    (``loose_key``: ``ls``, ``robust-ls``, ``ins-dvl``), as the command line matches.
 
     Raises:
         UnknownEstimator (a KeyError): no estimator has that name.
@@ -235,9 +230,9 @@ def spec(name: str) -> Spec:
     for s in _all():
         if name in (s.name, s.short) or _is_run_of(name, s):
             return s
-    key = estimator_key(name)
+    key = loose_key(name)
     for s in _all():
-        if key in (estimator_key(s.name), estimator_key(s.short)):
+        if key in (loose_key(s.name), loose_key(s.short)):
             return s
     raise UnknownEstimator(f"no estimator {name!r}; expected one of "
                            + ", ".join(s.name for s in _all())
