@@ -532,13 +532,7 @@ def _generate(args: argparse.Namespace) -> None:
             generate,  # numba compilation only for the commands that need it
         )
 
-    from auvsim.data.files import names_folder
-    from auvsim.data.writer import check_output_path
-
     config = build_config(args)
-    if args.shards is None and not names_folder(args.out):
-        check_output_path(args.out, hint=f" (or {os.path.join(args.out, '')!r}, with a "
-                          "trailing /, for a sharded dataset)")
     summary = generate(config, args.out, workers=args.workers, cluster=args.cluster,
                        shards=args.shards, progress=not args.quiet)
     # numba's cache did not have it (all of it on a first run; on a later one, the code

@@ -283,6 +283,19 @@ def test_an_output_that_is_a_folder_or_another_file_is_refused(tmp_path, capsys)
     assert empty.stat().st_size > 0
 
 
+def test_the_library_refuses_a_users_other_file_as_the_command_line_does(tmp_path):
+    """``generate()`` from Python had replaced any file at ``out`` (a user's script, say)
+    with the dataset; it now refuses it as ``auvsim generate --out`` does."""
+    from auvsim.runs.presets import preset
+
+    script = tmp_path / "analysis.py"
+    script.write_text("print(1)\n")
+    with pytest.raises(ConfigError, match="a file that is not HDF5 is there"):
+        generate(preset("navigator").with_duration(10), script, progress=False)
+    assert script.read_text() == "print(1)\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["analysis.py"]
+
+
 def test_console_script_error_has_no_traceback(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "auvsim", "generate", "--duration", "-1", "--out",

@@ -63,7 +63,12 @@ from auvsim.data.files import (
 from auvsim.data.reader import Block
 from auvsim.data.schema import INDEX, SHARDS, Shard
 from auvsim.data.shards import shard_state, write_index
-from auvsim.data.writer import DatasetWriter, copy_mission, foreign_hdf5
+from auvsim.data.writer import (
+    DatasetWriter,
+    check_output_path,
+    copy_mission,
+    foreign_hdf5,
+)
 from auvsim.errors import ConfigError, SimulationError
 from auvsim.physics.vehicle import model_path
 from auvsim.processes import (
@@ -243,6 +248,14 @@ def _compile_clock() -> Iterator[Callable[[], float]]:
 def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
               executor: cf.Executor | None, cluster: str | None, shards: int | None,
               progress: bool) -> dict:
+    sharded = shards is not None or names_folder(out)
+    if sharded and Path(out).suffix in (".h5", ".hdf5"):
+        raise ConfigError(f"{os.fspath(out)!r}: a sharded dataset is a folder: expected a "
+                          "folder name (datasets/rm/), or a file name without --shards",
+                          argument="out")
+    if not sharded:  # a user's other file is refused, never replaced, as on the command line
+        check_output_path(out, hint=f" (or {os.path.join(out, '')!r}, with a trailing /, "
+                          "for a sharded dataset)")
     config = pin_grid(config)  # the stored config names a grid by its SHA-256 too
     with interrupts_held():  # its first compiled calls would swallow a KeyboardInterrupt
         check_reachable(config)
@@ -256,11 +269,6 @@ def _generate(config: Config, out: str | os.PathLike, *, workers: int | None,
             if given is not None:
                 raise ConfigError(": given with a cluster, whose own workers run the "
                                   "jobs; expected one or the other", argument=name)
-    sharded = shards is not None or names_folder(out)
-    if sharded and Path(out).suffix in (".h5", ".hdf5"):
-        raise ConfigError(f"{os.fspath(out)!r}: a sharded dataset is a folder: expected a "
-                          "folder name (datasets/rm/), or a file name without --shards",
-                          argument="out")
     out = Path(out).absolute()  # a worker's working folder is not this process's
     workers = min(workers or default_workers(len(config.missions)), len(config.missions))
     started = time.perf_counter()
