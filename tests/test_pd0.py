@@ -393,6 +393,27 @@ def test_export_refuses_and_writes_nothing(dataset, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("to, other, own", [("pd0", "x.mcap", "x.pd0"),
+                                             ("mcap", "x.pd0", "x.mcap")])
+def test_export_never_replaces_a_users_other_file(dataset, tmp_path, to, other, own):
+    """An export had replaced whatever was at --out (a user's script, a bag with a PD0
+    export's bytes); now a file of another kind is refused, and so is another of
+    auvsim's formats' names; a file of its own kind is replaced, as a dataset is."""
+    pytest.importorskip("mcap") if to == "mcap" else None
+    script = tmp_path / "reader.py"
+    script.write_text("print(1)\n")
+    code, _, err = run("export", str(dataset), "--to", to, "--out", str(script))
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"a file that is not {to.upper()} is there" in err, err
+    assert script.read_text() == "print(1)\n"
+    code, _, err = run("export", str(dataset), "--to", to, "--out", str(tmp_path / other))
+    assert code == 2 and f"name for a {to.upper()} file; expected a .{to} name" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reader.py"]
+    for _ in range(2):  # new, then its own kind replaced
+        code, _, err = run("export", str(dataset), "--to", to, "--out", str(tmp_path / own))
+        assert code == 0, err
+
+
 def test_export_of_a_log_without_beams_says_what_it_has(tmp_path):
     """A recorded log holds its DVL's velocity, not its beams: refused in one line naming
     the file and what the log has, nothing written."""

@@ -239,8 +239,8 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
     """
     from auvsim.data.reader import open_dataset
 
-    out = check_out_file(out)
-    check_not_source(out, dataset)
+    check_not_source(out, dataset)  # said as such, before it is another kind's file
+    out = check_out_file(out, "PD0", ".pd0", HEADER_ID)
     if coordinates not in COORDINATES:
         raise ConfigError(f": expected one of {', '.join(COORDINATES)}, got {coordinates!r}",
                           argument="coordinates")

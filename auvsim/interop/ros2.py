@@ -117,6 +117,8 @@ TYPES = {"imu": "sensor_msgs/msg/Imu", "dvl": "marine_acoustic_msgs/msg/Dvl",
          "truth": "nav_msgs/msg/Odometry", "reference": "nav_msgs/msg/Odometry",
          "tf_static": "tf2_msgs/msg/TFMessage"}
 WORLD, BODY, IMU, DVL = "odom_ned", "base_link_frd", "imu_link", "dvl_link"
+# The first bytes of every MCAP file (the MCAP specification's "Magic": 0x89 M C A P 0 \r \n).
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 COMPRESSIONS = ("zstd", "lz4", "none")
 # The variance of a pose component the depth sensor does not measure (m^2, rad^2): huge,
 # so that a filter that fuses the whole pose gives it no weight (module docstring).
@@ -170,7 +172,8 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     if compression not in COMPRESSIONS:
         raise ConfigError(f"{compression!r}: expected one of {', '.join(COMPRESSIONS)}",
                           argument="compression")
-    out = check_out_file(out)
+    check_not_source(out, source)  # said as such, before it is another kind's file
+    out = check_out_file(out, "MCAP", ".mcap", MCAP_MAGIC)
     if not (isinstance(block_s, (int, float)) and block_s >= 1e-3 and math.isfinite(block_s)):
         raise ConfigError(f"{block_s!r}: expected at least 0.001 s", argument="block_s")
     step = round(block_s * 1e9)
@@ -184,7 +187,6 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                           f"({package} is missing): pip install 'auvsim[io]'") from None
     from auvsim.data.reader import open_dataset
 
-    check_not_source(out, source)
     with open_dataset(source) as dataset:
         chosen = dataset.mission(mission)
         attrs, streams = chosen.attrs, _streams(chosen)
