@@ -879,7 +879,10 @@ def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray
     """(N, 4) body -> NED attitude quaternions [w, x, y, z] at each IMU sample (times
     ``t`` (N,), body rates ``w`` (N, 3) rad/s), propagated with the gyro from the
     reference's at the latest reference time before the sample (``start`` (K,) times,
-    ``q0`` (K, 4) quaternions); NaN before the first."""
+    ``q0`` (K, 4) quaternions); NaN before the first. The samples are instants, as
+    ``cumulative``'s trapezoids take them: each step turns by the mean of the rate
+    interpolated between the samples over it (a rate held over the step would leave the
+    attitude half a sample behind, a tilt of g dt/2 times the change of rate)."""
     out = np.full((len(t), 4), np.nan)
     k = -1
     q = np.zeros(4)
@@ -891,9 +894,14 @@ def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray
             last = start[k]
         if k < 0:
             continue
-        h = t[i] - last  # rotate by the rate held over the step since the last update
+        h = t[i] - last  # the step since the last update
+        # The rate at the step's middle, on the line between samples i - 1 and i.
+        back = 0.0 if i == 0 or t[i] <= t[i - 1] else (h / 2) / (t[i] - t[i - 1])
         last = t[i]
-        rx, ry, rz = w[i, 0] * h, w[i, 1] * h, w[i, 2] * h
+        mx = w[i, 0] + back * (w[i - 1, 0] - w[i, 0]) if back > 0 else w[i, 0]
+        my = w[i, 1] + back * (w[i - 1, 1] - w[i, 1]) if back > 0 else w[i, 1]
+        mz = w[i, 2] + back * (w[i - 1, 2] - w[i, 2]) if back > 0 else w[i, 2]
+        rx, ry, rz = mx * h, my * h, mz * h
         angle = math.sqrt(rx * rx + ry * ry + rz * rz)
         if angle > 0:
             s = math.sin(angle / 2) / angle
@@ -939,11 +947,14 @@ def _lever_fit(log: Log, t: np.ndarray, f: np.ndarray, w: np.ndarray
     sel = (t_ref[:-1] >= t[0]) & (t_ref[1:] <= t[-1])
     k = np.flatnonzero(sel)
     a, b = t_ref[k], t_ref[k + 1]
+    c = rotation_matrices(_propagate(q, t_ref, t, w))  # (N, 3, 3), NaN before the first
+    if log.latitude_deg is not None:  # the gyro's rate in inertial space: the body's in NED
+        w = w - np.einsum("nji,j->ni", np.nan_to_num(c), earth_rate_ned(log.latitude_deg))
+        c = rotation_matrices(_propagate(q, t_ref, t, w))
     dwdt = np.gradient(w, t, axis=0)
     # Each term rotated into NED with the propagated attitude: C f, and C A for the lever
     # arm's design A = [dw/dt]x + [w]x^2 and the bias's A = I.
     design = skew(dwdt) + skew(w) @ skew(w)
-    c = rotation_matrices(_propagate(q, t_ref, t, w))  # (N, 3, 3), NaN before the first
     c_design = c @ design
     ned = [np.einsum("nij,nj->ni", c, f)] + [c_design[:, :, j] for j in range(3)] \
         + [c[:, :, j] for j in range(3)]
