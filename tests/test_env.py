@@ -207,6 +207,46 @@ def test_the_recorder_refuses_a_bad_path_or_name_before_any_episode(tmp_path):
     assert (tmp_path / "notes.txt").read_text() == "mine"
 
 
+def test_a_recorder_dropped_unclosed_says_its_episodes_were_not_written(tmp_path):
+    """The episodes wait for close(); a recorder let go without it had lost them without a
+    word. A with block closes it."""
+    path = tmp_path / "forgot.h5"
+    env = EpisodeRecorder(AuvEnv(max_episode_seconds=10.0), path)
+    env.reset(seed=0)
+    env.step(np.zeros(3))
+    with pytest.warns(RuntimeWarning, match="1 episode.s. were not written to .*close"):
+        del env
+        import gc
+
+        gc.collect()
+    assert not path.exists()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with EpisodeRecorder(AuvEnv(max_episode_seconds=10.0), path) as env:
+            env.reset(seed=0)
+            env.step(np.zeros(3))
+        del env
+    with open_dataset(path) as f:
+        assert sorted(f.missions) == ["episode_000"]
+
+
+def test_the_recorder_and_the_policy_take_one_environment_in_one_line():
+    """A vector environment's envs are in other processes: refused by name, where
+    gymnasium's TypeError and an AttributeError ('no attribute run') had said it; so is a
+    scenario's bare name for the policy."""
+    envs = gym.make_vec("auvsim/AUV-v0", num_envs=2, vectorization_mode="sync")
+    try:
+        for make in (lambda: EpisodeRecorder(envs, "v.h5"),
+                     lambda: ManeuverPolicy(ScenarioConfig(name="zigzag"), envs)):
+            with pytest.raises(ConfigError, match="takes one auvsim environment.*got "
+                                                  "SyncVectorEnv"):
+                make()
+    finally:
+        envs.close()
+    with pytest.raises(ConfigError, match="expected a ScenarioConfig .* got str 'zigzag'"):
+        ManeuverPolicy("zigzag", AuvEnv(max_episode_seconds=10.0))
+
+
 def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_path):
     path = tmp_path / "episodes.h5"
     env = EpisodeRecorder(AuvEnv(max_episode_seconds=120.0), path)

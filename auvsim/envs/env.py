@@ -101,6 +101,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -305,6 +306,21 @@ class AuvEnv(gym.Env):
         return {key: row[part] for key, part in INFO.items()}
 
 
+def _one_env(env: object, who: str) -> AuvEnv:
+    """The ``AuvEnv`` under ``env`` (its wrappers taken off).
+
+    Raises:
+        ConfigError: ``env`` is no single ``AuvEnv`` (a vector environment, say: its envs
+            are in other processes).
+    """
+    unwrapped = getattr(env, "unwrapped", None)
+    if not isinstance(unwrapped, AuvEnv):
+        raise ConfigError(f"env: {who} takes one auvsim environment, gym.make("
+                          f"'auvsim/AUV-v0') or a wrapper of it; expected an AuvEnv, got "
+                          f"{type(env).__name__}")
+    return unwrapped
+
+
 class ManeuverPolicy:
     """A scripted manoeuvre flown through the autopilots, as a policy for ``AuvEnv``:
     ``action = policy(observation, info)``. The autopilot runs once per environment step
@@ -321,11 +337,16 @@ class ManeuverPolicy:
     Raises:
         ConfigError: a ``ScenarioConfig`` whose speeds the vehicle cannot hold
             (``Vehicle.check_speed``) or that ``Config`` refuses in the environment's config
-            (a depth below its seafloor), as ``auvsim generate`` refuses it.
+            (a depth below its seafloor), as ``auvsim generate`` refuses it; a
+            ``maneuver`` that is neither; an ``env`` that is no single ``AuvEnv``.
     """
 
     def __init__(self, maneuver: Maneuver | ScenarioConfig, env: AuvEnv) -> None:
-        self.env = env.unwrapped
+        if not isinstance(maneuver, (Maneuver, ScenarioConfig)):
+            raise ConfigError(f"maneuver: expected a ScenarioConfig (ScenarioConfig(name="
+                              f"'zigzag')) or a Maneuver, got {type(maneuver).__name__} "
+                              f"{maneuver!r}")
+        self.env = _one_env(env, "ManeuverPolicy")
         self.scenario = None if isinstance(maneuver, Maneuver) else maneuver
         self.maneuver = maneuver if isinstance(maneuver, Maneuver) else None
         self.integrals = np.zeros(3)
@@ -360,7 +381,9 @@ class ManeuverPolicy:
 
 class EpisodeRecorder(gym.Wrapper):
     """Writes every episode the wrapped ``AuvEnv`` runs as a mission of a dataset at
-    ``path`` (the same format and fields as ``auvsim generate``'s), when it is closed.
+    ``path`` (the same format and fields as ``auvsim generate``'s), when it is closed
+    (``close()``, or the end of a ``with`` block). The episodes are held until then; a
+    recorder dropped unclosed warns that they were not written.
 
     Args:
         env: an ``AuvEnv`` (or a wrapper of one).
@@ -369,10 +392,12 @@ class EpisodeRecorder(gym.Wrapper):
 
     Raises:
         ConfigError: ``path`` or ``name`` cannot be written (``check_output_path``,
-            ``check_mission_name``): said now, not after the episodes have run.
+            ``check_mission_name``): said now, not after the episodes have run; an
+            ``env`` that is no single ``AuvEnv``.
     """
 
     def __init__(self, env: gym.Env, path: str | Path, *, name: str = "episode") -> None:
+        _one_env(env, "EpisodeRecorder")
         check_output_path(path, "path")
         check_mission_name(f"{name}_000", "name")
         super().__init__(env)
@@ -416,3 +441,13 @@ class EpisodeRecorder(gym.Wrapper):
                     sink.flush()
             self.episodes = []
         super().close()
+
+    def __del__(self) -> None:
+        held = len(getattr(self, "episodes", ())) + bool(getattr(self, "blocks", ()))
+        try:
+            if held:
+                warnings.warn(f"EpisodeRecorder: {held} episode(s) were not written to "
+                              f"{str(self.path)!r}: close() writes them (or a with block)",
+                              RuntimeWarning, stacklevel=1)
+        except Exception:  # noqa: BLE001  (at interpreter exit, the warning's machinery may be gone)
+            pass
