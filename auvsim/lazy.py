@@ -25,6 +25,8 @@ def exports(package: str, public: Mapping[str, str], namespace: MutableMapping[s
         return value
 
     def __dir__() -> list[str]:
-        return sorted(set(namespace) | set(public))
+        # The public names and the dunders; not the submodules an import has loaded
+        # (``lazy``, ``checks``), which tab completion would offer as the package's own.
+        return sorted(set(public) | {n for n in namespace if n.startswith("__")})
 
     return __getattr__, __dir__

@@ -65,3 +65,16 @@ def test_beamsnet_evaluate_is_the_module_whatever_was_imported_first():
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
     for package in (auvsim, beamsnet):
         assert not set(package.__all__) & {m.name for m in pkgutil.iter_modules(package.__path__)}
+
+
+def test_dir_offers_the_public_names_not_the_submodules_an_import_loaded():
+    """``dir(auvsim)`` (what tab completion offers) had listed ``lazy``, ``exports`` and
+    any submodule an import had loaded (``checks``), which ``auvsim.checks`` then did not
+    give until imported; it lists the public names."""
+    import auvsim.checks  # noqa: F401  (loaded: still not offered)
+    import auvsim.data
+
+    for package in (auvsim, auvsim.data, beamsnet):
+        offered = {n for n in dir(package) if not n.startswith("__")}
+        public = {n for n in package.__all__ if not n.startswith("__")}
+        assert offered == public, offered ^ public
