@@ -286,7 +286,7 @@ BAD = {
         "grid_mapping_name": "transverse_mercator"}), "grid mapping 'crs'"),
     "hole": (lambda p: write_geotiff(p / "g.tif", plane, holes=[(9, 9)]), "nodata"),
     "far away": (lambda p: write_geotiff(p / "g.tif", lambda n, e: n * 0 + 60.0, half_m=100,
-                                         ), "expected it to cover location"),
+                                         ), "), whose latitude is outside"),
     "missing": (lambda p: p / "none.tif", "no such file"),
     "not a grid": (lambda p: (p / "g.txt").write_text("x") and p / "g.txt", "suffix"),
 }

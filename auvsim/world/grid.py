@@ -357,12 +357,22 @@ def _resample(raster: _Raster, name: str, positive: str, nodata: str, extent: fl
         return _fraction(lats, place[:, 0]), _fraction(lons, lon)
 
     row, col = indices(np.zeros(1), np.zeros(1))
-    if not (0 <= row[0] <= raster.shape[0] - 1 and 0 <= col[0] <= raster.shape[1] - 1):
+    outside = [axis for axis, index, size in (("latitude", row[0], raster.shape[0]),
+                                              ("longitude", col[0], raster.shape[1]))
+               if not 0 <= index <= size - 1]
+    if outside:
+        # The location's longitude as the grid counts them (-124.9 is 235.1 on a 0-360
+        # grid), so that the ranges and the location read alike.
+        middle = (lons[0] + lons[-1]) / 2
+        own = middle + (longitude_deg - middle + 180.0) % 360.0 - 180.0
+        alike = "" if math.isclose(own, longitude_deg) else \
+            f"; its longitude {longitude_deg:g} is {own:.6g} on the grid's"
         raise ConfigError(f"{name}: covers latitude {min(lats[0], lats[-1]):.6g} to "
                           f"{max(lats[0], lats[-1]):.6g} and longitude "
                           f"{min(lons[0], lons[-1]):.6g} to {max(lons[0], lons[-1]):.6g} deg; "
                           f"expected it to cover location ({latitude_deg:g}, "
-                          f"{longitude_deg:g})")
+                          f"{longitude_deg:g}), whose {' and '.join(outside)} "
+                          f"{'is' if len(outside) == 1 else 'are'} outside{alike}")
     # The lattice over the square, cut to the grid's extent along the axes through the
     # origin, then trimmed, side by side, to the rows and columns whose every vertex the
     # grid covers (its edges are curves in NED, a few cells off those axes' values).
