@@ -157,7 +157,9 @@ def test_full_rudder_action_reaches_the_fin_limit_and_time_truncates():
     (dict(frame_skip=True), "frame_skip: expected a whole number >= 1"),
     (dict(frame_skip=2.5), "frame_skip: expected a whole number >= 1"),
     (dict(config=20), "config: expected an auvsim Config"),
-    (dict(config="nosuch.toml"), "config 'nosuch.toml': no such file"),
+    (dict(config="nosuch.toml"), "config 'nosuch.toml': no such file, nor a preset's name; "
+                                 "expected a TOML file's path or one of navigator, "),
+    (dict(config="navigatr"), r"\(did you mean 'navigator'\?\)"),
 ])
 def test_bad_environment_settings_are_refused_by_name(settings, said):
     with pytest.raises(ConfigError, match=said):

@@ -107,7 +107,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from auvsim.checks import is_finite
+from auvsim.checks import did_you_mean, is_finite
 from auvsim.config import MAX_DURATION, Config, MissionConfig, ScenarioConfig, load_config
 from auvsim.data.reader import Block
 from auvsim.data.schema import phases_json
@@ -176,6 +176,10 @@ class AuvEnv(gym.Env):
         if isinstance(config, str) and config in PRESETS:  # a preset's name
             config = preset(config)
         elif isinstance(config, (str, os.PathLike)):  # a TOML file, as generate --config
+            if not Path(config).exists():  # neither: say both what it may be
+                raise ConfigError(f"config {str(config)!r}: no such file, nor a preset's name; "
+                                  f"expected a TOML file's path or one of "
+                                  f"{', '.join(PRESETS)}{did_you_mean(config, PRESETS)}")
             config = load_config(config)
         self.config = preset("paper-sim") if config is None else config
         if not isinstance(self.config, Config):
