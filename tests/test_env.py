@@ -249,6 +249,13 @@ def test_the_recorder_and_the_policy_take_one_environment_in_one_line():
         ManeuverPolicy("zigzag", AuvEnv(max_episode_seconds=10.0))
 
 
+def test_a_render_mode_is_refused_by_the_vector_environment_as_by_one():
+    """gymnasium passes render_mode to make_vec's entry point: refused in AuvEnv's words,
+    where it had been a TypeError of an unexpected keyword."""
+    with pytest.raises(ConfigError, match="render_mode: expected None, got 'rgb_array'"):
+        gym.make_vec("auvsim/AUV-v0", num_envs=2, render_mode="rgb_array")
+
+
 def test_a_manoeuvre_flies_as_a_policy_and_the_recorder_writes_a_dataset(tmp_path):
     path = tmp_path / "episodes.h5"
     env = EpisodeRecorder(AuvEnv(max_episode_seconds=120.0), path)

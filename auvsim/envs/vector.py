@@ -336,18 +336,22 @@ class AuvVectorEnv(gym.vector.VectorEnv):
         frame_skip: physics steps per env step (10: dt = 0.1 s).
         max_episode_seconds: truncation time of each episode, s.
         context: multiprocessing start method, "forkserver" or "spawn".
+        render_mode: None; gymnasium passes it, and, as ``AuvEnv``, this draws nothing.
 
     Raises:
         ValueError: a bad ``num_envs``, ``workers`` or ``context``.
+        ConfigError: a ``render_mode`` (``AuvEnv``'s one line).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, *, num_envs: int, workers: int | None = None, config=None,
                  frame_skip: int = 10, max_episode_seconds: float = 600.0,
-                 context: str = "forkserver") -> None:
+                 context: str = "forkserver", render_mode: str | None = None) -> None:
         from auvsim.envs.env import INFO, INFO_SIZE, AuvEnv
 
+        if render_mode is not None:  # refused as the single environment refuses it
+            AuvEnv(render_mode=render_mode)
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
         # The cores this process may run on (fewer than the machine's under taskset).
