@@ -100,6 +100,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from auvsim import __version__
+from auvsim.checks import did_you_mean
 from auvsim.data.beams import beam_matrix
 from auvsim.data.files import Claim, check_not_source, check_out_file, commit, writing
 from auvsim.errors import AuvsimError, ConfigError
@@ -252,8 +253,9 @@ def _topics(topics: Mapping[str, str] | None) -> dict[str, str]:
     names = dict(TOPICS)
     for key, name in (topics or {}).items():
         if key not in TOPICS:
-            raise ConfigError(f"unknown topic key {key!r}; expected keys among "
-                              f"{', '.join(TOPICS)}", argument="topics")
+            raise ConfigError(f"{key!r}: no such topic key; expected keys among "
+                              f"{', '.join(TOPICS)}{did_you_mean(key, TOPICS)}",
+                              argument="topics")
         if not (isinstance(name, str) and _TOPIC.fullmatch(name)):
             raise ConfigError(f"{key} = {name!r}: expected an absolute ROS 2 topic name "
                               "(/a/b, letters, digits and _)", argument="topics")
