@@ -1,5 +1,5 @@
-import sys
+"""``python -m auvsim``: the ``auvsim`` program, as its console script runs it."""
 
-from auvsim.cli import main
+from auvsim.cli import run
 
-sys.exit(main())
+run()

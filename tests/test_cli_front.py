@@ -599,3 +599,17 @@ def test_python_api_without_torch_says_what_to_install():
     assert {"train", "load", "predict"} <= set(lines), done.stdout
     for message in lines.values():
         assert message.startswith("beamsnet.") and "pip install 'auvsim[learn]'" in message
+
+
+def test_python_m_runs_both_programs_as_their_console_scripts(tmp_path):
+    """``python -m beamsnet`` had failed (no ``__main__``); both now run their programs,
+    a bad argument one line and exit 2 as from the console scripts."""
+    for prog in ("auvsim", "beamsnet"):
+        done = subprocess.run([sys.executable, "-m", prog, "--help"], capture_output=True,
+                              text=True, timeout=120)
+        assert done.returncode == 0 and done.stdout.startswith(f"usage: {prog} "), done.stderr
+        command = ["estimate", "--estimator", "LS"] if prog == "beamsnet" else ["inspect"]
+        done = subprocess.run([sys.executable, "-m", prog, *command, str(tmp_path / "none.h5")],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+        assert done.stderr.startswith(f"{prog}: error: "), done.stderr
