@@ -319,7 +319,7 @@ def _export_mcap(args: argparse.Namespace) -> None:
         text = read_description(args.topics, argument="topics")
         topics = load_toml(text, where=f"--topics {str(args.topics)!r}")
     counts = export_mcap(args.dataset, args.out, mission=args.mission, topics=topics,
-                         compression=args.compression or "zstd")
+                         compression=args.compression or "zstd", progress=True)
     print(f"wrote {args.out}: " + ", ".join(f"{topic} {n}" for topic, n in counts.items()))
 
 

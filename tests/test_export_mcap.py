@@ -355,6 +355,20 @@ def test_blocks_of_time_change_nothing_but_the_chunks(dataset, bag, tmp_path):
     assert got == expected
 
 
+def test_the_progress_counts_the_missions_seconds(dataset, tmp_path, monkeypatch):
+    """A long mission's export (a minute for 24 h) shows its progress in mission seconds,
+    block by block, up to the mission's span."""
+    from conftest import CountingBar
+
+    from auvsim.interop import ros2
+
+    monkeypatch.setattr(ros2, "tqdm", CountingBar)
+    CountingBar.updates = []
+    ros2.export_mcap(dataset, tmp_path / "p.mcap", block_s=1.0, progress=True)
+    assert len(CountingBar.updates) >= 12 and all(n >= 0 for n in CountingBar.updates)
+    assert sum(CountingBar.updates) == pytest.approx(12.0, abs=0.02)
+
+
 def test_a_fixed_layout_refuses_what_it_cannot_hold():
     with pytest.raises(ValueError, match="sequence"):
         FixedLayout("tf2_msgs/msg/TFMessage", {})

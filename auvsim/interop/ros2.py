@@ -98,6 +98,7 @@ import re
 from collections.abc import Mapping
 
 import numpy as np
+from tqdm import tqdm
 
 from auvsim import __version__
 from auvsim.checks import did_you_mean
@@ -146,7 +147,8 @@ _FLU_TO_FRD = (1.0, 0.0, 0.0, 0.0)
 
 def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                 mission: str | None = None, topics: Mapping[str, str] | None = None,
-                compression: str = "zstd", block_s: float = 60.0) -> dict[str, int]:
+                compression: str = "zstd", block_s: float = 60.0,
+                progress: bool = False) -> dict[str, int]:
     """Write one mission of a dataset as a ROS 2 bag in MCAP (see the module docstring).
 
     Args:
@@ -159,6 +161,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         block_s: mission time encoded and written at once, s: what bounds the memory
             (about 7 MB a minute of the ``navigator`` sensors); the file is the same
             whatever it is, but for where chunks end.
+        progress: a progress bar on stderr, in mission seconds (where it is a terminal).
 
     Returns:
         The number of messages written, by topic name.
@@ -202,9 +205,10 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                     {"offered_qos_profiles": LATCHED_QOS if key == "tf_static" else ""})
               for key, datatype in zip(keys, types, strict=True)]
 
-    def blocks():
+    def blocks(bar):
         yield [(len(streams), np.array([first]), np.frombuffer(tf, dtype=np.uint8)[None])]
         done = dict.fromkeys(streams, 0)
+        start = first
         for end in [*range(first + step, last + 1, step), last + 1]:
             block = []
             for i, (key, m) in enumerate(streams.items()):
@@ -212,6 +216,8 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
                 block.append((i, m.ns[done[key]:hi], m.encode(done[key], hi)))
                 done[key] = hi
             yield block
+            bar.update((min(end, last) - start) / 1e9)
+            start = min(end, last)
 
     # A claim, as a dataset's: a killed export's temporary file (a long mission's is
     # large) is swept by the next run that writes into this folder (files.sweep).
@@ -221,9 +227,11 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
         raise ConfigError(f"{str(out)!r}: cannot write there ({e.strerror or e}); expected "
                           "a path in a writable folder", argument="out") from None
     try:
-        with writing(out), open(claim.file, "wb") as f:
+        with writing(out), open(claim.file, "wb") as f, \
+                tqdm(total=round((last - first) / 1e9, 1), unit=" s", leave=False,
+                     disable=None if progress else True) as bar:
             counts = write_mcap(f, profile="ros2", library=f"auvsim {__version__}",
-                                schemas=schemas, topics=topics, blocks=blocks(),
+                                schemas=schemas, topics=topics, blocks=blocks(bar),
                                 compression=compression, metadata=ROSBAG2_METADATA)
         commit(claim.file, out)
     finally:
