@@ -342,7 +342,7 @@ def _export_parser(sub) -> None:
     export.add_argument("--to", choices=sorted(_EXPORTERS), required=True,
                         help="the format (required; no default)")
     export.add_argument("--out", type=Path, required=True, metavar="FILE",
-                        help="the file to write, in an existing folder")
+                        help="the file to write (its folder made if missing)")
     export.add_argument("--mission", metavar="NAME",
                         help="the mission to write (default: the dataset's only one)")
     export.add_argument("--topics", type=Path, metavar="FILE.toml",

@@ -395,7 +395,8 @@ def test_topics_are_renamed_from_a_file(dataset, tmp_path):
 
 
 @pytest.mark.parametrize("case", ["not a dataset", "unknown mission", "unknown topic key",
-                                  "bad topic name", "missing folder", "folder as out"])
+                                  "bad topic name", "unknown mission, new folder",
+                                  "folder as out"])
 def test_bad_input_is_one_line_and_nothing_written(case, dataset, tmp_path):
     out = tmp_path / "out.mcap"
     args = ["export", str(dataset), "--to", "mcap", "--out", str(out)]
@@ -410,9 +411,10 @@ def test_bad_input_is_one_line_and_nothing_written(case, dataset, tmp_path):
         names.write_text('imu_raw = "/x"\n' if case == "unknown topic key" else
                          'imu = "imu data"\n')
         args += ["--topics", str(names)]
-    elif case == "missing folder":
+    elif case == "unknown mission, new folder":  # the folder is not made for nothing
         out = tmp_path / "nowhere" / "out.mcap"
         args[-1] = str(out)
+        args += ["--mission", "mission_999"]
     else:
         out = tmp_path
         args[-1] = str(out)

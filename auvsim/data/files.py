@@ -333,8 +333,9 @@ def check_writable_path(path: Path, argument: str = "out", *, hint: str = "") ->
 
 def check_out_file(out: str | os.PathLike, kind: str, suffix: str, signature: bytes
                    ) -> Path:
-    """``out`` as a Path, after checking that it names a file in an existing folder (an
-    export's output: refused before any work), and that it is not a user's other file:
+    """``out`` as a Path, after checking that it names a file that can be written (an
+    export's output: refused before any work; its folder is made as it is written, as a
+    dataset's is: ``make_parent_dirs``), and that it is not a user's other file:
     an existing file is replaced only where it is of this ``kind`` (its first bytes are
     ``signature``) or empty, and a name of another of auvsim's formats (``FILE_SUFFIXES``:
     ``x.mcap`` for PD0, say) is refused as a slip. Other names (a PD0 file's ``.000``, a
@@ -342,14 +343,10 @@ def check_out_file(out: str | os.PathLike, kind: str, suffix: str, signature: by
 
     Raises:
         ConfigError: ``out`` is a directory or lies under a file (``check_writable_path``),
-            its folder does not exist, it is another format's name, or another file is
-            there.
+            it is another format's name, or another file is there.
     """
     out = Path(out)
     check_writable_path(out)
-    if not out.parent.is_dir():
-        raise ConfigError(f"{str(out)!r}: the folder {str(out.parent)!r} does not exist; "
-                          "expected a file in an existing folder", argument="out")
     if out.suffix.lower() in FILE_SUFFIXES - {suffix}:
         raise ConfigError(f"{str(out)!r}: a {out.suffix} name for a {kind} file; expected a "
                           f"{suffix} name", argument="out")

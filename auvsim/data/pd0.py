@@ -72,7 +72,7 @@ from pathlib import Path
 import numpy as np
 
 from auvsim.data.beams import Mode, beam_matrix, error_velocity, least_squares
-from auvsim.data.files import check_not_source, check_out_file, write_bytes
+from auvsim.data.files import check_not_source, check_out_file, make_parent_dirs, write_bytes
 from auvsim.data.recorded import finite_numbers, load_toml, read_description
 from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
@@ -230,7 +230,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
 
     Args:
         dataset: an auvsim dataset.
-        out: the PD0 file to write.
+        out: the PD0 file to write (its folder made if missing).
         mission: the mission's name (default: the dataset's only one).
         coordinates: beam or instrument (the fixed leader's EX byte says which).
 
@@ -255,6 +255,7 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
                               "PD0 file holds")
         pings = _pings(m)
     data = encode(pings, coordinates=coordinates)
+    make_parent_dirs(out.parent)  # removed again by a command that then fails
     write_bytes(out, data)
     return {"mission": mission, "ensembles": len(pings.time), "bytes": len(data),
             "coordinates": coordinates}

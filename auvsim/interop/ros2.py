@@ -103,7 +103,14 @@ from tqdm import tqdm
 from auvsim import __version__
 from auvsim.checks import did_you_mean
 from auvsim.data.beams import beam_matrix
-from auvsim.data.files import Claim, check_not_source, check_out_file, commit, writing
+from auvsim.data.files import (
+    Claim,
+    check_not_source,
+    check_out_file,
+    commit,
+    make_parent_dirs,
+    writing,
+)
 from auvsim.errors import AuvsimError, ConfigError
 from auvsim.interop import rosmsg
 from auvsim.interop.cdr import FixedLayout
@@ -153,7 +160,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
 
     Args:
         source: an auvsim dataset (``auvsim.data.reader.open_dataset``).
-        out: the ``.mcap`` file to write, in an existing folder; written under a
+        out: the ``.mcap`` file to write (its folder made if missing); written under a
             temporary name and renamed when whole.
         mission: the mission's name; None for a dataset of one mission.
         topics: topic names by key of ``TOPICS``, replacing those defaults.
@@ -222,6 +229,7 @@ def export_mcap(source: str | os.PathLike, out: str | os.PathLike, *,
     # A claim, as a dataset's: a killed export's temporary file (a long mission's is
     # large) is swept by the next run that writes into this folder (files.sweep).
     try:
+        make_parent_dirs(out.parent)  # removed on failure, if left empty
         claim = Claim(out)
     except OSError as e:
         raise ConfigError(f"{str(out)!r}: cannot write there ({e.strerror or e}); expected "
