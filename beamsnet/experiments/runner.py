@@ -106,7 +106,8 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
     dataset's shards, recorded in ``MADE`` beside a file this function made; else, for a
     file made elsewhere, the SHA-256 of its stored config against that of
     ``config.to_json()``): a changed preset or an added manoeuvre regenerates it, and a
-    ``StaleDatasetWarning`` says why in one line. ``generate`` writes the file whole or
+    ``StaleDatasetWarning`` says why in one line; a file there that is no readable
+    dataset (a damaged cache) is replaced too, saying so. ``generate`` writes the file whole or
     not at all, so an interrupted generation leaves nothing that a later run would take
     for a finished file.
     """
@@ -119,10 +120,17 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
             return path
         warnings.warn(f"{path}: {why}; generating it again", StaleDatasetWarning,
                       stacklevel=2)
+        if why.startswith(UNREADABLE) and path.is_file():
+            # This experiment's own cache, damaged or another file: ``generate`` keeps a
+            # user's other file from being replaced, and this one is not the user's.
+            path.unlink()
     generate(config, path, progress=progress, cluster=cluster)
     if path.is_file():
         _record(path, config)
     return path
+
+
+UNREADABLE = "it is not a readable dataset"  # what ``stale`` says of such a file
 
 
 def stale(path: str | os.PathLike, config) -> str | None:
@@ -135,7 +143,7 @@ def stale(path: str | os.PathLike, config) -> str | None:
             stored, stored_sha = f.config_json, f.attrs.get("config_sha256")
     except (AuvsimError, OSError) as e:
         lines = str(e).strip().splitlines() or [type(e).__name__]
-        return f"it is not a readable dataset ({lines[0]})"
+        return f"{UNREADABLE} ({lines[0]})"
     wanted = config.to_json()
     made = stored_sha if stored_sha is not None else _made(Path(path))
     if made is not None:
