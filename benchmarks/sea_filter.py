@@ -56,16 +56,18 @@ form of auvsim's simulated IMU turned it half a sample late). The DVL innovation
 falls on every segment with it (pooled 4.86 against 4.98 mm/s), and the median final
 error from 2.16 m (1.22 x) to 2.02 m.
 
-What is missed (measured on the IMU-clock files): the coverage is 82.7 % over all the
-pings, with segment 4 at 4 % (every other at 91.9 % or more); the median final is 1.14 x
-the dead reckoning's (2.02 against 1.78 m). Segment 4's error is not the filter's alone:
-the dead reckoning with the reference's attitude is further from the reference (4.15 m
-final, 3.31 m RMSE) than the filter (3.92, 3.12), and the reference's positions move 1.34 m
-from the integral of its own velocities within the first 50 s (1.83 m over the whole of
-segment 4, up to 5.50 m on segment 5, as ``--evidence`` measures it; over the scored pings
-only, from the fourth, ``reports/sea.md`` gives 1.84 and 5.34 m: a post-processed INS whose
-positions were corrected by something other than its velocities), while the filter's 3
-sigma there is 0.82 m at 50 s. Much of what the DVL's velocity differs from the reference's
+What is missed (measured on the IMU-clock files, this script's run of 2026-12-06): the
+coverage is 83.0 % over all the pings, with segment 4 at 4 % (every other at 94 % or
+more); the median final is 1.13 x the dead reckoning's (2.01 against 1.78 m). Segment 4's
+error is not the filter's alone: the dead reckoning with the reference's attitude is
+further from the reference (4.15 m final, 3.31 m RMSE) than the filter (3.95, 3.14), and
+the reference's positions move 1.34 m from the integral of its own velocities within the
+first 50 s (1.83 m over the whole of segment 4, up to 5.50 m on segment 5, as
+``--evidence`` measures it; over the scored pings only, from the fourth,
+``reports/sea.md`` gives 1.84 and 5.34 m: a post-processed INS whose positions were
+corrected by something other than its velocities), while the filter's 3 sigma there is
+0.82 m at 50 s; that departure alone exceeds the filter's 3 sigma at 0 to 62 % of each
+segment's pings (19 % on segment 4). Much of what the DVL's velocity differs from the reference's
 by does not turn with the vehicle: fitted as a constant in NED plus a constant in the DVL
 frame (``--evidence``), the NED part is 3 to 16 mm/s (8 to 16 on four segments; segment 5:
 7.9 N, 13.5 E, and it alone takes the rms from 13.0 to 7.3 mm/s, the DVL-frame part not at
