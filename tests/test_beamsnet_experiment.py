@@ -8,12 +8,14 @@ import json
 import math
 import os
 
+import h5py
 import pytest
 from conftest import flat, mission
 
 import beamsnet.training.runs
 from auvsim.config import DvlConfig
 from auvsim.data.reader import read_attrs
+from auvsim.errors import ConfigError
 from auvsim.runs.generate import config_sha256
 from beamsnet.experiments import runner
 from beamsnet.experiments.runner import (
@@ -79,6 +81,16 @@ def test_ensure_dataset_regenerates_a_file_made_from_another_config(tmp_path):
     with pytest.warns(StaleDatasetWarning, match="it is not a readable dataset"):
         ensure_dataset(dvl, path, progress=False)
     assert read_attrs(path)[0]["config_json"] == dvl.to_json()
+    # Another program's HDF5 file is not deleted: generate refuses it, as it refuses a
+    # user's other file.
+    foreign = tmp_path / "theirs.h5"
+    with h5py.File(foreign, "w") as f:
+        f["x"] = [1.0]
+    with pytest.warns(StaleDatasetWarning), pytest.raises(ConfigError, match="another "
+                                                          "program's"):
+        ensure_dataset(dvl, foreign, progress=False)
+    with h5py.File(foreign, "r") as f:
+        assert list(f["x"][:]) == [1.0]
 
 
 def test_ensure_dataset_regenerates_a_file_made_with_another_vehicle_model(tmp_path):

@@ -203,6 +203,33 @@ def test_the_imu_lever_arm_has_no_bias_from_the_attitude_between_samples(simulat
     assert np.all(np.abs(error) < 0.012), error
 
 
+def test_the_imu_lever_arm_fit_takes_the_earths_rate_out_of_the_gyros(tmp_path):
+    """A gyro on the rotating Earth reads the body's rate plus C^T Omega_ie; the fit's
+    attitude turns with the body's rate in NED. With an ideal IMU at 32.85 deg N, the
+    accelerometer bias it fits beside the lever arm is within 10 ug of none (its y was
+    35 ug with the Earth's rate left in the gyros)."""
+    from auvsim.sensors.imu import IMU_GRADES
+
+    mission_config = MissionConfig(name="zigzag", seed=3,
+                                   scenario=ScenarioConfig(name="zigzag", duration=300.0))
+    path = tmp_path / "ideal.h5"
+    generate(dataclasses.replace(preset("navigator"), imu=IMU_GRADES["ideal"],
+                                 missions=(mission_config,)), path, workers=1, progress=False)
+    with open_dataset(path) as ds:
+        m = ds.missions["zigzag"]
+        latitude = float(m.attrs["latitude_deg"])
+        ref = slice(0, None, 100)
+        log = Log(m.truth.time[ref] + 5, m.truth.velocity_ned[ref], m.truth.quaternion[ref],
+                  m.truth.position_ned[ref], m.imu.time + 5, m.imu.specific_force,
+                  m.imu.angular_rate, m.dvl.time + 5, m.dvl.velocity_ls,
+                  gravity=m.attrs["gravity"], latitude_deg=latitude)
+    assert latitude == pytest.approx(32.85, abs=0.01)
+    found = findings(check_arrays(log, "zigzag"))["imu lever arm"].value
+    micro_g = np.abs(found["accel_bias"]) / 9.80665e-6
+    assert np.all(micro_g < 10), micro_g
+    np.testing.assert_allclose(found["position_body_m"], IMU_POSITION, atol=0.012)
+
+
 @pytest.mark.parametrize("offset", [0.7, -1.3])
 def test_an_injected_depth_clock_offset_is_recovered_where_the_vehicle_dives(simulated,
                                                                               offset, tmp_path):
@@ -741,3 +768,9 @@ def test_a_clock_found_stretched_but_not_shifted_is_named_among_the_changes():
     assert said == ["onto the reference's clock: DVL +0.000 s and +400 ppm"], said
     report.corrections["dvl_rate_error"] = 0.0
     assert changes(before, dict(before), report) == []
+    # On the IMU's clock, an IMU that runs at its own rate rescales every other stream.
+    report = Report("m", corrections={"time_base": "imu", "imu_time_offset_s": 0.0,
+                                      "imu_rate_error": 400e-6, "dvl_time_offset_s": 0.0,
+                                      "dvl_rate_error": 0.0})
+    said = changes(before, dict(before), report)
+    assert said == ["onto the IMU's clock (it runs +400 ppm against the reference's)"], said

@@ -255,7 +255,11 @@ def export_pd0(dataset: str | os.PathLike, out: str | os.PathLike, *,
                               "PD0 file holds")
         pings = _pings(m)
     data = encode(pings, coordinates=coordinates)
-    make_parent_dirs(out.parent)  # removed again by a command that then fails
+    try:
+        make_parent_dirs(out.parent)  # removed again by a command that then fails
+    except OSError as e:
+        raise ConfigError(f"{str(out)!r}: cannot write there ({e.strerror or e}); expected "
+                          "a path in a writable folder", argument="out") from None
     write_bytes(out, data)
     return {"mission": mission, "ensembles": len(pings.time), "bytes": len(data),
             "coordinates": coordinates}

@@ -106,8 +106,8 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
     dataset's shards, recorded in ``MADE`` beside a file this function made; else, for a
     file made elsewhere, the SHA-256 of its stored config against that of
     ``config.to_json()``): a changed preset or an added manoeuvre regenerates it, and a
-    ``StaleDatasetWarning`` says why in one line; a file there that is no readable
-    dataset (a damaged cache) is replaced too, saying so. ``generate`` writes the file whole or
+    ``StaleDatasetWarning`` says why in one line; a file there that is not even HDF5 (a
+    damaged cache) is replaced too, saying so. ``generate`` writes the file whole or
     not at all, so an interrupted generation leaves nothing that a later run would take
     for a finished file.
     """
@@ -120,9 +120,12 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
             return path
         warnings.warn(f"{path}: {why}; generating it again", StaleDatasetWarning,
                       stacklevel=2)
-        if why.startswith(UNREADABLE) and path.is_file():
-            # This experiment's own cache, damaged or another file: ``generate`` keeps a
-            # user's other file from being replaced, and this one is not the user's.
+        if why.startswith(UNREADABLE) and _not_hdf5(path):
+            # This experiment's own cache, damaged before its HDF5 header was whole:
+            # ``generate`` keeps a file that is not HDF5 from being replaced, and this one
+            # is no one's. An HDF5 file is left to ``generate``: another program's is
+            # refused, and one that another process holds open (its lock reads as
+            # unreadable here) is never deleted from under it.
             path.unlink()
     generate(config, path, progress=progress, cluster=cluster)
     if path.is_file():
@@ -131,6 +134,16 @@ def ensure_dataset(config, path: str | os.PathLike, *, progress: bool = True,
 
 
 UNREADABLE = "it is not a readable dataset"  # what ``stale`` says of such a file
+
+
+def _not_hdf5(path: Path) -> bool:
+    """Whether ``path`` is a file that does not start as an HDF5 file does."""
+    from auvsim.data.writer import HDF5_SIGNATURE
+
+    if not path.is_file():
+        return False
+    with open(path, "rb") as f:
+        return f.read(len(HDF5_SIGNATURE)) != HDF5_SIGNATURE
 
 
 def stale(path: str | os.PathLike, config) -> str | None:
