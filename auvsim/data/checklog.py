@@ -68,7 +68,7 @@ from auvsim.data.schema import mission_attrs
 from auvsim.data.writer import DatasetWriter
 from auvsim.errors import ConfigError, DatasetError
 from auvsim.physics.earth import earth_rate_ned
-from auvsim.physics.frames import attitude_rates, rotation_matrices, skew
+from auvsim.physics.frames import attitude_rates, rot_into, rotation_matrices, skew
 from auvsim.sensors.dvl import NAVIGATOR_SLOW_ERROR_STD, NAVIGATOR_SLOW_ERROR_TIME
 
 try:
@@ -874,16 +874,20 @@ def grade(se: float, high: float, medium: float) -> str:
 
 
 @numba.njit(cache=True)
-def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray
-               ) -> np.ndarray:
+def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray,
+               omega_ie: np.ndarray) -> np.ndarray:
     """(N, 4) body -> NED attitude quaternions [w, x, y, z] at each IMU sample (times
-    ``t`` (N,), body rates ``w`` (N, 3) rad/s), propagated with the gyro from the
+    ``t`` (N,), gyro rates ``w`` (N, 3) rad/s), propagated with the gyro from the
     reference's at the latest reference time before the sample (``start`` (K,) times,
     ``q0`` (K, 4) quaternions); NaN before the first. The samples are instants, as
     ``cumulative``'s trapezoids take them: each step turns by the mean of the rate
     interpolated between the samples over it (a rate held over the step would leave the
-    attitude half a sample behind, a tilt of g dt/2 times the change of rate)."""
+    attitude half a sample behind, a tilt of g dt/2 times the change of rate), less the
+    Earth's rate ``omega_ie`` (3,) rad/s NED (zeros: none) at the step's first attitude:
+    the body's rate relative to NED."""
     out = np.full((len(t), 4), np.nan)
+    c = np.zeros((3, 3))
+    earth = omega_ie[0] != 0.0 or omega_ie[1] != 0.0 or omega_ie[2] != 0.0
     k = -1
     q = np.zeros(4)
     last = 0.0
@@ -901,6 +905,11 @@ def _propagate(q0: np.ndarray, start: np.ndarray, t: np.ndarray, w: np.ndarray
         mx = w[i, 0] + back * (w[i - 1, 0] - w[i, 0]) if back > 0 else w[i, 0]
         my = w[i, 1] + back * (w[i - 1, 1] - w[i, 1]) if back > 0 else w[i, 1]
         mz = w[i, 2] + back * (w[i - 1, 2] - w[i, 2]) if back > 0 else w[i, 2]
+        if earth:  # less C^T omega_ie
+            rot_into(q, c)
+            mx -= c[0, 0] * omega_ie[0] + c[1, 0] * omega_ie[1] + c[2, 0] * omega_ie[2]
+            my -= c[0, 1] * omega_ie[0] + c[1, 1] * omega_ie[1] + c[2, 1] * omega_ie[2]
+            mz -= c[0, 2] * omega_ie[0] + c[1, 2] * omega_ie[1] + c[2, 2] * omega_ie[2]
         rx, ry, rz = mx * h, my * h, mz * h
         angle = math.sqrt(rx * rx + ry * ry + rz * rz)
         if angle > 0:
@@ -947,10 +956,11 @@ def _lever_fit(log: Log, t: np.ndarray, f: np.ndarray, w: np.ndarray
     sel = (t_ref[:-1] >= t[0]) & (t_ref[1:] <= t[-1])
     k = np.flatnonzero(sel)
     a, b = t_ref[k], t_ref[k + 1]
-    c = rotation_matrices(_propagate(q, t_ref, t, w))  # (N, 3, 3), NaN before the first
-    if log.latitude_deg is not None:  # the gyro's rate in inertial space: the body's in NED
-        w = w - np.einsum("nji,j->ni", np.nan_to_num(c), earth_rate_ned(log.latitude_deg))
-        c = rotation_matrices(_propagate(q, t_ref, t, w))
+    # The gyros measure in inertial space; the attitude and the lever arm's terms turn
+    # with the body's rate relative to NED, the gyros' less the Earth's.
+    omega = np.zeros(3) if log.latitude_deg is None else earth_rate_ned(log.latitude_deg)
+    c = rotation_matrices(_propagate(q, t_ref, t, w, omega))  # (N, 3, 3), NaN before
+    w = w - np.einsum("nji,j->ni", np.nan_to_num(c), omega)
     dwdt = np.gradient(w, t, axis=0)
     # Each term rotated into NED with the propagated attitude: C f, and C A for the lever
     # arm's design A = [dw/dt]x + [w]x^2 and the bias's A = I.
