@@ -508,6 +508,13 @@ def test_ctrl_c_in_a_rerun_into_a_sharded_dataset_says_its_index_went(tmp_path, 
     assert not (out / "index.h5").exists()
 
 
+def python_c(code: str, *args: str, timeout: float = 120, **kwargs
+             ) -> subprocess.CompletedProcess:
+    """``python -c code args``, its output captured as text."""
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
+                          text=True, timeout=timeout, **kwargs)
+
+
 def test_ctrl_c_while_beamsnet_loads_is_one_line():
     """The beamsnet program loads torch and every estimator (some 2 s) inside exit_with's
     catch (``beamsnet.console``): a Ctrl-C then is one line and 130, not a traceback. The
@@ -519,8 +526,7 @@ def test_ctrl_c_while_beamsnet_loads_is_one_line():
             "sys.modules['beamsnet.cli'] = Loading('beamsnet.cli')\n"
             "from beamsnet.console import run\n"
             "run()\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120)
+    done = python_c(code)
     assert done.returncode == 130, done.stderr
     assert done.stderr == "beamsnet: interrupted; nothing was written\n"
 
@@ -538,8 +544,7 @@ def test_beamsnet_without_torch_runs_the_model_based_estimators(tmp_path):
             "run()\n")
 
     def beamsnet(*args: str) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
-                              text=True, timeout=300, cwd=tmp_path)
+        return python_c(code, *args, timeout=300, cwd=tmp_path)
 
     assert beamsnet("--help").returncode == 0
     listed = beamsnet("estimate", "--help").stdout
@@ -592,8 +597,7 @@ def test_python_api_without_torch_says_what_to_install():
             "    except ModuleNotFoundError as e:\n"
             "        assert e.name == 'torch', e\n"
             "        print(name, e)\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120)
+    done = python_c(code)
     assert done.returncode == 0, done.stderr
     lines = dict(line.split(" ", 1) for line in done.stdout.splitlines())
     assert {"train", "load", "predict"} <= set(lines), done.stdout
