@@ -1355,11 +1355,11 @@ def changes(before, after: dict, report: Report) -> list[str]:
         if key in before and (float(after[key]) != float(before[key]) or rate):
             clocks.append(f"{name} {float(after[key]) - float(before[key]):+.3f} s"
                           + (f" and {1e6 * rate:+.0f} ppm" if rate else ""))
-    rate = c.get("imu_rate_error", 0.0) if base == "IMU" else 0.0
-    if clocks or rate:  # an IMU time base that runs at its own rate rescales the others
+    base_rate = c.get("imu_rate_error", 0.0) if base == "IMU" else 0.0
+    if clocks or base_rate:  # an IMU time base at its own rate rescales the others
         said.append(f"onto the {base}'s clock"
-                    + (f" (it runs {1e6 * rate:+.0f} ppm against the reference's)" if rate
-                       else "") + (": " + ", ".join(clocks) if clocks else ""))
+                    + (f" (it runs {1e6 * base_rate:+.0f} ppm against the reference's)"
+                       if base_rate else "") + (": " + ", ".join(clocks) if clocks else ""))
     for key, words, unit in (("imu_position_body", "IMU at", "m"),
                              ("dvl_position_body", "DVL at", "m"),
                              ("dvl_mounting_rpy_deg", "DVL mounted", "deg")):
